@@ -1,0 +1,154 @@
+"""The ``legbench`` command. The only place that catches :class:`LegbenchError`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from legbench.exceptions import LegbenchError
+
+EXIT_USER_ERROR = 2
+
+
+def _floats(values: Sequence[float]) -> list[float]:
+    return [float(v) for v in values]
+
+
+# --------------------------------------------------------------------------- #
+# legbench model ...
+
+
+def _model_fk(args: argparse.Namespace) -> int:
+    from legbench import kinematics
+
+    ee = kinematics.fk(np.array(args.q))
+    if args.json:
+        print(json.dumps({"ee": _floats(ee)}))
+    else:
+        print(f"foot centre E in W [m]: x = {ee[0]:.6f}, y = {ee[1]:.6f}, z = {ee[2]:.6f}")
+    return 0
+
+
+def _model_ik(args: argparse.Namespace) -> int:
+    from legbench import kinematics
+
+    res = kinematics.ik(np.array(args.p))
+    if args.json:
+        out: dict[str, object] = {"solutions": [_floats(s) for s in res.solutions]}
+        if not res:
+            out["reason"] = res.reason
+        print(json.dumps(out))
+        return 0 if res else 1
+    if not res:
+        print(f"unreachable: {res.reason}")
+        return 1
+    for i, s in enumerate(res.solutions):
+        print(f"solution {i + 1}: q1 = {s[0]:+.6f}, q2 = {s[1]:+.6f}, q3 = {s[2]:+.6f} [rad]")
+    return 0
+
+
+def _model_gravity(args: argparse.Namespace) -> int:
+    from legbench import kinematics
+
+    tau = kinematics.gravity(np.array(args.q))
+    if args.json:
+        print(json.dumps({"tau": _floats(tau)}))
+    else:
+        print(f"gravity torque G(q) [N m]: {tau[0]:+.6f} {tau[1]:+.6f} {tau[2]:+.6f}")
+    return 0
+
+
+def _model_urdf(args: argparse.Namespace) -> int:
+    from legbench import model
+
+    path = model.write_urdf(model.load_params(args.params), args.out)
+    print(f"wrote {path}")
+    return 0
+
+
+def _model_calibrate(args: argparse.Namespace) -> int:
+    from legbench import model
+
+    scale = model.calibrate(model.load_raw(args.params))
+    print("mass scale factors that reproduce G(q*) (paste into calibration.scale of the parameter file):")
+    print("  scale: {" + ", ".join(f"{k}: {v:.8f}" for k, v in scale.items()) + "}")
+    return 0
+
+
+def _model_check(args: argparse.Namespace) -> int:
+    """Print the model's headline numbers against the spec's."""
+    from legbench import kinematics, model
+
+    p = model.load_params()
+    q_star = np.array(p.q_star)
+    G = kinematics.gravity(q_star)
+    ee = kinematics.fk(q_star)
+    print(f"FK(q*) = {np.round(ee, 5).tolist()} m (spec: [0.16669, -0.00001, 0.0225])")
+    print(f"G(q*)  = {np.round(G, 4).tolist()} N m (report: {list(p.G_star)})")
+    rel = np.abs(G - np.array(p.G_star)) / np.abs(np.array(p.G_star))
+    print(f"relative error per component: {np.round(100 * rel, 3).tolist()} %")
+    masses = {b: round(p.body_inertial(b).mass, 4) for b in model.LINK_NAMES}
+    print(f"moving masses [kg]: {masses}, total {sum(masses.values()):.4f}")
+    return 0 if np.all(rel < 0.05) else 1
+
+
+def _add_model(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    m = sub.add_parser("model", help="the leg model: kinematics, gravity, URDF generation")
+    msub = m.add_subparsers(dest="model_cmd", required=True)
+
+    def joint_cmd(name: str, fn: Callable[[argparse.Namespace], int], help_: str) -> None:
+        p = msub.add_parser(name, help=help_)
+        p.add_argument("q", nargs=3, type=float, metavar=("Q1", "Q2", "Q3"), help="joint angles [rad]")
+        p.add_argument("--json", action="store_true", help="print one JSON object")
+        p.set_defaults(func=fn)
+
+    joint_cmd("fk", _model_fk, "foot centre in W for joint angles")
+    joint_cmd("gravity", _model_gravity, "gravity torque G(q)")
+    p = msub.add_parser("ik", help="every joint solution for a foot-centre point in W")
+    p.add_argument("p", nargs=3, type=float, metavar=("X", "Y", "Z"), help="foot centre in W [m]")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_model_ik)
+    p = msub.add_parser("urdf", help="regenerate models/leg.urdf from the parameter file")
+    p.add_argument("--params", default=None, help="parameter file (default models/leg.yaml)")
+    p.add_argument("--out", default=None, help="output URDF (default models/leg.urdf)")
+    p.set_defaults(func=lambda a: _model_urdf(_with_defaults(a)))
+    p = msub.add_parser("calibrate", help="mass scale factors that reproduce the report's G(q*)")
+    p.add_argument("--params", default=None)
+    p.set_defaults(func=lambda a: _model_calibrate(_with_defaults(a)))
+    p = msub.add_parser("check", help="print FK(q*), G(q*) and masses against the spec")
+    p.set_defaults(func=_model_check)
+
+
+def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
+    from legbench import model
+
+    if getattr(args, "params", None) is None:
+        args.params = model.PARAMS_FILE
+    if hasattr(args, "out") and args.out is None:
+        args.out = model.URDF_FILE
+    return args
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="legbench", description=__doc__)
+    sub = parser.add_subparsers(dest="cmd", required=True)
+    _add_model(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except LegbenchError as exc:
+        print(f"legbench: error: {exc}", file=sys.stderr)
+        return EXIT_USER_ERROR
+
+
+if __name__ == "__main__":
+    sys.exit(main())

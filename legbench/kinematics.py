@@ -1,0 +1,231 @@
+"""Closed-form kinematics of the leg (LEG_SPEC.md sections 1 and 5).
+
+Every function takes joint angles ``q = (q1, q2, q3)`` [rad] and works on a
+single configuration of shape (3,) or a batch of shape (N, 3). Positions are
+of the foot centre E, in W [m], unless stated otherwise. The equations are the
+spec's; tests check them against Pinocchio on the generated URDF.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from legbench.exceptions import Unreachable
+from legbench.model import LegParams, gravity_torque, load_params
+
+#: Rotation W_R_0 of the base frame (frame 0 x is up, y0 = -x_W, z0 = -y_W).
+W_R_0 = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+
+_Z_W = np.array([0.0, 0.0, 1.0])
+
+
+def _params(params: LegParams | None) -> LegParams:
+    return params if params is not None else load_params()
+
+
+def angdist(q_from: np.ndarray | float, q_to: np.ndarray | float) -> np.ndarray:
+    """Shortest signed angle from ``q_from`` to ``q_to`` in [-pi, pi) [rad]."""
+    return np.mod(np.asarray(q_to) - np.asarray(q_from) + np.pi, 2.0 * np.pi) - np.pi
+
+
+def joint_error(q: np.ndarray, q_des: np.ndarray, params: LegParams | None = None) -> np.ndarray:
+    """Joint error q_des - q [rad]: angular distance on continuous joints, plain difference elsewhere.
+
+    A revolute joint's range may exceed pi (the knee spans 4.46 rad), so wrapping
+    it would drive it the wrong way round, through its limit.
+    """
+    p = _params(params)
+    diff = np.asarray(q_des, float) - np.asarray(q, float)
+    return np.where(p.continuous, angdist(q, q_des), diff)
+
+
+def fk0(q: np.ndarray, params: LegParams | None = None) -> np.ndarray:
+    """Foot centre in frame 0 [m]."""
+    g = _params(params).geometry
+    q = np.asarray(q, float)
+    q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
+    s1, c1 = np.sin(q1), np.cos(q1)
+    reach = g.L_23 * np.sin(q2) + g.L_3E * np.sin(q2 + q3)
+    x0 = g.L_12 * s1 + c1 * reach
+    y0 = -g.L_12 * c1 + s1 * reach
+    z0 = -g.L_01 - g.L_23 * np.cos(q2) - g.L_3E * np.cos(q2 + q3)
+    return np.stack([x0, y0, z0], axis=-1)
+
+
+def frame0_to_world(p0: np.ndarray, params: LegParams | None = None) -> np.ndarray:
+    """A point in frame 0 -> W [m]."""
+    g = _params(params).geometry
+    p0 = np.asarray(p0, float)
+    return np.stack([g.L_B0 - p0[..., 1], -p0[..., 2], p0[..., 0] + g.H], axis=-1)
+
+
+def world_to_frame0(pw: np.ndarray, params: LegParams | None = None) -> np.ndarray:
+    """A point in W -> frame 0: 0P = [z_W - H, L_B0 - x_W, -y_W] [m]."""
+    g = _params(params).geometry
+    pw = np.asarray(pw, float)
+    return np.stack([pw[..., 2] - g.H, g.L_B0 - pw[..., 0], -pw[..., 1]], axis=-1)
+
+
+def fk(q: np.ndarray, params: LegParams | None = None) -> np.ndarray:
+    """Foot centre E in W [m], shape (..., 3)."""
+    return frame0_to_world(fk0(q, params), params)
+
+
+def jacobian0(q: np.ndarray, params: LegParams | None = None) -> np.ndarray:
+    """Linear Jacobian of E in frame 0, shape (..., 3, 3) [m/rad]."""
+    g = _params(params).geometry
+    q = np.asarray(q, float)
+    q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
+    s1, c1 = np.sin(q1), np.cos(q1)
+    reach = g.L_23 * np.sin(q2) + g.L_3E * np.sin(q2 + q3)
+    dreach2 = g.L_23 * np.cos(q2) + g.L_3E * np.cos(q2 + q3)
+    dreach3 = g.L_3E * np.cos(q2 + q3)
+    zero = np.zeros_like(q1)
+    J = np.stack(
+        [
+            np.stack([g.L_12 * c1 - s1 * reach, c1 * dreach2, c1 * dreach3], axis=-1),
+            np.stack([g.L_12 * s1 + c1 * reach, s1 * dreach2, s1 * dreach3], axis=-1),
+            np.stack([zero, g.L_23 * np.sin(q2) + g.L_3E * np.sin(q2 + q3), g.L_3E * np.sin(q2 + q3)], axis=-1),
+        ],
+        axis=-2,
+    )
+    return J
+
+
+def jacobian(q: np.ndarray, params: LegParams | None = None) -> np.ndarray:
+    """Linear geometric Jacobian of the foot centre E in W, Jv(q): v_E = Jv qd [m/rad]."""
+    return W_R_0 @ jacobian0(q, params)
+
+
+def angular_jacobian(q: np.ndarray) -> np.ndarray:
+    """Angular Jacobian of the shank (link 3) in W: omega = Jw qd [1]."""
+    q = np.asarray(q, float)
+    s1, c1 = np.sin(q[..., 0]), np.cos(q[..., 0])
+    one, zero = np.ones_like(s1), np.zeros_like(s1)
+    z1 = np.stack([zero, zero, one], axis=-1)
+    z2 = np.stack([s1, -c1, zero], axis=-1)
+    J0 = np.stack([z1, z2, z2], axis=-1)  # columns are the joint axes in frame 0
+    return W_R_0 @ J0
+
+
+def poc_offset(params: LegParams | None = None) -> np.ndarray:
+    """Vector from E to the true point of contact (the sphere's lowest point) in W [m]."""
+    return -_params(params).geometry.R_foot * _Z_W
+
+
+def jacobian_poc(q: np.ndarray, params: LegParams | None = None, true_poc: bool = True) -> np.ndarray:
+    """Linear Jacobian of the point of contact in W [m/rad].
+
+    With ``true_poc`` the poc is the foot sphere's lowest point, a material
+    point of the shank at r = -R_foot z_W from E, so v_poc = v_E + omega x r.
+    Without it, the poc is the sphere centre (the report's simplification).
+    """
+    Jv = jacobian(q, params)
+    if not true_poc:
+        return Jv
+    r = poc_offset(params)
+    r_cross = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    return Jv - r_cross @ angular_jacobian(q)
+
+
+def is_singular(q: np.ndarray, params: LegParams | None = None, tol: float = 1e-6) -> np.ndarray:
+    """True where the Jacobian loses rank: straight knee (s3 = 0) or E on the ab/ad axis.
+
+    The second condition is L23 s2 + L3E s23 = 0 (spec section 5).
+    """
+    g = _params(params).geometry
+    q = np.asarray(q, float)
+    s3 = np.sin(q[..., 2])
+    reach = g.L_23 * np.sin(q[..., 1]) + g.L_3E * np.sin(q[..., 1] + q[..., 2])
+    return (np.abs(s3) < tol) | (np.abs(reach) < tol * (g.L_23 + g.L_3E))
+
+
+@dataclass(frozen=True)
+class IKResult:
+    """All joint solutions for one point, with the reason when there are none."""
+
+    solutions: np.ndarray  # (k, 3) [rad], k in 0..4
+    reason: str = ""
+
+    def __bool__(self) -> bool:
+        return len(self.solutions) > 0
+
+
+def ik(p_w: np.ndarray, params: LegParams | None = None, tol: float = 1e-9) -> IKResult:
+    """Closed-form inverse kinematics of the foot centre E at ``p_w`` in W [m].
+
+    Returns every solution inside the joint limits (up to four: two ab/ad roots
+    times knee up/down), hip angle wrapped to [-pi, pi). ``reason`` says why a
+    point has none.
+    """
+    p = _params(params)
+    g = p.geometry
+    x, y, z = world_to_frame0(np.asarray(p_w, float), p)
+    rxy = math.hypot(x, y)
+    if rxy < g.L_12 - tol:
+        return IKResult(np.empty((0, 3)), f"point is {rxy:.4f} m from the ab/ad axis, closer than L_12 = {g.L_12} m")
+    phi = math.atan2(y, x)
+    a = math.asin(min(1.0, g.L_12 / rxy)) if rxy > 0 else math.pi / 2
+    q1_candidates = {_wrap(phi + a), _wrap(phi + math.pi - a)}
+    lo, hi = p.lower, p.upper
+    r2_min = g.L_23**2 + g.L_3E**2 + 2 * g.L_23 * g.L_3E * math.cos(hi[2])
+    r2_max = (g.L_23 + g.L_3E) ** 2
+    sols: list[list[float]] = []
+    reasons: list[str] = []
+    for q1 in sorted(q1_candidates):
+        if not lo[0] - tol <= q1 <= hi[0] + tol:
+            reasons.append(f"ab/ad angle {q1:.4f} rad outside [{lo[0]:.4f}, {hi[0]:.4f}]")
+            continue
+        s1, c1 = math.sin(q1), math.cos(q1)
+        K1 = x * c1 + y * s1
+        K2 = -z - g.L_01
+        r2 = K1 * K1 + K2 * K2
+        if r2 > r2_max * (1 + tol) or r2 < r2_min * (1 - tol):
+            reasons.append(
+                f"distance {math.sqrt(r2):.4f} m from the hip axis outside the workspace "
+                f"[{math.sqrt(max(r2_min, 0)):.4f}, {math.sqrt(r2_max):.4f}] m"
+            )
+            continue
+        c3 = min(1.0, max(-1.0, (r2 - g.L_23**2 - g.L_3E**2) / (2 * g.L_23 * g.L_3E)))
+        s3_abs = math.sqrt(max(0.0, 1.0 - c3 * c3))
+        for s3 in {s3_abs, -s3_abs}:
+            q3 = math.atan2(s3, c3)
+            if not lo[2] - tol <= q3 <= hi[2] + tol:
+                reasons.append(f"knee angle {q3:.4f} rad outside [{lo[2]:.4f}, {hi[2]:.4f}]")
+                continue
+            A = np.array([[g.L_3E * s3, g.L_3E * c3 + g.L_23], [g.L_3E * c3 + g.L_23, -g.L_3E * s3]])
+            c2, s2 = np.linalg.solve(A, [K1, K2])
+            q2 = math.atan2(s2, c2)
+            sols.append([min(max(q1, lo[0]), hi[0]), q2, min(max(q3, lo[2]), hi[2])])
+    if not sols:
+        return IKResult(np.empty((0, 3)), "; ".join(dict.fromkeys(reasons)) or "no solution")
+    return IKResult(np.array(sols))
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def nearest(solutions: np.ndarray, q_ref: np.ndarray, params: LegParams | None = None) -> np.ndarray:
+    """The solution nearest ``q_ref`` by joint error norm, unwrapped so it is continuous with ``q_ref``."""
+    if len(solutions) == 0:
+        raise Unreachable("no inverse-kinematics solution to choose from")
+    err = joint_error(np.asarray(q_ref)[None, :], solutions, params)
+    best = int(np.argmin(np.linalg.norm(err, axis=1)))
+    return np.asarray(q_ref, float) + err[best]
+
+
+def ik_nearest(p_w: np.ndarray, q_ref: np.ndarray, params: LegParams | None = None) -> np.ndarray:
+    """IK solution nearest ``q_ref`` [rad]; raises :class:`Unreachable` with the reason."""
+    res = ik(p_w, params)
+    if not res:
+        raise Unreachable(f"W point {np.round(np.asarray(p_w, float), 5).tolist()} is unreachable: {res.reason}")
+    return nearest(res.solutions, q_ref, params)
+
+
+def gravity(q: np.ndarray) -> np.ndarray:
+    """Gravity torque G(q) [N m] through Pinocchio on the generated URDF."""
+    return gravity_torque(np.asarray(q, float))

@@ -1,0 +1,502 @@
+"""The leg model: parameter file -> mass properties -> URDF -> Pinocchio model.
+
+``models/leg.yaml`` is the one source of truth. This module reads it into frozen
+dataclasses, composes each link's inertia from the CAD primitives (scaled by the
+calibration factors), writes ``models/leg.urdf`` and builds the Pinocchio model
+that :mod:`legbench.kinematics` uses for G(q).
+
+Frames: W is the world (z up, ground z = 0); link frames are the modified-DH
+frames of LEG_SPEC.md section 1, so the URDF child frame of joint i *is* DH
+frame i and the foot frame is E (the foot-sphere centre).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from scipy import integrate
+
+from legbench.exceptions import ModelError
+
+ROOT = Path(__file__).resolve().parent.parent
+MODELS_DIR = ROOT / "models"
+PARAMS_FILE = MODELS_DIR / "leg.yaml"
+URDF_FILE = MODELS_DIR / "leg.urdf"
+
+JOINT_NAMES = ("q1_abad", "q2_hip", "q3_knee")
+LINK_NAMES = ("link1", "link2", "link3")
+BODY_NAMES = ("base", "link1", "link2", "link3", "foot")
+FOOT_FRAME = "foot"
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """Lengths of LEG_SPEC.md table 1 [m]."""
+
+    H: float
+    L_B0: float
+    L_01: float
+    L_12: float
+    L_23: float
+    L_3E: float
+    R_foot: float
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One actuated joint with its joint-side limits."""
+
+    name: str
+    type: str  # "revolute" or "continuous"
+    lower: float  # [rad], -inf for continuous
+    upper: float  # [rad], +inf for continuous
+    reduction: float
+    effort: float  # torque limit [N m]
+    velocity: float  # speed limit [rad/s]
+
+
+@dataclass(frozen=True)
+class Inertial:
+    """Mass properties of one body in its link frame (URDF convention I_xy = -sum x y dm)."""
+
+    mass: float  # [kg]
+    com: tuple[float, float, float]  # [m] in the link frame
+    inertia: tuple[tuple[float, float, float], ...]  # 3x3 about the COM [kg m^2]
+
+    @property
+    def I(self) -> np.ndarray:  # noqa: E743 - spec name
+        return np.array(self.inertia)
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Ground contact law parameters (LEG_SPEC.md section 4)."""
+
+    Kp: float  # [N/m]
+    Kd: float  # [N s/m]
+    mu_s: float
+    mu_k: float
+    v_th: float  # [m/s]
+    restitution: float = 0.0
+    torsional_friction: float = 0.0
+
+
+@dataclass(frozen=True)
+class LegParams:
+    """Everything the parameter file holds, resolved to numbers."""
+
+    geometry: Geometry
+    joints: tuple[Joint, ...]
+    inertials: dict[str, Inertial] = field(hash=False)
+    collision: dict[str, dict[str, Any]] = field(hash=False)
+    contact: Contact
+    q_star: tuple[float, float, float]
+    G_star: tuple[float, float, float]
+    gravity: float
+    scale: dict[str, float] = field(hash=False)
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Joint position lower limits [rad] (-inf for the continuous hip)."""
+        return np.array([j.lower for j in self.joints])
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Joint position upper limits [rad] (+inf for the continuous hip)."""
+        return np.array([j.upper for j in self.joints])
+
+    @property
+    def effort(self) -> np.ndarray:
+        """Joint torque limits [N m]."""
+        return np.array([j.effort for j in self.joints])
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """Joint speed limits [rad/s]."""
+        return np.array([j.velocity for j in self.joints])
+
+    @property
+    def continuous(self) -> np.ndarray:
+        """Mask of continuous joints."""
+        return np.array([j.type == "continuous" for j in self.joints])
+
+    def body_inertial(self, body: str) -> Inertial:
+        """Composite mass properties of a moving body: link3 includes the foot."""
+        if body != "link3":
+            return self.inertials[body]
+        L3E = self.geometry.L_3E
+        foot = self.inertials["foot"]
+        shifted = Inertial(foot.mass, (foot.com[0] + L3E, foot.com[1], foot.com[2]), foot.inertia)
+        return combine([self.inertials["link3"], shifted])
+
+
+# --------------------------------------------------------------------------- #
+# Mass properties of primitives
+
+
+def _axis_index(axis: str) -> int:
+    return "xyz".index(axis)
+
+
+def _cylinder_inertia(m: float, r_out: float, r_in: float, length: float, axis: str) -> np.ndarray:
+    """Hollow cylinder about its centre [kg m^2]."""
+    i_axial = 0.5 * m * (r_out**2 + r_in**2)
+    i_trans = m * (3 * (r_out**2 + r_in**2) + length**2) / 12.0
+    diag = [i_trans] * 3
+    diag[_axis_index(axis)] = i_axial
+    return np.diag(diag)
+
+
+def _holed_sphere(rho: float, R: float, r: float, axis: str) -> tuple[float, np.ndarray]:
+    """Mass and central inertia of a sphere of radius R with a coaxial hole of radius r."""
+    h = math.sqrt(R * R - r * r)
+
+    def ring(fn: Any) -> float:
+        # integrate fn(rho_sq_outer, z) over the ring r <= s <= sqrt(R^2 - z^2)
+        return float(integrate.quad(fn, -h, h, epsabs=1e-16, epsrel=1e-12)[0])
+
+    mass = rho * ring(lambda z: math.pi * ((R * R - z * z) - r * r))
+    # I_axis = int s^2 dm = rho int 2 pi ((R^2-z^2)^2 - r^4)/4 dz
+    i_axis = rho * ring(lambda z: 0.5 * math.pi * ((R * R - z * z) ** 2 - r**4))
+    # int z^2 dm
+    z2 = rho * ring(lambda z: z * z * math.pi * ((R * R - z * z) - r * r))
+    i_trans = 0.5 * i_axis + z2
+    diag = [i_trans] * 3
+    diag[_axis_index(axis)] = i_axis
+    return mass, np.diag(diag)
+
+
+def part_inertial(part: dict[str, Any], density: float) -> Inertial:
+    """Mass properties of one CAD primitive of the parameter file."""
+    shape = part["shape"]
+    if shape == "box":
+        sx, sy, sz = part["size"]
+        m = density * sx * sy * sz
+        I = np.diag([m * (sy**2 + sz**2), m * (sx**2 + sz**2), m * (sx**2 + sy**2)]) / 12.0
+    elif shape in ("tube", "cylinder"):
+        r_out = part["r_out"] if shape == "tube" else part["r"]
+        r_in = part["r_in"] if shape == "tube" else 0.0
+        m = density * math.pi * (r_out**2 - r_in**2) * part["length"]
+        I = _cylinder_inertia(m, r_out, r_in, part["length"], part["axis"])
+    elif shape == "sphere":
+        m, I = _holed_sphere(density, part["r"], part.get("hole_r", 0.0), part.get("axis", "z"))
+    else:
+        raise ModelError(f"{PARAMS_FILE}: part '{part.get('name')}': unknown shape '{shape}'")
+    pos = tuple(float(v) for v in part["pos"])
+    return Inertial(m, pos, tuple(map(tuple, I)))  # type: ignore[arg-type]
+
+
+def combine(parts: list[Inertial]) -> Inertial:
+    """Composite of several bodies in one frame (parallel-axis theorem)."""
+    m = sum(p.mass for p in parts)
+    c = sum(p.mass * np.array(p.com) for p in parts) / m
+    I = np.zeros((3, 3))
+    for p in parts:
+        d = np.array(p.com) - c
+        I += p.I + p.mass * (d @ d * np.eye(3) - np.outer(d, d))
+    return Inertial(float(m), tuple(c.tolist()), tuple(map(tuple, I.tolist())))  # type: ignore[arg-type]
+
+
+def scaled(inertial: Inertial, k: float) -> Inertial:
+    """Same COM, mass and inertia times k (uniform density change)."""
+    return Inertial(inertial.mass * k, inertial.com, tuple(tuple(k * v for v in row) for row in inertial.inertia))
+
+
+def cad_estimate(raw: dict[str, Any]) -> dict[str, Inertial]:
+    """Unscaled mass properties per URDF link from the CAD primitives."""
+    out = {}
+    for link, spec in raw["links"].items():
+        parts = [part_inertial(p, raw["materials"][p["material"]]) for p in spec["parts"]]
+        out[link] = combine(parts)
+    return out
+
+
+# --------------------------------------------------------------------------- #
+# Loading
+
+
+def load_raw(path: Path | str = PARAMS_FILE) -> dict[str, Any]:
+    """The parameter file as a dict."""
+    path = Path(path)
+    try:
+        raw = yaml.safe_load(path.read_text())
+    except FileNotFoundError as exc:
+        raise ModelError(f"{path}: no such parameter file") from exc
+    except yaml.YAMLError as exc:
+        raise ModelError(f"{path}: malformed YAML: {exc}") from exc
+    if not isinstance(raw, dict):
+        raise ModelError(f"{path}: expected a mapping at the top level")
+    return raw
+
+
+def params_from_raw(raw: dict[str, Any], path: Path | str = PARAMS_FILE) -> LegParams:
+    """Resolve a raw parameter dict to :class:`LegParams`."""
+    try:
+        geom = Geometry(**{k: float(v) for k, v in raw["geometry"].items()})
+        joints = []
+        for j in raw["joints"]:
+            cont = j["type"] == "continuous"
+            joints.append(
+                Joint(
+                    name=j["name"],
+                    type=j["type"],
+                    lower=-math.inf if cont else float(j["lower"]),
+                    upper=math.inf if cont else float(j["upper"]),
+                    reduction=float(j["reduction"]),
+                    effort=float(j["effort"]),
+                    velocity=float(j["velocity"]),
+                )
+            )
+        cal = raw["calibration"]
+        scale = {k: float(v) for k, v in cal["scale"].items()}
+        est = cad_estimate(raw)
+        inertials = {
+            name: scaled(inr, scale["link3" if name == "foot" else name]) for name, inr in est.items()
+        }
+        contact = Contact(**{k: float(v) for k, v in raw["contact"].items()})
+        return LegParams(
+            geometry=geom,
+            joints=tuple(joints),
+            inertials=inertials,
+            collision=raw["collision"],
+            contact=contact,
+            q_star=tuple(cal["q_star"]),  # type: ignore[arg-type]
+            G_star=tuple(cal["G_star"]),  # type: ignore[arg-type]
+            gravity=float(cal["gravity"]),
+            scale=scale,
+        )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ModelError(f"{path}: missing or malformed entry: {exc}") from exc
+
+
+@functools.cache
+def load_params(path: Path | str = PARAMS_FILE) -> LegParams:
+    """The leg's parameters (cached per path)."""
+    return params_from_raw(load_raw(path), path)
+
+
+# --------------------------------------------------------------------------- #
+# URDF
+
+
+def _rx(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _rz(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def W_T_0(geom: Geometry) -> np.ndarray:
+    """Pose of the fixed base frame 0 in W (LEG_SPEC.md section 1)."""
+    return np.array([[0, -1, 0, geom.L_B0], [0, 0, -1, 0], [1, 0, 0, geom.H], [0, 0, 0, 1]], dtype=float)
+
+
+def _rpy(R: np.ndarray) -> tuple[float, float, float]:
+    """URDF roll-pitch-yaw with R = Rz(y) Ry(p) Rx(r)."""
+    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
+    if abs(math.cos(pitch)) < 1e-12:
+        return math.atan2(-R[1, 2], R[1, 1]), pitch, 0.0
+    return math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])
+
+
+def joint_origins(geom: Geometry) -> dict[str, np.ndarray]:
+    """Fixed part of each URDF joint (parent frame -> child DH frame at q = 0)."""
+
+    def T(R: np.ndarray, p: list[float] | np.ndarray) -> np.ndarray:
+        out = np.eye(4)
+        out[:3, :3] = R
+        out[:3, 3] = p
+        return out
+
+    base = W_T_0(geom) @ T(np.eye(3), [0, 0, -geom.L_01])  # alpha0 = 0, a0 = 0, d1 = -L01
+    hip = T(_rx(math.pi / 2) @ _rz(-math.pi / 2), _rx(math.pi / 2) @ np.array([0, 0, geom.L_12]))
+    knee = T(np.eye(3), [geom.L_23, 0, 0])
+    foot = T(np.eye(3), [geom.L_3E, 0, 0])
+    return {"q1_abad": base, "q2_hip": hip, "q3_knee": knee, "foot_joint": foot}
+
+
+def _fmt(v: float) -> str:
+    return f"{v:.12g}"
+
+
+def _vec(v: Any) -> str:
+    return " ".join(_fmt(float(x)) for x in v)
+
+
+def _origin(T: np.ndarray) -> str:
+    return f'<origin xyz="{_vec(T[:3, 3])}" rpy="{_vec(_rpy(T[:3, :3]))}"/>'
+
+
+def _geometry_xml(shape: dict[str, Any]) -> tuple[str, np.ndarray]:
+    """URDF <geometry> of a collision primitive and its pose in the link frame."""
+    T = np.eye(4)
+    T[:3, 3] = shape.get("pos", [0.0, 0.0, 0.0])
+    if shape["shape"] == "sphere":
+        return f'<sphere radius="{_fmt(shape["r"])}"/>', T
+    if shape["shape"] == "cylinder":  # URDF cylinders lie along z
+        axis = shape["axis"]
+        if axis == "x":
+            T[:3, :3] = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]])
+        elif axis == "y":
+            T[:3, :3] = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]])
+        return f'<cylinder radius="{_fmt(shape["r"])}" length="{_fmt(shape["length"])}"/>', T
+    raise ModelError(f"{PARAMS_FILE}: collision: unknown shape '{shape['shape']}'")
+
+
+def _inertial_xml(inr: Inertial) -> str:
+    I = inr.I
+    return (
+        f'    <inertial>\n      <origin xyz="{_vec(inr.com)}" rpy="0 0 0"/>\n'
+        f'      <mass value="{_fmt(inr.mass)}"/>\n'
+        f'      <inertia ixx="{_fmt(I[0, 0])}" ixy="{_fmt(I[0, 1])}" ixz="{_fmt(I[0, 2])}" '
+        f'iyy="{_fmt(I[1, 1])}" iyz="{_fmt(I[1, 2])}" izz="{_fmt(I[2, 2])}"/>\n    </inertial>\n'
+    )
+
+
+def urdf_text(params: LegParams) -> str:
+    """The URDF of the leg, generated from the parameters.
+
+    Inertia products follow the URDF convention (ixy = -integral(x y dm), the
+    entry of the inertia tensor); CAD printouts use the opposite sign.
+    """
+    geom = params.geometry
+    origins = joint_origins(geom)
+    lines = [
+        '<?xml version="1.0"?>',
+        "<!-- Generated by `legbench model urdf` from models/leg.yaml. Do not edit. -->",
+        '<robot name="legbench_leg">',
+        "  <mujoco>",
+        '    <compiler angle="radian" discardvisual="false" fusestatic="false" balanceinertia="false"/>',
+        "  </mujoco>",
+        '  <link name="base">',
+        _inertial_xml(Inertial(1.0, (0.0, 0.0, geom.H), ((1e-3, 0, 0), (0, 1e-3, 0), (0, 0, 1e-3)))).rstrip(),
+        "  </link>",
+    ]
+    parents = ["base", "link1", "link2"]
+    for joint, parent, child in zip(params.joints, parents, LINK_NAMES, strict=True):
+        lim = ""
+        if joint.type == "continuous":
+            lim = f'<limit effort="{_fmt(joint.effort)}" velocity="{_fmt(joint.velocity)}"/>'
+        else:
+            lim = (
+                f'<limit lower="{_fmt(joint.lower)}" upper="{_fmt(joint.upper)}" '
+                f'effort="{_fmt(joint.effort)}" velocity="{_fmt(joint.velocity)}"/>'
+            )
+        lines += [
+            f'  <joint name="{joint.name}" type="{joint.type}">',
+            f'    <parent link="{parent}"/>',
+            f'    <child link="{child}"/>',
+            f"    {_origin(origins[joint.name])}",
+            '    <axis xyz="0 0 1"/>',
+            f"    {lim}",
+            '    <dynamics damping="0" friction="0"/>',
+            "  </joint>",
+        ]
+        lines.append(f'  <link name="{child}">')
+        lines.append(_inertial_xml(params.inertials[child]).rstrip())
+        if child in params.collision:
+            geo, T = _geometry_xml(params.collision[child])
+            lines.append(f"    <collision>\n      {_origin(T)}\n      <geometry>{geo}</geometry>\n    </collision>")
+        lines.append("  </link>")
+    geo, T = _geometry_xml(params.collision["foot"])
+    lines += [
+        '  <joint name="foot_joint" type="fixed">',
+        '    <parent link="link3"/>',
+        '    <child link="foot"/>',
+        f"    {_origin(origins['foot_joint'])}",
+        "  </joint>",
+        '  <link name="foot">',
+        _inertial_xml(params.inertials["foot"]).rstrip(),
+        f"    <collision>\n      {_origin(T)}\n      <geometry>{geo}</geometry>\n    </collision>",
+        "  </link>",
+        "</robot>",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_urdf(params: LegParams | None = None, path: Path | str = URDF_FILE) -> Path:
+    """Write the generated URDF (atomically) and return its path."""
+    params = params or load_params()
+    path = Path(path)
+    tmp = path.with_suffix(".urdf.tmp")
+    tmp.write_text(urdf_text(params))
+    tmp.replace(path)
+    return path
+
+
+# --------------------------------------------------------------------------- #
+# Pinocchio
+
+
+@functools.cache
+def pinocchio_model(urdf: str | None = None, gravity: float | None = None) -> Any:
+    """Pinocchio model of the URDF (fixed base; gravity -g z_W) [cached]."""
+    import pinocchio as pin
+
+    path = str(urdf or URDF_FILE)
+    if not Path(path).exists():
+        raise ModelError(f"{path}: URDF not found; run `legbench model urdf`")
+    model = pin.buildModelFromUrdf(path)
+    g = load_params().gravity if gravity is None else gravity
+    model.gravity.linear = np.array([0.0, 0.0, -g])
+    return model
+
+
+def q_to_pin(q: np.ndarray) -> np.ndarray:
+    """Joint angles [rad] (3,) -> Pinocchio configuration (nq = 4: the hip is (cos, sin))."""
+    return np.array([q[0], math.cos(q[1]), math.sin(q[1]), q[2]])
+
+
+def q_from_pin(qp: np.ndarray) -> np.ndarray:
+    """Pinocchio configuration -> joint angles [rad] (3,)."""
+    return np.array([qp[0], math.atan2(qp[2], qp[1]), qp[3]])
+
+
+def calibrate(raw: dict[str, Any] | None = None) -> dict[str, float]:
+    """Scale factors per link that make G(q*) match the report's figure.
+
+    G is linear in the link masses when each link's COM is held, and the chain
+    makes the 3x3 system triangular (link 1 moves only G1, link 2 G1 and G2),
+    so one solve gives the factors exactly.
+    """
+    import tempfile
+
+    raw = raw or load_raw()
+    base = dict(raw)
+    A = np.zeros((3, 3))
+    with tempfile.TemporaryDirectory() as tmp:
+        for col, link in enumerate(LINK_NAMES):
+            cal = dict(raw["calibration"])
+            cal["scale"] = {n: (1.0 if n == link else 0.0) for n in LINK_NAMES}
+            base["calibration"] = cal
+            p = params_from_raw(base)
+            # zero-mass links are replaced by a negligible mass so the URDF stays loadable
+            inertials = {
+                k: (v if v.mass > 0 else Inertial(1e-12, v.com, ((1e-15, 0, 0), (0, 1e-15, 0), (0, 0, 1e-15))))
+                for k, v in p.inertials.items()
+            }
+            p = replace(p, inertials=inertials)
+            path = Path(tmp) / f"{link}.urdf"
+            write_urdf(p, path)
+            A[:, col] = gravity_torque(np.array(p.q_star), urdf=str(path))
+    k = np.linalg.solve(A, np.array(raw["calibration"]["G_star"]))
+    return dict(zip(LINK_NAMES, k.tolist(), strict=True))
+
+
+def gravity_torque(q: np.ndarray, urdf: str | None = None) -> np.ndarray:
+    """G(q) [N m]: joint torques that hold the leg still against gravity."""
+    import pinocchio as pin
+
+    model = pinocchio_model(urdf)
+    data = model.createData()
+    return np.array(pin.computeGeneralizedGravity(model, data, q_to_pin(np.asarray(q, float))))

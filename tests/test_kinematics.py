@@ -1,0 +1,166 @@
+"""Kinematics of the leg against the spec's numbers, Pinocchio and finite differences."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from legbench import kinematics as K
+from legbench import model
+
+Q_STAR = np.array([-0.0025, -1.1899, -1.2599])
+RNG_SEED = 20261121
+
+
+def random_q(n: int, seed: int = RNG_SEED) -> np.ndarray:
+    p = model.load_params()
+    rng = np.random.default_rng(seed)
+    lo = np.where(np.isfinite(p.lower), p.lower, -np.pi)
+    hi = np.where(np.isfinite(p.upper), p.upper, np.pi)
+    return rng.uniform(lo, hi, size=(n, 3))
+
+
+def test_fk_of_q_star_puts_the_foot_centre_one_radius_above_ground() -> None:
+    """Spec section 1/3: FK(q*) = W (0.16669, -0.00001, 0.02250) within 1e-5 m."""
+    np.testing.assert_allclose(K.fk(Q_STAR), [0.16669, -0.00001, 0.02250], atol=1e-5)
+
+
+def test_fk_of_zero_is_the_horizontal_leg() -> None:
+    """q = 0 is the leg fully extended: W (0.16763, 0.55373, 0.400), exact to rounding."""
+    np.testing.assert_allclose(K.fk(np.zeros(3)), [0.16763, 0.55373, 0.400], atol=1e-12)
+
+
+def test_fk_matches_pinocchio_on_the_generated_urdf() -> None:
+    """Hand-written FK and the URDF cannot drift apart: 1e-9 m at 500 random poses."""
+    m = model.pinocchio_model()
+    d = m.createData()
+    fid = m.getFrameId(model.FOOT_FRAME)
+    qs = random_q(500)
+    ours = K.fk(qs)
+    for q, p in zip(qs, ours, strict=True):
+        pin.framesForwardKinematics(m, d, model.q_to_pin(q))
+        np.testing.assert_allclose(d.oMf[fid].translation, p, atol=1e-9)
+
+
+def test_batch_fk_equals_single_fk() -> None:
+    qs = random_q(20)
+    np.testing.assert_allclose(K.fk(qs), np.array([K.fk(q) for q in qs]), atol=0)
+
+
+def test_ik_round_trip_on_thousands_of_reachable_points() -> None:
+    """Every returned solution maps back within 1e-9 m, respects the limits, and the
+    configuration that generated the point is among the solutions (1e-7 rad)."""
+    p = model.load_params()
+    qs = random_q(3000)
+    pts = K.fk(qs)
+    for q, pt in zip(qs, pts, strict=True):
+        res = K.ik(pt)
+        assert res, res.reason
+        np.testing.assert_allclose(K.fk(res.solutions), np.broadcast_to(pt, res.solutions.shape), atol=1e-9)
+        assert np.all(res.solutions >= np.where(np.isfinite(p.lower), p.lower, -np.inf))
+        assert np.all(res.solutions <= np.where(np.isfinite(p.upper), p.upper, np.inf))
+        assert np.all(np.abs(res.solutions[:, 1]) <= np.pi)
+        err = np.abs(K.joint_error(q[None, :], res.solutions)).max(axis=1)
+        assert err.min() < 1e-7
+
+
+def test_ik_of_the_standing_point_lists_q_star() -> None:
+    res = K.ik([0.1667, 0.0, 0.0225])
+    assert np.abs(res.solutions - Q_STAR).max(axis=1).min() < 2e-3
+
+
+@pytest.mark.parametrize(
+    ("point", "why"),
+    [
+        ([2.0, 0.0, 0.4], "workspace"),  # far beyond full extension
+        ([0.1667, 0.0, 0.50], "workspace"),  # too close to the hip axis for the knee limit
+        ([0.0555, 0.0, 0.40], "ab/ad axis"),  # on the ab/ad axis, closer than L_12
+    ],
+)
+def test_unreachable_points_return_no_solution_and_a_reason(point: list[float], why: str) -> None:
+    res = K.ik(point)
+    assert not res
+    assert len(res.solutions) == 0
+    assert why in res.reason
+
+
+def test_random_points_outside_the_workspace_have_no_solution() -> None:
+    """Points beyond L23 + L3E + |offsets| from the hip are unreachable; IK must say so."""
+    rng = np.random.default_rng(RNG_SEED)
+    g = model.load_params().geometry
+    centre = np.array([g.L_B0, 0.0, g.H])
+    reach = np.hypot(g.L_01, g.L_12) + g.L_23 + g.L_3E
+    for _ in range(500):
+        d = rng.normal(size=3)
+        pt = centre + d / np.linalg.norm(d) * reach * rng.uniform(1.01, 3.0)
+        assert not K.ik(pt)
+
+
+def test_jacobian_is_the_derivative_of_fk() -> None:
+    """Central differences, h = 1e-6 rad: truncation error ~ h^2 * 0.5 m = 5e-13, tolerance 1e-8."""
+    h = 1e-6
+    for q in random_q(200):
+        J = K.jacobian(q)
+        fd = np.stack([(K.fk(q + h * e) - K.fk(q - h * e)) / (2 * h) for e in np.eye(3)], axis=1)
+        np.testing.assert_allclose(J, fd, atol=1e-8)
+
+
+def test_poc_jacobian_matches_pinocchio_point_velocity() -> None:
+    """The true poc is a material point at -R_foot z_W from E; its Jacobian equals
+    Pinocchio's frame Jacobian of that point (1e-10: the URDF stores 12 significant digits)."""
+    m = model.pinocchio_model()
+    d = m.createData()
+    fid = m.getFrameId(model.FOOT_FRAME)
+    R = model.load_params().geometry.R_foot
+    for q in random_q(50):
+        qp = model.q_to_pin(q)
+        pin.computeJointJacobians(m, d, qp)
+        pin.updateFramePlacements(m, d)
+        J6 = pin.getFrameJacobian(m, d, fid, pin.LOCAL_WORLD_ALIGNED)
+        r = np.array([0.0, 0.0, -R])
+        J_point = J6[:3] - pin.skew(r) @ J6[3:]
+        np.testing.assert_allclose(K.jacobian_poc(q), J_point, atol=1e-10)
+        np.testing.assert_allclose(K.jacobian_poc(q, true_poc=False), J6[:3], atol=1e-10)
+
+
+def test_singularities() -> None:
+    assert K.is_singular(np.array([0.3, -1.0, 0.0]))  # straight knee
+    # foot on the ab/ad axis: L23 s2 + L3E s23 = 0
+    g = model.load_params().geometry
+    q3 = -1.0
+    q2 = np.arctan2(-g.L_3E * np.sin(q3), g.L_23 + g.L_3E * np.cos(q3))
+    assert K.is_singular(np.array([0.0, q2, q3]))
+    assert np.linalg.matrix_rank(K.jacobian(np.array([0.0, q2, q3])), tol=1e-9) < 3
+    assert not K.is_singular(Q_STAR)
+
+
+def test_angular_distance_wraps_the_short_way() -> None:
+    assert K.angdist(3.0, -3.0) == pytest.approx(2 * np.pi - 6.0)
+    assert K.angdist(-3.0, 3.0) == pytest.approx(6.0 - 2 * np.pi)
+    assert K.angdist(0.1, 0.3) == pytest.approx(0.2)
+    # only the continuous hip wraps; the knee (range 4.46 rad) must not
+    err = K.joint_error(np.array([0.0, 3.0, -2.0]), np.array([0.0, -3.0, 2.0]))
+    np.testing.assert_allclose(err, [0.0, 2 * np.pi - 6.0, 4.0])
+
+
+def test_gravity_at_q_star_reproduces_the_calibration_figure() -> None:
+    """Each component within 5 % of the report's G(q*) (calibrated: exact to 1e-6 N m)."""
+    G_ref = np.array([1.0426, 0.1631, -0.2984])
+    G = K.gravity(Q_STAR)
+    assert np.all(np.abs(G - G_ref) <= 0.05 * np.abs(G_ref))
+    np.testing.assert_allclose(G, G_ref, atol=1e-6)
+
+
+def test_gravity_equals_minus_derivative_of_potential_energy() -> None:
+    """G = dV/dq with V = g sum m_i z_com_i (central differences, 1e-7 N m)."""
+    m = model.pinocchio_model()
+    d = m.createData()
+    h = 1e-6
+    for q in random_q(20):
+
+        def V(qq: np.ndarray) -> float:
+            return float(pin.computePotentialEnergy(m, d, model.q_to_pin(qq)))
+
+        fd = np.array([(V(q + h * e) - V(q - h * e)) / (2 * h) for e in np.eye(3)])
+        np.testing.assert_allclose(K.gravity(q), fd, atol=1e-7)

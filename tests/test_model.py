@@ -1,0 +1,112 @@
+"""The parameter file, the mass-property estimate and the generated URDF."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pybullet
+import pytest
+
+from legbench import model
+
+
+def test_committed_urdf_is_the_generated_one() -> None:
+    """models/leg.urdf must equal what `legbench model urdf` writes from models/leg.yaml."""
+    assert model.URDF_FILE.read_text() == model.urdf_text(model.load_params())
+
+
+def test_urdf_marks_the_hip_continuous_and_carries_the_foot_sphere() -> None:
+    import yourdfpy
+
+    robot = yourdfpy.URDF.load(str(model.URDF_FILE), load_meshes=False, build_scene_graph=False)
+    assert robot.joint_map["q2_hip"].type == "continuous"
+    assert robot.joint_map["q1_abad"].type == "revolute"
+    assert robot.joint_map["q3_knee"].limit.upper == pytest.approx(2.229)
+    foot = robot.link_map["foot"]
+    (col,) = foot.collisions
+    assert col.geometry.sphere.radius == pytest.approx(0.0225)
+    np.testing.assert_allclose(col.origin[:3, 3], 0.0)  # sphere centre is the E frame
+
+
+def test_urdf_loads_in_mujoco_and_pybullet_without_edits() -> None:
+    import mujoco
+
+    spec = mujoco.MjSpec.from_file(str(model.URDF_FILE))
+    m = spec.compile()
+    assert m.njnt == 3
+    cid = pybullet.connect(pybullet.DIRECT)
+    try:
+        body = pybullet.loadURDF(
+            str(model.URDF_FILE), useFixedBase=True, flags=pybullet.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid
+        )
+        assert pybullet.getNumJoints(body, physicsClientId=cid) == 4
+    finally:
+        pybullet.disconnect(cid)
+
+
+def test_holed_sphere_mass_matches_the_napkin_ring_formula() -> None:
+    """Volume of a sphere R with a through hole r: 4/3 pi (R^2 - r^2)^(3/2)."""
+    R, r, rho = 0.0225, 0.01025, 2810.0
+    inr = model.part_inertial({"shape": "sphere", "r": R, "hole_r": r, "axis": "x", "pos": [0, 0, 0]}, rho)
+    assert inr.mass == pytest.approx(rho * 4 / 3 * np.pi * (R * R - r * r) ** 1.5, rel=1e-10)
+    solid = model.part_inertial({"shape": "sphere", "r": R, "hole_r": 0.0, "pos": [0, 0, 0]}, rho)
+    np.testing.assert_allclose(np.diag(solid.I), 0.4 * solid.mass * R * R, rtol=1e-10)
+
+
+def test_parallel_axis_composition() -> None:
+    a = model.Inertial(1.0, (0.1, 0.0, 0.0), ((0.0, 0, 0), (0, 0.0, 0), (0, 0, 0.0)))
+    b = model.Inertial(1.0, (-0.1, 0.0, 0.0), ((0.0, 0, 0), (0, 0.0, 0), (0, 0, 0.0)))
+    c = model.combine([a, b])
+    assert c.mass == 2.0
+    np.testing.assert_allclose(c.com, 0.0, atol=1e-15)
+    np.testing.assert_allclose(np.diag(c.I), [0.0, 0.02, 0.02], atol=1e-15)
+
+
+def test_products_of_inertia_keep_the_urdf_sign() -> None:
+    """Point masses at (+x, +y) give I_xy = -sum m x y < 0 in the URDF convention."""
+    pts = [model.Inertial(1.0, (0.1, 0.1, 0.0), ((0.0, 0, 0), (0, 0.0, 0), (0, 0, 0.0)))]
+    pts.append(model.Inertial(1.0, (-0.1, -0.1, 0.0), pts[0].inertia))
+    c = model.combine(pts)
+    assert c.I[0, 1] == pytest.approx(-2 * 0.01)
+
+
+def test_calibration_solve_reproduces_the_committed_factors() -> None:
+    """The committed scale factors are what the 3x3 solve gives (1e-6)."""
+    k = model.calibrate()
+    p = model.load_params()
+    for link in model.LINK_NAMES:
+        assert k[link] == pytest.approx(p.scale[link], rel=1e-6)
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "legbench.cli", *args], capture_output=True, text=True, check=False)
+
+
+def test_cli_ik_json_lists_q_star() -> None:
+    out = _cli("model", "ik", "0.1667", "0", "0.0225", "--json")
+    assert out.returncode == 0, out.stderr
+    sols = np.array(json.loads(out.stdout)["solutions"])
+    assert np.abs(sols - [-0.0025, -1.1899, -1.2599]).max(axis=1).min() < 2e-3
+
+
+def test_cli_fk_and_gravity_json() -> None:
+    out = json.loads(_cli("model", "fk", "0", "0", "0", "--json").stdout)
+    np.testing.assert_allclose(out["ee"], [0.16763, 0.55373, 0.4], atol=1e-12)
+    tau = json.loads(_cli("model", "gravity", "-0.0025", "-1.1899", "-1.2599", "--json").stdout)["tau"]
+    np.testing.assert_allclose(tau, [1.0426, 0.1631, -0.2984], atol=1e-6)
+
+
+def test_cli_ik_unreachable_says_why() -> None:
+    out = _cli("model", "ik", "2", "0", "0.4")
+    assert out.returncode == 1
+    assert "unreachable" in out.stdout
+
+
+def test_cli_urdf_regenerates_identically(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    dest = tmp_path / "leg.urdf"
+    out = _cli("model", "urdf", "--out", str(dest))
+    assert out.returncode == 0, out.stderr
+    assert dest.read_text() == model.URDF_FILE.read_text()
