@@ -1,0 +1,75 @@
+"""Backend registry: built-in backends by guarded import, third-party ones by entry point.
+
+A backend whose engine package is missing is simply not available; asking for
+it raises :class:`~legbench.exceptions.BackendNotFound` naming what to install.
+Other packages add backends through the ``legbench.backends`` entry-point group
+(``name = "package.module:Class"``).
+"""
+
+from __future__ import annotations
+
+import importlib
+from importlib import metadata
+
+from legbench.backends.base import Backend, Physics
+from legbench.exceptions import BackendNotFound
+
+__all__ = ["Backend", "Physics", "available", "get", "resolve"]
+
+#: Built-in backends: name -> (module, class, pip package that provides the engine).
+BUILTIN: dict[str, tuple[str, str, str]] = {
+    "pinocchio": ("legbench.backends.pinocchio_", "PinocchioBackend", "pin"),
+    "mujoco": ("legbench.backends.mujoco_", "MujocoBackend", "mujoco"),
+    "pybullet": ("legbench.backends.pybullet_", "PybulletBackend", "pybullet"),
+}
+
+_MISSING: dict[str, str] = {}
+
+
+def _load_builtin(name: str) -> type[Backend] | None:
+    module, cls, package = BUILTIN[name]
+    try:
+        return getattr(importlib.import_module(module), cls)  # type: ignore[no-any-return]
+    except ImportError as exc:
+        _MISSING[name] = f"pip install {package} ({exc})"
+        return None
+
+
+def _registry() -> dict[str, type[Backend]]:
+    found: dict[str, type[Backend]] = {}
+    for name in BUILTIN:
+        cls = _load_builtin(name)
+        if cls is not None:
+            found[name] = cls
+    for ep in metadata.entry_points(group="legbench.backends"):
+        if ep.name in found or ep.name in BUILTIN:
+            continue
+        try:
+            found[ep.name] = ep.load()
+        except Exception as exc:  # a broken plug-in must not take the others down
+            _MISSING[ep.name] = f"entry point {ep.value} failed to load: {exc}"
+    return found
+
+
+def available() -> list[str]:
+    """Names of the backends that can run here, built-ins first."""
+    return list(_registry())
+
+
+def get(name: str) -> type[Backend]:
+    """The backend class registered under ``name``."""
+    reg = _registry()
+    if name not in reg:
+        raise BackendNotFound(name, reg, _MISSING.get(name, ""))
+    return reg[name]
+
+
+def resolve(names: str | list[str]) -> list[str]:
+    """Expand ``"all"`` or a comma-separated list into backend names (checked)."""
+    if isinstance(names, str):
+        names = [n.strip() for n in names.split(",") if n.strip()]
+    if names == ["all"]:
+        return available()
+    for n in names:
+        get(n)
+    return list(dict.fromkeys(names))
