@@ -133,10 +133,84 @@ def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
     return args
 
 
+# --------------------------------------------------------------------------- #
+# legbench run
+
+
+def _parse_set(items: Sequence[str]) -> dict[str, object]:
+    import yaml
+
+    out: dict[str, object] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise LegbenchError(f"--set {item!r}: expected KEY=VALUE, e.g. backends.pinocchio.dt=5e-5")
+        out[key] = yaml.safe_load(value)
+    return out
+
+
+def _run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from legbench import backends, run, scenario
+
+    sc = scenario.load(args.scenario, _parse_set(args.set))
+    names = backends.resolve(args.backends) if args.backends != "all" else backends.available()
+    out = Path(args.out) if args.out else Path("results") / "latest" / sc.name
+    results = run.run(sc, names, out, csv=args.csv, contact_mode=args.contact_mode, progress=not args.quiet)
+    print(f"{sc.name}: {sc.duration:g} s at {sc.control_rate:g} Hz, contact {args.contact_mode or sc.contact_mode}")
+    failed = 0
+    for tr in results:
+        if tr.status != "ok":
+            failed += 1
+            print(f"  {tr.backend:<10} {tr.status.upper()}: {tr.reason}")
+            continue
+        rtf = tr.t[-1] / tr.wall_time if tr.wall_time > 0 else float("nan")
+        print(
+            f"  {tr.backend:<10} ok  wall {tr.wall_time:6.2f} s  RTF {rtf:7.2f}  "
+            f"q_end [{', '.join(f'{x:+.4f}' for x in tr.q[-1])}] rad  "
+            f"F_end [{', '.join(f'{x:+.2f}' for x in tr.f[-1])}] N"
+        )
+    print(f"wrote {out}")
+    if not args.no_compare and _has_compare():
+        _compare_dir(out)
+    return 1 if failed else 0
+
+
+def _has_compare() -> bool:
+    try:
+        import legbench.report  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _compare_dir(out: object) -> None:
+    from legbench import report
+
+    report.write_report(out)  # type: ignore[attr-defined]
+
+
+def _add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("run", help="run a scenario on one or more backends")
+    p.add_argument("scenario", help="scenario YAML file")
+    p.add_argument("--backends", default="all", help="comma-separated backend names, or 'all' (default)")
+    p.add_argument("--out", default=None, help="output directory (default results/latest/<scenario name>)")
+    p.add_argument("--csv", action="store_true", help="also write <backend>.csv")
+    p.add_argument("--contact-mode", choices=("native", "reference"), default=None,
+                   help="override the scenario's contact mode")  # fmt: skip
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario key, e.g. --set backends.pinocchio.dt=5e-5")  # fmt: skip
+    p.add_argument("--no-compare", action="store_true", help="do not write the comparison report")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_run)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="legbench", description=__doc__)
     sub = parser.add_subparsers(dest="cmd", required=True)
     _add_model(sub)
+    _add_run(sub)
     return parser
 
 

@@ -1,0 +1,501 @@
+"""Scenario files: one YAML document describes one task (LEG_SPEC.md section 7).
+
+Format (every key but ``name``, ``duration`` and ``events`` has a default)::
+
+    name: effort                      # also the output folder name
+    description: push down with 100 N
+    duration: 3.0                     # [s]
+    control_rate: 1000                # [Hz]
+    gains: {Kp: 10, Kd: 1, Ki: 0}     # scalars or one value per joint
+    initial: {q: [-0.0025, -1.1899, -1.2599], qd: [0, 0, 0]}
+    events:                           # in time order; each has t and one controller
+      - t: 0.0
+        position: {joint: [0, 0, 0]}          # or {cartesian: [x, y, z]} (foot centre in W)
+      - t: 1.0
+        trajectory: {waypoints: [[x, y, z], ...], times: [t1, ...]}  # times after the event
+      - t: 1.0
+        ellipse: {a: 0.15, b: 0.06, DY: 0.11208, DZ: 0.105, dth: 0, T: 5, points: 50,
+                  repetitions: 2, approach: 1.0}
+      - t: 2.0
+        effort: {force: [0, 0, -100]}        # h_d, force the foot exerts, in W [N]
+    physics:
+      gravity: 9.81
+      contact_mode: native            # or reference
+      contact: {Kp: 1e4, Kd: 100, mu_s: 0.7, mu_k: 0.6, v_th: 0.02, poc: true}
+    backends:                         # per-backend settings (see each backend's defaults)
+      pinocchio: {dt: 1.0e-4, integrator: euler}
+    comparison: {reference: pinocchio, skip: 0.0, steady_window: 0.5, tolerances: {}}
+
+Unknown keys are errors. Every error names the file, the key path and the problem.
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from legbench import kinematics
+from legbench.contact import CONTACT_MODES, ContactParams
+from legbench.exceptions import ScenarioError
+from legbench.model import load_params
+
+CONTROLLERS = ("position", "trajectory", "ellipse", "effort")
+
+
+@dataclass(frozen=True)
+class Gains:
+    """PID gains per joint (torque per rad, per rad/s, per rad s)."""
+
+    Kp: tuple[float, float, float] = (10.0, 10.0, 10.0)
+    Kd: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    Ki: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Event:
+    """A controller switch at time ``t`` [s].
+
+    Attributes:
+        t: activation time [s].
+        controller: one of :data:`CONTROLLERS`.
+        joint: joint target [rad] (position).
+        cartesian: foot-centre target in W [m] (position).
+        waypoints: foot-centre waypoints in W [m], shape (n, 3) (trajectory, ellipse).
+        times: waypoint times after ``t`` [s] (trajectory, ellipse).
+        force: desired force h_d the foot exerts on the environment, in W [N] (effort).
+        params: the event's own keys as written (for the report).
+    """
+
+    t: float
+    controller: str
+    joint: tuple[float, ...] | None = None
+    cartesian: tuple[float, ...] | None = None
+    waypoints: tuple[tuple[float, ...], ...] = ()
+    times: tuple[float, ...] = ()
+    force: tuple[float, ...] | None = None
+    params: Mapping[str, Any] = field(default_factory=dict, hash=False, compare=False)
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """How runs of this scenario are compared."""
+
+    reference: str = "pinocchio"
+    skip: float = 0.0  # [s] ignored at the start
+    steady_window: float = 0.5  # [s] at the end, for steady-state means
+    tolerances: Mapping[str, Any] = field(default_factory=dict, hash=False)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario."""
+
+    name: str
+    description: str
+    duration: float  # [s]
+    control_rate: float  # [Hz]
+    gains: Gains
+    q0: tuple[float, float, float]  # [rad]
+    qd0: tuple[float, float, float]  # [rad/s]
+    events: tuple[Event, ...]
+    gravity: float  # [m/s^2]
+    contact: ContactParams
+    contact_mode: str
+    backends: Mapping[str, Mapping[str, Any]] = field(hash=False)
+    comparison: Comparison
+    file: str = "<memory>"
+    sha256: str = ""
+    raw: Mapping[str, Any] = field(default_factory=dict, hash=False, compare=False)
+
+    @property
+    def control_dt(self) -> float:
+        """Control period [s]."""
+        return 1.0 / self.control_rate
+
+    @property
+    def n_ticks(self) -> int:
+        """Number of control ticks logged, t = 0 .. duration inclusive."""
+        return int(round(self.duration * self.control_rate)) + 1
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary for run.json."""
+        return {
+            "name": self.name,
+            "file": self.file,
+            "sha256": self.sha256,
+            "description": self.description,
+            "duration": self.duration,
+            "control_rate": self.control_rate,
+            "contact_mode": self.contact_mode,
+            "gravity": self.gravity,
+            "gains": {"Kp": list(self.gains.Kp), "Kd": list(self.gains.Kd), "Ki": list(self.gains.Ki)},
+            "initial": {"q": list(self.q0), "qd": list(self.qd0)},
+            "events": [{"t": e.t, "controller": e.controller, **dict(e.params)} for e in self.events],
+            "contact": {**self.contact.__dict__},
+            "backends": {k: dict(v) for k, v in self.backends.items()},
+            "comparison": {
+                "reference": self.comparison.reference,
+                "skip": self.comparison.skip,
+                "steady_window": self.comparison.steady_window,
+                "tolerances": dict(self.comparison.tolerances),
+            },
+            "raw": dict(self.raw),
+        }
+
+
+# --------------------------------------------------------------------------- #
+# Validation helpers
+
+
+class _Ctx:
+    """File name and YAML node marks, to name lines in errors."""
+
+    def __init__(self, file: str, root: yaml.Node | None) -> None:
+        self.file = file
+        self.root = root
+
+    def line(self, path: Sequence[str | int]) -> int | None:
+        node = self.root
+        line = None
+        for key in path:
+            if isinstance(node, yaml.MappingNode):
+                nxt = None
+                for k, v in node.value:
+                    if k.value == key:
+                        line, nxt = k.start_mark.line + 1, v
+                        break
+                node = nxt
+            elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and key < len(node.value):
+                node = node.value[key]
+                line = node.start_mark.line + 1
+            else:
+                break
+            if node is None:
+                break
+        return line
+
+    def error(self, path: Sequence[str | int], problem: str) -> ScenarioError:
+        return ScenarioError(self.file, _keypath(path), problem, self.line(path))
+
+
+def _keypath(path: Sequence[str | int]) -> str:
+    out = ""
+    for p in path:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out
+
+
+def _check_keys(ctx: _Ctx, path: list[str | int], d: Any, allowed: Sequence[str], required: Sequence[str] = ()) -> None:
+    if not isinstance(d, Mapping):
+        raise ctx.error(path, f"expected a mapping, got {type(d).__name__}")
+    for k in d:
+        if k not in allowed:
+            near = difflib.get_close_matches(str(k), allowed, n=1)
+            hint = f"; did you mean '{near[0]}'?" if near else f"; valid keys: {', '.join(allowed)}"
+            raise ctx.error([*path, str(k)], f"unknown key{hint}")
+    for k in required:
+        if k not in d:
+            raise ctx.error(path, f"missing required key '{k}'")
+
+
+def _num(ctx: _Ctx, path: list[str | int], v: Any, *, positive: bool = False, nonneg: bool = False) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise ctx.error(path, f"expected a number, got {v!r}")
+    x = float(v)
+    if not math.isfinite(x):
+        raise ctx.error(path, f"must be finite, got {v!r}")
+    if positive and x <= 0:
+        raise ctx.error(path, f"must be > 0, got {v!r}")
+    if nonneg and x < 0:
+        raise ctx.error(path, f"must be >= 0, got {v!r}")
+    return x
+
+
+def _vec(ctx: _Ctx, path: list[str | int], v: Any, n: int = 3) -> tuple[float, ...]:
+    if isinstance(v, int | float) and not isinstance(v, bool) and n == 3:
+        return (_num(ctx, path, v),) * n
+    if not isinstance(v, list) or len(v) != n:
+        raise ctx.error(path, f"expected a list of {n} numbers, got {v!r}")
+    return tuple(_num(ctx, [*path, i], x) for i, x in enumerate(v))
+
+
+def _int(ctx: _Ctx, path: list[str | int], v: Any, minimum: int = 1) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
+        raise ctx.error(path, f"expected an integer >= {minimum}, got {v!r}")
+    return v
+
+
+# --------------------------------------------------------------------------- #
+# Events
+
+
+def ellipse_waypoints(
+    a: float, b: float, DY: float, DZ: float, dth: float, T: float, points: int, repetitions: int, approach: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Waypoints of the ellipse task in W [m] and their times after activation [s].
+
+    Polar form r(th) = a b / sqrt(a^2 sin^2(th - dth) + b^2 cos^2(th - dth)),
+    W_P = r(th) [0, cos th, sin th] + [L_B0 + L12, DY, DZ]; ``points`` per period
+    ``T``, ``repetitions`` laps; the first point is reached after ``approach``.
+    """
+    g = load_params().geometry
+    k = np.arange(points * repetitions + 1)
+    th = 2.0 * np.pi * k / points
+    r = a * b / np.sqrt(a**2 * np.sin(th - dth) ** 2 + b**2 * np.cos(th - dth) ** 2)
+    P = np.stack([np.full_like(th, g.L_B0 + g.L_12), DY + r * np.cos(th), DZ + r * np.sin(th)], axis=1)
+    times = approach + k * T / points
+    return P, times
+
+
+def _reachable(ctx: _Ctx, path: list[str | int], p: tuple[float, ...]) -> None:
+    res = kinematics.ik(np.array(p))
+    if not res:
+        raise ctx.error(path, f"W point {list(p)} is unreachable: {res.reason}")
+
+
+def _event(ctx: _Ctx, path: list[str | int], d: Any) -> Event:
+    _check_keys(ctx, path, d, ["t", *CONTROLLERS], ["t"])
+    t = _num(ctx, [*path, "t"], d["t"], nonneg=True)
+    kinds = [k for k in CONTROLLERS if k in d]
+    if len(kinds) != 1:
+        raise ctx.error(path, f"an event needs exactly one of {', '.join(CONTROLLERS)}; got {kinds or 'none'}")
+    kind = kinds[0]
+    body = d[kind]
+    bp: list[str | int] = [*path, kind]
+    params = {kind: body}
+    p = load_params()
+    if kind == "position":
+        _check_keys(ctx, bp, body, ["joint", "cartesian"])
+        if ("joint" in body) == ("cartesian" in body):
+            raise ctx.error(bp, "give exactly one of 'joint' or 'cartesian'")
+        if "joint" in body:
+            q = _vec(ctx, [*bp, "joint"], body["joint"])
+            for i, (qi, lo, hi) in enumerate(zip(q, p.lower, p.upper, strict=True)):
+                if not lo <= qi <= hi:
+                    raise ctx.error([*bp, "joint", i], f"{qi} rad outside the joint limits [{lo:.4f}, {hi:.4f}]")
+            return Event(t, kind, joint=q, params=params)
+        c = _vec(ctx, [*bp, "cartesian"], body["cartesian"])
+        _reachable(ctx, [*bp, "cartesian"], c)
+        return Event(t, kind, cartesian=c, params=params)
+    if kind == "trajectory":
+        _check_keys(ctx, bp, body, ["waypoints", "times"], ["waypoints", "times"])
+        wps, times = body["waypoints"], body["times"]
+        if not isinstance(wps, list) or not wps:
+            raise ctx.error([*bp, "waypoints"], "expected a non-empty list of [x, y, z] points")
+        if not isinstance(times, list) or len(times) != len(wps):
+            raise ctx.error([*bp, "times"], f"expected {len(wps)} times, one per waypoint")
+        W = tuple(_vec(ctx, [*bp, "waypoints", i], w) for i, w in enumerate(wps))
+        ts = tuple(_num(ctx, [*bp, "times", i], x, positive=True) for i, x in enumerate(times))
+        if any(b <= a for a, b in zip(ts, ts[1:], strict=False)):
+            raise ctx.error([*bp, "times"], "waypoint times must increase strictly")
+        for i, w in enumerate(W):
+            _reachable(ctx, [*bp, "waypoints", i], w)
+        return Event(t, kind, waypoints=W, times=ts, params=params)
+    if kind == "ellipse":
+        keys = ["a", "b", "DY", "DZ", "dth", "T", "points", "repetitions", "approach"]
+        _check_keys(ctx, bp, body, keys, ["a", "b", "DY", "DZ", "T"])
+        a = _num(ctx, [*bp, "a"], body["a"], positive=True)
+        b = _num(ctx, [*bp, "b"], body["b"], positive=True)
+        DY = _num(ctx, [*bp, "DY"], body["DY"])
+        DZ = _num(ctx, [*bp, "DZ"], body["DZ"])
+        dth = _num(ctx, [*bp, "dth"], body.get("dth", 0.0))
+        T = _num(ctx, [*bp, "T"], body["T"], positive=True)
+        n = _int(ctx, [*bp, "points"], body.get("points", 50), minimum=3)
+        reps = _int(ctx, [*bp, "repetitions"], body.get("repetitions", 1))
+        approach = _num(ctx, [*bp, "approach"], body.get("approach", 1.0), positive=True)
+        P, ts = ellipse_waypoints(a, b, DY, DZ, dth, T, n, reps, approach)
+        for i, w in enumerate(P[:n]):
+            if not kinematics.ik(w):
+                raise ctx.error(bp, f"ellipse point {i} at W {np.round(w, 4).tolist()} is unreachable")
+        return Event(t, "trajectory", waypoints=tuple(map(tuple, P)), times=tuple(ts), params=params)
+    _check_keys(ctx, bp, body, ["force"], ["force"])
+    return Event(t, kind, force=_vec(ctx, [*bp, "force"], body["force"]), params=params)
+
+
+# --------------------------------------------------------------------------- #
+# Loading
+
+TOP_KEYS = ["name", "description", "duration", "control_rate", "gains", "initial", "events", "physics",
+            "backends", "comparison"]  # fmt: skip
+
+
+def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None, text: str = "") -> Scenario:
+    """Validate a scenario document (already parsed YAML) into a :class:`Scenario`."""
+    ctx = _Ctx(file, root)
+    _check_keys(ctx, [], doc, TOP_KEYS, ["name", "duration", "events"])
+    name = doc["name"]
+    if not isinstance(name, str) or not name or any(c in name for c in "/\\\0") or name in (".", ".."):
+        raise ctx.error(["name"], f"expected a plain name (letters, digits, - _ .), got {name!r}")
+    description = doc.get("description", "")
+    if not isinstance(description, str):
+        raise ctx.error(["description"], "expected text")
+    duration = _num(ctx, ["duration"], doc["duration"], positive=True)
+    rate = _num(ctx, ["control_rate"], doc.get("control_rate", 1000.0), positive=True)
+    if abs(duration * rate - round(duration * rate)) > 1e-6:
+        raise ctx.error(["duration"], f"{duration} s is not a whole number of control periods at {rate} Hz")
+
+    gains_d = doc.get("gains", {})
+    _check_keys(ctx, ["gains"], gains_d, ["Kp", "Kd", "Ki"])
+    gdef = Gains()
+    gains = Gains(
+        *(  # type: ignore[arg-type]
+            _vec(ctx, ["gains", k], gains_d[k]) if k in gains_d else getattr(gdef, k) for k in ("Kp", "Kd", "Ki")
+        )
+    )
+    init = doc.get("initial", {})
+    _check_keys(ctx, ["initial"], init, ["q", "qd"])
+    q0 = _vec(ctx, ["initial", "q"], init.get("q", [0.0, 0.0, 0.0]))
+    qd0 = _vec(ctx, ["initial", "qd"], init.get("qd", [0.0, 0.0, 0.0]))
+    p = load_params()
+    for i, (qi, lo, hi) in enumerate(zip(q0, p.lower, p.upper, strict=True)):
+        if not lo <= qi <= hi:
+            raise ctx.error(["initial", "q", i], f"{qi} rad outside the joint limits [{lo:.4f}, {hi:.4f}]")
+
+    evs = doc["events"]
+    if not isinstance(evs, list) or not evs:
+        raise ctx.error(["events"], "expected a non-empty list of events")
+    events = tuple(_event(ctx, ["events", i], e) for i, e in enumerate(evs))
+    for i, (a, b) in enumerate(zip(events, events[1:], strict=False)):
+        if b.t < a.t:
+            raise ctx.error(["events", i + 1, "t"], f"events out of order: {b.t} s comes after {a.t} s")
+    if events[0].t != 0.0:
+        raise ctx.error(["events", 0, "t"], "the first event must start at t = 0 (something must control the leg)")
+    for i, e in enumerate(events):
+        if e.t >= duration:
+            raise ctx.error(["events", i, "t"], f"event at {e.t} s is past the end ({duration} s)")
+
+    phys = doc.get("physics", {})
+    _check_keys(ctx, ["physics"], phys, ["gravity", "contact_mode", "contact"])
+    gravity = _num(ctx, ["physics", "gravity"], phys.get("gravity", p.gravity), nonneg=True)
+    mode = phys.get("contact_mode", "native")
+    if mode not in CONTACT_MODES:
+        raise ctx.error(["physics", "contact_mode"], f"expected one of {', '.join(CONTACT_MODES)}, got {mode!r}")
+    cdoc = phys.get("contact", {})
+    ckeys = ["Kp", "Kd", "mu_s", "mu_k", "v_th", "poc"]
+    _check_keys(ctx, ["physics", "contact"], cdoc, ckeys)
+    leg_c = p.contact
+    vals: dict[str, Any] = {}
+    for k in ckeys[:-1]:
+        default = getattr(leg_c, k)
+        vals[k] = _num(ctx, ["physics", "contact", k], cdoc.get(k, default), nonneg=True)
+    for k in ("Kp", "v_th"):
+        if vals[k] <= 0:
+            raise ctx.error(["physics", "contact", k], "must be > 0")
+    poc = cdoc.get("poc", True)
+    if poc not in (True, False, "true", "centre"):
+        raise ctx.error(["physics", "contact", "poc"], f"expected true (true poc) or 'centre', got {poc!r}")
+    vals["poc"] = "true" if poc in (True, "true") else "centre"
+    contact = ContactParams(**vals)
+
+    bdoc = doc.get("backends", {})
+    if not isinstance(bdoc, Mapping):
+        raise ctx.error(["backends"], "expected a mapping of backend name -> settings")
+    backends: dict[str, dict[str, Any]] = {}
+    for bname, bset in bdoc.items():
+        backends[bname] = _backend_settings(ctx, str(bname), bset or {})
+
+    cmp_d = doc.get("comparison", {})
+    _check_keys(ctx, ["comparison"], cmp_d, ["reference", "skip", "steady_window", "tolerances"])
+    comparison = Comparison(
+        reference=str(cmp_d.get("reference", "pinocchio")),
+        skip=_num(ctx, ["comparison", "skip"], cmp_d.get("skip", 0.0), nonneg=True),
+        steady_window=_num(ctx, ["comparison", "steady_window"], cmp_d.get("steady_window", 0.5), positive=True),
+        tolerances=cmp_d.get("tolerances", {}) or {},
+    )
+    if comparison.skip >= duration:
+        raise ctx.error(["comparison", "skip"], f"skips the whole run ({duration} s)")
+    if comparison.steady_window > duration:
+        raise ctx.error(["comparison", "steady_window"], f"longer than the run ({duration} s)")
+    return Scenario(
+        name=name,
+        description=description,
+        duration=duration,
+        control_rate=rate,
+        gains=gains,
+        q0=q0,  # type: ignore[arg-type]
+        qd0=qd0,  # type: ignore[arg-type]
+        events=events,
+        gravity=gravity,
+        contact=contact,
+        contact_mode=mode,
+        backends=backends,
+        comparison=comparison,
+        file=file,
+        sha256=hashlib.sha256(text.encode()).hexdigest() if text else "",
+        raw=doc,
+    )
+
+
+def _backend_settings(ctx: _Ctx, name: str, given: Any) -> dict[str, Any]:
+    from legbench import backends
+    from legbench.exceptions import BackendNotFound
+
+    path: list[str | int] = ["backends", name]
+    if not isinstance(given, Mapping):
+        raise ctx.error(path, "expected a mapping of settings")
+    try:
+        cls = backends.get(name)
+    except BackendNotFound:
+        if name in backends.BUILTIN:
+            return dict(given)  # engine not installed here: keep the settings, the run reports it missing
+        raise ctx.error(path, f"unknown backend; known: {', '.join(backends.BUILTIN)}") from None
+    _check_keys(ctx, path, given, list(cls.defaults))
+    out: dict[str, Any] = {}
+    for k, v in given.items():
+        default = cls.defaults[k]
+        if k in cls.choices:
+            if v not in cls.choices[k]:
+                raise ctx.error([*path, k], f"expected one of {', '.join(cls.choices[k])}, got {v!r}")
+            out[k] = v
+        elif isinstance(default, bool):
+            if not isinstance(v, bool):
+                raise ctx.error([*path, k], f"expected true or false, got {v!r}")
+            out[k] = v
+        elif isinstance(default, int):
+            out[k] = _int(ctx, [*path, k], v)
+        elif isinstance(default, float):
+            out[k] = _num(ctx, [*path, k], v, positive=True)
+        else:
+            out[k] = v
+    return out
+
+
+def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
+    """Read and validate a scenario file; ``overrides`` are dotted keys set before validation."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ScenarioError(str(path), "", "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(str(path), "", f"cannot read: {exc}") from None
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = mark.line + 1 if mark is not None else None
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise ScenarioError(str(path), "", f"malformed YAML: {problem}", line) from None
+    if doc is None:
+        raise ScenarioError(str(path), "", "empty file")
+    for key, value in (overrides or {}).items():
+        set_key(doc, key, value)
+    return parse(doc, str(path), root, text)
+
+
+def set_key(doc: dict[str, Any], dotted: str, value: Any) -> None:
+    """Set ``a.b.c`` in a nested dict, creating mappings as needed."""
+    parts = dotted.split(".")
+    d = doc
+    for k in parts[:-1]:
+        d = d.setdefault(k, {})
+    d[parts[-1]] = value
