@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -14,7 +15,7 @@ from legbench.exceptions import LegbenchError
 EXIT_USER_ERROR = 2
 
 
-def _floats(values: Sequence[float]) -> list[float]:
+def _floats(values: Any) -> list[float]:
     return [float(v) for v in values]
 
 

@@ -66,8 +66,8 @@ class Inertial:
     """Mass properties of one body in its link frame (URDF convention I_xy = -sum x y dm)."""
 
     mass: float  # [kg]
-    com: tuple[float, float, float]  # [m] in the link frame
-    inertia: tuple[tuple[float, float, float], ...]  # 3x3 about the COM [kg m^2]
+    com: tuple[float, ...]  # [m] in the link frame, (3,)
+    inertia: tuple[tuple[float, ...], ...]  # 3x3 about the COM [kg m^2]
 
     @property
     def I(self) -> np.ndarray:  # noqa: E743 - spec name
@@ -195,12 +195,12 @@ def part_inertial(part: dict[str, Any], density: float) -> Inertial:
 def combine(parts: list[Inertial]) -> Inertial:
     """Composite of several bodies in one frame (parallel-axis theorem)."""
     m = sum(p.mass for p in parts)
-    c = sum(p.mass * np.array(p.com) for p in parts) / m
+    c = np.sum([p.mass * np.array(p.com) for p in parts], axis=0) / m
     I = np.zeros((3, 3))
     for p in parts:
         d = np.array(p.com) - c
         I += p.I + p.mass * (d @ d * np.eye(3) - np.outer(d, d))
-    return Inertial(float(m), tuple(c.tolist()), tuple(map(tuple, I.tolist())))  # type: ignore[arg-type]
+    return Inertial(float(m), tuple(c.tolist()), tuple(map(tuple, I.tolist())))
 
 
 def scaled(inertial: Inertial, k: float) -> Inertial:
@@ -256,9 +256,7 @@ def params_from_raw(raw: dict[str, Any], path: Path | str = PARAMS_FILE) -> LegP
         cal = raw["calibration"]
         scale = {k: float(v) for k, v in cal["scale"].items()}
         est = cad_estimate(raw)
-        inertials = {
-            name: scaled(inr, scale["link3" if name == "foot" else name]) for name, inr in est.items()
-        }
+        inertials = {name: scaled(inr, scale["link3" if name == "foot" else name]) for name, inr in est.items()}
         contact = Contact(**{k: float(v) for k, v in raw["contact"].items()})
         return LegParams(
             geometry=geom,

@@ -311,11 +311,11 @@ def _event(ctx: _Ctx, path: list[str | int], d: Any) -> Event:
         n = _int(ctx, [*bp, "points"], body.get("points", 50), minimum=3)
         reps = _int(ctx, [*bp, "repetitions"], body.get("repetitions", 1))
         approach = _num(ctx, [*bp, "approach"], body.get("approach", 1.0), positive=True)
-        P, ts = ellipse_waypoints(a, b, DY, DZ, dth, T, n, reps, approach)
-        for i, w in enumerate(P[:n]):
-            if not kinematics.ik(w):
-                raise ctx.error(bp, f"ellipse point {i} at W {np.round(w, 4).tolist()} is unreachable")
-        return Event(t, "trajectory", waypoints=tuple(map(tuple, P)), times=tuple(ts), params=params)
+        P, tw = ellipse_waypoints(a, b, DY, DZ, dth, T, n, reps, approach)
+        for i, point in enumerate(P[:n]):
+            if not kinematics.ik(point):
+                raise ctx.error(bp, f"ellipse point {i} at W {np.round(point, 4).tolist()} is unreachable")
+        return Event(t, "trajectory", waypoints=tuple(map(tuple, P)), times=tuple(tw.tolist()), params=params)
     _check_keys(ctx, bp, body, ["force"], ["force"])
     return Event(t, kind, force=_vec(ctx, [*bp, "force"], body["force"]), params=params)
 

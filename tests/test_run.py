@@ -1,0 +1,101 @@
+"""The run loop with a fake backend: clock, zero-order hold, events, logging, outputs."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from fakes import FakeBackend
+
+from legbench import run, scenario
+from legbench.exceptions import LegbenchError
+
+DOC = {
+    "name": "fake",
+    "duration": 0.5,
+    "events": [
+        {"t": 0.0, "position": {"joint": [0.1, 0.0, 0.0]}},
+        {"t": 0.25, "effort": {"force": [0.0, 0.0, 0.0]}},
+    ],
+}
+
+
+def _simulate(doc: dict) -> tuple[run.Trajectory, FakeBackend]:  # type: ignore[type-arg]
+    sc = scenario.parse(doc)
+    be = FakeBackend()
+    phys = run.physics_of(sc)
+    be.load(Path("unused"), phys, {})
+    return run.simulate(sc, be, phys), be
+
+
+def test_ticks_are_exactly_on_the_control_grid_and_logged_once_each() -> None:
+    tr, be = _simulate(DOC)
+    assert len(tr.t) == 501
+    np.testing.assert_array_equal(tr.t, np.arange(501) * 1e-3)
+    assert len(be.steps) == 500  # the last row is logged, not stepped
+
+
+def test_logged_torque_is_what_the_backend_received_and_state_follows_zoh() -> None:
+    """Row k: q_{k+1} = q_k + qd_k T + tau_k T^2/(2I) exactly (fake double integrator)."""
+    tr, be = _simulate(DOC)
+    np.testing.assert_array_equal(np.array(be.steps), tr.tau[:-1])
+    T, I = 1e-3, 0.01
+    pred = tr.q[:-1] + tr.qd[:-1] * T + tr.tau[:-1] * T**2 / (2 * I)
+    np.testing.assert_allclose(tr.q[1:], pred, atol=1e-14)
+
+
+def test_events_switch_controllers_at_their_tick() -> None:
+    tr, _ = _simulate(DOC)
+    assert set(tr.controller[:250]) == {"position"}
+    assert set(tr.controller[250:]) == {"effort"}
+
+
+def test_torque_is_saturated_at_the_joint_limits() -> None:
+    doc = {**DOC, "gains": {"Kp": 1000.0}, "events": [{"t": 0.0, "position": {"joint": [1.5, 0.0, 0.0]}}]}
+    tr, _ = _simulate(doc)
+    assert tr.tau[0, 0] == pytest.approx(7.051408)
+
+
+def test_outputs_parquet_csv_and_run_json(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    sc = scenario.parse(DOC)
+    tr, _ = _simulate(DOC)
+    out = run.write_run(sc, [tr], tmp_path / "fake", csv=True)
+    df = pd.read_parquet(out / "fake.parquet")
+    assert list(df.columns) == [*run.COLUMNS, "controller"]
+    np.testing.assert_array_equal(df["q1"].to_numpy(), tr.q[:, 0])
+    assert (out / "fake.csv").exists()
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["scenario"]["name"] == "fake"
+    assert meta["backends"]["fake"]["status"] == "ok"
+    assert "numpy" in meta["versions"]
+    assert not list(tmp_path.glob(".*tmp*"))  # no half-written temp dir left behind
+
+
+def test_refuses_to_overwrite_another_scenarios_results(tmp_path: Path) -> None:
+    sc = scenario.parse(DOC)
+    tr, _ = _simulate(DOC)
+    run.write_run(sc, [tr], tmp_path / "x")
+    other = scenario.parse({**DOC, "name": "other"})
+    with pytest.raises(LegbenchError, match="holds results of scenario 'fake'"):
+        run.write_run(other, [tr], tmp_path / "x")
+    run.write_run(sc, [tr], tmp_path / "x")  # same scenario: replaced
+
+
+def test_diverging_backend_is_stopped_and_marked_failed() -> None:
+    class Exploding(FakeBackend):
+        def step(self, tau: np.ndarray) -> None:
+            super().step(tau)
+            if len(self.steps) == 100:
+                self.qd[:] = np.nan
+
+    sc = scenario.parse(DOC)
+    be = Exploding()
+    phys = run.physics_of(sc)
+    be.load(Path("unused"), phys, {})
+    tr = run.simulate(sc, be, phys)
+    assert tr.status == "failed"
+    assert "not finite" in (tr.reason or "")
+    assert len(tr.t) == 100 and np.isfinite(tr.q).all()
