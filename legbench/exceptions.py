@@ -55,3 +55,17 @@ class SimulationDiverged(LegbenchError):
         self.t = t
         self.reason = reason
         super().__init__(f"{backend} diverged at t = {t:.4f} s: {reason}")
+
+
+class ResultsError(LegbenchError):
+    """A run directory, imported log, metrics file or baseline is missing or malformed.
+
+    Attributes:
+        file: the file or directory the problem is in.
+        problem: what is wrong, one sentence.
+    """
+
+    def __init__(self, file: str, problem: str) -> None:
+        self.file = str(file)
+        self.problem = problem
+        super().__init__(f"{self.file}: {problem}")
