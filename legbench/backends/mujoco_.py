@@ -1,0 +1,286 @@
+"""MuJoCo backend: the generated URDF compiled through ``MjSpec``, native soft contact or the reference law.
+
+Model: ``models/leg.urdf`` is loaded with :func:`mujoco.MjSpec.from_file` (no
+hand-written MJCF copy of the leg). The URDF's ``<mujoco><compiler
+fusestatic="false"/>`` keeps the foot a body of its own, welded to link 3 at
+the foot centre E; a site ``E`` marks that point. On the spec we add the
+ground plane z_W = 0, one ``motor`` actuator per joint (gear 1, control range
+= torque limit), stiff joint limits (ENGINE_NOTES.md: solref (0.002, 1), solimp
+(0.99, 0.999, ...) so a 10 N m push on the knee stops at about 2.242 rad like
+PyBullet's hard limit) and collision filters so that only the foot sphere
+touches the ground (no link-link or other link-ground contact).
+
+Native contact (``contact_mode = "native"``), set through MuJoCo's global
+contact override (``mjENBL_OVERRIDE``), which bypasses the two-geom mixing
+rules: the "direct" reference ``solref = (-Kp A, -Kd A)`` with the impedance
+pinned at ``d = 1e-4`` (``solimp = (1e-4, 1e-4, 0.001, 0.5, 2)``) makes the
+normal force ``Kp pen + Kd pen_rate`` in newtons, where
+``A = body_invweight0[foot, 0]`` is the inverse inertia MuJoCo uses for the
+contact's regulariser (frozen at qpos0); elliptic cone, sliding friction
+``mu_s`` only (condim 3: no torsional or rolling friction). Differences from
+the spec's law (damping also while releasing, force clamped at zero, a
+regularised cone in which the foot creeps at about F_t / Kd below the limit):
+docs/contact_mapping.md.
+
+Reference contact (``contact_mode = "reference"``): engine contact off
+(``mjDSBL_CONTACT``); before every sub-step, ``qfrc_applied`` is set to
+``J_poc^T F`` of :class:`~legbench.contact.ReferenceContact` at the sub-step's
+start state. With ``euler`` this is exactly the semi-implicit Euler of the
+Pinocchio backend; with ``rk4`` the contact force is held over the sub-step's
+four stages (first order in the contact force, not a true RK4 of the law).
+
+Sub-step ``dt`` (default 1e-4 s, 10 per 1 ms control period): MuJoCo's
+``euler`` is semi-implicit Euler (the leg has no joint damping, so
+``implicitfast`` is the same scheme), first order; at 1e-4 s its free-space
+error stays below 0.1 % of the motion (tests/test_backends_engines.py), the
+same sub-step as the Pinocchio backend, and it resolves the stick-slip law's
+slope (ENGINE_NOTES.md, step sizes). MuJoCo's automatic reset on a bad
+acceleration is disabled: a divergence raises
+:class:`~legbench.exceptions.SimulationDiverged` instead of silently
+restarting from qpos0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+
+from legbench.backends.base import Backend, Physics
+from legbench.contact import ReferenceContact
+from legbench.exceptions import LegbenchError, SimulationDiverged
+from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine
+
+#: Joint-limit constraint: time constant 2 ms, critically damped [s, 1].
+LIMIT_SOLREF = (0.002, 1.0)
+#: Joint-limit impedance: nearly rigid from the first millimetre-radian on.
+LIMIT_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
+#: Contact impedance pinned at d = 1e-4 for every penetration, so the force is
+#: the spring-damper of solref and does not vary with depth.
+CONTACT_SOLIMP = (1e-4, 1e-4, 0.001, 0.5, 2.0)
+
+_INTEGRATORS = {
+    "euler": mujoco.mjtIntegrator.mjINT_EULER,
+    "rk4": mujoco.mjtIntegrator.mjINT_RK4,
+    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+    "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
+}
+
+
+class MujocoBackend(Backend):
+    """MuJoCo simulating the leg from the generated URDF."""
+
+    name: ClassVar[str] = "mujoco"
+    defaults: ClassVar[Mapping[str, Any]] = {
+        "dt": 1.0e-4,  # sub-step [s]; must divide the control period
+        "integrator": "euler",  # semi-implicit Euler, like PyBullet and the Pinocchio backend
+    }
+    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"integrator": tuple(_INTEGRATORS)}
+
+    # ----------------------------------------------------------------- load
+    def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
+        """Compile the URDF with ground, foot site, actuators, limits and contact settings.
+
+        Args:
+            urdf: the generated leg URDF.
+            physics: gravity, contact law and mode, control period, torque limits.
+            settings: overrides of :attr:`defaults` (``dt`` [s], ``integrator``).
+
+        Raises:
+            LegbenchError: an unknown integrator, or a ``dt`` that does not divide
+                the control period.
+        """
+        cfg = self.settings(settings)
+        if cfg["integrator"] not in _INTEGRATORS:
+            raise LegbenchError(f"mujoco: unknown integrator '{cfg['integrator']}'; choose one of {list(_INTEGRATORS)}")
+        ratio = physics.control_dt / cfg["dt"]
+        n_sub = round(ratio)
+        if n_sub < 1 or abs(ratio - n_sub) > 1e-9:
+            raise LegbenchError(f"mujoco: dt = {cfg['dt']} s does not divide the control period {physics.control_dt} s")
+        self.cfg, self.physics, self.n_sub = cfg, physics, n_sub
+        self.reference = physics.contact_mode == "reference"
+
+        spec = mujoco.MjSpec.from_file(str(urdf))
+        opt = spec.option
+        opt.timestep = physics.control_dt / n_sub
+        opt.integrator = _INTEGRATORS[cfg["integrator"]]
+        opt.gravity = [0.0, 0.0, -physics.gravity]
+        opt.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+        opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+        if self.reference:
+            opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+
+        # only the foot sphere collides, and only with the ground
+        for geom in spec.geoms:
+            on_foot = geom.parent.name == FOOT_FRAME
+            geom.contype, geom.conaffinity = (1 if on_foot else 0), 0
+        spec.worldbody.add_geom(
+            name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0], contype=0, conaffinity=1
+        )
+        spec.body(FOOT_FRAME).add_site(name="E", pos=[0.0, 0.0, 0.0])
+
+        for joint, limit in zip(JOINT_NAMES, physics.torque_limit, strict=True):
+            jnt = spec.joint(joint)
+            jnt.damping = [0.0, 0.0, 0.0]  # (linear, ...) coefficients in MuJoCo 4
+            jnt.armature, jnt.frictionloss = 0.0, 0.0
+            jnt.solref_limit = list(LIMIT_SOLREF)
+            jnt.solimp_limit = list(LIMIT_SOLIMP)
+            spec.add_actuator(
+                name=joint,
+                target=joint,
+                trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                gear=[1.0, 0, 0, 0, 0, 0],
+                ctrllimited=mujoco.mjtLimited.mjLIMITED_TRUE,
+                ctrlrange=[-limit, limit],
+            )
+
+        self.model = m = spec.compile()
+        self.data = mujoco.MjData(m)
+        self.foot_body = m.body(FOOT_FRAME).id
+        self.foot_geoms = frozenset(int(g) for g in np.flatnonzero(m.geom_bodyid == self.foot_body))
+
+        # native contact through the global override: N = Kp pen + Kd pen_rate
+        c = physics.contact
+        self.A = float(m.body_invweight0[self.foot_body, 0])
+        m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_OVERRIDE
+        m.opt.o_solref = [-c.Kp * self.A, -c.Kd * self.A]
+        m.opt.o_solimp = list(CONTACT_SOLIMP)
+        m.opt.o_friction = [c.mu_s, c.mu_s, 0.0, 0.0, 0.0]
+        m.opt.o_margin = 0.0
+
+        self.contact = ReferenceContact.from_leg(c)
+        self._step = self._step_reference if self.reference else self._step_native
+        self._f6 = np.zeros(6)
+        self._force = np.zeros(3)
+        self._bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
+
+    # ---------------------------------------------------------------- reset
+    def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
+        """Set q [rad] and qd [rad/s], clear time, warm start, forces and warnings."""
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        d.qpos[:] = q
+        d.qvel[:] = qd
+        self._update()
+
+    # ----------------------------------------------------------------- step
+    def step(self, tau: np.ndarray) -> None:
+        """Advance one control period with tau [N m] held (clamped to the torque limits by MuJoCo)."""
+        self.data.ctrl[:] = tau
+        self._step()
+        self._update()
+        if self.data.warning[self._bad_qacc].number:
+            raise SimulationDiverged(self.name, float(self.data.time), "MuJoCo reported a bad qacc")
+
+    def _step_native(self) -> None:
+        mujoco.mj_step(self.model, self.data, self.n_sub)
+
+    def _step_reference(self) -> None:
+        m, d = self.model, self.data
+        q, qd, applied, law = d.qpos, d.qvel, d.qfrc_applied, self.contact.generalized
+        for _ in range(self.n_sub):
+            applied[:] = law(q[0], q[1], q[2], qd[0], qd[1], qd[2])
+            mujoco.mj_step(m, d)
+
+    def _update(self) -> None:
+        """Ground force at the current state (mj_step's forces are those of the last sub-step's start)."""
+        d = self.data
+        if self.reference:
+            q, qd = d.qpos, d.qvel
+            self.contact.generalized(q[0], q[1], q[2], qd[0], qd[1], qd[2])
+            self._force[:] = self.contact.force
+            return
+        mujoco.mj_forward(self.model, d)
+        force = self._force
+        force[:] = 0.0
+        for i in range(d.ncon):
+            con = d.contact[i]
+            # the contact frame's first row is the normal, from geom1 to geom2; the
+            # force in that frame pushes geom2 along +normal
+            mujoco.mj_contactForce(self.model, d, i, self._f6)
+            f_w = con.frame.reshape(3, 3).T @ self._f6[:3]
+            if con.geom2 in self.foot_geoms:
+                force += f_w
+            elif con.geom1 in self.foot_geoms:
+                force -= f_w
+
+    # ----------------------------------------------------------------- read
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint positions q [rad] (hinges: qpos is the angle, unwrapped) and velocities qd [rad/s]."""
+        return self.data.qpos.copy(), self.data.qvel.copy()
+
+    def ground_force(self) -> np.ndarray:
+        """Force of the ground on the foot in W [N], summed over the foot's contacts, at the current state."""
+        return self._force.copy()
+
+    def info(self) -> dict[str, Any]:
+        """Engine, version, sub-stepping and every contact and limit setting actually used."""
+        m, c = self.model, self.physics.contact
+        return {
+            "engine": "mujoco",
+            "version": mujoco.__version__,
+            **{k: self.cfg[k] for k in self.defaults},
+            "sub_steps": self.n_sub,
+            "timestep": float(m.opt.timestep),
+            "gravity": self.physics.gravity,
+            "contact_mode": self.physics.contact_mode,
+            "contact": {
+                "method": "global override (mjENBL_OVERRIDE), direct solref",
+                "enabled": not self.reference,
+                "solref": m.opt.o_solref.tolist(),
+                "solimp": m.opt.o_solimp.tolist(),
+                "A": self.A,
+                "Kp": c.Kp,
+                "Kd": c.Kd,
+                "friction": m.opt.o_friction.tolist(),
+                "condim": int(m.geom_condim[min(self.foot_geoms)]),
+                "cone": "elliptic",
+                "impratio": float(m.opt.impratio),
+                "reference_law": "J_poc^T F via qfrc_applied per sub-step" if self.reference else None,
+            },
+            "joint_limits": {"solref": list(LIMIT_SOLREF), "solimp": list(LIMIT_SOLIMP)},
+            "solver": {
+                "type": mujoco.mjtSolver(m.opt.solver).name,
+                "iterations": int(m.opt.iterations),
+                "tolerance": float(m.opt.tolerance),
+            },
+        }
+
+    def mass_properties(self) -> dict[str, dict[str, Any]]:
+        """Per moving body: mass [kg], COM [m] and inertia about the COM [kg m^2] in the link frame.
+
+        Read back from the compiled model (principal inertia ``body_inertia``
+        rotated by ``body_iquat``, COM ``body_ipos``); link 3 includes the foot body.
+        """
+        m = self.model
+        out = {}
+        for name in LINK_NAMES:
+            b = m.body(name).id
+            inr = self._inertial(b)
+            if name == LINK_NAMES[-1]:
+                foot = self._inertial(self.foot_body)
+                R = _quat_mat(m.body_quat[self.foot_body])
+                p = m.body_pos[self.foot_body]
+                moved = Inertial(foot.mass, tuple(R @ foot.com + p), tuple(map(tuple, R @ foot.I @ R.T)))  # type: ignore[arg-type]
+                inr = combine([inr, moved])
+            out[name] = {"mass": inr.mass, "com": list(inr.com), "inertia": inr.I.tolist()}
+        return out
+
+    def _inertial(self, body: int) -> Inertial:
+        m = self.model
+        R = _quat_mat(m.body_iquat[body])
+        I = R @ np.diag(m.body_inertia[body]) @ R.T
+        return Inertial(float(m.body_mass[body]), tuple(m.body_ipos[body].tolist()), tuple(map(tuple, I.tolist())))  # type: ignore[arg-type]
+
+
+def _quat_mat(quat: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a MuJoCo quaternion (w, x, y, z)."""
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, np.asarray(quat, float))
+    return R.reshape(3, 3)
+
+
+__all__ = ["MujocoBackend"]
