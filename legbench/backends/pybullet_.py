@@ -1,0 +1,324 @@
+"""PyBullet backend: the generated URDF in Bullet's multibody, compliant native contact or the reference law.
+
+Model: ``models/leg.urdf`` loaded with ``useFixedBase=True`` and
+``URDF_USE_INERTIA_FROM_FILE`` (otherwise Bullet recomputes inertia from the
+collision shapes), in a ``DIRECT`` client of its own (several backends may run
+side by side). The ground is a static ``GEOM_PLANE`` at z_W = 0 (no
+``pybullet_data`` needed). Every default that would make Bullet differ from
+the spec is switched off (ENGINE_NOTES.md): the velocity motors that brake the
+joints until disabled, link linear/angular damping (0.04 by default), joint
+damping, and the 100 rad/s joint-speed clamp (raised to 1000 rad/s, far above
+the 55 rad/s the motors can reach, so it never binds silently). Only the foot
+sphere collides, and only with the ground (pair collision filters).
+
+Native contact: ``contactStiffness = Kp`` and ``contactDamping = Kd`` on the
+foot, which Bullet turns into an implicit spring-damper through ERP/CFM.
+Bullet combines the two bodies' stiffnesses in series and adds their
+dampings, and a body's default damping is 0.1 N s/m, so the plane gets an
+explicit rigid, undamped pair (1e30 N/m, 0): the contact is then exactly
+(Kp, Kd) (the plane's default would add 0.025 N to a 39 N impact). Lateral
+friction ``mu_s`` on the foot and 1 on the plane (Bullet multiplies them), no
+spinning or rolling friction, restitution 0, and ``contactSlop = 0`` /
+``contactProcessingThreshold = 0`` so the spring acts on the true
+penetration. Friction is a hard Coulomb cone: the foot sticks.
+
+Reference contact: the foot-ground collision pair is disabled and ``J_poc^T F`` of
+:class:`~legbench.contact.ReferenceContact` at the sub-step's start state is
+added to the commanded torque before every ``stepSimulation``.
+
+Sub-stepping: ``numSubSteps = 1`` and ``stepSimulation`` called ``n_sub``
+times per control period, so ``getContactPoints`` reports the force of a whole
+(sub-)step (with internal sub-steps it under-reports by their number). Bullet
+applies a ``TORQUE_CONTROL`` command only to the next ``stepSimulation`` and
+adds up repeated commands, so the (clamped) torque is commanded exactly once
+before each call. The integrator is Bullet's semi-implicit Euler; ``dt``
+defaults to 1e-4 s like the other backends (free-space error < 0.1 % of the
+motion, tests/test_backends_engines.py).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from importlib import metadata
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+import pybullet as p
+
+from legbench.backends.base import Backend, Physics
+from legbench.contact import ReferenceContact
+from legbench.exceptions import LegbenchError, SimulationDiverged
+from legbench.model import FOOT_FRAME, LINK_NAMES, Inertial, combine
+
+#: Joint-speed clamp [rad/s]: Bullet's default of 100 replaced by a bound the leg cannot reach.
+MAX_JOINT_VELOCITY = 1000.0
+#: Lateral friction of the plane; Bullet multiplies the two bodies' coefficients.
+PLANE_FRICTION = 1.0
+#: Contact stiffness of the plane [N/m]: Bullet combines stiffnesses in series, so a
+#: rigid plane leaves the foot's Kp (1/(1/Kp + 1e-30) = Kp in double precision).
+PLANE_STIFFNESS = 1.0e30
+
+
+class PybulletBackend(Backend):
+    """PyBullet (Bullet multibody, sequential-impulse solver) simulating the leg."""
+
+    name: ClassVar[str] = "pybullet"
+    defaults: ClassVar[Mapping[str, Any]] = {
+        "dt": 1.0e-4,  # sub-step [s]; must divide the control period
+        "solver_iterations": 50,  # sequential-impulse iterations per step
+    }
+
+    # ----------------------------------------------------------------- load
+    def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
+        """Connect a DIRECT client, load the URDF and the ground, switch off Bullet's extra damping and clamps.
+
+        Args:
+            urdf: the generated leg URDF.
+            physics: gravity, contact law and mode, control period, torque limits.
+            settings: overrides of :attr:`defaults` (``dt`` [s], ``solver_iterations``).
+
+        Raises:
+            LegbenchError: a ``dt`` that does not divide the control period.
+        """
+        cfg = self.settings(settings)
+        ratio = physics.control_dt / cfg["dt"]
+        n_sub = round(ratio)
+        if n_sub < 1 or abs(ratio - n_sub) > 1e-9:
+            raise LegbenchError(
+                f"pybullet: dt = {cfg['dt']} s does not divide the control period {physics.control_dt} s"
+            )
+        self.cfg, self.physics, self.n_sub = cfg, physics, n_sub
+        self.reference = physics.contact_mode == "reference"
+        self.cid = cid = p.connect(p.DIRECT)
+
+        p.setPhysicsEngineParameter(
+            fixedTimeStep=physics.control_dt / n_sub,
+            numSubSteps=1,
+            numSolverIterations=int(cfg["solver_iterations"]),
+            contactSlop=0.0,
+            physicsClientId=cid,
+        )
+        p.setGravity(0.0, 0.0, -physics.gravity, physicsClientId=cid)
+        self.body = body = p.loadURDF(
+            str(urdf), useFixedBase=True, flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid
+        )
+        names = {
+            p.getJointInfo(body, j, physicsClientId=cid)[12].decode(): j
+            for j in range(p.getNumJoints(body, physicsClientId=cid))
+        }
+        self.links = {name: names[name] for name in (*LINK_NAMES, FOOT_FRAME)}
+        self.joints = [self.links[name] for name in LINK_NAMES]  # joint i drives link i
+        self.foot = self.links[FOOT_FRAME]
+
+        plane = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
+        self.ground = p.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=plane, physicsClientId=cid)
+
+        # no velocity motors, no damping, no hidden speed clamp
+        p.setJointMotorControlArray(body, self.joints, p.VELOCITY_CONTROL, forces=[0.0] * 3, physicsClientId=cid)
+        for link in (-1, *self.links.values()):
+            p.changeDynamics(
+                body, link, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0,
+                maxJointVelocity=MAX_JOINT_VELOCITY, physicsClientId=cid,
+            )  # fmt: skip
+
+        # collisions: foot <-> ground only, by explicit pair filters (in this build a pair
+        # collides if either body's group meets the other's mask, so clearing the foot's
+        # mask alone did not stop it); self-collision is off by default
+        for name, link in self.links.items():
+            enable = name == FOOT_FRAME and not self.reference
+            p.setCollisionFilterPair(body, self.ground, link, -1, int(enable), physicsClientId=cid)
+
+        c = physics.contact
+        p.changeDynamics(
+            body, self.foot, contactStiffness=c.Kp, contactDamping=c.Kd, lateralFriction=c.mu_s,
+            spinningFriction=0.0, rollingFriction=0.0, restitution=0.0, contactProcessingThreshold=0.0,
+            physicsClientId=cid,
+        )  # fmt: skip
+        p.changeDynamics(
+            self.ground, -1, lateralFriction=PLANE_FRICTION, spinningFriction=0.0, rollingFriction=0.0,
+            restitution=0.0, contactProcessingThreshold=0.0, contactStiffness=PLANE_STIFFNESS,
+            contactDamping=0.0, physicsClientId=cid,
+        )  # fmt: skip
+
+        self.contact = ReferenceContact.from_leg(c)
+        self.limit = np.asarray(physics.torque_limit, float)
+        self._tau = np.zeros(3)
+        self._cmd = np.zeros(3)
+        self._force = np.zeros(3)
+        self._q = np.zeros(3)
+        self._qd = np.zeros(3)
+        self.t = 0.0
+
+    # ---------------------------------------------------------------- reset
+    def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
+        """Set q [rad] and qd [rad/s]; the contact force reads zero until the first step."""
+        for j, qj, qdj in zip(self.joints, q, qd, strict=True):
+            p.resetJointState(self.body, j, float(qj), float(qdj), physicsClientId=self.cid)
+        self._read()
+        self.t = 0.0
+        if self.reference:
+            self._reference_force()
+        else:
+            self._force[:] = 0.0
+
+    # ----------------------------------------------------------------- step
+    def step(self, tau: np.ndarray) -> None:
+        """Advance one control period with tau [N m], clamped to the torque limits, held."""
+        body, cid, joints, cmd = self.body, self.cid, self.joints, self._cmd
+        np.clip(tau, -self.limit, self.limit, out=self._tau)
+        law = self.contact.generalized
+        for _ in range(self.n_sub):
+            if self.reference:
+                q, qd = self._q, self._qd
+                cmd[:] = self._tau + law(q[0], q[1], q[2], qd[0], qd[1], qd[2])
+            else:
+                cmd[:] = self._tau
+            p.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=cmd, physicsClientId=cid)
+            p.stepSimulation(physicsClientId=cid)
+            if self.reference:
+                self._read()
+        self.t += self.physics.control_dt
+        if not self.reference:
+            self._read()
+            self._native_force()
+        else:
+            self._reference_force()
+        if not (np.isfinite(self._q).all() and np.isfinite(self._qd).all()):
+            raise SimulationDiverged(self.name, self.t, "non-finite joint state")
+
+    def _read(self) -> None:
+        states = p.getJointStates(self.body, self.joints, physicsClientId=self.cid)
+        for i, s in enumerate(states):
+            self._q[i] = s[0]
+            self._qd[i] = s[1]
+
+    def _reference_force(self) -> None:
+        q, qd = self._q, self._qd
+        self.contact.generalized(q[0], q[1], q[2], qd[0], qd[1], qd[2])
+        self._force[:] = self.contact.force
+
+    def _native_force(self) -> None:
+        """Sum of the foot's contact forces over the last sub-step (impulse / dt), on the foot, in W.
+
+        With the foot as body A, ``contactNormalOnB`` points from the ground
+        towards the foot, the normal force pushes the foot along it, and the
+        two friction forces act on A along ``lateralFrictionDir1/2``.
+        """
+        force = self._force
+        force[:] = 0.0
+        for cp in p.getContactPoints(self.body, self.ground, self.foot, -1, physicsClientId=self.cid):
+            fn, f1, d1, f2, d2 = cp[9], cp[10], cp[11], cp[12], cp[13]
+            n = cp[7]
+            for k in range(3):
+                force[k] += fn * n[k] + f1 * d1[k] + f2 * d2[k]
+
+    # ----------------------------------------------------------------- read
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint positions q [rad] (Bullet's raw, unwrapped hip angle) and velocities qd [rad/s]."""
+        return self._q.copy(), self._qd.copy()
+
+    def ground_force(self) -> np.ndarray:
+        """Force of the ground on the foot in W [N].
+
+        Native: Bullet's contact impulse of the last sub-step divided by ``dt``
+        (the force over the final 0.1 ms, not at the end instant). Reference:
+        the law at the current state.
+        """
+        return self._force.copy()
+
+    def info(self) -> dict[str, Any]:
+        """Engine, version and every physics setting actually used, read back where Bullet allows."""
+        cid, c = self.cid, self.physics.contact
+        foot = p.getDynamicsInfo(self.body, self.foot, physicsClientId=cid)
+        ground = p.getDynamicsInfo(self.ground, -1, physicsClientId=cid)
+        engine = p.getPhysicsEngineParameters(physicsClientId=cid)
+        return {
+            "engine": "pybullet",
+            "version": metadata.version("pybullet"),
+            "api_version": p.getAPIVersion(physicsClientId=cid),
+            **{k: self.cfg[k] for k in self.defaults},
+            "sub_steps": self.n_sub,
+            "timestep": engine["fixedTimeStep"],
+            "engine_sub_steps": engine["numSubSteps"],
+            "gravity": self.physics.gravity,
+            "contact_mode": self.physics.contact_mode,
+            "contact": {
+                "enabled": not self.reference,
+                "foot_stiffness": foot[9],
+                "foot_damping": foot[8],
+                "plane_stiffness": ground[9],
+                "plane_damping": ground[8],
+                "foot_lateral_friction": foot[1],
+                "plane_lateral_friction": ground[1],
+                "friction": foot[1] * ground[1],
+                "spinning_friction": foot[7],
+                "rolling_friction": foot[6],
+                "restitution": foot[5],
+                "contact_slop": 0.0,
+                "contact_processing_threshold": 0.0,
+                "cone": "Coulomb (Bullet's default friction model)",
+                "Kp": c.Kp,
+                "Kd": c.Kd,
+                "reference_law": "J_poc^T F added to the torque per sub-step" if self.reference else None,
+            },
+            "damping": {"linear": 0.0, "angular": 0.0, "joint": 0.0},
+            "max_joint_velocity": MAX_JOINT_VELOCITY,
+        }
+
+    def mass_properties(self) -> dict[str, dict[str, Any]]:
+        """Per moving body: mass [kg], COM [m] and inertia about the COM [kg m^2] in the link frame.
+
+        From ``getDynamicsInfo`` (principal inertia rotated by the local
+        inertial orientation); link 3 includes the foot link, placed by the
+        two links' world frames.
+        """
+        out = {}
+        for name in LINK_NAMES:
+            inr = self._inertial(self.links[name])
+            if name == LINK_NAMES[-1]:
+                R, pos = self._foot_pose()
+                foot = self._inertial(self.foot)
+                moved = Inertial(foot.mass, tuple(R @ foot.com + pos), tuple(map(tuple, R @ foot.I @ R.T)))  # type: ignore[arg-type]
+                inr = combine([inr, moved])
+            out[name] = {"mass": inr.mass, "com": list(inr.com), "inertia": inr.I.tolist()}
+        return out
+
+    def _inertial(self, link: int) -> Inertial:
+        info = p.getDynamicsInfo(self.body, link, physicsClientId=self.cid)
+        R = _quat_mat(info[4])
+        I = R @ np.diag(info[2]) @ R.T
+        return Inertial(float(info[0]), tuple(info[3]), tuple(map(tuple, I.tolist())))  # type: ignore[arg-type]
+
+    def _foot_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Rotation and position of the foot frame in link 3's frame.
+
+        Bullet gives a joint's parent frame relative to the parent's inertial
+        (COM) frame; composing it with that frame keeps double precision
+        (``getLinkState`` frames are single precision, ~1e-8 m).
+        """
+        info = p.getDynamicsInfo(self.body, self.links[LINK_NAMES[-1]], physicsClientId=self.cid)
+        joint = p.getJointInfo(self.body, self.foot, physicsClientId=self.cid)
+        R_com, p_com = _quat_mat(info[4]), np.array(info[3])
+        return R_com @ _quat_mat(joint[15]), R_com @ np.array(joint[14]) + p_com
+
+    def close(self) -> None:
+        """Disconnect this backend's Bullet client."""
+        if getattr(self, "cid", None) is not None and p.isConnected(self.cid):
+            p.disconnect(self.cid)
+        self.cid = None  # type: ignore[assignment]
+
+
+def _quat_mat(quat: Any) -> np.ndarray:
+    """Rotation matrix of a Bullet quaternion (x, y, z, w)."""
+    x, y, z, w = quat
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+__all__ = ["PybulletBackend"]
