@@ -1,0 +1,602 @@
+"""Regression check: new comparison metrics against a committed baseline.
+
+``legbench check NEW --baseline BASE`` compares, scenario by scenario, the
+metrics of NEW with those of BASE (same layout: one run directory per
+scenario, each with metrics.json, or a single run directory each). A metric
+may move within its tolerance; beyond it, or a backend that stopped working,
+or a metric that disappeared, is a regression and the exit status is 1.
+
+Checked metrics and rules (defaults in :data:`DEFAULT_TOLERANCES`, documented
+in docs/metrics.md):
+
+* ``sim_error_pct`` and ``rms`` (each backend against its reference, per signal
+  component) may *grow* by at most max(abs, rel * |baseline|); shrinking is an
+  improvement and passes.
+* ``steady_mean`` (steady-state qd and ground force) may *change either way*
+  by at most max(abs, rel * |baseline|).
+* ``max_sim_error_pct``: optional absolute ceilings on the new sim_error_pct,
+  whatever the baseline.
+
+Tolerances come from the defaults, overridden by a tolerance file (YAML or
+JSON), overridden by the scenario's own ``comparison.tolerances`` in the new
+run.json. When both sides still hold their parquet logs, each backend's time
+series is also compared bit for bit ("identical" or "changed").
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from legbench import compare as C
+from legbench.exceptions import ResultsError, ScenarioError
+
+__all__ = [
+    "DEFAULT_TOLERANCES",
+    "CheckReport",
+    "CheckRow",
+    "TraceCheck",
+    "check",
+    "format_table",
+    "load_tolerances",
+    "run_check",
+    "write_junit",
+    "write_markdown",
+]
+
+#: Default tolerances. ``abs`` and ``rel`` are a number, or a mapping keyed by
+#: component label (``tau2``, ``fz``), signal (``tau``, ``force``) or ``default``.
+DEFAULT_TOLERANCES: dict[str, Any] = {
+    "sim_error_pct": {"abs": 1.0, "rel": 0.10},  # [percentage points], [1]
+    "rms": {"abs": {"q": 1e-3, "qd": 1e-2, "tau": 1e-2, "force": 0.1}, "rel": 0.10},  # [signal unit], [1]
+    "steady_mean": {"abs": {"qd": 1e-3, "force": 0.1}, "rel": 0.05},  # [signal unit], [1]
+    "max_sim_error_pct": {},  # label or signal -> ceiling [%]
+}
+#: Metrics that may only grow within tolerance; the others may move either way.
+ONE_SIDED = ("sim_error_pct", "rms")
+#: Row statuses that fail the check.
+FAILING = ("REGRESSION", "MISSING", "FAILED", "OVER LIMIT")
+_KEYS = ["scenario", "backend", "reference", "signal", "joint", "metric"]
+
+
+@dataclass(frozen=True)
+class CheckRow:
+    """One metric (or backend status) checked.
+
+    Attributes:
+        scenario: scenario label.
+        backend: backend name.
+        reference: the backend it is measured against ("" for per-backend metrics).
+        signal: signal name (``-`` for a backend status).
+        joint: component.
+        metric: metric name, or ``status``.
+        baseline: baseline value (NaN if none).
+        new: new value (NaN if none).
+        allowed: largest change allowed (NaN if not applicable).
+        status: ``pass``, ``improved``, ``moved`` (within tolerance), ``new``, or a
+            failing one of :data:`FAILING`.
+        message: one sentence naming the signal and the numbers.
+    """
+
+    scenario: str
+    backend: str
+    reference: str
+    signal: str
+    joint: str
+    metric: str
+    baseline: float
+    new: float
+    allowed: float
+    status: str
+    message: str
+
+    @property
+    def label(self) -> str:
+        """Component label, ``tau2`` or ``fz`` (``-`` for a status row)."""
+        return "-" if self.signal == "-" else C.label(self.signal, self.joint)
+
+    @property
+    def failed(self) -> bool:
+        """True if this row is a regression."""
+        return self.status in FAILING
+
+    @property
+    def change(self) -> float:
+        """new - baseline."""
+        return self.new - self.baseline
+
+
+@dataclass(frozen=True)
+class TraceCheck:
+    """Bit-for-bit comparison of one backend's time series with the baseline's.
+
+    Attributes:
+        scenario: scenario label.
+        backend: backend name.
+        status: ``identical``, ``changed`` or ``no baseline log``.
+        max_abs_change: largest absolute difference over the numeric columns (NaN if shapes differ).
+        detail: what differs, in words.
+    """
+
+    scenario: str
+    backend: str
+    status: str
+    max_abs_change: float
+    detail: str = ""
+
+
+@dataclass(frozen=True)
+class CheckReport:
+    """Outcome of :func:`check`.
+
+    Attributes:
+        new: the new results directory.
+        baseline: the baseline directory.
+        rows: every metric and status checked.
+        traces: bit-for-bit comparisons of time series.
+        tolerance_sources: scenario -> where its tolerances came from.
+    """
+
+    new: Path
+    baseline: Path
+    rows: tuple[CheckRow, ...]
+    traces: tuple[TraceCheck, ...]
+    tolerance_sources: Mapping[str, str]
+
+    @property
+    def regressions(self) -> tuple[CheckRow, ...]:
+        """The failing rows."""
+        return tuple(r for r in self.rows if r.failed)
+
+    @property
+    def passed(self) -> bool:
+        """True if nothing regressed."""
+        return not self.regressions
+
+    @property
+    def exit_status(self) -> int:
+        """0 if nothing regressed, 1 otherwise."""
+        return 0 if self.passed else 1
+
+
+# --------------------------------------------------------------------------- #
+# Tolerances
+
+
+def _merge(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+    out = {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in base.items()}
+    for k, v in over.items():
+        if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
+            out[k] = _merge(out[k], v)
+        else:
+            out[k] = v
+    return out
+
+
+def _validate(tol: Any, file: str, prefix: str) -> dict[str, Any]:
+    if not isinstance(tol, Mapping):
+        raise ScenarioError(file, prefix, "tolerances must be a mapping")
+    for k, v in tol.items():
+        key = f"{prefix}.{k}" if prefix else str(k)
+        if k not in DEFAULT_TOLERANCES:
+            raise ScenarioError(file, key, f"unknown tolerance; valid: {sorted(DEFAULT_TOLERANCES)}")
+        if not isinstance(v, Mapping):
+            raise ScenarioError(file, key, "must be a mapping")
+        if k == "max_sim_error_pct":
+            for lab, x in v.items():
+                _number(x, file, f"{key}.{lab}")
+            continue
+        for sub, x in v.items():
+            if sub not in ("abs", "rel"):
+                raise ScenarioError(file, f"{key}.{sub}", "unknown key; valid: ['abs', 'rel']")
+            if isinstance(x, Mapping):
+                for lab, y in x.items():
+                    _number(y, file, f"{key}.{sub}.{lab}")
+            else:
+                _number(x, file, f"{key}.{sub}")
+    return dict(tol)
+
+
+def _number(x: Any, file: str, key: str) -> float:
+    if isinstance(x, bool) or not isinstance(x, int | float) or not x >= 0:
+        raise ScenarioError(file, key, f"must be a number >= 0, not {x!r}")
+    return float(x)
+
+
+def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
+    """Read a tolerance file (YAML or JSON).
+
+    Format: the keys of :data:`DEFAULT_TOLERANCES` at the top level (applied to
+    every scenario), and optionally ``scenarios: {<scenario>: {...}}`` with
+    per-scenario overrides.
+
+    Returns:
+        (tolerances for every scenario, per-scenario overrides).
+
+    Raises:
+        ScenarioError: the file is missing or malformed, naming the key.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ScenarioError(str(path), "", "no such tolerance file")
+    try:
+        doc = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        raise ScenarioError(str(path), "", f"not valid YAML/JSON ({exc})") from exc
+    if not isinstance(doc, Mapping):
+        raise ScenarioError(str(path), "", "top level must be a mapping")
+    doc = dict(doc)
+    per = doc.pop("scenarios", {}) or {}
+    if not isinstance(per, Mapping):
+        raise ScenarioError(str(path), "scenarios", "must be a mapping of scenario name to tolerances")
+    common = _validate(doc, str(path), "")
+    return common, {str(k): _validate(v, str(path), f"scenarios.{k}") for k, v in per.items()}
+
+
+def _lookup(spec: Any, signal: str, joint: str, default: float) -> float:
+    if not isinstance(spec, Mapping):
+        return float(spec)
+    for key in (C.label(signal, joint), signal, "default"):
+        if key in spec:
+            return float(spec[key])
+    return default
+
+
+# --------------------------------------------------------------------------- #
+# Reading both sides
+
+
+def _run_dirs(root: Path) -> dict[str, Path]:
+    """Scenario directories under ``root`` by name; a single run directory maps to itself."""
+    if not root.is_dir():
+        raise ResultsError(str(root), "no such results directory")
+    if (root / "run.json").is_file() or (root / "metrics.json").is_file():
+        return {"": root}
+    dirs = {p.name: p for p in sorted(root.iterdir()) if (p / "run.json").is_file() or (p / "metrics.json").is_file()}
+    if not dirs:
+        raise ResultsError(str(root), "no run directories (with run.json or metrics.json) here")
+    return dirs
+
+
+def _metrics(d: Path) -> tuple[dict[str, Any], pd.DataFrame]:
+    """metrics.json of a run directory, recomputed when absent or older than run.json."""
+    mfile, rfile = d / "metrics.json", d / "run.json"
+    if mfile.is_file() and (not rfile.is_file() or mfile.stat().st_mtime >= rfile.stat().st_mtime):
+        return C.read_metrics(mfile)
+    res = C.compare(d)
+    doc = res.to_json()
+    doc.pop("metrics")
+    return doc, res.frame()
+
+
+def _tolerances(
+    new_dir: Path, name: str, common: Mapping[str, Any], per: Mapping[str, Mapping[str, Any]], tfile: str
+) -> tuple[dict[str, Any], str]:
+    tol = dict(DEFAULT_TOLERANCES)
+    sources = ["defaults"]
+    if common:
+        tol, sources = _merge(tol, common), [*sources, tfile]
+    if name in per:
+        tol, sources = _merge(tol, per[name]), [*sources, f"{tfile} scenarios.{name}"]
+    rj = new_dir / "run.json"
+    if rj.is_file():
+        meta = json.loads(rj.read_text())
+        own = ((meta.get("scenario") or {}).get("comparison") or {}).get("tolerances") or {}
+        if own:
+            tol = _merge(tol, _validate(own, str(rj), "scenario.comparison.tolerances"))
+            sources.append(f"{rj} scenario.comparison.tolerances")
+    return tol, " < ".join(sources)
+
+
+# --------------------------------------------------------------------------- #
+# The check
+
+
+def _fmt(v: float) -> str:
+    return "n/a" if not math.isfinite(v) else f"{v:.4g}"
+
+
+def _allowed(spec: Mapping[str, Any], signal: str, joint: str, baseline: float) -> float:
+    """max(abs, rel * |baseline|) for one component (NaN if the baseline is undefined)."""
+    if not math.isfinite(baseline):
+        return math.nan
+    a = _lookup(spec.get("abs", 0.0), signal, joint, 0.0)
+    r = _lookup(spec.get("rel", 0.0), signal, joint, 0.0)
+    return max(a, r * abs(baseline))
+
+
+def _check_rows(sc: str, base: pd.DataFrame, new: pd.DataFrame, tol: Mapping[str, Any]) -> list[CheckRow]:
+    checked = [m for m in tol if m != "max_sim_error_pct"]
+    b = base[base["metric"].isin(checked)]
+    n = new[new["metric"].isin(checked)]
+    merged = b.merge(n, on=_KEYS, how="outer", suffixes=("_base", "_new"), indicator="side", sort=False)
+    rows: list[CheckRow] = []
+    ceilings = tol.get("max_sim_error_pct") or {}
+    for rec in merged.itertuples(index=False):
+        signal, joint, metric = str(rec.signal), str(rec.joint), str(rec.metric)
+        bv, nv = float(rec.value_base), float(rec.value_new)
+        lab = C.label(signal, joint)
+        who = f"{sc}/{rec.backend} {lab} {metric}"
+        allowed = _allowed(tol[metric], signal, joint, bv)
+        if rec.side == "left_only":
+            status, msg = "MISSING", f"{who}: in the baseline ({_fmt(bv)}) but not in the new results"
+        elif rec.side == "right_only":
+            status, msg = "new", f"{who}: new metric ({_fmt(nv)}), not in the baseline"
+        elif not math.isfinite(bv) and not math.isfinite(nv):
+            status, msg = "pass", f"{who}: undefined in both"
+        elif not math.isfinite(nv):
+            status, msg = "REGRESSION", f"{who}: became undefined (baseline {_fmt(bv)})"
+        elif not math.isfinite(bv):
+            status, msg = "new", f"{who}: now defined ({_fmt(nv)}), undefined in the baseline"
+        else:
+            delta = nv - bv
+            grew = delta if metric in ONE_SIDED else abs(delta)
+            verb = "grew" if delta > 0 else "fell"
+            if grew > allowed:
+                status = "REGRESSION"
+            elif delta == 0.0:
+                status = "pass"
+            elif metric in ONE_SIDED and delta < 0:
+                status = "improved"
+            else:
+                status = "moved"
+            sign = "+" if metric in ONE_SIDED else "+-"
+            msg = f"{who} {verb} {_fmt(bv)} -> {_fmt(nv)} ({delta:+.3g}; allowed {sign}{allowed:.3g})"
+        if metric == "sim_error_pct" and math.isfinite(nv) and status not in FAILING:
+            ceiling = _lookup(ceilings, signal, joint, math.inf) if ceilings else math.inf
+            if nv > ceiling:
+                status, msg = "OVER LIMIT", f"{who} = {_fmt(nv)} % exceeds its limit {ceiling:g} %"
+        rows.append(
+            CheckRow(sc, str(rec.backend), str(rec.reference), signal, joint, metric, bv, nv, allowed, status, msg)
+        )
+    return rows
+
+
+def _status_rows(sc: str, base_meta: Mapping[str, Any], new_meta: Mapping[str, Any]) -> list[CheckRow]:
+    rows = []
+    bb, nb = base_meta.get("backends") or {}, new_meta.get("backends") or {}
+    nan = math.nan
+    for name, b in bb.items():
+        was = b.get("status")
+        now = (nb.get(name) or {}).get("status", "absent")
+        why = (nb.get(name) or {}).get("reason") or "not in the new run"
+        if was == "ok" and now != "ok":
+            msg = f"{sc}/{name}: backend was ok in the baseline, now {now}: {why}"
+            rows.append(CheckRow(sc, name, "", "-", "-", "status", nan, nan, nan, "FAILED", msg))
+        else:
+            rows.append(CheckRow(sc, name, "", "-", "-", "status", nan, nan, nan, "pass", f"{sc}/{name}: {now}"))
+    return rows
+
+
+def _trace_checks(sc: str, base_dir: Path, new_dir: Path, backends: Mapping[str, Any]) -> list[TraceCheck]:
+    out = []
+    for name, b in backends.items():
+        if b.get("status") != "ok" or b.get("source") == "log":
+            continue
+        fb, fn = base_dir / f"{name}.parquet", new_dir / f"{name}.parquet"
+        if not fn.is_file():
+            continue
+        if not fb.is_file():
+            out.append(TraceCheck(sc, name, "no baseline log", math.nan))
+            continue
+        db, dn = pd.read_parquet(fb), pd.read_parquet(fn)
+        if list(db.columns) != list(dn.columns) or len(db) != len(dn):
+            detail = f"shape {db.shape} -> {dn.shape}"
+            out.append(TraceCheck(sc, name, "changed", math.nan, detail))
+            continue
+        num = [c for c in db.columns if c != "controller"]
+        xb = db[num].to_numpy(dtype=float)
+        xn = dn[num].to_numpy(dtype=float)
+        same_ctrl = "controller" not in db.columns or bool((db["controller"] == dn["controller"]).all())
+        if np.array_equal(xb, xn, equal_nan=True) and same_ctrl:
+            out.append(TraceCheck(sc, name, "identical", 0.0))
+        else:
+            with np.errstate(invalid="ignore"):
+                diff = np.abs(xn - xb)
+            worst = float(np.nanmax(diff)) if np.isfinite(diff).any() else math.nan
+            col = num[int(np.nanargmax(np.nanmax(diff, axis=0)))] if np.isfinite(diff).any() else "controller"
+            out.append(TraceCheck(sc, name, "changed", worst, f"largest change in {col}"))
+    return out
+
+
+def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | None = None) -> CheckReport:
+    """Check new results against a baseline.
+
+    Args:
+        new: a run directory or a tree of them (results/latest).
+        baseline: the baseline, same layout.
+        tolerance_file: optional YAML/JSON tolerance file (see :func:`load_tolerances`).
+
+    Returns:
+        The :class:`CheckReport`; ``exit_status`` is 1 on any regression.
+
+    Raises:
+        ResultsError: a directory or metrics file is missing or malformed.
+        ScenarioError: a tolerance file or run.json tolerances are malformed.
+    """
+    new, baseline = Path(new), Path(baseline)
+    common, per = load_tolerances(tolerance_file) if tolerance_file is not None else ({}, {})
+    tfile = str(tolerance_file)
+    nd, bd = _run_dirs(new), _run_dirs(baseline)
+    if "" in nd or "" in bd:  # a single run directory on either side: compare the one pair
+        if len(nd) != 1 or len(bd) != 1:
+            raise ResultsError(str(new if "" in bd else baseline), "one side is a run directory, the other a tree")
+        nd, bd = {"": next(iter(nd.values()))}, {"": next(iter(bd.values()))}
+    rows: list[CheckRow] = []
+    traces: list[TraceCheck] = []
+    sources: dict[str, str] = {}
+    nan = math.nan
+    for key, bdir in bd.items():
+        if key not in nd:
+            msg = f"scenario {key}: in the baseline but not in {new}"
+            rows.append(CheckRow(key, "-", "", "-", "-", "status", nan, nan, nan, "MISSING", msg))
+            continue
+        ndir = nd[key]
+        bmeta, bdf = _metrics(bdir)
+        nmeta, ndf = _metrics(ndir)
+        sc = str(nmeta.get("scenario", key))
+        tol, sources[sc] = _tolerances(ndir, str(nmeta.get("name", sc)), common, per, tfile)
+        rows += _status_rows(sc, bmeta, nmeta)
+        rows += _check_rows(sc, bdf, ndf, tol)
+        traces += _trace_checks(sc, bdir, ndir, nmeta.get("backends") or {})
+    for key in nd.keys() - bd.keys():
+        rows.append(CheckRow(key, "-", "", "-", "-", "status", nan, nan, nan, "new", f"scenario {key}: no baseline"))
+    return CheckReport(new, baseline, tuple(rows), tuple(traces), sources)
+
+
+# --------------------------------------------------------------------------- #
+# Output
+
+
+def _moved(r: CheckRow) -> bool:
+    return r.failed or r.status in ("moved", "improved", "new")
+
+
+def _table_rows(report: CheckReport, all_rows: bool) -> list[list[str]]:
+    out = []
+    for r in report.rows:
+        if all_rows or _moved(r):
+            chg = _fmt(r.change) if math.isfinite(r.change) else ""
+            out.append(
+                [
+                    r.scenario,
+                    r.backend,
+                    r.label,
+                    r.metric,
+                    _fmt(r.baseline),
+                    _fmt(r.new),
+                    chg,
+                    _fmt(r.allowed),
+                    r.status,
+                ]
+            )
+    return out
+
+
+_HEADER = ["scenario", "backend", "signal", "metric", "baseline", "new", "change", "allowed", "status"]
+
+
+def format_table(report: CheckReport, all_rows: bool = False) -> str:
+    """Plain-text table of what moved (every row with ``all_rows``), then a one-line verdict."""
+    rows = _table_rows(report, all_rows)
+    lines = []
+    if rows:
+        widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(_HEADER)]
+        lines.append("  ".join(h.ljust(w) for h, w in zip(_HEADER, widths, strict=True)))
+        lines.append("  ".join("-" * w for w in widths))
+        lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+    else:
+        lines.append("no metric moved")
+    for t in report.traces:
+        lines.append(f"{t.scenario}/{t.backend}: time series {t.status}" + (f" ({t.detail})" if t.detail else ""))
+    lines.append(_verdict(report))
+    return "\n".join(lines)
+
+
+def _verdict(report: CheckReport) -> str:
+    n = sum(r.metric != "status" for r in report.rows)
+    reg = report.regressions
+    if not reg:
+        return f"PASS: {n} metrics checked against {report.baseline}, no regression"
+    named = "; ".join(r.message for r in reg[:10]) + ("; ..." if len(reg) > 10 else "")
+    return f"FAIL: {len(reg)} regression(s) of {n} metrics checked against {report.baseline}: {named}"
+
+
+def write_markdown(report: CheckReport, path: str | Path) -> Path:
+    """Write the Markdown summary: verdict, regressions, what moved, time-series identity, tolerance sources."""
+    path = Path(path)
+    lines = [f"# legbench check: {report.new} against {report.baseline}", "", f"**{_verdict(report)}**", ""]
+    if report.regressions:
+        lines += ["## Regressions", ""] + [f"- {r.message}" for r in report.regressions] + [""]
+    rows = _table_rows(report, all_rows=False)
+    lines += ["## What moved", ""]
+    if rows:
+        lines += ["| " + " | ".join(_HEADER) + " |", "|" + "---|" * len(_HEADER)]
+        lines += ["| " + " | ".join(r) + " |" for r in rows]
+    else:
+        lines.append("Nothing moved.")
+    lines.append("")
+    if report.traces:
+        lines += [
+            "## Time series against the baseline",
+            "",
+            "| scenario | backend | status | detail |",
+            "|---|---|---|---|",
+        ]
+        lines += [f"| {t.scenario} | {t.backend} | {t.status} | {t.detail} |" for t in report.traces]
+        lines.append("")
+    lines += ["## Tolerances", ""] + [f"- {sc}: {src}" for sc, src in report.tolerance_sources.items()] + [""]
+    path.write_text("\n".join(lines))
+    return path
+
+
+def write_junit(report: CheckReport, path: str | Path) -> Path:
+    """Write a JUnit XML file: one testsuite per scenario, one testcase per metric (or backend status) checked."""
+    path = Path(path)
+    suites = ET.Element("testsuites", name="legbench.check")
+    by_sc: dict[str, list[CheckRow]] = {}
+    for r in report.rows:
+        by_sc.setdefault(r.scenario, []).append(r)
+    for sc, rows in by_sc.items():
+        fails = sum(r.failed for r in rows)
+        skipped = sum(r.status == "new" for r in rows)
+        suite = ET.SubElement(
+            suites, "testsuite", name=f"legbench.{sc}", tests=str(len(rows)), failures=str(fails), skipped=str(skipped)
+        )
+        for r in rows:
+            name = (
+                "status"
+                if r.metric == "status"
+                else f"{r.label} {r.metric}" + (f" vs {r.reference}" if r.reference else "")
+            )
+            case = ET.SubElement(suite, "testcase", classname=f"legbench.{sc}.{r.backend}", name=name)
+            if r.failed:
+                ET.SubElement(case, "failure", message=r.message, type=r.status).text = r.message
+            elif r.status == "new":
+                ET.SubElement(case, "skipped", message=r.message)
+    suites.set("tests", str(len(report.rows)))
+    suites.set("failures", str(len(report.regressions)))
+    ET.indent(suites)
+    ET.ElementTree(suites).write(path, encoding="utf-8", xml_declaration=True)
+    return path
+
+
+def run_check(
+    new: str | Path,
+    baseline: str | Path,
+    tolerance_file: str | Path | None = None,
+    summary: str | Path | None = None,
+    junit: str | Path | None = None,
+    stream: TextIO | None = None,
+    all_rows: bool = False,
+) -> int:
+    """Check, print the table, write the Markdown summary and JUnit XML; return the exit status.
+
+    Args:
+        new: new results (run directory or tree).
+        baseline: baseline, same layout.
+        tolerance_file: optional tolerance file.
+        summary: Markdown summary path (default ``NEW/check.md``).
+        junit: JUnit XML path (default ``NEW/check-junit.xml``).
+        stream: where the table is printed (default stdout).
+        all_rows: print every row, not only what moved.
+
+    Returns:
+        0 if nothing regressed, 1 otherwise.
+    """
+    report = check(new, baseline, tolerance_file)
+    out = stream if stream is not None else sys.stdout
+    print(format_table(report, all_rows), file=out)
+    write_markdown(report, summary if summary is not None else Path(new) / "check.md")
+    write_junit(report, junit if junit is not None else Path(new) / "check-junit.xml")
+    return report.exit_status
