@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -12,7 +13,11 @@ import numpy as np
 
 from legbench.exceptions import LegbenchError
 
-EXIT_USER_ERROR = 2
+EXIT_OK = 0
+EXIT_FAILURE = 1  # a regression (check) or an unreachable point (model ik)
+EXIT_USER_ERROR = 2  # bad input: nothing was run or written
+EXIT_BACKEND_FAILED = 3  # a backend failed or diverged; the others' results are written
+EXIT_INTERRUPTED = 130
 
 
 def _floats(values: Any) -> list[float]:
@@ -175,7 +180,16 @@ def _run(args: argparse.Namespace) -> int:
     print(f"wrote {out}")
     if not args.no_compare and _has_compare():
         _compare_dir(out)
-    return 1 if failed else 0
+    return EXIT_BACKEND_FAILED if failed else EXIT_OK
+
+
+def _validate(args: argparse.Namespace) -> int:
+    from legbench import scenario
+
+    for path in args.files:
+        sc = scenario.load(path)
+        print(f"{path}: ok ({sc.name}: {len(sc.events)} events, {sc.duration:g} s)")
+    return EXIT_OK
 
 
 def _has_compare() -> bool:
@@ -207,22 +221,40 @@ def _add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.set_defaults(func=_run)
 
 
+def _add_validate(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("validate", help="check scenario files without running them")
+    p.add_argument("files", nargs="+", help="scenario YAML files")
+    p.set_defaults(func=_validate)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="legbench", description=__doc__)
     sub = parser.add_subparsers(dest="cmd", required=True)
     _add_model(sub)
     _add_run(sub)
+    _add_validate(sub)
     return parser
+
+
+def _sigterm(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    previous = signal.signal(signal.SIGTERM, _sigterm)
     try:
         return int(args.func(args))
     except LegbenchError as exc:
         print(f"legbench: error: {exc}", file=sys.stderr)
         return EXIT_USER_ERROR
+    except KeyboardInterrupt:
+        print("legbench: interrupted; what was simulated is kept, marked incomplete (rerun to finish)",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPTED
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -34,10 +34,10 @@ from legbench.scenario import Scenario
 
 COLUMNS = ("t", "q1", "q2", "q3", "qd1", "qd2", "qd3", "tau1", "tau2", "tau3", "fx", "fy", "fz",
            "ee_x", "ee_y", "ee_z")  # fmt: skip
-#: Divergence bounds no physical run of this leg reaches: joint speed [rad/s], ground force [N]
-#: (the leg pushes with at most ~100 N; 5 kN means the foot is 0.5 m into a 1e4 N/m ground).
+#: Divergence bounds no physical run of this leg reaches: joint speed [rad/s] (20x the hip's
+#: speed limit) and foot penetration [m] (5 cm is 500 N at Kp = 1e4 N/m; the leg pushes <= 100 N).
 MAX_JOINT_SPEED = 1.0e3
-MAX_GROUND_FORCE = 5.0e3
+MAX_PENETRATION = 0.05
 
 
 @dataclass
@@ -91,6 +91,8 @@ def simulate(
     n = scenario.n_ticks
     Ts = scenario.control_dt
     limit = np.array(physics.torque_limit)
+    g = load_params().geometry
+    z_min = g.R_foot - MAX_PENETRATION  # lowest foot-centre height before we call it diverged [m]
     t = np.arange(n) * Ts
     q_log = np.full((n, 3), np.nan)
     qd_log = np.full((n, 3), np.nan)
@@ -114,8 +116,8 @@ def simulate(
                 raise SimulationDiverged(backend.name, k * Ts, "state is not finite")
             if np.abs(qd).max() > MAX_JOINT_SPEED:
                 raise SimulationDiverged(backend.name, k * Ts, f"joint speed above {MAX_JOINT_SPEED} rad/s")
-            if abs(f[2]) > MAX_GROUND_FORCE:
-                raise SimulationDiverged(backend.name, k * Ts, f"ground force {f[2]:.0f} N: foot far below ground")
+            if foot_height(q[0], q[1], q[2], g) < z_min:
+                raise SimulationDiverged(backend.name, k * Ts, f"foot more than {MAX_PENETRATION} m into the ground")
             while next_event < len(ticks) and ticks[next_event] <= k:
                 active = controllers[next_event]
                 active.start(k * Ts, q, qd)
@@ -133,6 +135,9 @@ def simulate(
     except (LegbenchError, FloatingPointError, RuntimeError, ValueError) as exc:
         status, reason = "failed", f"{type(exc).__name__} at t = {k * Ts:.4f} s: {exc}"
         n = k
+    except KeyboardInterrupt:
+        status, reason = "interrupted", f"interrupted at t = {k * Ts:.4f} s"
+        n = k
     wall = time.perf_counter() - start
     return Trajectory(
         backend=backend.name,
@@ -147,6 +152,12 @@ def simulate(
         info=backend.info(),
         wall_time=wall,
     )
+
+
+def foot_height(q1: float, q2: float, q3: float, g: Any) -> float:
+    """Height of the foot centre above the ground, z_W of E [m] (closed form, floats)."""
+    reach = g.L_23 * math.sin(q2) + g.L_3E * math.sin(q2 + q3)
+    return g.L_12 * math.sin(q1) + math.cos(q1) * reach + g.H
 
 
 def run_backend(scenario: Scenario, name: str, contact_mode: str | None = None, progress: bool = False) -> Trajectory:
@@ -208,57 +219,97 @@ def platform_info() -> dict[str, Any]:
             "cpus": os.cpu_count(), "node": platform.node()}  # fmt: skip
 
 
-def write_run(scenario: Scenario, results: Sequence[Trajectory], out_dir: Path, csv: bool = False,
-              contact_mode: str | None = None) -> Path:  # fmt: skip
-    """Write <backend>.parquet (and .csv) and run.json atomically into ``out_dir``.
+def _previous(out_dir: Path) -> dict[str, Any] | None:
+    """The run.json already in ``out_dir``, or None."""
+    try:
+        return json.loads((out_dir / "run.json").read_text())  # type: ignore[no-any-return]
+    except FileNotFoundError:
+        return None
+    except (ValueError, OSError):
+        return {}
 
-    Refuses to replace a directory holding a different scenario's results.
+
+def check_out_dir(scenario: Scenario, out_dir: Path) -> None:
+    """Refuse an output directory holding another scenario's results (or anything else)."""
+    out_dir = Path(out_dir)
+    prev = _previous(out_dir)
+    if prev is None:
+        if out_dir.exists() and any(out_dir.iterdir()):
+            raise LegbenchError(f"{out_dir}: not empty and not a legbench run directory; choose another --out")
+        return
+    name = (prev.get("scenario") or {}).get("name")
+    if name != scenario.name:
+        raise LegbenchError(
+            f"{out_dir}: holds results of scenario {name!r}, not {scenario.name!r}; choose another --out or remove it"
+        )
+
+
+def resumable(scenario: Scenario, out_dir: Path, contact_mode: str | None) -> dict[str, Any]:
+    """Entries of backends already finished in an interrupted run of the same scenario (same hash and mode)."""
+    prev = _previous(Path(out_dir))
+    if not prev or prev.get("complete", True):
+        return {}
+    sc = prev.get("scenario", {})
+    if sc.get("sha256") != scenario.sha256 or sc.get("contact_mode") != (contact_mode or scenario.contact_mode):
+        return {}
+    return {name: e for name, e in prev.get("backends", {}).items() if e.get("status") == "ok"}
+
+
+def write_run(scenario: Scenario, results: Sequence[Trajectory], out_dir: Path, csv: bool = False,
+              contact_mode: str | None = None, kept: dict[str, Any] | None = None) -> Path:  # fmt: skip
+    """Write <backend>.parquet (and .csv) and run.json into ``out_dir``, atomically.
+
+    Everything goes to a temporary sibling directory first, which replaces
+    ``out_dir`` only when complete. ``kept`` are entries of backends finished in
+    an earlier, interrupted run into the same directory; their files are carried
+    over. ``run.json["complete"]`` is false when a backend was interrupted.
     """
     out_dir = Path(out_dir)
-    old = out_dir / "run.json"
-    if old.exists():
-        try:
-            prev = json.loads(old.read_text())["scenario"]["name"]
-        except (ValueError, KeyError, TypeError):
-            prev = None
-        if prev != scenario.name:
-            raise LegbenchError(f"{out_dir}: holds results of scenario {prev!r}, not {scenario.name!r}; "
-                                "choose another --out or remove it")  # fmt: skip
-    elif out_dir.exists() and any(out_dir.iterdir()):
-        raise LegbenchError(f"{out_dir}: not empty and not a legbench run directory; choose another --out")
+    check_out_dir(scenario, out_dir)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = out_dir.parent / f".{out_dir.name}.tmp-{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
     meta_backends: dict[str, Any] = {}
+    for name, entry in (kept or {}).items():
+        for suffix in (".parquet", ".csv"):
+            if (out_dir / f"{name}{suffix}").exists():
+                shutil.copy2(out_dir / f"{name}{suffix}", tmp / f"{name}{suffix}")
+        meta_backends[name] = entry
     for tr in results:
         entry: dict[str, Any] = {"status": tr.status, "reason": tr.reason, "info": tr.info,
-                                 "wall_time": tr.wall_time, "file": None}  # fmt: skip
+                                 "wall_time": tr.wall_time, "file": None, "rtf": None, "failed_at": None}  # fmt: skip
         if len(tr.t):
             df = tr.frame()
             df.to_parquet(tmp / f"{tr.backend}.parquet", index=False)
             if csv:
                 df.to_csv(tmp / f"{tr.backend}.csv", index=False)
             entry["file"] = f"{tr.backend}.parquet"
-            sim_time = float(tr.t[-1]) if len(tr.t) else 0.0
+            sim_time = float(tr.t[-1])
             entry["rtf"] = sim_time / tr.wall_time if tr.wall_time > 0 else None
-            entry["failed_at"] = sim_time if tr.status == "failed" else None
+            entry["failed_at"] = sim_time if tr.status != "ok" else None
         meta_backends[tr.backend] = entry
     sdict = scenario.to_dict()
     if contact_mode:
         sdict["contact_mode"] = contact_mode
+    vers = versions()
     meta = {
+        "complete": all(e["status"] != "interrupted" for e in meta_backends.values()),
         "scenario": sdict,
         "backends": meta_backends,
-        "versions": versions(),
+        "versions": vers,
         "platform": platform_info(),
-        "legbench_version": versions().get("legbench", "unknown"),
+        "legbench_version": vers.get("legbench", "unknown"),
         "urdf": str(URDF_FILE.name),
     }
     (tmp / "run.json").write_text(json.dumps(meta, indent=2, default=_json_default))
     if out_dir.exists():
-        shutil.rmtree(out_dir)
-    tmp.rename(out_dir)
+        old = out_dir.parent / f".{out_dir.name}.old-{os.getpid()}"
+        out_dir.rename(old)
+        tmp.rename(out_dir)
+        shutil.rmtree(old)
+    else:
+        tmp.rename(out_dir)
     return out_dir
 
 
@@ -274,8 +325,27 @@ def _json_default(o: Any) -> Any:
 
 def run(scenario: Scenario, backend_names: Sequence[str], out_dir: Path | None, csv: bool = False,
         contact_mode: str | None = None, progress: bool = True) -> list[Trajectory]:  # fmt: skip
-    """Run a scenario on every named backend (one after the other) and write the results."""
-    results = [run_backend(scenario, name, contact_mode, progress) for name in backend_names]
+    """Run a scenario on every named backend (one after the other) and write the results.
+
+    A backend that fails is logged up to its failure and the others still run.
+    On Ctrl-C (or SIGTERM turned into KeyboardInterrupt by the CLI) what was
+    simulated is written, marked incomplete, and the interrupt re-raised; a
+    rerun into the same directory runs only the backends that did not finish.
+    """
+    kept: dict[str, Any] = {}
     if out_dir is not None:
-        write_run(scenario, results, out_dir, csv, contact_mode)
+        check_out_dir(scenario, out_dir)
+        kept = {k: v for k, v in resumable(scenario, out_dir, contact_mode).items() if k in backend_names}
+    results: list[Trajectory] = []
+    for name in backend_names:
+        if name in kept:
+            continue
+        tr = run_backend(scenario, name, contact_mode, progress)
+        results.append(tr)
+        if tr.status == "interrupted":
+            break
+    if out_dir is not None:
+        write_run(scenario, results, out_dir, csv, contact_mode, kept)
+    if results and results[-1].status == "interrupted":
+        raise KeyboardInterrupt
     return results

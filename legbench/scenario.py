@@ -33,7 +33,9 @@ from __future__ import annotations
 
 import difflib
 import hashlib
+import json
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,6 +50,11 @@ from legbench.exceptions import ScenarioError
 from legbench.model import load_params
 
 CONTROLLERS = ("position", "trajectory", "ellipse", "effort")
+#: Scenario names become directory names: no separators, nothing that can climb out.
+#: Longest run accepted: 1e7 ticks (2.8 h at 1 kHz) keep the log under ~1.3 GB.
+MAX_TICKS = 10_000_000
+MAX_WAYPOINTS = 100_000
+NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}")
 
 
 @dataclass(frozen=True)
@@ -198,7 +205,8 @@ def _check_keys(ctx: _Ctx, path: list[str | int], d: Any, allowed: Sequence[str]
         raise ctx.error(path, f"expected a mapping, got {type(d).__name__}")
     for k in d:
         if k not in allowed:
-            near = difflib.get_close_matches(str(k), allowed, n=1)
+            folded = [a for a in allowed if a.lower() == str(k).lower()]
+            near = folded or difflib.get_close_matches(str(k), allowed, n=1)
             hint = f"; did you mean '{near[0]}'?" if near else f"; valid keys: {', '.join(allowed)}"
             raise ctx.error([*path, str(k)], f"unknown key{hint}")
     for k in required:
@@ -209,7 +217,10 @@ def _check_keys(ctx: _Ctx, path: list[str | int], d: Any, allowed: Sequence[str]
 def _num(ctx: _Ctx, path: list[str | int], v: Any, *, positive: bool = False, nonneg: bool = False) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float):
         raise ctx.error(path, f"expected a number, got {v!r}")
-    x = float(v)
+    try:
+        x = float(v)
+    except OverflowError:
+        raise ctx.error(path, f"number too large: {v!r}") from None
     if not math.isfinite(x):
         raise ctx.error(path, f"must be finite, got {v!r}")
     if positive and x <= 0:
@@ -311,6 +322,8 @@ def _event(ctx: _Ctx, path: list[str | int], d: Any) -> Event:
         n = _int(ctx, [*bp, "points"], body.get("points", 50), minimum=3)
         reps = _int(ctx, [*bp, "repetitions"], body.get("repetitions", 1))
         approach = _num(ctx, [*bp, "approach"], body.get("approach", 1.0), positive=True)
+        if n * reps > MAX_WAYPOINTS:
+            raise ctx.error([*bp, "points"], f"points x repetitions = {n * reps} is more than {MAX_WAYPOINTS}")
         P, tw = ellipse_waypoints(a, b, DY, DZ, dth, T, n, reps, approach)
         for i, point in enumerate(P[:n]):
             if not kinematics.ik(point):
@@ -327,18 +340,20 @@ TOP_KEYS = ["name", "description", "duration", "control_rate", "gains", "initial
             "backends", "comparison"]  # fmt: skip
 
 
-def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None, text: str = "") -> Scenario:
+def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Scenario:
     """Validate a scenario document (already parsed YAML) into a :class:`Scenario`."""
     ctx = _Ctx(file, root)
     _check_keys(ctx, [], doc, TOP_KEYS, ["name", "duration", "events"])
     name = doc["name"]
-    if not isinstance(name, str) or not name or any(c in name for c in "/\\\0") or name in (".", ".."):
-        raise ctx.error(["name"], f"expected a plain name (letters, digits, - _ .), got {name!r}")
+    if not isinstance(name, str) or not NAME_RE.fullmatch(name) or set(name) == {"."}:
+        raise ctx.error(["name"], f"expected a plain name (letters, digits, - _ ., at most 64), got {name!r}")
     description = doc.get("description", "")
     if not isinstance(description, str):
         raise ctx.error(["description"], "expected text")
     duration = _num(ctx, ["duration"], doc["duration"], positive=True)
     rate = _num(ctx, ["control_rate"], doc.get("control_rate", 1000.0), positive=True)
+    if duration * rate > MAX_TICKS:
+        raise ctx.error(["duration"], f"{duration} s at {rate} Hz is more than {MAX_TICKS:.0e} control ticks")
     if abs(duration * rate - round(duration * rate)) > 1e-6:
         raise ctx.error(["duration"], f"{duration} s is not a whole number of control periods at {rate} Hz")
 
@@ -371,6 +386,10 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None, text:
     for i, e in enumerate(events):
         if e.t >= duration:
             raise ctx.error(["events", i, "t"], f"event at {e.t} s is past the end ({duration} s)")
+
+    for i, e in enumerate(events):
+        if e.controller == "trajectory":
+            _check_speed(ctx, ["events", i, next(iter(e.params), "trajectory")], e, q0 if e.t == 0.0 else None)
 
     phys = doc.get("physics", {})
     _check_keys(ctx, ["physics"], phys, ["gravity", "contact_mode", "contact"])
@@ -410,6 +429,8 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None, text:
         steady_window=_num(ctx, ["comparison", "steady_window"], cmp_d.get("steady_window", 0.5), positive=True),
         tolerances=cmp_d.get("tolerances", {}) or {},
     )
+    if not isinstance(comparison.tolerances, Mapping):
+        raise ctx.error(["comparison", "tolerances"], "expected a mapping of metric -> tolerance")
     if comparison.skip >= duration:
         raise ctx.error(["comparison", "skip"], f"skips the whole run ({duration} s)")
     if comparison.steady_window > duration:
@@ -429,9 +450,36 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None, text:
         backends=backends,
         comparison=comparison,
         file=file,
-        sha256=hashlib.sha256(text.encode()).hexdigest() if text else "",
+        sha256=hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest(),
         raw=doc,
     )
+
+
+def _check_speed(ctx: _Ctx, path: list[str | int], ev: Event, q_start: tuple[float, ...] | None) -> None:
+    """Reject a trajectory whose mean joint speed on a segment exceeds the joint speed limit.
+
+    The joint path is the IK chain the controller will follow (each solution
+    nearest the previous). The first segment starts from the measured state,
+    known here only for an event at t = 0 (the initial state).
+    """
+    p = load_params()
+    prev = np.array(q_start if q_start is not None else kinematics.ik(np.array(ev.waypoints[0])).solutions[0])
+    Q = [prev]
+    for w in ev.waypoints:
+        prev = kinematics.ik_nearest(np.array(w), prev)
+        Q.append(prev)
+    times = np.array([0.0, *ev.times])
+    first = 0 if q_start is not None else 1
+    speed = np.abs(np.diff(np.array(Q), axis=0)) / np.diff(times)[:, None]
+    for j in range(first, len(speed)):
+        over = speed[j] > p.velocity
+        if over.any():
+            k = int(np.argmax(over))
+            raise ctx.error(
+                [*path, "times"] if path[-1] == "trajectory" else path,
+                f"segment {j} (to waypoint {j}) needs {speed[j, k]:.1f} rad/s on joint {k + 1}, "
+                f"above its {p.velocity[k]:.2f} rad/s limit",
+            )
 
 
 def _backend_settings(ctx: _Ctx, name: str, given: Any) -> dict[str, Any]:
@@ -489,7 +537,7 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
         raise ScenarioError(str(path), "", "empty file")
     for key, value in (overrides or {}).items():
         set_key(doc, key, value)
-    return parse(doc, str(path), root, text)
+    return parse(doc, str(path), root)
 
 
 def set_key(doc: dict[str, Any], dotted: str, value: Any) -> None:
