@@ -160,26 +160,41 @@ def _run(args: argparse.Namespace) -> int:
 
     from legbench import backends, run, scenario
 
-    sc = scenario.load(args.scenario, _parse_set(args.set))
-    names = backends.resolve(args.backends) if args.backends != "all" else backends.available()
-    out = Path(args.out) if args.out else Path("results") / "latest" / sc.name
-    results = run.run(sc, names, out, csv=args.csv, contact_mode=args.contact_mode, progress=not args.quiet)
-    print(f"{sc.name}: {sc.duration:g} s at {sc.control_rate:g} Hz, contact {args.contact_mode or sc.contact_mode}")
+    overrides = _parse_set(args.set)
+    scenarios = [scenario.load(path, overrides) for path in args.scenarios]  # all validated before any runs
+    names = backends.resolve(args.backends)
+    modes: list[str | None] = ["native", "reference"] if args.contact_mode == "both" else [args.contact_mode]
+    single = len(scenarios) == 1 and len(modes) == 1
+    root = Path(args.out) if args.out else Path("results") / "latest"
+    plan = [
+        (sc, mode, root if (single and args.out) else run.out_dir_for(root, sc, mode))
+        for sc in scenarios
+        for mode in modes
+    ]
+    results = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet)
     failed = 0
-    for tr in results:
-        if tr.status != "ok":
-            failed += 1
-            print(f"  {tr.backend:<10} {tr.status.upper()}: {tr.reason}")
-            continue
-        rtf = tr.t[-1] / tr.wall_time if tr.wall_time > 0 else float("nan")
-        print(
-            f"  {tr.backend:<10} ok  wall {tr.wall_time:6.2f} s  RTF {rtf:7.2f}  "
-            f"q_end [{', '.join(f'{x:+.4f}' for x in tr.q[-1])}] rad  "
-            f"F_end [{', '.join(f'{x:+.2f}' for x in tr.f[-1])}] N"
-        )
-    print(f"wrote {out}")
-    if not args.no_compare and _has_compare():
-        _compare_dir(out)
+    for (sc, mode, out), res in zip(plan, results, strict=True):
+        print(f"{sc.name}: {sc.duration:g} s at {sc.control_rate:g} Hz, contact {mode or sc.contact_mode} -> {out}")
+        for tr in res:
+            if tr.status != "ok":
+                failed += 1
+                print(f"  {tr.backend:<10} {tr.status.upper()}: {tr.reason}")
+                continue
+            rtf = tr.t[-1] / tr.wall_time if tr.wall_time > 0 else float("nan")
+            print(
+                f"  {tr.backend:<10} ok  wall {tr.wall_time:6.2f} s  RTF {rtf:7.2f}  "
+                f"q_end [{', '.join(f'{x:+.4f}' for x in tr.q[-1])}] rad  "
+                f"F_end [{', '.join(f'{x:+.2f}' for x in tr.f[-1])}] N"
+            )
+    if not args.no_compare:
+        from legbench import report
+
+        if single:
+            files = report.write_report(plan[0][2])
+            print(f"report: {files.html}")
+        else:
+            report.write_all(root)
+            print(f"report: {root / 'report.html'}")
     return EXIT_BACKEND_FAILED if failed else EXIT_OK
 
 
@@ -192,28 +207,18 @@ def _validate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _has_compare() -> bool:
-    try:
-        import legbench.report  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def _compare_dir(out: object) -> None:
-    from legbench import report
-
-    report.write_report(out)  # type: ignore[attr-defined]
-
-
 def _add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("run", help="run a scenario on one or more backends")
-    p.add_argument("scenario", help="scenario YAML file")
+    p = sub.add_parser("run", help="run scenarios on one or more backends, then compare them")
+    p.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="scenario YAML files")
     p.add_argument("--backends", default="all", help="comma-separated backend names, or 'all' (default)")
-    p.add_argument("--out", default=None, help="output directory (default results/latest/<scenario name>)")
+    p.add_argument("--out", default=None,
+                   help="output directory: the run directory for one scenario, else the root of one directory "
+                        "per scenario (default results/latest)")  # fmt: skip
+    p.add_argument("--jobs", type=int, default=1, help="processes to run backends and scenarios in (default 1)")
     p.add_argument("--csv", action="store_true", help="also write <backend>.csv")
-    p.add_argument("--contact-mode", choices=("native", "reference"), default=None,
-                   help="override the scenario's contact mode")  # fmt: skip
+    p.add_argument("--contact-mode", choices=("native", "reference", "both"), default=None,
+                   help="override the scenario's contact mode; 'both' runs each scenario in both modes "
+                        "(<name>/ and <name>__reference/)")  # fmt: skip
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, e.g. --set backends.pinocchio.dt=5e-5")  # fmt: skip
     p.add_argument("--no-compare", action="store_true", help="do not write the comparison report")

@@ -16,7 +16,7 @@ import platform
 import shutil
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -323,29 +323,84 @@ def _json_default(o: Any) -> Any:
     return str(o)
 
 
-def run(scenario: Scenario, backend_names: Sequence[str], out_dir: Path | None, csv: bool = False,
-        contact_mode: str | None = None, progress: bool = True) -> list[Trajectory]:  # fmt: skip
-    """Run a scenario on every named backend (one after the other) and write the results.
+def out_dir_for(root: Path, scenario: Scenario, contact_mode: str | None) -> Path:
+    """Directory of one scenario in a results tree: <root>/<name>, or <name>__reference in reference mode."""
+    mode = contact_mode or scenario.contact_mode
+    return Path(root) / (scenario.name if mode == "native" else f"{scenario.name}__reference")
 
-    A backend that fails is logged up to its failure and the others still run.
-    On Ctrl-C (or SIGTERM turned into KeyboardInterrupt by the CLI) what was
+
+def _task(args: tuple[Scenario, str, str | None, bool]) -> Trajectory:
+    scenario, name, mode, progress = args
+    return run_backend(scenario, name, mode, progress)
+
+
+def run_many(
+    jobs_list: Sequence[tuple[Scenario, str | None, Path | None]],
+    backend_names: Sequence[str],
+    jobs: int = 1,
+    csv: bool = False,
+    progress: bool = True,
+) -> list[list[Trajectory]]:
+    """Run several (scenario, contact mode, output dir) on every backend, in ``jobs`` processes.
+
+    Each (scenario, mode, backend) is one task; results are collected in input
+    order, so the output is the same (bit-identical logs) for any ``jobs``. A
+    failing backend is logged up to its failure and the others still run. On
+    Ctrl-C (or SIGTERM turned into KeyboardInterrupt by the CLI) what was
     simulated is written, marked incomplete, and the interrupt re-raised; a
-    rerun into the same directory runs only the backends that did not finish.
+    rerun into the same directories runs only the backends that did not finish.
     """
-    kept: dict[str, Any] = {}
-    if out_dir is not None:
-        check_out_dir(scenario, out_dir)
-        kept = {k: v for k, v in resumable(scenario, out_dir, contact_mode).items() if k in backend_names}
-    results: list[Trajectory] = []
-    for name in backend_names:
-        if name in kept:
-            continue
-        tr = run_backend(scenario, name, contact_mode, progress)
-        results.append(tr)
-        if tr.status == "interrupted":
-            break
-    if out_dir is not None:
-        write_run(scenario, results, out_dir, csv, contact_mode, kept)
-    if results and results[-1].status == "interrupted":
+    plan: list[tuple[int, Scenario, str, str | None]] = []
+    kept: list[dict[str, Any]] = []
+    for i, (sc, mode, out) in enumerate(jobs_list):
+        done: dict[str, Any] = {}
+        if out is not None:
+            check_out_dir(sc, out)
+            done = {k: v for k, v in resumable(sc, out, mode).items() if k in backend_names}
+        kept.append(done)
+        plan += [(i, sc, name, mode) for name in backend_names if name not in done]
+    results: list[list[Trajectory]] = [[] for _ in jobs_list]
+    interrupted = False
+    if jobs <= 1:
+        for i, sc, name, mode in plan:
+            tr = run_backend(sc, name, mode, progress)
+            results[i].append(tr)
+            if tr.status == "interrupted":
+                interrupted = True
+                break
+    else:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            futures = [pool.submit(_task, (sc, name, mode, False)) for _, sc, name, mode in plan]
+            try:
+                for (i, *_), fut in zip(plan, futures, strict=True):
+                    results[i].append(fut.result())
+            except KeyboardInterrupt:
+                interrupted = True
+                for fut in futures:
+                    fut.cancel()
+    for (sc, mode, out), res, done in zip(jobs_list, results, kept, strict=True):
+        if out is not None and (res or done):
+            if interrupted and len(res) + len(done) < len(backend_names):
+                res = [*res, *_not_run(sc, backend_names, res, done)]
+            write_run(sc, res, out, csv, mode, done)
+    if interrupted:
         raise KeyboardInterrupt
     return results
+
+
+def _not_run(
+    sc: Scenario, names: Sequence[str], res: Sequence[Trajectory], done: Mapping[str, Any]
+) -> list[Trajectory]:
+    """Placeholders for backends an interrupt stopped before they started."""
+    have = {tr.backend for tr in res} | set(done)
+    empty = np.empty((0, 3))
+    return [Trajectory(n, np.empty(0), empty, empty, empty, empty, np.empty(0, dtype=object), "interrupted",
+                       "interrupted before it started") for n in names if n not in have]  # fmt: skip
+
+
+def run(scenario: Scenario, backend_names: Sequence[str], out_dir: Path | None, csv: bool = False,
+        contact_mode: str | None = None, progress: bool = True, jobs: int = 1) -> list[Trajectory]:  # fmt: skip
+    """Run one scenario on every named backend and write the results into ``out_dir`` (see :func:`run_many`)."""
+    return run_many([(scenario, contact_mode, out_dir)], backend_names, jobs, csv, progress)[0]
