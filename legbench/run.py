@@ -271,11 +271,11 @@ def write_run(scenario: Scenario, results: Sequence[Trajectory], out_dir: Path, 
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
     meta_backends: dict[str, Any] = {}
-    for name, entry in (kept or {}).items():
+    for name, old_entry in (kept or {}).items():
         for suffix in (".parquet", ".csv"):
             if (out_dir / f"{name}{suffix}").exists():
                 shutil.copy2(out_dir / f"{name}{suffix}", tmp / f"{name}{suffix}")
-        meta_backends[name] = entry
+        meta_backends[name] = old_entry
     for tr in results:
         entry: dict[str, Any] = {"status": tr.status, "reason": tr.reason, "info": tr.info,
                                  "wall_time": tr.wall_time, "file": None, "rtf": None, "failed_at": None}  # fmt: skip
