@@ -1,0 +1,448 @@
+"""The comparator on synthetic runs whose metrics are known by hand (no physics engine runs)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from fakerun import Base, Transform, add_to, base_signals, frame, offset, scale, write_run
+
+from legbench import compare as C
+from legbench import kinematics
+from legbench.exceptions import ResultsError
+
+RATE = 1000.0
+DT = 1.0 / RATE
+AMPL = np.array([0.1, 0.3, 0.2, 0.5, 1.0, 1.5, 0.8, 2.0, 1.2, 3.0, 2.5, 40.0])
+W = 2 * np.pi * 1.0  # [rad/s]: two whole periods in the default 2 s run
+
+
+def sine(t: np.ndarray) -> np.ndarray:
+    """Every column a pure sine of 1 Hz with its own amplitude."""
+    return np.sin(W * t)[:, None] * AMPL[None, :]
+
+
+def lagged_by(tau: float, base: Base = base_signals) -> Transform:
+    """Transform replacing the data with base(t - tau): the backend is late by tau [s]."""
+    return lambda t, x: base(t - tau)
+
+
+# --------------------------------------------------------------------------- #
+# Metrics with known answers
+
+
+def test_scaled_copy_has_ten_percent_error_on_every_signal(tmp_path: Path) -> None:
+    """x_a = 1.1 x_ref: sim error 10 %, RMS 0.1 rms(x_ref), max 0.1 max|x_ref| at its argmax; to 1e-12 relative."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.1)})
+    res = C.compare(d)
+    p = res.pair("a")
+    assert p is not None
+    ref = base_signals(np.arange(2001) / RATE)
+    np.testing.assert_allclose(p.sim_error_pct, 10.0, rtol=1e-12)
+    np.testing.assert_allclose(p.rms, 0.1 * np.sqrt(np.mean(ref**2, axis=0)), rtol=1e-12)
+    np.testing.assert_allclose(p.max_abs, 0.1 * np.max(np.abs(ref), axis=0), rtol=1e-12)
+    np.testing.assert_allclose(p.ref_peak, np.max(np.abs(ref), axis=0), rtol=0)
+    np.testing.assert_array_equal(p.t_max_abs, np.argmax(np.abs(ref), axis=0) / RATE)
+
+
+def test_offset_copy_has_constant_deviation(tmp_path: Path) -> None:
+    """x_a = x_ref + 0.01: RMS = max = 0.01 and sim error = 1 / max|x_ref| per column; to 1e-9 relative."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": offset(0.01)})
+    p = C.compare(d).pair("a")
+    assert p is not None
+    peak = np.max(np.abs(base_signals(np.arange(2001) / RATE)), axis=0)
+    np.testing.assert_allclose(p.rms, 0.01, rtol=1e-9)
+    np.testing.assert_allclose(p.max_abs, 0.01, rtol=1e-9)
+    np.testing.assert_allclose(p.sim_error_pct, 1.0 / peak, rtol=1e-9)
+
+
+def test_delayed_sine_metrics_match_the_closed_form(tmp_path: Path) -> None:
+    """A sin(w t) against A sin(w (t - tau)), tau = 8 ms, two whole periods sampled at 1 kHz (N = 2001 ticks).
+
+    d(t) = -2 A sin(w tau / 2) cos(w (t - tau/2)): its peaks fall on ticks, so
+    max|d| = 2 A sin(w tau / 2) and the sim error is 200 sin(w tau / 2) %; the
+    mean of cos^2 over the N ticks is exactly 1/2 + cos(w tau) / (2 N). Equal to 1e-12 relative.
+    """
+    tau, n = 0.008, 2001
+    d = write_run(tmp_path / "s", {"ref": None, "a": lagged_by(tau, sine)}, base=sine)
+    p = C.compare(d).pair("a")
+    assert p is not None
+    s = math.sin(W * tau / 2)
+    np.testing.assert_allclose(p.max_abs, 2 * AMPL * s, rtol=1e-12)
+    np.testing.assert_allclose(p.sim_error_pct, 200 * s, rtol=1e-12)
+    np.testing.assert_allclose(p.rms, 2 * AMPL * s * math.sqrt(0.5 + math.cos(W * tau) / (2 * n)), rtol=1e-12)
+
+
+def test_skip_leaves_the_start_out_of_every_metric(tmp_path: Path) -> None:
+    """A 1.0 bump in tau2 at t = 0.1 s is invisible with skip = 0.2 s (deviation exactly 0) and measured without."""
+    bump = add_to("tau2", lambda t: np.where(np.abs(t - 0.1) < 0.01, 1.0, 0.0))
+    d = write_run(tmp_path / "s", {"ref": None, "a": bump}, skip=0.2)
+    p = C.compare(d).pair("a")
+    assert p is not None
+    i = C.LABELS.index("tau2")
+    assert p.max_abs[i] == 0.0 and p.rms[i] == 0.0
+    assert np.max(np.abs(p.deviation[:, i])) == pytest.approx(1.0, abs=1e-12)  # the full series is kept for plots
+    d0 = write_run(tmp_path / "s0", {"ref": None, "a": bump}, skip=0.0)
+    p0 = C.compare(d0).pair("a")
+    assert p0 is not None and p0.max_abs[i] == pytest.approx(1.0, abs=1e-12) and 0.09 <= p0.t_max_abs[i] <= 0.11
+
+
+def test_hip_angle_is_compared_on_the_circle(tmp_path: Path) -> None:
+    """q2 one full turn apart is the same pose: deviation below 1e-12 rad; the knee (revolute) is not wrapped."""
+    turn = add_to("q2", lambda t: np.full_like(t, 2 * np.pi))
+    p = C.compare(write_run(tmp_path / "s", {"ref": None, "a": turn})).pair("a")
+    assert p is not None
+    assert p.max_abs[C.LABELS.index("q2")] < 1e-12
+    knee = add_to("q3", lambda t: np.full_like(t, 2 * np.pi))
+    p3 = C.compare(write_run(tmp_path / "k", {"ref": None, "a": knee})).pair("a")
+    assert p3 is not None
+    assert p3.max_abs[C.LABELS.index("q3")] == pytest.approx(2 * np.pi, rel=1e-12)
+
+
+def test_zero_reference_signal_gives_undefined_error_not_infinity(tmp_path: Path) -> None:
+    """No contact: the reference force is 0, so its sim error % is NaN (null in metrics.json); RMS still measured."""
+
+    def no_contact(t: np.ndarray) -> np.ndarray:
+        x = base_signals(t)
+        x[:, 9:12] = 0.0
+        return x
+
+    d = write_run(tmp_path / "s", {"ref": None, "a": add_to("fz", lambda t: 0.5 * t)}, base=no_contact)
+    res = C.compare(d)
+    p = res.pair("a")
+    assert p is not None
+    assert np.isnan(p.sim_error_pct[9:12]).all()
+    assert p.rms[C.LABELS.index("fz")] > 0
+    doc = json.loads(C.write_metrics(res).read_text())
+    fz = [r for r in doc["metrics"] if r["metric"] == "sim_error_pct" and r["signal"] == "force" and r["joint"] == "z"]
+    assert fz[0]["value"] is None
+
+
+# --------------------------------------------------------------------------- #
+# Alignment and lag
+
+
+@pytest.mark.parametrize("lag_samples", [-37, 0, 5, 23])
+def test_lag_estimate_recovers_a_planted_lag_to_one_sample(tmp_path: Path, lag_samples: int) -> None:
+    """x_a(t) = x_ref(t - L dt) for L in {-37, 0, 5, 23}: the cross-correlation finds L within 1 sample."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": lagged_by(lag_samples * DT)})
+    run = C.load_run(d)
+    est = C.estimate_lag(run.traces["a"], run.traces["ref"], max_lag=0.1)
+    assert abs(est.samples - lag_samples) <= 1.0
+    assert est.seconds == pytest.approx(est.samples * DT)
+    assert est.correlation > 0.99
+
+
+def test_removing_the_lag_removes_the_deviation(tmp_path: Path) -> None:
+    """After removing a planted 23 ms lag, the RMS deviation of q falls below 1 % of its value with the lag."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": lagged_by(0.023)})
+    res = C.compare(d, lag="remove")
+    p = res.pair("a")
+    assert p is not None and p.lag is not None
+    assert p.lag_removed == p.lag.seconds and abs(p.lag.seconds - 0.023) <= DT
+    before = C.compare(d, lag="report").pair("a")
+    assert before is not None and before.lag_removed == 0.0
+    assert np.all(p.rms[0:3] < 0.01 * before.rms[0:3])
+    rows = res.frame()
+    assert rows.query("metric == 'lag_removed'")["value"].iloc[0] == pytest.approx(0.023, abs=DT)
+
+
+def test_log_at_another_rate_and_length_is_interpolated_within_the_linear_bound(tmp_path: Path) -> None:
+    """A 250 Hz log of the same signals, 0.3 s shorter: on the 1 kHz grid the deviation is at most
+    h^2/8 max|x''| (linear interpolation error, h = 4 ms), and the common span ends where the log does."""
+    d = write_run(tmp_path / "s", {"ref": None})
+    t_log = np.arange(0, 1.7 + 1e-9, 0.004)
+    log = tmp_path / "slow.csv"
+    frame(t_log, base_signals(t_log)).to_csv(log, index=False)
+    res = C.compare(d, log=log)
+    p = res.pair("log:slow")
+    assert p is not None
+    assert p.t[-1] == pytest.approx(1.7) and p.t[0] == 0.0
+    t = np.arange(0, 2.0005, DT)
+    x = base_signals(t)
+    curv = np.max(np.abs(np.diff(x, 2, axis=0)), axis=0) / DT**2
+    assert np.all(p.max_abs <= 0.004**2 / 8 * curv * 1.01)
+
+
+def test_estimated_lag_of_a_slower_log_is_within_one_fine_sample(tmp_path: Path) -> None:
+    """A 250 Hz log late by 12 ms: the lag found on the 1 kHz correlation grid is 12 ms within 1 ms."""
+    d = write_run(tmp_path / "s", {"ref": None})
+    t_log = np.arange(0, 2.0 + 1e-9, 0.004)
+    log = tmp_path / "late.csv"
+    frame(t_log, base_signals(t_log - 0.012)).to_csv(log, index=False)
+    p = C.compare(d, log=log, lag="report").pair("log:late")
+    assert p is not None and p.lag is not None
+    assert abs(p.lag.seconds - 0.012) <= DT
+
+
+# --------------------------------------------------------------------------- #
+# Imported logs
+
+
+def test_imported_csv_of_a_run_compares_to_it_with_zero_deviation(tmp_path: Path) -> None:
+    """A backend's parquet written as CSV (units in headers, other names mapped) deviates from it by exactly 0."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.05)})
+    df = pd.read_parquet(d / "a.parquet")
+    df = df.rename(columns={"t": "time [s]", "q1": "q1 [rad]", "fz": "Fn (N)", "tau1": "effort_1", "tau2": "effort_2"})
+    log = tmp_path / "external.csv"
+    df.to_csv(log, index=False)
+    res = C.compare(d, log=log, log_name="external", column_map={"effort_1": "tau1", "effort_2": "tau2"})
+    assert "external" in res.traces
+    p = res.pair("external")
+    assert p is not None
+    pa = res.pair("a")
+    assert pa is not None
+    np.testing.assert_array_equal(p.deviation, pa.deviation)  # log vs ref is exactly a vs ref
+    as_ref = C.compare(d, log=log, log_name="external", column_map={"effort_1": "tau1", "effort_2": "tau2"},
+                       log_is_reference=True).pair("a")  # fmt: skip
+    assert as_ref is not None and as_ref.reference == "external"
+    assert np.all(as_ref.max_abs == 0.0) and np.all(as_ref.rms == 0.0)
+
+
+def test_load_log_keeps_missing_optional_signals_as_nan(tmp_path: Path) -> None:
+    """A log with only t and q1..q3: the other signals are NaN and their metrics NaN; q is measured."""
+    d = write_run(tmp_path / "s", {"ref": None})
+    log = tmp_path / "qonly.csv"
+    pd.read_parquet(d / "ref.parquet")[["t", "q1", "q2", "q3"]].to_csv(log, index=False)
+    df = C.load_log(log)
+    assert list(df.columns) == list(C.RUN_COLUMNS)
+    assert df["tau1"].isna().all() and not df["q1"].isna().any()
+    p = C.compare(d, log=log).pair("log:qonly")
+    assert p is not None
+    assert np.all(p.max_abs[0:3] == 0.0) and np.isnan(p.max_abs[3:]).all()
+
+
+def test_load_log_time_scale_converts_milliseconds(tmp_path: Path) -> None:
+    """time_scale = 1e-3 turns a millisecond time column into seconds."""
+    log = tmp_path / "ms.csv"
+    pd.DataFrame({"t_ms": [0.0, 1.0, 2.0], "q1": 0.0, "q2": 0.0, "q3": 0.0}).to_csv(log, index=False)
+    df = C.load_log(log, column_map={"t_ms": "t"}, time_scale=1e-3)
+    np.testing.assert_allclose(df["t"], [0.0, 0.001, 0.002])
+
+
+@pytest.mark.parametrize(
+    ("content", "column_map", "fragment"),
+    [
+        ("t,q1,q3\n0,0,0\n1,0,0\n", None, "missing column(s) ['q2']"),
+        ("t,q1,q2,q3\n0,0,0,0\n0,0,0,0\n", None, "not strictly increasing"),
+        ("t,q1,q2,q3\n0,0,0,0\n1,x,0,0\n", None, "column 'q1' is not numeric"),
+        ("t,q1,q2,q3\n0,0,0,0\n1,0,0,0\n", {"joint_1": "q1"}, "not in the header"),
+        ("t,q1,q2,q3\n0,0,0,0\n1,0,0,0\n", {"q1": "angle"}, "not legbench columns"),
+        ("t,q1,q1 [rad],q2,q3\n0,0,0,0,0\n1,0,0,0,0\n", None, "several header columns map to ['q1']"),
+    ],
+)
+def test_malformed_log_raises_naming_the_file_and_problem(
+    tmp_path: Path, content: str, column_map: dict[str, str] | None, fragment: str
+) -> None:
+    """Every malformed log is a ResultsError whose one-line message names the file and the problem."""
+    log = tmp_path / "bad.csv"
+    log.write_text(content)
+    with pytest.raises(ResultsError) as err:
+        C.load_log(log, column_map)
+    assert str(log) in str(err.value) and fragment in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_missing_log_file_raises(tmp_path: Path) -> None:
+    """A log path that does not exist is a ResultsError naming it."""
+    with pytest.raises(ResultsError, match="no such log file"):
+        C.load_log(tmp_path / "nope.csv")
+
+
+def test_log_name_clashing_with_a_backend_raises(tmp_path: Path) -> None:
+    """An imported log may not take the name of a backend of the run."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": None})
+    log = tmp_path / "a.csv"
+    pd.read_parquet(d / "a.parquet").to_csv(log, index=False)
+    with pytest.raises(ResultsError, match="already a backend"):
+        C.compare(d, log=log, log_name="a")
+
+
+# --------------------------------------------------------------------------- #
+# Run directories
+
+
+def test_missing_run_directory_and_run_json_raise(tmp_path: Path) -> None:
+    """A missing DIR, and a DIR without run.json, are ResultsErrors naming the directory."""
+    with pytest.raises(ResultsError, match="no such run directory"):
+        C.load_run(tmp_path / "nope")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ResultsError, match="no run.json"):
+        C.load_run(tmp_path / "empty")
+    d = write_run(tmp_path / "bad", {"ref": None})
+    (d / "run.json").write_text("{not json")
+    with pytest.raises(ResultsError, match=r"run.json: invalid JSON at line 1"):
+        C.load_run(d)
+
+
+def test_parquet_without_a_contract_column_raises(tmp_path: Path) -> None:
+    """A backend file lacking a contract column (fz) is a ResultsError naming the file and the column."""
+    d = write_run(tmp_path / "s", {"ref": None})
+    pd.read_parquet(d / "ref.parquet").drop(columns=["fz"]).to_parquet(d / "ref.parquet")
+    with pytest.raises(ResultsError, match=r"ref.parquet: missing column\(s\) \['fz'\]"):
+        C.load_run(d)
+
+
+def test_failed_and_missing_backends_are_reported_not_measured(tmp_path: Path) -> None:
+    """A failed backend and an 'ok' one without a file appear in notes and metrics.json, with no metrics."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": None, "b": None}, failed={"c": "diverged at t = 0.3 s"})
+    (d / "b.parquet").unlink()
+    res = C.compare(d)
+    assert [p.backend for p in res.pairs] == ["a"]
+    assert any("'c' failed: diverged at t = 0.3 s" in n for n in res.notes)
+    assert any("'b' missing" in n for n in res.notes)
+    doc = res.to_json()
+    assert doc["backends"]["c"] == {"status": "failed", "reason": "diverged at t = 0.3 s", "source": "run"}
+    assert doc["backends"]["b"]["status"] == "missing"
+    assert set(res.frame()["backend"]) == {"ref", "a"}
+
+
+def test_failed_reference_means_no_deviation_and_a_note(tmp_path: Path) -> None:
+    """Without the reference backend's data there are no pair metrics; steady states are still measured."""
+    d = write_run(tmp_path / "s", {"a": None, "b": None}, failed={"ref": "engine not installed"})
+    res = C.compare(d)
+    assert res.pairs == ()
+    assert any("reference backend 'ref' has no data (engine not installed)" in n for n in res.notes)
+    assert [s.backend for s in res.steady] == ["a", "b"]
+
+
+def test_all_pairs_measures_every_ordered_pair(tmp_path: Path) -> None:
+    """Three traces give n (n - 1) = 6 ordered pairs; a vs b is the negated deviation of b vs a."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.1), "b": offset(0.01)})
+    res = C.compare(d, all_pairs=True)
+    assert sorted((p.backend, p.reference) for p in res.pairs) == sorted(
+        [("a", "ref"), ("b", "ref"), ("ref", "a"), ("ref", "b"), ("a", "b"), ("b", "a")]
+    )
+    ab, ba = res.pair("a", "b"), res.pair("b", "a")
+    assert ab is not None and ba is not None
+    np.testing.assert_allclose(ab.deviation[:, 3:], -ba.deviation[:, 3:], atol=1e-15)
+
+
+# --------------------------------------------------------------------------- #
+# Steady state and the analytic force check
+
+Q_STAR = np.array([-0.0025, -1.1899, -1.2599])
+
+
+def static_base(h: np.ndarray, poc_true: bool = True) -> Base:
+    """The leg at rest at q*: tau = G(q*) + J^T h, ground force on the foot -h."""
+    J = kinematics.jacobian_poc(Q_STAR, true_poc=poc_true)
+    tau = kinematics.gravity(Q_STAR) + J.T @ h
+
+    def base(t: np.ndarray) -> np.ndarray:
+        row = np.concatenate([Q_STAR, np.zeros(3), tau, -h])
+        return np.tile(row, (len(t), 1))
+
+    return base
+
+
+def test_analytic_check_recovers_the_ground_force_of_a_static_pose(tmp_path: Path) -> None:
+    """At rest with tau = G + J_poc^T h, the check returns -h, the ground force on the foot, within 1e-9 N."""
+    h = np.array([3.0, -2.0, -40.0])  # force the foot exerts on the ground [N]
+    d = write_run(tmp_path / "s", {"ref": None}, base=static_base(h))
+    (s,) = C.compare(d).steady
+    np.testing.assert_allclose(s.analytic_poc, -h, atol=1e-9)
+    np.testing.assert_allclose(s.residual, 0.0, atol=1e-9)
+    np.testing.assert_allclose(s.force, -h, rtol=1e-15)
+    assert s.analytic_centre is None and s.poc_compensation is None  # the run's poc is the true one
+    assert s.t0 == pytest.approx(1.5) and s.t1 == pytest.approx(2.0)
+
+
+def test_poc_compensation_vanishes_for_a_vertical_force_and_not_with_friction(tmp_path: Path) -> None:
+    """With the poc at the sphere centre (J_E) the moment r x F of a horizontal force is missed.
+
+    A purely vertical force is parallel to r = -R z: compensation below 1e-9 N.
+    With 5 N of friction, the J_E answer is wrong by more than 0.1 N, and equals
+    -(J_E^T)^-1 J_poc^T h computed by hand (1e-9 N).
+    """
+    for h, expect_zero in ((np.array([0.0, 0.0, -40.0]), True), (np.array([4.0, -3.0, -40.0]), False)):
+        d = write_run(tmp_path / f"s{expect_zero}", {"ref": None}, base=static_base(h), poc="centre")
+        (s,) = C.compare(d).steady
+        assert s.poc_compensation is not None and s.analytic_centre is not None
+        JE = kinematics.jacobian_poc(Q_STAR, true_poc=False)
+        JP = kinematics.jacobian_poc(Q_STAR, true_poc=True)
+        np.testing.assert_allclose(s.analytic_centre, -np.linalg.solve(JE.T, JP.T @ h), atol=1e-9)
+        if expect_zero:
+            np.testing.assert_allclose(s.poc_compensation, 0.0, atol=1e-9)
+        else:
+            assert np.linalg.norm(s.poc_compensation) > 0.1
+        rows = C.compare(d).frame()
+        assert {"analytic_poc", "analytic_centre", "poc_compensation", "analytic_residual"} <= set(rows["metric"])
+
+
+def test_steady_state_means_are_over_the_final_window(tmp_path: Path) -> None:
+    """qd1 = t: its mean over [1.5, 2.0] s is 1.75 rad/s (1e-12)."""
+
+    def ramp(t: np.ndarray) -> np.ndarray:
+        x = base_signals(t)
+        x[:, 3] = t
+        return x
+
+    (s,) = C.compare(write_run(tmp_path / "s", {"ref": None}, base=ramp)).steady
+    assert s.qd[0] == pytest.approx(1.75, rel=1e-12)
+
+
+# --------------------------------------------------------------------------- #
+# Contact-mode split
+
+
+def test_contact_mode_split_separates_the_two_causes(tmp_path: Path) -> None:
+    """a_native = x + 0.03 + 0.01, a_reference = x + 0.01, reference backend identical in both modes:
+    contact part RMS 0.03, integration 0.01, drift 0, native 0.04 (1e-9), found from the sibling directory."""
+    both = offset(0.04)
+    write_run(tmp_path / "fake", {"ref": None, "a": both})
+    write_run(tmp_path / "fake__reference", {"ref": None, "a": offset(0.01)}, contact_mode="reference")
+    res = C.compare(tmp_path / "fake")
+    assert res.split_run is not None and res.split_run.label == "fake__reference"
+    (m,) = res.split
+    np.testing.assert_allclose(m.contact_rms, 0.03, rtol=1e-9)
+    np.testing.assert_allclose(m.integration_rms, 0.01, rtol=1e-9)
+    np.testing.assert_allclose(m.native_rms, 0.04, rtol=1e-9)
+    np.testing.assert_array_equal(m.drift_rms, 0.0)
+    pn = res.pair("a")
+    assert pn is not None
+    np.testing.assert_allclose(m.native_pct, pn.sim_error_pct, rtol=1e-12)
+    assert res.to_json()["split_with"] == "fake__reference"
+    ref_side = C.compare(tmp_path / "fake__reference")
+    assert ref_side.split == () and ref_side.run.label == "fake__reference"
+
+
+def test_split_with_a_different_scenario_raises(tmp_path: Path) -> None:
+    """A reference-mode directory of another scenario cannot be used for the split."""
+    write_run(tmp_path / "fake", {"ref": None})
+    write_run(tmp_path / "other", {"ref": None}, name="other", contact_mode="reference")
+    with pytest.raises(ResultsError, match="scenario 'other' is not 'fake'"):
+        C.compare(tmp_path / "fake", split_dir=tmp_path / "other")
+
+
+# --------------------------------------------------------------------------- #
+# metrics.json
+
+
+def test_metrics_json_round_trips_and_keeps_its_documented_keys(tmp_path: Path) -> None:
+    """write_metrics then read_metrics gives back the same long table (NaN <-> null) and the schema's keys."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.1)}, failed={"b": "boom"})
+    res = C.compare(d, lag="report")
+    path = C.write_metrics(res)
+    assert path == d / "metrics.json"
+    head, df = C.read_metrics(path)
+    assert list(head) == [
+        "schema", "scenario", "name", "contact_mode", "poc", "reference", "skip", "steady_window",
+        "duration", "split_with", "backends", "notes", "columns",
+    ]  # fmt: skip
+    assert head["schema"] == C.METRICS_SCHEMA and head["columns"] == list(C.FRAME_COLUMNS)
+    pd.testing.assert_frame_equal(df, res.frame().astype({"value": float}), check_dtype=False)
+    metrics = set(df["metric"])
+    assert {"sim_error_pct", "rms", "max_abs", "t_max_abs", "ref_peak", "lag", "steady_mean"} <= metrics
+
+
+def test_read_metrics_rejects_a_wrong_schema(tmp_path: Path) -> None:
+    """A metrics.json of another schema is a ResultsError naming the file."""
+    f = tmp_path / "metrics.json"
+    f.write_text(json.dumps({"schema": "other/9", "metrics": []}))
+    with pytest.raises(ResultsError, match="schema is 'other/9'"):
+        C.read_metrics(f)
