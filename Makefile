@@ -1,10 +1,14 @@
-# legbench: two commands on a fresh machine: `make compare` (the full comparison) and `make test`.
+# legbench. Two commands on a fresh machine: `make compare` (the full comparison) and `make test`.
+# Both create .venv and install everything on first use.
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+JOBS ?= 2
+TASKS := scenarios/position.yaml scenarios/ellipse.yaml scenarios/effort.yaml scenarios/combined.yaml
+LEGBENCH := $(BIN)/legbench
 
-.PHONY: setup test lint compare bench sweep urdf clean
+.PHONY: setup test lint compare check baseline bench sweep verify urdf clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -14,6 +18,7 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
+## the test suite
 test: $(STAMP)
 	$(BIN)/pytest -q
 
@@ -22,11 +27,23 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check legbench tests
 	$(BIN)/mypy legbench
 
-urdf: $(STAMP)
-	$(BIN)/legbench model urdf
-
+## the main job: four tasks x all backends x both contact modes -> results/latest/report.html
 compare: $(STAMP)
-	$(BIN)/legbench model check
+	rm -rf results/latest
+	$(LEGBENCH) run $(TASKS) --backends all --contact-mode both --out results/latest --jobs $(JOBS) --quiet
+
+## regression check of a fresh comparison against the committed baseline (CI)
+check: compare
+	$(LEGBENCH) check results/latest --baseline results/baseline
+
+## refresh the committed baseline on purpose (review the diff of results/baseline before committing)
+baseline: compare
+	rm -rf results/baseline
+	mkdir -p results/baseline
+	cd results/latest && for d in */; do mkdir -p ../baseline/$$d && cp $$d/metrics.json $$d/run.json ../baseline/$$d; done
+
+urdf: $(STAMP)
+	$(LEGBENCH) model urdf
 
 clean:
 	rm -rf $(VENV) results/latest

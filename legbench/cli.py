@@ -226,6 +226,48 @@ def _add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.set_defaults(func=_run)
 
 
+def _compare(args: argparse.Namespace) -> int:
+    from legbench import report
+
+    written = report.write_all(args.dir, log=args.reference_log, lag=args.lag, all_pairs=args.all_pairs)
+    for files in written:
+        print(f"wrote {getattr(files, 'html', files)}")
+    return EXIT_OK
+
+
+def _add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("compare", help="compare the backends of a run directory (or a tree of them) and report")
+    p.add_argument("dir", help="a run directory, or a results tree such as results/latest")
+    p.add_argument(
+        "--reference-log",
+        default=None,
+        metavar="CSV",
+        help="an external log (CSV, header with legbench column names) to compare as one more backend",
+    )
+    p.add_argument("--lag", choices=("off", "report", "remove"), default="off",
+                   help="estimate ('report') or estimate and remove ('remove') a constant time lag by "
+                        "cross-correlation")  # fmt: skip
+    p.add_argument("--all-pairs", action="store_true", help="metrics for every pair of backends, not only vs reference")
+    p.set_defaults(func=_compare)
+
+
+def _check(args: argparse.Namespace) -> int:
+    from legbench import check
+
+    return check.run_check(args.dir, args.baseline, args.tolerances, args.summary, args.junit, all_rows=args.all)
+
+
+def _add_check(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("check", help="regression check of new results against a committed baseline")
+    p.add_argument("dir", help="new results (run directory or tree)")
+    p.add_argument("--baseline", required=True, help="baseline results, same layout (e.g. results/baseline)")
+    p.add_argument("--tolerances", default=None, help="tolerance file (YAML)")
+    p.add_argument("--summary", default=None, help="Markdown summary (default DIR/check.md)")
+    p.add_argument("--junit", default=None, help="JUnit XML (default DIR/check-junit.xml)")
+    p.add_argument("--all", action="store_true", help="print every checked row, not only what moved")
+    p.set_defaults(func=_check)
+
+
 def _add_validate(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("validate", help="check scenario files without running them")
     p.add_argument("files", nargs="+", help="scenario YAML files")
@@ -238,6 +280,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_model(sub)
     _add_run(sub)
     _add_validate(sub)
+    _add_compare(sub)
+    _add_check(sub)
     return parser
 
 
