@@ -154,29 +154,35 @@ class MujocoBackend(Backend):
         self.contact = ReferenceContact.from_leg(c)
         self._step = self._step_reference if self.reference else self._step_native
         self._f6 = np.zeros(6)
+        self._fw = np.zeros(3)
         self._force = np.zeros(3)
         self._bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
 
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
-        """Set q [rad] and qd [rad/s], clear time, warm start, forces and warnings."""
+        """Set q [rad] and qd [rad/s], clear time, warm start, applied forces and warnings."""
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         d.qpos[:] = q
         d.qvel[:] = qd
-        self._update()
+        mujoco.mj_forward(m, d)
+        self._read_force()
 
     # ----------------------------------------------------------------- step
     def step(self, tau: np.ndarray) -> None:
         """Advance one control period with tau [N m] held (clamped to the torque limits by MuJoCo)."""
         self.data.ctrl[:] = tau
         self._step()
-        self._update()
+        self._read_force()
         if self.data.warning[self._bad_qacc].number:
             raise SimulationDiverged(self.name, float(self.data.time), "MuJoCo reported a bad qacc")
 
     def _step_native(self) -> None:
-        mujoco.mj_step(self.model, self.data, self.n_sub)
+        m, d = self.model, self.data
+        mujoco.mj_step(m, d, self.n_sub)
+        # mj_step leaves the contact forces of the last sub-step's start state; one more
+        # forward pass gives those of the end state (the trajectory is bitwise unchanged)
+        mujoco.mj_forward(m, d)
 
     def _step_reference(self) -> None:
         m, d = self.model, self.data
@@ -185,27 +191,25 @@ class MujocoBackend(Backend):
             applied[:] = law(q[0], q[1], q[2], qd[0], qd[1], qd[2])
             mujoco.mj_step(m, d)
 
-    def _update(self) -> None:
-        """Ground force at the current state (mj_step's forces are those of the last sub-step's start)."""
-        d = self.data
+    def _read_force(self) -> None:
+        """Ground force on the foot in W [N] at the current state, into ``self._force``."""
+        d, force = self.data, self._force
         if self.reference:
             q, qd = d.qpos, d.qvel
             self.contact.generalized(q[0], q[1], q[2], qd[0], qd[1], qd[2])
-            self._force[:] = self.contact.force
+            force[:] = self.contact.force
             return
-        mujoco.mj_forward(self.model, d)
-        force = self._force
         force[:] = 0.0
         for i in range(d.ncon):
             con = d.contact[i]
-            # the contact frame's first row is the normal, from geom1 to geom2; the
-            # force in that frame pushes geom2 along +normal
+            # contact frame rows: normal (from geom1 to geom2), then the two tangents; the
+            # force in that frame is the one geom1 exerts on geom2
             mujoco.mj_contactForce(self.model, d, i, self._f6)
-            f_w = con.frame.reshape(3, 3).T @ self._f6[:3]
+            mujoco.mju_mulMatTVec3(self._fw, con.frame, self._f6[:3])
             if con.geom2 in self.foot_geoms:
-                force += f_w
+                force += self._fw
             elif con.geom1 in self.foot_geoms:
-                force -= f_w
+                force -= self._fw
 
     # ----------------------------------------------------------------- read
     def state(self) -> tuple[np.ndarray, np.ndarray]:
