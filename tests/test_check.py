@@ -1,0 +1,207 @@
+"""The regression check on synthetic runs: passes on itself, fails naming the signal, honours tolerances."""
+
+from __future__ import annotations
+
+import io
+import json
+import shutil
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fakerun import Transform, add_to, offset, scale, write_run
+
+from legbench import check as K
+from legbench import compare as C
+from legbench.exceptions import ResultsError, ScenarioError
+
+BUMP = add_to("tau2", lambda t: 0.5 * np.exp(-(((t - 1.2) / 0.05) ** 2)))  # 0.5 N m pulse at t = 1.2 s
+
+
+def tree(root: Path, a: Transform | None = None, **kw: object) -> Path:
+    """Two scenarios; backend a of 'fake' gets the transform ``a`` (default 1.02 x)."""
+    write_run(root / "fake", {"ref": None, "a": a or scale(1.02), "b": offset(0.01)}, **kw)  # type: ignore[arg-type]
+    write_run(root / "other", {"ref": None, "a": scale(1.01)}, name="other")
+    return root
+
+
+def then(*fns: Transform) -> Transform:
+    def tr(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        for f in fns:
+            x = f(t, x)
+        return x
+
+    return tr
+
+
+@pytest.fixture(scope="module")
+def baseline(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The committed-baseline layout: run directories with metrics.json (tests never write into it)."""
+    base = tree(tmp_path_factory.mktemp("baseline") / "base")
+    for d in base.iterdir():
+        C.write_metrics(C.compare(d))
+    return base
+
+
+def test_a_run_passes_against_itself_with_identical_time_series(baseline: Path, tmp_path: Path) -> None:
+    """Same data: exit status 0, every metric 'pass', every time series 'identical', JUnit without failures."""
+    out = io.StringIO()
+    new = tmp_path / "new"
+    shutil.copytree(baseline, new)
+    assert K.run_check(new, baseline, stream=out) == 0
+    report = K.check(new, baseline)
+    assert report.passed and all(r.status == "pass" for r in report.rows)
+    assert {t.status for t in report.traces} == {"identical"} and len(report.traces) == 5
+    assert "no metric moved" in out.getvalue() and "PASS" in out.getvalue()
+    junit = ET.parse(new / "check-junit.xml").getroot()
+    assert junit.get("failures") == "0" and int(junit.get("tests", "0")) == len(report.rows)
+    assert len(junit.findall(".//testcase")) == len(report.rows)
+    assert "PASS" in (new / "check.md").read_text()
+
+
+def test_a_perturbed_backend_fails_naming_backend_and_signal(baseline: Path, tmp_path: Path) -> None:
+    """A 0.5 N m pulse in backend a's tau2: exit status 1; the failures are exactly a's tau2 metrics."""
+    new = tree(tmp_path / "new", a=then(scale(1.02), BUMP))
+    out = io.StringIO()
+    assert K.run_check(new, baseline, stream=out) == 1
+    report = K.check(new, baseline)
+    failed = {(r.scenario, r.backend, r.label, r.metric) for r in report.regressions}
+    assert failed == {("fake", "a", "tau2", "sim_error_pct"), ("fake", "a", "tau2", "rms")}
+    text = out.getvalue()
+    assert "FAIL: 2 regression(s)" in text and "fake/a tau2 sim_error_pct grew" in text
+    assert "fake/a: time series changed (largest change in tau2)" in text
+    assert "fake/b: time series identical" in text
+    junit = ET.parse(new / "check-junit.xml").getroot()
+    fails = junit.findall(".//failure")
+    assert len(fails) == 2 and all("tau2" in (f.get("message") or "") for f in fails)
+    assert "fake/a tau2 rms grew" in (new / "check.md").read_text()
+
+
+def test_a_change_within_tolerance_moves_but_passes(baseline: Path, tmp_path: Path) -> None:
+    """Backend a at 1.021 x instead of 1.02 x: sim error 2.1 % vs 2 % grows 0.1 point < 1 point allowed,
+    RMS grows 5 % < 10 %, steady means move 0.1 % < 5 %."""
+    new = tree(tmp_path / "new", a=scale(1.021))
+    report = K.check(new, baseline)
+    assert report.passed
+    row = next(
+        r for r in report.rows if (r.scenario, r.backend, r.label, r.metric) == ("fake", "a", "q1", "sim_error_pct")
+    )
+    assert row.status == "moved" and row.change == pytest.approx(0.1, rel=1e-9) and row.allowed == 1.0
+
+
+def test_a_tolerance_file_tightens_and_the_scenario_overrides_it(baseline: Path, tmp_path: Path) -> None:
+    """abs 0.1 point in a tolerance file turns the 0.5-point growth into a regression; run.json's own
+    tolerances (abs 2 points) win over the file for that scenario."""
+    new = tree(tmp_path / "new", a=scale(1.025))
+    tol = tmp_path / "tol.yaml"
+    tol.write_text("sim_error_pct: {abs: 0.1, rel: 0.0}\nrms: {rel: 1.0}\n")
+    report = K.check(new, baseline, tol)
+    assert not report.passed
+    assert {r.metric for r in report.regressions} == {"sim_error_pct"}
+    assert report.tolerance_sources["fake"] == f"defaults < {tol}"
+    new2 = tree(tmp_path / "new2", a=scale(1.025), tolerances={"sim_error_pct": {"abs": 2.0}})
+    report2 = K.check(new2, baseline, tol)
+    assert report2.passed
+    assert report2.tolerance_sources["fake"].endswith("run.json scenario.comparison.tolerances")
+
+
+def test_per_signal_tolerance_lookup_prefers_the_component(baseline: Path, tmp_path: Path) -> None:
+    """abs {default: 0.1, q1: 5}: q1's 0.5-point growth passes, the other components fail."""
+    new = tree(tmp_path / "new", a=scale(1.025))
+    tol = tmp_path / "tol.json"
+    tol.write_text(json.dumps({"sim_error_pct": {"abs": {"default": 0.1, "q1": 5}, "rel": 0}, "rms": {"rel": 1}}))
+    report = K.check(new, baseline, tol)
+    labels = {r.label for r in report.regressions}
+    assert "q1" not in labels and labels == {"q2", "q3", "qd1", "qd2", "qd3", "tau1", "tau2", "tau3", "fx", "fy", "fz"}
+
+
+def test_an_improvement_passes(baseline: Path, tmp_path: Path) -> None:
+    """Backend a closer to the reference (1.001 x): sim error and RMS fall; status 'improved', exit 0."""
+    report = K.check(tree(tmp_path / "new", a=scale(1.001)), baseline)
+    assert report.passed
+    rows = [r for r in report.rows if (r.scenario, r.backend) == ("fake", "a") and r.metric in ("sim_error_pct", "rms")]
+    assert len(rows) == 24 and {r.status for r in rows} == {"improved"}
+
+
+def test_a_steady_state_change_either_way_fails(baseline: Path, tmp_path: Path) -> None:
+    """Backend b's Fn 2 N lower over the final window: steady_mean fz moves 2 N > max(0.1 N, 5 % of 22 N) allowed."""
+    drop = add_to("fz", lambda t: np.where(t > 1.4, -2.0, 0.0))
+    new = tmp_path / "new"
+    write_run(new / "fake", {"ref": None, "a": scale(1.02), "b": then(offset(0.01), drop)})
+    write_run(new / "other", {"ref": None, "a": scale(1.01)}, name="other")
+    report = K.check(new, baseline)
+    steady = [r for r in report.regressions if r.metric == "steady_mean"]
+    assert [(r.backend, r.label) for r in steady] == [("b", "fz")]
+    assert steady[0].change == pytest.approx(-2.0, rel=1e-9)
+
+
+def test_a_backend_that_stopped_working_is_a_regression(baseline: Path, tmp_path: Path) -> None:
+    """b ok in the baseline, failed now: a FAILED row with the reason, and its metrics MISSING."""
+    new = tmp_path / "new"
+    write_run(new / "fake", {"ref": None, "a": scale(1.02)}, failed={"b": "diverged at t = 0.3 s"})
+    write_run(new / "other", {"ref": None, "a": scale(1.01)}, name="other")
+    report = K.check(new, baseline)
+    statuses = {(r.backend, r.status) for r in report.regressions}
+    assert ("b", "FAILED") in statuses and ("b", "MISSING") in statuses
+    assert any("now failed: diverged at t = 0.3 s" in r.message for r in report.regressions)
+
+
+def test_a_missing_scenario_fails_and_a_new_one_does_not(baseline: Path, tmp_path: Path) -> None:
+    """A scenario of the baseline absent from the new results is MISSING; an extra one is 'new'."""
+    new = tmp_path / "new"
+    write_run(new / "fake", {"ref": None, "a": scale(1.02), "b": offset(0.01)})
+    write_run(new / "third", {"ref": None}, name="third")
+    report = K.check(new, baseline)
+    assert [(r.scenario, r.status) for r in report.regressions] == [("other", "MISSING")]
+    assert any(r.scenario == "third" and r.status == "new" for r in report.rows)
+
+
+def test_absolute_ceiling_on_sim_error(baseline: Path, tmp_path: Path) -> None:
+    """max_sim_error_pct {tau: 1.5}: a's unchanged 2 % torque error is OVER LIMIT; the scenario names it."""
+    new = tree(tmp_path / "new", tolerances={"max_sim_error_pct": {"tau": 1.5}})
+    report = K.check(new, baseline)
+    over = {(r.backend, r.label) for r in report.regressions if r.status == "OVER LIMIT"}
+    assert over == {("a", "tau1"), ("a", "tau2"), ("a", "tau3")}
+
+
+def test_single_run_directories_are_compared_directly(baseline: Path, tmp_path: Path) -> None:
+    """NEW and BASE may be single run directories, whatever their names."""
+    new = write_run(tmp_path / "elsewhere", {"ref": None, "a": then(scale(1.02), BUMP), "b": offset(0.01)})
+    report = K.check(new, baseline / "fake")
+    assert {r.label for r in report.regressions} == {"tau2"}
+
+
+def test_baseline_without_logs_is_checked_on_metrics_only(baseline: Path, tmp_path: Path) -> None:
+    """A committed baseline holding only metrics.json: metrics compared, time series 'no baseline log'."""
+    slim = tmp_path / "slim"
+    for d in ("fake", "other"):
+        (slim / d).mkdir(parents=True)
+        shutil.copy(baseline / d / "metrics.json", slim / d / "metrics.json")
+    new = tree(tmp_path / "new")
+    report = K.check(new, slim)
+    assert report.passed
+    assert {t.status for t in report.traces} == {"no baseline log"}
+
+
+def test_malformed_tolerances_raise_naming_the_key(baseline: Path, tmp_path: Path) -> None:
+    """Unknown metric, unknown sub-key and negative value in a tolerance file are ScenarioErrors naming the key."""
+    tol = tmp_path / "tol.yaml"
+    for text, key in (
+        ("sim_eror_pct: {abs: 1}", "sim_eror_pct"),
+        ("rms: {absolute: 1}", "rms.absolute"),
+        ("scenarios: {fake: {rms: {abs: {q: -1}}}}", "scenarios.fake.rms.abs.q"),
+    ):
+        tol.write_text(text)
+        with pytest.raises(ScenarioError) as err:
+            K.check(baseline, baseline, tol)
+        assert f"{tol}: {key}:" in str(err.value)
+
+
+def test_missing_directories_raise(tmp_path: Path) -> None:
+    """A missing NEW or BASE directory is a ResultsError naming it."""
+    with pytest.raises(ResultsError, match="no such results directory"):
+        K.check(tmp_path / "nope", tmp_path)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ResultsError, match="no run directories"):
+        K.check(tmp_path / "empty", tmp_path / "empty")
