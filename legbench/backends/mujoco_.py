@@ -6,9 +6,9 @@ fusestatic="false"/>`` keeps the foot a body of its own, welded to link 3 at
 the foot centre E; a site ``E`` marks that point. On the spec we add the
 ground plane z_W = 0, one ``motor`` actuator per joint (gear 1, control range
 = torque limit), stiff joint limits (ENGINE_NOTES.md: solref (0.002, 1), solimp
-(0.99, 0.999, ...) so a 10 N m push on the knee stops at about 2.242 rad like
-PyBullet's hard limit) and collision filters so that only the foot sphere
-touches the ground (no link-link or other link-ground contact).
+(0.99, 0.999, ...): the knee driven into its 2.229 rad limit with 10 N m rests
+at 2.2292 rad after a 0.02 rad overshoot) and collision filters so that only
+the foot sphere touches the ground (no link-link or other link-ground contact).
 
 Native contact (``contact_mode = "native"``), set through MuJoCo's global
 contact override (``mjENBL_OVERRIDE``), which bypasses the two-geom mixing

@@ -257,7 +257,7 @@ class PybulletBackend(Backend):
                 "restitution": foot[5],
                 "contact_slop": 0.0,
                 "contact_processing_threshold": 0.0,
-                "cone": "Coulomb (Bullet's default friction model)",
+                "cone": "Coulomb cone (sticks below mu Fn, slides at mu Fn)",
                 "Kp": c.Kp,
                 "Kd": c.Kd,
                 "reference_law": "J_poc^T F added to the torque per sub-step" if self.reference else None,
