@@ -269,10 +269,17 @@ def _run_dirs(root: Path) -> dict[str, Path]:
 
 
 def _metrics(d: Path) -> tuple[dict[str, Any], pd.DataFrame]:
-    """metrics.json of a run directory, recomputed when absent or older than run.json."""
-    mfile, rfile = d / "metrics.json", d / "run.json"
-    if mfile.is_file() and (not rfile.is_file() or mfile.stat().st_mtime >= rfile.stat().st_mtime):
+    """metrics.json of a run directory; recomputed from the logs when absent or older than any log.
+
+    A committed baseline usually holds only run.json and metrics.json: its
+    metrics.json is used as is.
+    """
+    mfile = d / "metrics.json"
+    logs = list(d.glob("*.parquet"))
+    if mfile.is_file() and all(p.stat().st_mtime <= mfile.stat().st_mtime for p in logs):
         return C.read_metrics(mfile)
+    if not logs:
+        raise ResultsError(str(d), "neither metrics.json nor backend logs (*.parquet) to measure")
     res = C.compare(d)
     doc = res.to_json()
     doc.pop("metrics")

@@ -212,6 +212,16 @@ def _colors(names: Iterable[str], reference: str) -> dict[str, str]:
     return out
 
 
+def _dashes(names: Iterable[str], reference: str) -> dict[str, Any]:
+    """A line style per backend, so curves that coincide (engines often agree to 1e-12) stay visible."""
+    styles: list[Any] = ["-", (0, (5, 3)), (0, (1, 2)), (0, (6, 2, 1, 2))]
+    out: dict[str, Any] = {reference: "-"}
+    for n in names:
+        if n not in out:
+            out[n] = styles[(len(out) - 1) % len(styles)]
+    return out
+
+
 def _events(fig: Figure, axes: Sequence[Any], run: C.Run) -> None:
     for ax in axes:
         for ev in run.events:
@@ -222,11 +232,11 @@ def _events(fig: Figure, axes: Sequence[Any], run: C.Run) -> None:
             ev.controller,
             xy=(ev.t, 1.0),
             xycoords=("data", "axes fraction"),
-            xytext=(2, 2),
+            xytext=(2, -2),
             textcoords="offset points",
             fontsize=7,
             color="0.35",
-            va="bottom",
+            va="top",
         )
 
 
@@ -236,6 +246,12 @@ def _new_figure(title: str) -> tuple[Figure, Sequence[Any]]:
     axes = fig.subplots(3, 1, sharex=True)
     fig.suptitle(title, fontsize=11)
     return fig, axes
+
+
+def _legend(fig: Figure, ax: Any) -> None:
+    """One legend below the axes, outside the data."""
+    handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=min(5, len(labels)), fontsize=8, frameon=False)
 
 
 def _save(fig: Figure, path: Path) -> Path:
@@ -256,6 +272,7 @@ def _overlay(result: C.ComparisonResult, signal: str, path: Path) -> Path | None
     if signal != _EE and not any(tr.has(signal) for tr in shown.values()):
         return None
     colors = _colors(list(traces) + list(run.partial), result.reference)
+    dashes = _dashes(list(traces) + list(run.partial), result.reference)
     name = _EE_NAME if signal == _EE else _NAMES[signal]
     fig, axes = _new_figure(f"{run.label}: {name}, all backends")
     comps = ("x", "y", "z") if signal == _EE else C.JOINTS[signal]
@@ -268,7 +285,7 @@ def _overlay(result: C.ComparisonResult, signal: str, path: Path) -> Path | None
             "color": colors[base],
             "linewidth": 2.4 if is_ref else 1.2,
             "alpha": 0.45 if is_ref else 0.95,
-            "linestyle": ":" if label.endswith("(failed)") else "-",
+            "linestyle": ":" if label.endswith("(failed)") else dashes[base],
             "label": f"{label} (reference)" if is_ref else label,
         }
         for j, ax in enumerate(axes):
@@ -280,7 +297,7 @@ def _overlay(result: C.ComparisonResult, signal: str, path: Path) -> Path | None
     axes[-1].set_xlabel("t [s]")
     axes[-1].set_xlim(*_xlim(run, shown))
     _events(fig, axes, run)
-    axes[0].legend(loc="upper right", fontsize=8, ncol=min(4, len(shown)))
+    _legend(fig, axes[0])
     return _save(fig, path)
 
 
@@ -292,13 +309,21 @@ def _deviation(result: C.ComparisonResult, signal: str, path: Path) -> Path | No
     if not pairs:
         return None
     colors = _colors([p.backend for p in pairs], result.reference)
+    dashes = _dashes([p.backend for p in pairs], result.reference)
     fig, axes = _new_figure(f"{run.label}: {_NAMES[signal]}, deviation from {result.reference}")
     unit = C.UNITS[signal]
     for p in pairs:
         for j, ax in enumerate(axes):
             c = cols[j]
             lag = f", lag {p.lag_removed * 1e3:.3g} ms removed" if p.lag_removed else ""
-            ax.plot(p.t, p.deviation[:, c], color=colors[p.backend], linewidth=1.1, label=f"{p.backend}{lag}")
+            ax.plot(
+                p.t,
+                p.deviation[:, c],
+                color=colors[p.backend],
+                linestyle=dashes[p.backend],
+                linewidth=1.1,
+                label=f"{p.backend}{lag}",
+            )
             if math.isfinite(p.t_max_abs[c]):
                 k = int(np.searchsorted(p.t, p.t_max_abs[c]))
                 ax.plot(p.t[k], p.deviation[k, c], "o", color=colors[p.backend], markersize=4)
@@ -311,7 +336,7 @@ def _deviation(result: C.ComparisonResult, signal: str, path: Path) -> Path | No
     axes[-1].set_xlabel("t [s]")
     axes[-1].set_xlim(*_xlim(run, result.traces))
     _events(fig, axes, run)
-    axes[0].legend(loc="upper right", fontsize=8, ncol=min(4, len(pairs) + 1))
+    _legend(fig, axes[0])
     return _save(fig, path)
 
 
