@@ -505,7 +505,14 @@ def format_table(report: CheckReport, all_rows: bool = False) -> str:
     else:
         lines.append("no metric moved")
     for t in report.traces:
-        lines.append(f"{t.scenario}/{t.backend}: time series {t.status}" + (f" ({t.detail})" if t.detail else ""))
+        if t.status == "changed":
+            lines.append(f"{t.scenario}/{t.backend}: time series changed ({t.detail})")
+    if report.traces:
+        counts = {k: sum(t.status == k for t in report.traces) for k in ("identical", "changed", "no baseline log")}
+        lines.append(
+            f"time series against the baseline: {counts['identical']} identical, {counts['changed']} changed, "
+            f"{counts['no baseline log']} without a baseline log"
+        )
     lines.append(_verdict(report))
     return "\n".join(lines)
 
