@@ -400,6 +400,27 @@ def test_instances_are_isolated_and_deterministic(make: Make, engine: str) -> No
 
 
 @pytest.mark.parametrize("engine", ENGINES)
+def test_reset_into_contact_forgets_the_previous_run(make: Make, engine: str) -> None:
+    """A used instance reset into contact continues bit for bit like a fresh one.
+
+    Nothing of the previous run (warm start, Bullet's persistent contact
+    manifolds and their impulses) may leak into the next.
+    """
+    q_contact = kinematics.ik_nearest(np.array([0.1667, 0.0, R_FOOT - 0.001]), np.array(PARAMS.q_star))
+    tau = model.gravity_torque(q_contact) + kinematics.jacobian_poc(q_contact).T @ np.array([4.0, 0.0, -10.0])
+    used, fresh = make(engine), make(engine)
+    run_press(used, np.array([6.5, 0.0, -10.0]), duration=0.3)
+    runs = []
+    for backend in (fresh, used):
+        backend.reset(q_contact, np.zeros(3))
+        for _ in range(100):
+            backend.step(tau)
+        runs.append((*backend.state(), backend.ground_force()))
+    for a, b in zip(*runs, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
 def test_torque_is_clamped_to_the_joint_limits(make: Make, engine: str) -> None:
     """Commanding 100 N m on every joint moves the leg exactly like commanding the torque limits."""
     over, at = make(engine, Physics(gravity=0.0)), make(engine, Physics(gravity=0.0))

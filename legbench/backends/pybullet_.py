@@ -38,6 +38,7 @@ motion, tests/test_backends_engines.py).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from importlib import metadata
 from pathlib import Path
@@ -142,7 +143,9 @@ class PybulletBackend(Backend):
         )  # fmt: skip
 
         self.contact = ReferenceContact.from_leg(c)
-        self.limit = np.asarray(physics.torque_limit, float)
+        self._hi = np.asarray(physics.torque_limit, float)
+        self._lo = -self._hi
+        self._step = self._step_reference if self.reference else self._step_native
         self._tau = np.zeros(3)
         self._cmd = np.zeros(3)
         self._force = np.zeros(3)
@@ -165,27 +168,30 @@ class PybulletBackend(Backend):
     # ----------------------------------------------------------------- step
     def step(self, tau: np.ndarray) -> None:
         """Advance one control period with tau [N m], clamped to the torque limits, held."""
-        body, cid, joints, cmd = self.body, self.cid, self.joints, self._cmd
-        np.clip(tau, -self.limit, self.limit, out=self._tau)
-        law = self.contact.generalized
+        np.clip(tau, self._lo, self._hi, out=self._tau)
+        self._step()
+        self.t += self.physics.control_dt
+        q, qd = self._q, self._qd
+        if not math.isfinite(q[0] + q[1] + q[2] + qd[0] + qd[1] + qd[2]):
+            raise SimulationDiverged(self.name, self.t, "non-finite joint state")
+
+    def _step_native(self) -> None:
+        body, cid, joints, tau = self.body, self.cid, self.joints, self._tau
         for _ in range(self.n_sub):
-            if self.reference:
-                q, qd = self._q, self._qd
-                cmd[:] = self._tau + law(q[0], q[1], q[2], qd[0], qd[1], qd[2])
-            else:
-                cmd[:] = self._tau
+            p.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=tau, physicsClientId=cid)
+            p.stepSimulation(physicsClientId=cid)
+        self._read()
+        self._native_force()
+
+    def _step_reference(self) -> None:
+        body, cid, joints, tau, cmd = self.body, self.cid, self.joints, self._tau, self._cmd
+        q, qd, law = self._q, self._qd, self.contact.generalized
+        for _ in range(self.n_sub):
+            np.add(tau, law(q[0], q[1], q[2], qd[0], qd[1], qd[2]), out=cmd)
             p.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=cmd, physicsClientId=cid)
             p.stepSimulation(physicsClientId=cid)
-            if self.reference:
-                self._read()
-        self.t += self.physics.control_dt
-        if not self.reference:
             self._read()
-            self._native_force()
-        else:
-            self._reference_force()
-        if not (np.isfinite(self._q).all() and np.isfinite(self._qd).all()):
-            raise SimulationDiverged(self.name, self.t, "non-finite joint state")
+        self._reference_force()
 
     def _read(self) -> None:
         states = p.getJointStates(self.body, self.joints, physicsClientId=self.cid)
