@@ -111,13 +111,13 @@ def test_energy_is_conserved_without_torque_contact_or_damping() -> None:
 
 
 def test_knee_limit_holds_like_an_engine_limit() -> None:
-    """10 N m pushing the knee into its 2.229 rad limit: it stops within 0.02 rad past it (the engines: 2.242)."""
+    """10 N m pushing the knee into its 2.229 rad limit rests within 0.005 rad of it (MuJoCo 2.2292, PyBullet 2.2293)."""
     be = _backend({}, gravity=0.0)
     be.reset(np.array([0.0, -0.5, 2.0]), np.zeros(3))
     for _ in range(1000):
         be.step(np.array([0.0, 0.0, 10.0]))
     q3 = be.state()[0][2]
-    assert 2.229 < q3 < 2.249
+    assert 2.229 < q3 < 2.234
 
 
 def _effort_steady(poc: str = "true") -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -75,7 +75,7 @@ class MujocoBackend(Backend):
 
     name: ClassVar[str] = "mujoco"
     defaults: ClassVar[Mapping[str, Any]] = {
-        "dt": 1.0e-4,  # sub-step [s]; must divide the control period
+        "dt": 5.0e-5,  # sub-step [s]: the Pinocchio default (docs/pinocchio.md), so defaults are same-step
         "integrator": "euler",  # semi-implicit Euler, like PyBullet and the Pinocchio backend
     }
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"integrator": tuple(_INTEGRATORS)}

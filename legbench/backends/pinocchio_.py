@@ -4,9 +4,9 @@ Forward dynamics qdd = aba(q, qd, tau + tau_c + tau_lim): tau_c = J_poc^T F is t
 analytic ground force (:mod:`legbench.contact`) applied at the point of contact,
 equivalent to an external force on the foot; tau_lim is a stiff one-sided
 spring-damper at the revolute joint limits (ABA knows no limits), which makes
-the knee stop like the engines' limit constraints (MuJoCo and PyBullet let a
-10 N m push reach 2.242 rad against the 2.229 rad limit; 1e3 N m/rad gives
-2.239).
+the knee stop like the engines' limit constraints: 10 N m pushing the knee into
+its 2.229 rad limit rests at 2.230 rad (1e4 N m/rad); MuJoCo rests at 2.2292
+after overshooting to 2.252, PyBullet's hard limit peaks at 2.2293.
 
 Integrators (setting ``integrator``): ``euler`` (semi-implicit: qd += dt qdd,
 then q += dt qd, as MuJoCo's Euler and Bullet), ``rk4`` (classic, fixed step),
@@ -41,8 +41,8 @@ class PinocchioBackend(Backend):
         "rtol": 1.0e-8,  # adaptive integrators only
         "atol": 1.0e-10,
         "max_step": 1.0e-4,  # [s], adaptive only (the report's ode45 setting)
-        "limit_stiffness": 1.0e3,  # [N m/rad]
-        "limit_damping": 5.0,  # [N m s/rad]
+        "limit_stiffness": 1.0e4,  # [N m/rad]
+        "limit_damping": 20.0,  # [N m s/rad], about critical for the knee (I ~ 0.01 kg m^2)
     }
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"integrator": ("euler", "rk4", "rk45", "dop853")}
 

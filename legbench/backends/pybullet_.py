@@ -66,7 +66,7 @@ class PybulletBackend(Backend):
 
     name: ClassVar[str] = "pybullet"
     defaults: ClassVar[Mapping[str, Any]] = {
-        "dt": 1.0e-4,  # sub-step [s]; must divide the control period
+        "dt": 5.0e-5,  # sub-step [s]: the Pinocchio default (docs/pinocchio.md), so defaults are same-step
         "solver_iterations": 50,  # sequential-impulse iterations per step
     }
 
