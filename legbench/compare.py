@@ -1023,6 +1023,8 @@ def compare(
     Raises:
         ResultsError: a directory or file is missing or malformed, or the log does not overlap the run.
     """
+    if lag not in ("off", "report", "remove"):
+        raise ValueError(f"lag must be 'off', 'report' or 'remove', not {lag!r}")
     run = load_run(run_dir)
     traces: dict[str, Trace] = dict(run.traces)
     notes: list[str] = []

@@ -634,6 +634,8 @@ def write_all(root: str | Path, **compare_kwargs: Any) -> list[ReportFiles | Ind
         return [write_report(root, **compare_kwargs)]
     if not root.is_dir():
         raise ResultsError(str(root), "no such results directory")
+    if compare_kwargs.get("log") is not None:
+        raise ResultsError(str(root), "an imported log belongs to one scenario: pass that scenario's run directory")
     out: list[ReportFiles | IndexFiles] = [write_report(d, **compare_kwargs) for d in _run_dirs(root)]
     out.append(write_index(root))
     return out

@@ -121,6 +121,13 @@ def test_index_reads_metrics_without_reports(tmp_path: Path) -> None:
     assert "| one | a | ref | 10 |" in md
 
 
+def test_a_log_cannot_be_attached_to_a_whole_tree(tmp_path: Path) -> None:
+    """write_all with a log on a tree of scenarios is a ResultsError: a log belongs to one scenario."""
+    write_run(tmp_path / "latest" / "one", {"ref": None}, name="one")
+    with pytest.raises(ResultsError, match="belongs to one scenario"):
+        R.write_all(tmp_path / "latest", log=tmp_path / "x.csv")
+
+
 def test_index_of_a_missing_or_empty_directory_raises(tmp_path: Path) -> None:
     """A results directory that is missing or holds no run directory is a ResultsError naming it."""
     with pytest.raises(ResultsError, match="no such results directory"):
