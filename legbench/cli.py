@@ -144,14 +144,14 @@ def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
 
 
 def _parse_set(items: Sequence[str]) -> dict[str, object]:
-    import yaml
+    from legbench.scenario import yaml_load
 
     out: dict[str, object] = {}
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or not key:
             raise LegbenchError(f"--set {item!r}: expected KEY=VALUE, e.g. backends.pinocchio.dt=5e-5")
-        out[key] = yaml.safe_load(value)
+        out[key] = yaml_load(value)
     return out
 
 

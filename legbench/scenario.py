@@ -159,6 +159,41 @@ class Scenario:
 
 
 # --------------------------------------------------------------------------- #
+# YAML
+
+
+class Loader(yaml.SafeLoader):
+    """PyYAML's safe loader (no object construction) that also reads ``1e-4`` as a float.
+
+    YAML 1.1 wants a dot in a float (``1.0e-4``); engineers write ``1e-4``.
+    """
+
+
+Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+        |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+        |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+        |[-+]?\.(?:inf|Inf|INF)
+        |\.(?:nan|NaN|NAN))$""",
+        re.X,
+    ),
+    list("-+0123456789."),
+)
+
+
+def yaml_load(text: str) -> Any:
+    """Parse YAML text safely (see :class:`Loader`)."""
+    return yaml.load(text, Loader=Loader)  # noqa: S506 - Loader is a SafeLoader
+
+
+def yaml_compose(text: str) -> yaml.Node | None:
+    """The node tree of YAML text (for line numbers in errors)."""
+    return yaml.compose(text, Loader=Loader)
+
+
+# --------------------------------------------------------------------------- #
 # Validation helpers
 
 
@@ -526,8 +561,8 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
     except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioError(str(path), "", f"cannot read: {exc}") from None
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-        doc = yaml.safe_load(text)
+        root = yaml_compose(text)
+        doc = yaml_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark is not None else None
