@@ -22,9 +22,9 @@ SCENARIOS = ROOT / "scenarios"
 
 
 def _cmd(out: Path) -> list[str]:
-    # 60 s of ellipse with RK4 sub-steps: long enough (~15 s wall) to interrupt in the middle
+    # 30 s of ellipse with RK4 sub-steps: long enough (~8 s wall) to interrupt in the middle
     return [sys.executable, "-m", "legbench.cli", "run", str(SCENARIOS / "ellipse.yaml"), "--backends", "pinocchio",
-            "--out", str(out), "-q", "--no-compare", "--set", "duration=60", "--set",
+            "--out", str(out), "-q", "--no-compare", "--set", "duration=30", "--set",
             "backends.pinocchio.integrator=rk4"]  # fmt: skip
 
 
@@ -32,7 +32,7 @@ def _cmd(out: Path) -> list[str]:
 def test_interrupt_keeps_data_marked_incomplete_and_rerun_completes(tmp_path: Path, sig: int) -> None:
     out = tmp_path / "run"
     proc = subprocess.Popen(_cmd(out), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
-    time.sleep(4.0)
+    time.sleep(3.0)
     assert proc.poll() is None, "run finished before it could be interrupted"
     os.kill(proc.pid, sig)
     _, err = proc.communicate(timeout=60)
@@ -42,7 +42,7 @@ def test_interrupt_keeps_data_marked_incomplete_and_rerun_completes(tmp_path: Pa
     entry = meta["backends"]["pinocchio"]
     assert entry["status"] == "interrupted"
     df = pd.read_parquet(out / "pinocchio.parquet")
-    assert 0 < len(df) < 60001
+    assert 0 < len(df) < 30001
     assert np.isfinite(df[["q1", "q2", "q3"]].to_numpy()).all()
     assert entry["failed_at"] == pytest.approx(df["t"].iloc[-1])
     assert not list(tmp_path.glob(".*"))  # no temporary directory left behind
@@ -51,7 +51,7 @@ def test_interrupt_keeps_data_marked_incomplete_and_rerun_completes(tmp_path: Pa
     assert done.returncode == 0, done.stderr
     meta = json.loads((out / "run.json").read_text())
     assert meta["complete"] is True and meta["backends"]["pinocchio"]["status"] == "ok"
-    assert len(pd.read_parquet(out / "pinocchio.parquet")) == 60001
+    assert len(pd.read_parquet(out / "pinocchio.parquet")) == 30001
 
 
 @pytest.mark.parametrize("task", ["position", "ellipse", "effort", "combined"])
