@@ -1,0 +1,234 @@
+"""Short-horizon comparison: local error per window, reported next to the free-running divergence.
+
+Two backends that each integrate well can still drift apart over a long run,
+because small differences grow along an unstable or marginally stable motion.
+To tell the local (per-step) error of a backend from that divergence, every
+``window`` seconds the backend is re-initialised from the reference backend's
+logged state, the reference's logged torques for the window are replayed (the
+torques come from the harness, so replaying them is exact), and the deviation
+accumulated within the window is measured. Only the public Backend API is used
+(``reset``, ``step``, ``state``, ``ground_force``).
+
+Data flow: reference :class:`~legbench.run.Trajectory` -> :func:`replay`
+(:class:`HorizonResult`, numpy) -> :func:`short_horizon` (a pandas table with
+the free-running deviation beside the windowed one).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+
+from legbench import backends as registry
+from legbench.backends.base import Backend
+from legbench.exceptions import LegbenchError, ScenarioError
+from legbench.model import URDF_FILE, load_params
+
+if TYPE_CHECKING:
+    from legbench.executors import ReplaySpec
+    from legbench.run import Trajectory
+    from legbench.scenario import Scenario
+
+__all__ = ["SIGNALS", "HorizonResult", "deviation", "replay", "replay_task", "short_horizon"]
+
+#: Signals compared per window: joint positions [rad], velocities [rad/s], ground force in W [N].
+SIGNALS = ("q", "qd", "force")
+COMPONENTS = {"q": ("q1", "q2", "q3"), "qd": ("qd1", "qd2", "qd3"), "force": ("fx", "fy", "fz")}
+UNITS = {"q": "rad", "qd": "rad/s", "force": "N"}
+
+
+def deviation(xa: np.ndarray, xr: np.ndarray, signal: str) -> np.ndarray:
+    """x_a - x_ref per component; for joint angles of continuous joints the shortest angle [rad]."""
+    d = np.asarray(xa, float) - np.asarray(xr, float)
+    if signal == "q":
+        cont = load_params().continuous
+        d[..., cont] = np.mod(d[..., cont] + np.pi, 2.0 * np.pi) - np.pi
+    return d
+
+
+@dataclass(frozen=True)
+class HorizonResult:
+    """Deviation of a backend from the reference within each re-initialised window.
+
+    Attributes:
+        window: window length [s].
+        t0: window start times [s], shape (n_w,).
+        end: signal -> |x_b - x_ref| at each window's end, shape (n_w, 3).
+        peak: signal -> max over each window of |x_b - x_ref|, shape (n_w, 3).
+        status: ``ok`` or ``failed`` (the backend diverged in a window).
+        reason: why it failed, or None.
+    """
+
+    window: float
+    t0: np.ndarray
+    end: dict[str, np.ndarray]
+    peak: dict[str, np.ndarray]
+    status: str = "ok"
+    reason: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain values (for an executor's result)."""
+        return {"window": self.window, "t0": self.t0, "end": self.end, "peak": self.peak,
+                "status": self.status, "reason": self.reason}  # fmt: skip
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> HorizonResult:
+        return cls(d["window"], d["t0"], d["end"], d["peak"], d["status"], d["reason"])
+
+
+def window_ticks(window: float, control_dt: float) -> int:
+    """Number of control periods in ``window`` [s]; it must be a whole, positive number."""
+    n = round(window / control_dt)
+    if n < 1 or abs(window / control_dt - n) > 1e-6:
+        raise LegbenchError(
+            f"short-horizon window {window} s is not a whole number of control periods ({control_dt} s)"
+        )
+    return int(n)
+
+
+def replay(
+    backend: Backend, t: np.ndarray, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, f: np.ndarray, window: float
+) -> HorizonResult:
+    """Re-initialise ``backend`` from the reference state every ``window`` and replay the reference torques.
+
+    Args:
+        backend: a loaded backend (its own settings; left in an arbitrary state).
+        t: reference tick times [s], shape (n,), uniform with the control period.
+        q, qd: reference joint positions [rad] and velocities [rad/s], shape (n, 3).
+        tau: reference torques [N m] held over [t_k, t_k + Ts), shape (n, 3).
+        f: reference ground force on the foot in W [N], shape (n, 3).
+        window: window length [s].
+
+    Returns:
+        The deviation at each window's end and its maximum over the window.
+    """
+    n = len(t)
+    if n < 2:
+        raise LegbenchError("short-horizon replay needs a reference of at least two ticks")
+    W = window_ticks(window, float(t[1] - t[0]))
+    starts = [int(s) for s in range(0, n - 1, W)]
+    ref = {"q": q, "qd": qd, "force": f}
+    end = {s: np.full((len(starts), 3), np.nan) for s in SIGNALS}
+    peak = {s: np.full((len(starts), 3), np.nan) for s in SIGNALS}
+    status, reason = "ok", None
+    for w, s0 in enumerate(starts):
+        stop = min(s0 + W, n - 1)
+        backend.reset(np.array(q[s0]), np.array(qd[s0]))
+        acc = {s: np.zeros(3) for s in SIGNALS}
+        try:
+            for k in range(s0, stop):
+                backend.step(np.array(tau[k]))
+                qb, qdb = backend.state()
+                got = {"q": qb, "qd": qdb, "force": backend.ground_force()}
+                for s in SIGNALS:
+                    d = np.abs(deviation(got[s], ref[s][k + 1], s))
+                    np.maximum(acc[s], d, out=acc[s])
+                    if k == stop - 1:
+                        end[s][w] = d
+        except (LegbenchError, FloatingPointError, RuntimeError, ValueError) as exc:
+            status, reason = "failed", f"window at t = {t[s0]:.4f} s: {type(exc).__name__}: {exc}"
+            break
+        if not all(math.isfinite(float(acc[s].sum())) for s in SIGNALS):
+            status, reason = "failed", f"window at t = {t[s0]:.4f} s: state is not finite"
+            break
+        for s in SIGNALS:
+            peak[s][w] = acc[s]
+    return HorizonResult(window, np.asarray(t, float)[starts], end, peak, status, reason)
+
+
+def _load(scenario: Scenario, name: str, contact_mode: str | None) -> Backend:
+    from legbench.run import physics_of
+
+    backend = registry.get(name)()
+    backend.load(URDF_FILE, physics_of(scenario, contact_mode), scenario.backends.get(name, {}))
+    return backend
+
+
+def replay_task(scenario: Scenario, name: str, spec: ReplaySpec, contact_mode: str | None = None) -> dict[str, Any]:
+    """Load backend ``name`` for ``scenario`` and :func:`replay` a reference; plain values out."""
+    backend = _load(scenario, name, contact_mode)
+    try:
+        res = replay(backend, spec.t, spec.q, spec.qd, spec.tau, spec.f, spec.window)
+    finally:
+        backend.close()
+    return res.to_dict()
+
+
+def _free_deviation(tr: Trajectory, ref: Trajectory, signal: str) -> np.ndarray:
+    """Max over the common ticks of |x_b - x_ref| per component (free-running)."""
+    n = min(len(tr.t), len(ref.t))
+    a = {"q": tr.q, "qd": tr.qd, "force": tr.f}[signal][:n]
+    r = {"q": ref.q, "qd": ref.qd, "force": ref.f}[signal][:n]
+    if n == 0:
+        return np.full(3, np.nan)
+    return np.abs(deviation(a, r, signal)).max(axis=0)
+
+
+def short_horizon(
+    scenario: Scenario,
+    backend_names: Sequence[str],
+    window: float,
+    reference: str | None = None,
+    contact_mode: str | None = None,
+) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Free-running deviation and windowed (local) error of each backend against the reference backend.
+
+    Args:
+        scenario: the scenario to run.
+        backend_names: backends to compare (the reference among them is compared with itself,
+            which must give zero local error: a check of determinism and of ``reset``).
+        window: re-initialisation period [s].
+        reference: reference backend (default: the scenario's ``comparison.reference``).
+        contact_mode: override of the scenario's contact mode.
+
+    Returns:
+        ``summary``: one row per backend, signal and component with ``free_max`` (max
+        free-running deviation), ``local_max`` and ``local_median`` (over windows of the
+        in-window maximum), units; ``windows``: one row per backend, window and component.
+
+    Raises:
+        ScenarioError: the window is not a whole number of control periods.
+        LegbenchError: the reference run failed.
+    """
+    from legbench.run import run_backend
+
+    ref_name = reference or scenario.comparison.reference
+    try:
+        window_ticks(window, scenario.control_dt)
+    except LegbenchError as exc:
+        raise ScenarioError(scenario.file, "short_horizon.window", str(exc)) from None
+    ref = run_backend(scenario, ref_name, contact_mode)
+    if ref.status != "ok":
+        raise LegbenchError(f"reference backend {ref_name} failed: {ref.reason}")
+    rows: list[dict[str, Any]] = []
+    wrows: list[dict[str, Any]] = []
+    for name in backend_names:
+        tr = ref if name == ref_name else run_backend(scenario, name, contact_mode)
+        if tr.status != "ok":
+            rows.append({"backend": name, "status": tr.status, "reason": tr.reason})
+            continue
+        backend = _load(scenario, name, contact_mode)
+        try:
+            res = replay(backend, ref.t, ref.q, ref.qd, ref.tau, ref.f, window)
+        finally:
+            backend.close()
+        for s in SIGNALS:
+            free = _free_deviation(tr, ref, s)
+            for j, comp in enumerate(COMPONENTS[s]):
+                col = res.peak[s][:, j]
+                rows.append({
+                    "backend": name, "reference": ref_name, "window": window, "signal": s, "component": comp,
+                    "unit": UNITS[s], "free_max": float(free[j]),
+                    "local_max": float(np.nanmax(col)) if np.isfinite(col).any() else math.nan,
+                    "local_median": float(np.nanmedian(col)) if np.isfinite(col).any() else math.nan,
+                    "status": res.status, "reason": res.reason,
+                })  # fmt: skip
+                for w, t0 in enumerate(res.t0):
+                    wrows.append({"backend": name, "t0": float(t0), "signal": s, "component": comp,
+                                  "end": float(res.end[s][w, j]), "peak": float(res.peak[s][w, j])})  # fmt: skip
+    return pd.DataFrame(rows), pd.DataFrame(wrows)

@@ -1,0 +1,927 @@
+"""Parameter sweeps: a grid over any scenario or backend setting, one tidy table, plots.
+
+Data flow: sweep YAML -> :func:`load_sweep` (:class:`Sweep`, validated) ->
+:func:`plan` (:class:`Plan`: unique runs as :class:`~legbench.executors.RunTask`
+and one :class:`Row` per grid point or reference) -> the executor runs the
+references, then the other runs (:func:`execute`) -> :func:`tabulate` (the
+table: swept values, backend, wall time, real-time factor, error against the
+row's reference) -> :func:`fit_slopes` (convergence order) -> :func:`write_sweep`
+(``sweep.csv``, ``sweep.parquet``, ``fits.csv``, ``sweep.json``, PNG plots).
+:func:`run_sweep` does it all; ``legbench sweep`` is its command line.
+
+The sweep file format is documented in docs/studies.md; in short::
+
+    name: timestep                         # output folder name
+    description: ...
+    scenario: ../verification/free_space.yaml   # relative to this file
+    set: {duration: 0.5}                   # dotted overrides for every run
+    contact_mode: native                   # optional override
+    signals: [q, qd]                       # compared: q, qd, tau, force, ee
+    skip: 0.0                              # [s] ignored at the start
+    metric: q_max                          # column plotted (and fitted)
+    fit: {x: dt, floor: 1.0e-12}           # log-log slope of metric vs x per study
+    short_horizon: {window: 0.05}          # [s] optional, see legbench.horizon
+    studies:
+      - label: "{backend} euler"
+        backends: [pinocchio, mujoco]      # or one name, or "all"
+        set: {backends.*.integrator: euler}
+        grid: {backends.*.dt: [1.0e-3, 5.0e-4]}   # Cartesian product of the lists
+        reference: {set: {backends.*.dt: 5.0e-6}} # and/or backend: pinocchio
+
+A key part ``*`` stands for the run's backend (``backends.*.dt``), ``{backend}``
+in a label for its name. A swept key's table column is its name without
+``backends.*.`` (``dt``, ``integrator``); other keys keep their dotted name
+(``gains.Kp``).
+
+Error metrics, per signal component over t >= skip (as LEG_SPEC.md section 8):
+``<c>_max`` = max_t |x - x_ref| (in the signal's unit), ``<c>_pct`` =
+max_t |x - x_ref| / max_t |x_ref| x 100; per signal ``<s>_max`` / ``<s>_pct``
+are the maxima over its components. The hip angle's deviation is the shortest
+angle.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import os
+import shutil
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from legbench import backends as registry
+from legbench import horizon, kinematics
+from legbench.contact import CONTACT_MODES
+from legbench.exceptions import LegbenchError, ScenarioError
+from legbench.executors import EXECUTORS, Executor, ReplaySpec, RunTask, make_executor, run_task
+
+__all__ = [
+    "COMPONENTS",
+    "SIGNALS",
+    "Plan",
+    "Row",
+    "Study",
+    "Sweep",
+    "SweepResult",
+    "add_cli",
+    "fit_slopes",
+    "load_sweep",
+    "plan",
+    "run_metrics",
+    "run_sweep",
+    "tabulate",
+    "write_sweep",
+]
+
+#: Signals a sweep can compare, and their components (table column prefixes).
+COMPONENTS: dict[str, tuple[str, str, str]] = {
+    "q": ("q1", "q2", "q3"),
+    "qd": ("qd1", "qd2", "qd3"),
+    "tau": ("tau1", "tau2", "tau3"),
+    "force": ("fx", "fy", "fz"),
+    "ee": ("ee_x", "ee_y", "ee_z"),
+}
+SIGNALS = tuple(COMPONENTS)
+UNITS = {"q": "rad", "qd": "rad/s", "tau": "N m", "force": "N", "ee": "m"}
+#: A reference peak below this is treated as zero (the % error is then undefined) [signal unit].
+PEAK_FLOOR = 1e-12
+SCHEMA = "legbench.sweep/1"
+TOP_KEYS = ("name", "description", "scenario", "set", "contact_mode", "signals", "skip", "metric", "fit",
+            "short_horizon", "studies")  # fmt: skip
+STUDY_KEYS = ("label", "backends", "set", "grid", "reference")
+
+
+# --------------------------------------------------------------------------- #
+# Sweep file
+
+
+@dataclass(frozen=True)
+class Study:
+    """One block of runs: backends x the Cartesian product of the grid, each against its reference.
+
+    Attributes:
+        label: label template (``{backend}`` is replaced); empty: derived from backend and ``set``.
+        backends: backend names.
+        set: dotted keys fixed for this study (a part ``*`` is the run's backend).
+        grid: dotted key -> values; every combination is one run.
+        reference_backend: backend of the reference run (None: the run's own).
+        reference_set: dotted keys set on top of the run's for its reference.
+    """
+
+    label: str
+    backends: tuple[str, ...]
+    set: Mapping[str, Any]
+    grid: Mapping[str, tuple[Any, ...]]
+    reference_backend: str | None
+    reference_set: Mapping[str, Any]
+
+
+@dataclass(frozen=True)
+class Fit:
+    """Log-log slope of the sweep's metric against a swept column, per study and backend.
+
+    Attributes:
+        x: the swept column (e.g. ``dt``).
+        floor: points whose metric is at or below this are left out (round-off floor).
+    """
+
+    x: str
+    floor: float = 0.0
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A validated sweep file."""
+
+    name: str
+    description: str
+    file: str
+    scenario: Path
+    set: Mapping[str, Any]
+    contact_mode: str | None
+    signals: tuple[str, ...]
+    skip: float  # [s]
+    metric: str
+    fit: Fit | None
+    short_horizon: float | None  # window [s]
+    studies: tuple[Study, ...]
+    raw: Mapping[str, Any] = field(default_factory=dict, hash=False, compare=False)
+
+
+class _Doc:
+    """File name and YAML node marks, so errors can name the line."""
+
+    def __init__(self, file: str, text: str) -> None:
+        self.file = file
+        try:
+            self.root: yaml.Node | None = yaml.compose(text, Loader=yaml.SafeLoader)
+        except yaml.YAMLError:
+            self.root = None
+
+    def line(self, path: Sequence[str | int]) -> int | None:
+        node, line = self.root, None
+        for key in path:
+            if isinstance(node, yaml.MappingNode):
+                nxt = next((v for k, v in node.value if k.value == key), None)
+                if nxt is None:
+                    break
+                line = next(k.start_mark.line + 1 for k, v in node.value if k.value == key)
+                node = nxt
+            elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and key < len(node.value):
+                node = node.value[key]
+                line = node.start_mark.line + 1
+            else:
+                break
+        return line
+
+    def error(self, path: Sequence[str | int], problem: str) -> ScenarioError:
+        out = ""
+        for p in path:
+            out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+        return ScenarioError(self.file, out, problem, self.line(path))
+
+
+def _keys(doc: _Doc, path: list[str | int], d: Any, allowed: Sequence[str], required: Sequence[str] = ()) -> None:
+    if not isinstance(d, Mapping):
+        raise doc.error(path, f"expected a mapping, got {type(d).__name__}")
+    for k in d:
+        if k not in allowed:
+            raise doc.error([*path, str(k)], f"unknown key; valid keys: {', '.join(allowed)}")
+    for k in required:
+        if k not in d:
+            raise doc.error(path, f"missing required key '{k}'")
+
+
+def _number(doc: _Doc, path: list[str | int], v: Any, positive: bool = False) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(float(v)):
+        raise doc.error(path, f"expected a finite number, got {v!r}")
+    if float(v) < 0 or (positive and float(v) == 0):
+        raise doc.error(path, f"must be {'>' if positive else '>='} 0, got {v!r}")
+    return float(v)
+
+
+def _dotted(doc: _Doc, path: list[str | int], d: Any) -> dict[str, Any]:
+    """A mapping of dotted keys to values; a key part ``*`` stands for the run's backend."""
+    if d is None:
+        return {}
+    if not isinstance(d, Mapping):
+        raise doc.error(path, "expected a mapping of dotted keys to values, e.g. {backends.*.dt: 1.0e-4}")
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if not isinstance(k, str) or not k or any(not part for part in k.split(".")):
+            raise doc.error([*path, str(k)], "expected a dotted key such as gains.Kp or backends.*.dt")
+        if any("*" in part and part != "*" for part in k.split(".")):
+            raise doc.error([*path, k], "'*' must be a whole key part (backends.*.dt), standing for the backend")
+        out[k] = v
+    return out
+
+
+def load_sweep(path: str | Path) -> Sweep:
+    """Read and validate a sweep file (format: module docstring and docs/studies.md).
+
+    Raises:
+        ScenarioError: naming the file, the key path and the problem.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ScenarioError(str(path), "", "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(str(path), "", f"cannot read: {exc}") from None
+    try:
+        raw = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        raise ScenarioError(str(path), "", f"malformed YAML: {getattr(exc, 'problem', exc)}",
+                            mark.line + 1 if mark is not None else None) from None  # fmt: skip
+    doc = _Doc(str(path), text)
+    if raw is None:
+        raise doc.error([], "empty file")
+    _keys(doc, [], raw, TOP_KEYS, ["name", "scenario", "studies"])
+    name = raw["name"]
+    if not isinstance(name, str) or not name or any(c in name for c in "/\\\0") or name in (".", ".."):
+        raise doc.error(["name"], f"expected a plain name (letters, digits, - _ .), got {name!r}")
+    description = raw.get("description", "") or ""
+    if not isinstance(description, str):
+        raise doc.error(["description"], "expected text")
+    if not isinstance(raw["scenario"], str):
+        raise doc.error(["scenario"], "expected the path of a scenario file, relative to this sweep file")
+    scenario = (path.parent / raw["scenario"]).resolve()
+    if not scenario.is_file():
+        raise doc.error(["scenario"], f"no such scenario file: {scenario}")
+    common = _dotted(doc, ["set"], raw.get("set"))
+    mode = raw.get("contact_mode")
+    if mode is not None and mode not in CONTACT_MODES:
+        raise doc.error(["contact_mode"], f"expected one of {', '.join(CONTACT_MODES)}, got {mode!r}")
+    signals = raw.get("signals", ["q", "qd"])
+    if isinstance(signals, str):
+        signals = [signals]
+    if not isinstance(signals, list) or not signals:
+        raise doc.error(["signals"], f"expected a list of signals from {', '.join(SIGNALS)}")
+    for i, s in enumerate(signals):
+        if s not in SIGNALS:
+            raise doc.error(["signals", i], f"unknown signal {s!r}; choose from {', '.join(SIGNALS)}")
+    skip = _number(doc, ["skip"], raw.get("skip", 0.0))
+    metric = raw.get("metric", f"{signals[0]}_max")
+    valid_metrics = [f"{x}_{m}" for s in signals for x in (s, *COMPONENTS[s]) for m in ("max", "pct")]
+    if metric not in valid_metrics:
+        raise doc.error(["metric"], f"unknown metric {metric!r}; with these signals: {', '.join(valid_metrics)}")
+    fit = None
+    if raw.get("fit") is not None:
+        _keys(doc, ["fit"], raw["fit"], ["x", "floor"], ["x"])
+        if not isinstance(raw["fit"]["x"], str):
+            raise doc.error(["fit", "x"], "expected the name of a swept column, e.g. dt")
+        fit = Fit(raw["fit"]["x"], _number(doc, ["fit", "floor"], raw["fit"].get("floor", 0.0)))
+    window = None
+    if raw.get("short_horizon") is not None:
+        _keys(doc, ["short_horizon"], raw["short_horizon"], ["window"], ["window"])
+        window = _number(doc, ["short_horizon", "window"], raw["short_horizon"]["window"], positive=True)
+    studies_raw = raw["studies"]
+    if not isinstance(studies_raw, list) or not studies_raw:
+        raise doc.error(["studies"], "expected a non-empty list of studies")
+    studies = tuple(_study(doc, i, s) for i, s in enumerate(studies_raw))
+    if fit is not None and not any(_column(k) == fit.x for st in studies for k in st.grid):
+        raise doc.error(["fit", "x"], f"no study sweeps a column named {fit.x!r}")
+    return Sweep(name, description, str(path), scenario, common, mode, tuple(signals), skip, metric, fit, window,
+                 studies, raw)  # fmt: skip
+
+
+def _study(doc: _Doc, i: int, d: Any) -> Study:
+    p: list[str | int] = ["studies", i]
+    _keys(doc, p, d, STUDY_KEYS, ["backends", "reference"])
+    label = d.get("label", "") or ""
+    if not isinstance(label, str):
+        raise doc.error([*p, "label"], "expected text (may contain {backend})")
+    names = d["backends"]
+    if isinstance(names, str):
+        names = registry.available() if names == "all" else [names]
+    if not isinstance(names, list) or not names:
+        raise doc.error([*p, "backends"], "expected a backend name, a list of names, or 'all'")
+    known = sorted(set(registry.BUILTIN) | set(registry.available()))
+    for j, n in enumerate(names):
+        if n not in known:
+            raise doc.error([*p, "backends", j], f"unknown backend {n!r}; known: {', '.join(known)}")
+    fixed = _dotted(doc, [*p, "set"], d.get("set"))
+    grid_raw = _dotted(doc, [*p, "grid"], d.get("grid"))
+    grid: dict[str, tuple[Any, ...]] = {}
+    for k, v in grid_raw.items():
+        if not isinstance(v, list) or not v:
+            raise doc.error([*p, "grid", k], "expected a non-empty list of values")
+        if k in fixed:
+            raise doc.error([*p, "grid", k], "also given in this study's set; give it in one place")
+        grid[k] = tuple(v)
+    ref = d["reference"]
+    _keys(doc, [*p, "reference"], ref, ["backend", "set"])
+    ref_backend = ref.get("backend")
+    if ref_backend is not None and ref_backend not in known:
+        raise doc.error([*p, "reference", "backend"], f"unknown backend {ref_backend!r}; known: {', '.join(known)}")
+    ref_set = _dotted(doc, [*p, "reference", "set"], ref.get("set"))
+    if not ref_set and ref_backend is None:
+        raise doc.error([*p, "reference"], "give a backend and/or a set: as written the reference is the run itself")
+    return Study(label, tuple(names), fixed, grid, ref_backend, ref_set)
+
+
+# --------------------------------------------------------------------------- #
+# Plan
+
+
+def _column(key: str, backend: str | None = None) -> str:
+    """Table column of a swept key: ``backends.*.dt`` (or ``backends.<backend>.dt``) -> ``dt``; others unchanged."""
+    for prefix in ("backends.*.", f"backends.{backend}." if backend else None):
+        if prefix and key.startswith(prefix) and len(key) > len(prefix):
+            return key[len(prefix) :]
+    return key
+
+
+def _fill(key: str, backend: str) -> str:
+    return ".".join(backend if part == "*" else part for part in key.split("."))
+
+
+@dataclass(frozen=True)
+class Row:
+    """One row of the sweep table: a grid point of a study on one backend, or a reference run.
+
+    Attributes:
+        study: study index.
+        label: label of the row's series (study and backend).
+        role: ``"run"`` (a grid point) or ``"reference"`` (a run only used as a reference).
+        backend: backend name.
+        run: index of the task that produced the row's run.
+        ref: index of the reference task (None for a reference row).
+        params: table column -> swept value.
+    """
+
+    study: int
+    label: str
+    role: str
+    backend: str
+    run: int
+    ref: int | None
+    params: Mapping[str, Any]
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Unique runs to execute and the table rows they make.
+
+    Attributes:
+        tasks: the runs, ``tasks[i].index == i``.
+        rows: table rows in order.
+        notes: what was skipped and why (a backend not installed here).
+    """
+
+    tasks: tuple[RunTask, ...]
+    rows: tuple[Row, ...]
+    notes: tuple[str, ...]
+
+
+def _label(study: Study, backend: str) -> str:
+    if study.label:
+        return study.label.replace("{backend}", backend)
+    extra = " ".join(f"{_column(k, backend)}={v}" for k, v in study.set.items())
+    return f"{backend} {extra}".strip()
+
+
+def plan(sweep: Sweep) -> Plan:
+    """Expand the studies into unique runs and table rows; check every run's scenario.
+
+    Each run's overrides (common ``set``, study ``set``, grid point, and for a
+    reference its ``reference.set``) are validated by loading the scenario with
+    them, so a bad value is reported before anything runs.
+
+    Raises:
+        ScenarioError: naming the sweep file and the key whose value the scenario rejects.
+    """
+    from legbench import scenario as scenario_mod
+
+    here = set(registry.available())
+    tasks: list[RunTask] = []
+    index: dict[tuple[Any, ...], int] = {}
+    rows: list[Row] = []
+    ref_rows: dict[int, Row] = {}
+    notes: list[str] = []
+
+    def task_for(backend: str, sources: list[tuple[list[str | int], Mapping[str, Any]]], ref: int | None) -> int:
+        overrides: dict[str, Any] = {}
+        origin: dict[str, list[str | int]] = {}
+        for path, mapping in sources:
+            for k, v in mapping.items():
+                overrides[_fill(k, backend)] = v
+                origin[_fill(k, backend)] = [*path, k]
+        key = (backend, json.dumps(overrides, sort_keys=True, default=str), ref)
+        if key in index:
+            return index[key]
+        try:
+            scenario_mod.load(sweep.scenario, overrides)
+        except ScenarioError as exc:
+            for concrete, where in origin.items():
+                if exc.key == concrete or exc.key.startswith(concrete + ".") or concrete.startswith(exc.key + "."):
+                    raise _doc_of(sweep).error(where, f"{overrides[concrete]!r} for {backend}: {exc.problem}") from None
+            raise
+        i = len(tasks)
+        tasks.append(RunTask(i, str(sweep.scenario), overrides, backend, sweep.contact_mode))
+        index[key] = i
+        return i
+
+    for si, st in enumerate(sweep.studies):
+        base: list[str | int] = ["studies", si]
+        ref_name = st.reference_backend
+        if ref_name is not None and ref_name not in here:
+            notes.append(f"study {si} ({st.label or 'unlabelled'}): reference backend {ref_name} is not installed "
+                         "here; study skipped")  # fmt: skip
+            continue
+        points = list(itertools.product(*st.grid.values())) if st.grid else [()]
+        for backend in st.backends:
+            if backend not in here:
+                notes.append(f"study {si}: backend {backend} is not installed here; skipped")
+                continue
+            label = _label(st, backend)
+            for point in points:
+                gp = dict(zip(st.grid, point, strict=True))
+                sources: list[tuple[list[str | int], Mapping[str, Any]]] = [
+                    (["set"], sweep.set),
+                    ([*base, "set"], st.set),
+                    ([*base, "grid"], gp),
+                ]
+                rb = ref_name or backend
+                ref_sources = [*sources, ([*base, "reference", "set"], st.reference_set)]
+                ref = task_for(rb, ref_sources, None)
+                params = {_column(k, backend): v for k, v in {**st.set, **gp}.items()}
+                if ref not in ref_rows:
+                    rparams = {**params, **{_column(k, rb): v for k, v in st.reference_set.items()}}
+                    ref_rows[ref] = Row(si, f"{_label(st, rb)} (reference)", "reference", rb, ref, None, rparams)
+                run = task_for(backend, sources, ref if sweep.short_horizon else None)
+                rows.append(Row(si, label, "run", backend, run, ref, params))
+    run_tasks = {r.run for r in rows}
+    rows += [r for i, r in sorted(ref_rows.items()) if i not in run_tasks]
+    return Plan(tuple(tasks), tuple(rows), tuple(notes))
+
+
+def _doc_of(sweep: Sweep) -> _Doc:
+    try:
+        return _Doc(sweep.file, Path(sweep.file).read_text())
+    except OSError:
+        return _Doc(sweep.file, "")
+
+
+# --------------------------------------------------------------------------- #
+# Execute
+
+
+def execute(sweep: Sweep, p: Plan, executor: Executor) -> dict[int, dict[str, Any]]:
+    """Run the references, then the other runs (with a replay of their reference in short-horizon mode).
+
+    Returns:
+        task index -> the result dict of :func:`legbench.executors.run_task`.
+    """
+    ref_ids = sorted({r.ref for r in p.rows if r.ref is not None})
+    first = [p.tasks[i] for i in ref_ids]
+    results = {r["index"]: r for r in executor.map(run_task, first)}
+    second: list[RunTask] = []
+    ref_of = {r.run: r.ref for r in p.rows if r.role == "run"}
+    for t in p.tasks:
+        if t.index in results:
+            continue
+        ref = ref_of.get(t.index)
+        if sweep.short_horizon is not None and ref is not None and results[ref]["status"] == "ok":
+            rr = results[ref]
+            spec = ReplaySpec(sweep.short_horizon, rr["t"], rr["q"], rr["qd"], rr["tau"], rr["f"])
+            t = RunTask(t.index, t.scenario, t.overrides, t.backend, t.contact_mode, spec)
+        second.append(t)
+    results.update({r["index"]: r for r in executor.map(run_task, second)})
+    return results
+
+
+# --------------------------------------------------------------------------- #
+# Table
+
+
+def _signal(res: Mapping[str, Any], signal: str) -> np.ndarray:
+    if signal == "ee":
+        return kinematics.fk(np.asarray(res["q"])) if len(res["q"]) else np.empty((0, 3))
+    return np.asarray(res["f" if signal == "force" else signal])
+
+
+def run_metrics(res: Mapping[str, Any], ref: Mapping[str, Any], signals: Sequence[str], skip: float = 0.0
+                ) -> dict[str, float]:  # fmt: skip
+    """Error of a run against its reference: ``<c>_max`` [unit] and ``<c>_pct`` [%] per component and signal.
+
+    Compared over the ticks both runs logged with t >= ``skip`` [s]; NaN when
+    either run failed before that or the time grids differ.
+    """
+    out = {f"{x}_{m}": math.nan for s in signals for x in (s, *COMPONENTS[s]) for m in ("max", "pct")}
+    if res["status"] != "ok" or ref["status"] != "ok":
+        return out
+    n = min(len(res["t"]), len(ref["t"]))
+    t = np.asarray(ref["t"][:n])
+    if n == 0 or not np.array_equal(np.asarray(res["t"][:n]), t):
+        return out
+    keep = t >= skip - 1e-9
+    if not keep.any():
+        return out
+    for s in signals:
+        xa, xr = _signal(res, s)[:n][keep], _signal(ref, s)[:n][keep]
+        d = np.abs(horizon.deviation(xa, xr, s)).max(axis=0)
+        peak = np.abs(xr).max(axis=0)
+        pct = np.where(peak > PEAK_FLOOR, 100.0 * d / np.where(peak > PEAK_FLOOR, peak, 1.0), math.nan)
+        for j, c in enumerate(COMPONENTS[s]):
+            out[f"{c}_max"], out[f"{c}_pct"] = float(d[j]), float(pct[j])
+        out[f"{s}_max"] = float(d.max())
+        out[f"{s}_pct"] = float(np.nanmax(pct)) if np.isfinite(pct).any() else math.nan
+    return out
+
+
+def _horizon_columns(h: Mapping[str, Any] | None) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for s in horizon.SIGNALS:
+        peak = None if h is None else np.asarray(h["peak"][s])
+        for j, c in enumerate(horizon.COMPONENTS[s]):
+            col = None if peak is None else peak[:, j]
+            out[f"sh_{c}_max"] = float(np.nanmax(col)) if col is not None and np.isfinite(col).any() else math.nan
+        vals = [out[f"sh_{c}_max"] for c in horizon.COMPONENTS[s]]
+        out[f"sh_{s}_max"] = max(vals) if all(math.isfinite(v) for v in vals) else math.nan
+    return out
+
+
+def _plain(v: Any) -> Any:
+    """A table cell: numbers stay numbers, lists and mappings become JSON text."""
+    if isinstance(v, list | tuple | dict):
+        return json.dumps(v)
+    return v
+
+
+def tabulate(sweep: Sweep, p: Plan, results: Mapping[int, Mapping[str, Any]]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The sweep table (one row per :class:`Row`) and the short-horizon windows table (may be empty)."""
+    param_cols = list(dict.fromkeys(k for r in p.rows for k in r.params))
+    records: list[dict[str, Any]] = []
+    windows: list[dict[str, Any]] = []
+    for r in p.rows:
+        res = results[r.run]
+        sim_time = float(res["t"][-1]) if len(res["t"]) else 0.0
+        wall = float(res["wall_time"])
+        rec: dict[str, Any] = {
+            "sweep": sweep.name, "study": r.study, "label": r.label, "role": r.role, "backend": r.backend,
+            "run": r.run, "ref": r.ref if r.ref is not None else -1,
+            **{c: _plain(r.params.get(c)) for c in param_cols},
+            "status": res["status"], "reason": res["reason"] or "",
+            "sim_time": sim_time, "wall_time": wall,
+            "rtf": sim_time / wall if wall > 0 and res["status"] == "ok" else math.nan,
+            "wall_per_sim_s": wall / sim_time if sim_time > 0 and res["status"] == "ok" else math.nan,
+        }  # fmt: skip
+        if r.ref is not None:
+            ref = results[r.ref]
+            rec.update(run_metrics(res, ref, sweep.signals, sweep.skip))
+            if ref["status"] != "ok":
+                rec["reason"] = (rec["reason"] + "; " if rec["reason"] else "") + f"reference failed: {ref['reason']}"
+        else:
+            rec.update({f"{x}_{m}": math.nan for s in sweep.signals for x in (s, *COMPONENTS[s])
+                        for m in ("max", "pct")})  # fmt: skip
+        if sweep.short_horizon is not None:
+            h = res.get("horizon") if r.role == "run" else None
+            rec.update(_horizon_columns(h))
+            rec["sh_status"] = h["status"] if h else ""
+            if h is not None:
+                for w, t0 in enumerate(np.asarray(h["t0"])):
+                    for s in horizon.SIGNALS:
+                        for j, c in enumerate(horizon.COMPONENTS[s]):
+                            end, peak = float(h["end"][s][w, j]), float(h["peak"][s][w, j])
+                            windows.append({"run": r.run, "ref": r.ref, "label": r.label, "backend": r.backend,
+                                            "t0": float(t0), "signal": s, "component": c, "end": end,
+                                            "peak": peak})  # fmt: skip
+        records.append(rec)
+    table = pd.DataFrame.from_records(records)
+    for c in param_cols:  # one type per column, so Parquet can hold it
+        vals = [v for v in table[c] if v is not None and not (isinstance(v, float) and math.isnan(v))]
+        if vals and all(isinstance(v, int | float) and not isinstance(v, bool) for v in vals):
+            table[c] = pd.to_numeric(table[c], errors="coerce").astype(float)
+        else:
+            table[c] = [None if v is None or (isinstance(v, float) and math.isnan(v)) else str(v) for v in table[c]]
+    return table, pd.DataFrame.from_records(windows)
+
+
+def fit_slopes(table: pd.DataFrame, metric: str, fit: Fit) -> pd.DataFrame:
+    """Least-squares slope of log(metric) against log(x) per study and backend (the convergence order).
+
+    Only rows of role ``run`` that succeeded, with finite positive x and a
+    metric above ``fit.floor``, are used; fewer than two points give NaN and a note.
+    """
+    rows: list[dict[str, Any]] = []
+    if fit.x not in table.columns:
+        return pd.DataFrame(rows)
+    runs = table[(table["role"] == "run")]
+    for (study, backend), g in runs.groupby(["study", "backend"], sort=True):
+        x = pd.to_numeric(g[fit.x], errors="coerce").to_numpy(float)
+        y = g[metric].to_numpy(float)
+        ok = (g["status"].to_numpy() == "ok") & np.isfinite(x) & (x > 0) & np.isfinite(y) & (y > fit.floor)
+        rec: dict[str, Any] = {"study": int(study), "label": g["label"].iloc[0], "backend": backend, "x": fit.x,
+                               "metric": metric, "n_points": int(ok.sum()), "slope": math.nan,
+                               "intercept": math.nan, "x_min": math.nan, "x_max": math.nan, "note": ""}  # fmt: skip
+        if ok.sum() >= 2 and len(set(x[ok])) >= 2:
+            slope, intercept = np.polyfit(np.log(x[ok]), np.log(y[ok]), 1)
+            rec.update(slope=float(slope), intercept=float(intercept), x_min=float(x[ok].min()),
+                       x_max=float(x[ok].max()))  # fmt: skip
+            left = int(len(x) - ok.sum())
+            if left:
+                rec["note"] = f"{left} point(s) left out (failed, or at or below the floor {fit.floor:g})"
+        else:
+            rec["note"] = f"fewer than two usable points above the floor {fit.floor:g}"
+        rows.append(rec)
+    return pd.DataFrame(rows)
+
+
+# --------------------------------------------------------------------------- #
+# Output
+
+
+def _figure(width: float = 7.0, height: float = 5.0) -> Any:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height))
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _series(table: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+    runs = table[(table["role"] == "run") & (table["status"] == "ok")]
+    return [(str(g["label"].iloc[0]), g) for _, g in runs.groupby(["study", "backend"], sort=True)]
+
+
+_MARKERS = {"pinocchio": "o", "mujoco": "s", "pybullet": "^"}
+
+
+def _style(g: pd.DataFrame) -> dict[str, Any]:
+    """Marker by backend (so overlapping lines of different engines stay visible), open symbols."""
+    return {"marker": _MARKERS.get(str(g["backend"].iloc[0]), "D"), "mfc": "none", "ls": "-", "ms": 7}
+
+
+def _axis_label(metric: str) -> str:
+    base, _, kind = metric.rpartition("_")
+    if kind == "pct":
+        return f"{metric} [%]"
+    signal = next((s for s in SIGNALS if base == s or base in COMPONENTS[s]), "")
+    return f"{metric} [{UNITS.get(signal, '')}]"
+
+
+def plot_convergence(table: pd.DataFrame, fits: pd.DataFrame, metric: str, fit: Fit, path: Path) -> Path:
+    """Log-log plot of the metric against the fitted column, one line per study and backend, slopes in the legend."""
+    fig = _figure()
+    ax = fig.add_subplot()
+    slopes = {(int(r.study), r.backend): r.slope for r in fits.itertuples()} if len(fits) else {}
+    for label, g in _series(table):
+        x = pd.to_numeric(g[fit.x], errors="coerce").to_numpy(float)
+        y = g[metric].to_numpy(float)
+        ok = np.isfinite(x) & (x > 0) & np.isfinite(y) & (y > 0)
+        if not ok.any():
+            continue
+        order = np.argsort(x[ok])
+        s = slopes.get((int(g["study"].iloc[0]), g["backend"].iloc[0]), math.nan)
+        ax.loglog(x[ok][order], y[ok][order], label=f"{label} (slope {s:.2f})", **_style(g))
+    if fit.floor > 0:
+        ax.axhline(fit.floor, color="0.6", ls=":", lw=1, label=f"floor {fit.floor:g}")
+    ax.set_xlabel(f"{fit.x} [s]" if fit.x == "dt" else fit.x)
+    ax.set_ylabel(_axis_label(metric))
+    ax.set_title("error against the reference run")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    return path
+
+
+def plot_speed_accuracy(table: pd.DataFrame, metric: str, path: Path) -> Path:
+    """Wall time per simulated second against the metric, every study and backend on one figure."""
+    fig = _figure()
+    ax = fig.add_subplot()
+    for label, g in _series(table):
+        x = g[metric].to_numpy(float)
+        y = g["wall_per_sim_s"].to_numpy(float)
+        ok = np.isfinite(x) & (x > 0) & np.isfinite(y) & (y > 0)
+        if ok.any():
+            order = np.argsort(x[ok])
+            ax.loglog(x[ok][order], y[ok][order], label=label, **_style(g))
+    ax.axhline(1.0, color="0.6", ls=":", lw=1, label="real time")
+    ax.set_xlabel(_axis_label(metric))
+    ax.set_ylabel("wall time per simulated second [s/s]")
+    ax.set_title("speed against accuracy")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    return path
+
+
+def plot_sweep(table: pd.DataFrame, metric: str, path: Path) -> Path | None:
+    """The metric against each study's first swept column (log axes where the values span a decade)."""
+    fig = _figure()
+    ax = fig.add_subplot()
+    drawn = False
+    xcol = ""
+    for label, g in _series(table):
+        params = [c for c in g.columns if c not in _FIXED_COLUMNS and not _is_metric(c) and g[c].notna().any()]
+        varying = [c for c in params if g[c].nunique() > 1]
+        if not varying:
+            continue
+        xcol = varying[0]
+        x = pd.to_numeric(g[xcol], errors="coerce").to_numpy(float)
+        y = g[metric].to_numpy(float)
+        ok = np.isfinite(x) & np.isfinite(y)
+        if not ok.any():
+            continue
+        order = np.argsort(x[ok])
+        ax.plot(x[ok][order], y[ok][order], label=f"{label} vs {xcol}", **_style(g))
+        drawn = True
+        if (x[ok] > 0).all() and x[ok].max() >= 10 * x[ok].min():
+            ax.set_xscale("log")
+    if not drawn:
+        return None
+    if (table[metric] > 0).any():
+        ax.set_yscale("log")
+    ax.set_xlabel(xcol)
+    ax.set_ylabel(_axis_label(metric))
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    return path
+
+
+_FIXED_COLUMNS = frozenset({"sweep", "study", "label", "role", "backend", "run", "ref", "status", "reason",
+                            "sim_time", "wall_time", "rtf", "wall_per_sim_s", "sh_status"})  # fmt: skip
+
+
+def _is_metric(col: str) -> bool:
+    return col.endswith(("_max", "_pct"))
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """What :func:`run_sweep` produced.
+
+    Attributes:
+        sweep: the validated sweep.
+        table: one row per grid point and reference run.
+        fits: convergence slopes (empty without ``fit``).
+        windows: short-horizon windows (empty without ``short_horizon``).
+        notes: what was skipped and why.
+        out_dir: where the files are (None if not written).
+    """
+
+    sweep: Sweep
+    table: pd.DataFrame
+    fits: pd.DataFrame
+    windows: pd.DataFrame
+    notes: tuple[str, ...]
+    out_dir: Path | None
+
+
+def write_sweep(result: SweepResult, out_dir: Path, executor: Mapping[str, Any] | None = None) -> Path:
+    """Write the table (CSV + Parquet), fits, windows, ``sweep.json`` and plots into ``out_dir`` atomically.
+
+    Refuses to replace a directory holding another sweep or anything else.
+    """
+    from legbench.run import platform_info, versions
+
+    out_dir = Path(out_dir)
+    old = out_dir / "sweep.json"
+    if old.exists():
+        try:
+            prev = json.loads(old.read_text()).get("name")
+        except (ValueError, AttributeError):
+            prev = None
+        if prev != result.sweep.name:
+            raise LegbenchError(f"{out_dir}: holds results of sweep {prev!r}, not {result.sweep.name!r}; "
+                                "choose another --out or remove it")  # fmt: skip
+    elif out_dir.exists() and any(out_dir.iterdir()):
+        raise LegbenchError(f"{out_dir}: not empty and not a legbench sweep directory; choose another --out")
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out_dir.parent / f".{out_dir.name}.tmp-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    sw = result.sweep
+    result.table.to_csv(tmp / "sweep.csv", index=False)
+    result.table.to_parquet(tmp / "sweep.parquet", index=False)
+    files = ["sweep.csv", "sweep.parquet"]
+    if len(result.fits):
+        result.fits.to_csv(tmp / "fits.csv", index=False)
+        files.append("fits.csv")
+    if len(result.windows):
+        result.windows.to_csv(tmp / "short_horizon.csv", index=False)
+        result.windows.to_parquet(tmp / "short_horizon.parquet", index=False)
+        files += ["short_horizon.csv", "short_horizon.parquet"]
+    if sw.fit is not None:
+        plot_convergence(result.table, result.fits, sw.metric, sw.fit, tmp / "convergence.png")
+        files.append("convergence.png")
+    plot_speed_accuracy(result.table, sw.metric, tmp / "speed_accuracy.png")
+    files.append("speed_accuracy.png")
+    if plot_sweep(result.table, sw.metric, tmp / "sweep.png") is not None:
+        files.append("sweep.png")
+    meta = {
+        "schema": SCHEMA,
+        "name": sw.name,
+        "description": sw.description,
+        "file": sw.file,
+        "scenario": str(sw.scenario),
+        "sweep": dict(sw.raw),
+        "metric": sw.metric,
+        "runs": int((result.table["role"] == "run").sum()),
+        "failed": int((result.table["status"] != "ok").sum()),
+        "fits": result.fits.to_dict(orient="records"),
+        "notes": list(result.notes),
+        "executor": dict(executor or {}),
+        "files": files,
+        "versions": versions(),
+        "platform": platform_info(),
+    }
+    (tmp / "sweep.json").write_text(json.dumps(meta, indent=2, default=str))
+    if out_dir.exists():
+        shutil.rmtree(out_dir)
+    tmp.rename(out_dir)
+    return out_dir
+
+
+def run_sweep(
+    sweep_file: str | Path,
+    out_dir: str | Path | None = None,
+    executor: str | Executor = "local",
+    jobs: int | None = None,
+    scheduler: str | None = None,
+) -> SweepResult:
+    """Validate, plan, run and tabulate a sweep, and write it to ``out_dir`` (None: do not write).
+
+    Args:
+        sweep_file: the sweep YAML file.
+        out_dir: output directory; None writes nothing.
+        executor: ``"local"``, ``"dask"``, or an :class:`~legbench.executors.Executor` (not closed here).
+        jobs: worker count for a named executor (default: the CPU count).
+        scheduler: Dask scheduler address (``executor="dask"``); None starts a local cluster.
+
+    Raises:
+        ScenarioError: the sweep file, or a value it sets, is invalid.
+        LegbenchError: the executor cannot start, or ``out_dir`` holds something else.
+    """
+    sw = load_sweep(sweep_file)
+    p = plan(sw)
+    own = not isinstance(executor, Executor)
+    ex = make_executor(executor, jobs, scheduler) if isinstance(executor, str) else executor
+    try:
+        results = execute(sw, p, ex) if p.tasks else {}
+        described = ex.describe()
+    finally:
+        if own:
+            ex.close()
+    table, windows = tabulate(sw, p, results) if p.rows else (pd.DataFrame(), pd.DataFrame())
+    fits = fit_slopes(table, sw.metric, sw.fit) if sw.fit is not None and len(table) else pd.DataFrame()
+    result = SweepResult(sw, table, fits, windows, p.notes, None)
+    if out_dir is not None and len(table):
+        path = write_sweep(result, Path(out_dir), described)
+        result = SweepResult(sw, table, fits, windows, p.notes, path)
+    return result
+
+
+# --------------------------------------------------------------------------- #
+# Command line
+
+
+def _cli(args: argparse.Namespace) -> int:
+    out = Path(args.out) if args.out else Path("results") / "sweeps" / load_sweep(args.sweep).name
+    res = run_sweep(args.sweep, out, args.executor, args.jobs, args.scheduler)
+    t = res.table
+    if not len(t):
+        print(f"{res.sweep.name}: nothing to run")
+        for n in res.notes:
+            print(f"  note: {n}")
+        return 1
+    runs = t[t["role"] == "run"]
+    print(f"{res.sweep.name}: {len(runs)} runs + {int((t['role'] == 'reference').sum())} references, "
+          f"{int((t['status'] != 'ok').sum())} failed")  # fmt: skip
+    for n in res.notes:
+        print(f"  note: {n}")
+    for r in t[t["status"] != "ok"].itertuples():
+        print(f"  {r.label}: {r.status}: {r.reason}")
+    for f in res.fits.itertuples() if len(res.fits) else ():
+        print(f"  {f.label:<34} slope of {f.metric} vs {f.x}: {f.slope:6.2f} ({f.n_points} points) {f.note}")
+    print(f"wrote {res.out_dir}")
+    refs_failed = t[(t["role"] == "reference") & (t["status"] != "ok")]
+    return 1 if len(refs_failed) else 0
+
+
+def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Register ``legbench sweep SWEEP.yaml [--out DIR] [--jobs N] [--executor local|dask] [--scheduler ADDR]``."""
+    p = subparsers.add_parser("sweep", help="run a parameter sweep (grid over scenario and backend settings)")
+    p.add_argument("sweep", help="sweep YAML file (format: docs/studies.md)")
+    p.add_argument("--out", default=None, help="output directory (default results/sweeps/<sweep name>)")
+    p.add_argument("--jobs", type=int, default=None, help="parallel runs (default: CPU count)")
+    p.add_argument("--executor", choices=EXECUTORS, default="local", help="local process pool or Dask")
+    p.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://host:8786 "
+                                                     "(default with --executor dask: a local cluster)")  # fmt: skip
+    p.set_defaults(func=_cli)
