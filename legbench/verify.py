@@ -1,0 +1,630 @@
+"""Verification cases: scenarios whose answer is known in closed form, checked on every backend.
+
+Each case is a scenario in ``scenarios/verification/`` plus a closed-form
+answer computed here from the leg model (Pinocchio on the generated URDF):
+
+``energy``
+    No torque, no contact, no damping (``energy.yaml``): T + V of the exact
+    motion is constant; E is evaluated from each backend's logged (q, qd).
+    First-order integrators do not conserve it, and how they drift is known:
+    the exact flow conserves E, so E_N - E_0 is the sum of the one-step energy
+    errors, e2(x) h^2 + O(h^3) per step, i.e. E(t) - E(0) = h int_0^t e2 dt +
+    O(h^2). e2 is computed here for the step the backend takes (velocity-form
+    semi-implicit Euler: MuJoCo ``euler``, and ``implicitfast`` which is the
+    same without damping, Bullet, Pinocchio ``euler``; MuJoCo ``implicit``,
+    whose velocity update also holds the Coriolis derivative) along the logged
+    motion, and the predicted curve is compared with the measured one over the
+    whole run. Tolerance: max|prediction| x (h W + (Ts W)^2), the O(h^2)
+    remainder relative to the O(h) term (W = max joint speed) plus the
+    trapezoid sum on the 1 ms log, plus round-off 4 n eps |E|. RK4 and the
+    adaptive scipy integrators: expected 0; RK4 tolerance (h W)^4 W T_end max T
+    (its global error) + round-off; adaptive: n_periods (rtol |x| + atol) |grad E|
+    (each 1 ms solve keeps its local error near rtol |x| + atol).
+``rest_penetration``
+    The effort task at rest (``effort_rest.yaml``): y = R_foot - z_E = Fn/Kp.
+    Tolerance: 0.1 % of y (the engines' contact solvers) plus Kd max|ydot|/Kp
+    (the damping force the residual motion may carry).
+``static_balance``
+    Same run: F = -(J_poc^T)^-1 (tau - G(q)) per component of the ground force.
+    Tolerance: the dynamic terms left in the window, |(J_poc^T)^-1 (M qdd + C qd)|,
+    plus the lever of the force's application point (anywhere between the
+    undeformed sphere's lowest point and the ground surface, a band of height y):
+    |(J_poc^T)^-1| y |F_t|, plus 0.1 % of |F|.
+``small_oscillation``
+    PD hold about q_eq from a 1e-4 rad offset (``small_oscillation.yaml``): the
+    closed-loop poles. Expected: eigenvalues of the linearised loop
+    M dq'' + dG/dq dq = du with du = -Kp dq_k - Kd (dq_k - dq_{k-1})/Ts as the
+    harness computes it at 1 kHz, torque held over the period, the plant
+    discretised by the backend's own sub-step integrator (semi-implicit Euler,
+    RK4, or the exact flow for adaptive ones), so the effect of sampling is
+    part of the answer, not an error; the continuous-time poles are given in
+    the note for contrast. Measured: poles fitted to the response by the
+    matrix pencil method. Tolerance: 0.5 % of |s| per pole (the response
+    departs from the linear model by 2e-5 of its amplitude; the pencil of
+    three close, heavily damped modes amplifies that by up to ~100).
+
+Data flow: scenario -> :func:`legbench.run.simulate` on each backend ->
+:class:`Check` (frozen, numbers) -> :func:`verify` (a DataFrame with columns
+``case, backend, variant, quantity, unit, measured, expected, error,
+tolerance, pass, note``) -> :func:`write_verification` (``verification.json``
+and ``verification.md``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import scipy.linalg
+from scipy.optimize import linear_sum_assignment
+
+from legbench import backends as registry
+from legbench import kinematics, model
+from legbench.backends.base import Backend, Physics
+from legbench.exceptions import LegbenchError
+
+__all__ = [
+    "CASES",
+    "COLUMNS",
+    "VERIFICATION_DIR",
+    "Check",
+    "add_cli",
+    "check_energy",
+    "check_rest",
+    "check_small_oscillation",
+    "discrete_loop",
+    "matrix_pencil",
+    "verify",
+    "write_verification",
+]
+
+VERIFICATION_DIR = Path(__file__).resolve().parents[1] / "scenarios" / "verification"
+CASES = ("energy", "rest_penetration", "static_balance", "small_oscillation")
+COLUMNS = ("case", "backend", "variant", "quantity", "unit", "measured", "expected", "error", "tolerance", "pass",
+           "note")  # fmt: skip
+#: Integrators that are semi-implicit Euler on this leg (no joint damping); backends without an
+#: ``integrator`` setting listed in :data:`IMPLICIT_EULER_BACKENDS` integrate that way too.
+#: MuJoCo's ``implicit`` is first order too, with the Coriolis derivative in its velocity update.
+SEMI_IMPLICIT_EULER = ("euler", "implicitfast")
+IMPLICIT_EULER_BACKENDS = ("pybullet",)
+ADAPTIVE = ("rk45", "dop853")
+#: Relative tolerance on each closed-loop pole (module docstring).
+POLE_RTOL = 5e-3
+#: Share of the quantity the engines' contact solvers may miss by (rest and balance checks).
+SOLVER_RTOL = 1e-3
+EPS = float(np.finfo(float).eps)
+
+
+@dataclass(frozen=True)
+class Check:
+    """One verified quantity on one backend.
+
+    Attributes:
+        case: one of :data:`CASES`.
+        backend: backend name.
+        variant: the backend settings that matter (e.g. ``integrator=rk4``).
+        quantity: what is compared (``max |E - E0|``, ``Fz``, ``mode 1 frequency``).
+        unit: its unit.
+        measured: value from the simulation.
+        expected: closed-form value.
+        error: |measured - expected|.
+        tolerance: allowed error (module docstring says why).
+        passed: error <= tolerance.
+        note: context (family, sub-step, continuous-time value, ...).
+    """
+
+    case: str
+    backend: str
+    variant: str
+    quantity: str
+    unit: str
+    measured: float
+    expected: float
+    error: float
+    tolerance: float
+    passed: bool
+    note: str = ""
+
+
+def _check(case: str, backend: str, variant: str, quantity: str, unit: str, measured: float, expected: float,
+           tolerance: float, note: str = "") -> Check:  # fmt: skip
+    error = abs(measured - expected)
+    ok = bool(math.isfinite(error) and error <= tolerance)
+    return Check(case, backend, variant, quantity, unit, float(measured), float(expected), float(error),
+                 float(tolerance), ok, note)  # fmt: skip
+
+
+def _failed(case: str, backend: str, variant: str, reason: str) -> Check:
+    return Check(case, backend, variant, "run", "", math.nan, math.nan, math.nan, math.nan, False, reason)
+
+
+# --------------------------------------------------------------------------- #
+# Running a backend
+
+
+def _load(name: str, physics: Physics, settings: Mapping[str, Any]) -> Backend:
+    backend = registry.get(name)()
+    backend.load(model.URDF_FILE, physics, settings)
+    return backend
+
+
+def _variants(name: str, base: Mapping[str, Any], integrators: Sequence[str] | None) -> list[dict[str, Any]]:
+    """Backend settings to verify: the scenario's, once per integrator the backend offers (or once)."""
+    cls = registry.get(name)
+    offered = cls.choices.get("integrator")
+    if not offered:
+        return [dict(base)]
+    chosen = [i for i in offered if integrators is None or i in integrators]
+    return [{**base, "integrator": i} for i in chosen]
+
+
+def _family(name: str, info: Mapping[str, Any]) -> str:
+    """``euler`` (semi-implicit Euler), ``implicit`` (MuJoCo's), ``rk4``, ``adaptive`` or ``unknown``."""
+    integ = info.get("integrator")
+    if integ is None and name in IMPLICIT_EULER_BACKENDS:
+        return "euler"
+    if integ == "implicit":
+        return "implicit"
+    if integ in SEMI_IMPLICIT_EULER:
+        return "euler"
+    if integ == "rk4":
+        return "rk4"
+    if integ in ADAPTIVE:
+        return "adaptive"
+    return "unknown"
+
+
+def _sub_step(info: Mapping[str, Any], control_dt: float) -> float:
+    """The backend's integration sub-step [s], from what it reports."""
+    if info.get("sub_steps"):
+        return control_dt / float(info["sub_steps"])
+    return float(info.get("dt", control_dt))
+
+
+def _variant(info: Mapping[str, Any], name: str, control_dt: float) -> str:
+    integ = info.get("integrator", "semi-implicit euler" if name in IMPLICIT_EULER_BACKENDS else "?")
+    return f"integrator={integ} dt={_sub_step(info, control_dt):g}"
+
+
+def _simulate(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any]) -> Any:
+    from legbench.run import simulate
+
+    backend = _load(name, physics, settings)
+    try:
+        return simulate(scenario, backend, physics)
+    finally:
+        backend.close()
+
+
+# --------------------------------------------------------------------------- #
+# Energy
+
+
+class _Energy:
+    """Energy of the leg from (q, qd), with Pinocchio on the generated URDF, and one-step integrator maps."""
+
+    def __init__(self, gravity: float) -> None:
+        import pinocchio as pin
+
+        self.pin = pin
+        self.model = pin.buildModelFromUrdf(str(model.URDF_FILE))
+        self.model.gravity.linear = np.array([0.0, 0.0, -gravity])
+        self.data = self.model.createData()
+
+    def __call__(self, q: np.ndarray, qd: np.ndarray) -> tuple[float, float]:
+        """(T [J], V [J])."""
+        qp = model.q_to_pin(q)
+        T = self.pin.computeKineticEnergy(self.model, self.data, qp, np.asarray(qd, float))
+        V = self.pin.computePotentialEnergy(self.model, self.data, qp)
+        return float(T), float(V)
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """M(q) [kg m^2]."""
+        M = self.pin.crba(self.model, self.data, model.q_to_pin(q))
+        return np.triu(M) + np.triu(M, 1).T  # type: ignore[no-any-return]
+
+    def step(self, q: np.ndarray, qd: np.ndarray, h: float, family: str) -> tuple[np.ndarray, np.ndarray]:
+        """One zero-torque step of length h [s] of a first-order family.
+
+        ``euler``: qd' = qd + h qdd(q, qd), q' = q + h qd' (MuJoCo Euler and
+        implicitfast without damping, Bullet, Pinocchio euler). ``implicit``:
+        MuJoCo's implicit velocity update (M + h D) (qd' - qd) = -h b with the
+        bias b = C qd + G and D = db/dqd, then q' = q + h qd'.
+        """
+        pin = self.pin
+        qp = model.q_to_pin(q)
+        b = pin.rnea(self.model, self.data, qp, qd, np.zeros(3))
+        M = self.mass_matrix(q)
+        if family == "implicit":
+            pin.computeRNEADerivatives(self.model, self.data, qp, qd, np.zeros(3))
+            M = M + h * self.data.dtau_dv
+        qd1 = qd + h * np.linalg.solve(M, -b)
+        return q + h * qd1, qd1
+
+    def local_rate(self, q: np.ndarray, qd: np.ndarray, family: str, eta: float = 1e-3) -> float:
+        """e2 [J/s^2] in E(step_h(x)) - E(x) = e2(x) h^2 + O(h^3), by Richardson extrapolation in h."""
+        E0 = sum(self(q, qd))
+        r1 = (sum(self(*self.step(q, qd, eta, family))) - E0) / eta**2
+        r2 = (sum(self(*self.step(q, qd, eta / 2, family))) - E0) / (eta / 2) ** 2
+        return 2.0 * r2 - r1
+
+
+def check_energy(
+    backends: Sequence[str], scenario_file: Path = VERIFICATION_DIR / "energy.yaml",
+    integrators: Sequence[str] | None = None,
+) -> list[Check]:  # fmt: skip
+    """Energy with no torque, contact or damping, per backend and integrator (module docstring)."""
+    from legbench import scenario as scenario_mod
+    from legbench.run import physics_of
+
+    sc = scenario_mod.load(scenario_file)
+    base = physics_of(sc, "reference")
+    physics = dataclasses.replace(base, contact=dataclasses.replace(base.contact, Kp=0.0, Kd=0.0))
+    energy = _Energy(sc.gravity)
+    lower, upper = model.load_params().lower, model.load_params().upper
+    Ts = sc.control_dt
+    out: list[Check] = []
+    for name in backends:
+        for settings in _variants(name, sc.backends.get(name, {}), integrators):
+            tr = _simulate(sc, name, physics, settings)
+            variant = _variant(tr.info, name, Ts)
+            if tr.status != "ok":
+                out.append(_failed("energy", name, variant, tr.reason or tr.status))
+                continue
+            TV = np.array([energy(q, qd) for q, qd in zip(tr.q, tr.qd, strict=True)])
+            D = TV.sum(axis=1) - TV[0].sum()
+            family = _family(name, tr.info)
+            h = _sub_step(tr.info, Ts)
+            n_steps = (len(tr.t) - 1) * round(Ts / h)
+            roundoff = 4.0 * n_steps * EPS * float(np.abs(TV).max())
+            W = float(np.abs(tr.qd).max())
+            inside = bool(np.all((tr.q >= lower - 1e-9) & (tr.q <= upper + 1e-9)))
+            invalid = "" if inside else "; INVALID: a joint limit was reached"
+            if family in ("euler", "implicit"):
+                e2 = np.array([energy.local_rate(q, qd, family) for q, qd in zip(tr.q, tr.qd, strict=True)])
+                P = h * np.concatenate([[0.0], np.cumsum(0.5 * (e2[1:] + e2[:-1]) * np.diff(tr.t))])
+                tol = float(np.abs(P).max()) * (h * W + (Ts * W) ** 2) + roundoff
+                note = (f"{family} x{round(Ts / h)}: predicted E(t) - E(0) = h int e2 dt (local energy error "
+                        f"e2 h^2 per step); error = max over t of |measured - predicted|; max|E - E0| = "
+                        f"{np.abs(D).max():.3g} J; W = {W:.3g} rad/s{invalid}")  # fmt: skip
+                err = float(np.abs(D - P).max())
+                out.append(Check("energy", name, variant, "E(t_end) - E(0)", "J", float(D[-1]), float(P[-1]), err,
+                                 tol, bool(inside and err <= tol), note))  # fmt: skip
+                continue
+            if family == "rk4":
+                tol = (h * W) ** 4 * W * float(tr.t[-1]) * float(TV[:, 0].max()) + roundoff
+                why = f"RK4: (h W)^4 W T_end max T with W = {W:.3g} rad/s, + round-off {roundoff:.2g} J"
+            elif family == "adaptive":
+                rtol, atol = float(tr.info.get("rtol", 1e-8)), float(tr.info.get("atol", 1e-10))
+                x = float(np.abs(np.hstack([tr.q, tr.qd])).max())
+                g = max(_energy_gradient(energy, q, qd) for q, qd in zip(tr.q, tr.qd, strict=True))
+                tol = (len(tr.t) - 1) * (rtol * x + atol) * g + roundoff
+                why = f"adaptive: n_periods (rtol |x| + atol) |grad E| with rtol {rtol:g}, atol {atol:g}"
+            else:
+                out.append(_failed("energy", name, variant, f"unknown integrator family: {tr.info.get('integrator')}"))
+                continue
+            c = _check("energy", name, variant, "max |E(t) - E(0)|", "J", float(np.abs(D).max()), 0.0, tol,
+                       why + invalid)  # fmt: skip
+            out.append(c if inside else dataclasses.replace(c, passed=False))
+    return out
+
+
+def _energy_gradient(energy: _Energy, q: np.ndarray, qd: np.ndarray, eps: float = 1e-6) -> float:
+    """|dE/dq|_1 + |dE/dqd|_1 (dE/dqd = M qd) at (q, qd), by central differences in q."""
+    dq = np.zeros(3)
+    for i in range(3):
+        e = np.zeros(3)
+        e[i] = eps
+        dq[i] = (sum(energy(q + e, qd)) - sum(energy(q - e, qd))) / (2 * eps)
+    return float(np.abs(dq).sum() + np.abs(energy.mass_matrix(q) @ qd).sum())
+
+
+# --------------------------------------------------------------------------- #
+# Rest penetration and static balance
+
+
+def check_rest(backends: Sequence[str], scenario_file: Path = VERIFICATION_DIR / "effort_rest.yaml") -> list[Check]:
+    """Rest penetration y = Fn/Kp and static balance F = -(J_poc^T)^-1 (tau - G), each backend's own contact."""
+    import pinocchio as pin
+
+    from legbench import scenario as scenario_mod
+    from legbench.run import physics_of
+
+    sc = scenario_mod.load(scenario_file)
+    physics = physics_of(sc)
+    c = sc.contact
+    R = model.load_params().geometry.R_foot
+    pm = model.pinocchio_model(gravity=sc.gravity)
+    pd_ = pm.createData()
+    out: list[Check] = []
+    for name in backends:
+        tr = _simulate(sc, name, physics, sc.backends.get(name, {}))
+        variant = _variant(tr.info, name, sc.control_dt)
+        if tr.status != "ok":
+            out += [_failed(case, name, variant, tr.reason or tr.status) for case in ("rest_penetration",
+                                                                                      "static_balance")]  # fmt: skip
+            continue
+        w = tr.t >= tr.t[-1] - sc.comparison.steady_window - 1e-9
+        q, qd, tau, f = tr.q[w], tr.qd[w], tr.tau[w], tr.f[w]
+        qdd = np.gradient(tr.qd, tr.t, axis=0)[w]
+        y = R - kinematics.fk(q)[:, 2]
+        J = kinematics.jacobian_poc(q, true_poc=c.poc == "true")
+        ydot = -np.einsum("nj,nj->n", J[:, 2, :], qd)
+        # rest penetration
+        y_m, fn = float(y.mean()), float(f[:, 2].mean())
+        tol = SOLVER_RTOL * abs(fn / c.Kp) + c.Kd * float(np.abs(ydot).max()) / c.Kp
+        out.append(_check("rest_penetration", name, variant, "penetration R_foot - z_E", "m", y_m, fn / c.Kp, tol,
+                          f"Fn = {fn:.3f} N, Kp = {c.Kp:g} N/m, max|ydot| = {np.abs(ydot).max():.2e} m/s"))  # fmt: skip
+        # static balance, per tick
+        F_exp = np.empty_like(f)
+        dyn = np.empty_like(f)
+        lever = np.empty(len(f))
+        for k in range(len(f)):
+            G = kinematics.gravity(q[k])
+            JTinv = np.linalg.inv(J[k].T)
+            F_exp[k] = -JTinv @ (tau[k] - G)
+            Mqdd_Cqd = pin.rnea(pm, pd_, model.q_to_pin(q[k]), qd[k], qdd[k]) - G
+            dyn[k] = np.abs(JTinv @ Mqdd_Cqd)
+            lever[k] = np.linalg.norm(JTinv, 2) * max(y[k], 0.0) * math.hypot(f[k, 0], f[k, 1])
+        for j, comp in enumerate(("Fx", "Fy", "Fz")):
+            err = np.abs(f[:, j] - F_exp[:, j])
+            k = int(np.argmax(err))
+            tol = float((dyn[:, j] + lever + SOLVER_RTOL * np.linalg.norm(f, axis=1)).max())
+            quantity = f"{comp} (worst tick of the last {sc.comparison.steady_window:g} s)"
+            note = f"dynamic terms up to {dyn[:, j].max():.2e} N, lever term up to {lever.max():.2e} N"
+            out.append(_check("static_balance", name, variant, quantity, "N", float(f[k, j]), float(F_exp[k, j]),
+                              tol, note))  # fmt: skip
+    return out
+
+
+# --------------------------------------------------------------------------- #
+# Small oscillations
+
+
+def matrix_pencil(Y: np.ndarray, order: int, L: int | None = None) -> np.ndarray:
+    """Discrete poles z of a sum of damped exponentials fitted to uniformly sampled signals.
+
+    Hua and Sarkar's matrix pencil on the block Hankel matrix of all channels.
+
+    Args:
+        Y: samples, shape (channels, n).
+        order: number of poles (the model order).
+        L: pencil parameter (default n // 3).
+
+    Returns:
+        ``order`` poles z (complex), s = ln(z) / Ts.
+    """
+    Y = np.atleast_2d(np.asarray(Y, float))
+    n = Y.shape[1]
+    L = L or n // 3
+    H = np.vstack([np.lib.stride_tricks.sliding_window_view(y, L + 1) for y in Y])
+    _, _, Vh = np.linalg.svd(H, full_matrices=False)
+    V = Vh[:order].conj().T
+    return np.linalg.eigvals(np.linalg.pinv(V[:-1]) @ V[1:])  # type: ignore[no-any-return]
+
+
+def equilibrium(q_des: np.ndarray, Kp: np.ndarray, q0: np.ndarray, tol: float = 1e-13) -> np.ndarray:
+    """The pose where the PD hold balances gravity, Kp (q_des - q) = G(q), by Newton from q0 [rad]."""
+    q = np.array(q0, float)
+    for _ in range(50):
+        r = Kp @ kinematics.joint_error(q, q_des) - kinematics.gravity(q)
+        if np.abs(r).max() < tol:
+            return q
+        q = q + np.linalg.solve(Kp + gravity_stiffness(q), r)
+    raise LegbenchError(f"no PD equilibrium found near {np.round(q0, 4).tolist()} rad")
+
+
+def gravity_stiffness(q: np.ndarray, eps: float = 1e-6) -> np.ndarray:
+    """dG/dq [N m/rad] by central differences."""
+    return np.column_stack([(kinematics.gravity(q + e) - kinematics.gravity(q - e)) / (2 * eps)
+                            for e in np.eye(3) * eps])  # fmt: skip
+
+
+def discrete_loop(M: np.ndarray, Kg: np.ndarray, Kp: np.ndarray, Kd: np.ndarray, Ts: float, family: str = "exact",
+                  n_sub: int = 1) -> np.ndarray:  # fmt: skip
+    """Closed-loop transition matrix of the linearised leg under the harness's 1 kHz PD.
+
+    Plant M dq'' + Kg dq = du, the torque held over each period, integrated
+    over the period the way the backend does it (``family``: ``exact`` flow,
+    ``euler`` = n_sub semi-implicit Euler steps, ``rk4`` = n_sub RK4 steps).
+    Controller du_k = -Kp dq_k - Kd (dq_k - dq_{k-1}) / Ts. State
+    X_k = (dq_k, dqd_k, dq_{k-1}), shape 9.
+    """
+    Mi = np.linalg.inv(M)
+    Z, eye = np.zeros((3, 3)), np.eye(3)
+    A = np.block([[Z, eye], [-Mi @ Kg, Z]])
+    B = np.vstack([Z, Mi])
+    if family == "exact":
+        E = scipy.linalg.expm(np.block([[A, B], [np.zeros((3, 9))]]) * Ts)
+        Ad, Bd = E[:6, :6], E[:6, 6:]
+    else:
+        h = Ts / n_sub
+        if family == "euler":
+            S = np.block([[eye - h * h * Mi @ Kg, h * eye], [-h * Mi @ Kg, eye]])
+            b = np.vstack([h * h * Mi, h * Mi])
+        elif family == "rk4":
+            hA = h * A
+            S = np.eye(6) + hA + hA @ hA / 2 + hA @ hA @ hA / 6 + hA @ hA @ hA @ hA / 24
+            b = h * (np.eye(6) + hA / 2 + hA @ hA / 6 + hA @ hA @ hA / 24) @ B
+        else:
+            raise ValueError(f"unknown integrator family {family!r}")
+        Ad, Bd = np.eye(6), np.zeros((6, 3))
+        for _ in range(n_sub):
+            Ad, Bd = S @ Ad, S @ Bd + b
+    Kx = np.hstack([-Kp - Kd / Ts, Z, Kd / Ts])
+    top = np.hstack([Ad, np.zeros((6, 3))]) + Bd @ Kx
+    return np.vstack([top, np.hstack([eye, np.zeros((3, 6))])])  # type: ignore[no-any-return]
+
+
+def _modes(s: np.ndarray) -> list[np.ndarray]:
+    """Poles grouped into modes: one per real pole, one per conjugate pair (Im > 0 kept)."""
+    return [x for x in s if x.imag >= -1e-9 * max(abs(x), 1.0)]
+
+
+def check_small_oscillation(backends: Sequence[str], scenario_file: Path = VERIFICATION_DIR / "small_oscillation.yaml",
+                            integrators: Sequence[str] | None = ("default", "rk4")) -> list[Check]:  # fmt: skip
+    """Closed-loop poles of the PD hold: fitted to each backend's response vs the linearised discrete loop."""
+    from legbench import scenario as scenario_mod
+    from legbench.run import physics_of
+
+    sc = scenario_mod.load(scenario_file)
+    if any(sc.gains.Ki) or len(sc.events) != 1 or sc.events[0].joint is None:
+        raise LegbenchError(f"{scenario_file}: small_oscillation needs one joint position event and Ki = 0")
+    Ts = sc.control_dt
+    Kp, Kd = np.diag(sc.gains.Kp), np.diag(sc.gains.Kd)
+    q_des = np.array(sc.events[0].joint)
+    q_eq = equilibrium(q_des, Kp, np.array(sc.q0))
+    energy = _Energy(sc.gravity)
+    M, Kg = energy.mass_matrix(q_eq), gravity_stiffness(q_eq)
+    Mi = np.linalg.inv(M)
+    s_cont = np.linalg.eigvals(np.block([[np.zeros((3, 3)), np.eye(3)], [-Mi @ (Kp + Kg), -Mi @ Kd]]))
+    physics = physics_of(sc)
+    out: list[Check] = []
+    for name in backends:
+        base = dict(sc.backends.get(name, {}))
+        offered = registry.get(name).choices.get("integrator", ())
+        runs = [base] + [{**base, "integrator": i} for i in (integrators or ()) if i in offered and i != "default"
+                         and i != base.get("integrator", registry.get(name).defaults.get("integrator"))]  # fmt: skip
+        for settings in runs:
+            tr = _simulate(sc, name, physics, settings)
+            variant = _variant(tr.info, name, Ts)
+            if tr.status != "ok":
+                out.append(_failed("small_oscillation", name, variant, tr.reason or tr.status))
+                continue
+            family = _family(name, tr.info)
+            n_sub = round(Ts / _sub_step(tr.info, Ts))
+            # MuJoCo's implicit step adds the Coriolis derivative, zero at rest: Euler in the linearisation
+            model_family = {"euler": "euler", "implicit": "euler", "rk4": "rk4"}.get(family, "exact")
+            z_pred = np.linalg.eigvals(discrete_loop(M, Kg, Kp, Kd, Ts, model_family, n_sub))
+            fitted = z_pred[np.abs(z_pred) > 0.1]  # poles that shape more than the first few samples
+            z_meas = matrix_pencil((tr.q - q_eq).T, len(fitted))
+            s_pred = np.log(fitted.astype(complex)) / Ts
+            s_meas = np.log(z_meas.astype(complex)) / Ts
+            cost = np.abs(s_pred[:, None] - s_meas[None, :]) / np.abs(s_pred)[:, None]
+            rows, cols = linear_sum_assignment(cost)
+            pairs = sorted(((s_pred[r], s_meas[c]) for r, c in zip(rows, cols, strict=True)), key=lambda p: -p[0].real)
+            shown = [p for p in pairs if abs(np.exp(p[0] * Ts)) > 0.5 and p[0].imag >= -1e-9 * abs(p[0])]
+            for i, (sp, sm) in enumerate(shown, start=1):
+                sc_near = s_cont[np.argmin(np.abs(s_cont - sp))]
+                note = (f"model: {model_family} x{n_sub}; pole {sp:.2f}/s, fitted {sm:.2f}/s; "
+                        f"continuous-time model (no sampling) {sc_near:.2f}/s")  # fmt: skip
+                tol_s = POLE_RTOL * abs(sp)
+                if abs(sp.imag) > 1e-6 * abs(sp):
+                    out.append(_check("small_oscillation", name, variant, f"mode {i} frequency", "Hz",
+                                      abs(sm.imag) / (2 * math.pi), abs(sp.imag) / (2 * math.pi),
+                                      tol_s / (2 * math.pi), note))  # fmt: skip
+                    out.append(_check("small_oscillation", name, variant, f"mode {i} damping ratio", "1",
+                                      -sm.real / abs(sm), -sp.real / abs(sp), 2 * POLE_RTOL, note))  # fmt: skip
+                else:
+                    note += f"; fitted imaginary part {sm.imag:.2g}"
+                    out.append(_check("small_oscillation", name, variant, f"mode {i} decay rate", "1/s",
+                                      -sm.real, -sp.real, tol_s, note))  # fmt: skip
+    return out
+
+
+# --------------------------------------------------------------------------- #
+# Table and files
+
+
+def verify(
+    out_dir: str | Path | None = None,
+    backends: Sequence[str] | None = None,
+    cases: Sequence[str] = CASES,
+) -> pd.DataFrame:
+    """Run the verification cases on the backends (default: all available) and tabulate them.
+
+    Args:
+        out_dir: where to write ``verification.json`` and ``verification.md`` (None: nowhere).
+        backends: backend names (default: every available backend).
+        cases: subset of :data:`CASES`.
+
+    Returns:
+        One row per checked quantity, columns :data:`COLUMNS`.
+
+    Raises:
+        LegbenchError: an unknown case or backend.
+    """
+    for c in cases:
+        if c not in CASES:
+            raise LegbenchError(f"unknown verification case '{c}'; choose from {', '.join(CASES)}")
+    names = list(backends) if backends is not None else registry.available()
+    for n in names:
+        registry.get(n)
+    checks: list[Check] = []
+    if "energy" in cases:
+        checks += check_energy(names)
+    if "rest_penetration" in cases or "static_balance" in cases:
+        checks += [c for c in check_rest(names) if c.case in cases]
+    if "small_oscillation" in cases:
+        checks += check_small_oscillation(names)
+    df = pd.DataFrame([dataclasses.asdict(c) for c in checks]).rename(columns={"passed": "pass"})
+    df = df.reindex(columns=list(COLUMNS))
+    if out_dir is not None:
+        write_verification(df, Path(out_dir))
+    return df
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, bool | np.bool_):
+        return "yes" if v else "**NO**"
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else f"{v:.4g}"
+    return str(v).replace("|", "\\|")
+
+
+def markdown(df: pd.DataFrame) -> str:
+    """The verification table as Markdown."""
+    cols = [c for c in COLUMNS if c != "note"]
+    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    lines += ["| " + " | ".join(_fmt(r[c]) for c in cols) + " |" for r in df.to_dict(orient="records")]
+    return "\n".join(lines) + "\n"
+
+
+def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
+    """Write ``verification.json`` (records, versions, platform) and ``verification.md`` into ``out_dir``."""
+    from legbench.run import platform_info, versions
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    passed = int(df["pass"].sum())
+    meta = {"schema": "legbench.verification/1", "passed": passed, "total": len(df),
+            "checks": df.to_dict(orient="records"), "versions": versions(), "platform": platform_info()}  # fmt: skip
+    (out_dir / "verification.json").write_text(json.dumps(meta, indent=2, default=_json))
+    md = [f"# Verification: {passed} of {len(df)} checks pass\n", "Cases and tolerances: `legbench/verify.py`.\n",
+          markdown(df), "\n## Notes\n"]  # fmt: skip
+    md += [f"- {r['case']} / {r['backend']} / {r['variant']} / {r['quantity']}: {r['note']}"
+           for r in df.to_dict(orient="records") if r["note"]]  # fmt: skip
+    (out_dir / "verification.md").write_text("\n".join(md) + "\n")
+    return out_dir
+
+
+def _json(o: Any) -> Any:
+    if isinstance(o, np.generic):
+        return o.item()
+    return str(o)
+
+
+def _cli(args: argparse.Namespace) -> int:
+    names = registry.resolve(args.backends)
+    cases = [c.strip() for c in args.cases.split(",")] if args.cases else list(CASES)
+    df = verify(args.out, names, cases)
+    with pd.option_context("display.width", 200, "display.max_columns", 20, "display.max_colwidth", 40):
+        print(df.drop(columns=["note"]).to_string(index=False))
+    print(f"{int(df['pass'].sum())} of {len(df)} checks pass; wrote {args.out}")
+    return 0 if bool(df["pass"].all()) else 1
+
+
+def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Register ``legbench verify [--out DIR] [--backends all] [--cases a,b]``."""
+    p = subparsers.add_parser("verify", help="verification cases with closed-form answers, on every backend")
+    p.add_argument("--out", default="results/verification", help="output directory (default results/verification)")
+    p.add_argument("--backends", default="all", help="comma-separated backend names, or 'all' (default)")
+    p.add_argument("--cases", default=None, help=f"comma-separated subset of {', '.join(CASES)}")
+    p.set_defaults(func=_cli)
