@@ -1,0 +1,287 @@
+"""Contact calibration: each backend's effective normal stiffness, damping and creep, beside the spec's.
+
+The leg stands on the ground at q* (the effort task's pose) under the effort
+controller tau = Jv^T h_d + G, driven directly through the Backend API:
+
+1. static push, h_d = (0, 0, -F1) then a step to (0, 0, -F2): the effective
+   normal stiffness is k = (Fn2 - Fn1) / (y2 - y1) from the two rests
+   (penetration y = R_foot - z_E), and the effective damping c is the
+   least-squares fit of Fn - k y = c ydot over the pressing-in part of the
+   step's transient (ydot > 1 mm/s; the spec's damping acts only while
+   pressing in);
+2. slow tangential load: F_x of h_d ramps from 0 to ``ratio`` mu_s F2 (below
+   the friction limit) over ``ramp`` seconds and is held; the creep velocity
+   is the mean horizontal speed of the point of contact over the end of the
+   hold. The spec's stick-slip law creeps at v = v_th F_t / (mu_s Fn) (the
+   linear part of mu(v)); a Coulomb engine sticks; MuJoCo's regularised cone
+   creeps at about F_t / Kd (ENGINE_NOTES.md). The effective tangential
+   damping F_t / v is printed too.
+
+Data flow: :func:`push` (one backend, :class:`PushLog` of numpy arrays) ->
+:func:`estimate` (:class:`Calibration`, frozen) -> :func:`calibrate` (a
+DataFrame, one row per backend) -> :func:`write_calibration`
+(``calibration.json`` and ``calibration.md``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from legbench import backends as registry
+from legbench import kinematics, model
+from legbench.controllers import EffortController, saturate
+from legbench.exceptions import LegbenchError
+from legbench.scenario import Event
+
+__all__ = ["Calibration", "Program", "PushLog", "add_cli", "calibrate", "estimate", "push", "write_calibration"]
+
+SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml"
+
+
+@dataclass(frozen=True)
+class Program:
+    """The load program, all forces being h_d, what the foot exerts on the ground, in W.
+
+    Attributes:
+        F1: first normal push [N].
+        F2: second normal push, from ``phase`` on [N].
+        phase: length of each normal phase [s].
+        ratio: tangential load as a share of mu_s F2 (below 1: below the friction limit).
+        ramp: duration of the tangential ramp [s].
+        hold: duration of the hold at full tangential load [s].
+        window: averaging window at the end of each phase [s].
+        transient: part of the F1 -> F2 step used for the damping fit [s].
+    """
+
+    F1: float = 20.0
+    F2: float = 40.0
+    phase: float = 0.5
+    ratio: float = 0.5
+    ramp: float = 0.5
+    hold: float = 1.0
+    window: float = 0.2
+    transient: float = 0.1
+
+    @property
+    def duration(self) -> float:
+        """Total length [s]."""
+        return 2 * self.phase + self.ramp + self.hold
+
+    def h_d(self, t: float, mu_s: float) -> np.ndarray:
+        """Desired foot force on the ground in W at time t [N]."""
+        if t < self.phase:
+            return np.array([0.0, 0.0, -self.F1])
+        if t < 2 * self.phase:
+            return np.array([0.0, 0.0, -self.F2])
+        share = min((t - 2 * self.phase) / self.ramp, 1.0)
+        return np.array([share * self.ratio * mu_s * self.F2, 0.0, -self.F2])
+
+
+@dataclass(frozen=True)
+class PushLog:
+    """One backend's response to the program, per control tick.
+
+    Attributes:
+        backend: backend name.
+        t: time [s], (n,).
+        q, qd: joint positions [rad] and velocities [rad/s], (n, 3).
+        f: ground force on the foot in W [N], (n, 3).
+        saturated: ticks at which a torque hit its limit.
+        info: the backend's settings.
+    """
+
+    backend: str
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    f: np.ndarray
+    saturated: int
+    info: dict[str, Any]
+
+
+def push(name: str, program: Program = Program(), scenario_file: Path = SCENARIO,
+         contact_mode: str | None = None) -> PushLog:  # fmt: skip
+    """Run the load program on backend ``name`` from the scenario's initial pose, with its physics and settings."""
+    from legbench import scenario as scenario_mod
+    from legbench.run import physics_of
+
+    sc = scenario_mod.load(scenario_file)
+    physics = physics_of(sc, contact_mode)
+    backend = registry.get(name)()
+    backend.load(model.URDF_FILE, physics, sc.backends.get(name, {}))
+    Ts = sc.control_dt
+    n = int(round(program.duration / Ts)) + 1
+    t = np.arange(n) * Ts
+    Q, QD, F = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    limit = np.array(physics.torque_limit)
+    saturated = 0
+    ctrl, h_prev = None, None
+    try:
+        backend.reset(np.array(sc.q0), np.array(sc.qd0))
+        for k in range(n):
+            q, qd = backend.state()
+            Q[k], QD[k], F[k] = q, qd, backend.ground_force()
+            h = tuple(program.h_d(t[k], sc.contact.mu_s).tolist())
+            if ctrl is None or h != h_prev:  # a new effort event whenever h_d changes (every tick of the ramp)
+                ctrl, h_prev = EffortController(Event(float(t[k]), "effort", force=h)), h
+                ctrl.start(float(t[k]), q, qd)
+            raw = np.asarray(ctrl(k, q, qd), float)
+            saturated += int(np.any(np.abs(raw) > limit))
+            if k < n - 1:
+                backend.step(saturate(raw.copy(), limit))
+        info = backend.info()
+    finally:
+        backend.close()
+    return PushLog(name, t, Q, QD, F, saturated, info)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """Effective contact parameters of one backend, beside the spec's.
+
+    Attributes:
+        backend: backend name.
+        Kp, Kd, mu_s, v_th: the spec's (scenario's) normal stiffness [N/m], damping [N s/m],
+            static friction coefficient and stick-slip threshold speed [m/s].
+        k_eff: effective normal stiffness [N/m].
+        c_eff: effective normal damping while pressing in [N s/m].
+        Fn: normal force at the end of the hold [N].
+        Ft: tangential force at the end of the hold [N].
+        creep: horizontal speed of the point of contact at the end of the hold [m/s].
+        creep_law: the spec's law's creep for the same Fn and Ft, v_th Ft / (mu_s Fn) [m/s].
+        c_tangential: Ft / creep [N s/m] (inf when the foot sticks).
+        note: saturation or fit problems.
+    """
+
+    backend: str
+    Kp: float
+    Kd: float
+    mu_s: float
+    v_th: float
+    k_eff: float
+    c_eff: float
+    Fn: float
+    Ft: float
+    creep: float
+    creep_law: float
+    c_tangential: float
+    note: str = ""
+
+
+def estimate(log: PushLog, program: Program, contact: Any) -> Calibration:
+    """Stiffness, damping and creep from a :class:`PushLog` (module docstring)."""
+    R = model.load_params().geometry.R_foot
+    y = R - kinematics.fk(log.q)[:, 2]
+    J = kinematics.jacobian_poc(log.q, true_poc=contact.poc == "true")
+    v = np.einsum("nij,nj->ni", J, log.qd)
+    ydot = -v[:, 2]
+    t, f = log.t, log.f
+
+    def window(end: float) -> np.ndarray:
+        return (t > end - program.window - 1e-9) & (t <= end + 1e-9)
+
+    w1, w2 = window(program.phase - 1e-3), window(2 * program.phase - 1e-3)
+    dy = y[w2].mean() - y[w1].mean()
+    k_eff = float((f[w2, 2].mean() - f[w1, 2].mean()) / dy) if abs(dy) > 0 else math.nan
+    tr = (t >= program.phase) & (t < program.phase + program.transient) & (ydot > 1e-3)
+    notes = []
+    if tr.sum() >= 3 and math.isfinite(k_eff):
+        r = f[tr, 2] - k_eff * y[tr]
+        c_eff = float(r @ ydot[tr] / (ydot[tr] @ ydot[tr]))
+    else:
+        c_eff = math.nan
+        notes.append("too few pressing-in samples for the damping fit")
+    end = window(program.duration)
+    Fn = float(f[end, 2].mean())
+    Ft = float(np.hypot(f[end, 0], f[end, 1]).mean())
+    creep = float(np.hypot(v[end, 0], v[end, 1]).mean())
+    if log.saturated:
+        notes.append(f"{log.saturated} ticks saturated a joint torque: h_d was not fully applied")
+    return Calibration(
+        backend=log.backend, Kp=contact.Kp, Kd=contact.Kd, mu_s=contact.mu_s, v_th=contact.v_th, k_eff=k_eff,
+        c_eff=c_eff, Fn=Fn, Ft=Ft, creep=creep, creep_law=contact.v_th * Ft / (contact.mu_s * Fn),
+        c_tangential=Ft / creep if creep > 0 else math.inf, note="; ".join(notes),
+    )  # fmt: skip
+
+
+def calibrate(
+    out_dir: str | Path | None = None,
+    backends: Sequence[str] | None = None,
+    program: Program = Program(),
+    scenario_file: Path = SCENARIO,
+    contact_mode: str | None = None,
+) -> pd.DataFrame:
+    """Calibrate every backend (default: all available); one row per backend, optionally written to ``out_dir``."""
+    from legbench import scenario as scenario_mod
+
+    if not 0 < program.ratio < 1:
+        raise LegbenchError(f"tangential ratio {program.ratio} must lie in (0, 1): below the friction limit")
+    contact = scenario_mod.load(scenario_file).contact
+    names = list(backends) if backends is not None else registry.available()
+    rows = [dataclasses.asdict(estimate(push(n, program, scenario_file, contact_mode), program, contact))
+            for n in names]  # fmt: skip
+    df = pd.DataFrame(rows)
+    if out_dir is not None:
+        write_calibration(df, Path(out_dir), program)
+    return df
+
+
+_HEADERS = {
+    "backend": "backend", "Kp": "Kp spec [N/m]", "k_eff": "k eff [N/m]", "Kd": "Kd spec [N s/m]",
+    "c_eff": "c eff [N s/m]", "mu_s": "mu_s", "Fn": "Fn [N]", "Ft": "Ft [N]", "creep": "creep [m/s]",
+    "creep_law": "law creep [m/s]", "c_tangential": "Ft/creep [N s/m]",
+}  # fmt: skip
+
+
+def markdown(df: pd.DataFrame) -> str:
+    """The calibration table as Markdown."""
+    lines = ["| " + " | ".join(_HEADERS.values()) + " |", "|" + "---|" * len(_HEADERS)]
+    for r in df.to_dict(orient="records"):
+        cells = [str(r[k]) if k == "backend" else f"{r[k]:.4g}" for k in _HEADERS]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write_calibration(df: pd.DataFrame, out_dir: Path, program: Program = Program()) -> Path:
+    """Write ``calibration.json`` and ``calibration.md`` into ``out_dir``."""
+    from legbench.run import platform_info, versions
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    meta = {"schema": "legbench.calibration/1", "program": dataclasses.asdict(program),
+            "rows": df.to_dict(orient="records"), "versions": versions(), "platform": platform_info()}  # fmt: skip
+    (out_dir / "calibration.json").write_text(json.dumps(meta, indent=2, default=str))
+    notes = [f"- {r['backend']}: {r['note']}" for r in df.to_dict(orient="records") if r["note"]]
+    text = ["# Contact calibration\n", f"Program: {dataclasses.asdict(program)} (legbench/calibrate_contact.py).\n",
+            markdown(df), *notes]  # fmt: skip
+    (out_dir / "calibration.md").write_text("\n".join(text) + "\n")
+    return out_dir
+
+
+def _cli(args: argparse.Namespace) -> int:
+    df = calibrate(args.out, registry.resolve(args.backends), contact_mode=args.contact_mode)
+    print(markdown(df))
+    for r in df.to_dict(orient="records"):
+        if r["note"]:
+            print(f"note: {r['backend']}: {r['note']}")
+    print(f"wrote {args.out}")
+    return 0
+
+
+def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Register ``legbench calibrate-contact [--out DIR] [--backends all] [--contact-mode native|reference]``."""
+    p = subparsers.add_parser("calibrate-contact", help="effective contact stiffness, damping and creep per backend")
+    p.add_argument("--out", default="results/calibration", help="output directory (default results/calibration)")
+    p.add_argument("--backends", default="all", help="comma-separated backend names, or 'all' (default)")
+    p.add_argument("--contact-mode", choices=("native", "reference"), default=None,
+                   help="override the scenario's contact mode (default: native)")  # fmt: skip
+    p.set_defaults(func=_cli)
