@@ -1,0 +1,320 @@
+"""Parity pre-flight: what each engine actually holds, read back from it, side by side.
+
+Every backend is loaded for the scenario exactly as a run would load it, and
+its model is read back: link masses, COMs and inertias (``Backend.mass_properties``),
+joint position and torque limits and gravity (from the engine objects, see
+:func:`readback`), and the settings it reports (``Backend.info``: time step,
+integrator, contact parameters as mapped, friction cone). One table shows them
+across backends beside the value the spec (``models/leg.yaml`` and the
+scenario) asks for.
+
+Rows of the leg itself and of the shared physics (mass properties, limits,
+gravity) must agree with the spec to :data:`RTOL` relative (of the quantity's
+scale: the mass, the largest COM component, the largest inertia entry of the
+link); :func:`check` raises :class:`ParityError` naming the first row that
+differs. Other rows (integrator, contact mapping, ...) are expected to differ
+between engines and are only reported.
+
+Data flow: scenario -> :func:`readback` per backend (a flat dict of plain
+values) -> :func:`table` (a DataFrame: ``group, item, unit, spec, <backend>...,
+status``) -> :func:`check`. :func:`doctor` and :func:`preflight` do both.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from legbench import backends as registry
+from legbench import model
+from legbench.backends.base import Backend
+from legbench.exceptions import LegbenchError
+from legbench.scenario import Scenario
+
+__all__ = ["RTOL", "ParityError", "add_cli", "check", "doctor", "preflight", "readback", "table"]
+
+#: Relative tolerance of the parity rows.
+RTOL = 1e-6
+_AXES = ("x", "y", "z")
+_INERTIA = (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("xz", 0, 2), ("yz", 1, 2))
+
+
+class ParityError(LegbenchError):
+    """A backend holds a different leg (or gravity) than the spec.
+
+    Attributes:
+        backend: the backend that differs.
+        row: the table row (``link2.mass``).
+        value: what the engine holds.
+        expected: what the spec asks for.
+    """
+
+    def __init__(self, backend: str, row: str, value: Any, expected: Any, unit: str = "", more: int = 0) -> None:
+        self.backend, self.row, self.value, self.expected = backend, row, value, expected
+        msg = (f"parity: {backend} holds {row} = {value!r} {unit}, the spec (models/leg.yaml and the scenario) says "
+               f"{expected!r} {unit} (relative tolerance {RTOL:g})")  # fmt: skip
+        if more:
+            msg += f"; {more} more row(s) differ, see `legbench doctor`"
+        super().__init__(msg)
+
+
+# --------------------------------------------------------------------------- #
+# Read back
+
+
+def _limits_pinocchio(b: Any) -> dict[str, Any]:
+    m = b.model
+    return {
+        "gravity": -float(m.gravity.linear[2]),
+        "lower": [float(x) for x in b.lower],
+        "upper": [float(x) for x in b.upper],
+        "effort": [float(x) for x in m.effortLimit],
+    }
+
+
+def _limits_mujoco(b: Any) -> dict[str, Any]:
+    m = b.model
+    lower, upper, effort = [], [], []
+    for name in model.JOINT_NAMES:
+        j = m.joint(name).id
+        limited = bool(m.jnt_limited[j])
+        lower.append(float(m.jnt_range[j, 0]) if limited else -math.inf)
+        upper.append(float(m.jnt_range[j, 1]) if limited else math.inf)
+        a = m.actuator(name).id
+        effort.append(float(m.actuator_ctrlrange[a, 1]) if m.actuator_ctrllimited[a] else math.inf)
+    return {"gravity": -float(m.opt.gravity[2]), "lower": lower, "upper": upper, "effort": effort,
+            "timestep": float(m.opt.timestep)}  # fmt: skip
+
+
+def _limits_pybullet(b: Any) -> dict[str, Any]:
+    import pybullet as p
+
+    lower, upper, effort = [], [], []
+    for j in b.joints:
+        info = p.getJointInfo(b.body, j, physicsClientId=b.cid)
+        lo, hi = float(info[8]), float(info[9])
+        if lo > hi:  # Bullet's way of saying "no limit"
+            lo, hi = -math.inf, math.inf
+        lower.append(lo)
+        upper.append(hi)
+        effort.append(float(info[10]))
+    params = p.getPhysicsEngineParameters(physicsClientId=b.cid)
+    return {"gravity": -float(params["gravityAccelerationZ"]), "lower": lower, "upper": upper, "effort": effort,
+            "timestep": float(params["fixedTimeStep"])}  # fmt: skip
+
+
+_ENGINE_LIMITS = {"pinocchio": _limits_pinocchio, "mujoco": _limits_mujoco, "pybullet": _limits_pybullet}
+
+
+def _flatten(prefix: str, d: Mapping[str, Any], out: dict[str, Any]) -> None:
+    for k, v in d.items():
+        key = f"{prefix}.{k}" if prefix else str(k)
+        if isinstance(v, Mapping):
+            _flatten(key, v, out)
+        else:
+            out[key] = v
+
+
+def readback(backend: Backend) -> dict[str, Any]:
+    """What a loaded backend holds, as a flat dict ``row -> value``.
+
+    Mass properties come from :meth:`Backend.mass_properties`; joint limits,
+    torque limits and gravity from the engine's own model (MuJoCo ``jnt_range``,
+    ``actuator_ctrlrange``, ``opt.gravity``; Bullet ``getJointInfo``,
+    ``getPhysicsEngineParameters``; Pinocchio ``effortLimit``, ``gravity`` and
+    the limits its integrator enforces), or, for another backend, from an
+    ``info()["readback"]`` mapping with the keys ``gravity``, ``lower``,
+    ``upper``, ``effort``; every other row from :meth:`Backend.info`.
+    """
+    out: dict[str, Any] = {}
+    try:
+        props = backend.mass_properties()
+    except NotImplementedError:
+        props = {}
+    for link in model.LINK_NAMES:
+        mp = props.get(link)
+        if mp is None:
+            continue
+        out[f"{link}.mass"] = float(mp["mass"])
+        for i, a in enumerate(_AXES):
+            out[f"{link}.com.{a}"] = float(mp["com"][i])
+        I = np.asarray(mp["inertia"], float)
+        for name, r, c in _INERTIA:
+            out[f"{link}.inertia.{name}"] = float(I[r, c])
+    info = backend.info()
+    lim = info.get("readback") or (_ENGINE_LIMITS[backend.name](backend) if backend.name in _ENGINE_LIMITS else {})
+    if "gravity" in lim:
+        out["gravity"] = float(lim["gravity"])
+    for key in ("lower", "upper", "effort"):
+        for jn, v in zip(model.JOINT_NAMES, lim.get(key, ()), strict=False):
+            out[f"{jn}.{'torque_limit' if key == 'effort' else key}"] = float(v)
+    if "timestep" in lim:
+        out["engine.timestep"] = lim["timestep"]
+    settings: dict[str, Any] = {}
+    _flatten("", {k: v for k, v in info.items() if k != "readback"}, settings)
+    for k, v in settings.items():
+        out[f"info.{k}"] = v if isinstance(v, str | int | float | bool) or v is None else json.dumps(v, default=str)
+    return out
+
+
+def _spec(scenario: Scenario) -> dict[str, tuple[Any, str, float]]:
+    """Spec rows: row -> (value, unit, scale for the relative tolerance)."""
+    p = model.load_params()
+    rows: dict[str, tuple[Any, str, float]] = {}
+    for link in model.LINK_NAMES:
+        inr = p.body_inertial(link)
+        rows[f"{link}.mass"] = (inr.mass, "kg", inr.mass)
+        com_scale = float(np.abs(inr.com).max())
+        for i, a in enumerate(_AXES):
+            rows[f"{link}.com.{a}"] = (float(inr.com[i]), "m", com_scale)
+        I = inr.I
+        i_scale = float(np.abs(I).max())
+        for name, r, c in _INERTIA:
+            rows[f"{link}.inertia.{name}"] = (float(I[r, c]), "kg m^2", i_scale)
+    rows["gravity"] = (scenario.gravity, "m/s^2", scenario.gravity)
+    for j in p.joints:
+        for key, v in (("lower", j.lower), ("upper", j.upper)):
+            rows[f"{j.name}.{key}"] = (v, "rad", abs(v) if math.isfinite(v) else 1.0)
+        rows[f"{j.name}.torque_limit"] = (j.effort, "N m", j.effort)
+    return rows
+
+
+def _group(row: str) -> str:
+    if row.startswith("link"):
+        return "mass properties"
+    if row.startswith(model.JOINT_NAMES):
+        return "joints"
+    if row == "gravity":
+        return "physics"
+    if row.startswith("info.contact"):
+        return "contact (as mapped)"
+    return "settings"
+
+
+def _same(a: Any, b: Any, tol: float) -> bool:
+    """a equals b within the absolute tolerance tol (infinite values must match exactly)."""
+    if isinstance(a, float) and isinstance(b, float) and (math.isinf(a) or math.isinf(b)):
+        return a == b
+    try:
+        return abs(float(a) - float(b)) <= tol
+    except (TypeError, ValueError):
+        return bool(a == b)
+
+
+_FIXED = ("group", "row", "unit", "spec", "tolerance", "status")
+
+
+def table(scenario: Scenario | str | Path, backends: Sequence[str] | None = None) -> pd.DataFrame:
+    """Load every backend for the scenario, read back what it holds, and tabulate it against the spec.
+
+    Args:
+        scenario: a :class:`~legbench.scenario.Scenario` or the path of a scenario file.
+        backends: backend names (default: every available backend).
+
+    Returns:
+        Columns ``group, row, unit, spec, tolerance, <one per backend>, status``; status is
+        ``ok``, ``MISMATCH`` (a parity row off by more than :data:`RTOL`), ``missing``
+        (a backend does not report a parity row) or ``info`` (not a parity row).
+    """
+    from legbench import scenario as scenario_mod
+    from legbench.run import physics_of
+
+    sc = scenario if isinstance(scenario, Scenario) else scenario_mod.load(scenario)
+    names = list(backends) if backends is not None else registry.available()
+    physics = physics_of(sc)
+    values: dict[str, dict[str, Any]] = {}
+    for name in names:
+        b = registry.get(name)()
+        b.load(model.URDF_FILE, physics, sc.backends.get(name, {}))
+        try:
+            values[name] = readback(b)
+        finally:
+            b.close()
+    spec = _spec(sc)
+    rows: list[dict[str, Any]] = []
+    for row, (expected, unit, scale) in spec.items():
+        tol = RTOL * scale
+        rec: dict[str, Any] = {"group": _group(row), "row": row, "unit": unit, "spec": expected, "tolerance": tol}
+        status = "ok"
+        for name in names:
+            v = values[name].get(row)
+            rec[name] = v
+            if v is None:
+                status = "missing" if status == "ok" else status
+            elif not _same(v, expected, tol):
+                status = "MISMATCH"
+        rec["status"] = status
+        rows.append(rec)
+    extra = sorted({k for v in values.values() for k in v} - set(spec), key=lambda k: (_group(k), k))
+    for row in extra:
+        rec = {"group": _group(row), "row": row.removeprefix("info."), "unit": "", "spec": None, "tolerance": None}
+        rec.update({name: values[name].get(row) for name in names})
+        rec["status"] = "info"
+        rows.append(rec)
+    return pd.DataFrame(rows, columns=["group", "row", "unit", "spec", "tolerance", *names, "status"])
+
+
+def check(t: pd.DataFrame) -> None:
+    """Raise :class:`ParityError` naming the first parity row a backend gets wrong."""
+    bad = t[t["status"] == "MISMATCH"]
+    if not len(bad):
+        return
+    names = [c for c in t.columns if c not in _FIXED]
+    first = bad.iloc[0]
+    name = next(n for n in names if first[n] is not None and not _same(first[n], first["spec"], first["tolerance"]))
+    raise ParityError(name, first["row"], first[name], first["spec"], first["unit"], len(bad) - 1)
+
+
+def doctor(scenario: Scenario | str | Path, backends: Sequence[str] | None = None) -> pd.DataFrame:
+    """:func:`table` across backends (default: all available); raises :class:`ParityError` on a mismatch."""
+    t = table(scenario, backends)
+    check(t)
+    return t
+
+
+def preflight(scenario: Scenario | str | Path, backends: Sequence[str]) -> pd.DataFrame:
+    """The run's pre-flight: the backends about to run hold the spec's leg, limits and gravity, or an error."""
+    return doctor(scenario, backends)
+
+
+def _cell(v: Any) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.9g}"
+    return str(v)
+
+
+def _cli(args: argparse.Namespace) -> int:
+    names = registry.resolve(args.backends)
+    t = table(args.scenario, names)
+    shown = t if args.all else t[t["status"] != "info"]
+    width = {c: max(len(c), *(len(_cell(v)) for v in shown[c])) for c in shown.columns}
+    print("  ".join(c.ljust(width[c]) for c in shown.columns))
+    for r in shown.itertuples(index=False):
+        print("  ".join(_cell(v).ljust(width[c]) for c, v in zip(shown.columns, r, strict=True)))
+    if not args.all:
+        print(f"({int((t['status'] == 'info').sum())} settings rows not shown; --all shows them)")
+    try:
+        check(t)
+    except ParityError as exc:
+        print(f"legbench: error: {exc}")
+        return 1
+    print("parity: every backend holds the spec's leg, limits and gravity")
+    return 0
+
+
+def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Register ``legbench doctor SCENARIO [--backends all] [--all]``."""
+    p = subparsers.add_parser("doctor", help="parity pre-flight: what each engine holds, read back, side by side")
+    p.add_argument("scenario", help="scenario YAML file")
+    p.add_argument("--backends", default="all", help="comma-separated backend names, or 'all' (default)")
+    p.add_argument("--all", action="store_true", help="also show every setting each backend reports")
+    p.set_defaults(func=_cli)
