@@ -69,8 +69,11 @@ def ground_force(y: float, ydot: float, vx: float, vy: float, p: ContactParams) 
 class ReferenceContact:
     """The analytic law as a generalized force, from joint state through the closed-form kinematics.
 
-    ``generalized(q, qd)`` returns tau_c = J_poc^T F [N m] and keeps F in W in
-    :attr:`force`. Written on floats: it runs at every engine sub-step.
+    :meth:`wrench` is the law on plain floats: tau_c = J_poc^T F [N m] and F in
+    W [N], nothing allocated, every constant bound at construction (it runs at
+    every engine sub-step). :meth:`generalized` is the same numbers in arrays:
+    it returns tau_c and keeps F in :attr:`force`. Both give exactly the
+    values of :func:`ground_force` applied through the kinematics below.
     """
 
     def __init__(self, params: ContactParams, L_B0: float, H: float, L_01: float, L_12: float,
@@ -81,6 +84,11 @@ class ReferenceContact:
         self.true_poc = params.poc == "true"
         self.force = np.zeros(3)
         self._tau = np.zeros(3)
+        self._geometry = (float(L_12), float(L_23), float(L_3E), float(H), float(R_foot))
+        # the terms friction_coefficient() and ground_force() compute from p at each call
+        v_th = float(params.v_th)
+        self._law = (float(params.Kp), float(params.Kd), float(params.mu_s), float(params.mu_k), v_th,
+                     1.5 * v_th, float(params.mu_s) - float(params.mu_k), 0.5 * v_th)  # fmt: skip
 
     @classmethod
     def from_leg(cls, params: ContactParams) -> ReferenceContact:
@@ -89,44 +97,67 @@ class ReferenceContact:
         g = load_params().geometry
         return cls(params, g.L_B0, g.H, g.L_01, g.L_12, g.L_23, g.L_3E, g.R_foot)
 
-    def generalized(self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> np.ndarray:
-        """J_poc^T F [N m] for the joint state (q [rad], qd [rad/s])."""
+    def wrench(self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
+        """(tau_c1, tau_c2, tau_c3, fx, fy, fz): J_poc^T F [N m] and F in W [N] for q [rad], qd [rad/s].
+
+        Plain floats in and out; out of contact, six zeros.
+        """
+        L_12, L_23, L_3E, H, R = self._geometry
         s1, c1 = math.sin(q1), math.cos(q1)
         s2, c2 = math.sin(q2), math.cos(q2)
         s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
-        reach = self.L_23 * s2 + self.L_3E * s23
+        reach = L_23 * s2 + L_3E * s23
         # foot centre height in W: z_W = x0 + H
-        z = self.L_12 * s1 + c1 * reach + self.H
-        y = self.R - z
-        tau = self._tau
+        y = R - (L_12 * s1 + c1 * reach + H)
         if y <= 0.0:
-            self.force[:] = 0.0
-            tau[:] = 0.0
-            return tau
-        dr2 = self.L_23 * c2 + self.L_3E * c23
-        dr3 = self.L_3E * c23
-        # Jacobian of E in frame 0 (rows x0, y0, z0); W = (-y0, -z0, x0)
-        jx = (self.L_12 * c1 - s1 * reach, c1 * dr2, c1 * dr3)
-        jy = (self.L_12 * s1 + c1 * reach, s1 * dr2, s1 * dr3)
-        jz = (0.0, reach, self.L_3E * s23)
-        # rows of J in W
-        Jx = (-jy[0], -jy[1], -jy[2])
-        Jy = (-jz[0], -jz[1], -jz[2])
-        Jz = jx
+            return _NO_CONTACT
+        dr2 = L_23 * c2 + L_3E * c23
+        dr3 = L_3E * c23
+        # Jacobian of E in frame 0 (rows x0, y0, z0); W = (-y0, -z0, x0). Rows of J in W:
+        # Jx = -jy0 = -(L_12 s1 + c1 reach, s1 dr2, s1 dr3), Jy = -jz0 = -(0, reach, L_3E s23),
+        # Jz = jx0 = (L_12 c1 - s1 reach, c1 dr2, c1 dr3)
+        Jx1, Jx2, Jx3 = -(L_12 * s1 + c1 * reach), -(s1 * dr2), -(s1 * dr3)
+        Jy1, Jy2, Jy3 = -0.0, -reach, -(L_3E * s23)
+        Jz1, Jz2, Jz3 = L_12 * c1 - s1 * reach, c1 * dr2, c1 * dr3
         if self.true_poc:
             # v_poc = v_E + omega x r with r = (0, 0, -R): adds (-R w_y, R w_x, 0).
             # Joint axes in W: joint 1 (0, -1, 0); joints 2, 3 (c1, 0, s1); so
             # w_x = c1 (qd2 + qd3), w_y = -qd1.
-            R = self.R
-            Jx = (Jx[0] + R, Jx[1], Jx[2])
-            Jy = (Jy[0], Jy[1] + R * c1, Jy[2] + R * c1)
-        vx = Jx[0] * qd1 + Jx[1] * qd2 + Jx[2] * qd3
-        vy = Jy[0] * qd1 + Jy[1] * qd2 + Jy[2] * qd3
-        vz = Jz[0] * qd1 + Jz[1] * qd2 + Jz[2] * qd3
-        fx, fy, fz = ground_force(y, -vz, vx, vy, self.p)
-        f = self.force
+            Jx1 = Jx1 + R
+            Jy2 = Jy2 + R * c1
+            Jy3 = Jy3 + R * c1
+        vx = Jx1 * qd1 + Jx2 * qd2 + Jx3 * qd3
+        vy = Jy1 * qd1 + Jy2 * qd2 + Jy3 * qd3
+        vz = Jz1 * qd1 + Jz2 * qd2 + Jz3 * qd3
+        # ground_force(y, -vz, vx, vy, p), inlined
+        Kp, Kd, mu_s, mu_k, v_th, v_slip, dmu, half_v_th = self._law
+        ydot = -vz
+        fz = Kp * y + (Kd * ydot if ydot > 0.0 else 0.0)
+        v = math.hypot(vx, vy)
+        if v == 0.0:
+            fx = fy = 0.0
+        else:
+            if v < v_th:
+                mu = v * mu_s / v_th
+            elif v < v_slip:
+                mu = mu_s - (v - v_th) * dmu / half_v_th
+            else:
+                mu = mu_k
+            ff = mu * fz / v
+            fx, fy = -ff * vx, -ff * vy
+        return (Jx1 * fx + Jy1 * fy + Jz1 * fz, Jx2 * fx + Jy2 * fy + Jz2 * fz, Jx3 * fx + Jy3 * fy + Jz3 * fz,
+                fx, fy, fz)  # fmt: skip
+
+    def generalized(self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> np.ndarray:
+        """J_poc^T F [N m] for the joint state (q [rad], qd [rad/s]); F in W [N] goes to :attr:`force`.
+
+        The returned array is reused by the next call.
+        """
+        t1, t2, t3, fx, fy, fz = self.wrench(q1, q2, q3, qd1, qd2, qd3)
+        f, tau = self.force, self._tau
         f[0], f[1], f[2] = fx, fy, fz
-        tau[0] = Jx[0] * fx + Jy[0] * fy + Jz[0] * fz
-        tau[1] = Jx[1] * fx + Jy[1] * fy + Jz[1] * fz
-        tau[2] = Jx[2] * fx + Jy[2] * fy + Jz[2] * fz
+        tau[0], tau[1], tau[2] = t1, t2, t3
         return tau
+
+
+_NO_CONTACT = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)

@@ -4,17 +4,23 @@ Every function takes joint angles ``q = (q1, q2, q3)`` [rad] and works on a
 single configuration of shape (3,) or a batch of shape (N, 3). Positions are
 of the foot centre E, in W [m], unless stated otherwise. The equations are the
 spec's; tests check them against Pinocchio on the generated URDF.
+
+The run loop's controllers use the scalar paths (:func:`angdist_scalar`,
+:func:`jacobian_scalar`, :class:`GravityTorque`): the same arithmetic on plain
+floats, in the same order, so they give the same numbers bit for bit without
+allocating small arrays at every control tick.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from legbench.exceptions import Unreachable
-from legbench.model import LegParams, gravity_torque, load_params
+from legbench.model import Geometry, LegParams, gravity_torque, load_params, pinocchio_model
 
 #: Rotation W_R_0 of the base frame (frame 0 x is up, y0 = -x_W, z0 = -y_W).
 W_R_0 = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
@@ -29,6 +35,11 @@ def _params(params: LegParams | None) -> LegParams:
 def angdist(q_from: np.ndarray | float, q_to: np.ndarray | float) -> np.ndarray:
     """Shortest signed angle from ``q_from`` to ``q_to`` in [-pi, pi) [rad]."""
     return np.mod(np.asarray(q_to) - np.asarray(q_from) + np.pi, 2.0 * np.pi) - np.pi
+
+
+def angdist_scalar(q_from: float, q_to: float) -> float:
+    """:func:`angdist` of two floats [rad] (Python's float ``%`` is ``np.mod``: same result bit for bit)."""
+    return (q_to - q_from + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def joint_error(q: np.ndarray, q_des: np.ndarray, params: LegParams | None = None) -> np.ndarray:
@@ -100,6 +111,29 @@ def jacobian(q: np.ndarray, params: LegParams | None = None) -> np.ndarray:
     return W_R_0 @ jacobian0(q, params)
 
 
+def jacobian_scalar(q1: float, q2: float, q3: float, g: Geometry) -> tuple[float, ...]:
+    """:func:`jacobian` for one configuration, on floats: Jv(q) in W, row-major (9 floats) [m/rad].
+
+    W_R_0 only permutes and negates rows (W x = -y0, W y = -z0, W z = x0), which
+    is exact, so the values equal :func:`jacobian`'s bit for bit.
+
+    Args:
+        q1, q2, q3: joint angles [rad].
+        g: the leg's geometry (``load_params().geometry``) [m].
+    """
+    s1, c1 = math.sin(q1), math.cos(q1)
+    s23 = math.sin(q2 + q3)
+    c23 = math.cos(q2 + q3)
+    reach = g.L_23 * math.sin(q2) + g.L_3E * s23
+    dreach2 = g.L_23 * math.cos(q2) + g.L_3E * c23
+    dreach3 = g.L_3E * c23
+    return (
+        -(g.L_12 * s1 + c1 * reach), -(s1 * dreach2), -(s1 * dreach3),
+        0.0, -reach, -(g.L_3E * s23),
+        g.L_12 * c1 - s1 * reach, c1 * dreach2, c1 * dreach3,
+    )  # fmt: skip
+
+
 def angular_jacobian(q: np.ndarray) -> np.ndarray:
     """Angular Jacobian of the shank (link 3) in W: omega = Jw qd [1]."""
     q = np.asarray(q, float)
@@ -154,7 +188,7 @@ class IKResult:
         return len(self.solutions) > 0
 
 
-def ik(p_w: np.ndarray, params: LegParams | None = None, tol: float = 1e-9) -> IKResult:
+def ik(p_w: np.ndarray | Sequence[float], params: LegParams | None = None, tol: float = 1e-9) -> IKResult:
     """Closed-form inverse kinematics of the foot centre E at ``p_w`` in W [m].
 
     Returns every solution inside the joint limits (up to four: two ab/ad roots
@@ -229,3 +263,29 @@ def ik_nearest(p_w: np.ndarray, q_ref: np.ndarray, params: LegParams | None = No
 def gravity(q: np.ndarray) -> np.ndarray:
     """Gravity torque G(q) [N m] through Pinocchio on the generated URDF."""
     return gravity_torque(np.asarray(q, float))
+
+
+class GravityTorque:
+    """:func:`gravity` on floats for repeated calls: one Pinocchio model, data and buffer, bound once.
+
+    ``G(q1, q2, q3)`` returns G(q) [N m] as three floats, the same numbers as
+    :func:`gravity` (the same Pinocchio call on the same model).
+    """
+
+    def __init__(self, urdf: str | None = None) -> None:
+        import pinocchio as pin
+
+        self._model = pinocchio_model(urdf)
+        self._data = self._model.createData()
+        self._qp = np.zeros(self._model.nq)
+        self._rnea_g = pin.computeGeneralizedGravity
+
+    def __call__(self, q1: float, q2: float, q3: float) -> tuple[float, float, float]:
+        """G(q) [N m] for joint angles q [rad]."""
+        qp = self._qp
+        qp[0] = q1
+        qp[1] = math.cos(q2)
+        qp[2] = math.sin(q2)
+        qp[3] = q3
+        g1, g2, g3 = self._rnea_g(self._model, self._data, qp).tolist()
+        return g1, g2, g3
