@@ -1,0 +1,195 @@
+"""Sweeps: the shipped time-step study shows each integrator's order; sweep files are validated."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from legbench import backends, sweep
+from legbench.exceptions import LegbenchError, ScenarioError
+
+ROOT = Path(__file__).resolve().parents[1]
+TIMESTEP = ROOT / "scenarios" / "sweeps" / "timestep.yaml"
+FREE_SPACE = ROOT / "scenarios" / "verification" / "free_space.yaml"
+
+
+@pytest.fixture(scope="module")
+def timestep(tmp_path_factory: pytest.TempPathFactory) -> sweep.SweepResult:
+    return sweep.run_sweep(TIMESTEP, tmp_path_factory.mktemp("sweeps") / "timestep", jobs=2)
+
+
+def _family(table: pd.DataFrame, study: int, backend: str) -> str:
+    rows = table[(table["study"] == study) & (table["backend"] == backend) & (table["role"] == "run")]
+    integ = rows["integrator"].iloc[0] if "integrator" in rows else None
+    if integ is None or (isinstance(integ, float) and math.isnan(integ)):
+        return "euler" if backend == "pybullet" else "unknown"  # Bullet integrates semi-implicit Euler
+    return str(integ)
+
+
+def test_first_order_integrators_converge_at_order_one(timestep: sweep.SweepResult) -> None:
+    """Semi-implicit Euler (and MuJoCo's implicit variants) converge at order 1 in free space, on every backend.
+
+    Tolerance 0.1 on the slope: e(h) = C h + O(h^2) measured against a run at
+    h_ref = 5 us, which biases the slope by at most h_ref / h_min = 4 % at the
+    finest step, and the O(h^2) term by h_max W ~ 1 % at the coarsest.
+    """
+    fits = timestep.fits
+    first = {"euler", "implicitfast", "implicit"}
+    seen = set()
+    for f in fits.itertuples():
+        if _family(timestep.table, f.study, f.backend) in first:
+            assert f.n_points == 4, f.label
+            assert abs(f.slope - 1.0) < 0.1, f"{f.label}: slope {f.slope:.3f}"
+            seen.add(f.backend)
+    assert seen == set(backends.available()), "every backend offers semi-implicit Euler"
+
+
+def test_rk4_converges_at_order_four(timestep: sweep.SweepResult) -> None:
+    """RK4 converges at order ~4 on every backend that offers it (slope within 0.3 of 4).
+
+    The points at or below the 1e-12 rad floor (round-off of 10^4 steps) are left out;
+    the three above it span 5.6e-10 .. 2.2e-12 rad.
+    """
+    fits = timestep.fits
+    offered = {n for n in backends.available() if "rk4" in backends.get(n).choices.get("integrator", ())}
+    seen = set()
+    for f in fits.itertuples():
+        if _family(timestep.table, f.study, f.backend) == "rk4":
+            assert f.n_points >= 3, f.label
+            assert abs(f.slope - 4.0) < 0.3, f"{f.label}: slope {f.slope:.3f}"
+            seen.add(f.backend)
+    assert seen == offered
+
+
+def test_timestep_sweep_writes_table_fits_and_plots(timestep: sweep.SweepResult) -> None:
+    out = timestep.out_dir
+    assert out is not None
+    for name in ("sweep.csv", "sweep.parquet", "fits.csv", "sweep.json", "convergence.png", "speed_accuracy.png"):
+        assert (out / name).stat().st_size > 0, name
+    back = pd.read_parquet(out / "sweep.parquet")
+    pd.testing.assert_frame_equal(back, timestep.table, check_dtype=False)
+    meta = json.loads((out / "sweep.json").read_text())
+    assert meta["name"] == "timestep" and len(meta["fits"]) == len(timestep.fits)
+    runs = timestep.table[timestep.table["role"] == "run"]
+    assert (runs["status"] == "ok").all()
+    assert (runs["wall_per_sim_s"] > 0).all() and np.isfinite(runs["rtf"]).all()
+
+
+def _write(tmp_path: Path, text: str, name: str = "s.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+GOOD = f"""
+name: t
+scenario: {FREE_SPACE}
+set: {{duration: 0.1}}
+studies:
+  - backends: [pinocchio]
+    grid: {{backends.*.dt: [1.0e-3, 5.0e-4]}}
+    reference: {{set: {{backends.*.dt: 1.0e-4}}}}
+"""
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "problem"),
+    [
+        (GOOD + "foo: 1\n", "foo", "unknown key"),
+        (GOOD.replace("name: t", "name: a/b"), "name", "plain name"),
+        (GOOD + "signals: [q, bogus]\n", "signals[1]", "unknown signal"),
+        (GOOD + "metric: zz_max\n", "metric", "unknown metric"),
+        (GOOD + "fit: {x: gains.Kp}\n", "fit.x", "no study sweeps"),
+        (GOOD + "short_horizon: {window: -1}\n", "short_horizon.window", "must be > 0"),
+        (GOOD.replace("[pinocchio]", "[nonexistent]"), "studies[0].backends[0]", "unknown backend"),
+        (GOOD.replace("[1.0e-3, 5.0e-4]", "1.0e-3"), "studies[0].grid.backends.*.dt", "non-empty list"),
+        (GOOD.replace("backends.*.dt: [", "backends.pin*.dt: ["), "studies[0].grid.backends.pin*.dt", "whole key"),
+        (GOOD.replace("{set: {backends.*.dt: 1.0e-4}}", "{}"), "studies[0].reference", "the run itself"),
+        (GOOD.replace("    reference: {set: {backends.*.dt: 1.0e-4}}\n", ""), "studies[0]", "'reference'"),
+        (GOOD.replace(str(FREE_SPACE), "missing.yaml"), "scenario", "no such scenario"),
+    ],
+)
+def test_invalid_sweep_file_names_file_and_key(tmp_path: Path, text: str, key: str, problem: str) -> None:
+    path = _write(tmp_path, text)
+    with pytest.raises(ScenarioError) as err:
+        sweep.load_sweep(path)
+    assert err.value.file == str(path)
+    assert err.value.key == key
+    assert problem in err.value.problem
+
+
+def test_value_the_scenario_rejects_is_reported_at_its_sweep_key(tmp_path: Path) -> None:
+    path = _write(tmp_path, GOOD.replace("    grid:", "    set: {backends.*.integrator: bogus}\n    grid:"))
+    with pytest.raises(ScenarioError) as err:
+        sweep.plan(sweep.load_sweep(path))
+    assert err.value.file == str(path)
+    assert err.value.key == "studies[0].set.backends.*.integrator"
+    assert "'bogus' for pinocchio" in err.value.problem and err.value.line is not None
+
+
+def test_malformed_yaml_and_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(ScenarioError, match="malformed YAML"):
+        sweep.load_sweep(_write(tmp_path, "name: [unclosed\n"))
+    with pytest.raises(ScenarioError, match="no such file"):
+        sweep.load_sweep(tmp_path / "nope.yaml")
+
+
+def test_backend_not_installed_is_skipped_with_a_note(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(backends, "available", lambda: ["pinocchio"])
+    path = _write(tmp_path, GOOD.replace("[pinocchio]", "[pinocchio, mujoco]"))
+    p = sweep.plan(sweep.load_sweep(path))
+    assert {r.backend for r in p.rows} == {"pinocchio"}
+    assert any("mujoco is not installed" in n for n in p.notes)
+
+
+def test_grid_is_a_cartesian_product_and_references_are_shared(tmp_path: Path) -> None:
+    text = GOOD.replace(
+        "grid: {backends.*.dt: [1.0e-3, 5.0e-4]}", "grid: {backends.*.dt: [1.0e-3, 5.0e-4], gains.Kp: [5, 10, 20]}"
+    )
+    p = sweep.plan(sweep.load_sweep(_write(tmp_path, text)))
+    runs = [r for r in p.rows if r.role == "run"]
+    assert len(runs) == 6 and len({r.run for r in runs}) == 6
+    assert {tuple(sorted(r.params)) for r in runs} == {("dt", "gains.Kp")}
+    # the reference keeps gains.Kp of its grid point and replaces dt: one reference per Kp
+    assert len({r.ref for r in runs}) == 3
+
+
+def test_run_metrics_are_zero_for_identical_runs_and_wrap_the_hip() -> None:
+    t = np.arange(5) * 1e-3
+    q = np.column_stack([np.linspace(0, 0.1, 5), np.linspace(3.0, 3.2, 5), np.zeros(5)])
+    ref = {"status": "ok", "t": t, "q": q, "qd": np.ones((5, 3)), "tau": np.ones((5, 3)), "f": np.zeros((5, 3))}
+    wrapped = dict(ref, q=q + np.array([0.0, -2 * np.pi, 0.0]))
+    m = sweep.run_metrics(wrapped, ref, ["q", "qd", "force"])
+    assert m["q_max"] < 1e-12 and m["qd_max"] == 0.0
+    assert math.isnan(m["force_pct"])  # reference peak is zero: % undefined
+    shifted = dict(ref, q=q + np.array([0.01, 0.0, 0.0]))
+    m = sweep.run_metrics(shifted, ref, ["q"])
+    assert m["q1_max"] == pytest.approx(0.01) and m["q1_pct"] == pytest.approx(100 * 0.01 / 0.1)
+    assert math.isnan(sweep.run_metrics(dict(ref, status="failed"), ref, ["q"])["q_max"])
+
+
+def test_write_refuses_a_foreign_directory(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "precious.txt").write_text("keep")
+    with pytest.raises(LegbenchError, match="not a legbench sweep directory"):
+        sweep.run_sweep(_write(tmp_path, GOOD), out, jobs=1)
+    assert (out / "precious.txt").exists()
+
+
+def test_cli_runs_a_sweep_and_rewrites_its_own_directory(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    parser = argparse.ArgumentParser()
+    sweep.add_cli(parser.add_subparsers())
+    path = _write(tmp_path, GOOD)
+    out = tmp_path / "res"
+    for _ in range(2):  # the second run replaces the first
+        args = parser.parse_args(["sweep", str(path), "--out", str(out), "--jobs", "1"])
+        assert args.func(args) == 0
+    assert "2 runs + 1 references, 0 failed" in capsys.readouterr().out
+    assert (out / "sweep.csv").exists() and (out / "sweep.png").exists()
