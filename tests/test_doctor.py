@@ -1,0 +1,88 @@
+"""Parity pre-flight: every engine holds the spec's leg; a planted mismatch is caught and named."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from legbench import backends, doctor
+
+EFFORT = Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml"
+
+
+def test_every_backend_holds_the_spec_leg_limits_and_gravity() -> None:
+    t = doctor.doctor(EFFORT)
+    parity = t[t["status"] != "info"]
+    assert (parity["status"] == "ok").all(), parity[parity["status"] != "ok"]
+    names = backends.available()
+    assert set(names) <= set(t.columns)
+    rows = set(parity["row"])
+    assert {"link2.mass", "link3.inertia.xy", "gravity", "q3_knee.upper", "q1_abad.torque_limit"} <= rows
+    # settings each engine reports are shown beside each other
+    assert "dt" in set(t["row"]) and "sub_steps" in set(t["row"])
+
+
+def _heavier_link2_pinocchio(b: Any) -> None:
+    Y = b.model.inertias[2]
+    Y.mass = Y.mass * (1 + 1e-4)
+    b.model.inertias[2] = Y
+
+
+def _heavier_link2_mujoco(b: Any) -> None:
+    b.model.body_mass[b.model.body("link2").id] *= 1 + 1e-4
+
+
+def _heavier_link2_pybullet(b: Any) -> None:
+    import pybullet as p
+
+    link = b.links["link2"]
+    mass = p.getDynamicsInfo(b.body, link, physicsClientId=b.cid)[0]
+    p.changeDynamics(b.body, link, mass=mass * (1 + 1e-4), physicsClientId=b.cid)
+
+
+PLANT: dict[str, Callable[[Any], None]] = {
+    "pinocchio": _heavier_link2_pinocchio,
+    "mujoco": _heavier_link2_mujoco,
+    "pybullet": _heavier_link2_pybullet,
+}
+
+
+@pytest.mark.parametrize("name", backends.available())
+def test_planted_mass_mismatch_is_caught_and_named(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Link 2 made 1e-4 heavier inside one engine after it loaded (100 x the 1e-6 tolerance)."""
+    if name not in PLANT:
+        pytest.skip(f"no way to plant a mismatch in {name}")
+    cls = backends.get(name)
+    original = cls.load
+
+    def load(self: Any, *args: Any, **kwargs: Any) -> None:
+        original(self, *args, **kwargs)
+        PLANT[name](self)
+
+    monkeypatch.setattr(cls, "load", load)
+    with pytest.raises(doctor.ParityError) as err:
+        doctor.preflight(EFFORT, backends.available())
+    assert err.value.backend == name and err.value.row == "link2.mass"
+    assert f"{name} holds link2.mass" in str(err.value)
+
+
+def test_cli_prints_the_table_and_reports_a_mismatch(monkeypatch: pytest.MonkeyPatch,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    parser = argparse.ArgumentParser()
+    doctor.add_cli(parser.add_subparsers())
+    args = parser.parse_args(["doctor", str(EFFORT), "--backends", "pinocchio"])
+    assert args.func(args) == 0
+    assert "parity: every backend holds" in capsys.readouterr().out
+    original = backends.get("pinocchio").load
+
+    def load(self: Any, *a: Any, **k: Any) -> None:
+        original(self, *a, **k)
+        self.lower = [x - 0.1 for x in self.lower]  # a wider joint limit than the spec
+
+    monkeypatch.setattr(backends.get("pinocchio"), "load", load)
+    assert args.func(args) == 1
+    assert "pinocchio holds q1_abad.lower" in capsys.readouterr().out

@@ -1,0 +1,121 @@
+"""Verification cases: every backend meets each closed-form answer within the tolerance verify.py states.
+
+The tolerances are derived in legbench/verify.py (module docstring), one per
+case, from the physics or numerics that may legitimately separate the
+simulation from the closed form; the tests restate them here beside the
+assertion.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from legbench import backends, verify
+from legbench.exceptions import LegbenchError
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory: pytest.TempPathFactory) -> tuple[pd.DataFrame, Path]:
+    out = tmp_path_factory.mktemp("verification")
+    return verify.verify(out), out
+
+
+def _failures(df: pd.DataFrame) -> str:
+    bad = df[~df["pass"].astype(bool)]
+    return "\n".join(
+        f"{r.case} {r.backend} {r.variant} {r.quantity}: measured {r.measured:.6g}, expected {r.expected:.6g}, "
+        f"error {r.error:.3g} > tolerance {r.tolerance:.3g} ({r.note})"
+        for r in bad.itertuples()
+    )
+
+
+@pytest.mark.parametrize("case", verify.CASES)
+def test_case_passes_on_every_backend(results: tuple[pd.DataFrame, Path], case: str) -> None:
+    """energy: first-order integrators follow the predicted drift h int e2 dt within max|pred| (h W + (Ts W)^2)
+    (the O(h^2) remainder and the trapezoid sum), RK4 stays at round-off, adaptive within n (rtol |x| + atol)
+    |grad E|; rest_penetration: y = Fn/Kp within 0.1 % plus Kd max|ydot|/Kp; static_balance: within the
+    dynamic terms left, the application point's lever y |F_t| and 0.1 % of |F|; small_oscillation: each
+    closed-loop pole within 0.5 % of the sampled, integrator-aware linear model."""
+    df, _ = results
+    rows = df[df["case"] == case]
+    assert set(rows["backend"]) == set(backends.available())
+    assert rows["pass"].all(), _failures(rows)
+    assert np.isfinite(rows["measured"]).all()
+
+
+def test_energy_covers_every_integrator_of_every_backend(results: tuple[pd.DataFrame, Path]) -> None:
+    df, _ = results
+    energy = df[df["case"] == "energy"]
+    for name in backends.available():
+        offered = backends.get(name).choices.get("integrator", (None,))
+        assert len(energy[energy["backend"] == name]) == len(offered), name
+
+
+def test_semi_implicit_euler_drifts_as_predicted_not_as_zero(results: tuple[pd.DataFrame, Path]) -> None:
+    """The first-order drift is real (>> round-off) and the prediction catches its sign and size."""
+    df, _ = results
+    euler = df[(df["case"] == "energy") & df["variant"].str.contains("euler")]
+    assert len(euler)
+    assert (euler["measured"].abs() > 1e-5).all()
+    assert (np.sign(euler["measured"]) == np.sign(euler["expected"])).all()
+
+
+def test_small_oscillation_accounts_for_sampling(results: tuple[pd.DataFrame, Path]) -> None:
+    """The 1 kHz PD moves the fast real pole from -231/s (continuous model) to -331/s: a 43 % effect the
+    sampled model predicts and the simulations show."""
+    df, _ = results
+    fast = df[(df["case"] == "small_oscillation") & (df["quantity"] == "mode 4 decay rate")]
+    assert len(fast) and (fast["expected"] > 300).all() and (fast["measured"] > 300).all()
+    assert fast["note"].str.contains("continuous-time model \\(no sampling\\) -231", regex=True).all()
+
+
+def test_files_written(results: tuple[pd.DataFrame, Path]) -> None:
+    df, out = results
+    meta = json.loads((out / "verification.json").read_text())
+    assert meta["total"] == len(df) and meta["passed"] == int(df["pass"].sum())
+    md = (out / "verification.md").read_text()
+    assert md.startswith(f"# Verification: {len(df)} of {len(df)} checks pass")
+    assert "| case | backend |" in md
+
+
+def test_matrix_pencil_recovers_known_poles() -> None:
+    z_true = np.array([0.99 * np.exp(0.05j), 0.99 * np.exp(-0.05j), 0.95, 0.7])
+    k = np.arange(300)
+    Y = np.vstack([(np.array([1.0, 0.5, -2.0, 1.0]) * z_true[None, :] ** k[:, None]).sum(axis=1).real,
+                   (np.array([0.3, 0.3, 1.0, -1.0]) * z_true[None, :] ** k[:, None]).sum(axis=1).real])  # fmt: skip
+    z = verify.matrix_pencil(Y, 4)
+    assert np.sort_complex(z) == pytest.approx(np.sort_complex(z_true), abs=1e-9)
+
+
+def test_discrete_loop_converges_to_the_exact_flow() -> None:
+    """Sub-stepped semi-implicit Euler approaches the exact ZOH flow at first order, RK4 at fourth."""
+    M = np.array([[0.04, 0.01, 0.0], [0.01, 0.05, 0.005], [0.0, 0.005, 0.008]])
+    Kg = np.diag([0.5, 0.3, -0.1])
+    Kp, Kd = 10 * np.eye(3), np.eye(3)
+    exact = verify.discrete_loop(M, Kg, Kp, Kd, 1e-3, "exact")
+    e = [np.abs(verify.discrete_loop(M, Kg, Kp, Kd, 1e-3, "euler", n) - exact).max() for n in (10, 20)]
+    r = [np.abs(verify.discrete_loop(M, Kg, Kp, Kd, 1e-3, "rk4", n) - exact).max() for n in (1, 2)]
+    assert e[0] / e[1] == pytest.approx(2.0, rel=0.05)
+    assert r[0] / r[1] == pytest.approx(16.0, rel=0.2) or r[1] < 1e-14
+
+
+def test_unknown_case_is_an_error() -> None:
+    with pytest.raises(LegbenchError, match="unknown verification case 'bogus'"):
+        verify.verify(None, ["pinocchio"], ["bogus"])
+
+
+def test_cli_runs_a_case(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    parser = argparse.ArgumentParser()
+    verify.add_cli(parser.add_subparsers())
+    args = parser.parse_args(["verify", "--out", str(tmp_path), "--backends", "pinocchio", "--cases",
+                              "rest_penetration"])  # fmt: skip
+    assert args.func(args) == 0
+    assert "1 of 1 checks pass" in capsys.readouterr().out
+    assert math.isfinite(json.loads((tmp_path / "verification.json").read_text())["checks"][0]["measured"])
