@@ -4,16 +4,26 @@ Every controller is discrete at the control rate and returns joint torques
 [N m] before saturation; the run loop saturates them at the joint limits
 (:func:`saturate`). A controller is started with the measured state when its
 event fires (:meth:`Controller.start`), then called once per tick.
+
+The run loop calls :meth:`Controller.torque`, which works on plain floats:
+one control tick costs a few microseconds instead of the tens a chain of
+small numpy operations costs, and the loop's overhead must stay well below
+an engine's step. The array form ``controller(k, q, qd)`` gives the same
+numbers bit for bit (every operation is the same IEEE operation in the same
+order; :mod:`legbench.kinematics` documents its scalar paths).
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from bisect import bisect_right
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.interpolate import CubicHermiteSpline
 
 from legbench import kinematics
+from legbench.kinematics import angdist_scalar
 from legbench.model import LegParams, load_params
 from legbench.scenario import Event, Gains
 
@@ -22,6 +32,11 @@ def saturate(tau: np.ndarray, limit: np.ndarray) -> np.ndarray:
     """Clip joint torques to +-limit [N m] (in place, returned)."""
     np.clip(tau, -limit, limit, out=tau)
     return tau
+
+
+def _floats(x: np.ndarray | Sequence[float]) -> tuple[float, float, float]:
+    a, b, c = np.asarray(x, dtype=float).tolist()
+    return a, b, c
 
 
 class Controller(ABC):
@@ -34,8 +49,12 @@ class Controller(ABC):
         """Activate at time t [s] from the measured q [rad], qd [rad/s]."""
 
     @abstractmethod
+    def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
+        """Torque (tau1, tau2, tau3) [N m] at control tick k (t = k Ts) for the measured q [rad], qd [rad/s]."""
+
     def __call__(self, k: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """Torque [N m] at control tick k (t = k Ts) for the measured state."""
+        """:meth:`torque` on arrays: torque [N m] at tick k for the measured q [rad], qd [rad/s]."""
+        return np.array(self.torque(k, *_floats(q), *_floats(qd)))
 
 
 class PID:
@@ -52,21 +71,44 @@ class PID:
         self.Ki = np.array(gains.Ki)
         self.Ts = Ts
         self.params = params or load_params()
-        self.e_prev: np.ndarray | None = None
-        self.integral = np.zeros(3)
+        self._gains = (*gains.Kp, *gains.Kd, *gains.Ki)
+        self._wrap = tuple(bool(c) for c in self.params.continuous)
+        self.e_prev: tuple[float, float, float] | None = None
+        self._i = (0.0, 0.0, 0.0)
+
+    @property
+    def integral(self) -> np.ndarray:
+        """Integral of the error, sum(e Ts) [rad s]."""
+        return np.array(self._i)
 
     def reset(self) -> None:
         self.e_prev = None
-        self.integral[:] = 0.0
+        self._i = (0.0, 0.0, 0.0)
+
+    def update(self, q1: float, q2: float, q3: float, r1: float, r2: float, r3: float) -> tuple[float, float, float]:
+        """Torque [N m] for the joint angles q [rad] and the target r [rad], on floats."""
+        w1, w2, w3 = self._wrap
+        e1 = angdist_scalar(q1, r1) if w1 else r1 - q1
+        e2 = angdist_scalar(q2, r2) if w2 else r2 - q2
+        e3 = angdist_scalar(q3, r3) if w3 else r3 - q3
+        p1, p2, p3 = self.e_prev if self.e_prev is not None else (e1, e2, e3)
+        Ts = self.Ts
+        i1, i2, i3 = self._i
+        i1 += e1 * Ts
+        i2 += e2 * Ts
+        i3 += e3 * Ts
+        self._i = (i1, i2, i3)
+        self.e_prev = (e1, e2, e3)
+        kp1, kp2, kp3, kd1, kd2, kd3, ki1, ki2, ki3 = self._gains
+        return (
+            kp1 * e1 + kd1 * ((e1 - p1) / Ts) + ki1 * i1,
+            kp2 * e2 + kd2 * ((e2 - p2) / Ts) + ki2 * i2,
+            kp3 * e3 + kd3 * ((e3 - p3) / Ts) + ki3 * i3,
+        )
 
     def __call__(self, q: np.ndarray, q_des: np.ndarray) -> np.ndarray:
-        e = kinematics.joint_error(q, q_des, self.params)
-        if self.e_prev is None:
-            self.e_prev = e
-        edot = (e - self.e_prev) / self.Ts
-        self.integral += e * self.Ts
-        self.e_prev = e
-        return self.Kp * e + self.Kd * edot + self.Ki * self.integral
+        """Torque [N m] for the joint angles q [rad] and the target q_des [rad]."""
+        return np.array(self.update(*_floats(q), *_floats(q_des)))
 
 
 class PositionController(Controller):
@@ -78,16 +120,19 @@ class PositionController(Controller):
         self.event = event
         self.pid = PID(gains, Ts)
         self.q_des = np.zeros(3)
+        self._r = (0.0, 0.0, 0.0)
 
     def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
         if self.event.joint is not None:
             self.q_des = np.array(self.event.joint)
         else:
             self.q_des = kinematics.ik_nearest(np.array(self.event.cartesian), q)
+        self._r = _floats(self.q_des)
         self.pid.reset()
 
-    def __call__(self, k: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        return self.pid(q, self.q_des)
+    def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
+        r1, r2, r3 = self._r
+        return self.pid.update(q1, q2, q3, r1, r2, r3)
 
 
 def waypoint_velocities(Q: np.ndarray, times: np.ndarray, v_start: np.ndarray) -> np.ndarray:
@@ -121,7 +166,15 @@ class TrajectoryController(Controller):
     u = Kp d(q, q_d(t)) + Kd (qd_d(t) - qd) + Ki integral(d). The trajectory starts
     from the measured state at activation; segments are cubic in position and
     velocity at both ends (as ros_control's joint_trajectory_controller). The
-    desired state is sampled on the control grid once, at activation.
+    desired state is the spline at the control instants after activation,
+    held at the last waypoint (velocity 0) after the last waypoint time.
+
+    Only the spline's coefficients are kept (memory per waypoint, not per
+    tick); :meth:`desired_scalar` evaluates them at each tick with the same
+    floating-point operations, in the same order, as scipy's ``PPoly`` (power
+    sum from the constant term up, ``s = t - t_i`` in the interval
+    ``t_i <= t < t_i+1``, closed at the last knot), so the values equal
+    ``spline(t)`` and ``spline(t, 1)`` on the control grid bit for bit.
     """
 
     name = "trajectory"
@@ -134,12 +187,20 @@ class TrajectoryController(Controller):
         self.Ts = Ts
         self.n_ticks = n_ticks
         self.params = load_params()
+        self._gains = (*gains.Kp, *gains.Kd, *gains.Ki)
+        self._wrap = tuple(bool(c) for c in self.params.continuous)
         self.k0 = 0
-        self.q_d = np.zeros((1, 3))
-        self.qd_d = np.zeros((1, 3))
-        self.integral = np.zeros(3)
+        self._last = 0  # last tick offset from k0 with its own desired state
+        self._x: list[float] = [0.0, 1.0]  # knot times after activation [s]
+        self._coef = np.zeros((1, 12))  # per interval: (c3, c2, c1, c0) of joints 1, 2, 3 (highest power first)
+        self._i = (0.0, 0.0, 0.0)
         self.knots_q = np.zeros((1, 3))
         self.knots_t = np.zeros(1)
+
+    @property
+    def integral(self) -> np.ndarray:
+        """Integral of the tracking error [rad s]."""
+        return np.array(self._i)
 
     def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
         Qw = joint_waypoints(np.array(self.event.waypoints), q, self.params)
@@ -148,23 +209,58 @@ class TrajectoryController(Controller):
         V = waypoint_velocities(Q, times, np.asarray(qd, float))
         spline = CubicHermiteSpline(times, Q, V, axis=0)
         self.k0 = int(round(t / self.Ts))
-        n = max(self.n_ticks - self.k0, 1)
-        tt = np.minimum(np.arange(n) * self.Ts, times[-1])
-        self.q_d = spline(tt)
-        self.qd_d = np.where((np.arange(n) * self.Ts < times[-1])[:, None], spline(tt, 1), 0.0)
+        self._last = max(self.n_ticks - self.k0, 1) - 1
+        self._x = times.tolist()
+        c = spline.c  # (4, intervals, 3), highest power first
+        self._coef = np.ascontiguousarray(c.transpose(1, 2, 0).reshape(c.shape[1], 12))
         self.knots_q, self.knots_t = Q, times
-        self.integral[:] = 0.0
+        self._i = (0.0, 0.0, 0.0)
+
+    def desired_scalar(self, k: int) -> tuple[float, float, float, float, float, float]:
+        """Desired (q_d [rad], qd_d [rad/s]) at tick k, as six floats."""
+        i = k - self.k0
+        x = (i if i < self._last else self._last) * self.Ts  # time since activation [s]
+        knots = self._x
+        t_end = knots[-1]
+        xt = t_end if x > t_end else x
+        j = bisect_right(knots, xt) - 1
+        if j > len(knots) - 2:
+            j = len(knots) - 2
+        s = xt - knots[j]
+        s2 = s * s
+        s3 = s2 * s
+        a0, a1, a2, a3, b0, b1, b2, b3, c0, c1, c2, c3 = self._coef[j].tolist()
+        r1 = 0.0 + a3 + a2 * s + a1 * s2 + a0 * s3
+        r2 = 0.0 + b3 + b2 * s + b1 * s2 + b0 * s3
+        r3 = 0.0 + c3 + c2 * s + c1 * s2 + c0 * s3
+        if x < t_end:
+            return (r1, r2, r3, 0.0 + a2 + a1 * s * 2.0 + a0 * s2 * 3.0, 0.0 + b2 + b1 * s * 2.0 + b0 * s2 * 3.0,
+                    0.0 + c2 + c1 * s * 2.0 + c0 * s2 * 3.0)  # fmt: skip
+        return r1, r2, r3, 0.0, 0.0, 0.0
 
     def desired(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Desired q_d [rad] and qd_d [rad/s] at tick k."""
-        i = min(k - self.k0, len(self.q_d) - 1)
-        return self.q_d[i], self.qd_d[i]
+        d = self.desired_scalar(k)
+        return np.array(d[:3]), np.array(d[3:])
 
-    def __call__(self, k: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        q_d, qd_d = self.desired(k)
-        e = kinematics.joint_error(q, q_d, self.params)
-        self.integral += e * self.Ts
-        return self.Kp * e + self.Kd * (qd_d - qd) + self.Ki * self.integral
+    def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
+        r1, r2, r3, v1, v2, v3 = self.desired_scalar(k)
+        w1, w2, w3 = self._wrap
+        e1 = angdist_scalar(q1, r1) if w1 else r1 - q1
+        e2 = angdist_scalar(q2, r2) if w2 else r2 - q2
+        e3 = angdist_scalar(q3, r3) if w3 else r3 - q3
+        Ts = self.Ts
+        i1, i2, i3 = self._i
+        i1 += e1 * Ts
+        i2 += e2 * Ts
+        i3 += e3 * Ts
+        self._i = (i1, i2, i3)
+        kp1, kp2, kp3, kd1, kd2, kd3, ki1, ki2, ki3 = self._gains
+        return (
+            kp1 * e1 + kd1 * (v1 - qd1) + ki1 * i1,
+            kp2 * e2 + kd2 * (v2 - qd2) + ki2 * i2,
+            kp3 * e3 + kd3 * (v3 - qd3) + ki3 * i3,
+        )
 
 
 class EffortController(Controller):
@@ -174,12 +270,22 @@ class EffortController(Controller):
 
     def __init__(self, event: Event) -> None:
         self.h_d = np.array(event.force, dtype=float)
+        self._h = _floats(self.h_d)
+        self._geometry = load_params().geometry
+        self._gravity = kinematics.GravityTorque()
 
     def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
         pass
 
-    def __call__(self, k: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        return kinematics.jacobian(q).T @ self.h_d + kinematics.gravity(q)
+    def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
+        hx, hy, hz = self._h
+        j11, j12, j13, j21, j22, j23, j31, j32, j33 = kinematics.jacobian_scalar(q1, q2, q3, self._geometry)
+        g1, g2, g3 = self._gravity(q1, q2, q3)
+        return (
+            j11 * hx + j21 * hy + j31 * hz + g1,
+            j12 * hx + j22 * hy + j32 * hz + g2,
+            j13 * hx + j23 * hy + j33 * hz + g3,
+        )
 
 
 def make_controller(event: Event, gains: Gains, Ts: float, n_ticks: int) -> Controller:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.interpolate import CubicHermiteSpline
 
 from legbench import kinematics as K
 from legbench.controllers import (
@@ -96,3 +97,55 @@ def test_effort_controller_is_jt_h_plus_gravity() -> None:
     ctrl = EffortController(Event(0.0, "effort", force=(0.0, 0.0, -100.0)))
     tau = ctrl(0, q, np.zeros(3))
     np.testing.assert_allclose(tau, K.jacobian(q).T @ [0, 0, -100.0] + K.gravity(q), atol=1e-12)
+
+
+def _bits(x: np.ndarray | tuple[float, ...]) -> np.ndarray:
+    return np.asarray(x, dtype=float).view(np.int64)
+
+
+def test_trajectory_desired_state_is_the_scipy_spline_on_the_control_grid_bit_for_bit() -> None:
+    """Evaluated per tick on floats, q_d and qd_d equal scipy's spline(t) and spline(t, 1) exactly (activation
+    mid-run, hold after the last waypoint), so the float path changes no logged bit."""
+    pts = [[0.1667, 0.05, 0.10], [0.1667, 0.10, 0.12], [0.1667, 0.15, 0.10], [0.1667, 0.12, 0.06]]
+    times = (0.5, 1.0, 1.5, 1.7)
+    ev = Event(0.2, "trajectory", waypoints=tuple(map(tuple, pts)), times=times)
+    n_ticks = 2500
+    ctrl = TrajectoryController(ev, Gains(), TS, n_ticks=n_ticks)
+    q0, qd0 = np.array([0.0, -0.6, -1.2]), np.array([0.1, -0.2, 0.3])
+    ctrl.start(0.2, q0, qd0)
+    Q = np.vstack([q0, joint_waypoints(np.array(pts), q0)])
+    knots = np.array([0.0, *times])
+    spline = CubicHermiteSpline(knots, Q, waypoint_velocities(Q, knots, qd0), axis=0)
+    i = np.arange(n_ticks - 200)
+    tt = np.minimum(i * TS, knots[-1])
+    P = spline(tt)
+    V = np.where((i * TS < knots[-1])[:, None], spline(tt, 1), 0.0)
+    for k in range(200, n_ticks):
+        d = ctrl.desired_scalar(k)
+        np.testing.assert_array_equal(_bits(d), _bits(np.concatenate([P[k - 200], V[k - 200]])), err_msg=f"tick {k}")
+
+
+def test_pid_float_path_equals_the_numpy_formula_bit_for_bit() -> None:
+    """u = Kp e + Kd (e - e_prev)/Ts + Ki I in numpy arrays, tick by tick, against the controller's floats."""
+    gains = Gains(Kp=(10.0, 12.0, 9.0), Kd=(1.0, 0.7, 1.3), Ki=(2.0, 0.5, 1.0))
+    pid = PID(gains, TS)
+    rng = np.random.default_rng(3)
+    q_des = np.array([0.3, 3.0, -1.0])
+    e_prev, integral = None, np.zeros(3)
+    for q in rng.uniform(-3.5, 3.5, size=(500, 3)):
+        e = K.joint_error(q, q_des)
+        e_prev = e if e_prev is None else e_prev
+        integral += e * TS
+        ref = np.array(gains.Kp) * e + np.array(gains.Kd) * ((e - e_prev) / TS) + np.array(gains.Ki) * integral
+        e_prev = e
+        np.testing.assert_array_equal(_bits(pid(q, q_des)), _bits(ref))
+
+
+def test_effort_float_path_equals_the_numpy_formula_bit_for_bit() -> None:
+    """J^T h_d + G(q) with h_d along one axis (the tasks' (0, 0, -100) N): one rounding per product, so
+    matrix product and scalar sums agree exactly."""
+    ctrl = EffortController(Event(0.0, "effort", force=(0.0, 0.0, -100.0)))
+    rng = np.random.default_rng(4)
+    for q in rng.uniform(-2.0, 2.0, size=(300, 3)):
+        ref = K.jacobian(q).T @ np.array([0.0, 0.0, -100.0]) + K.gravity(q)
+        np.testing.assert_array_equal(_bits(ctrl(0, q, np.zeros(3))), _bits(ref))
