@@ -27,7 +27,7 @@ import pandas as pd
 from legbench import backends as registry
 from legbench import kinematics
 from legbench.backends.base import Backend, Physics
-from legbench.controllers import Controller, make_controller, saturate
+from legbench.controllers import Controller, make_controller
 from legbench.exceptions import BackendNotFound, LegbenchError, SimulationDiverged
 from legbench.model import URDF_FILE, load_params
 from legbench.scenario import Scenario
@@ -87,46 +87,84 @@ def simulate(
     physics: Physics,
     progress: Callable[[float], None] | None = None,
 ) -> Trajectory:
-    """Run one scenario on one loaded-and-ready backend; a divergence ends the log early, marked failed."""
+    """Run one scenario on one loaded-and-ready backend; a divergence ends the log early, marked failed.
+
+    The loop is the benchmark's "full run" (``legbench bench``); per tick it
+    does only what a tick needs, on plain floats: read the state, check it,
+    fire due events, compute and saturate the torque, write one row of each
+    preallocated log array, step. The torque handed to :meth:`Backend.step` is
+    a read-only view of the logged row, so what is logged is what the backend
+    received. Nothing is allocated per tick beyond the backend's own state
+    arrays and the controller's three floats; memory is the log itself.
+
+    Args:
+        scenario: the task (duration, control rate, events, gains, initial state).
+        backend: a backend already :meth:`~Backend.load`-ed with ``physics``.
+        physics: the physics the backend was loaded with (torque limits [N m]).
+        progress: called with the fraction done (0..1) about 50 times per run.
+
+    Returns:
+        The log; ``status`` ``failed`` (divergence or an engine error) or
+        ``interrupted`` (Ctrl-C) with the rows up to that tick.
+    """
     n = scenario.n_ticks
     Ts = scenario.control_dt
-    limit = np.array(physics.torque_limit)
+    lim1, lim2, lim3 = (float(x) for x in physics.torque_limit)
     g = load_params().geometry
+    L_12, L_23, L_3E, H = g.L_12, g.L_23, g.L_3E, g.H
     z_min = g.R_foot - MAX_PENETRATION  # lowest foot-centre height before we call it diverged [m]
+    v_max = MAX_JOINT_SPEED
     t = np.arange(n) * Ts
     q_log = np.full((n, 3), np.nan)
     qd_log = np.full((n, 3), np.nan)
     tau_log = np.full((n, 3), np.nan)
     f_log = np.full((n, 3), np.nan)
-    ctrl_idx = np.zeros(n, dtype=np.int16)
+    tau_out = tau_log.view()
+    tau_out.flags.writeable = False  # the backend gets read-only rows of the log
     ticks = [int(round(e.t / Ts)) for e in scenario.events]
     names = [e.controller for e in scenario.events]
     controllers: list[Controller] = [make_controller(e, scenario.gains, Ts, n) for e in scenario.events]
     backend.reset(np.array(scenario.q0), np.array(scenario.qd0))
-    active: Controller = controllers[0]
-    next_event = 0
+    state, ground_force, step = backend.state, backend.ground_force, backend.step
+    sin, cos, isfinite = math.sin, math.cos, math.isfinite
+    torque = controllers[0].torque
+    next_event, n_events = 0, len(ticks)
+    next_tick = ticks[0]
     status, reason, k = "ok", None, 0
     every = max(n // 50, 1)
+    last = n - 1
     start = time.perf_counter()
     try:
         for k in range(n):
-            q, qd = backend.state()
-            f = backend.ground_force()
-            if not (math.isfinite(q.sum() + qd.sum() + f.sum())):
+            q, qd = state()
+            f = ground_force()
+            q1, q2, q3 = q.tolist()
+            qd1, qd2, qd3 = qd.tolist()
+            f1, f2, f3 = f.tolist()
+            if not isfinite(q1 + q2 + q3 + qd1 + qd2 + qd3 + f1 + f2 + f3):
                 raise SimulationDiverged(backend.name, k * Ts, "state is not finite")
-            if np.abs(qd).max() > MAX_JOINT_SPEED:
+            if abs(qd1) > v_max or abs(qd2) > v_max or abs(qd3) > v_max:
                 raise SimulationDiverged(backend.name, k * Ts, f"joint speed above {MAX_JOINT_SPEED} rad/s")
-            if foot_height(q[0], q[1], q[2], g) < z_min:
+            if L_12 * sin(q1) + cos(q1) * (L_23 * sin(q2) + L_3E * sin(q2 + q3)) + H < z_min:  # foot_height
                 raise SimulationDiverged(backend.name, k * Ts, f"foot more than {MAX_PENETRATION} m into the ground")
-            while next_event < len(ticks) and ticks[next_event] <= k:
-                active = controllers[next_event]
-                active.start(k * Ts, q, qd)
-                next_event += 1
-            tau = saturate(np.asarray(active(k, q, qd), dtype=float).copy(), limit)
-            q_log[k], qd_log[k], tau_log[k], f_log[k] = q, qd, tau, f
-            ctrl_idx[k] = next_event - 1
-            if k < n - 1:
-                backend.step(tau)
+            if k >= next_tick:
+                while next_event < n_events and ticks[next_event] <= k:
+                    active = controllers[next_event]
+                    active.start(k * Ts, q, qd)
+                    torque = active.torque
+                    next_event += 1
+                next_tick = ticks[next_event] if next_event < n_events else n
+            u1, u2, u3 = torque(k, q1, q2, q3, qd1, qd2, qd3)
+            # saturate at +-limit (as np.clip: NaN passes through)
+            u1 = -lim1 if u1 < -lim1 else (lim1 if u1 > lim1 else u1)
+            u2 = -lim2 if u2 < -lim2 else (lim2 if u2 > lim2 else u2)
+            u3 = -lim3 if u3 < -lim3 else (lim3 if u3 > lim3 else u3)
+            q_log[k] = q
+            qd_log[k] = qd
+            f_log[k] = f
+            tau_log[k] = (u1, u2, u3)
+            if k < last:
+                step(tau_out[k])
             if progress is not None and k % every == 0:
                 progress(k / n)
     except SimulationDiverged as exc:
@@ -139,6 +177,11 @@ def simulate(
         status, reason = "interrupted", f"interrupted at t = {k * Ts:.4f} s"
         n = k
     wall = time.perf_counter() - start
+    # active controller per logged tick: each event's from its tick on (ticks are sorted), filled
+    # slice by slice so no per-tick index array is allocated next to the log
+    controller = np.empty(n, dtype=object)
+    for tick, name in zip(ticks, names, strict=True):
+        controller[min(tick, n) :] = name
     return Trajectory(
         backend=backend.name,
         t=t[:n] if status != "ok" else t,
@@ -146,7 +189,7 @@ def simulate(
         qd=qd_log[:n] if status != "ok" else qd_log,
         tau=tau_log[:n] if status != "ok" else tau_log,
         f=f_log[:n] if status != "ok" else f_log,
-        controller=np.array(names, dtype=object)[ctrl_idx[: len(t) if status == "ok" else n]],
+        controller=controller,
         status=status,
         reason=reason,
         info=backend.info(),
