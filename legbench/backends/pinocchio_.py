@@ -17,7 +17,7 @@ updates stay on the grid). The sub-step ``dt`` must divide the control period.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -62,6 +62,8 @@ class PinocchioBackend(Backend):
         p = load_params()
         self.lower = [j.lower for j in p.joints]
         self.upper = [j.upper for j in p.joints]
+        # joints 1 and 3 are revolute (limited); the hip (joint 2) is continuous
+        self._limits = (float(self.lower[0]), float(self.lower[2]), float(self.upper[0]), float(self.upper[2]))
         self.k_lim = float(self.cfg["limit_stiffness"])
         self.b_lim = float(self.cfg["limit_damping"])
         self._qp = np.zeros(self.model.nq)
@@ -70,6 +72,9 @@ class PinocchioBackend(Backend):
         self.q = [0.0, 0.0, 0.0]
         self.qd = [0.0, 0.0, 0.0]
         self.force = np.zeros(3)
+        #: The contact law called at every sub-step (floats in, (tau_c, F) out); `legbench bench` times it.
+        self.law = self.contact.wrench
+        self._aba = pin.aba
         self._step = {"euler": self._euler, "rk4": self._rk4}.get(self.cfg["integrator"], self._adaptive)
 
     # ---------------------------------------------------------------- reset
@@ -79,58 +84,91 @@ class PinocchioBackend(Backend):
         self._update_force()
 
     # ----------------------------------------------------------------- step
-    def _qdd(self, q: list[float], qd: list[float], tau: np.ndarray) -> np.ndarray:
-        """Joint accelerations [rad/s^2] for state (q, qd) and applied torque tau."""
-        tc = self.contact.generalized(q[0], q[1], q[2], qd[0], qd[1], qd[2])
-        t = self._tau
-        t[0] = tau[0] + tc[0]
-        t[1] = tau[1] + tc[1]
-        t[2] = tau[2] + tc[2]
-        for i in (0, 2):  # revolute limits: one-sided spring-damper
-            if q[i] > self.upper[i]:
-                t[i] -= self.k_lim * (q[i] - self.upper[i]) + (self.b_lim * qd[i] if qd[i] > 0 else 0.0)
-            elif q[i] < self.lower[i]:
-                t[i] -= self.k_lim * (q[i] - self.lower[i]) + (self.b_lim * qd[i] if qd[i] < 0 else 0.0)
-        qp, v = self._qp, self._v
-        qp[0] = q[0]
-        qp[1] = math.cos(q[1])
-        qp[2] = math.sin(q[1])
-        qp[3] = q[2]
-        v[0], v[1], v[2] = qd
-        return pin.aba(self.model, self.data, qp, v, t)
+    def _qdd(self, q: Sequence[float], qd: Sequence[float], tau: Sequence[float]) -> tuple[float, float, float]:
+        """Joint accelerations [rad/s^2] for state (q, qd) and applied torque tau, as floats."""
+        q1, q2, q3 = q
+        qd1, qd2, qd3 = qd
+        tc1, tc2, tc3, _, _, _ = self.law(q1, q2, q3, qd1, qd2, qd3)
+        t1, t2, t3 = tau[0] + tc1, tau[1] + tc2, tau[2] + tc3
+        lo1, lo3, hi1, hi3 = self._limits
+        k, b = self.k_lim, self.b_lim
+        # revolute limits: one-sided spring-damper
+        if q1 > hi1:
+            t1 -= k * (q1 - hi1) + (b * qd1 if qd1 > 0 else 0.0)
+        elif q1 < lo1:
+            t1 -= k * (q1 - lo1) + (b * qd1 if qd1 < 0 else 0.0)
+        if q3 > hi3:
+            t3 -= k * (q3 - hi3) + (b * qd3 if qd3 > 0 else 0.0)
+        elif q3 < lo3:
+            t3 -= k * (q3 - lo3) + (b * qd3 if qd3 < 0 else 0.0)
+        qp, v, t = self._qp, self._v, self._tau
+        qp[0], qp[1], qp[2], qp[3] = q1, math.cos(q2), math.sin(q2), q3
+        v[0], v[1], v[2] = qd1, qd2, qd3
+        t[0], t[1], t[2] = t1, t2, t3
+        a1, a2, a3 = self._aba(self.model, self.data, qp, v, t).tolist()
+        return a1, a2, a3
 
     def _euler(self, tau: np.ndarray) -> None:
+        """Semi-implicit Euler sub-steps: :meth:`_qdd` inlined, on floats, everything bound to locals."""
         h = self.h
-        q, qd = self.q, self.qd
+        aba, model, data, law = self._aba, self.model, self.data, self.law
+        qp, v, t = self._qp, self._v, self._tau
+        cos, sin = math.cos, math.sin
+        lo1, lo3, hi1, hi3 = self._limits
+        k, b = self.k_lim, self.b_lim
+        u1, u2, u3 = np.asarray(tau, dtype=float).tolist()
+        q1, q2, q3 = self.q
+        qd1, qd2, qd3 = self.qd
         for _ in range(self.n_sub):
-            a = self._qdd(q, qd, tau)
-            qd = [qd[0] + h * a[0], qd[1] + h * a[1], qd[2] + h * a[2]]
-            q = [q[0] + h * qd[0], q[1] + h * qd[1], q[2] + h * qd[2]]
-        self.q, self.qd = q, qd
+            tc1, tc2, tc3, _, _, _ = law(q1, q2, q3, qd1, qd2, qd3)
+            t1, t2, t3 = u1 + tc1, u2 + tc2, u3 + tc3
+            if q1 > hi1:
+                t1 -= k * (q1 - hi1) + (b * qd1 if qd1 > 0 else 0.0)
+            elif q1 < lo1:
+                t1 -= k * (q1 - lo1) + (b * qd1 if qd1 < 0 else 0.0)
+            if q3 > hi3:
+                t3 -= k * (q3 - hi3) + (b * qd3 if qd3 > 0 else 0.0)
+            elif q3 < lo3:
+                t3 -= k * (q3 - lo3) + (b * qd3 if qd3 < 0 else 0.0)
+            qp[0], qp[1], qp[2], qp[3] = q1, cos(q2), sin(q2), q3
+            v[0], v[1], v[2] = qd1, qd2, qd3
+            t[0], t[1], t[2] = t1, t2, t3
+            a1, a2, a3 = aba(model, data, qp, v, t).tolist()
+            qd1 = qd1 + h * a1
+            qd2 = qd2 + h * a2
+            qd3 = qd3 + h * a3
+            q1 = q1 + h * qd1
+            q2 = q2 + h * qd2
+            q3 = q3 + h * qd3
+        self.q = [q1, q2, q3]
+        self.qd = [qd1, qd2, qd3]
 
     def _rk4(self, tau: np.ndarray) -> None:
         h = self.h
+        u = np.asarray(tau, dtype=float).tolist()
         q, qd = self.q, self.qd
         for _ in range(self.n_sub):
-            a1 = self._qdd(q, qd, tau).copy()
+            a1 = self._qdd(q, qd, u)
             v1 = qd
             q2 = [q[i] + 0.5 * h * v1[i] for i in range(3)]
             v2 = [qd[i] + 0.5 * h * a1[i] for i in range(3)]
-            a2 = self._qdd(q2, v2, tau).copy()
+            a2 = self._qdd(q2, v2, u)
             q3 = [q[i] + 0.5 * h * v2[i] for i in range(3)]
             v3 = [qd[i] + 0.5 * h * a2[i] for i in range(3)]
-            a3 = self._qdd(q3, v3, tau).copy()
+            a3 = self._qdd(q3, v3, u)
             q4 = [q[i] + h * v3[i] for i in range(3)]
             v4 = [qd[i] + h * a3[i] for i in range(3)]
-            a4 = self._qdd(q4, v4, tau)
+            a4 = self._qdd(q4, v4, u)
             q = [q[i] + h / 6.0 * (v1[i] + 2 * v2[i] + 2 * v3[i] + v4[i]) for i in range(3)]
             qd = [qd[i] + h / 6.0 * (a1[i] + 2 * a2[i] + 2 * a3[i] + a4[i]) for i in range(3)]
         self.q, self.qd = q, qd
 
     def _adaptive(self, tau: np.ndarray) -> None:
+        u = np.asarray(tau, dtype=float).tolist()
+
         def f(_t: float, x: np.ndarray) -> np.ndarray:
             q, qd = x[:3].tolist(), x[3:].tolist()
-            return np.concatenate([x[3:], self._qdd(q, qd, tau)])
+            return np.concatenate([x[3:], self._qdd(q, qd, u)])
 
         sol = solve_ivp(
             f,
@@ -152,8 +190,8 @@ class PinocchioBackend(Backend):
 
     def _update_force(self) -> None:
         q, qd = self.q, self.qd
-        self.contact.generalized(q[0], q[1], q[2], qd[0], qd[1], qd[2])
-        self.force[:] = self.contact.force
+        f = self.force
+        _, _, _, f[0], f[1], f[2] = self.law(q[0], q[1], q[2], qd[0], qd[1], qd[2])
 
     # ----------------------------------------------------------------- read
     def state(self) -> tuple[np.ndarray, np.ndarray]:
