@@ -342,6 +342,12 @@ def _column(key: str, backend: str | None = None) -> str:
     return key
 
 
+def _applies(key: str, backend: str) -> bool:
+    """A concrete dotted key affects a run of ``backend`` (it is not another backend's setting)."""
+    parts = key.split(".")
+    return not (len(parts) > 2 and parts[0] == "backends" and parts[1] != backend)
+
+
 def _fill(key: str, backend: str) -> str:
     return ".".join(backend if part == "*" else part for part in key.split("."))
 
@@ -396,7 +402,12 @@ def plan(sweep: Sweep) -> Plan:
 
     Each run's overrides (common ``set``, study ``set``, grid point, and for a
     reference its ``reference.set``) are validated by loading the scenario with
-    them, so a bad value is reported before anything runs.
+    them, so a bad value is reported before anything runs. A ``*`` key part
+    stands for the run's backend, also in the overrides its reference inherits
+    (``backends.*.dt`` of a MuJoCo study sets MuJoCo's step, not that of a
+    Pinocchio reference); only ``reference.set`` fills ``*`` with the reference's
+    backend. Settings of other backends are dropped from a run's overrides, so
+    runs that differ only there are one run.
 
     Raises:
         ScenarioError: naming the sweep file and the key whose value the scenario rejects.
@@ -410,13 +421,17 @@ def plan(sweep: Sweep) -> Plan:
     ref_rows: dict[int, Row] = {}
     notes: list[str] = []
 
-    def task_for(backend: str, sources: list[tuple[list[str | int], Mapping[str, Any]]], ref: int | None) -> int:
+    def task_for(backend: str, sources: list[tuple[list[str | int], Mapping[str, Any], str]], ref: int | None) -> int:
+        """The task of ``backend`` with the overrides of ``sources`` (path, mapping, backend that ``*`` means)."""
         overrides: dict[str, Any] = {}
         origin: dict[str, list[str | int]] = {}
-        for path, mapping in sources:
+        for path, mapping, star in sources:
             for k, v in mapping.items():
-                overrides[_fill(k, backend)] = v
-                origin[_fill(k, backend)] = [*path, k]
+                dotted = _fill(k, star)
+                if not _applies(dotted, backend):
+                    continue  # another backend's setting: no effect on this run
+                overrides[dotted] = v
+                origin[dotted] = [*path, k]
         key = (backend, json.dumps(overrides, sort_keys=True, default=str), ref)
         if key in index:
             return index[key]
@@ -447,18 +462,22 @@ def plan(sweep: Sweep) -> Plan:
             label = _label(st, backend)
             for point in points:
                 gp = dict(zip(st.grid, point, strict=True))
-                sources: list[tuple[list[str | int], Mapping[str, Any]]] = [
-                    (["set"], sweep.set),
-                    ([*base, "set"], st.set),
-                    ([*base, "grid"], gp),
+                sources: list[tuple[list[str | int], Mapping[str, Any], str]] = [
+                    (["set"], sweep.set, backend),
+                    ([*base, "set"], st.set, backend),
+                    ([*base, "grid"], gp, backend),
                 ]
                 rb = ref_name or backend
-                ref_sources = [*sources, ([*base, "reference", "set"], st.reference_set)]
+                ref_sources = [*sources, ([*base, "reference", "set"], st.reference_set, rb)]
                 ref = task_for(rb, ref_sources, None)
                 params = {_column(k, backend): v for k, v in {**st.set, **gp}.items()}
                 if ref not in ref_rows:
-                    rparams = {**params, **{_column(k, rb): v for k, v in st.reference_set.items()}}
-                    ref_rows[ref] = Row(si, f"{_label(st, rb)} (reference)", "reference", rb, ref, None, rparams)
+                    inherited = {k: v for k, v in {**st.set, **gp}.items() if _applies(_fill(k, backend), rb)}
+                    own = {**inherited, **st.reference_set}
+                    rparams = {_column(k, rb): v for k, v in own.items()}
+                    settings = " ".join(f"{_column(k, rb)}={v}" for k, v in own.items() if k.startswith("backends."))
+                    label = f"{rb} reference {settings}".strip()
+                    ref_rows[ref] = Row(si, label, "reference", rb, ref, None, rparams)
                 run = task_for(backend, sources, ref if sweep.short_horizon else None)
                 rows.append(Row(si, label, "run", backend, run, ref, params))
     run_tasks = {r.run for r in rows}

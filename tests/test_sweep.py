@@ -193,3 +193,18 @@ def test_cli_runs_a_sweep_and_rewrites_its_own_directory(tmp_path: Path, capsys:
         assert args.func(args) == 0
     assert "2 runs + 1 references, 0 failed" in capsys.readouterr().out
     assert (out / "sweep.csv").exists() and (out / "sweep.png").exists()
+
+
+def test_star_keys_configure_the_run_not_another_backends_reference(tmp_path: Path) -> None:
+    """``backends.*.dt`` of a MuJoCo/Bullet study is their step; the Pinocchio reference keeps its own,
+    and the two studies share one reference run."""
+    text = GOOD.replace("[pinocchio]", "[mujoco, pybullet]").replace(
+        "reference: {set: {backends.*.dt: 1.0e-4}}", "reference: {backend: pinocchio}"
+    )
+    p = sweep.plan(sweep.load_sweep(_write(tmp_path, text)))
+    refs = {r.ref for r in p.rows if r.role == "run"}
+    assert len(refs) == 1
+    ref_task = p.tasks[refs.pop()]
+    assert ref_task.backend == "pinocchio" and not any(k.startswith("backends.") for k in ref_task.overrides)
+    runs = [p.tasks[r.run] for r in p.rows if r.role == "run"]
+    assert {tuple(t.overrides) for t in runs} == {("duration", f"backends.{t.backend}.dt") for t in runs}
