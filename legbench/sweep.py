@@ -476,8 +476,8 @@ def plan(sweep: Sweep) -> Plan:
                     own = {**inherited, **st.reference_set}
                     rparams = {_column(k, rb): v for k, v in own.items()}
                     settings = " ".join(f"{_column(k, rb)}={v}" for k, v in own.items() if k.startswith("backends."))
-                    label = f"{rb} reference {settings}".strip()
-                    ref_rows[ref] = Row(si, label, "reference", rb, ref, None, rparams)
+                    ref_label = f"{rb} reference {settings}".strip()
+                    ref_rows[ref] = Row(si, ref_label, "reference", rb, ref, None, rparams)
                 run = task_for(backend, sources, ref if sweep.short_horizon else None)
                 rows.append(Row(si, label, "run", backend, run, ref, params))
     run_tasks = {r.run for r in rows}

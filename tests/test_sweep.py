@@ -208,3 +208,10 @@ def test_star_keys_configure_the_run_not_another_backends_reference(tmp_path: Pa
     assert ref_task.backend == "pinocchio" and not any(k.startswith("backends.") for k in ref_task.overrides)
     runs = [p.tasks[r.run] for r in p.rows if r.role == "run"]
     assert {tuple(t.overrides) for t in runs} == {("duration", f"backends.{t.backend}.dt") for t in runs}
+
+
+def test_rows_carry_their_study_label(timestep: sweep.SweepResult) -> None:
+    runs = timestep.table[timestep.table["role"] == "run"]
+    assert "pinocchio euler" in set(runs["label"]) and not runs["label"].str.contains("reference").any()
+    refs = timestep.table[timestep.table["role"] == "reference"]
+    assert refs["label"].str.contains("reference").all()
