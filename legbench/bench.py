@@ -198,11 +198,23 @@ def shorten(sc: Scenario, duration: float) -> Scenario:
     return scenario.parse(doc, sc.file)
 
 
-def load_tasks(paths: Sequence[str | Path], quick: bool = False, duration: float | None = None) -> list[Scenario]:
-    """Load and validate the scenarios; ``quick`` or ``duration`` [s] shortens each (see :func:`shorten`)."""
+def load_tasks(
+    paths: Sequence[str | Path],
+    quick: bool = False,
+    duration: float | None = None,
+    overrides: Mapping[str, Any] | None = None,
+) -> list[Scenario]:
+    """Load and validate the scenarios.
+
+    Args:
+        paths: scenario files.
+        quick: shorten each to its :data:`QUICK_DURATIONS` entry (see :func:`shorten`).
+        duration: shorten each to this [s] instead.
+        overrides: dotted scenario keys set before validation, as ``legbench run --set``.
+    """
     out = []
     for path in paths:
-        sc = scenario.load(path)
+        sc = scenario.load(path, overrides)
         if duration is not None:
             sc = shorten(sc, duration)
         elif quick:
@@ -473,7 +485,8 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
         f"Machine: {m['cpu_model']}, {m['cpus_usable']} usable CPUs, {m['system']} {m['machine']}; "
         f"Python {v['python']}, numpy {v.get('numpy', '?')}, {engines}.  ",
         f"Settings: {s['repeats']} timed repeats after {s['warmup']} warm-up, contact mode "
-        f"{s['contact_mode'] or 'from each scenario'}{', quick' if s['quick'] else ''}. "
+        f"{s['contact_mode'] or 'from each scenario'}{', quick' if s['quick'] else ''}"
+        f"{''.join(f', {k} = {val}' for k, val in (s.get('overrides') or {}).items())}. "
         "Figures are medians; brackets give min-max over the repeats.",
         "",
         "## Full run against engine-only replay",
@@ -581,12 +594,25 @@ def add_cli(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser: 
     p.add_argument("--duration", type=float, default=None, help="cut every scenario to this many seconds")
     p.add_argument("--contact-mode", choices=("native", "reference"), default=None,
                    help="override the scenarios' contact mode")  # fmt: skip
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario key, e.g. --set backends.mujoco.dt=1e-4 (10 sub-steps)")  # fmt: skip
     p.add_argument("--no-memory", action="store_true", help="skip the (untimed, tracemalloc) memory run")
     p.add_argument("--out", default=str(DEFAULT_OUT), help=f"output directory (default {DEFAULT_OUT})")
     p.add_argument("--check", action="store_true", help="exit 1 if a target of issue #7 is missed")
     p.add_argument("-q", "--quiet", action="store_true", help="no per-row progress lines")
     p.set_defaults(func=main)
     return p
+
+
+def _parse_set(items: Sequence[str]) -> dict[str, Any]:
+    """``KEY=VALUE`` strings -> {dotted key: YAML value} (``1e-4`` is a float, as in scenario files)."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise LegbenchError(f"--set {item!r}: expected KEY=VALUE, e.g. backends.mujoco.dt=1e-4")
+        out[key] = scenario.yaml_load(value)
+    return out
 
 
 def main(args: argparse.Namespace) -> int:
@@ -597,7 +623,8 @@ def main(args: argparse.Namespace) -> int:
         1 with ``--check`` if a target is missed or a replay was not bit-identical.
     """
     paths = args.scenarios or [str(p) for p in TASKS]
-    scenarios = load_tasks(paths, quick=args.quick, duration=args.duration)
+    overrides = _parse_set(args.set)
+    scenarios = load_tasks(paths, quick=args.quick, duration=args.duration, overrides=overrides)
     names = registry.resolve(args.backends)
     repeats = args.repeats if args.repeats is not None else (1 if args.quick else DEFAULT_REPEATS)
 
@@ -622,6 +649,7 @@ def main(args: argparse.Namespace) -> int:
         "quick": args.quick,
         "duration": args.duration,
         "contact_mode": args.contact_mode,
+        "overrides": overrides,
         "scenarios": [str(p) for p in paths],
         "backends": names,
     }

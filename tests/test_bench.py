@@ -149,6 +149,21 @@ def test_a_backend_that_cannot_load_is_reported_failed_and_exits_3(tmp_path: Pat
     assert "FAILED" in (out / "bench.md").read_text()
 
 
+def test_set_overrides_a_scenario_key_and_a_malformed_one_is_a_user_error(tmp_path: Path) -> None:
+    args = _parser().parse_args(["bench", str(bench.TASKS[0]), "--backends", "pinocchio", "--duration", "0.02",
+                                 "--set", "backends.pinocchio.dt=1e-4", "--repeats", "1", "--warmup", "0",
+                                 "--no-memory", "--quiet", "--out", str(tmp_path)])  # fmt: skip
+    assert args.func(args) == 0
+    doc = json.loads((tmp_path / "bench.json").read_text())
+    assert doc["settings"]["overrides"] == {"backends.pinocchio.dt": 1e-4}
+    (row,) = doc["results"]
+    assert row["sub_steps"] == 10 and row["mem_peak_bytes"] == 0
+    assert "backends.pinocchio.dt = 0.0001" in (tmp_path / "bench.md").read_text()
+    bad = _parser().parse_args(["bench", "--set", "duration", "--out", str(tmp_path)])
+    with pytest.raises(LegbenchError, match="expected KEY=VALUE"):
+        bad.func(bad)
+
+
 def test_spread_summarises_samples() -> None:
     s = bench.Spread.of([3.0, 1.0, 2.0, 4.0])
     assert (s.median, s.min, s.max, s.n) == (2.5, 1.0, 4.0, 4)
