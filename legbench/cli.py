@@ -171,6 +171,11 @@ def _run(args: argparse.Namespace) -> int:
         for sc in scenarios
         for mode in modes
     ]
+    if not args.no_preflight:
+        from legbench import doctor
+
+        for sc in scenarios:  # every engine must hold the spec's leg before anything runs
+            doctor.preflight(sc, [n for n in names if n in backends.available()])
     results = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet)
     failed = 0
     for (sc, mode, out), res in zip(plan, results, strict=True):
@@ -199,11 +204,25 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    from legbench import scenario
+    """Scenario, sweep (has ``studies``) and tolerance files (only tolerance keys), told apart by content."""
+    from pathlib import Path
+
+    from legbench import check, scenario, sweep
 
     for path in args.files:
-        sc = scenario.load(path)
-        print(f"{path}: ok ({sc.name}: {len(sc.events)} events, {sc.duration:g} s)")
+        try:
+            doc = scenario.yaml_load(Path(path).read_text())
+        except Exception:  # unreadable or malformed: scenario.load says which, with the line
+            doc = None
+        if isinstance(doc, dict) and "studies" in doc:
+            sw = sweep.load_sweep(path)
+            print(f"{path}: ok (sweep {sw.name}: {len(sw.studies)} studies)")
+        elif isinstance(doc, dict) and doc and set(doc) <= set(check.DEFAULT_TOLERANCES):
+            check.load_tolerances(path)
+            print(f"{path}: ok (tolerances: {', '.join(sorted(doc))})")
+        else:
+            sc = scenario.load(path)
+            print(f"{path}: ok ({sc.name}: {len(sc.events)} events, {sc.duration:g} s)")
     return EXIT_OK
 
 
@@ -222,6 +241,8 @@ def _add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, e.g. --set backends.pinocchio.dt=5e-5")  # fmt: skip
     p.add_argument("--no-compare", action="store_true", help="do not write the comparison report")
+    p.add_argument("--no-preflight", action="store_true",
+                   help="skip the parity pre-flight (legbench doctor) before running")  # fmt: skip
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
@@ -269,19 +290,25 @@ def _add_check(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def _add_validate(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("validate", help="check scenario files without running them")
-    p.add_argument("files", nargs="+", help="scenario YAML files")
+    p = sub.add_parser("validate", help="check scenario, sweep and tolerance files without running them")
+    p.add_argument("files", nargs="+", help="YAML files")
     p.set_defaults(func=_validate)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="legbench", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="legbench", description="Compare physics engines on the 3-DOF leg: run, compare, check, study."
+    )
     sub = parser.add_subparsers(dest="cmd", required=True)
     _add_model(sub)
     _add_run(sub)
     _add_validate(sub)
     _add_compare(sub)
     _add_check(sub)
+    from legbench import bench, calibrate_contact, doctor, sweep, verify
+
+    for module in (doctor, sweep, verify, calibrate_contact, bench):
+        module.add_cli(sub)
     return parser
 
 

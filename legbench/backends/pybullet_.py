@@ -45,7 +45,11 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
-import pybullet as p
+
+from legbench.backends._quiet import quiet_stdout
+
+with quiet_stdout():  # pybullet prints its build time to stdout (C level) on import
+    import pybullet as p
 
 from legbench.backends.base import Backend, Physics
 from legbench.contact import ReferenceContact
