@@ -27,10 +27,14 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check legbench tests
 	$(BIN)/mypy legbench
 
-## the main job: four tasks x all backends x both contact modes -> results/latest/report.html
+## the main job: four tasks x all backends x both contact modes, verification and contact
+## calibration -> results/latest/report.html
 compare: $(STAMP)
 	rm -rf results/latest
-	$(LEGBENCH) run $(TASKS) --backends all --contact-mode both --out results/latest --jobs $(JOBS) --quiet
+	$(LEGBENCH) run $(TASKS) --backends all --contact-mode both --out results/latest --jobs $(JOBS) --quiet --no-compare
+	$(LEGBENCH) verify --out results/latest/verification
+	$(LEGBENCH) calibrate-contact --out results/latest/calibration
+	$(LEGBENCH) compare results/latest
 
 ## regression check of a fresh comparison against the committed baseline (CI)
 check: compare
@@ -41,6 +45,19 @@ baseline: compare
 	rm -rf results/baseline
 	mkdir -p results/baseline
 	cd results/latest && for d in */; do mkdir -p ../baseline/$$d && cp $$d/metrics.json $$d/run.json ../baseline/$$d; done
+
+## harness overhead per backend and task -> results/bench/bench.{json,md}
+bench: $(STAMP)
+	$(LEGBENCH) bench $(TASKS) --out results/bench
+
+## the time-step study (convergence order, speed-accuracy) -> results/sweeps/timestep/
+sweep: $(STAMP)
+	$(LEGBENCH) sweep scenarios/sweeps/timestep.yaml --out results/sweeps/timestep --jobs $(JOBS)
+
+## verification cases and contact calibration on their own
+verify: $(STAMP)
+	$(LEGBENCH) verify --out results/latest/verification
+	$(LEGBENCH) calibrate-contact --out results/latest/calibration
 
 urdf: $(STAMP)
 	$(LEGBENCH) model urdf

@@ -612,11 +612,58 @@ def write_index(root: str | Path) -> IndexFiles:
     if problems:
         blocks.append(_Heading(2, "Backends that did not run"))
         blocks.append(_Table(("scenario", "backend", "status", "reason"), tuple(problems)))
+    blocks += _study_blocks(root)
     md = root / "report.md"
     md.write_text(_to_markdown(blocks, root))
     page = root / "report.html"
     page.write_text(_to_html(blocks, "legbench: comparison summary"))
     return IndexFiles(page, md, tuple(dirs))
+
+
+#: Study outputs the index shows when present under the results root:
+#: (file, heading, record list key, columns, caption).
+STUDIES: tuple[tuple[str, str, str, tuple[str, ...], str], ...] = (
+    (
+        "verification/verification.json",
+        "Verification against closed-form answers",
+        "checks",
+        ("case", "backend", "variant", "quantity", "unit", "measured", "expected", "error", "tolerance", "pass"),
+        "legbench verify: each case, backend and integrator against its closed-form answer (legbench/verify.py)",
+    ),
+    (
+        "calibration/calibration.json",
+        "Contact calibration",
+        "rows",
+        ("backend", "Kp", "k_eff", "Kd", "c_eff", "mu_s", "Fn", "Ft", "creep", "creep_law", "c_tangential"),
+        "legbench calibrate-contact: effective normal stiffness k_eff [N/m] and damping c_eff [N s/m] from a static "
+        "push, creep [m/s] under a tangential load Ft [N] below mu_s Fn, beside the spec (Kp, Kd, mu_s) and the "
+        "law's own creep",
+    ),
+)
+
+
+def _cell(v: Any) -> str:
+    if isinstance(v, bool):
+        return "yes" if v else "NO"
+    if isinstance(v, int | float):
+        return _fmt(float(v), 4)
+    return str(v)
+
+
+def _study_blocks(root: Path) -> list[_Block]:
+    """Tables of the verification and calibration studies found under ``root``."""
+    blocks: list[_Block] = []
+    for rel, heading, key, cols, caption in STUDIES:
+        path = root / rel
+        if not path.is_file():
+            continue
+        try:
+            records = json.loads(path.read_text())[key]
+        except (ValueError, KeyError, TypeError) as exc:
+            raise ResultsError(str(path), f"malformed study output: {exc}") from None
+        rows = tuple(tuple(_cell(r.get(c, "")) for c in cols) for r in records)
+        blocks += [_Heading(2, heading), _Table(cols, rows, caption)]
+    return blocks
 
 
 def write_all(root: str | Path, **compare_kwargs: Any) -> list[ReportFiles | IndexFiles]:

@@ -111,7 +111,8 @@ def test_energy_is_conserved_without_torque_contact_or_damping() -> None:
 
 
 def test_knee_limit_holds_like_an_engine_limit() -> None:
-    """10 N m pushing the knee into its 2.229 rad limit rests within 0.005 rad of it (MuJoCo 2.2292, PyBullet 2.2293)."""
+    """10 N m pushing the knee into its 2.229 rad limit rests within 0.005 rad of it
+    (MuJoCo rests at 2.2292, PyBullet at 2.2293)."""
     be = _backend({}, gravity=0.0)
     be.reset(np.array([0.0, -0.5, 2.0]), np.zeros(3))
     for _ in range(1000):

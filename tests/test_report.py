@@ -134,3 +134,22 @@ def test_index_of_a_missing_or_empty_directory_raises(tmp_path: Path) -> None:
         R.write_index(tmp_path / "nope")
     with pytest.raises(ResultsError, match="no run directories"):
         R.write_index(tmp_path)
+
+
+def test_index_shows_verification_and_calibration_tables_when_present(tmp_path: Path) -> None:
+    """The study outputs under the results root become tables of the index, one row per record."""
+    root = tmp_path / "results"
+    write_run(root / "fake", {"ref": None, "a": scale(1.02)})
+    (root / "verification").mkdir()
+    checks = [{"case": "energy", "backend": "a", "variant": "euler", "quantity": "dE", "unit": "J", "measured": 1e-4,
+               "expected": 1e-4, "error": 1e-9, "tolerance": 1e-6, "pass": True}]  # fmt: skip
+    (root / "verification" / "verification.json").write_text(json.dumps({"checks": checks}))
+    (root / "calibration").mkdir()
+    rows = [{"backend": "a", "Kp": 1e4, "k_eff": 9999.0, "Kd": 100.0, "c_eff": 99.0, "mu_s": 0.7, "Fn": 40.0,
+             "Ft": 13.0, "creep": 0.1, "creep_law": 0.005, "c_tangential": 130.0}]  # fmt: skip
+    (root / "calibration" / "calibration.json").write_text(json.dumps({"rows": rows}))
+    R.write_all(root)
+    md = (root / "report.md").read_text()
+    assert "## Verification against closed-form answers" in md and "| energy | a | euler |" in md
+    assert "## Contact calibration" in md and "| a | 1e+04 | 9999 |" in md
+    assert "Contact calibration" in (root / "report.html").read_text()
