@@ -45,11 +45,7 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
-
-from legbench.backends._quiet import quiet_stdout
-
-with quiet_stdout():  # pybullet prints its build time to stdout (C level) on import
-    import pybullet as p
+import pybullet as p
 
 from legbench.backends.base import Backend, Physics
 from legbench.contact import ReferenceContact
