@@ -174,8 +174,13 @@ def _run(args: argparse.Namespace) -> int:
     if not args.no_preflight:
         from legbench import doctor
 
+        installed = [n for n in names if n in backends.available()]
+        checked: set[str] = set()
         for sc in scenarios:  # every engine must hold the spec's leg before anything runs
-            doctor.preflight(sc, [n for n in names if n in backends.available()])
+            key = json.dumps([sc.gravity, {k: dict(v) for k, v in sc.backends.items()}], sort_keys=True)
+            if key not in checked:  # the pre-flight depends only on gravity and backend settings
+                doctor.preflight(sc, installed)
+                checked.add(key)
     results = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet)
     failed = 0
     for (sc, mode, out), res in zip(plan, results, strict=True):

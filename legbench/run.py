@@ -414,8 +414,12 @@ def run_many(
     else:
         from concurrent.futures import ProcessPoolExecutor
 
+        # longest runs first, so the pool does not wait on one long run at the end; results are
+        # still collected in plan order, so the output does not depend on ``jobs``
+        order = sorted(range(len(plan)), key=lambda j: -plan[j][1].duration)
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            futures = [pool.submit(_task, (sc, name, mode, False)) for _, sc, name, mode in plan]
+            submitted = {j: pool.submit(_task, (plan[j][1], plan[j][2], plan[j][3], False)) for j in order}
+            futures = [submitted[j] for j in range(len(plan))]
             try:
                 for (i, *_), fut in zip(plan, futures, strict=True):
                     results[i].append(fut.result())

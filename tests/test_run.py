@@ -99,3 +99,24 @@ def test_diverging_backend_is_stopped_and_marked_failed() -> None:
     assert tr.status == "failed"
     assert "not finite" in (tr.reason or "")
     assert len(tr.t) == 100 and np.isfinite(tr.q).all()
+
+
+def test_results_are_bit_identical_for_any_number_of_jobs(tmp_path: Path) -> None:
+    """Tasks run in separate processes with --jobs 2 give exactly the logs of --jobs 1, in input order."""
+    from legbench import backends
+
+    root = Path(__file__).resolve().parent.parent / "scenarios"
+    scs = [scenario.load(root / f"{t}.yaml", {"duration": 0.5}) for t in ("position", "effort")]
+    names = [n for n in ("pinocchio", "mujoco", "pybullet") if n in backends.available()]
+    one = run.run_many([(s, None, tmp_path / f"{s.name}-1") for s in scs], names, jobs=1, progress=False)
+    two = run.run_many([(s, None, tmp_path / f"{s.name}-2") for s in scs], names, jobs=2, progress=False)
+    for res1, res2 in zip(one, two, strict=True):
+        assert [tr.backend for tr in res1] == [tr.backend for tr in res2] == names
+        for a, b in zip(res1, res2, strict=True):
+            for field in ("t", "q", "qd", "tau", "f"):
+                np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+    for s in scs:
+        for n in names:
+            assert (tmp_path / f"{s.name}-1" / f"{n}.parquet").read_bytes() == (
+                tmp_path / f"{s.name}-2" / f"{n}.parquet"
+            ).read_bytes()
