@@ -604,17 +604,6 @@ def add_cli(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser: 
     return p
 
 
-def _parse_set(items: Sequence[str]) -> dict[str, Any]:
-    """``KEY=VALUE`` strings -> {dotted key: YAML value} (``1e-4`` is a float, as in scenario files)."""
-    out: dict[str, Any] = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise LegbenchError(f"--set {item!r}: expected KEY=VALUE, e.g. backends.mujoco.dt=1e-4")
-        out[key] = scenario.yaml_load(value)
-    return out
-
-
 def main(args: argparse.Namespace) -> int:
     """Handler of ``legbench bench``.
 
@@ -623,7 +612,7 @@ def main(args: argparse.Namespace) -> int:
         1 with ``--check`` if a target is missed or a replay was not bit-identical.
     """
     paths = args.scenarios or [str(p) for p in TASKS]
-    overrides = _parse_set(args.set)
+    overrides = scenario.parse_overrides(args.set)
     scenarios = load_tasks(paths, quick=args.quick, duration=args.duration, overrides=overrides)
     names = registry.resolve(args.backends)
     repeats = args.repeats if args.repeats is not None else (1 if args.quick else DEFAULT_REPEATS)

@@ -143,24 +143,12 @@ def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
 # legbench run
 
 
-def _parse_set(items: Sequence[str]) -> dict[str, object]:
-    from legbench.scenario import yaml_load
-
-    out: dict[str, object] = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise LegbenchError(f"--set {item!r}: expected KEY=VALUE, e.g. backends.pinocchio.dt=5e-5")
-        out[key] = yaml_load(value)
-    return out
-
-
 def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from legbench import backends, run, scenario
 
-    overrides = _parse_set(args.set)
+    overrides = scenario.parse_overrides(args.set)
     scenarios = [scenario.load(path, overrides) for path in args.scenarios]  # all validated before any runs
     names = backends.resolve(args.backends)
     modes: list[str | None] = ["native", "reference"] if args.contact_mode == "both" else [args.contact_mode]

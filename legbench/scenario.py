@@ -197,8 +197,8 @@ def yaml_compose(text: str) -> yaml.Node | None:
 # Validation helpers
 
 
-class _Ctx:
-    """File name and YAML node marks, to name lines in errors."""
+class YamlContext:
+    """File name and YAML node marks, to name lines in errors (scenario, sweep and tolerance files)."""
 
     def __init__(self, file: str, root: yaml.Node | None) -> None:
         self.file = file
@@ -235,7 +235,9 @@ def _keypath(path: Sequence[str | int]) -> str:
     return out
 
 
-def _check_keys(ctx: _Ctx, path: list[str | int], d: Any, allowed: Sequence[str], required: Sequence[str] = ()) -> None:
+def check_keys(
+    ctx: YamlContext, path: list[str | int], d: Any, allowed: Sequence[str], required: Sequence[str] = ()
+) -> None:
     if not isinstance(d, Mapping):
         raise ctx.error(path, f"expected a mapping, got {type(d).__name__}")
     for k in d:
@@ -249,7 +251,7 @@ def _check_keys(ctx: _Ctx, path: list[str | int], d: Any, allowed: Sequence[str]
             raise ctx.error(path, f"missing required key '{k}'")
 
 
-def _num(ctx: _Ctx, path: list[str | int], v: Any, *, positive: bool = False, nonneg: bool = False) -> float:
+def _num(ctx: YamlContext, path: list[str | int], v: Any, *, positive: bool = False, nonneg: bool = False) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float):
         raise ctx.error(path, f"expected a number, got {v!r}")
     try:
@@ -265,7 +267,7 @@ def _num(ctx: _Ctx, path: list[str | int], v: Any, *, positive: bool = False, no
     return x
 
 
-def _vec(ctx: _Ctx, path: list[str | int], v: Any, n: int = 3) -> tuple[float, ...]:
+def _vec(ctx: YamlContext, path: list[str | int], v: Any, n: int = 3) -> tuple[float, ...]:
     if isinstance(v, int | float) and not isinstance(v, bool) and n == 3:
         return (_num(ctx, path, v),) * n
     if not isinstance(v, list) or len(v) != n:
@@ -273,7 +275,7 @@ def _vec(ctx: _Ctx, path: list[str | int], v: Any, n: int = 3) -> tuple[float, .
     return tuple(_num(ctx, [*path, i], x) for i, x in enumerate(v))
 
 
-def _int(ctx: _Ctx, path: list[str | int], v: Any, minimum: int = 1) -> int:
+def _int(ctx: YamlContext, path: list[str | int], v: Any, minimum: int = 1) -> int:
     if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
         raise ctx.error(path, f"expected an integer >= {minimum}, got {v!r}")
     return v
@@ -301,14 +303,14 @@ def ellipse_waypoints(
     return P, times
 
 
-def _reachable(ctx: _Ctx, path: list[str | int], p: tuple[float, ...]) -> None:
+def _reachable(ctx: YamlContext, path: list[str | int], p: tuple[float, ...]) -> None:
     res = kinematics.ik(np.array(p))
     if not res:
         raise ctx.error(path, f"W point {list(p)} is unreachable: {res.reason}")
 
 
-def _event(ctx: _Ctx, path: list[str | int], d: Any) -> Event:
-    _check_keys(ctx, path, d, ["t", *CONTROLLERS], ["t"])
+def _event(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
+    check_keys(ctx, path, d, ["t", *CONTROLLERS], ["t"])
     t = _num(ctx, [*path, "t"], d["t"], nonneg=True)
     kinds = [k for k in CONTROLLERS if k in d]
     if len(kinds) != 1:
@@ -319,7 +321,7 @@ def _event(ctx: _Ctx, path: list[str | int], d: Any) -> Event:
     params = {kind: body}
     p = load_params()
     if kind == "position":
-        _check_keys(ctx, bp, body, ["joint", "cartesian"])
+        check_keys(ctx, bp, body, ["joint", "cartesian"])
         if ("joint" in body) == ("cartesian" in body):
             raise ctx.error(bp, "give exactly one of 'joint' or 'cartesian'")
         if "joint" in body:
@@ -332,7 +334,7 @@ def _event(ctx: _Ctx, path: list[str | int], d: Any) -> Event:
         _reachable(ctx, [*bp, "cartesian"], c)
         return Event(t, kind, cartesian=c, params=params)
     if kind == "trajectory":
-        _check_keys(ctx, bp, body, ["waypoints", "times"], ["waypoints", "times"])
+        check_keys(ctx, bp, body, ["waypoints", "times"], ["waypoints", "times"])
         wps, times = body["waypoints"], body["times"]
         if not isinstance(wps, list) or not wps:
             raise ctx.error([*bp, "waypoints"], "expected a non-empty list of [x, y, z] points")
@@ -347,7 +349,7 @@ def _event(ctx: _Ctx, path: list[str | int], d: Any) -> Event:
         return Event(t, kind, waypoints=W, times=ts, params=params)
     if kind == "ellipse":
         keys = ["a", "b", "DY", "DZ", "dth", "T", "points", "repetitions", "approach"]
-        _check_keys(ctx, bp, body, keys, ["a", "b", "DY", "DZ", "T"])
+        check_keys(ctx, bp, body, keys, ["a", "b", "DY", "DZ", "T"])
         a = _num(ctx, [*bp, "a"], body["a"], positive=True)
         b = _num(ctx, [*bp, "b"], body["b"], positive=True)
         DY = _num(ctx, [*bp, "DY"], body["DY"])
@@ -364,7 +366,7 @@ def _event(ctx: _Ctx, path: list[str | int], d: Any) -> Event:
             if not kinematics.ik(point):
                 raise ctx.error(bp, f"ellipse point {i} at W {np.round(point, 4).tolist()} is unreachable")
         return Event(t, "trajectory", waypoints=tuple(map(tuple, P)), times=tuple(tw.tolist()), params=params)
-    _check_keys(ctx, bp, body, ["force"], ["force"])
+    check_keys(ctx, bp, body, ["force"], ["force"])
     return Event(t, kind, force=_vec(ctx, [*bp, "force"], body["force"]), params=params)
 
 
@@ -377,8 +379,8 @@ TOP_KEYS = ["name", "description", "duration", "control_rate", "gains", "initial
 
 def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Scenario:
     """Validate a scenario document (already parsed YAML) into a :class:`Scenario`."""
-    ctx = _Ctx(file, root)
-    _check_keys(ctx, [], doc, TOP_KEYS, ["name", "duration", "events"])
+    ctx = YamlContext(file, root)
+    check_keys(ctx, [], doc, TOP_KEYS, ["name", "duration", "events"])
     name = doc["name"]
     if not isinstance(name, str) or not NAME_RE.fullmatch(name) or set(name) == {"."}:
         raise ctx.error(["name"], f"expected a plain name (letters, digits, - _ ., at most 64), got {name!r}")
@@ -393,7 +395,7 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
         raise ctx.error(["duration"], f"{duration} s is not a whole number of control periods at {rate} Hz")
 
     gains_d = doc.get("gains", {})
-    _check_keys(ctx, ["gains"], gains_d, ["Kp", "Kd", "Ki"])
+    check_keys(ctx, ["gains"], gains_d, ["Kp", "Kd", "Ki"])
     gdef = Gains()
     gains = Gains(
         *(  # type: ignore[arg-type]
@@ -401,7 +403,7 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
         )
     )
     init = doc.get("initial", {})
-    _check_keys(ctx, ["initial"], init, ["q", "qd"])
+    check_keys(ctx, ["initial"], init, ["q", "qd"])
     q0 = _vec(ctx, ["initial", "q"], init.get("q", [0.0, 0.0, 0.0]))
     qd0 = _vec(ctx, ["initial", "qd"], init.get("qd", [0.0, 0.0, 0.0]))
     p = load_params()
@@ -427,14 +429,14 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
             _check_speed(ctx, ["events", i, next(iter(e.params), "trajectory")], e, q0 if e.t == 0.0 else None)
 
     phys = doc.get("physics", {})
-    _check_keys(ctx, ["physics"], phys, ["gravity", "contact_mode", "contact"])
+    check_keys(ctx, ["physics"], phys, ["gravity", "contact_mode", "contact"])
     gravity = _num(ctx, ["physics", "gravity"], phys.get("gravity", p.gravity), nonneg=True)
     mode = phys.get("contact_mode", "native")
     if mode not in CONTACT_MODES:
         raise ctx.error(["physics", "contact_mode"], f"expected one of {', '.join(CONTACT_MODES)}, got {mode!r}")
     cdoc = phys.get("contact", {})
     ckeys = ["Kp", "Kd", "mu_s", "mu_k", "v_th", "poc"]
-    _check_keys(ctx, ["physics", "contact"], cdoc, ckeys)
+    check_keys(ctx, ["physics", "contact"], cdoc, ckeys)
     leg_c = p.contact
     vals: dict[str, Any] = {}
     for k in ckeys[:-1]:
@@ -457,7 +459,7 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
         backends[bname] = _backend_settings(ctx, str(bname), bset or {})
 
     cmp_d = doc.get("comparison", {})
-    _check_keys(ctx, ["comparison"], cmp_d, ["reference", "skip", "steady_window", "tolerances"])
+    check_keys(ctx, ["comparison"], cmp_d, ["reference", "skip", "steady_window", "tolerances"])
     comparison = Comparison(
         reference=str(cmp_d.get("reference", "pinocchio")),
         skip=_num(ctx, ["comparison", "skip"], cmp_d.get("skip", 0.0), nonneg=True),
@@ -490,7 +492,7 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     )
 
 
-def _check_speed(ctx: _Ctx, path: list[str | int], ev: Event, q_start: tuple[float, ...] | None) -> None:
+def _check_speed(ctx: YamlContext, path: list[str | int], ev: Event, q_start: tuple[float, ...] | None) -> None:
     """Reject a trajectory whose mean joint speed on a segment exceeds the joint speed limit.
 
     The joint path is the IK chain the controller will follow (each solution
@@ -517,7 +519,7 @@ def _check_speed(ctx: _Ctx, path: list[str | int], ev: Event, q_start: tuple[flo
             )
 
 
-def _backend_settings(ctx: _Ctx, name: str, given: Any) -> dict[str, Any]:
+def _backend_settings(ctx: YamlContext, name: str, given: Any) -> dict[str, Any]:
     from legbench import backends
     from legbench.exceptions import BackendNotFound
 
@@ -530,7 +532,7 @@ def _backend_settings(ctx: _Ctx, name: str, given: Any) -> dict[str, Any]:
         if name in backends.BUILTIN:
             return dict(given)  # engine not installed here: keep the settings, the run reports it missing
         raise ctx.error(path, f"unknown backend; known: {', '.join(backends.BUILTIN)}") from None
-    _check_keys(ctx, path, given, list(cls.defaults))
+    check_keys(ctx, path, given, list(cls.defaults))
     out: dict[str, Any] = {}
     for k, v in given.items():
         default = cls.defaults[k]
@@ -551,8 +553,8 @@ def _backend_settings(ctx: _Ctx, name: str, given: Any) -> dict[str, Any]:
     return out
 
 
-def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
-    """Read and validate a scenario file; ``overrides`` are dotted keys set before validation."""
+def read_yaml(path: str | Path) -> tuple[Any, yaml.Node | None]:
+    """A YAML file's document and node tree (for line numbers), or a one-line :class:`ScenarioError`."""
     path = Path(path)
     try:
         text = path.read_text()
@@ -570,9 +572,26 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
         raise ScenarioError(str(path), "", f"malformed YAML: {problem}", line) from None
     if doc is None:
         raise ScenarioError(str(path), "", "empty file")
+    return doc, root
+
+
+def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
+    """Read and validate a scenario file; ``overrides`` are dotted keys set before validation."""
+    doc, root = read_yaml(path)
     for key, value in (overrides or {}).items():
         set_key(doc, key, value)
     return parse(doc, str(path), root)
+
+
+def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
+    """``KEY=VALUE`` strings (``--set``) -> {dotted key: YAML value}; ``1e-4`` is a float."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise ScenarioError("--set", item, "expected KEY=VALUE, e.g. backends.pinocchio.dt=5e-5")
+        out[key] = yaml_load(value)
+    return out
 
 
 def set_key(doc: dict[str, Any], dotted: str, value: Any) -> None:

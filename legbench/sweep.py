@@ -55,13 +55,13 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from legbench import backends as registry
 from legbench import horizon, kinematics
 from legbench.contact import CONTACT_MODES
 from legbench.exceptions import LegbenchError, ScenarioError
 from legbench.executors import EXECUTORS, Executor, ReplaySpec, RunTask, make_executor, run_task
+from legbench.scenario import YamlContext, check_keys, read_yaml
 
 __all__ = [
     "COMPONENTS",
@@ -156,51 +156,7 @@ class Sweep:
     raw: Mapping[str, Any] = field(default_factory=dict, hash=False, compare=False)
 
 
-class _Doc:
-    """File name and YAML node marks, so errors can name the line."""
-
-    def __init__(self, file: str, text: str) -> None:
-        self.file = file
-        try:
-            self.root: yaml.Node | None = yaml.compose(text, Loader=yaml.SafeLoader)
-        except yaml.YAMLError:
-            self.root = None
-
-    def line(self, path: Sequence[str | int]) -> int | None:
-        node, line = self.root, None
-        for key in path:
-            if isinstance(node, yaml.MappingNode):
-                nxt = next((v for k, v in node.value if k.value == key), None)
-                if nxt is None:
-                    break
-                line = next(k.start_mark.line + 1 for k, v in node.value if k.value == key)
-                node = nxt
-            elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and key < len(node.value):
-                node = node.value[key]
-                line = node.start_mark.line + 1
-            else:
-                break
-        return line
-
-    def error(self, path: Sequence[str | int], problem: str) -> ScenarioError:
-        out = ""
-        for p in path:
-            out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
-        return ScenarioError(self.file, out, problem, self.line(path))
-
-
-def _keys(doc: _Doc, path: list[str | int], d: Any, allowed: Sequence[str], required: Sequence[str] = ()) -> None:
-    if not isinstance(d, Mapping):
-        raise doc.error(path, f"expected a mapping, got {type(d).__name__}")
-    for k in d:
-        if k not in allowed:
-            raise doc.error([*path, str(k)], f"unknown key; valid keys: {', '.join(allowed)}")
-    for k in required:
-        if k not in d:
-            raise doc.error(path, f"missing required key '{k}'")
-
-
-def _number(doc: _Doc, path: list[str | int], v: Any, positive: bool = False) -> float:
+def _number(doc: YamlContext, path: list[str | int], v: Any, positive: bool = False) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(float(v)):
         raise doc.error(path, f"expected a finite number, got {v!r}")
     if float(v) < 0 or (positive and float(v) == 0):
@@ -208,7 +164,7 @@ def _number(doc: _Doc, path: list[str | int], v: Any, positive: bool = False) ->
     return float(v)
 
 
-def _dotted(doc: _Doc, path: list[str | int], d: Any) -> dict[str, Any]:
+def _dotted(doc: YamlContext, path: list[str | int], d: Any) -> dict[str, Any]:
     """A mapping of dotted keys to values; a key part ``*`` stands for the run's backend."""
     if d is None:
         return {}
@@ -231,22 +187,9 @@ def load_sweep(path: str | Path) -> Sweep:
         ScenarioError: naming the file, the key path and the problem.
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ScenarioError(str(path), "", "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(str(path), "", f"cannot read: {exc}") from None
-    try:
-        raw = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise ScenarioError(str(path), "", f"malformed YAML: {getattr(exc, 'problem', exc)}",
-                            mark.line + 1 if mark is not None else None) from None  # fmt: skip
-    doc = _Doc(str(path), text)
-    if raw is None:
-        raise doc.error([], "empty file")
-    _keys(doc, [], raw, TOP_KEYS, ["name", "scenario", "studies"])
+    raw, root = read_yaml(path)
+    doc = YamlContext(str(path), root)
+    check_keys(doc, [], raw, TOP_KEYS, ["name", "scenario", "studies"])
     name = raw["name"]
     if not isinstance(name, str) or not name or any(c in name for c in "/\\\0") or name in (".", ".."):
         raise doc.error(["name"], f"expected a plain name (letters, digits, - _ .), got {name!r}")
@@ -277,13 +220,13 @@ def load_sweep(path: str | Path) -> Sweep:
         raise doc.error(["metric"], f"unknown metric {metric!r}; with these signals: {', '.join(valid_metrics)}")
     fit = None
     if raw.get("fit") is not None:
-        _keys(doc, ["fit"], raw["fit"], ["x", "floor"], ["x"])
+        check_keys(doc, ["fit"], raw["fit"], ["x", "floor"], ["x"])
         if not isinstance(raw["fit"]["x"], str):
             raise doc.error(["fit", "x"], "expected the name of a swept column, e.g. dt")
         fit = Fit(raw["fit"]["x"], _number(doc, ["fit", "floor"], raw["fit"].get("floor", 0.0)))
     window = None
     if raw.get("short_horizon") is not None:
-        _keys(doc, ["short_horizon"], raw["short_horizon"], ["window"], ["window"])
+        check_keys(doc, ["short_horizon"], raw["short_horizon"], ["window"], ["window"])
         window = _number(doc, ["short_horizon", "window"], raw["short_horizon"]["window"], positive=True)
     studies_raw = raw["studies"]
     if not isinstance(studies_raw, list) or not studies_raw:
@@ -295,9 +238,9 @@ def load_sweep(path: str | Path) -> Sweep:
                  studies, raw)  # fmt: skip
 
 
-def _study(doc: _Doc, i: int, d: Any) -> Study:
+def _study(doc: YamlContext, i: int, d: Any) -> Study:
     p: list[str | int] = ["studies", i]
-    _keys(doc, p, d, STUDY_KEYS, ["backends", "reference"])
+    check_keys(doc, p, d, STUDY_KEYS, ["backends", "reference"])
     label = d.get("label", "") or ""
     if not isinstance(label, str):
         raise doc.error([*p, "label"], "expected text (may contain {backend})")
@@ -320,7 +263,7 @@ def _study(doc: _Doc, i: int, d: Any) -> Study:
             raise doc.error([*p, "grid", k], "also given in this study's set; give it in one place")
         grid[k] = tuple(v)
     ref = d["reference"]
-    _keys(doc, [*p, "reference"], ref, ["backend", "set"])
+    check_keys(doc, [*p, "reference"], ref, ["backend", "set"])
     ref_backend = ref.get("backend")
     if ref_backend is not None and ref_backend not in known:
         raise doc.error([*p, "reference", "backend"], f"unknown backend {ref_backend!r}; known: {', '.join(known)}")
@@ -485,11 +428,11 @@ def plan(sweep: Sweep) -> Plan:
     return Plan(tuple(tasks), tuple(rows), tuple(notes))
 
 
-def _doc_of(sweep: Sweep) -> _Doc:
+def _doc_of(sweep: Sweep) -> YamlContext:
     try:
-        return _Doc(sweep.file, Path(sweep.file).read_text())
-    except OSError:
-        return _Doc(sweep.file, "")
+        return YamlContext(sweep.file, read_yaml(sweep.file)[1])
+    except ScenarioError:
+        return YamlContext(sweep.file, None)
 
 
 # --------------------------------------------------------------------------- #
