@@ -175,3 +175,28 @@ def test_random_values_in_a_good_document_never_raise_anything_but_scenario_erro
         scenario.parse(doc, "random.yaml")
     except ScenarioError:
         pass
+
+
+def test_planted_divergence_stops_only_that_backend(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Contact stiffness 1e7 N/m is stable at the engines' 50 us sub-step (omega dt ~ 0.35) but not for
+    Pinocchio forced to one 1 ms step (omega dt ~ 7): Pinocchio is stopped and marked failed with time and
+    reason, the others finish, the report says so, and the exit status is 3."""
+    import json
+
+    from legbench import backends
+
+    out = tmp_path / "effort"
+    names = ",".join(backends.available())
+    scen = str(Path(__file__).resolve().parent.parent / "scenarios" / "effort.yaml")
+    argv = ["run", scen, "--backends", names, "--out", str(out), "-q",
+            "--set", "physics.contact.Kp=1e7", "--set", "backends.pinocchio.dt=1e-3"]  # fmt: skip
+    assert cli.main(argv) == 3
+    meta = json.loads((out / "run.json").read_text())
+    pin_entry = meta["backends"]["pinocchio"]
+    assert pin_entry["status"] == "failed" and "diverged" in pin_entry["reason"]
+    assert 0.0 < pin_entry["failed_at"] < 0.1
+    for name, entry in meta["backends"].items():
+        if name != "pinocchio":
+            assert entry["status"] == "ok"
+    assert "pinocchio' failed" in (out / "report.md").read_text()
+    assert "FAILED" in capsys.readouterr().out
