@@ -663,7 +663,35 @@ def _study_blocks(root: Path) -> list[_Block]:
             raise ResultsError(str(path), f"malformed study output: {exc}") from None
         rows = tuple(tuple(_cell(r.get(c, "")) for c in cols) for r in records)
         blocks += [_Heading(2, heading), _Table(cols, rows, caption)]
-    return blocks
+    return blocks + _bench_blocks(root)
+
+
+def _bench_blocks(root: Path) -> list[_Block]:
+    """The latest `legbench bench` figures (results/bench/bench.json beside the results root), if any."""
+    path = next((p for p in (root / "bench" / "bench.json", root.parent / "bench" / "bench.json") if p.is_file()), None)
+    if path is None:
+        return []
+    try:
+        doc = json.loads(path.read_text())
+        rows = []
+        for r in doc["results"]:
+            if r.get("status") != "ok":
+                rows.append((r["task"], r["backend"], r.get("status", "?"), "", "", "", "", "", ""))
+                continue
+            mem = r["mem_peak_bytes"] / r["series_bytes"] if r.get("mem_peak_bytes") and r.get("series_bytes") else None
+            rows.append((
+                r["task"], r["backend"], _cell(r["full_us_per_tick"]["median"]),
+                _cell(r["engine_us_per_tick"]["median"]), _cell(r["harness_us_per_tick"]),
+                _cell(r["overhead_ratio"]["median"]), _cell(r["rtf_full"]),
+                _cell(mem) if mem is not None else "-", "yes" if r.get("replay_identical") else "NO",
+            ))  # fmt: skip
+    except (ValueError, KeyError, TypeError) as exc:
+        raise ResultsError(str(path), f"malformed benchmark output: {exc}") from None
+    cols = ("task", "backend", "full [us/tick]", "engine only [us/tick]", "harness [us/tick]", "overhead ratio",
+            "RTF", "memory / series", "replay identical")  # fmt: skip
+    caption = (f"legbench bench ({doc.get('created', '')}, {doc.get('machine', {}).get('cpus', '?')} CPUs): medians; "
+               "overhead ratio = full run / engine-only replay of the same torques")  # fmt: skip
+    return [_Heading(2, "Performance"), _Table(cols, tuple(rows), caption)]
 
 
 def write_all(root: str | Path, **compare_kwargs: Any) -> list[ReportFiles | IndexFiles]:

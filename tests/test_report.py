@@ -153,3 +153,19 @@ def test_index_shows_verification_and_calibration_tables_when_present(tmp_path: 
     assert "## Verification against closed-form answers" in md and "| energy | a | euler |" in md
     assert "## Contact calibration" in md and "| a | 1e+04 | 9999 |" in md
     assert "Contact calibration" in (root / "report.html").read_text()
+
+
+def test_index_shows_the_benchmark_beside_the_results_root(tmp_path: Path) -> None:
+    """results/bench/bench.json (written by legbench bench) becomes the index's Performance table."""
+    root = tmp_path / "results" / "latest"
+    write_run(root / "fake", {"ref": None, "a": scale(1.02)})
+    (tmp_path / "results" / "bench").mkdir()
+    stat = {"median": 50.0}
+    rec = {"task": "effort", "backend": "a", "status": "ok", "full_us_per_tick": stat,
+           "engine_us_per_tick": {"median": 46.0}, "harness_us_per_tick": 4.0, "overhead_ratio": {"median": 1.087},
+           "rtf_full": 20.0, "mem_peak_bytes": 1020, "series_bytes": 1000, "replay_identical": True}  # fmt: skip
+    doc = {"created": "now", "machine": {"cpus": 2}, "results": [rec]}
+    (tmp_path / "results" / "bench" / "bench.json").write_text(json.dumps(doc))
+    R.write_all(root)
+    md = (root / "report.md").read_text()
+    assert "## Performance" in md and "| effort | a | 50 | 46 | 4 | 1.087 | 20 | 1.02 | yes |" in md
