@@ -57,6 +57,24 @@ class Controller(ABC):
         return np.array(self.torque(k, *_floats(q), *_floats(qd)))
 
 
+def _error_integral(
+    c: PID | TrajectoryController, q1: float, q2: float, q3: float, r1: float, r2: float, r3: float
+) -> tuple[float, float, float, float, float, float]:
+    """Joint errors r - q [rad] (angular distance on continuous joints) and the updated forward-Euler
+    integral sum(e Ts) [rad s] of a controller with ``_wrap``, ``Ts`` and ``_i``, on floats."""
+    w1, w2, w3 = c._wrap
+    e1 = angdist_scalar(q1, r1) if w1 else r1 - q1
+    e2 = angdist_scalar(q2, r2) if w2 else r2 - q2
+    e3 = angdist_scalar(q3, r3) if w3 else r3 - q3
+    Ts = c.Ts
+    i1, i2, i3 = c._i
+    i1 += e1 * Ts
+    i2 += e2 * Ts
+    i3 += e3 * Ts
+    c._i = (i1, i2, i3)
+    return e1, e2, e3, i1, i2, i3
+
+
 class PID:
     """Discrete PID per joint (ros_control / Simulink form), unfiltered derivative.
 
@@ -87,17 +105,9 @@ class PID:
 
     def update(self, q1: float, q2: float, q3: float, r1: float, r2: float, r3: float) -> tuple[float, float, float]:
         """Torque [N m] for the joint angles q [rad] and the target r [rad], on floats."""
-        w1, w2, w3 = self._wrap
-        e1 = angdist_scalar(q1, r1) if w1 else r1 - q1
-        e2 = angdist_scalar(q2, r2) if w2 else r2 - q2
-        e3 = angdist_scalar(q3, r3) if w3 else r3 - q3
+        e1, e2, e3, i1, i2, i3 = _error_integral(self, q1, q2, q3, r1, r2, r3)
         p1, p2, p3 = self.e_prev if self.e_prev is not None else (e1, e2, e3)
         Ts = self.Ts
-        i1, i2, i3 = self._i
-        i1 += e1 * Ts
-        i2 += e2 * Ts
-        i3 += e3 * Ts
-        self._i = (i1, i2, i3)
         self.e_prev = (e1, e2, e3)
         kp1, kp2, kp3, kd1, kd2, kd3, ki1, ki2, ki3 = self._gains
         return (
@@ -245,16 +255,7 @@ class TrajectoryController(Controller):
 
     def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
         r1, r2, r3, v1, v2, v3 = self.desired_scalar(k)
-        w1, w2, w3 = self._wrap
-        e1 = angdist_scalar(q1, r1) if w1 else r1 - q1
-        e2 = angdist_scalar(q2, r2) if w2 else r2 - q2
-        e3 = angdist_scalar(q3, r3) if w3 else r3 - q3
-        Ts = self.Ts
-        i1, i2, i3 = self._i
-        i1 += e1 * Ts
-        i2 += e2 * Ts
-        i3 += e3 * Ts
-        self._i = (i1, i2, i3)
+        e1, e2, e3, i1, i2, i3 = _error_integral(self, q1, q2, q3, r1, r2, r3)
         kp1, kp2, kp3, kd1, kd2, kd3, ki1, ki2, ki3 = self._gains
         return (
             kp1 * e1 + kd1 * (v1 - qd1) + ki1 * i1,
