@@ -145,7 +145,7 @@ def simulate(
                 raise SimulationDiverged(backend.name, k * Ts, "state is not finite")
             if abs(qd1) > v_max or abs(qd2) > v_max or abs(qd3) > v_max:
                 raise SimulationDiverged(backend.name, k * Ts, f"joint speed above {MAX_JOINT_SPEED} rad/s")
-            if L_12 * sin(q1) + cos(q1) * (L_23 * sin(q2) + L_3E * sin(q2 + q3)) + H < z_min:  # foot_height
+            if L_12 * sin(q1) + cos(q1) * (L_23 * sin(q2) + L_3E * sin(q2 + q3)) + H < z_min:  # foot-centre height z_W
                 raise SimulationDiverged(backend.name, k * Ts, f"foot more than {MAX_PENETRATION} m into the ground")
             if k >= next_tick:
                 while next_event < n_events and ticks[next_event] <= k:
@@ -195,12 +195,6 @@ def simulate(
         info=backend.info(),
         wall_time=wall,
     )
-
-
-def foot_height(q1: float, q2: float, q3: float, g: Any) -> float:
-    """Height of the foot centre above the ground, z_W of E [m] (closed form, floats)."""
-    reach = g.L_23 * math.sin(q2) + g.L_3E * math.sin(q2 + q3)
-    return g.L_12 * math.sin(q1) + math.cos(q1) * reach + g.H
 
 
 def run_backend(scenario: Scenario, name: str, contact_mode: str | None = None, progress: bool = False) -> Trajectory:
