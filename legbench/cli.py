@@ -243,7 +243,21 @@ def _add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 def _compare(args: argparse.Namespace) -> int:
     from legbench import report
 
-    written = report.write_all(args.dir, log=args.reference_log, lag=args.lag, all_pairs=args.all_pairs)
+    column_map: dict[str, str] = {}
+    for item in args.log_columns.split(",") if args.log_columns else []:
+        src, sep, dst = item.partition("=")
+        if not sep or not src.strip() or not dst.strip():
+            raise LegbenchError(f"--log-columns {item!r}: expected HEADER=COLUMN, e.g. joint1_pos=q1")
+        column_map[src.strip()] = dst.strip()
+    written = report.write_all(
+        args.dir,
+        log=args.reference_log,
+        column_map=column_map or None,
+        log_time_scale=args.log_time_scale,
+        log_is_reference=args.log_is_reference,
+        lag=args.lag,
+        all_pairs=args.all_pairs,
+    )
     for files in written:
         print(f"wrote {getattr(files, 'html', files)}")
     return EXIT_OK
@@ -257,6 +271,23 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-
         default=None,
         metavar="CSV",
         help="an external log (CSV, header with legbench column names) to compare as one more backend",
+    )
+    p.add_argument(
+        "--log-columns",
+        default="",
+        metavar="HEADER=COLUMN,...",
+        help="map the log's headers to legbench columns (t, q1..q3, qd1..qd3, tau1..tau3, fx, fy, fz)",
+    )
+    p.add_argument(
+        "--log-time-scale",
+        type=float,
+        default=1.0,
+        help="factor taking the log's time unit to seconds (e.g. 1e-3 for ms)",
+    )
+    p.add_argument(
+        "--log-is-reference",
+        action="store_true",
+        help="measure every backend against the log instead of the scenario's reference backend",
     )
     p.add_argument("--lag", choices=("off", "report", "remove"), default="off",
                    help="estimate ('report') or estimate and remove ('remove') a constant time lag by "
