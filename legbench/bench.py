@@ -47,8 +47,7 @@ import numpy as np
 from legbench import backends as registry
 from legbench import run, scenario
 from legbench.backends.base import Backend
-from legbench.exceptions import LegbenchError
-from legbench.model import URDF_FILE
+from legbench.exceptions import BackendNotFound, LegbenchError
 from legbench.scenario import Scenario
 
 __all__ = [
@@ -344,13 +343,14 @@ def bench_backend(
     """
     res = BenchResult(task=sc.name, backend=name, duration=sc.duration, steps=sc.n_ticks - 1)
     physics = run.physics_of(sc, contact_mode)
-    backend = registry.get(name)()
     try:
-        try:
-            backend.load(URDF_FILE, physics, sc.backends.get(name, {}))
-        except Exception as exc:  # an engine that cannot load must not stop the others
-            res.status, res.reason = "failed", f"load failed: {type(exc).__name__}: {exc}"
-            return res
+        backend = registry.load(name, physics, sc.backends.get(name, {}))
+    except BackendNotFound:
+        raise
+    except Exception as exc:  # an engine that cannot load must not stop the others
+        res.status, res.reason = "failed", f"load failed: {type(exc).__name__}: {exc}"
+        return res
+    try:
         q0, qd0 = np.array(sc.q0), np.array(sc.qd0)
         tr = run.simulate(sc, backend, physics)
         if tr.status != "ok":

@@ -117,8 +117,7 @@ def push(name: str, program: Program = Program(), scenario_file: Path = SCENARIO
 
     sc = scenario_mod.load(scenario_file)
     physics = physics_of(sc, contact_mode)
-    backend = registry.get(name)()
-    backend.load(model.URDF_FILE, physics, sc.backends.get(name, {}))
+    backend = registry.load(name, physics, sc.backends.get(name, {}))
     Ts = sc.control_dt
     n = int(round(program.duration / Ts)) + 1
     t = np.arange(n) * Ts

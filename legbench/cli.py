@@ -162,7 +162,8 @@ def _run(args: argparse.Namespace) -> int:
     if not args.no_preflight:
         from legbench import doctor
 
-        installed = [n for n in names if n in backends.available()]
+        available = set(backends.available())
+        installed = [n for n in names if n in available]
         checked: set[str] = set()
         for sc in scenarios:  # every engine must hold the spec's leg before anything runs
             key = json.dumps([sc.gravity, {k: dict(v) for k, v in sc.backends.items()}], sort_keys=True)

@@ -231,8 +231,7 @@ def table(scenario: Scenario | str | Path, backends: Sequence[str] | None = None
     physics = physics_of(sc)
     values: dict[str, dict[str, Any]] = {}
     for name in names:
-        b = registry.get(name)()
-        b.load(model.URDF_FILE, physics, sc.backends.get(name, {}))
+        b = registry.load(name, physics, sc.backends.get(name, {}))
         try:
             values[name] = readback(b)
         finally:

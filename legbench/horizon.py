@@ -27,7 +27,7 @@ import pandas as pd
 from legbench import backends as registry
 from legbench.backends.base import Backend
 from legbench.exceptions import LegbenchError, ScenarioError
-from legbench.model import URDF_FILE, load_params
+from legbench.model import load_params
 
 if TYPE_CHECKING:
     from legbench.executors import ReplaySpec
@@ -144,9 +144,7 @@ def replay(
 def _load(scenario: Scenario, name: str, contact_mode: str | None) -> Backend:
     from legbench.run import physics_of
 
-    backend = registry.get(name)()
-    backend.load(URDF_FILE, physics_of(scenario, contact_mode), scenario.backends.get(name, {}))
-    return backend
+    return registry.load(name, physics_of(scenario, contact_mode), scenario.backends.get(name, {}))
 
 
 def replay_task(scenario: Scenario, name: str, spec: ReplaySpec, contact_mode: str | None = None) -> dict[str, Any]:

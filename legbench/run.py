@@ -202,11 +202,9 @@ def run_backend(scenario: Scenario, name: str, contact_mode: str | None = None, 
     physics = physics_of(scenario, contact_mode)
     empty = np.empty((0, 3))
     try:
-        backend = registry.get(name)()
+        backend = registry.load(name, physics, scenario.backends.get(name, {}))
     except BackendNotFound as exc:
         return Trajectory(name, np.empty(0), empty, empty, empty, empty, np.empty(0, dtype=object), "missing", str(exc))
-    try:
-        backend.load(URDF_FILE, physics, scenario.backends.get(name, {}))
     except Exception as exc:  # an engine that cannot load must not stop the others
         return Trajectory(name, np.empty(0), empty, empty, empty, empty, np.empty(0, dtype=object), "failed",
                           f"load failed: {type(exc).__name__}: {exc}")  # fmt: skip

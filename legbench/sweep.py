@@ -61,7 +61,7 @@ from legbench import horizon, kinematics
 from legbench.contact import CONTACT_MODES
 from legbench.exceptions import LegbenchError, ScenarioError
 from legbench.executors import EXECUTORS, Executor, ReplaySpec, RunTask, make_executor, run_task
-from legbench.scenario import YamlContext, check_keys, read_yaml
+from legbench.scenario import NAME_RE, YamlContext, check_keys, read_yaml
 
 __all__ = [
     "COMPONENTS",
@@ -191,8 +191,8 @@ def load_sweep(path: str | Path) -> Sweep:
     doc = YamlContext(str(path), root)
     check_keys(doc, [], raw, TOP_KEYS, ["name", "scenario", "studies"])
     name = raw["name"]
-    if not isinstance(name, str) or not name or any(c in name for c in "/\\\0") or name in (".", ".."):
-        raise doc.error(["name"], f"expected a plain name (letters, digits, - _ .), got {name!r}")
+    if not isinstance(name, str) or not NAME_RE.fullmatch(name) or set(name) == {"."}:  # a directory name
+        raise doc.error(["name"], f"expected a plain name (letters, digits, - _ ., at most 64), got {name!r}")
     description = raw.get("description", "") or ""
     if not isinstance(description, str):
         raise doc.error(["description"], "expected text")

@@ -68,7 +68,7 @@ from scipy.optimize import linear_sum_assignment
 
 from legbench import backends as registry
 from legbench import kinematics, model
-from legbench.backends.base import Backend, Physics
+from legbench.backends.base import Physics
 from legbench.exceptions import LegbenchError
 
 __all__ = [
@@ -150,12 +150,6 @@ def _failed(case: str, backend: str, variant: str, reason: str) -> Check:
 # Running a backend
 
 
-def _load(name: str, physics: Physics, settings: Mapping[str, Any]) -> Backend:
-    backend = registry.get(name)()
-    backend.load(model.URDF_FILE, physics, settings)
-    return backend
-
-
 def _variants(name: str, base: Mapping[str, Any], integrators: Sequence[str] | None) -> list[dict[str, Any]]:
     """Backend settings to verify: the scenario's, once per integrator the backend offers (or once)."""
     cls = registry.get(name)
@@ -197,7 +191,7 @@ def _variant(info: Mapping[str, Any], name: str, control_dt: float) -> str:
 def _simulate(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any]) -> Any:
     from legbench.run import simulate
 
-    backend = _load(name, physics, settings)
+    backend = registry.load(name, physics, settings)
     try:
         return simulate(scenario, backend, physics)
     finally:

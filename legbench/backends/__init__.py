@@ -9,12 +9,14 @@ Other packages add backends through the ``legbench.backends`` entry-point group
 from __future__ import annotations
 
 import importlib
+from collections.abc import Mapping
 from importlib import metadata
+from typing import Any
 
 from legbench.backends.base import Backend, Physics
 from legbench.exceptions import BackendNotFound
 
-__all__ = ["Backend", "Physics", "available", "get", "resolve"]
+__all__ = ["Backend", "Physics", "available", "get", "load", "resolve"]
 
 #: Built-in backends: name -> (module, class, pip package that provides the engine).
 BUILTIN: dict[str, tuple[str, str, str]] = {
@@ -62,6 +64,24 @@ def get(name: str) -> type[Backend]:
     if name not in reg:
         raise BackendNotFound(name, reg, _MISSING.get(name, ""))
     return reg[name]
+
+
+def load(name: str, physics: Physics, settings: Mapping[str, Any]) -> Backend:
+    """A backend instance with the generated leg loaded under ``physics`` and its ``settings``.
+
+    Raises:
+        BackendNotFound: ``name`` is not available.
+        Exception: whatever the engine raises while loading (the instance is closed first).
+    """
+    from legbench.model import URDF_FILE
+
+    backend = get(name)()
+    try:
+        backend.load(URDF_FILE, physics, settings)
+    except BaseException:
+        backend.close()
+        raise
+    return backend
 
 
 def resolve(names: str | list[str]) -> list[str]:
