@@ -8,7 +8,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from legbench.backends.base import Backend, Physics
+from legbench.backends.base import Backend, Limits, Physics
 
 
 class FakeBackend(Backend):
@@ -45,3 +45,13 @@ class FakeBackend(Backend):
 
     def info(self) -> dict[str, Any]:
         return {"engine": "fake", "version": "0", **self.cfg}
+
+    def integrator_family(self) -> str:
+        return "other"  # exact flow of decoupled inertias: nothing for verification to predict
+
+    def sub_steps(self) -> int:
+        return 1
+
+    def limits(self) -> Limits:
+        inf = float("inf")
+        return Limits(gravity=0.0, lower=(-inf, -inf, -inf), upper=(inf, inf, inf), enforcement="none")

@@ -13,10 +13,21 @@ from collections.abc import Mapping
 from importlib import metadata
 from typing import Any
 
-from legbench.backends.base import Backend, Physics
+from legbench.backends.base import INTEGRATOR_FAMILIES, PROFILES, Backend, Limits, Physics, sub_step_count
 from legbench.exceptions import BackendNotFound
 
-__all__ = ["Backend", "Physics", "available", "get", "load", "resolve"]
+__all__ = [
+    "INTEGRATOR_FAMILIES",
+    "PROFILES",
+    "Backend",
+    "Limits",
+    "Physics",
+    "available",
+    "get",
+    "load",
+    "resolve",
+    "sub_step_count",
+]
 
 #: Built-in backends: name -> (module, class, pip package that provides the engine).
 BUILTIN: dict[str, tuple[str, str, str]] = {
@@ -66,18 +77,24 @@ def get(name: str) -> type[Backend]:
     return reg[name]
 
 
-def load(name: str, physics: Physics, settings: Mapping[str, Any]) -> Backend:
-    """A backend instance with the generated leg loaded under ``physics`` and its ``settings``.
+def load(name: str, physics: Physics, settings: Mapping[str, Any], profile: str = "matched") -> Backend:
+    """A backend instance with the generated leg loaded under ``physics``, its ``profile`` and ``settings``.
+
+    The backend receives its defaults overlaid with the profile's settings and then
+    with ``settings`` (:meth:`Backend.resolve_settings`).
 
     Raises:
         BackendNotFound: ``name`` is not available.
+        LegbenchError: ``profile`` is not one the backend offers.
         Exception: whatever the engine raises while loading (the instance is closed first).
     """
     from legbench.model import URDF_FILE
 
-    backend = get(name)()
+    cls = get(name)
+    resolved = cls.resolve_settings(settings, profile)
+    backend = cls()
     try:
-        backend.load(URDF_FILE, physics, settings)
+        backend.load(URDF_FILE, physics, resolved)
     except BaseException:
         backend.close()
         raise

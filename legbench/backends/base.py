@@ -8,8 +8,9 @@ hold) with whatever sub-steps it uses, and reports state and ground force.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
@@ -17,6 +18,17 @@ from typing import Any, ClassVar
 import numpy as np
 
 from legbench.contact import ContactParams
+from legbench.exceptions import LegbenchError
+
+#: Integrator families, by what verification can predict for them: ``euler`` (semi-implicit
+#: Euler: qd += h qdd, then q += h qd), ``implicit`` (implicit in velocity, first order, e.g.
+#: MuJoCo's ``implicit``), ``rk4`` (classic fixed-step), ``adaptive`` (error-controlled, one
+#: solve per control period), ``other`` (no closed-form prediction: e.g. a convex or LCP
+#: time-stepping scheme whose energy behaviour is the solver's).
+INTEGRATOR_FAMILIES = ("euler", "implicit", "rk4", "adaptive", "other")
+
+#: The two profiles every backend offers (a backend may add its own, e.g. ``gazebo``).
+PROFILES = ("matched", "engine-defaults")
 
 
 @dataclass(frozen=True)
@@ -42,6 +54,44 @@ class Physics:
     torque_limit: tuple[float, float, float] = (7.051408, 10.07344, 10.07344)
 
 
+@dataclass(frozen=True)
+class Limits:
+    """What the loaded engine itself holds and enforces, read back from the engine's model.
+
+    Attributes:
+        gravity: gravity magnitude along -z_W [m/s^2].
+        lower: lower joint position limits [rad] (``-inf``: none, e.g. the continuous hip).
+        upper: upper joint position limits [rad] (``inf``: none).
+        effort: torque limits the engine applies [N m] (``inf``: none; the harness saturates anyway).
+        timestep: the engine's own integration step [s], ``None`` where it has none (adaptive).
+        enforcement: one sentence on how the position limits are enforced (soft constraint,
+            hard constraint, penalty spring-damper with its numbers).
+    """
+
+    gravity: float
+    lower: tuple[float, float, float]
+    upper: tuple[float, float, float]
+    effort: tuple[float, float, float] = (math.inf, math.inf, math.inf)
+    timestep: float | None = None
+    enforcement: str = ""
+
+
+def sub_step_count(backend: str, dt: float, control_dt: float) -> int:
+    """Number of sub-steps of length ``dt`` [s] in one control period ``control_dt`` [s].
+
+    Raises:
+        LegbenchError: ``dt`` is not positive or does not divide the control period.
+    """
+    ratio = control_dt / dt if dt > 0 else 0.0
+    n = round(ratio)
+    if n < 1 or abs(ratio - n) > 1e-9:
+        raise LegbenchError(
+            f"backends.{backend}.dt: {dt:g} s does not divide the control period {control_dt:g} s "
+            f"(choose control_dt / n, e.g. {control_dt / max(n, 1):g} s)"
+        )
+    return n
+
+
 class Backend(ABC):
     """A physics engine simulating the leg.
 
@@ -57,6 +107,27 @@ class Backend(ABC):
     defaults: ClassVar[Mapping[str, Any]] = {}
     #: Allowed values of string settings, e.g. {"integrator": ("euler", "rk4")}.
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {}
+    #: Named settings overlays on :attr:`defaults`. ``matched``: the spec's physics mapped as
+    #: faithfully as the engine allows (usually :attr:`defaults` itself, ``{}``);
+    #: ``engine-defaults``: what a user gets from the engine's documented defaults with only
+    #: Kp, Kd and mu set the engine's usual way. A backend may add more (e.g. ``gazebo``).
+    #: Every key of an overlay must be a key of :attr:`defaults`.
+    profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {"matched": {}, "engine-defaults": {}}
+    #: One command that installs the engine where it is missing (shown by the registry).
+    install: ClassVar[str] = ""
+
+    @classmethod
+    def resolve_settings(cls, given: Mapping[str, Any], profile: str = "matched") -> dict[str, Any]:
+        """Defaults, overlaid with the profile's settings, overlaid with the scenario's ``given``.
+
+        Raises:
+            LegbenchError: ``profile`` is not one of :attr:`profiles`.
+        """
+        if profile not in cls.profiles:
+            raise LegbenchError(
+                f"backends.{cls.name}.profile: unknown profile '{profile}'; {cls.name} offers {sorted(cls.profiles)}"
+            )
+        return {**cls.defaults, **cls.profiles[profile], **given}
 
     @abstractmethod
     def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
@@ -81,6 +152,31 @@ class Backend(ABC):
     @abstractmethod
     def info(self) -> dict[str, Any]:
         """Engine name and version and every physics setting actually used (JSON-serialisable)."""
+
+    # ------------------------------------------------------- declared abilities
+    @abstractmethod
+    def integrator_family(self) -> str:
+        """The loaded integrator's family, one of :data:`INTEGRATOR_FAMILIES` (verification predicts by it)."""
+
+    @abstractmethod
+    def sub_steps(self) -> int:
+        """Engine steps per control period (1 for an adaptive solve per period)."""
+
+    @abstractmethod
+    def limits(self) -> Limits:
+        """Gravity, joint and torque limits as the loaded engine holds them, and how it enforces them."""
+
+    def kernels(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> dict[str, Callable[[], None]]:
+        """The engine's own per-sub-step calls, for the benchmark's floors.
+
+        Args:
+            q, qd, tau: states [rad, rad/s] and torques [N m], one row per sample (N x 3).
+
+        Returns:
+            name -> a callable that makes exactly one such call for each of the N samples
+            (inputs prepared beforehand), e.g. ``{"aba": ..., "law": ...}``.
+        """
+        raise NotImplementedError(f"kernels are not supported by {self.name}")
 
     def close(self) -> None:  # noqa: B027 - optional hook
         """Release engine resources."""

@@ -42,6 +42,7 @@ restarting from qpos0.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
@@ -49,7 +50,7 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
-from legbench.backends.base import Backend, Physics
+from legbench.backends.base import Backend, Limits, Physics, sub_step_count
 from legbench.contact import ReferenceContact
 from legbench.exceptions import LegbenchError, SimulationDiverged
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine
@@ -96,10 +97,7 @@ class MujocoBackend(Backend):
         cfg = self.settings(settings)
         if cfg["integrator"] not in _INTEGRATORS:
             raise LegbenchError(f"mujoco: unknown integrator '{cfg['integrator']}'; choose one of {list(_INTEGRATORS)}")
-        ratio = physics.control_dt / cfg["dt"]
-        n_sub = round(ratio)
-        if n_sub < 1 or abs(ratio - n_sub) > 1e-9:
-            raise LegbenchError(f"mujoco: dt = {cfg['dt']} s does not divide the control period {physics.control_dt} s")
+        n_sub = sub_step_count(self.name, cfg["dt"], physics.control_dt)
         self.cfg, self.physics, self.n_sub = cfg, physics, n_sub
         self.reference = physics.contact_mode == "reference"
 
@@ -252,6 +250,31 @@ class MujocoBackend(Backend):
                 "tolerance": float(m.opt.tolerance),
             },
         }
+
+    # ------------------------------------------------------- declared abilities
+    def integrator_family(self) -> str:
+        """``euler`` for Euler and implicitfast (no joint damping: both semi-implicit Euler), else the integrator."""
+        return {"euler": "euler", "implicitfast": "euler", "implicit": "implicit", "rk4": "rk4"}[self.cfg["integrator"]]
+
+    def sub_steps(self) -> int:
+        return self.n_sub
+
+    def limits(self) -> Limits:
+        """``jnt_range`` where ``jnt_limited``, ``actuator_ctrlrange`` where ``ctrllimited``, ``opt.gravity``."""
+        m = self.model
+        lower, upper, effort = [], [], []
+        for name in JOINT_NAMES:
+            j = m.joint(name).id
+            limited = bool(m.jnt_limited[j])
+            lower.append(float(m.jnt_range[j, 0]) if limited else -math.inf)
+            upper.append(float(m.jnt_range[j, 1]) if limited else math.inf)
+            a = m.actuator(name).id
+            effort.append(float(m.actuator_ctrlrange[a, 1]) if m.actuator_ctrllimited[a] else math.inf)
+        return Limits(
+            gravity=-float(m.opt.gravity[2]), lower=tuple(lower), upper=tuple(upper),  # type: ignore[arg-type]
+            effort=tuple(effort), timestep=float(m.opt.timestep),  # type: ignore[arg-type]
+            enforcement=f"soft limit constraint, solref {list(LIMIT_SOLREF)}, solimp {list(LIMIT_SOLIMP)}",
+        )  # fmt: skip
 
     def mass_properties(self) -> dict[str, dict[str, Any]]:
         """Per moving body: mass [kg], COM [m] and inertia about the COM [kg m^2] in the link frame.

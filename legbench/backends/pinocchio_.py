@@ -25,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
-from legbench.backends.base import Backend, Physics
+from legbench.backends.base import Backend, Limits, Physics, sub_step_count
 from legbench.contact import ReferenceContact
 from legbench.exceptions import LegbenchError
 from legbench.model import LINK_NAMES, load_params
@@ -53,10 +53,7 @@ class PinocchioBackend(Backend):
         self.model = pin.buildModelFromUrdf(str(urdf))
         self.model.gravity.linear = np.array([0.0, 0.0, -physics.gravity])
         self.data = self.model.createData()
-        ratio = physics.control_dt / self.cfg["dt"]
-        self.n_sub = int(round(ratio))
-        if abs(ratio - self.n_sub) > 1e-9 or self.n_sub < 1:
-            raise LegbenchError(f"pinocchio: dt {self.cfg['dt']} s does not divide the control period")
+        self.n_sub = sub_step_count(self.name, self.cfg["dt"], physics.control_dt)
         self.h = physics.control_dt / self.n_sub
         self.contact = ReferenceContact.from_leg(physics.contact)
         p = load_params()
@@ -219,6 +216,45 @@ class PinocchioBackend(Backend):
                 "poc": c.poc,
             },
         }
+
+    # ------------------------------------------------------- declared abilities
+    def integrator_family(self) -> str:
+        integ = self.cfg["integrator"]
+        return integ if integ in ("euler", "rk4") else "adaptive"
+
+    def sub_steps(self) -> int:
+        return self.n_sub
+
+    def limits(self) -> Limits:
+        """Model gravity and ``effortLimit``; position limits as the integrator enforces them."""
+        m = self.model
+        return Limits(
+            gravity=-float(m.gravity.linear[2]),
+            lower=tuple(float(x) for x in self.lower),  # type: ignore[arg-type]
+            upper=tuple(float(x) for x in self.upper),  # type: ignore[arg-type]
+            effort=tuple(float(x) for x in m.effortLimit),  # type: ignore[arg-type]
+            timestep=self.h if self.cfg["integrator"] in ("euler", "rk4") else None,
+            enforcement=f"one-sided spring-damper {self.k_lim:g} N m/rad, {self.b_lim:g} N m s/rad",
+        )
+
+    def kernels(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> dict[str, Any]:
+        """``pin.aba`` on this backend's model and data, and the contact law it calls per sub-step."""
+        aba, model, data, law = self._aba, self.model, self.data, self.law
+        pin_in = [
+            (np.array([a[0], math.cos(a[1]), math.sin(a[1]), a[2]]), np.array(v), np.array(t))
+            for a, v, t in zip(np.asarray(q), np.asarray(qd), np.asarray(tau), strict=True)
+        ]
+        law_in = [(*a, *v) for a, v in zip(np.asarray(q).tolist(), np.asarray(qd).tolist(), strict=True)]
+
+        def aba_loop() -> None:
+            for qp, v, t in pin_in:
+                aba(model, data, qp, v, t)
+
+        def law_loop() -> None:
+            for x in law_in:
+                law(*x)
+
+        return {"aba": aba_loop, "law": law_loop}
 
     def mass_properties(self) -> dict[str, dict[str, Any]]:
         out = {}

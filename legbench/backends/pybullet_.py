@@ -47,9 +47,9 @@ from typing import Any, ClassVar
 import numpy as np
 import pybullet as p
 
-from legbench.backends.base import Backend, Physics
+from legbench.backends.base import Backend, Limits, Physics, sub_step_count
 from legbench.contact import ReferenceContact
-from legbench.exceptions import LegbenchError, SimulationDiverged
+from legbench.exceptions import SimulationDiverged
 from legbench.model import FOOT_FRAME, LINK_NAMES, Inertial, combine
 
 #: Joint-speed clamp [rad/s]: Bullet's default of 100 replaced by a bound the leg cannot reach.
@@ -83,12 +83,7 @@ class PybulletBackend(Backend):
             LegbenchError: a ``dt`` that does not divide the control period.
         """
         cfg = self.settings(settings)
-        ratio = physics.control_dt / cfg["dt"]
-        n_sub = round(ratio)
-        if n_sub < 1 or abs(ratio - n_sub) > 1e-9:
-            raise LegbenchError(
-                f"pybullet: dt = {cfg['dt']} s does not divide the control period {physics.control_dt} s"
-            )
+        n_sub = sub_step_count(self.name, cfg["dt"], physics.control_dt)
         self.cfg, self.physics, self.n_sub = cfg, physics, n_sub
         self.reference = physics.contact_mode == "reference"
         self.cid = cid = p.connect(p.DIRECT)
@@ -271,6 +266,33 @@ class PybulletBackend(Backend):
             "damping": {"linear": 0.0, "angular": 0.0, "joint": 0.0},
             "max_joint_velocity": MAX_JOINT_VELOCITY,
         }
+
+    # ------------------------------------------------------- declared abilities
+    def integrator_family(self) -> str:
+        """Bullet's multibody integration is semi-implicit Euler (velocity first, then position)."""
+        return "euler"
+
+    def sub_steps(self) -> int:
+        return self.n_sub
+
+    def limits(self) -> Limits:
+        """``getJointInfo`` limits (lower > upper means none) and effort, ``getPhysicsEngineParameters``."""
+        cid = self.cid
+        lower, upper, effort = [], [], []
+        for j in self.joints:
+            info = p.getJointInfo(self.body, j, physicsClientId=cid)
+            lo, hi = float(info[8]), float(info[9])
+            if lo > hi:  # Bullet's way of saying "no limit"
+                lo, hi = -math.inf, math.inf
+            lower.append(lo)
+            upper.append(hi)
+            effort.append(float(info[10]))
+        params = p.getPhysicsEngineParameters(physicsClientId=cid)
+        return Limits(
+            gravity=-float(params["gravityAccelerationZ"]), lower=tuple(lower), upper=tuple(upper),  # type: ignore[arg-type]
+            effort=tuple(effort), timestep=float(params["fixedTimeStep"]),  # type: ignore[arg-type]
+            enforcement="hard joint-limit constraint in the sequential-impulse solver",
+        )  # fmt: skip
 
     def mass_properties(self) -> dict[str, dict[str, Any]]:
         """Per moving body: mass [kg], COM [m] and inertia about the COM [kg m^2] in the link frame.
