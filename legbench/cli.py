@@ -7,11 +7,14 @@ import json
 import signal
 import sys
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from legbench import backends, check, kinematics, model, report, run, scenario
 from legbench.exceptions import LegbenchError
+from legbench.studies import bench, calibrate_contact, doctor, sweep, verify
 
 EXIT_OK = 0
 EXIT_FAILURE = 1  # a regression (check) or an unreachable point (model ik)
@@ -29,8 +32,6 @@ def _floats(values: Any) -> list[float]:
 
 
 def _model_fk(args: argparse.Namespace) -> int:
-    from legbench import kinematics
-
     ee = kinematics.fk(np.array(args.q))
     if args.json:
         print(json.dumps({"ee": _floats(ee)}))
@@ -40,8 +41,6 @@ def _model_fk(args: argparse.Namespace) -> int:
 
 
 def _model_ik(args: argparse.Namespace) -> int:
-    from legbench import kinematics
-
     res = kinematics.ik(np.array(args.p))
     if args.json:
         out: dict[str, object] = {"solutions": [_floats(s) for s in res.solutions]}
@@ -58,8 +57,6 @@ def _model_ik(args: argparse.Namespace) -> int:
 
 
 def _model_gravity(args: argparse.Namespace) -> int:
-    from legbench import kinematics
-
     tau = kinematics.gravity(np.array(args.q))
     if args.json:
         print(json.dumps({"tau": _floats(tau)}))
@@ -69,16 +66,12 @@ def _model_gravity(args: argparse.Namespace) -> int:
 
 
 def _model_urdf(args: argparse.Namespace) -> int:
-    from legbench import model
-
     path = model.write_urdf(model.load_params(args.params), args.out)
     print(f"wrote {path}")
     return 0
 
 
 def _model_calibrate(args: argparse.Namespace) -> int:
-    from legbench import model
-
     scale = model.calibrate(model.load_raw(args.params))
     print("mass scale factors that reproduce G(q*) (paste into calibration.scale of the parameter file):")
     print("  scale: {" + ", ".join(f"{k}: {v:.8f}" for k, v in scale.items()) + "}")
@@ -87,8 +80,6 @@ def _model_calibrate(args: argparse.Namespace) -> int:
 
 def _model_check(args: argparse.Namespace) -> int:
     """Print the model's headline numbers against the spec's."""
-    from legbench import kinematics, model
-
     p = model.load_params()
     q_star = np.array(p.q_star)
     G = kinematics.gravity(q_star)
@@ -130,8 +121,6 @@ def _add_model(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
-    from legbench import model
-
     if getattr(args, "params", None) is None:
         args.params = model.PARAMS_FILE
     if hasattr(args, "out") and args.out is None:
@@ -144,10 +133,6 @@ def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from legbench import backends, run, scenario
-
     overrides = scenario.parse_overrides(args.set)
     scenarios = [scenario.load(path, overrides) for path in args.scenarios]  # all validated before any runs
     names = backends.resolve(args.backends)
@@ -160,8 +145,6 @@ def _run(args: argparse.Namespace) -> int:
         for mode in modes
     ]
     if not args.no_preflight:
-        from legbench import doctor
-
         available = set(backends.available())
         installed = [n for n in names if n in available]
         checked: set[str] = set()
@@ -186,8 +169,6 @@ def _run(args: argparse.Namespace) -> int:
                 f"F_end [{', '.join(f'{x:+.2f}' for x in tr.f[-1])}] N"
             )
     if not args.no_compare:
-        from legbench import report
-
         if single:
             files = report.write_report(plan[0][2])
             print(f"report: {files.html}")
@@ -199,10 +180,6 @@ def _run(args: argparse.Namespace) -> int:
 
 def _validate(args: argparse.Namespace) -> int:
     """Scenario, sweep (has ``studies``) and tolerance files (only tolerance keys), told apart by content."""
-    from pathlib import Path
-
-    from legbench import check, scenario, sweep
-
     for path in args.files:
         try:
             doc = scenario.yaml_load(Path(path).read_text())
@@ -242,8 +219,6 @@ def _add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from legbench import report
-
     column_map: dict[str, str] = {}
     for item in args.log_columns.split(",") if args.log_columns else []:
         src, sep, dst = item.partition("=")
@@ -298,8 +273,6 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-
 
 
 def _check(args: argparse.Namespace) -> int:
-    from legbench import check
-
     return check.run_check(args.dir, args.baseline, args.tolerances, args.summary, args.junit, all_rows=args.all)
 
 
@@ -330,8 +303,6 @@ def build_parser() -> argparse.ArgumentParser:
     _add_validate(sub)
     _add_compare(sub)
     _add_check(sub)
-    from legbench import bench, calibrate_contact, doctor, sweep, verify
-
     for module in (doctor, sweep, verify, calibrate_contact, bench):
         module.add_cli(sub)
     return parser

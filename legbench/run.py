@@ -192,9 +192,15 @@ def simulate(
         controller=controller,
         status=status,
         reason=reason,
-        info=backend.info(),
+        info=backend_info(backend),
         wall_time=wall,
     )
+
+
+def backend_info(backend: Backend) -> dict[str, Any]:
+    """What run.json records of a backend: its :meth:`~Backend.info`, plus its declared
+    ``integrator_family`` and ``sub_steps`` (what verification predicts by)."""
+    return {**backend.info(), "integrator_family": backend.integrator_family(), "sub_steps": backend.sub_steps()}
 
 
 def run_backend(scenario: Scenario, name: str, contact_mode: str | None = None, progress: bool = False) -> Trajectory:
@@ -241,7 +247,7 @@ def versions() -> dict[str, str]:
     from importlib import metadata
 
     out = {"python": platform.python_version()}
-    for pkg in ("legbench", "numpy", "scipy", "pandas", "pin", "mujoco", "pybullet"):
+    for pkg in ("legbench", "numpy", "scipy", "pandas", *registry.engine_packages()):
         try:
             out[pkg] = metadata.version(pkg)
         except metadata.PackageNotFoundError:

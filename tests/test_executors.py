@@ -8,8 +8,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from legbench import backends, executors, sweep
+from legbench import backends
 from legbench.exceptions import LegbenchError
+from legbench.studies import executors, sweep
 
 FREE_SPACE = Path(__file__).resolve().parents[1] / "scenarios" / "verification" / "free_space.yaml"
 TIMING = ["wall_time", "rtf", "wall_per_sim_s"]  # measured, so they differ between runs

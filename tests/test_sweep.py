@@ -11,8 +11,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from legbench import backends, sweep
+from legbench import backends
 from legbench.exceptions import LegbenchError, ScenarioError
+from legbench.studies import sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 TIMESTEP = ROOT / "scenarios" / "sweeps" / "timestep.yaml"

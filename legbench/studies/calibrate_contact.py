@@ -45,7 +45,7 @@ from legbench.scenario import Event
 
 __all__ = ["Calibration", "Program", "PushLog", "add_cli", "calibrate", "estimate", "push", "write_calibration"]
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml"
+SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "effort.yaml"
 
 
 @dataclass(frozen=True)

@@ -130,7 +130,7 @@ def run_task(task: RunTask) -> dict[str, Any]:
         "horizon": None,
     }
     if task.replay is not None and tr.status == "ok":
-        from legbench import horizon
+        from legbench.studies import horizon
 
         out["horizon"] = horizon.replay_task(sc, task.backend, task.replay, task.contact_mode)
     return out
@@ -171,7 +171,7 @@ def _mp_context() -> multiprocessing.context.BaseContext:
     ctx = multiprocessing.get_context(method)
     if method == "forkserver":
         # import the engines once in the fork server, not once per worker
-        ctx.set_forkserver_preload(["legbench.executors", "legbench.run"])  # type: ignore[attr-defined]
+        ctx.set_forkserver_preload(["legbench.studies.executors", "legbench.run"])  # type: ignore[attr-defined]
     return ctx
 
 

@@ -30,9 +30,9 @@ from legbench.exceptions import LegbenchError, ScenarioError
 from legbench.model import load_params
 
 if TYPE_CHECKING:
-    from legbench.executors import ReplaySpec
     from legbench.run import Trajectory
     from legbench.scenario import Scenario
+    from legbench.studies.executors import ReplaySpec
 
 __all__ = ["SIGNALS", "HorizonResult", "deviation", "replay", "replay_task", "short_horizon"]
 

@@ -57,11 +57,12 @@ import numpy as np
 import pandas as pd
 
 from legbench import backends as registry
-from legbench import horizon, kinematics
+from legbench import kinematics
 from legbench.contact import CONTACT_MODES
 from legbench.exceptions import LegbenchError, ScenarioError
-from legbench.executors import EXECUTORS, Executor, ReplaySpec, RunTask, make_executor, run_task
 from legbench.scenario import NAME_RE, YamlContext, check_keys, read_yaml
+from legbench.studies import horizon
+from legbench.studies.executors import EXECUTORS, Executor, ReplaySpec, RunTask, make_executor, run_task
 
 __all__ = [
     "COMPONENTS",
@@ -618,12 +619,15 @@ def _series(table: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
     return [(str(g["label"].iloc[0]), g) for _, g in runs.groupby(["study", "backend"], sort=True)]
 
 
-_MARKERS = {"pinocchio": "o", "mujoco": "s", "pybullet": "^"}
+#: Markers given to backends in registry order (so overlapping lines of different engines stay visible).
+MARKERS = ("o", "s", "^", "D", "v", "P", "X")
 
 
 def _style(g: pd.DataFrame) -> dict[str, Any]:
-    """Marker by backend (so overlapping lines of different engines stay visible), open symbols."""
-    return {"marker": _MARKERS.get(str(g["backend"].iloc[0]), "D"), "mfc": "none", "ls": "-", "ms": 7}
+    """Marker by backend (its place among the available backends), open symbols."""
+    names = [*registry.available(), str(g["backend"].iloc[0])]
+    marker = MARKERS[names.index(str(g["backend"].iloc[0])) % len(MARKERS)]
+    return {"marker": marker, "mfc": "none", "ls": "-", "ms": 7}
 
 
 def _axis_label(metric: str) -> str:

@@ -15,9 +15,10 @@ Reported per (task, backend): wall time [s], microseconds per control period,
 real-time factor, the harness overhead ratio full / engine-only (median of the
 per-repeat ratios, with min/max), the harness's own cost per tick, and the
 peak Python memory of one full run (tracemalloc) against the size of the time
-series it returns. For the Pinocchio backend also the cost per sub-step
-against its own calls in isolation: ``pin.aba`` and the contact law, timed in
-a tight loop over the run's logged states (:func:`pinocchio_kernels`).
+series it returns. For a backend that offers its own per-sub-step calls
+(:meth:`~legbench.backends.base.Backend.kernels`, e.g. forward dynamics and
+the contact law) also the cost per sub-step against those calls in isolation,
+each timed in a tight loop over the run's logged states (:func:`kernel_floors`).
 
 Results go to ``<out>/bench.json`` (every figure, versions, machine) and
 ``<out>/bench.md`` (the tables the docs quote). ``--quick`` (short durations,
@@ -60,13 +61,13 @@ __all__ = [
     "add_cli",
     "bench_backend",
     "main",
-    "pinocchio_kernels",
+    "kernel_floors",
     "run_bench",
     "shorten",
     "write_results",
 ]
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 #: The four tasks of LEG_SPEC.md section 7, benchmarked by default.
 TASKS = tuple(ROOT / "scenarios" / f"{name}.yaml" for name in ("position", "ellipse", "effort", "combined"))
 DEFAULT_REPEATS = 5
@@ -76,9 +77,10 @@ DEFAULT_OUT = Path("results") / "bench"
 #: (combined: the touch-down at 1 s and the push from 2 s) but none lasts long.
 QUICK_DURATIONS: Mapping[str, float] = {"position": 0.5, "ellipse": 1.5, "effort": 0.5, "combined": 2.5}
 QUICK_DEFAULT_DURATION = 0.5
-#: Targets of issue #7: harness overhead ratio (full / engine-only) per backend, and the
-#: Pinocchio backend's cost per sub-step over the cost of its own aba + contact-law calls.
-TARGETS: Mapping[str, float] = {"overhead_mujoco": 1.25, "overhead_pybullet": 1.25, "pinocchio_substep": 3.0}
+#: Targets: ``overhead``, the harness overhead ratio (full / engine-only) of every backend
+#: without kernel floors; ``substep``, the cost per sub-step over the cost of the engine's own
+#: calls (:meth:`~legbench.backends.base.Backend.kernels`) of every backend that offers them.
+TARGETS: Mapping[str, float] = {"overhead": 1.25, "substep": 3.0}
 #: Minimum wall time of each isolated-kernel timing loop [s].
 KERNEL_MIN_TIME = 0.05
 
@@ -132,7 +134,8 @@ class BenchResult:
         mem_peak_bytes: peak Python memory (tracemalloc) during one full run [bytes].
         series_bytes: size of the time series the run returns (t, q, qd, tau, f, controller) [bytes].
         max_rss_bytes: the process's peak resident set size so far (getrusage) [bytes].
-        pinocchio: Pinocchio only: sub-step cost against its own kernels (see :func:`pinocchio_kernels`).
+        kernels: backends offering :meth:`~legbench.backends.base.Backend.kernels` only: sub-step cost
+            against the engine's own calls (see :func:`kernel_floors`); None otherwise.
         info: the backend's ``info()``.
     """
 
@@ -156,7 +159,7 @@ class BenchResult:
     mem_peak_bytes: int = 0
     series_bytes: int = 0
     max_rss_bytes: int = 0
-    pinocchio: dict[str, float] | None = None
+    kernels: dict[str, float] | None = None
     info: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -280,44 +283,25 @@ def _time_loop(body: Callable[[], None], calls_per_body: int) -> float:
     return best / (reps * calls_per_body)
 
 
-def pinocchio_kernels(backend: Backend, tr: run.Trajectory, samples: int = 200) -> dict[str, float]:
-    """Cost of the Pinocchio backend's own calls per sub-step, in isolation [us].
+def kernel_floors(backend: Backend, tr: run.Trajectory, samples: int = 200) -> dict[str, float] | None:
+    """Cost of the engine's own calls per sub-step, each in isolation [us]; None if the backend offers none.
 
-    ``pin.aba`` on the backend's own model and data and the contact law the
-    backend calls at every sub-step, each timed in a tight loop over up to
-    ``samples`` states evenly spaced through the run's log (in or out of
-    contact as the run was), with inputs prepared beforehand.
+    Every callable of :meth:`Backend.kernels` is timed in a tight loop over up
+    to ``samples`` states evenly spaced through the run's log (in or out of
+    contact as the run was), with inputs prepared beforehand by the backend.
 
     Returns:
-        ``aba_us`` and ``law_us`` per call, ``kernels_us`` (their sum) [us].
+        ``<kernel>_us`` per call of each kernel (e.g. ``aba_us``, ``law_us``) and
+        ``kernels_us``, their sum [us].
     """
-    import pinocchio as pin
-
-    from legbench.backends.pinocchio_ import PinocchioBackend
-
-    if not isinstance(backend, PinocchioBackend):
-        raise TypeError(f"pinocchio_kernels needs the pinocchio backend, got {backend.name}")
     rows = np.unique(np.linspace(0, len(tr.t) - 1, min(samples, len(tr.t))).astype(int))
-    q, qd, tau = tr.q[rows], tr.qd[rows], tr.tau[rows]
-    aba, model, data = pin.aba, backend.model, backend.data
-    pin_in = [
-        (np.array([a[0], math.cos(a[1]), math.sin(a[1]), a[2]]), np.array(v), np.array(t))
-        for a, v, t in zip(q, qd, tau, strict=True)
-    ]
-    law = backend.law
-    law_in = [(*a, *v) for a, v in zip(q.tolist(), qd.tolist(), strict=True)]
-
-    def aba_loop() -> None:
-        for qp, v, t in pin_in:
-            aba(model, data, qp, v, t)
-
-    def law_loop() -> None:
-        for x in law_in:
-            law(*x)
-
-    aba_s = _time_loop(aba_loop, len(pin_in))
-    law_s = _time_loop(law_loop, len(law_in))
-    return {"aba_us": 1e6 * aba_s, "law_us": 1e6 * law_s, "kernels_us": 1e6 * (aba_s + law_s)}
+    try:
+        loops = backend.kernels(tr.q[rows], tr.qd[rows], tr.tau[rows])
+    except NotImplementedError:
+        return None
+    out = {f"{name}_us": 1e6 * _time_loop(loop, len(rows)) for name, loop in loops.items()}
+    out["kernels_us"] = sum(out.values())
+    return out
 
 
 def bench_backend(
@@ -357,7 +341,7 @@ def bench_backend(
             res.status, res.reason = "failed", tr.reason
             return res
         res.info = tr.info
-        res.sub_steps = tr.info.get("sub_steps")
+        res.sub_steps = backend.sub_steps()
         taus = list(tr.tau[:-1])  # row views, the same kind of array the run loop hands the backend
         q_end, qd_end = tr.q[-1].copy(), tr.qd[-1].copy()
         for _ in range(warmup):
@@ -396,11 +380,11 @@ def bench_backend(
             res.series_bytes = _series_bytes(holder[0])
             del holder
         res.max_rss_bytes = _max_rss()
-        if name == "pinocchio" and res.sub_steps:
-            k = pinocchio_kernels(backend, tr)
+        k = kernel_floors(backend, tr) if res.sub_steps else None
+        if k is not None and res.sub_steps:
             k["substep_us"] = res.engine_us_per_tick.median / res.sub_steps
             k["ratio"] = k["substep_us"] / k["kernels_us"]
-            res.pinocchio = k
+            res.kernels = k
         return res
     finally:
         backend.close()
@@ -458,13 +442,14 @@ def targets_met(results: Sequence[BenchResult]) -> dict[str, bool]:
     """Each target of :data:`TARGETS` against the medians (True where met; a failed run misses)."""
     met: dict[str, bool] = {}
     for r in results:
-        if r.backend in ("mujoco", "pybullet"):
-            key = f"overhead_{r.backend}"
-            ok = r.status == "ok" and r.overhead_ratio is not None and r.overhead_ratio.median <= TARGETS[key]
-            met[key] = met.get(key, True) and ok
-        if r.backend == "pinocchio":
-            ok = r.status == "ok" and r.pinocchio is not None and r.pinocchio["ratio"] <= TARGETS["pinocchio_substep"]
-            met["pinocchio_substep"] = met.get("pinocchio_substep", True) and ok
+        if r.kernels is None and r.status == "ok":
+            ok = r.overhead_ratio is not None and r.overhead_ratio.median <= TARGETS["overhead"]
+            met["overhead"] = met.get("overhead", True) and ok
+        elif r.kernels is not None:
+            ok = r.status == "ok" and r.kernels["ratio"] <= TARGETS["substep"]
+            met["substep"] = met.get("substep", True) and ok
+        else:  # a failed run misses the target it was under
+            met["overhead"] = False
     return met
 
 
@@ -477,7 +462,7 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
     s = meta["settings"]
     m = meta["machine"]
     v = meta["versions"]
-    engines = ", ".join(f"{k} {v[k]}" for k in ("mujoco", "pybullet", "pin") if k in v)
+    engines = ", ".join(f"{k} {v[k]}" for k in registry.engine_packages() if k in v)
     lines = [
         "# legbench bench",
         "",
@@ -526,30 +511,29 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
                     f"| {r.series_bytes / 1e6:.3f} | {r.mem_ratio:.3f} "
                     f"| {(r.mem_peak_bytes - r.series_bytes) / 1e3:.1f} |"
                 )
-    pin_rows = [r for r in results if r.pinocchio]
-    if pin_rows:
+    kernel_rows = [r for r in results if r.kernels]
+    if kernel_rows:
         lines += [
             "",
-            "## Pinocchio: cost per sub-step against its own calls",
+            "## Cost per sub-step against the engine's own calls",
             "",
-            "Engine-only cost per sub-step against `pin.aba` plus the contact law, each timed alone in a tight "
-            "loop over the run's logged states.",
+            "Engine-only cost per sub-step against the calls the backend makes at every sub-step "
+            "(`Backend.kernels`), each timed alone in a tight loop over the run's logged states.",
             "",
-            "| task | per sub-step [us] | aba [us] | contact law [us] | ratio |",
+            "| task | backend | per sub-step [us] | own calls [us] | ratio |",
             "|---|---|---|---|---|",
         ]
-        for r in pin_rows:
-            k = r.pinocchio or {}
-            lines.append(
-                f"| {r.task} | {k['substep_us']:.2f} | {k['aba_us']:.2f} | {k['law_us']:.2f} | **{k['ratio']:.2f}** |"
-            )
+        for r in kernel_rows:
+            k = r.kernels or {}
+            calls = ", ".join(f"{n.removesuffix('_us')} {v:.2f}" for n, v in k.items()
+                              if n.endswith("_us") and n not in ("kernels_us", "substep_us"))  # fmt: skip
+            lines.append(f"| {r.task} | {r.backend} | {k['substep_us']:.2f} | {calls} | **{k['ratio']:.2f}** |")
     met = meta["targets_met"]
     if met:
         lines += ["", "## Targets", ""]
         names = {
-            "overhead_mujoco": "MuJoCo overhead ratio",
-            "overhead_pybullet": "PyBullet overhead ratio",
-            "pinocchio_substep": "Pinocchio sub-step / own calls",
+            "overhead": "overhead ratio of each backend without kernel floors",
+            "substep": "sub-step / own calls of each backend with kernel floors",
         }
         for key, ok in met.items():
             lines.append(f"- {names[key]} <= {TARGETS[key]:g} on every task: {'met' if ok else 'MISSED'}")
@@ -623,7 +607,7 @@ def main(args: argparse.Namespace) -> int:
         if r.status != "ok" or r.overhead_ratio is None or r.full_us_per_tick is None:
             print(f"{r.task:<10} {r.backend:<10} FAILED: {r.reason}", flush=True)
             return
-        extra = f"  sub-step/own calls {r.pinocchio['ratio']:.2f}" if r.pinocchio else ""
+        extra = f"  sub-step/own calls {r.kernels['ratio']:.2f}" if r.kernels else ""
         print(
             f"{r.task:<10} {r.backend:<10} full {r.full_us_per_tick.median:7.1f} us/tick  harness "
             f"{r.harness_us_per_tick:6.1f} us/tick  ratio {r.overhead_ratio.median:.3f}  RTF {r.rtf_full:6.1f}"
