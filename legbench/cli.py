@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from legbench import backends, check, kinematics, model, report, run, scenario
+from legbench import backends, check, kinematics, model, report, results, run, scenario
 from legbench.exceptions import LegbenchError
 from legbench.studies import bench, calibrate_contact, doctor, sweep, verify
 
@@ -140,7 +140,7 @@ def _run(args: argparse.Namespace) -> int:
     single = len(scenarios) == 1 and len(modes) == 1
     root = Path(args.out) if args.out else Path("results") / "latest"
     plan = [
-        (sc, mode, root if (single and args.out) else run.out_dir_for(root, sc, mode))
+        (sc, mode, root if (single and args.out) else results.out_dir_for(root, sc, mode))
         for sc in scenarios
         for mode in modes
     ]
@@ -153,9 +153,9 @@ def _run(args: argparse.Namespace) -> int:
             if key not in checked:  # the pre-flight depends only on gravity and backend settings
                 doctor.preflight(sc, installed)
                 checked.add(key)
-    results = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet)
+    outcome = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet)
     failed = 0
-    for (sc, mode, out), res in zip(plan, results, strict=True):
+    for (sc, mode, out), res in zip(plan, outcome, strict=True):
         print(f"{sc.name}: {sc.duration:g} s at {sc.control_rate:g} Hz, contact {mode or sc.contact_mode} -> {out}")
         for tr in res:
             if tr.status != "ok":

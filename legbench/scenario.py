@@ -44,9 +44,10 @@ from typing import Any
 import numpy as np
 import yaml
 
-from legbench import kinematics
+from legbench import backends, kinematics
+from legbench.backends.base import Physics
 from legbench.contact import CONTACT_MODES, ContactParams
-from legbench.exceptions import ScenarioError
+from legbench.exceptions import BackendNotFound, ScenarioError
 from legbench.model import load_params
 
 CONTROLLERS = ("position", "trajectory", "ellipse", "effort")
@@ -91,11 +92,15 @@ class Event:
     params: Mapping[str, Any] = field(default_factory=dict, hash=False, compare=False)
 
 
+#: The reference backend a scenario's comparison uses unless it names another (a setting).
+DEFAULT_REFERENCE = "pinocchio"
+
+
 @dataclass(frozen=True)
 class Comparison:
     """How runs of this scenario are compared."""
 
-    reference: str = "pinocchio"
+    reference: str = DEFAULT_REFERENCE
     skip: float = 0.0  # [s] ignored at the start
     steady_window: float = 0.5  # [s] at the end, for steady-state means
     tolerances: Mapping[str, Any] = field(default_factory=dict, hash=False)
@@ -461,7 +466,7 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     cmp_d = doc.get("comparison", {})
     check_keys(ctx, ["comparison"], cmp_d, ["reference", "skip", "steady_window", "tolerances"])
     comparison = Comparison(
-        reference=str(cmp_d.get("reference", "pinocchio")),
+        reference=str(cmp_d.get("reference", DEFAULT_REFERENCE)),
         skip=_num(ctx, ["comparison", "skip"], cmp_d.get("skip", 0.0), nonneg=True),
         steady_window=_num(ctx, ["comparison", "steady_window"], cmp_d.get("steady_window", 0.5), positive=True),
         tolerances=cmp_d.get("tolerances", {}) or {},
@@ -520,9 +525,6 @@ def _check_speed(ctx: YamlContext, path: list[str | int], ev: Event, q_start: tu
 
 
 def _backend_settings(ctx: YamlContext, name: str, given: Any) -> dict[str, Any]:
-    from legbench import backends
-    from legbench.exceptions import BackendNotFound
-
     path: list[str | int] = ["backends", name]
     if not isinstance(given, Mapping):
         raise ctx.error(path, "expected a mapping of settings")
@@ -601,3 +603,15 @@ def set_key(doc: dict[str, Any], dotted: str, value: Any) -> None:
     for k in parts[:-1]:
         d = d.setdefault(k, {})
     d[parts[-1]] = value
+
+
+def physics_of(scenario: Scenario, contact_mode: str | None = None) -> Physics:
+    """Physics every backend gets for this scenario (``contact_mode`` overrides the scenario's)."""
+    lim = load_params().effort
+    return Physics(
+        gravity=scenario.gravity,
+        contact=scenario.contact,
+        contact_mode=contact_mode or scenario.contact_mode,
+        control_dt=scenario.control_dt,
+        torque_limit=(float(lim[0]), float(lim[1]), float(lim[2])),
+    )

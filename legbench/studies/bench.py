@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import gc
-import json
 import math
 import os
 import platform
@@ -46,10 +45,12 @@ from typing import Any
 import numpy as np
 
 from legbench import backends as registry
-from legbench import run, scenario
+from legbench import scenario
 from legbench.backends.base import Backend
 from legbench.exceptions import BackendNotFound, LegbenchError
-from legbench.scenario import Scenario
+from legbench.results import RunResult, platform_info, versions, write_json
+from legbench.run import simulate
+from legbench.scenario import Scenario, physics_of
 
 __all__ = [
     "DEFAULT_REPEATS",
@@ -229,7 +230,7 @@ def load_tasks(
 # Measurement
 
 
-def _series_bytes(tr: run.Trajectory) -> int:
+def _series_bytes(tr: RunResult) -> int:
     return int(sum(a.nbytes for a in (tr.t, tr.q, tr.qd, tr.tau, tr.f, tr.controller)))
 
 
@@ -283,7 +284,7 @@ def _time_loop(body: Callable[[], None], calls_per_body: int) -> float:
     return best / (reps * calls_per_body)
 
 
-def kernel_floors(backend: Backend, tr: run.Trajectory, samples: int = 200) -> dict[str, float] | None:
+def kernel_floors(backend: Backend, tr: RunResult, samples: int = 200) -> dict[str, float] | None:
     """Cost of the engine's own calls per sub-step, each in isolation [us]; None if the backend offers none.
 
     Every callable of :meth:`Backend.kernels` is timed in a tight loop over up
@@ -326,7 +327,7 @@ def bench_backend(
         The figures; a backend that cannot load or whose run fails gives ``status="failed"``.
     """
     res = BenchResult(task=sc.name, backend=name, duration=sc.duration, steps=sc.n_ticks - 1)
-    physics = run.physics_of(sc, contact_mode)
+    physics = physics_of(sc, contact_mode)
     try:
         backend = registry.load(name, physics, sc.backends.get(name, {}))
     except BackendNotFound:
@@ -336,7 +337,7 @@ def bench_backend(
         return res
     try:
         q0, qd0 = np.array(sc.q0), np.array(sc.qd0)
-        tr = run.simulate(sc, backend, physics)
+        tr = simulate(sc, backend, physics)
         if tr.status != "ok":
             res.status, res.reason = "failed", tr.reason
             return res
@@ -345,7 +346,7 @@ def bench_backend(
         taus = list(tr.tau[:-1])  # row views, the same kind of array the run loop hands the backend
         q_end, qd_end = tr.q[-1].copy(), tr.qd[-1].copy()
         for _ in range(warmup):
-            run.simulate(sc, backend, physics)
+            simulate(sc, backend, physics)
             _replay(backend, q0, qd0, taus)
         full: list[float] = []
         engine: list[float] = []
@@ -353,7 +354,7 @@ def bench_backend(
         for _ in range(repeats):
             gc.collect()
             start = time.perf_counter()
-            tr_r = run.simulate(sc, backend, physics)
+            tr_r = simulate(sc, backend, physics)
             full.append(time.perf_counter() - start)
             if tr_r.status != "ok":
                 res.status, res.reason = "failed", tr_r.reason
@@ -375,8 +376,8 @@ def bench_backend(
         res.rtf_engine = sc.duration / res.engine_wall.median
         res.replay_identical, res.replay_max_diff = identical, max_diff
         if memory:
-            holder: list[run.Trajectory] = []
-            res.mem_peak_bytes = _memory_peak(lambda: holder.append(run.simulate(sc, backend, physics)))
+            holder: list[RunResult] = []
+            res.mem_peak_bytes = _memory_peak(lambda: holder.append(simulate(sc, backend, physics)))
             res.series_bytes = _series_bytes(holder[0])
             del holder
         res.max_rss_bytes = _max_rss()
@@ -430,7 +431,7 @@ def machine() -> dict[str, Any]:
         pass
     aff = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return {
-        **run.platform_info(),
+        **platform_info(),
         "cpu_model": cpu,
         "cpus_usable": aff,
         "python_build": " ".join(platform.python_build()),
@@ -520,14 +521,14 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
             "Engine-only cost per sub-step against the calls the backend makes at every sub-step "
             "(`Backend.kernels`), each timed alone in a tight loop over the run's logged states.",
             "",
-            "| task | backend | per sub-step [us] | own calls [us] | ratio |",
+            "| backend | task | per sub-step [us] | own calls [us] | ratio |",
             "|---|---|---|---|---|",
         ]
         for r in kernel_rows:
             k = r.kernels or {}
             calls = ", ".join(f"{n.removesuffix('_us')} {v:.2f}" for n, v in k.items()
                               if n.endswith("_us") and n not in ("kernels_us", "substep_us"))  # fmt: skip
-            lines.append(f"| {r.task} | {r.backend} | {k['substep_us']:.2f} | {calls} | **{k['ratio']:.2f}** |")
+            lines.append(f"| {r.backend} | {r.task} | {k['substep_us']:.2f} | {calls} | **{k['ratio']:.2f}** |")
     met = meta["targets_met"]
     if met:
         lines += ["", "## Targets", ""]
@@ -545,13 +546,11 @@ def write_results(results: Sequence[BenchResult], out_dir: Path, meta: Mapping[s
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     doc = {**meta, "results": [r.to_dict() for r in results]}
-    files = (out_dir / "bench.json", out_dir / "bench.md")
-    texts = (json.dumps(doc, indent=2, default=run._json_default), markdown(results, meta))
-    for path, text in zip(files, texts, strict=True):
-        tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-        tmp.write_text(text)
-        tmp.replace(path)
-    return files
+    md = out_dir / "bench.md"
+    tmp = md.with_name(f".{md.name}.tmp-{os.getpid()}")
+    tmp.write_text(markdown(results, meta))
+    tmp.replace(md)
+    return write_json(doc, out_dir / "bench.json"), md
 
 
 # --------------------------------------------------------------------------- #
@@ -633,7 +632,7 @@ def main(args: argparse.Namespace) -> int:
         "settings": settings,
         "targets": dict(TARGETS),
         "targets_met": met,
-        "versions": run.versions(),
+        "versions": versions(),
         "machine": machine(),
     }
     js, md = write_results(results, Path(args.out), meta)

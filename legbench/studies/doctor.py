@@ -34,9 +34,10 @@ import pandas as pd
 
 from legbench import backends as registry
 from legbench import model
+from legbench import scenario as scenario_mod
 from legbench.backends.base import Backend
 from legbench.exceptions import LegbenchError
-from legbench.scenario import Scenario
+from legbench.scenario import Scenario, physics_of
 
 __all__ = ["RTOL", "ParityError", "add_cli", "check", "doctor", "preflight", "readback", "table"]
 
@@ -177,9 +178,6 @@ def table(scenario: Scenario | str | Path, backends: Sequence[str] | None = None
         ``ok``, ``MISMATCH`` (a parity row off by more than :data:`RTOL`), ``missing``
         (a backend does not report a parity row) or ``info`` (not a parity row).
     """
-    from legbench import scenario as scenario_mod
-    from legbench.run import physics_of
-
     sc = scenario if isinstance(scenario, Scenario) else scenario_mod.load(scenario)
     names = list(backends) if backends is not None else registry.available()
     physics = physics_of(sc)

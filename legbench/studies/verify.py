@@ -56,7 +56,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -65,13 +64,18 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pinocchio as pin
 import scipy.linalg
 from scipy.optimize import linear_sum_assignment
 
 from legbench import backends as registry
 from legbench import kinematics, model
+from legbench import scenario as scenario_mod
 from legbench.backends.base import Physics
 from legbench.exceptions import LegbenchError
+from legbench.results import platform_info, versions, write_json
+from legbench.run import simulate
+from legbench.scenario import physics_of
 
 __all__ = [
     "CASES",
@@ -191,8 +195,6 @@ def _variant(info: Mapping[str, Any], control_dt: float) -> str:
 
 
 def _simulate(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any]) -> Any:
-    from legbench.run import simulate
-
     backend = registry.load(name, physics, settings)
     try:
         return simulate(scenario, backend, physics)
@@ -208,8 +210,6 @@ class _Energy:
     """Energy of the leg from (q, qd), with Pinocchio on the generated URDF, and one-step integrator maps."""
 
     def __init__(self, gravity: float) -> None:
-        import pinocchio as pin
-
         self.pin = pin
         self.model = pin.buildModelFromUrdf(str(model.URDF_FILE))
         self.model.gravity.linear = np.array([0.0, 0.0, -gravity])
@@ -258,9 +258,6 @@ def check_energy(
     integrators: Sequence[str] | None = None,
 ) -> list[Check]:  # fmt: skip
     """Energy with no torque, contact or damping, per backend and integrator (module docstring)."""
-    from legbench import scenario as scenario_mod
-    from legbench.run import physics_of
-
     sc = scenario_mod.load(scenario_file)
     base = physics_of(sc, "reference")
     physics = dataclasses.replace(base, contact=dataclasses.replace(base.contact, Kp=0.0, Kd=0.0))
@@ -330,9 +327,6 @@ def _energy_gradient(energy: _Energy, q: np.ndarray, qd: np.ndarray, eps: float 
 def check_rest(backends: Sequence[str], scenario_file: Path = VERIFICATION_DIR / "effort_rest.yaml") -> list[Check]:
     """Rest penetration y = Fn/Kp and static balance F = -(J_poc^T)^-1 (tau - G), each backend's own contact."""
     import pinocchio as pin
-
-    from legbench import scenario as scenario_mod
-    from legbench.run import physics_of
 
     sc = scenario_mod.load(scenario_file)
     physics = physics_of(sc)
@@ -468,9 +462,6 @@ def _modes(s: np.ndarray) -> list[np.ndarray]:
 def check_small_oscillation(backends: Sequence[str], scenario_file: Path = VERIFICATION_DIR / "small_oscillation.yaml",
                             integrators: Sequence[str] | None = ("default", "rk4")) -> list[Check]:  # fmt: skip
     """Closed-loop poles of the PD hold: fitted to each backend's response vs the linearised discrete loop."""
-    from legbench import scenario as scenario_mod
-    from legbench.run import physics_of
-
     sc = scenario_mod.load(scenario_file)
     if any(sc.gains.Ki) or len(sc.events) != 1 or sc.events[0].joint is None:
         raise LegbenchError(f"{scenario_file}: small_oscillation needs one joint position event and Ki = 0")
@@ -593,14 +584,12 @@ def markdown(df: pd.DataFrame) -> str:
 
 def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
     """Write ``verification.json`` (records, versions, platform) and ``verification.md`` into ``out_dir``."""
-    from legbench.run import platform_info, versions
-
     out_dir.mkdir(parents=True, exist_ok=True)
     passed = int(df["pass"].sum())
     na = int((df["status"] == "not-applicable").sum())
     meta = {"schema": "legbench.verification/1", "passed": passed, "total": len(df), "not_applicable": na,
             "checks": df.to_dict(orient="records"), "versions": versions(), "platform": platform_info()}  # fmt: skip
-    (out_dir / "verification.json").write_text(json.dumps(meta, indent=2, default=_json))
+    write_json(meta, out_dir / "verification.json")
     also = f" ({na} not applicable)" if na else ""
     md = [f"# Verification: {passed} of {len(df)} checks pass{also}\n", "Cases and tolerances: `legbench/verify.py`.\n",
           markdown(df), "\n## Notes\n"]  # fmt: skip
@@ -608,12 +597,6 @@ def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
            for r in df.to_dict(orient="records") if r["note"]]  # fmt: skip
     (out_dir / "verification.md").write_text("\n".join(md) + "\n")
     return out_dir
-
-
-def _json(o: Any) -> Any:
-    if isinstance(o, np.generic):
-        return o.item()
-    return str(o)
 
 
 def _cli(args: argparse.Namespace) -> int:
