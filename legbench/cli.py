@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from legbench import backends, check, kinematics, model, report, results, run, scenario
+from legbench import backends, check, kinematics, model, report, results, run, scenario, yamlfile
 from legbench.exceptions import LegbenchError
 from legbench.studies import bench, calibrate_contact, doctor, sweep, verify
 
@@ -133,7 +133,7 @@ def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
 
 
 def _run(args: argparse.Namespace) -> int:
-    overrides = scenario.parse_overrides(args.set)
+    overrides = yamlfile.parse_overrides(args.set)
     scenarios = [scenario.load(path, overrides) for path in args.scenarios]  # all validated before any runs
     names = backends.resolve(args.backends)
     modes: list[str | None] = ["native", "reference"] if args.contact_mode == "both" else [args.contact_mode]
@@ -182,7 +182,7 @@ def _validate(args: argparse.Namespace) -> int:
     """Scenario, sweep (has ``studies``) and tolerance files (only tolerance keys), told apart by content."""
     for path in args.files:
         try:
-            doc = scenario.yaml_load(Path(path).read_text())
+            doc = yamlfile.yaml_load(Path(path).read_text())
         except Exception:  # unreadable or malformed: scenario.load says which, with the line
             doc = None
         if isinstance(doc, dict) and "studies" in doc:

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 
 from legbench import backends as registry
-from legbench import scenario
+from legbench import scenario, yamlfile
 from legbench.backends.base import Backend
 from legbench.exceptions import BackendNotFound, LegbenchError
 from legbench.results import RunResult, platform_info, versions, write_json
@@ -595,7 +595,7 @@ def main(args: argparse.Namespace) -> int:
         1 with ``--check`` if a target is missed or a replay was not bit-identical.
     """
     paths = args.scenarios or [str(p) for p in TASKS]
-    overrides = scenario.parse_overrides(args.set)
+    overrides = yamlfile.parse_overrides(args.set)
     scenarios = load_tasks(paths, quick=args.quick, duration=args.duration, overrides=overrides)
     names = registry.resolve(args.backends)
     repeats = args.repeats if args.repeats is not None else (1 if args.quick else DEFAULT_REPEATS)

@@ -65,12 +65,13 @@ from legbench.contact import CONTACT_MODES
 from legbench.exceptions import LegbenchError, ScenarioError
 from legbench.metrics import signal_errors
 from legbench.results import RunResult, platform_info, versions
-from legbench.scenario import NAME_RE, YamlContext, check_keys, read_yaml
+from legbench.scenario import NAME_RE
 from legbench.signals import COLUMNS, UNITS
 from legbench.studies import horizon
 from legbench.studies.executors import EXECUTORS, Executor, make_executor
 from legbench.studies.horizon import HorizonResult
 from legbench.studies.tasks import RunTask, TaskResult, run_task
+from legbench.yamlfile import YamlContext, check_keys, read_yaml
 
 __all__ = [
     "COMPONENTS",
@@ -591,6 +592,15 @@ def _figure(width: float = 7.0, height: float = 5.0) -> Any:
     return fig
 
 
+def _save(fig: Any, ax: Any, path: Path) -> Path:
+    """Grid, legend, tight layout; the figure written to ``path`` (PNG, 120 dpi)."""
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    return path
+
+
 def _series(table: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
     runs = table[(table["role"] == "run") & (table["status"] == "ok")]
     return [(str(g["label"].iloc[0]), g) for _, g in runs.groupby(["study", "backend"], sort=True)]
@@ -634,11 +644,7 @@ def plot_convergence(table: pd.DataFrame, fits: pd.DataFrame, metric: str, fit: 
     ax.set_xlabel(f"{fit.x} [s]" if fit.x == "dt" else fit.x)
     ax.set_ylabel(_axis_label(metric))
     ax.set_title("error against the reference run")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    return path
+    return _save(fig, ax, path)
 
 
 def plot_speed_accuracy(table: pd.DataFrame, metric: str, path: Path) -> Path:
@@ -656,11 +662,7 @@ def plot_speed_accuracy(table: pd.DataFrame, metric: str, path: Path) -> Path:
     ax.set_xlabel(_axis_label(metric))
     ax.set_ylabel("wall time per simulated second [s/s]")
     ax.set_title("speed against accuracy")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    return path
+    return _save(fig, ax, path)
 
 
 def plot_sweep(table: pd.DataFrame, metric: str, path: Path) -> Path | None:
@@ -691,11 +693,7 @@ def plot_sweep(table: pd.DataFrame, metric: str, path: Path) -> Path | None:
         ax.set_yscale("log")
     ax.set_xlabel(xcol)
     ax.set_ylabel(_axis_label(metric))
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    return path
+    return _save(fig, ax, path)
 
 
 _FIXED_COLUMNS = frozenset({"sweep", "study", "label", "role", "backend", "run", "ref", "status", "reason",
