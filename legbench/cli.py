@@ -1,4 +1,12 @@
-"""The ``legbench`` command. The only place that catches :class:`LegbenchError`."""
+"""The ``legbench`` command. The only place that catches :class:`LegbenchError`.
+
+One convention for every subcommand: a registrar ``(subparsers) -> None``
+adds the subcommand's parser and sets ``func``, its handler, which takes the
+parsed arguments and returns the exit status. The core commands (model, run,
+validate, compare, check) are registered here; each study registers itself
+(``add_cli`` of its module in :mod:`legbench.studies`); :data:`COMMANDS` lists
+them all in help order.
+"""
 
 from __future__ import annotations
 
@@ -210,7 +218,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="override the scenario's contact mode; 'both' runs each scenario in both modes "
                         "(<name>/ and <name>__reference/)")  # fmt: skip
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario key, e.g. --set backends.pinocchio.dt=5e-5")  # fmt: skip
+                   help="override a scenario key, e.g. --set backends.<name>.dt=5e-5")  # fmt: skip
     p.add_argument("--no-compare", action="store_true", help="do not write the comparison report")
     p.add_argument("--no-preflight", action="store_true",
                    help="skip the parity pre-flight (legbench doctor) before running")  # fmt: skip
@@ -293,18 +301,28 @@ def _add_validate(sub: argparse._SubParsersAction) -> None:  # type: ignore[type
     p.set_defaults(func=_validate)
 
 
+#: Every subcommand's registrar, in help order.
+COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (  # type: ignore[type-arg]
+    _add_model,
+    _add_run,
+    _add_validate,
+    _add_compare,
+    _add_check,
+    doctor.add_cli,
+    sweep.add_cli,
+    verify.add_cli,
+    calibrate_contact.add_cli,
+    bench.add_cli,
+)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="legbench", description="Compare physics engines on the 3-DOF leg: run, compare, check, study."
     )
     sub = parser.add_subparsers(dest="cmd", required=True)
-    _add_model(sub)
-    _add_run(sub)
-    _add_validate(sub)
-    _add_compare(sub)
-    _add_check(sub)
-    for module in (doctor, sweep, verify, calibrate_contact, bench):
-        module.add_cli(sub)
+    for register in COMMANDS:
+        register(sub)
     return parser
 
 

@@ -14,11 +14,13 @@ from __future__ import annotations
 
 import functools
 import math
+import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 import yaml
 from scipy import integrate
 
@@ -439,8 +441,6 @@ def write_urdf(params: LegParams | None = None, path: Path | str = URDF_FILE) ->
 @functools.cache
 def pinocchio_model(urdf: str | None = None, gravity: float | None = None) -> Any:
     """Pinocchio model of the URDF (fixed base; gravity -g z_W) [cached]."""
-    import pinocchio as pin
-
     path = str(urdf or URDF_FILE)
     if not Path(path).exists():
         raise ModelError(f"{path}: URDF not found; run `legbench model urdf`")
@@ -467,8 +467,6 @@ def calibrate(raw: dict[str, Any] | None = None) -> dict[str, float]:
     makes the 3x3 system triangular (link 1 moves only G1, link 2 G1 and G2),
     so one solve gives the factors exactly.
     """
-    import tempfile
-
     raw = raw or load_raw()
     base = dict(raw)
     A = np.zeros((3, 3))
@@ -493,8 +491,6 @@ def calibrate(raw: dict[str, Any] | None = None) -> dict[str, float]:
 
 def gravity_torque(q: np.ndarray, urdf: str | None = None) -> np.ndarray:
     """G(q) [N m]: joint torques that hold the leg still against gravity."""
-    import pinocchio as pin
-
     model = pinocchio_model(urdf)
     data = model.createData()
     return np.array(pin.computeGeneralizedGravity(model, data, q_to_pin(np.asarray(q, float))))

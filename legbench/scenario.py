@@ -23,7 +23,7 @@ Format (every key but ``name``, ``duration`` and ``events`` has a default)::
       contact_mode: native            # or reference
       contact: {Kp: 1e4, Kd: 100, mu_s: 0.7, mu_k: 0.6, v_th: 0.02, poc: true}
     backends:                         # per-backend settings (see each backend's defaults)
-      pinocchio: {dt: 1.0e-4, integrator: euler}
+      <name>: {dt: 1.0e-4}            # e.g. the reference backend's step and integrator
     comparison: {reference: pinocchio, skip: 0.0, steady_window: 0.5, tolerances: {}}
 
 Unknown keys are errors. Every error names the file, the key path and the problem.

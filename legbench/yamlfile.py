@@ -191,7 +191,7 @@ def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or not key:
-            raise ScenarioError("--set", item, "expected KEY=VALUE, e.g. backends.pinocchio.dt=5e-5")
+            raise ScenarioError("--set", item, "expected KEY=VALUE, e.g. backends.<name>.dt=5e-5")
         out[key] = yaml_load(value)
     return out
 

@@ -61,7 +61,6 @@ __all__ = [
     "Spread",
     "add_cli",
     "bench_backend",
-    "main",
     "kernel_floors",
     "run_bench",
     "shorten",
@@ -557,8 +556,8 @@ def write_results(results: Sequence[BenchResult], out_dir: Path, meta: Mapping[s
 # CLI
 
 
-def add_cli(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
-    """Register ``legbench bench`` on the CLI's subparsers; the handler is :func:`main`."""
+def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Register ``legbench bench [SCENARIO ...] [--quick] [--backends all] [--out DIR] ...``."""
     p = subparsers.add_parser(
         "bench",
         help="time the full run against an engine-only replay per backend and task",
@@ -578,16 +577,15 @@ def add_cli(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser: 
     p.add_argument("--contact-mode", choices=("native", "reference"), default=None,
                    help="override the scenarios' contact mode")  # fmt: skip
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario key, e.g. --set backends.mujoco.dt=1e-4 (10 sub-steps)")  # fmt: skip
+                   help="override a scenario key, e.g. --set backends.<name>.dt=1e-4 (10 sub-steps)")  # fmt: skip
     p.add_argument("--no-memory", action="store_true", help="skip the (untimed, tracemalloc) memory run")
     p.add_argument("--out", default=str(DEFAULT_OUT), help=f"output directory (default {DEFAULT_OUT})")
     p.add_argument("--check", action="store_true", help="exit 1 if a target of issue #7 is missed")
     p.add_argument("-q", "--quiet", action="store_true", help="no per-row progress lines")
-    p.set_defaults(func=main)
-    return p
+    p.set_defaults(func=_cli)
 
 
-def main(args: argparse.Namespace) -> int:
+def _cli(args: argparse.Namespace) -> int:
     """Handler of ``legbench bench``.
 
     Returns:

@@ -13,9 +13,9 @@ controller tau = Jv^T h_d + G, driven directly through the Backend API:
    the friction limit) over ``ramp`` seconds and is held; the creep velocity
    is the mean horizontal speed of the point of contact over the end of the
    hold. The spec's stick-slip law creeps at v = v_th F_t / (mu_s Fn) (the
-   linear part of mu(v)); a Coulomb engine sticks; MuJoCo's regularised cone
-   creeps at about F_t / Kd (ENGINE_NOTES.md). The effective tangential
-   damping F_t / v is printed too.
+   linear part of mu(v)); a Coulomb engine sticks; an engine with a
+   regularised (soft) friction cone creeps at about F_t / Kd (the lab
+   report). The effective tangential damping F_t / v is printed too.
 
 Data flow: :func:`push` (one backend, a :class:`~legbench.results.RunResult`) ->
 :func:`estimate` (:class:`Calibration`, frozen) -> :func:`calibrate` (a

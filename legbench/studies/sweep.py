@@ -23,10 +23,10 @@ The sweep file format is documented in docs/studies.md; in short::
     short_horizon: {window: 0.05}          # [s] optional, see legbench.studies.horizon
     studies:
       - label: "{backend} euler"
-        backends: [pinocchio, mujoco]      # or one name, or "all"
+        backends: [engine_a, engine_b]     # backend names, or one name, or "all"
         set: {backends.*.integrator: euler}
         grid: {backends.*.dt: [1.0e-3, 5.0e-4]}   # Cartesian product of the lists
-        reference: {set: {backends.*.dt: 5.0e-6}} # and/or backend: pinocchio
+        reference: {set: {backends.*.dt: 5.0e-6}} # and/or backend: <name>
 
 A key part ``*`` stands for the run's backend (``backends.*.dt``), ``{backend}``
 in a label for its name. A swept key's table column is its name without
@@ -348,8 +348,8 @@ def plan(sweep: Sweep) -> Plan:
     reference its ``reference.set``) are validated by loading the scenario with
     them, so a bad value is reported before anything runs. A ``*`` key part
     stands for the run's backend, also in the overrides its reference inherits
-    (``backends.*.dt`` of a MuJoCo study sets MuJoCo's step, not that of a
-    Pinocchio reference); only ``reference.set`` fills ``*`` with the reference's
+    (``backends.*.dt`` of a study of backend A sets A's step, not that of a
+    reference on backend B); only ``reference.set`` fills ``*`` with the reference's
     backend. Settings of other backends are dropped from a run's overrides, so
     runs that differ only there are one run.
 

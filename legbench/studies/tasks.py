@@ -27,7 +27,7 @@ class RunTask:
     Attributes:
         index: position of the task in its study; results are ordered by it.
         scenario: path of the scenario YAML file (readable by the worker).
-        overrides: dotted keys set before validation, e.g. ``{"backends.mujoco.dt": 1e-4}``.
+        overrides: dotted keys set before validation, e.g. ``{"backends.<name>.dt": 1e-4}``.
         backend: backend name.
         contact_mode: ``"native"``, ``"reference"`` or None (the scenario's).
         replay_window: after the free run, replay ``reference`` in windows of this length [s]

@@ -230,10 +230,10 @@ class _Energy:
     def step(self, q: np.ndarray, qd: np.ndarray, h: float, family: str) -> tuple[np.ndarray, np.ndarray]:
         """One zero-torque step of length h [s] of a first-order family.
 
-        ``euler``: qd' = qd + h qdd(q, qd), q' = q + h qd' (MuJoCo Euler and
-        implicitfast without damping, Bullet, Pinocchio euler). ``implicit``:
-        MuJoCo's implicit velocity update (M + h D) (qd' - qd) = -h b with the
-        bias b = C qd + G and D = db/dqd, then q' = q + h qd'.
+        ``euler``: qd' = qd + h qdd(q, qd), q' = q + h qd' (velocity-first
+        semi-implicit Euler). ``implicit``: the velocity update implicit in the
+        bias's velocity derivative, (M + h D) (qd' - qd) = -h b with the bias
+        b = C qd + G and D = db/dqd, then q' = q + h qd'.
         """
         pin = self.pin
         qp = model.q_to_pin(q)
@@ -326,8 +326,6 @@ def _energy_gradient(energy: _Energy, q: np.ndarray, qd: np.ndarray, eps: float 
 
 def check_rest(backends: Sequence[str], scenario_file: Path = VERIFICATION_DIR / "effort_rest.yaml") -> list[Check]:
     """Rest penetration y = Fn/Kp and static balance F = -(J_poc^T)^-1 (tau - G), each backend's own contact."""
-    import pinocchio as pin
-
     sc = scenario_mod.load(scenario_file)
     physics = physics_of(sc)
     c = sc.contact
