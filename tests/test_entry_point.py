@@ -17,6 +17,8 @@ from pathlib import Path
 import pytest
 
 from legbench import backends
+from legbench.backends import Physics
+from legbench.exceptions import BackendNotFound
 from legbench.studies import bench, calibrate_contact, doctor, verify
 
 NAME = "rebadged"
@@ -39,12 +41,23 @@ def plugin(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 
             name = "{NAME}"
             install = "pip install legbench-rebadged"
+
+
+        class NeedsEngineBackend(PinocchioBackend):
+            """A plug-in whose engine package is not installed: it imports it only when loading."""
+
+            name = "needs-engine"
+            install = "pip install imaginary-engine"
+
+            def load(self, urdf, physics, settings):
+                import imaginary_engine  # noqa: F401
         ''')
     )
     dist = root / "legbench_rebadged-0.1.dist-info"
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: legbench-rebadged\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text(f"[legbench.backends]\n{NAME} = legbench_rebadged:RebadgedBackend\n")
+    (dist / "entry_points.txt").write_text(f"[legbench.backends]\n{NAME} = legbench_rebadged:RebadgedBackend\n"
+                                           "needs-engine = legbench_rebadged:NeedsEngineBackend\n")  # fmt: skip
     mp = pytest.MonkeyPatch()
     mp.syspath_prepend(str(root))
     yield NAME
@@ -54,6 +67,12 @@ def plugin(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 def test_the_registry_finds_the_plugin_through_the_entry_point(plugin: str) -> None:
     assert plugin in backends.available()
     assert backends.get(plugin).__module__ == "legbench_rebadged"
+
+
+def test_a_plugin_whose_engine_is_missing_says_what_to_install(plugin: str) -> None:
+    """The registry's hint is the class's own ``install`` command."""
+    with pytest.raises(BackendNotFound, match="pip install imaginary-engine"):
+        backends.load("needs-engine", Physics(), {})
 
 
 def test_doctor_reads_back_every_parity_row_of_the_plugin(plugin: str) -> None:
