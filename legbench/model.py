@@ -450,6 +450,42 @@ def pinocchio_model(urdf: str | None = None, gravity: float | None = None) -> An
     return model
 
 
+class Dynamics:
+    """Rigid-body dynamics of the leg on the reference model (generated URDF), one model and data bound once.
+
+    The closed-form answers of the verification cases are computed with it.
+    """
+
+    def __init__(self, gravity: float | None = None, urdf: str | None = None) -> None:
+        """Args:
+        gravity: magnitude along -z_W [m/s^2] (default: the parameter file's).
+        urdf: the URDF (default ``models/leg.urdf``).
+        """
+        self.model = pinocchio_model(urdf, gravity)
+        self.data = self.model.createData()
+
+    def energy(self, q: np.ndarray, qd: np.ndarray) -> tuple[float, float]:
+        """Kinetic and potential energy (T [J], V [J]) at joint angles q [rad] and velocities qd [rad/s]."""
+        qp = q_to_pin(q)
+        T = pin.computeKineticEnergy(self.model, self.data, qp, np.asarray(qd, float))
+        V = pin.computePotentialEnergy(self.model, self.data, qp)
+        return float(T), float(V)
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """M(q) [kg m^2], symmetric."""
+        M = pin.crba(self.model, self.data, q_to_pin(q))
+        return np.triu(M) + np.triu(M, 1).T  # type: ignore[no-any-return]
+
+    def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+        """tau = M(q) qdd + C(q, qd) qd + G(q) [N m]; with qdd = 0 the bias b(q, qd)."""
+        return np.array(pin.rnea(self.model, self.data, q_to_pin(q), np.asarray(qd, float), np.asarray(qdd, float)))
+
+    def bias_velocity_derivative(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """D = d b / d qd at (q, qd) [N m s/rad], b = C(q, qd) qd + G(q)."""
+        pin.computeRNEADerivatives(self.model, self.data, q_to_pin(q), np.asarray(qd, float), np.zeros(3))
+        return np.array(self.data.dtau_dv)
+
+
 def q_to_pin(q: np.ndarray) -> np.ndarray:
     """Joint angles [rad] (3,) -> Pinocchio configuration (nq = 4: the hip is (cos, sin))."""
     return np.array([q[0], math.cos(q[1]), math.sin(q[1]), q[2]])

@@ -1,7 +1,7 @@
 """Verification cases: scenarios whose answer is known in closed form, checked on every backend.
 
 Each case is a scenario in ``scenarios/verification/`` plus a closed-form
-answer computed here from the leg model (Pinocchio on the generated URDF):
+answer computed here from the leg's reference model (:class:`legbench.model.Dynamics`):
 
 ``energy``
     No torque, no contact, no damping (``energy.yaml``): T + V of the exact
@@ -64,7 +64,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import pinocchio as pin
 import scipy.linalg
 from scipy.optimize import linear_sum_assignment
 
@@ -206,26 +205,12 @@ def _simulate(scenario: Any, name: str, physics: Physics, settings: Mapping[str,
 # Energy
 
 
-class _Energy:
-    """Energy of the leg from (q, qd), with Pinocchio on the generated URDF, and one-step integrator maps."""
-
-    def __init__(self, gravity: float) -> None:
-        self.pin = pin
-        self.model = pin.buildModelFromUrdf(str(model.URDF_FILE))
-        self.model.gravity.linear = np.array([0.0, 0.0, -gravity])
-        self.data = self.model.createData()
+class _Energy(model.Dynamics):
+    """Energy of the leg from (q, qd) on the reference model, and one-step integrator maps."""
 
     def __call__(self, q: np.ndarray, qd: np.ndarray) -> tuple[float, float]:
         """(T [J], V [J])."""
-        qp = model.q_to_pin(q)
-        T = self.pin.computeKineticEnergy(self.model, self.data, qp, np.asarray(qd, float))
-        V = self.pin.computePotentialEnergy(self.model, self.data, qp)
-        return float(T), float(V)
-
-    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
-        """M(q) [kg m^2]."""
-        M = self.pin.crba(self.model, self.data, model.q_to_pin(q))
-        return np.triu(M) + np.triu(M, 1).T  # type: ignore[no-any-return]
+        return self.energy(q, qd)
 
     def step(self, q: np.ndarray, qd: np.ndarray, h: float, family: str) -> tuple[np.ndarray, np.ndarray]:
         """One zero-torque step of length h [s] of a first-order family.
@@ -235,13 +220,10 @@ class _Energy:
         bias's velocity derivative, (M + h D) (qd' - qd) = -h b with the bias
         b = C qd + G and D = db/dqd, then q' = q + h qd'.
         """
-        pin = self.pin
-        qp = model.q_to_pin(q)
-        b = pin.rnea(self.model, self.data, qp, qd, np.zeros(3))
+        b = self.inverse_dynamics(q, qd, np.zeros(3))
         M = self.mass_matrix(q)
         if family == "implicit":
-            pin.computeRNEADerivatives(self.model, self.data, qp, qd, np.zeros(3))
-            M = M + h * self.data.dtau_dv
+            M = M + h * self.bias_velocity_derivative(q, qd)
         qd1 = qd + h * np.linalg.solve(M, -b)
         return q + h * qd1, qd1
 
@@ -330,8 +312,7 @@ def check_rest(backends: Sequence[str], scenario_file: Path = VERIFICATION_DIR /
     physics = physics_of(sc)
     c = sc.contact
     R = model.load_params().geometry.R_foot
-    pm = model.pinocchio_model(gravity=sc.gravity)
-    pd_ = pm.createData()
+    leg = model.Dynamics(sc.gravity)
     out: list[Check] = []
     for name in backends:
         tr = _simulate(sc, name, physics, sc.backends.get(name, {}))
@@ -359,7 +340,7 @@ def check_rest(backends: Sequence[str], scenario_file: Path = VERIFICATION_DIR /
             G = kinematics.gravity(q[k])
             JTinv = np.linalg.inv(J[k].T)
             F_exp[k] = -JTinv @ (tau[k] - G)
-            Mqdd_Cqd = pin.rnea(pm, pd_, model.q_to_pin(q[k]), qd[k], qdd[k]) - G
+            Mqdd_Cqd = leg.inverse_dynamics(q[k], qd[k], qdd[k]) - G
             dyn[k] = np.abs(JTinv @ Mqdd_Cqd)
             lever[k] = np.linalg.norm(JTinv, 2) * max(y[k], 0.0) * math.hypot(f[k, 0], f[k, 1])
         for j, comp in enumerate(("Fx", "Fy", "Fz")):
