@@ -25,7 +25,6 @@ series is also compared bit for bit ("identical" or "changed").
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 import xml.etree.ElementTree as ET
@@ -38,8 +37,10 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from legbench import compare as C
+from legbench.compare import compare
 from legbench.exceptions import ResultsError, ScenarioError
+from legbench.results import read_log, read_meta, read_metrics, run_dirs, tolerances_of
+from legbench.signals import label as column_label
 
 __all__ = [
     "DEFAULT_TOLERANCES",
@@ -106,7 +107,7 @@ class CheckRow:
     @property
     def label(self) -> str:
         """Component label, ``tau2`` or ``fz`` (``-`` for a status row)."""
-        return "-" if self.signal == "-" else C.label(self.signal, self.joint)
+        return "-" if self.signal == "-" else column_label(self.signal, self.joint)
 
     @property
     def failed(self) -> bool:
@@ -249,7 +250,7 @@ def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[st
 def _lookup(spec: Any, signal: str, joint: str, default: float) -> float:
     if not isinstance(spec, Mapping):
         return float(spec)
-    for key in (C.label(signal, joint), signal, "default"):
+    for key in (column_label(signal, joint), signal, "default"):
         if key in spec:
             return float(spec[key])
     return default
@@ -257,18 +258,6 @@ def _lookup(spec: Any, signal: str, joint: str, default: float) -> float:
 
 # --------------------------------------------------------------------------- #
 # Reading both sides
-
-
-def _run_dirs(root: Path) -> dict[str, Path]:
-    """Scenario directories under ``root`` by name; a single run directory maps to itself."""
-    if not root.is_dir():
-        raise ResultsError(str(root), "no such results directory")
-    if (root / "run.json").is_file() or (root / "metrics.json").is_file():
-        return {"": root}
-    dirs = {p.name: p for p in sorted(root.iterdir()) if (p / "run.json").is_file() or (p / "metrics.json").is_file()}
-    if not dirs:
-        raise ResultsError(str(root), "no run directories (with run.json or metrics.json) here")
-    return dirs
 
 
 def _metrics(d: Path) -> tuple[dict[str, Any], pd.DataFrame]:
@@ -280,10 +269,10 @@ def _metrics(d: Path) -> tuple[dict[str, Any], pd.DataFrame]:
     mfile = d / "metrics.json"
     logs = list(d.glob("*.parquet"))
     if mfile.is_file() and all(p.stat().st_mtime <= mfile.stat().st_mtime for p in logs):
-        return C.read_metrics(mfile)
+        return read_metrics(mfile)
     if not logs:
         raise ResultsError(str(d), "neither metrics.json nor backend logs (*.parquet) to measure")
-    res = C.compare(d)
+    res = compare(d)
     doc = res.to_json()
     doc.pop("metrics")
     return doc, res.frame()
@@ -300,8 +289,7 @@ def _tolerances(
         tol, sources = _merge(tol, per[name]), [*sources, f"{tfile} scenarios.{name}"]
     rj = new_dir / "run.json"
     if rj.is_file():
-        meta = json.loads(rj.read_text())
-        own = ((meta.get("scenario") or {}).get("comparison") or {}).get("tolerances") or {}
+        own = tolerances_of(read_meta(new_dir))
         if own:
             tol = _merge(tol, _validate(own, str(rj), "scenario.comparison.tolerances"))
             sources.append(f"{rj} scenario.comparison.tolerances")
@@ -335,7 +323,7 @@ def _check_rows(sc: str, base: pd.DataFrame, new: pd.DataFrame, tol: Mapping[str
     for rec in merged.itertuples(index=False):
         signal, joint, metric = str(rec.signal), str(rec.joint), str(rec.metric)
         bv, nv = float(rec.value_base), float(rec.value_new)
-        lab = C.label(signal, joint)
+        lab = column_label(signal, joint)
         who = f"{sc}/{rec.backend} {lab} {metric}"
         allowed = _allowed(tol[metric], signal, joint, bv)
         if rec.side == "left_only":
@@ -399,7 +387,7 @@ def _trace_checks(sc: str, base_dir: Path, new_dir: Path, backends: Mapping[str,
         if not fb.is_file():
             out.append(TraceCheck(sc, name, "no baseline log", math.nan))
             continue
-        db, dn = pd.read_parquet(fb), pd.read_parquet(fn)
+        db, dn = read_log(fb), read_log(fn)
         if list(db.columns) != list(dn.columns) or len(db) != len(dn):
             detail = f"shape {db.shape} -> {dn.shape}"
             out.append(TraceCheck(sc, name, "changed", math.nan, detail))
@@ -437,7 +425,7 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
     new, baseline = Path(new), Path(baseline)
     common, per = load_tolerances(tolerance_file) if tolerance_file is not None else ({}, {})
     tfile = str(tolerance_file)
-    nd, bd = _run_dirs(new), _run_dirs(baseline)
+    nd, bd = run_dirs(new), run_dirs(baseline)
     if "" in nd or "" in bd:  # a single run directory on either side: compare the one pair
         if len(nd) != 1 or len(bd) != 1:
             raise ResultsError(str(new if "" in bd else baseline), "one side is a run directory, the other a tree")

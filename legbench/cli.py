@@ -1,4 +1,12 @@
-"""The ``legbench`` command. The only place that catches :class:`LegbenchError`."""
+"""The ``legbench`` command. The only place that catches :class:`LegbenchError`.
+
+One convention for every subcommand: a registrar ``(subparsers) -> None``
+adds the subcommand's parser and sets ``func``, its handler, which takes the
+parsed arguments and returns the exit status. The core commands (model, run,
+validate, compare, check) are registered here; each study registers itself
+(``add_cli`` of its module in :mod:`legbench.studies`); :data:`COMMANDS` lists
+them all in help order.
+"""
 
 from __future__ import annotations
 
@@ -7,11 +15,14 @@ import json
 import signal
 import sys
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from legbench import backends, check, kinematics, model, report, results, run, scenario, yamlfile
 from legbench.exceptions import LegbenchError
+from legbench.studies import bench, calibrate_contact, doctor, sweep, verify
 
 EXIT_OK = 0
 EXIT_FAILURE = 1  # a regression (check) or an unreachable point (model ik)
@@ -29,8 +40,6 @@ def _floats(values: Any) -> list[float]:
 
 
 def _model_fk(args: argparse.Namespace) -> int:
-    from legbench import kinematics
-
     ee = kinematics.fk(np.array(args.q))
     if args.json:
         print(json.dumps({"ee": _floats(ee)}))
@@ -40,8 +49,6 @@ def _model_fk(args: argparse.Namespace) -> int:
 
 
 def _model_ik(args: argparse.Namespace) -> int:
-    from legbench import kinematics
-
     res = kinematics.ik(np.array(args.p))
     if args.json:
         out: dict[str, object] = {"solutions": [_floats(s) for s in res.solutions]}
@@ -58,8 +65,6 @@ def _model_ik(args: argparse.Namespace) -> int:
 
 
 def _model_gravity(args: argparse.Namespace) -> int:
-    from legbench import kinematics
-
     tau = kinematics.gravity(np.array(args.q))
     if args.json:
         print(json.dumps({"tau": _floats(tau)}))
@@ -69,16 +74,12 @@ def _model_gravity(args: argparse.Namespace) -> int:
 
 
 def _model_urdf(args: argparse.Namespace) -> int:
-    from legbench import model
-
     path = model.write_urdf(model.load_params(args.params), args.out)
     print(f"wrote {path}")
     return 0
 
 
 def _model_calibrate(args: argparse.Namespace) -> int:
-    from legbench import model
-
     scale = model.calibrate(model.load_raw(args.params))
     print("mass scale factors that reproduce G(q*) (paste into calibration.scale of the parameter file):")
     print("  scale: {" + ", ".join(f"{k}: {v:.8f}" for k, v in scale.items()) + "}")
@@ -87,8 +88,6 @@ def _model_calibrate(args: argparse.Namespace) -> int:
 
 def _model_check(args: argparse.Namespace) -> int:
     """Print the model's headline numbers against the spec's."""
-    from legbench import kinematics, model
-
     p = model.load_params()
     q_star = np.array(p.q_star)
     G = kinematics.gravity(q_star)
@@ -130,8 +129,6 @@ def _add_model(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
-    from legbench import model
-
     if getattr(args, "params", None) is None:
         args.params = model.PARAMS_FILE
     if hasattr(args, "out") and args.out is None:
@@ -144,24 +141,18 @@ def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from legbench import backends, run, scenario
-
-    overrides = scenario.parse_overrides(args.set)
+    overrides = yamlfile.parse_overrides(args.set)
     scenarios = [scenario.load(path, overrides) for path in args.scenarios]  # all validated before any runs
     names = backends.resolve(args.backends)
     modes: list[str | None] = ["native", "reference"] if args.contact_mode == "both" else [args.contact_mode]
     single = len(scenarios) == 1 and len(modes) == 1
     root = Path(args.out) if args.out else Path("results") / "latest"
     plan = [
-        (sc, mode, root if (single and args.out) else run.out_dir_for(root, sc, mode))
+        (sc, mode, root if (single and args.out) else results.out_dir_for(root, sc, mode))
         for sc in scenarios
         for mode in modes
     ]
     if not args.no_preflight:
-        from legbench import doctor
-
         available = set(backends.available())
         installed = [n for n in names if n in available]
         checked: set[str] = set()
@@ -170,9 +161,9 @@ def _run(args: argparse.Namespace) -> int:
             if key not in checked:  # the pre-flight depends only on gravity and backend settings
                 doctor.preflight(sc, installed)
                 checked.add(key)
-    results = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet)
+    outcome = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet)
     failed = 0
-    for (sc, mode, out), res in zip(plan, results, strict=True):
+    for (sc, mode, out), res in zip(plan, outcome, strict=True):
         print(f"{sc.name}: {sc.duration:g} s at {sc.control_rate:g} Hz, contact {mode or sc.contact_mode} -> {out}")
         for tr in res:
             if tr.status != "ok":
@@ -186,8 +177,6 @@ def _run(args: argparse.Namespace) -> int:
                 f"F_end [{', '.join(f'{x:+.2f}' for x in tr.f[-1])}] N"
             )
     if not args.no_compare:
-        from legbench import report
-
         if single:
             files = report.write_report(plan[0][2])
             print(f"report: {files.html}")
@@ -199,13 +188,9 @@ def _run(args: argparse.Namespace) -> int:
 
 def _validate(args: argparse.Namespace) -> int:
     """Scenario, sweep (has ``studies``) and tolerance files (only tolerance keys), told apart by content."""
-    from pathlib import Path
-
-    from legbench import check, scenario, sweep
-
     for path in args.files:
         try:
-            doc = scenario.yaml_load(Path(path).read_text())
+            doc = yamlfile.yaml_load(Path(path).read_text())
         except Exception:  # unreadable or malformed: scenario.load says which, with the line
             doc = None
         if isinstance(doc, dict) and "studies" in doc:
@@ -233,7 +218,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="override the scenario's contact mode; 'both' runs each scenario in both modes "
                         "(<name>/ and <name>__reference/)")  # fmt: skip
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario key, e.g. --set backends.pinocchio.dt=5e-5")  # fmt: skip
+                   help="override a scenario key, e.g. --set backends.<name>.dt=5e-5")  # fmt: skip
     p.add_argument("--no-compare", action="store_true", help="do not write the comparison report")
     p.add_argument("--no-preflight", action="store_true",
                    help="skip the parity pre-flight (legbench doctor) before running")  # fmt: skip
@@ -242,8 +227,6 @@ def _add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from legbench import report
-
     column_map: dict[str, str] = {}
     for item in args.log_columns.split(",") if args.log_columns else []:
         src, sep, dst = item.partition("=")
@@ -298,8 +281,6 @@ def _add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-
 
 
 def _check(args: argparse.Namespace) -> int:
-    from legbench import check
-
     return check.run_check(args.dir, args.baseline, args.tolerances, args.summary, args.junit, all_rows=args.all)
 
 
@@ -320,20 +301,28 @@ def _add_validate(sub: argparse._SubParsersAction) -> None:  # type: ignore[type
     p.set_defaults(func=_validate)
 
 
+#: Every subcommand's registrar, in help order.
+COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (  # type: ignore[type-arg]
+    _add_model,
+    _add_run,
+    _add_validate,
+    _add_compare,
+    _add_check,
+    doctor.add_cli,
+    sweep.add_cli,
+    verify.add_cli,
+    calibrate_contact.add_cli,
+    bench.add_cli,
+)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="legbench", description="Compare physics engines on the 3-DOF leg: run, compare, check, study."
     )
     sub = parser.add_subparsers(dest="cmd", required=True)
-    _add_model(sub)
-    _add_run(sub)
-    _add_validate(sub)
-    _add_compare(sub)
-    _add_check(sub)
-    from legbench import bench, calibrate_contact, doctor, sweep, verify
-
-    for module in (doctor, sweep, verify, calibrate_contact, bench):
-        module.add_cli(sub)
+    for register in COMMANDS:
+        register(sub)
     return parser
 
 

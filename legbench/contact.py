@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from legbench.model import load_params
+
 POC_MODES = ("true", "centre")
 CONTACT_MODES = ("native", "reference")
 
@@ -92,8 +94,6 @@ class ReferenceContact:
 
     @classmethod
     def from_leg(cls, params: ContactParams) -> ReferenceContact:
-        from legbench.model import load_params
-
         g = load_params().geometry
         return cls(params, g.L_B0, g.H, g.L_01, g.L_12, g.L_23, g.L_3E, g.R_foot)
 

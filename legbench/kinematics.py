@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from legbench.exceptions import Unreachable
 from legbench.model import Geometry, LegParams, gravity_torque, load_params, pinocchio_model
@@ -273,8 +274,6 @@ class GravityTorque:
     """
 
     def __init__(self, urdf: str | None = None) -> None:
-        import pinocchio as pin
-
         self._model = pinocchio_model(urdf)
         self._data = self._model.createData()
         self._qp = np.zeros(self._model.nq)

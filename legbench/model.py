@@ -14,11 +14,13 @@ from __future__ import annotations
 
 import functools
 import math
+import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 import yaml
 from scipy import integrate
 
@@ -439,8 +441,6 @@ def write_urdf(params: LegParams | None = None, path: Path | str = URDF_FILE) ->
 @functools.cache
 def pinocchio_model(urdf: str | None = None, gravity: float | None = None) -> Any:
     """Pinocchio model of the URDF (fixed base; gravity -g z_W) [cached]."""
-    import pinocchio as pin
-
     path = str(urdf or URDF_FILE)
     if not Path(path).exists():
         raise ModelError(f"{path}: URDF not found; run `legbench model urdf`")
@@ -448,6 +448,42 @@ def pinocchio_model(urdf: str | None = None, gravity: float | None = None) -> An
     g = load_params().gravity if gravity is None else gravity
     model.gravity.linear = np.array([0.0, 0.0, -g])
     return model
+
+
+class Dynamics:
+    """Rigid-body dynamics of the leg on the reference model (generated URDF), one model and data bound once.
+
+    The closed-form answers of the verification cases are computed with it.
+    """
+
+    def __init__(self, gravity: float | None = None, urdf: str | None = None) -> None:
+        """Args:
+        gravity: magnitude along -z_W [m/s^2] (default: the parameter file's).
+        urdf: the URDF (default ``models/leg.urdf``).
+        """
+        self.model = pinocchio_model(urdf, gravity)
+        self.data = self.model.createData()
+
+    def energy(self, q: np.ndarray, qd: np.ndarray) -> tuple[float, float]:
+        """Kinetic and potential energy (T [J], V [J]) at joint angles q [rad] and velocities qd [rad/s]."""
+        qp = q_to_pin(q)
+        T = pin.computeKineticEnergy(self.model, self.data, qp, np.asarray(qd, float))
+        V = pin.computePotentialEnergy(self.model, self.data, qp)
+        return float(T), float(V)
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """M(q) [kg m^2], symmetric."""
+        M = pin.crba(self.model, self.data, q_to_pin(q))
+        return np.triu(M) + np.triu(M, 1).T  # type: ignore[no-any-return]
+
+    def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+        """tau = M(q) qdd + C(q, qd) qd + G(q) [N m]; with qdd = 0 the bias b(q, qd)."""
+        return np.array(pin.rnea(self.model, self.data, q_to_pin(q), np.asarray(qd, float), np.asarray(qdd, float)))
+
+    def bias_velocity_derivative(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """D = d b / d qd at (q, qd) [N m s/rad], b = C(q, qd) qd + G(q)."""
+        pin.computeRNEADerivatives(self.model, self.data, q_to_pin(q), np.asarray(qd, float), np.zeros(3))
+        return np.array(self.data.dtau_dv)
 
 
 def q_to_pin(q: np.ndarray) -> np.ndarray:
@@ -467,8 +503,6 @@ def calibrate(raw: dict[str, Any] | None = None) -> dict[str, float]:
     makes the 3x3 system triangular (link 1 moves only G1, link 2 G1 and G2),
     so one solve gives the factors exactly.
     """
-    import tempfile
-
     raw = raw or load_raw()
     base = dict(raw)
     A = np.zeros((3, 3))
@@ -493,8 +527,6 @@ def calibrate(raw: dict[str, Any] | None = None) -> dict[str, float]:
 
 def gravity_torque(q: np.ndarray, urdf: str | None = None) -> np.ndarray:
     """G(q) [N m]: joint torques that hold the leg still against gravity."""
-    import pinocchio as pin
-
     model = pinocchio_model(urdf)
     data = model.createData()
     return np.array(pin.computeGeneralizedGravity(model, data, q_to_pin(np.asarray(q, float))))

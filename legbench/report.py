@@ -27,8 +27,11 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from legbench import compare as C
+from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import ResultsError
+from legbench.results import Run, RunResult, read_metrics, run_dirs, write_metrics
+from legbench.signals import JOINTS, LABELS, SIGNAL_OF, SIGNALS, SLICE, UNITS
+from legbench.signals import label as column_label
 
 __all__ = ["IndexFiles", "ReportFiles", "write_all", "write_index", "write_report"]
 
@@ -222,7 +225,7 @@ def _dashes(names: Iterable[str], reference: str) -> dict[str, Any]:
     return out
 
 
-def _events(fig: Figure, axes: Sequence[Any], run: C.Run) -> None:
+def _events(fig: Figure, axes: Sequence[Any], run: Run) -> None:
     for ax in axes:
         for ev in run.events:
             ax.axvline(ev.t, color="0.55", linestyle="--", linewidth=0.8, zorder=0)
@@ -259,13 +262,13 @@ def _save(fig: Figure, path: Path) -> Path:
     return path
 
 
-def _xlim(run: C.Run, traces: Mapping[str, C.Trace]) -> tuple[float, float]:
+def _xlim(run: Run, traces: Mapping[str, RunResult]) -> tuple[float, float]:
     ends = [tr.t[-1] for tr in traces.values()]
     hi = run.duration if math.isfinite(run.duration) else max(ends, default=1.0)
     return 0.0, float(max(hi, max(ends, default=hi)))
 
 
-def _overlay(result: C.ComparisonResult, signal: str, path: Path) -> Path | None:
+def _overlay(result: ComparisonResult, signal: str, path: Path) -> Path | None:
     run = result.run
     traces = dict(result.traces)
     shown = {**traces, **{f"{k} (failed)": v for k, v in run.partial.items()}}
@@ -275,8 +278,8 @@ def _overlay(result: C.ComparisonResult, signal: str, path: Path) -> Path | None
     dashes = _dashes(list(traces) + list(run.partial), result.reference)
     name = _EE_NAME if signal == _EE else _NAMES[signal]
     fig, axes = _new_figure(f"{run.label}: {name}, all backends")
-    comps = ("x", "y", "z") if signal == _EE else C.JOINTS[signal]
-    unit = C.UNITS[signal]
+    comps = ("x", "y", "z") if signal == _EE else JOINTS[signal]
+    unit = UNITS[signal]
     for label, tr in shown.items():
         base = label.removesuffix(" (failed)")
         y = tr.ee if signal == _EE else tr.signal(signal)
@@ -291,7 +294,7 @@ def _overlay(result: C.ComparisonResult, signal: str, path: Path) -> Path | None
         for j, ax in enumerate(axes):
             ax.plot(tr.t, y[:, j], **style)
     for j, ax in enumerate(axes):
-        sym = f"ee_{comps[j]}" if signal == _EE else C.label(signal, comps[j])
+        sym = f"ee_{comps[j]}" if signal == _EE else column_label(signal, comps[j])
         ax.set_ylabel(f"{sym} [{unit}]")
         ax.grid(True, linewidth=0.3)
     axes[-1].set_xlabel("t [s]")
@@ -301,17 +304,17 @@ def _overlay(result: C.ComparisonResult, signal: str, path: Path) -> Path | None
     return _save(fig, path)
 
 
-def _deviation(result: C.ComparisonResult, signal: str, path: Path) -> Path | None:
+def _deviation(result: ComparisonResult, signal: str, path: Path) -> Path | None:
     run = result.run
     pairs = [p for p in result.pairs if p.reference == result.reference]
-    cols = np.arange(12)[C.SLICE[signal]]
+    cols = np.arange(12)[SLICE[signal]]
     pairs = [p for p in pairs if np.isfinite(p.deviation[:, cols]).any()]
     if not pairs:
         return None
     colors = _colors([p.backend for p in pairs], result.reference)
     dashes = _dashes([p.backend for p in pairs], result.reference)
     fig, axes = _new_figure(f"{run.label}: {_NAMES[signal]}, deviation from {result.reference}")
-    unit = C.UNITS[signal]
+    unit = UNITS[signal]
     for p in pairs:
         for j, ax in enumerate(axes):
             c = cols[j]
@@ -331,7 +334,7 @@ def _deviation(result: C.ComparisonResult, signal: str, path: Path) -> Path | No
         ax.axhline(0.0, color="black", linewidth=0.6)
         if run.skip > 0:
             ax.axvspan(0.0, run.skip, color="0.92", zorder=-1, label="skipped" if j == 0 else None)
-        ax.set_ylabel(f"\u0394{C.label(signal, C.JOINTS[signal][j])} [{unit}]")
+        ax.set_ylabel(f"\u0394{column_label(signal, JOINTS[signal][j])} [{unit}]")
         ax.grid(True, linewidth=0.3)
     axes[-1].set_xlabel("t [s]")
     axes[-1].set_xlim(*_xlim(run, result.traces))
@@ -340,17 +343,17 @@ def _deviation(result: C.ComparisonResult, signal: str, path: Path) -> Path | No
     return _save(fig, path)
 
 
-def _figures(result: C.ComparisonResult, fig_dir: Path) -> list[tuple[Path, str]]:
+def _figures(result: ComparisonResult, fig_dir: Path) -> list[tuple[Path, str]]:
     fig_dir.mkdir(parents=True, exist_ok=True)
     for old in fig_dir.glob("*.png"):
         old.unlink()
     out: list[tuple[Path, str]] = []
-    for s in (*C.SIGNALS, _EE):
+    for s in (*SIGNALS, _EE):
         p = _overlay(result, s, fig_dir / f"overlay_{s}.png")
         if p is not None:
             name = _EE_NAME if s == _EE else _NAMES[s]
             out.append((p, f"Overlay of {name} per component, every backend; dashed lines are controller switches."))
-    for s in C.SIGNALS:
+    for s in SIGNALS:
         p = _deviation(result, s, fig_dir / f"deviation_{s}.png")
         if p is not None:
             out.append((p, f"Deviation of {_NAMES[s]} from {result.reference}; dots mark the largest deviation."))
@@ -362,18 +365,18 @@ def _figures(result: C.ComparisonResult, fig_dir: Path) -> list[tuple[Path, str]
 
 
 def _col_header(i: int) -> str:
-    return f"{C.LABELS[i]} [{C.UNITS[C.SIGNAL_OF[i]]}]"
+    return f"{LABELS[i]} [{UNITS[SIGNAL_OF[i]]}]"
 
 
-def _pair_table(result: C.ComparisonResult, metric: str, caption: str, unit: bool) -> _Table:
-    header = ("backend", "vs", *(_col_header(i) if unit else C.LABELS[i] for i in range(12)))
+def _pair_table(result: ComparisonResult, metric: str, caption: str, unit: bool) -> _Table:
+    header = ("backend", "vs", *(_col_header(i) if unit else LABELS[i] for i in range(12)))
     rows = tuple(
         (p.backend, p.reference, *(_fmt(v) for v in getattr(p, metric))) for p in result.pairs
     )  # fmt: skip
     return _Table(header, rows, caption)
 
 
-def _maxdev_table(result: C.ComparisonResult) -> _Table:
+def _maxdev_table(result: ComparisonResult) -> _Table:
     header = ("backend", "vs", *(_col_header(i) for i in range(12)))
     rows = tuple(
         (
@@ -386,7 +389,7 @@ def _maxdev_table(result: C.ComparisonResult) -> _Table:
     return _Table(header, rows, "Largest deviation |x - x_ref| and the time it happens")
 
 
-def _steady_table(result: C.ComparisonResult) -> _Table:
+def _steady_table(result: ComparisonResult) -> _Table:
     header = ("backend", "row", "qd1 [rad/s]", "qd2 [rad/s]", "qd3 [rad/s]", "Fx [N]", "Fy [N]", "Fn [N]")
     rows: list[tuple[str, ...]] = []
     blank = ("", "", "")
@@ -408,8 +411,8 @@ def _steady_table(result: C.ComparisonResult) -> _Table:
     )
 
 
-def _split_table(result: C.ComparisonResult, kind: str) -> _Table:
-    header = ("backend", "part", *(_col_header(i) if kind == "rms" else C.LABELS[i] for i in range(12)))
+def _split_table(result: ComparisonResult, kind: str) -> _Table:
+    header = ("backend", "part", *(_col_header(i) if kind == "rms" else LABELS[i] for i in range(12)))
     rows = []
     for m in result.split:
         for part in ("native", "contact", "integration", "drift"):
@@ -430,7 +433,7 @@ def _info_text(info: Mapping[str, Any]) -> str:
     return json.dumps(rest, sort_keys=True, default=str, separators=(", ", ": ")) if rest else ""
 
 
-def _backend_table(result: C.ComparisonResult) -> _Table:
+def _backend_table(result: ComparisonResult) -> _Table:
     header = ("backend", "status", "reason", "engine", "version", "wall time [s]", "RTF", "settings")
     rows = []
     for b in result.run.backends.values():
@@ -452,7 +455,7 @@ def _backend_table(result: C.ComparisonResult) -> _Table:
     return _Table(header, tuple(rows), "Backends: status, engine, version and settings (from run.json)")
 
 
-def _blocks(result: C.ComparisonResult, figures: Sequence[tuple[Path, str]]) -> list[_Block]:
+def _blocks(result: ComparisonResult, figures: Sequence[tuple[Path, str]]) -> list[_Block]:
     run = result.run
     sc = run.meta.get("scenario", {})
     b: list[_Block] = [_Heading(1, f"legbench comparison: {run.label}")]
@@ -522,7 +525,7 @@ def _blocks(result: C.ComparisonResult, figures: Sequence[tuple[Path, str]]) -> 
     return b
 
 
-def write_report(run_dir: str | Path, result: C.ComparisonResult | None = None, **compare_kwargs: Any) -> ReportFiles:
+def write_report(run_dir: str | Path, result: ComparisonResult | None = None, **compare_kwargs: Any) -> ReportFiles:
     """Write metrics.json, report.md, report.html and figures/*.png into a run directory.
 
     Args:
@@ -538,8 +541,8 @@ def write_report(run_dir: str | Path, result: C.ComparisonResult | None = None, 
         ResultsError: the run directory is missing or malformed.
     """
     path = Path(run_dir)
-    res = result if result is not None else C.compare(path, **compare_kwargs)
-    metrics = C.write_metrics(res, path / "metrics.json")
+    res = result if result is not None else compare(path, **compare_kwargs)
+    metrics = write_metrics(res.to_json(), path / "metrics.json")
     figures = _figures(res, path / "figures")
     blocks = _blocks(res, figures)
     md = path / "report.md"
@@ -554,10 +557,6 @@ def write_report(run_dir: str | Path, result: C.ComparisonResult | None = None, 
 # Index of a results tree
 
 
-def _run_dirs(root: Path) -> list[Path]:
-    return sorted(p for p in root.iterdir() if (p / "run.json").is_file())
-
-
 def write_index(root: str | Path) -> IndexFiles:
     """Write ROOT/report.html and ROOT/report.md for a tree of run directories.
 
@@ -570,21 +569,17 @@ def write_index(root: str | Path) -> IndexFiles:
         ResultsError: ROOT is missing or holds no run directory.
     """
     root = Path(root)
-    if not root.is_dir():
-        raise ResultsError(str(root), "no such results directory")
-    dirs = _run_dirs(root)
-    if not dirs:
-        raise ResultsError(str(root), "no run directories (subdirectories with run.json) here")
-    header = ("scenario", "backend", "vs", *C.LABELS)
+    dirs = list(run_dirs(root).values())
+    header = ("scenario", "backend", "vs", *LABELS)
     rows: list[tuple[str, ...]] = []
     links: dict[tuple[int, int], str] = {}
     problems: list[tuple[str, ...]] = []
     for d in dirs:
         mfile = d / "metrics.json"
         if mfile.is_file():
-            meta, df = C.read_metrics(mfile)
+            meta, df = read_metrics(mfile)
         else:
-            res = C.compare(d)
+            res = compare(d)
             meta, df = res.to_json(), res.frame()
         label = str(meta.get("scenario", d.name))
         for bname, b in (meta.get("backends") or {}).items():
@@ -593,10 +588,10 @@ def write_index(root: str | Path) -> IndexFiles:
         sim = df[df["metric"] == "sim_error_pct"]
         first = len(rows)
         for (backend, ref), g in sim.groupby(["backend", "reference"], sort=False):
-            vals = {C.label(s, j): v for s, j, v in zip(g["signal"], g["joint"], g["value"], strict=True)}
-            rows.append((label, str(backend), str(ref), *(_fmt(vals.get(c, math.nan), 3) for c in C.LABELS)))
+            vals = {column_label(s, j): v for s, j, v in zip(g["signal"], g["joint"], g["value"], strict=True)}
+            rows.append((label, str(backend), str(ref), *(_fmt(vals.get(c, math.nan), 3) for c in LABELS)))
         if len(rows) == first:
-            rows.append((label, "-", str(meta.get("reference", "")), *("n/a" for _ in C.LABELS)))
+            rows.append((label, "-", str(meta.get("reference", "")), *("n/a" for _ in LABELS)))
         if (d / "report.html").is_file():
             for i in range(first, len(rows)):
                 links[(i, 0)] = f"{d.name}/report.html"
@@ -711,6 +706,6 @@ def write_all(root: str | Path, **compare_kwargs: Any) -> list[ReportFiles | Ind
         raise ResultsError(str(root), "no such results directory")
     if compare_kwargs.get("log") is not None:
         raise ResultsError(str(root), "an imported log belongs to one scenario: pass that scenario's run directory")
-    out: list[ReportFiles | IndexFiles] = [write_report(d, **compare_kwargs) for d in _run_dirs(root)]
+    out: list[ReportFiles | IndexFiles] = [write_report(d, **compare_kwargs) for d in run_dirs(root).values()]
     out.append(write_index(root))
     return out

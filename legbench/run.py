@@ -9,76 +9,28 @@ state and ground force at t_k and the torque applied over [t_k, t_k + Ts).
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import platform
-import shutil
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from legbench import backends as registry
-from legbench import kinematics
 from legbench.backends.base import Backend, Physics
 from legbench.controllers import Controller, make_controller
 from legbench.exceptions import BackendNotFound, LegbenchError, SimulationDiverged
-from legbench.model import URDF_FILE, load_params
-from legbench.scenario import Scenario
+from legbench.model import load_params
+from legbench.results import RunResult, check_out_dir, resumable, write_run
+from legbench.scenario import Scenario, physics_of
+from legbench.studies.executors import LocalExecutor
 
-COLUMNS = ("t", "q1", "q2", "q3", "qd1", "qd2", "qd3", "tau1", "tau2", "tau3", "fx", "fy", "fz",
-           "ee_x", "ee_y", "ee_z")  # fmt: skip
 #: Divergence bounds no physical run of this leg reaches: joint speed [rad/s] (20x the hip's
 #: speed limit) and foot penetration [m] (5 cm is 500 N at Kp = 1e4 N/m; the leg pushes <= 100 N).
 MAX_JOINT_SPEED = 1.0e3
 MAX_PENETRATION = 0.05
-
-
-@dataclass
-class Trajectory:
-    """One backend's logged run: arrays of shape (n,) or (n, 3)."""
-
-    backend: str
-    t: np.ndarray  # [s]
-    q: np.ndarray  # [rad]
-    qd: np.ndarray  # [rad/s]
-    tau: np.ndarray  # [N m], after saturation
-    f: np.ndarray  # ground force on the foot in W [N]
-    controller: np.ndarray  # active controller name per tick
-    status: str = "ok"  # ok | failed
-    reason: str | None = None
-    info: dict[str, Any] = field(default_factory=dict)
-    wall_time: float = 0.0  # [s]
-
-    @property
-    def ee(self) -> np.ndarray:
-        """Foot centre in W [m], from the logged joint angles."""
-        return kinematics.fk(self.q)
-
-    def frame(self) -> pd.DataFrame:
-        """The log as a DataFrame with the columns of :data:`COLUMNS` plus ``controller``."""
-        data = np.column_stack([self.t, self.q, self.qd, self.tau, self.f, self.ee])
-        df = pd.DataFrame(data, columns=list(COLUMNS))
-        df["controller"] = self.controller
-        return df
-
-
-def physics_of(scenario: Scenario, contact_mode: str | None = None) -> Physics:
-    """Physics settings every backend gets for this scenario."""
-    lim = load_params().effort
-    return Physics(
-        gravity=scenario.gravity,
-        contact=scenario.contact,
-        contact_mode=contact_mode or scenario.contact_mode,
-        control_dt=scenario.control_dt,
-        torque_limit=(float(lim[0]), float(lim[1]), float(lim[2])),
-    )
 
 
 def simulate(
@@ -86,7 +38,7 @@ def simulate(
     backend: Backend,
     physics: Physics,
     progress: Callable[[float], None] | None = None,
-) -> Trajectory:
+) -> RunResult:
     """Run one scenario on one loaded-and-ready backend; a divergence ends the log early, marked failed.
 
     The loop is the benchmark's "full run" (``legbench bench``); per tick it
@@ -182,7 +134,7 @@ def simulate(
     controller = np.empty(n, dtype=object)
     for tick, name in zip(ticks, names, strict=True):
         controller[min(tick, n) :] = name
-    return Trajectory(
+    return RunResult(
         backend=backend.name,
         t=t[:n] if status != "ok" else t,
         q=q_log[:n] if status != "ok" else q_log,
@@ -192,22 +144,26 @@ def simulate(
         controller=controller,
         status=status,
         reason=reason,
-        info=backend.info(),
+        info=backend_info(backend),
         wall_time=wall,
     )
 
 
-def run_backend(scenario: Scenario, name: str, contact_mode: str | None = None, progress: bool = False) -> Trajectory:
-    """Load ``name``, run the scenario, close; any failure is returned as a failed trajectory."""
+def backend_info(backend: Backend) -> dict[str, Any]:
+    """What run.json records of a backend: its :meth:`~Backend.info`, plus its declared
+    ``integrator_family`` and ``sub_steps`` (what verification predicts by)."""
+    return {**backend.info(), "integrator_family": backend.integrator_family(), "sub_steps": backend.sub_steps()}
+
+
+def run_backend(scenario: Scenario, name: str, contact_mode: str | None = None, progress: bool = False) -> RunResult:
+    """Load ``name``, run the scenario, close; any failure is returned as a failed result."""
     physics = physics_of(scenario, contact_mode)
-    empty = np.empty((0, 3))
     try:
         backend = registry.load(name, physics, scenario.backends.get(name, {}))
     except BackendNotFound as exc:
-        return Trajectory(name, np.empty(0), empty, empty, empty, empty, np.empty(0, dtype=object), "missing", str(exc))
+        return RunResult.empty(name, "missing", str(exc))
     except Exception as exc:  # an engine that cannot load must not stop the others
-        return Trajectory(name, np.empty(0), empty, empty, empty, empty, np.empty(0, dtype=object), "failed",
-                          f"load failed: {type(exc).__name__}: {exc}")  # fmt: skip
+        return RunResult.empty(name, "failed", f"load failed: {type(exc).__name__}: {exc}")
     bar = _ProgressBar(f"{scenario.name}/{name}") if progress else None
     try:
         return simulate(scenario, backend, physics, bar)
@@ -236,135 +192,7 @@ class _ProgressBar:
             sys.stderr.flush()
 
 
-def versions() -> dict[str, str]:
-    """Versions of legbench, Python and every engine package that imports."""
-    from importlib import metadata
-
-    out = {"python": platform.python_version()}
-    for pkg in ("legbench", "numpy", "scipy", "pandas", "pin", "mujoco", "pybullet"):
-        try:
-            out[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            continue
-    return out
-
-
-def platform_info() -> dict[str, Any]:
-    return {"system": platform.system(), "machine": platform.machine(), "processor": platform.processor(),
-            "cpus": os.cpu_count(), "node": platform.node()}  # fmt: skip
-
-
-def _previous(out_dir: Path) -> dict[str, Any] | None:
-    """The run.json already in ``out_dir``, or None."""
-    try:
-        return json.loads((out_dir / "run.json").read_text())  # type: ignore[no-any-return]
-    except FileNotFoundError:
-        return None
-    except (ValueError, OSError):
-        return {}
-
-
-def check_out_dir(scenario: Scenario, out_dir: Path) -> None:
-    """Refuse an output directory holding another scenario's results (or anything else)."""
-    out_dir = Path(out_dir)
-    prev = _previous(out_dir)
-    if prev is None:
-        if out_dir.exists() and any(out_dir.iterdir()):
-            raise LegbenchError(f"{out_dir}: not empty and not a legbench run directory; choose another --out")
-        return
-    name = (prev.get("scenario") or {}).get("name")
-    if name != scenario.name:
-        raise LegbenchError(
-            f"{out_dir}: holds results of scenario {name!r}, not {scenario.name!r}; choose another --out or remove it"
-        )
-
-
-def resumable(scenario: Scenario, out_dir: Path, contact_mode: str | None) -> dict[str, Any]:
-    """Entries of backends already finished in an interrupted run of the same scenario (same hash and mode)."""
-    prev = _previous(Path(out_dir))
-    if not prev or prev.get("complete", True):
-        return {}
-    sc = prev.get("scenario", {})
-    if sc.get("sha256") != scenario.sha256 or sc.get("contact_mode") != (contact_mode or scenario.contact_mode):
-        return {}
-    return {name: e for name, e in prev.get("backends", {}).items() if e.get("status") == "ok"}
-
-
-def write_run(scenario: Scenario, results: Sequence[Trajectory], out_dir: Path, csv: bool = False,
-              contact_mode: str | None = None, kept: dict[str, Any] | None = None) -> Path:  # fmt: skip
-    """Write <backend>.parquet (and .csv) and run.json into ``out_dir``, atomically.
-
-    Everything goes to a temporary sibling directory first, which replaces
-    ``out_dir`` only when complete. ``kept`` are entries of backends finished in
-    an earlier, interrupted run into the same directory; their files are carried
-    over. ``run.json["complete"]`` is false when a backend was interrupted.
-    """
-    out_dir = Path(out_dir)
-    check_out_dir(scenario, out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out_dir.parent / f".{out_dir.name}.tmp-{os.getpid()}"
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir()
-    meta_backends: dict[str, Any] = {}
-    for name, old_entry in (kept or {}).items():
-        for suffix in (".parquet", ".csv"):
-            if (out_dir / f"{name}{suffix}").exists():
-                shutil.copy2(out_dir / f"{name}{suffix}", tmp / f"{name}{suffix}")
-        meta_backends[name] = old_entry
-    for tr in results:
-        entry: dict[str, Any] = {"status": tr.status, "reason": tr.reason, "info": tr.info,
-                                 "wall_time": tr.wall_time, "file": None, "rtf": None, "failed_at": None}  # fmt: skip
-        if len(tr.t):
-            df = tr.frame()
-            df.to_parquet(tmp / f"{tr.backend}.parquet", index=False)
-            if csv:
-                df.to_csv(tmp / f"{tr.backend}.csv", index=False)
-            entry["file"] = f"{tr.backend}.parquet"
-            sim_time = float(tr.t[-1])
-            entry["rtf"] = sim_time / tr.wall_time if tr.wall_time > 0 else None
-            entry["failed_at"] = sim_time if tr.status != "ok" else None
-        meta_backends[tr.backend] = entry
-    sdict = scenario.to_dict()
-    if contact_mode:
-        sdict["contact_mode"] = contact_mode
-    vers = versions()
-    meta = {
-        "complete": all(e["status"] != "interrupted" for e in meta_backends.values()),
-        "scenario": sdict,
-        "backends": meta_backends,
-        "versions": vers,
-        "platform": platform_info(),
-        "legbench_version": vers.get("legbench", "unknown"),
-        "urdf": str(URDF_FILE.name),
-    }
-    (tmp / "run.json").write_text(json.dumps(meta, indent=2, default=_json_default))
-    if out_dir.exists():
-        old = out_dir.parent / f".{out_dir.name}.old-{os.getpid()}"
-        out_dir.rename(old)
-        tmp.rename(out_dir)
-        shutil.rmtree(old)
-    else:
-        tmp.rename(out_dir)
-    return out_dir
-
-
-def _json_default(o: Any) -> Any:
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, Path):
-        return str(o)
-    return str(o)
-
-
-def out_dir_for(root: Path, scenario: Scenario, contact_mode: str | None) -> Path:
-    """Directory of one scenario in a results tree: <root>/<name>, or <name>__reference in reference mode."""
-    mode = contact_mode or scenario.contact_mode
-    return Path(root) / (scenario.name if mode == "native" else f"{scenario.name}__reference")
-
-
-def _task(args: tuple[Scenario, str, str | None, bool]) -> Trajectory:
+def _task(args: tuple[Scenario, str, str | None, bool]) -> RunResult:
     scenario, name, mode, progress = args
     return run_backend(scenario, name, mode, progress)
 
@@ -375,7 +203,7 @@ def run_many(
     jobs: int = 1,
     csv: bool = False,
     progress: bool = True,
-) -> list[list[Trajectory]]:
+) -> list[list[RunResult]]:
     """Run several (scenario, contact mode, output dir) on every backend, in ``jobs`` processes.
 
     Each (scenario, mode, backend) is one task; results are collected in input
@@ -394,31 +222,21 @@ def run_many(
             done = {k: v for k, v in resumable(sc, out, mode).items() if k in backend_names}
         kept.append(done)
         plan += [(i, sc, name, mode) for name in backend_names if name not in done]
-    results: list[list[Trajectory]] = [[] for _ in jobs_list]
+    results: list[list[RunResult]] = [[] for _ in jobs_list]
     interrupted = False
-    if jobs <= 1:
-        for i, sc, name, mode in plan:
-            tr = run_backend(sc, name, mode, progress)
-            results[i].append(tr)
-            if tr.status == "interrupted":
-                interrupted = True
-                break
-    else:
-        from concurrent.futures import ProcessPoolExecutor
-
-        # longest runs first, so the pool does not wait on one long run at the end; results are
-        # still collected in plan order, so the output does not depend on ``jobs``
-        order = sorted(range(len(plan)), key=lambda j: -plan[j][1].duration)
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            submitted = {j: pool.submit(_task, (plan[j][1], plan[j][2], plan[j][3], False)) for j in order}
-            futures = [submitted[j] for j in range(len(plan))]
-            try:
-                for (i, *_), fut in zip(plan, futures, strict=True):
-                    results[i].append(fut.result())
-            except KeyboardInterrupt:
-                interrupted = True
-                for fut in futures:
-                    fut.cancel()
+    # longest runs first, so the pool does not wait on one long run at the end; results are
+    # still collected in plan order, so the output does not depend on ``jobs``
+    first = sorted(range(len(plan)), key=lambda j: -plan[j][1].duration)
+    tasks = [(sc, name, mode, progress and jobs <= 1) for _, sc, name, mode in plan]
+    with LocalExecutor(max(jobs, 1)) as pool:
+        try:
+            for (i, *_), tr in zip(plan, pool.imap(_task, tasks, first), strict=False):
+                results[i].append(tr)
+                if tr.status == "interrupted":
+                    interrupted = True
+                    break
+        except KeyboardInterrupt:
+            interrupted = True
     for (sc, mode, out), res, done in zip(jobs_list, results, kept, strict=True):
         if out is not None and (res or done):
             if interrupted and len(res) + len(done) < len(backend_names):
@@ -429,17 +247,13 @@ def run_many(
     return results
 
 
-def _not_run(
-    sc: Scenario, names: Sequence[str], res: Sequence[Trajectory], done: Mapping[str, Any]
-) -> list[Trajectory]:
+def _not_run(sc: Scenario, names: Sequence[str], res: Sequence[RunResult], done: Mapping[str, Any]) -> list[RunResult]:
     """Placeholders for backends an interrupt stopped before they started."""
     have = {tr.backend for tr in res} | set(done)
-    empty = np.empty((0, 3))
-    return [Trajectory(n, np.empty(0), empty, empty, empty, empty, np.empty(0, dtype=object), "interrupted",
-                       "interrupted before it started") for n in names if n not in have]  # fmt: skip
+    return [RunResult.empty(n, "interrupted", "interrupted before it started") for n in names if n not in have]
 
 
 def run(scenario: Scenario, backend_names: Sequence[str], out_dir: Path | None, csv: bool = False,
-        contact_mode: str | None = None, progress: bool = True, jobs: int = 1) -> list[Trajectory]:  # fmt: skip
+        contact_mode: str | None = None, progress: bool = True, jobs: int = 1) -> list[RunResult]:  # fmt: skip
     """Run one scenario on every named backend and write the results into ``out_dir`` (see :func:`run_many`)."""
     return run_many([(scenario, contact_mode, out_dir)], backend_names, jobs, csv, progress)[0]

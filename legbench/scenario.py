@@ -23,7 +23,7 @@ Format (every key but ``name``, ``duration`` and ``events`` has a default)::
       contact_mode: native            # or reference
       contact: {Kp: 1e4, Kd: 100, mu_s: 0.7, mu_k: 0.6, v_th: 0.02, poc: true}
     backends:                         # per-backend settings (see each backend's defaults)
-      pinocchio: {dt: 1.0e-4, integrator: euler}
+      <name>: {dt: 1.0e-4}            # e.g. the reference backend's step and integrator
     comparison: {reference: pinocchio, skip: 0.0, steady_window: 0.5, tolerances: {}}
 
 Unknown keys are errors. Every error names the file, the key path and the problem.
@@ -31,12 +31,10 @@ Unknown keys are errors. Every error names the file, the key path and the proble
 
 from __future__ import annotations
 
-import difflib
 import hashlib
 import json
-import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,10 +42,13 @@ from typing import Any
 import numpy as np
 import yaml
 
-from legbench import kinematics
+from legbench import backends, kinematics
+from legbench.backends.base import Physics
 from legbench.contact import CONTACT_MODES, ContactParams
-from legbench.exceptions import ScenarioError
+from legbench.exceptions import BackendNotFound
 from legbench.model import load_params
+from legbench.trajectories import ellipse_waypoints
+from legbench.yamlfile import YamlContext, check_keys, integer, number, read_yaml, set_key, vector
 
 CONTROLLERS = ("position", "trajectory", "ellipse", "effort")
 #: Scenario names become directory names: no separators, nothing that can climb out.
@@ -91,11 +92,15 @@ class Event:
     params: Mapping[str, Any] = field(default_factory=dict, hash=False, compare=False)
 
 
+#: The reference backend a scenario's comparison uses unless it names another (a setting).
+DEFAULT_REFERENCE = "pinocchio"
+
+
 @dataclass(frozen=True)
 class Comparison:
     """How runs of this scenario are compared."""
 
-    reference: str = "pinocchio"
+    reference: str = DEFAULT_REFERENCE
     skip: float = 0.0  # [s] ignored at the start
     steady_window: float = 0.5  # [s] at the end, for steady-state means
     tolerances: Mapping[str, Any] = field(default_factory=dict, hash=False)
@@ -159,148 +164,7 @@ class Scenario:
 
 
 # --------------------------------------------------------------------------- #
-# YAML
-
-
-class Loader(yaml.SafeLoader):
-    """PyYAML's safe loader (no object construction) that also reads ``1e-4`` as a float.
-
-    YAML 1.1 wants a dot in a float (``1.0e-4``); engineers write ``1e-4``.
-    """
-
-
-Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(
-        r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
-        |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
-        |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
-        |[-+]?\.(?:inf|Inf|INF)
-        |\.(?:nan|NaN|NAN))$""",
-        re.X,
-    ),
-    list("-+0123456789."),
-)
-
-
-def yaml_load(text: str) -> Any:
-    """Parse YAML text safely (see :class:`Loader`)."""
-    return yaml.load(text, Loader=Loader)  # noqa: S506 - Loader is a SafeLoader
-
-
-def yaml_compose(text: str) -> yaml.Node | None:
-    """The node tree of YAML text (for line numbers in errors)."""
-    return yaml.compose(text, Loader=Loader)
-
-
-# --------------------------------------------------------------------------- #
-# Validation helpers
-
-
-class YamlContext:
-    """File name and YAML node marks, to name lines in errors (scenario, sweep and tolerance files)."""
-
-    def __init__(self, file: str, root: yaml.Node | None) -> None:
-        self.file = file
-        self.root = root
-
-    def line(self, path: Sequence[str | int]) -> int | None:
-        node = self.root
-        line = None
-        for key in path:
-            if isinstance(node, yaml.MappingNode):
-                nxt = None
-                for k, v in node.value:
-                    if k.value == key:
-                        line, nxt = k.start_mark.line + 1, v
-                        break
-                node = nxt
-            elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and key < len(node.value):
-                node = node.value[key]
-                line = node.start_mark.line + 1
-            else:
-                break
-            if node is None:
-                break
-        return line
-
-    def error(self, path: Sequence[str | int], problem: str) -> ScenarioError:
-        return ScenarioError(self.file, _keypath(path), problem, self.line(path))
-
-
-def _keypath(path: Sequence[str | int]) -> str:
-    out = ""
-    for p in path:
-        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
-    return out
-
-
-def check_keys(
-    ctx: YamlContext, path: list[str | int], d: Any, allowed: Sequence[str], required: Sequence[str] = ()
-) -> None:
-    if not isinstance(d, Mapping):
-        raise ctx.error(path, f"expected a mapping, got {type(d).__name__}")
-    for k in d:
-        if k not in allowed:
-            folded = [a for a in allowed if a.lower() == str(k).lower()]
-            near = folded or difflib.get_close_matches(str(k), allowed, n=1)
-            hint = f"; did you mean '{near[0]}'?" if near else f"; valid keys: {', '.join(allowed)}"
-            raise ctx.error([*path, str(k)], f"unknown key{hint}")
-    for k in required:
-        if k not in d:
-            raise ctx.error(path, f"missing required key '{k}'")
-
-
-def _num(ctx: YamlContext, path: list[str | int], v: Any, *, positive: bool = False, nonneg: bool = False) -> float:
-    if isinstance(v, bool) or not isinstance(v, int | float):
-        raise ctx.error(path, f"expected a number, got {v!r}")
-    try:
-        x = float(v)
-    except OverflowError:
-        raise ctx.error(path, f"number too large: {v!r}") from None
-    if not math.isfinite(x):
-        raise ctx.error(path, f"must be finite, got {v!r}")
-    if positive and x <= 0:
-        raise ctx.error(path, f"must be > 0, got {v!r}")
-    if nonneg and x < 0:
-        raise ctx.error(path, f"must be >= 0, got {v!r}")
-    return x
-
-
-def _vec(ctx: YamlContext, path: list[str | int], v: Any, n: int = 3) -> tuple[float, ...]:
-    if isinstance(v, int | float) and not isinstance(v, bool) and n == 3:
-        return (_num(ctx, path, v),) * n
-    if not isinstance(v, list) or len(v) != n:
-        raise ctx.error(path, f"expected a list of {n} numbers, got {v!r}")
-    return tuple(_num(ctx, [*path, i], x) for i, x in enumerate(v))
-
-
-def _int(ctx: YamlContext, path: list[str | int], v: Any, minimum: int = 1) -> int:
-    if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
-        raise ctx.error(path, f"expected an integer >= {minimum}, got {v!r}")
-    return v
-
-
-# --------------------------------------------------------------------------- #
 # Events
-
-
-def ellipse_waypoints(
-    a: float, b: float, DY: float, DZ: float, dth: float, T: float, points: int, repetitions: int, approach: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Waypoints of the ellipse task in W [m] and their times after activation [s].
-
-    Polar form r(th) = a b / sqrt(a^2 sin^2(th - dth) + b^2 cos^2(th - dth)),
-    W_P = r(th) [0, cos th, sin th] + [L_B0 + L12, DY, DZ]; ``points`` per period
-    ``T``, ``repetitions`` laps; the first point is reached after ``approach``.
-    """
-    g = load_params().geometry
-    k = np.arange(points * repetitions + 1)
-    th = 2.0 * np.pi * k / points
-    r = a * b / np.sqrt(a**2 * np.sin(th - dth) ** 2 + b**2 * np.cos(th - dth) ** 2)
-    P = np.stack([np.full_like(th, g.L_B0 + g.L_12), DY + r * np.cos(th), DZ + r * np.sin(th)], axis=1)
-    times = approach + k * T / points
-    return P, times
 
 
 def _reachable(ctx: YamlContext, path: list[str | int], p: tuple[float, ...]) -> None:
@@ -311,7 +175,7 @@ def _reachable(ctx: YamlContext, path: list[str | int], p: tuple[float, ...]) ->
 
 def _event(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
     check_keys(ctx, path, d, ["t", *CONTROLLERS], ["t"])
-    t = _num(ctx, [*path, "t"], d["t"], nonneg=True)
+    t = number(ctx, [*path, "t"], d["t"], nonneg=True)
     kinds = [k for k in CONTROLLERS if k in d]
     if len(kinds) != 1:
         raise ctx.error(path, f"an event needs exactly one of {', '.join(CONTROLLERS)}; got {kinds or 'none'}")
@@ -325,12 +189,12 @@ def _event(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
         if ("joint" in body) == ("cartesian" in body):
             raise ctx.error(bp, "give exactly one of 'joint' or 'cartesian'")
         if "joint" in body:
-            q = _vec(ctx, [*bp, "joint"], body["joint"])
+            q = vector(ctx, [*bp, "joint"], body["joint"])
             for i, (qi, lo, hi) in enumerate(zip(q, p.lower, p.upper, strict=True)):
                 if not lo <= qi <= hi:
                     raise ctx.error([*bp, "joint", i], f"{qi} rad outside the joint limits [{lo:.4f}, {hi:.4f}]")
             return Event(t, kind, joint=q, params=params)
-        c = _vec(ctx, [*bp, "cartesian"], body["cartesian"])
+        c = vector(ctx, [*bp, "cartesian"], body["cartesian"])
         _reachable(ctx, [*bp, "cartesian"], c)
         return Event(t, kind, cartesian=c, params=params)
     if kind == "trajectory":
@@ -340,8 +204,8 @@ def _event(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
             raise ctx.error([*bp, "waypoints"], "expected a non-empty list of [x, y, z] points")
         if not isinstance(times, list) or len(times) != len(wps):
             raise ctx.error([*bp, "times"], f"expected {len(wps)} times, one per waypoint")
-        W = tuple(_vec(ctx, [*bp, "waypoints", i], w) for i, w in enumerate(wps))
-        ts = tuple(_num(ctx, [*bp, "times", i], x, positive=True) for i, x in enumerate(times))
+        W = tuple(vector(ctx, [*bp, "waypoints", i], w) for i, w in enumerate(wps))
+        ts = tuple(number(ctx, [*bp, "times", i], x, positive=True) for i, x in enumerate(times))
         if any(b <= a for a, b in zip(ts, ts[1:], strict=False)):
             raise ctx.error([*bp, "times"], "waypoint times must increase strictly")
         for i, w in enumerate(W):
@@ -350,15 +214,15 @@ def _event(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
     if kind == "ellipse":
         keys = ["a", "b", "DY", "DZ", "dth", "T", "points", "repetitions", "approach"]
         check_keys(ctx, bp, body, keys, ["a", "b", "DY", "DZ", "T"])
-        a = _num(ctx, [*bp, "a"], body["a"], positive=True)
-        b = _num(ctx, [*bp, "b"], body["b"], positive=True)
-        DY = _num(ctx, [*bp, "DY"], body["DY"])
-        DZ = _num(ctx, [*bp, "DZ"], body["DZ"])
-        dth = _num(ctx, [*bp, "dth"], body.get("dth", 0.0))
-        T = _num(ctx, [*bp, "T"], body["T"], positive=True)
-        n = _int(ctx, [*bp, "points"], body.get("points", 50), minimum=3)
-        reps = _int(ctx, [*bp, "repetitions"], body.get("repetitions", 1))
-        approach = _num(ctx, [*bp, "approach"], body.get("approach", 1.0), positive=True)
+        a = number(ctx, [*bp, "a"], body["a"], positive=True)
+        b = number(ctx, [*bp, "b"], body["b"], positive=True)
+        DY = number(ctx, [*bp, "DY"], body["DY"])
+        DZ = number(ctx, [*bp, "DZ"], body["DZ"])
+        dth = number(ctx, [*bp, "dth"], body.get("dth", 0.0))
+        T = number(ctx, [*bp, "T"], body["T"], positive=True)
+        n = integer(ctx, [*bp, "points"], body.get("points", 50), minimum=3)
+        reps = integer(ctx, [*bp, "repetitions"], body.get("repetitions", 1))
+        approach = number(ctx, [*bp, "approach"], body.get("approach", 1.0), positive=True)
         if n * reps > MAX_WAYPOINTS:
             raise ctx.error([*bp, "points"], f"points x repetitions = {n * reps} is more than {MAX_WAYPOINTS}")
         P, tw = ellipse_waypoints(a, b, DY, DZ, dth, T, n, reps, approach)
@@ -367,7 +231,7 @@ def _event(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
                 raise ctx.error(bp, f"ellipse point {i} at W {np.round(point, 4).tolist()} is unreachable")
         return Event(t, "trajectory", waypoints=tuple(map(tuple, P)), times=tuple(tw.tolist()), params=params)
     check_keys(ctx, bp, body, ["force"], ["force"])
-    return Event(t, kind, force=_vec(ctx, [*bp, "force"], body["force"]), params=params)
+    return Event(t, kind, force=vector(ctx, [*bp, "force"], body["force"]), params=params)
 
 
 # --------------------------------------------------------------------------- #
@@ -387,8 +251,8 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     description = doc.get("description", "")
     if not isinstance(description, str):
         raise ctx.error(["description"], "expected text")
-    duration = _num(ctx, ["duration"], doc["duration"], positive=True)
-    rate = _num(ctx, ["control_rate"], doc.get("control_rate", 1000.0), positive=True)
+    duration = number(ctx, ["duration"], doc["duration"], positive=True)
+    rate = number(ctx, ["control_rate"], doc.get("control_rate", 1000.0), positive=True)
     if duration * rate > MAX_TICKS:
         raise ctx.error(["duration"], f"{duration} s at {rate} Hz is more than {MAX_TICKS:.0e} control ticks")
     if abs(duration * rate - round(duration * rate)) > 1e-6:
@@ -399,13 +263,13 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     gdef = Gains()
     gains = Gains(
         *(  # type: ignore[arg-type]
-            _vec(ctx, ["gains", k], gains_d[k]) if k in gains_d else getattr(gdef, k) for k in ("Kp", "Kd", "Ki")
+            vector(ctx, ["gains", k], gains_d[k]) if k in gains_d else getattr(gdef, k) for k in ("Kp", "Kd", "Ki")
         )
     )
     init = doc.get("initial", {})
     check_keys(ctx, ["initial"], init, ["q", "qd"])
-    q0 = _vec(ctx, ["initial", "q"], init.get("q", [0.0, 0.0, 0.0]))
-    qd0 = _vec(ctx, ["initial", "qd"], init.get("qd", [0.0, 0.0, 0.0]))
+    q0 = vector(ctx, ["initial", "q"], init.get("q", [0.0, 0.0, 0.0]))
+    qd0 = vector(ctx, ["initial", "qd"], init.get("qd", [0.0, 0.0, 0.0]))
     p = load_params()
     for i, (qi, lo, hi) in enumerate(zip(q0, p.lower, p.upper, strict=True)):
         if not lo <= qi <= hi:
@@ -430,7 +294,7 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
 
     phys = doc.get("physics", {})
     check_keys(ctx, ["physics"], phys, ["gravity", "contact_mode", "contact"])
-    gravity = _num(ctx, ["physics", "gravity"], phys.get("gravity", p.gravity), nonneg=True)
+    gravity = number(ctx, ["physics", "gravity"], phys.get("gravity", p.gravity), nonneg=True)
     mode = phys.get("contact_mode", "native")
     if mode not in CONTACT_MODES:
         raise ctx.error(["physics", "contact_mode"], f"expected one of {', '.join(CONTACT_MODES)}, got {mode!r}")
@@ -441,7 +305,7 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     vals: dict[str, Any] = {}
     for k in ckeys[:-1]:
         default = getattr(leg_c, k)
-        vals[k] = _num(ctx, ["physics", "contact", k], cdoc.get(k, default), nonneg=True)
+        vals[k] = number(ctx, ["physics", "contact", k], cdoc.get(k, default), nonneg=True)
     for k in ("Kp", "v_th"):
         if vals[k] <= 0:
             raise ctx.error(["physics", "contact", k], "must be > 0")
@@ -461,9 +325,9 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     cmp_d = doc.get("comparison", {})
     check_keys(ctx, ["comparison"], cmp_d, ["reference", "skip", "steady_window", "tolerances"])
     comparison = Comparison(
-        reference=str(cmp_d.get("reference", "pinocchio")),
-        skip=_num(ctx, ["comparison", "skip"], cmp_d.get("skip", 0.0), nonneg=True),
-        steady_window=_num(ctx, ["comparison", "steady_window"], cmp_d.get("steady_window", 0.5), positive=True),
+        reference=str(cmp_d.get("reference", DEFAULT_REFERENCE)),
+        skip=number(ctx, ["comparison", "skip"], cmp_d.get("skip", 0.0), nonneg=True),
+        steady_window=number(ctx, ["comparison", "steady_window"], cmp_d.get("steady_window", 0.5), positive=True),
         tolerances=cmp_d.get("tolerances", {}) or {},
     )
     if not isinstance(comparison.tolerances, Mapping):
@@ -520,9 +384,6 @@ def _check_speed(ctx: YamlContext, path: list[str | int], ev: Event, q_start: tu
 
 
 def _backend_settings(ctx: YamlContext, name: str, given: Any) -> dict[str, Any]:
-    from legbench import backends
-    from legbench.exceptions import BackendNotFound
-
     path: list[str | int] = ["backends", name]
     if not isinstance(given, Mapping):
         raise ctx.error(path, "expected a mapping of settings")
@@ -545,34 +406,12 @@ def _backend_settings(ctx: YamlContext, name: str, given: Any) -> dict[str, Any]
                 raise ctx.error([*path, k], f"expected true or false, got {v!r}")
             out[k] = v
         elif isinstance(default, int):
-            out[k] = _int(ctx, [*path, k], v)
+            out[k] = integer(ctx, [*path, k], v)
         elif isinstance(default, float):
-            out[k] = _num(ctx, [*path, k], v, positive=True)
+            out[k] = number(ctx, [*path, k], v, positive=True)
         else:
             out[k] = v
     return out
-
-
-def read_yaml(path: str | Path) -> tuple[Any, yaml.Node | None]:
-    """A YAML file's document and node tree (for line numbers), or a one-line :class:`ScenarioError`."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ScenarioError(str(path), "", "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(str(path), "", f"cannot read: {exc}") from None
-    try:
-        root = yaml_compose(text)
-        doc = yaml_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = mark.line + 1 if mark is not None else None
-        problem = getattr(exc, "problem", None) or str(exc)
-        raise ScenarioError(str(path), "", f"malformed YAML: {problem}", line) from None
-    if doc is None:
-        raise ScenarioError(str(path), "", "empty file")
-    return doc, root
 
 
 def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
@@ -583,21 +422,13 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
     return parse(doc, str(path), root)
 
 
-def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
-    """``KEY=VALUE`` strings (``--set``) -> {dotted key: YAML value}; ``1e-4`` is a float."""
-    out: dict[str, Any] = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise ScenarioError("--set", item, "expected KEY=VALUE, e.g. backends.pinocchio.dt=5e-5")
-        out[key] = yaml_load(value)
-    return out
-
-
-def set_key(doc: dict[str, Any], dotted: str, value: Any) -> None:
-    """Set ``a.b.c`` in a nested dict, creating mappings as needed."""
-    parts = dotted.split(".")
-    d = doc
-    for k in parts[:-1]:
-        d = d.setdefault(k, {})
-    d[parts[-1]] = value
+def physics_of(scenario: Scenario, contact_mode: str | None = None) -> Physics:
+    """Physics every backend gets for this scenario (``contact_mode`` overrides the scenario's)."""
+    lim = load_params().effort
+    return Physics(
+        gravity=scenario.gravity,
+        contact=scenario.contact,
+        contact_mode=contact_mode or scenario.contact_mode,
+        control_dt=scenario.control_dt,
+        torque_limit=(float(lim[0]), float(lim[1]), float(lim[2])),
+    )

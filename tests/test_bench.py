@@ -16,8 +16,9 @@ import numpy as np
 import pytest
 import yaml
 
-from legbench import backends, bench, scenario
+from legbench import backends, scenario
 from legbench.exceptions import LegbenchError
+from legbench.studies import bench
 
 TASK_NAMES = ["position", "ellipse", "effort", "combined"]
 
@@ -86,12 +87,12 @@ def test_pinocchio_rows_compare_a_sub_step_with_its_own_calls(quick: tuple[int, 
     if "pinocchio" not in backends.available():
         pytest.skip("pinocchio backend not installed")
     for task in TASK_NAMES:
-        k = _rows(doc)[(task, "pinocchio")]["pinocchio"]
+        k = _rows(doc)[(task, "pinocchio")]["kernels"]
         for key in ("substep_us", "aba_us", "law_us", "kernels_us", "ratio"):
             assert math.isfinite(k[key]) and k[key] > 0, (task, key)
         assert k["kernels_us"] == pytest.approx(k["aba_us"] + k["law_us"])
         assert k["ratio"] == pytest.approx(k["substep_us"] / k["kernels_us"])
-    assert all(r["pinocchio"] is None for r in doc["results"] if r["backend"] != "pinocchio")
+    assert all(r["kernels"] is None for r in doc["results"] if r["backend"] != "pinocchio")
 
 
 def test_versions_machine_and_targets_are_recorded(quick: tuple[int, dict[str, Any], str]) -> None:
@@ -107,7 +108,7 @@ def test_markdown_has_one_row_per_backend_and_task(quick: tuple[int, dict[str, A
     for r in doc["results"]:
         row = f"| {r['task']} | {r['backend']} |"
         assert sum(line.startswith(row) for line in md.splitlines()) == 2  # timing table, memory table
-    assert "## Pinocchio" in md or "pinocchio" not in backends.available()
+    assert "## Cost per sub-step against the engine's own calls" in md or "pinocchio" not in backends.available()
 
 
 def test_shorten_drops_events_at_or_after_the_new_end_and_validates() -> None:

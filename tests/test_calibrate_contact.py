@@ -7,7 +7,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from legbench import backends, calibrate_contact
+from legbench import backends
+from legbench.studies import calibrate_contact
 
 
 @pytest.fixture(scope="module")

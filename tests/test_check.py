@@ -14,6 +14,7 @@ from fakerun import Transform, add_to, offset, scale, write_run
 
 from legbench import check as K
 from legbench import compare as C
+from legbench import results
 from legbench.exceptions import ResultsError, ScenarioError
 
 BUMP = add_to("tau2", lambda t: 0.5 * np.exp(-(((t - 1.2) / 0.05) ** 2)))  # 0.5 N m pulse at t = 1.2 s
@@ -40,7 +41,7 @@ def baseline(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The committed-baseline layout: run directories with metrics.json (tests never write into it)."""
     base = tree(tmp_path_factory.mktemp("baseline") / "base")
     for d in base.iterdir():
-        C.write_metrics(C.compare(d))
+        results.write_metrics(C.compare(d).to_json(), d / "metrics.json")
     return base
 
 

@@ -36,3 +36,18 @@ def test_bad_log_column_mapping_is_a_one_line_error(tmp_path: Path, capsys: pyte
     write_run(run_dir, {"ref": None, "a": scale(1.02)})
     assert cli.main(["compare", str(run_dir), "--reference-log", "x.csv", "--log-columns", "time_ms"]) == 2
     assert "--log-columns 'time_ms': expected HEADER=COLUMN" in capsys.readouterr().err
+
+
+def test_run_records_the_declared_abilities(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``legbench run`` end to end on one backend: exit 0, one log of 51 ticks (0.05 s at 1 kHz), and run.json
+    holding the backend's declared integrator family and sub-step count (control period / dt) beside its settings."""
+    scenario = Path(__file__).resolve().parents[1] / "scenarios" / "position.yaml"
+    argv = ["run", str(scenario), "--backends", "pinocchio", "--set", "duration=0.05", "--set",
+            "comparison.steady_window=0.01", "--out", str(tmp_path / "r"), "-q", "--no-compare",
+            "--no-preflight"]  # fmt: skip
+    assert cli.main(argv) == 0
+    assert "pinocchio  ok" in capsys.readouterr().out
+    info = json.loads((tmp_path / "r" / "run.json").read_text())["backends"]["pinocchio"]["info"]
+    dt = info["dt"]  # the pinocchio sub-step the scenario sets [s]
+    assert info["integrator_family"] == "euler" and info["sub_steps"] == round(1e-3 / dt) > 1
+    assert len(pd.read_parquet(tmp_path / "r" / "pinocchio.parquet")) == 51

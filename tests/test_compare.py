@@ -12,7 +12,7 @@ import pytest
 from fakerun import Base, Transform, add_to, base_signals, frame, offset, scale, write_run
 
 from legbench import compare as C
-from legbench import kinematics
+from legbench import kinematics, logs, metrics, results, signals
 from legbench.exceptions import ResultsError
 
 RATE = 1000.0
@@ -83,7 +83,7 @@ def test_skip_leaves_the_start_out_of_every_metric(tmp_path: Path) -> None:
     d = write_run(tmp_path / "s", {"ref": None, "a": bump}, skip=0.2)
     p = C.compare(d).pair("a")
     assert p is not None
-    i = C.LABELS.index("tau2")
+    i = signals.LABELS.index("tau2")
     assert p.max_abs[i] == 0.0 and p.rms[i] == 0.0
     assert np.max(np.abs(p.deviation[:, i])) == pytest.approx(1.0, abs=1e-12)  # the full series is kept for plots
     d0 = write_run(tmp_path / "s0", {"ref": None, "a": bump}, skip=0.0)
@@ -96,11 +96,11 @@ def test_hip_angle_is_compared_on_the_circle(tmp_path: Path) -> None:
     turn = add_to("q2", lambda t: np.full_like(t, 2 * np.pi))
     p = C.compare(write_run(tmp_path / "s", {"ref": None, "a": turn})).pair("a")
     assert p is not None
-    assert p.max_abs[C.LABELS.index("q2")] < 1e-12
+    assert p.max_abs[signals.LABELS.index("q2")] < 1e-12
     knee = add_to("q3", lambda t: np.full_like(t, 2 * np.pi))
     p3 = C.compare(write_run(tmp_path / "k", {"ref": None, "a": knee})).pair("a")
     assert p3 is not None
-    assert p3.max_abs[C.LABELS.index("q3")] == pytest.approx(2 * np.pi, rel=1e-12)
+    assert p3.max_abs[signals.LABELS.index("q3")] == pytest.approx(2 * np.pi, rel=1e-12)
 
 
 def test_zero_reference_signal_gives_undefined_error_not_infinity(tmp_path: Path) -> None:
@@ -116,8 +116,8 @@ def test_zero_reference_signal_gives_undefined_error_not_infinity(tmp_path: Path
     p = res.pair("a")
     assert p is not None
     assert np.isnan(p.sim_error_pct[9:12]).all()
-    assert p.rms[C.LABELS.index("fz")] > 0
-    doc = json.loads(C.write_metrics(res).read_text())
+    assert p.rms[signals.LABELS.index("fz")] > 0
+    doc = json.loads(results.write_metrics(res.to_json(), res.run.path / "metrics.json").read_text())
     fz = [r for r in doc["metrics"] if r["metric"] == "sim_error_pct" and r["signal"] == "force" and r["joint"] == "z"]
     assert fz[0]["value"] is None
 
@@ -130,8 +130,8 @@ def test_zero_reference_signal_gives_undefined_error_not_infinity(tmp_path: Path
 def test_lag_estimate_recovers_a_planted_lag_to_one_sample(tmp_path: Path, lag_samples: int) -> None:
     """x_a(t) = x_ref(t - L dt) for L in {-37, 0, 5, 23}: the cross-correlation finds L within 1 sample."""
     d = write_run(tmp_path / "s", {"ref": None, "a": lagged_by(lag_samples * DT)})
-    run = C.load_run(d)
-    est = C.estimate_lag(run.traces["a"], run.traces["ref"], max_lag=0.1)
+    run = results.load_run(d)
+    est = metrics.estimate_lag(run.traces["a"], run.traces["ref"], max_lag=0.1)
     assert abs(est.samples - lag_samples) <= 1.0
     assert est.seconds == pytest.approx(est.samples * DT)
     assert est.correlation > 0.99
@@ -208,8 +208,8 @@ def test_load_log_keeps_missing_optional_signals_as_nan(tmp_path: Path) -> None:
     d = write_run(tmp_path / "s", {"ref": None})
     log = tmp_path / "qonly.csv"
     pd.read_parquet(d / "ref.parquet")[["t", "q1", "q2", "q3"]].to_csv(log, index=False)
-    df = C.load_log(log)
-    assert list(df.columns) == list(C.RUN_COLUMNS)
+    df = logs.load_log(log)
+    assert list(df.columns) == list(signals.RUN_COLUMNS)
     assert df["tau1"].isna().all() and not df["q1"].isna().any()
     p = C.compare(d, log=log).pair("log:qonly")
     assert p is not None
@@ -220,7 +220,7 @@ def test_load_log_time_scale_converts_milliseconds(tmp_path: Path) -> None:
     """time_scale = 1e-3 turns a millisecond time column into seconds."""
     log = tmp_path / "ms.csv"
     pd.DataFrame({"t_ms": [0.0, 1.0, 2.0], "q1": 0.0, "q2": 0.0, "q3": 0.0}).to_csv(log, index=False)
-    df = C.load_log(log, column_map={"t_ms": "t"}, time_scale=1e-3)
+    df = logs.load_log(log, column_map={"t_ms": "t"}, time_scale=1e-3)
     np.testing.assert_allclose(df["t"], [0.0, 0.001, 0.002])
 
 
@@ -242,7 +242,7 @@ def test_malformed_log_raises_naming_the_file_and_problem(
     log = tmp_path / "bad.csv"
     log.write_text(content)
     with pytest.raises(ResultsError) as err:
-        C.load_log(log, column_map)
+        logs.load_log(log, column_map)
     assert str(log) in str(err.value) and fragment in str(err.value)
     assert "\n" not in str(err.value)
 
@@ -250,7 +250,7 @@ def test_malformed_log_raises_naming_the_file_and_problem(
 def test_missing_log_file_raises(tmp_path: Path) -> None:
     """A log path that does not exist is a ResultsError naming it."""
     with pytest.raises(ResultsError, match="no such log file"):
-        C.load_log(tmp_path / "nope.csv")
+        logs.load_log(tmp_path / "nope.csv")
 
 
 def test_log_name_clashing_with_a_backend_raises(tmp_path: Path) -> None:
@@ -269,14 +269,14 @@ def test_log_name_clashing_with_a_backend_raises(tmp_path: Path) -> None:
 def test_missing_run_directory_and_run_json_raise(tmp_path: Path) -> None:
     """A missing DIR, and a DIR without run.json, are ResultsErrors naming the directory."""
     with pytest.raises(ResultsError, match="no such run directory"):
-        C.load_run(tmp_path / "nope")
+        results.load_run(tmp_path / "nope")
     (tmp_path / "empty").mkdir()
     with pytest.raises(ResultsError, match="no run.json"):
-        C.load_run(tmp_path / "empty")
+        results.load_run(tmp_path / "empty")
     d = write_run(tmp_path / "bad", {"ref": None})
     (d / "run.json").write_text("{not json")
     with pytest.raises(ResultsError, match=r"run.json: invalid JSON at line 1"):
-        C.load_run(d)
+        results.load_run(d)
 
 
 def test_parquet_without_a_contract_column_raises(tmp_path: Path) -> None:
@@ -284,7 +284,7 @@ def test_parquet_without_a_contract_column_raises(tmp_path: Path) -> None:
     d = write_run(tmp_path / "s", {"ref": None})
     pd.read_parquet(d / "ref.parquet").drop(columns=["fz"]).to_parquet(d / "ref.parquet")
     with pytest.raises(ResultsError, match=r"ref.parquet: missing column\(s\) \['fz'\]"):
-        C.load_run(d)
+        results.load_run(d)
 
 
 def test_failed_and_missing_backends_are_reported_not_measured(tmp_path: Path) -> None:
@@ -427,14 +427,14 @@ def test_metrics_json_round_trips_and_keeps_its_documented_keys(tmp_path: Path) 
     """write_metrics then read_metrics gives back the same long table (NaN <-> null) and the schema's keys."""
     d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.1)}, failed={"b": "boom"})
     res = C.compare(d, lag="report")
-    path = C.write_metrics(res)
+    path = results.write_metrics(res.to_json(), res.run.path / "metrics.json")
     assert path == d / "metrics.json"
-    head, df = C.read_metrics(path)
+    head, df = results.read_metrics(path)
     assert list(head) == [
         "schema", "scenario", "name", "contact_mode", "poc", "reference", "skip", "steady_window",
         "duration", "split_with", "backends", "notes", "columns",
     ]  # fmt: skip
-    assert head["schema"] == C.METRICS_SCHEMA and head["columns"] == list(C.FRAME_COLUMNS)
+    assert head["schema"] == results.METRICS_SCHEMA and head["columns"] == list(results.FRAME_COLUMNS)
     pd.testing.assert_frame_equal(df, res.frame().astype({"value": float}), check_dtype=False)
     metrics = set(df["metric"])
     assert {"sim_error_pct", "rms", "max_abs", "t_max_abs", "ref_peak", "lag", "steady_mean"} <= metrics
@@ -445,4 +445,4 @@ def test_read_metrics_rejects_a_wrong_schema(tmp_path: Path) -> None:
     f = tmp_path / "metrics.json"
     f.write_text(json.dumps({"schema": "other/9", "metrics": []}))
     with pytest.raises(ResultsError, match="schema is 'other/9'"):
-        C.read_metrics(f)
+        results.read_metrics(f)

@@ -16,7 +16,8 @@ from legbench.controllers import (
     waypoint_velocities,
 )
 from legbench.model import load_params
-from legbench.scenario import Event, Gains, ellipse_waypoints
+from legbench.scenario import Event, Gains
+from legbench.trajectories import ellipse_waypoints
 
 TS = 1e-3
 

@@ -9,7 +9,8 @@ from typing import Any
 
 import pytest
 
-from legbench import backends, doctor
+from legbench import backends
+from legbench.studies import doctor
 
 EFFORT = Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml"
 

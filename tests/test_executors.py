@@ -8,8 +8,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from legbench import backends, executors, sweep
+from legbench import backends
 from legbench.exceptions import LegbenchError
+from legbench.studies import executors, sweep, tasks
 
 FREE_SPACE = Path(__file__).resolve().parents[1] / "scenarios" / "verification" / "free_space.yaml"
 TIMING = ["wall_time", "rtf", "wall_per_sim_s"]  # measured, so they differ between runs
@@ -75,8 +76,8 @@ def test_local_pool_returns_results_in_task_order() -> None:
 
 
 def test_run_task_reports_a_missing_backend_instead_of_raising() -> None:
-    res = executors.run_task(executors.RunTask(7, str(FREE_SPACE), {"duration": 0.1}, "nonexistent"))
-    assert res["index"] == 7 and res["status"] == "missing" and "nonexistent" in res["reason"]
+    res = tasks.run_task(tasks.RunTask(7, str(FREE_SPACE), {"duration": 0.1}, "nonexistent"))
+    assert res.index == 7 and res.run.status == "missing" and "nonexistent" in (res.run.reason or "")
 
 
 def test_executor_errors_are_clear() -> None:

@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from legbench import backends, horizon, scenario
+from legbench import backends, scenario
 from legbench.exceptions import ScenarioError
+from legbench.studies import horizon
 
 FREE_SPACE = Path(__file__).resolve().parents[1] / "scenarios" / "verification" / "free_space.yaml"
 

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from fakes import FakeBackend
 
-from legbench import run, scenario
+from legbench import results, run, scenario, signals
 from legbench.exceptions import LegbenchError
 
 DOC = {
@@ -23,10 +23,10 @@ DOC = {
 }
 
 
-def _simulate(doc: dict) -> tuple[run.Trajectory, FakeBackend]:  # type: ignore[type-arg]
+def _simulate(doc: dict) -> tuple[results.RunResult, FakeBackend]:  # type: ignore[type-arg]
     sc = scenario.parse(doc)
     be = FakeBackend()
-    phys = run.physics_of(sc)
+    phys = scenario.physics_of(sc)
     be.load(Path("unused"), phys, {})
     return run.simulate(sc, be, phys), be
 
@@ -62,9 +62,9 @@ def test_torque_is_saturated_at_the_joint_limits() -> None:
 def test_outputs_parquet_csv_and_run_json(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     sc = scenario.parse(DOC)
     tr, _ = _simulate(DOC)
-    out = run.write_run(sc, [tr], tmp_path / "fake", csv=True)
+    out = results.write_run(sc, [tr], tmp_path / "fake", csv=True)
     df = pd.read_parquet(out / "fake.parquet")
-    assert list(df.columns) == [*run.COLUMNS, "controller"]
+    assert list(df.columns) == list(signals.RUN_COLUMNS)
     np.testing.assert_array_equal(df["q1"].to_numpy(), tr.q[:, 0])
     assert (out / "fake.csv").exists()
     meta = json.loads((out / "run.json").read_text())
@@ -77,11 +77,11 @@ def test_outputs_parquet_csv_and_run_json(tmp_path: Path, monkeypatch: pytest.Mo
 def test_refuses_to_overwrite_another_scenarios_results(tmp_path: Path) -> None:
     sc = scenario.parse(DOC)
     tr, _ = _simulate(DOC)
-    run.write_run(sc, [tr], tmp_path / "x")
+    results.write_run(sc, [tr], tmp_path / "x")
     other = scenario.parse({**DOC, "name": "other"})
     with pytest.raises(LegbenchError, match="holds results of scenario 'fake'"):
-        run.write_run(other, [tr], tmp_path / "x")
-    run.write_run(sc, [tr], tmp_path / "x")  # same scenario: replaced
+        results.write_run(other, [tr], tmp_path / "x")
+    results.write_run(sc, [tr], tmp_path / "x")  # same scenario: replaced
 
 
 def test_diverging_backend_is_stopped_and_marked_failed() -> None:
@@ -93,7 +93,7 @@ def test_diverging_backend_is_stopped_and_marked_failed() -> None:
 
     sc = scenario.parse(DOC)
     be = Exploding()
-    phys = run.physics_of(sc)
+    phys = scenario.physics_of(sc)
     be.load(Path("unused"), phys, {})
     tr = run.simulate(sc, be, phys)
     assert tr.status == "failed"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -11,8 +12,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from legbench import backends, sweep
+from legbench import backends
 from legbench.exceptions import LegbenchError, ScenarioError
+from legbench.results import RunResult
+from legbench.studies import sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 TIMESTEP = ROOT / "scenarios" / "sweeps" / "timestep.yaml"
@@ -163,15 +166,15 @@ def test_grid_is_a_cartesian_product_and_references_are_shared(tmp_path: Path) -
 def test_run_metrics_are_zero_for_identical_runs_and_wrap_the_hip() -> None:
     t = np.arange(5) * 1e-3
     q = np.column_stack([np.linspace(0, 0.1, 5), np.linspace(3.0, 3.2, 5), np.zeros(5)])
-    ref = {"status": "ok", "t": t, "q": q, "qd": np.ones((5, 3)), "tau": np.ones((5, 3)), "f": np.zeros((5, 3))}
-    wrapped = dict(ref, q=q + np.array([0.0, -2 * np.pi, 0.0]))
+    ref = RunResult("ref", t, q, np.ones((5, 3)), np.ones((5, 3)), np.zeros((5, 3)), np.full(5, "", dtype=object))
+    wrapped = dataclasses.replace(ref, q=q + np.array([0.0, -2 * np.pi, 0.0]))
     m = sweep.run_metrics(wrapped, ref, ["q", "qd", "force"])
     assert m["q_max"] < 1e-12 and m["qd_max"] == 0.0
     assert math.isnan(m["force_pct"])  # reference peak is zero: % undefined
-    shifted = dict(ref, q=q + np.array([0.01, 0.0, 0.0]))
+    shifted = dataclasses.replace(ref, q=q + np.array([0.01, 0.0, 0.0]))
     m = sweep.run_metrics(shifted, ref, ["q"])
     assert m["q1_max"] == pytest.approx(0.01) and m["q1_pct"] == pytest.approx(100 * 0.01 / 0.1)
-    assert math.isnan(sweep.run_metrics(dict(ref, status="failed"), ref, ["q"])["q_max"])
+    assert math.isnan(sweep.run_metrics(dataclasses.replace(ref, status="failed"), ref, ["q"])["q_max"])
 
 
 def test_write_refuses_a_foreign_directory(tmp_path: Path) -> None:

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from legbench import backends, run, scenario
+from legbench import backends, results, run, scenario
 from legbench import kinematics as K
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
@@ -21,7 +21,7 @@ pytestmark = pytest.mark.skipif(not ENGINES, reason="no engine backend installed
 
 
 @cache
-def _run(task: str, name: str, mode: str | None = None) -> run.Trajectory:
+def _run(task: str, name: str, mode: str | None = None) -> results.RunResult:
     sc = scenario.load(SCENARIOS / f"{task}.yaml")
     (tr,) = run.run(sc, [name], None, contact_mode=mode, progress=False)
     assert tr.status == "ok", tr.reason

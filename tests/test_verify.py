@@ -16,9 +16,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from fakes import FakeBackend
 
-from legbench import backends, verify
+from legbench import backends
 from legbench.exceptions import LegbenchError
+from legbench.studies import verify
 
 
 @pytest.fixture(scope="module")
@@ -119,3 +121,18 @@ def test_cli_runs_a_case(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert args.func(args) == 0
     assert "1 of 1 checks pass" in capsys.readouterr().out
     assert math.isfinite(json.loads((tmp_path / "verification.json").read_text())["checks"][0]["measured"])
+
+
+def test_a_family_without_prediction_gets_not_applicable_rows(monkeypatch: pytest.MonkeyPatch,
+                                                              tmp_path: Path) -> None:  # fmt: skip
+    """The fake backend declares integrator family ``other``: its energy and pole rows say why there is no
+    closed-form answer, with status not-applicable (neither pass nor fail)."""
+    registry = backends._registry
+    monkeypatch.setattr(backends, "_registry", lambda: {**registry(), "fake": FakeBackend})
+    df = verify.verify(tmp_path, ["fake"], ["energy", "small_oscillation"])
+    assert list(df["case"]) == ["energy", "small_oscillation"]
+    assert (df["status"] == "not-applicable").all() and not df["pass"].any()
+    assert df["note"].str.contains("integrator family 'other': no closed-form prediction").all()
+    assert "unknown integrator family" not in " ".join(df["note"])
+    md = (tmp_path / "verification.md").read_text()
+    assert md.startswith("# Verification: 0 of 2 checks pass (2 not applicable)") and "| n/a |" in md

@@ -15,6 +15,7 @@ from typing import Any
 
 from legbench.backends.base import INTEGRATOR_FAMILIES, PROFILES, Backend, Limits, Physics, sub_step_count
 from legbench.exceptions import BackendNotFound
+from legbench.model import URDF_FILE
 
 __all__ = [
     "INTEGRATOR_FAMILIES",
@@ -23,6 +24,7 @@ __all__ = [
     "Limits",
     "Physics",
     "available",
+    "engine_packages",
     "get",
     "load",
     "resolve",
@@ -64,6 +66,11 @@ def _registry() -> dict[str, type[Backend]]:
     return found
 
 
+def engine_packages() -> list[str]:
+    """Distribution names of the built-in backends' engines (whose versions a run records)."""
+    return list(dict.fromkeys(package for _, _, package in BUILTIN.values()))
+
+
 def available() -> list[str]:
     """Names of the backends that can run here, built-ins first."""
     return list(_registry())
@@ -88,13 +95,15 @@ def load(name: str, physics: Physics, settings: Mapping[str, Any], profile: str 
         LegbenchError: ``profile`` is not one the backend offers.
         Exception: whatever the engine raises while loading (the instance is closed first).
     """
-    from legbench.model import URDF_FILE
-
     cls = get(name)
     resolved = cls.resolve_settings(settings, profile)
     backend = cls()
     try:
         backend.load(URDF_FILE, physics, resolved)
+    except ImportError as exc:  # a plug-in that imports its engine only when loading
+        backend.close()
+        hint = cls.install or "install the package that provides it"
+        raise BackendNotFound(name, available(), f"{hint} ({exc})") from exc
     except BaseException:
         backend.close()
         raise

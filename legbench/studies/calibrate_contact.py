@@ -13,11 +13,11 @@ controller tau = Jv^T h_d + G, driven directly through the Backend API:
    the friction limit) over ``ramp`` seconds and is held; the creep velocity
    is the mean horizontal speed of the point of contact over the end of the
    hold. The spec's stick-slip law creeps at v = v_th F_t / (mu_s Fn) (the
-   linear part of mu(v)); a Coulomb engine sticks; MuJoCo's regularised cone
-   creeps at about F_t / Kd (ENGINE_NOTES.md). The effective tangential
-   damping F_t / v is printed too.
+   linear part of mu(v)); a Coulomb engine sticks; an engine with a
+   regularised (soft) friction cone creeps at about F_t / Kd (the lab
+   report). The effective tangential damping F_t / v is printed too.
 
-Data flow: :func:`push` (one backend, :class:`PushLog` of numpy arrays) ->
+Data flow: :func:`push` (one backend, a :class:`~legbench.results.RunResult`) ->
 :func:`estimate` (:class:`Calibration`, frozen) -> :func:`calibrate` (a
 DataFrame, one row per backend) -> :func:`write_calibration`
 (``calibration.json`` and ``calibration.md``).
@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -39,13 +38,16 @@ import pandas as pd
 
 from legbench import backends as registry
 from legbench import kinematics, model
+from legbench import scenario as scenario_mod
 from legbench.controllers import EffortController, saturate
 from legbench.exceptions import LegbenchError
-from legbench.scenario import Event
+from legbench.results import RunResult, platform_info, versions, write_json
+from legbench.run import backend_info
+from legbench.scenario import Event, physics_of
 
-__all__ = ["Calibration", "Program", "PushLog", "add_cli", "calibrate", "estimate", "push", "write_calibration"]
+__all__ = ["Calibration", "Program", "add_cli", "calibrate", "estimate", "push", "write_calibration"]
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml"
+SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "effort.yaml"
 
 
 @dataclass(frozen=True)
@@ -87,41 +89,21 @@ class Program:
         return np.array([share * self.ratio * mu_s * self.F2, 0.0, -self.F2])
 
 
-@dataclass(frozen=True)
-class PushLog:
-    """One backend's response to the program, per control tick.
-
-    Attributes:
-        backend: backend name.
-        t: time [s], (n,).
-        q, qd: joint positions [rad] and velocities [rad/s], (n, 3).
-        f: ground force on the foot in W [N], (n, 3).
-        saturated: ticks at which a torque hit its limit.
-        info: the backend's settings.
-    """
-
-    backend: str
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    f: np.ndarray
-    saturated: int
-    info: dict[str, Any]
-
-
 def push(name: str, program: Program = Program(), scenario_file: Path = SCENARIO,
-         contact_mode: str | None = None) -> PushLog:  # fmt: skip
-    """Run the load program on backend ``name`` from the scenario's initial pose, with its physics and settings."""
-    from legbench import scenario as scenario_mod
-    from legbench.run import physics_of
+         contact_mode: str | None = None) -> tuple[RunResult, int]:  # fmt: skip
+    """Run the load program on backend ``name`` from the scenario's initial pose, with its physics and settings.
 
+    Returns:
+        The run (torques as applied, after saturation), and the number of ticks at which a
+        torque hit its limit.
+    """
     sc = scenario_mod.load(scenario_file)
     physics = physics_of(sc, contact_mode)
     backend = registry.load(name, physics, sc.backends.get(name, {}))
     Ts = sc.control_dt
     n = int(round(program.duration / Ts)) + 1
     t = np.arange(n) * Ts
-    Q, QD, F = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    Q, QD, TAU, F = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
     limit = np.array(physics.torque_limit)
     saturated = 0
     ctrl, h_prev = None, None
@@ -136,12 +118,13 @@ def push(name: str, program: Program = Program(), scenario_file: Path = SCENARIO
                 ctrl.start(float(t[k]), q, qd)
             raw = np.asarray(ctrl(k, q, qd), float)
             saturated += int(np.any(np.abs(raw) > limit))
+            TAU[k] = saturate(raw.copy(), limit)
             if k < n - 1:
-                backend.step(saturate(raw.copy(), limit))
-        info = backend.info()
+                backend.step(TAU[k])
+        info = backend_info(backend)
     finally:
         backend.close()
-    return PushLog(name, t, Q, QD, F, saturated, info)
+    return RunResult(name, t, Q, QD, TAU, F, np.full(n, "effort", dtype=object), info=info), saturated
 
 
 @dataclass(frozen=True)
@@ -177,8 +160,15 @@ class Calibration:
     note: str = ""
 
 
-def estimate(log: PushLog, program: Program, contact: Any) -> Calibration:
-    """Stiffness, damping and creep from a :class:`PushLog` (module docstring)."""
+def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0) -> Calibration:
+    """Stiffness, damping and creep from the run of :func:`push` (module docstring).
+
+    Args:
+        log: the push run.
+        program: the load program it ran.
+        contact: the scenario's contact parameters.
+        saturated: ticks at which a torque hit its limit (noted: h_d was then not fully applied).
+    """
     R = model.load_params().geometry.R_foot
     y = R - kinematics.fk(log.q)[:, 2]
     J = kinematics.jacobian_poc(log.q, true_poc=contact.poc == "true")
@@ -204,8 +194,8 @@ def estimate(log: PushLog, program: Program, contact: Any) -> Calibration:
     Fn = float(f[end, 2].mean())
     Ft = float(np.hypot(f[end, 0], f[end, 1]).mean())
     creep = float(np.hypot(v[end, 0], v[end, 1]).mean())
-    if log.saturated:
-        notes.append(f"{log.saturated} ticks saturated a joint torque: h_d was not fully applied")
+    if saturated:
+        notes.append(f"{saturated} ticks saturated a joint torque: h_d was not fully applied")
     return Calibration(
         backend=log.backend, Kp=contact.Kp, Kd=contact.Kd, mu_s=contact.mu_s, v_th=contact.v_th, k_eff=k_eff,
         c_eff=c_eff, Fn=Fn, Ft=Ft, creep=creep, creep_law=contact.v_th * Ft / (contact.mu_s * Fn),
@@ -221,14 +211,14 @@ def calibrate(
     contact_mode: str | None = None,
 ) -> pd.DataFrame:
     """Calibrate every backend (default: all available); one row per backend, optionally written to ``out_dir``."""
-    from legbench import scenario as scenario_mod
-
     if not 0 < program.ratio < 1:
         raise LegbenchError(f"tangential ratio {program.ratio} must lie in (0, 1): below the friction limit")
     contact = scenario_mod.load(scenario_file).contact
     names = list(backends) if backends is not None else registry.available()
-    rows = [dataclasses.asdict(estimate(push(n, program, scenario_file, contact_mode), program, contact))
-            for n in names]  # fmt: skip
+    rows = []
+    for n in names:
+        log, saturated = push(n, program, scenario_file, contact_mode)
+        rows.append(dataclasses.asdict(estimate(log, program, contact, saturated)))
     df = pd.DataFrame(rows)
     if out_dir is not None:
         write_calibration(df, Path(out_dir), program)
@@ -253,12 +243,10 @@ def markdown(df: pd.DataFrame) -> str:
 
 def write_calibration(df: pd.DataFrame, out_dir: Path, program: Program = Program()) -> Path:
     """Write ``calibration.json`` and ``calibration.md`` into ``out_dir``."""
-    from legbench.run import platform_info, versions
-
     out_dir.mkdir(parents=True, exist_ok=True)
     meta = {"schema": "legbench.calibration/1", "program": dataclasses.asdict(program),
             "rows": df.to_dict(orient="records"), "versions": versions(), "platform": platform_info()}  # fmt: skip
-    (out_dir / "calibration.json").write_text(json.dumps(meta, indent=2, default=str))
+    write_json(meta, out_dir / "calibration.json")
     notes = [f"- {r['backend']}: {r['note']}" for r in df.to_dict(orient="records") if r["note"]]
     text = ["# Contact calibration\n", f"Program: {dataclasses.asdict(program)} (legbench/calibrate_contact.py).\n",
             markdown(df), *notes]  # fmt: skip

@@ -1,7 +1,7 @@
 """Parameter sweeps: a grid over any scenario or backend setting, one tidy table, plots.
 
 Data flow: sweep YAML -> :func:`load_sweep` (:class:`Sweep`, validated) ->
-:func:`plan` (:class:`Plan`: unique runs as :class:`~legbench.executors.RunTask`
+:func:`plan` (:class:`Plan`: unique runs as :class:`~legbench.studies.tasks.RunTask`
 and one :class:`Row` per grid point or reference) -> the executor runs the
 references, then the other runs (:func:`execute`) -> :func:`tabulate` (the
 table: swept values, backend, wall time, real-time factor, error against the
@@ -20,29 +20,30 @@ The sweep file format is documented in docs/studies.md; in short::
     skip: 0.0                              # [s] ignored at the start
     metric: q_max                          # column plotted (and fitted)
     fit: {x: dt, floor: 1.0e-12}           # log-log slope of metric vs x per study
-    short_horizon: {window: 0.05}          # [s] optional, see legbench.horizon
+    short_horizon: {window: 0.05}          # [s] optional, see legbench.studies.horizon
     studies:
       - label: "{backend} euler"
-        backends: [pinocchio, mujoco]      # or one name, or "all"
+        backends: [engine_a, engine_b]     # backend names, or one name, or "all"
         set: {backends.*.integrator: euler}
         grid: {backends.*.dt: [1.0e-3, 5.0e-4]}   # Cartesian product of the lists
-        reference: {set: {backends.*.dt: 5.0e-6}} # and/or backend: pinocchio
+        reference: {set: {backends.*.dt: 5.0e-6}} # and/or backend: <name>
 
 A key part ``*`` stands for the run's backend (``backends.*.dt``), ``{backend}``
 in a label for its name. A swept key's table column is its name without
 ``backends.*.`` (``dt``, ``integrator``); other keys keep their dotted name
 (``gains.Kp``).
 
-Error metrics, per signal component over t >= skip (as LEG_SPEC.md section 8):
-``<c>_max`` = max_t |x - x_ref| (in the signal's unit), ``<c>_pct`` =
-max_t |x - x_ref| / max_t |x_ref| x 100; per signal ``<s>_max`` / ``<s>_pct``
-are the maxima over its components. The hip angle's deviation is the shortest
-angle.
+Error metrics, per signal component over t >= skip (docs/metrics.md, computed by
+:func:`legbench.metrics.signal_errors`): ``<c>_max`` = max_t |x - x_ref| (in the
+signal's unit), ``<c>_pct`` = max_t |x - x_ref| / max_t |x_ref| x 100; per
+signal ``<s>_max`` / ``<s>_pct`` are the maxima over its components. The hip
+angle's deviation is the shortest angle.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import json
 import math
@@ -55,13 +56,22 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
 from legbench import backends as registry
-from legbench import horizon, kinematics
+from legbench import scenario as scenario_mod
 from legbench.contact import CONTACT_MODES
 from legbench.exceptions import LegbenchError, ScenarioError
-from legbench.executors import EXECUTORS, Executor, ReplaySpec, RunTask, make_executor, run_task
-from legbench.scenario import NAME_RE, YamlContext, check_keys, read_yaml
+from legbench.metrics import signal_errors
+from legbench.results import RunResult, platform_info, versions
+from legbench.scenario import NAME_RE
+from legbench.signals import COLUMNS, UNITS
+from legbench.studies import horizon
+from legbench.studies.executors import EXECUTORS, Executor, make_executor
+from legbench.studies.horizon import HorizonResult
+from legbench.studies.tasks import RunTask, TaskResult, run_task
+from legbench.yamlfile import YamlContext, check_keys, read_yaml
 
 __all__ = [
     "COMPONENTS",
@@ -82,17 +92,8 @@ __all__ = [
 ]
 
 #: Signals a sweep can compare, and their components (table column prefixes).
-COMPONENTS: dict[str, tuple[str, str, str]] = {
-    "q": ("q1", "q2", "q3"),
-    "qd": ("qd1", "qd2", "qd3"),
-    "tau": ("tau1", "tau2", "tau3"),
-    "force": ("fx", "fy", "fz"),
-    "ee": ("ee_x", "ee_y", "ee_z"),
-}
+COMPONENTS: dict[str, tuple[str, ...]] = dict(COLUMNS)
 SIGNALS = tuple(COMPONENTS)
-UNITS = {"q": "rad", "qd": "rad/s", "tau": "N m", "force": "N", "ee": "m"}
-#: A reference peak below this is treated as zero (the % error is then undefined) [signal unit].
-PEAK_FLOOR = 1e-12
 SCHEMA = "legbench.sweep/1"
 TOP_KEYS = ("name", "description", "scenario", "set", "contact_mode", "signals", "skip", "metric", "fit",
             "short_horizon", "studies")  # fmt: skip
@@ -347,16 +348,14 @@ def plan(sweep: Sweep) -> Plan:
     reference its ``reference.set``) are validated by loading the scenario with
     them, so a bad value is reported before anything runs. A ``*`` key part
     stands for the run's backend, also in the overrides its reference inherits
-    (``backends.*.dt`` of a MuJoCo study sets MuJoCo's step, not that of a
-    Pinocchio reference); only ``reference.set`` fills ``*`` with the reference's
+    (``backends.*.dt`` of a study of backend A sets A's step, not that of a
+    reference on backend B); only ``reference.set`` fills ``*`` with the reference's
     backend. Settings of other backends are dropped from a run's overrides, so
     runs that differ only there are one run.
 
     Raises:
         ScenarioError: naming the sweep file and the key whose value the scenario rejects.
     """
-    from legbench import scenario as scenario_mod
-
     here = set(registry.available())
     tasks: list[RunTask] = []
     index: dict[tuple[Any, ...], int] = {}
@@ -439,27 +438,25 @@ def _doc_of(sweep: Sweep) -> YamlContext:
 # Execute
 
 
-def execute(sweep: Sweep, p: Plan, executor: Executor) -> dict[int, dict[str, Any]]:
+def execute(sweep: Sweep, p: Plan, executor: Executor) -> dict[int, TaskResult]:
     """Run the references, then the other runs (with a replay of their reference in short-horizon mode).
 
     Returns:
-        task index -> the result dict of :func:`legbench.executors.run_task`.
+        task index -> the :class:`~legbench.studies.tasks.TaskResult`.
     """
     ref_ids = sorted({r.ref for r in p.rows if r.ref is not None})
     first = [p.tasks[i] for i in ref_ids]
-    results = {r["index"]: r for r in executor.map(run_task, first)}
+    results = {r.index: r for r in executor.map(run_task, first)}
     second: list[RunTask] = []
     ref_of = {r.run: r.ref for r in p.rows if r.role == "run"}
     for t in p.tasks:
         if t.index in results:
             continue
         ref = ref_of.get(t.index)
-        if sweep.short_horizon is not None and ref is not None and results[ref]["status"] == "ok":
-            rr = results[ref]
-            spec = ReplaySpec(sweep.short_horizon, rr["t"], rr["q"], rr["qd"], rr["tau"], rr["f"])
-            t = RunTask(t.index, t.scenario, t.overrides, t.backend, t.contact_mode, spec)
+        if sweep.short_horizon is not None and ref is not None and results[ref].run.status == "ok":
+            t = dataclasses.replace(t, replay_window=sweep.short_horizon, reference=results[ref].run)
         second.append(t)
-    results.update({r["index"]: r for r in executor.map(run_task, second)})
+    results.update({r.index: r for r in executor.map(run_task, second)})
     return results
 
 
@@ -467,34 +464,18 @@ def execute(sweep: Sweep, p: Plan, executor: Executor) -> dict[int, dict[str, An
 # Table
 
 
-def _signal(res: Mapping[str, Any], signal: str) -> np.ndarray:
-    if signal == "ee":
-        return kinematics.fk(np.asarray(res["q"])) if len(res["q"]) else np.empty((0, 3))
-    return np.asarray(res["f" if signal == "force" else signal])
-
-
-def run_metrics(res: Mapping[str, Any], ref: Mapping[str, Any], signals: Sequence[str], skip: float = 0.0
-                ) -> dict[str, float]:  # fmt: skip
+def run_metrics(res: RunResult, ref: RunResult, signals: Sequence[str], skip: float = 0.0) -> dict[str, float]:
     """Error of a run against its reference: ``<c>_max`` [unit] and ``<c>_pct`` [%] per component and signal.
 
-    Compared over the ticks both runs logged with t >= ``skip`` [s]; NaN when
-    either run failed before that or the time grids differ.
+    Compared over the ticks both runs logged with t >= ``skip`` [s]
+    (:func:`legbench.metrics.signal_errors`); NaN when either run failed
+    before that or the time grids differ.
     """
     out = {f"{x}_{m}": math.nan for s in signals for x in (s, *COMPONENTS[s]) for m in ("max", "pct")}
-    if res["status"] != "ok" or ref["status"] != "ok":
-        return out
-    n = min(len(res["t"]), len(ref["t"]))
-    t = np.asarray(ref["t"][:n])
-    if n == 0 or not np.array_equal(np.asarray(res["t"][:n]), t):
-        return out
-    keep = t >= skip - 1e-9
-    if not keep.any():
+    if res.status != "ok" or ref.status != "ok":
         return out
     for s in signals:
-        xa, xr = _signal(res, s)[:n][keep], _signal(ref, s)[:n][keep]
-        d = np.abs(horizon.deviation(xa, xr, s)).max(axis=0)
-        peak = np.abs(xr).max(axis=0)
-        pct = np.where(peak > PEAK_FLOOR, 100.0 * d / np.where(peak > PEAK_FLOOR, peak, 1.0), math.nan)
+        d, pct = signal_errors(res, ref, s, skip)
         for j, c in enumerate(COMPONENTS[s]):
             out[f"{c}_max"], out[f"{c}_pct"] = float(d[j]), float(pct[j])
         out[f"{s}_max"] = float(d.max())
@@ -502,14 +483,14 @@ def run_metrics(res: Mapping[str, Any], ref: Mapping[str, Any], signals: Sequenc
     return out
 
 
-def _horizon_columns(h: Mapping[str, Any] | None) -> dict[str, float]:
+def _horizon_columns(h: HorizonResult | None) -> dict[str, float]:
     out: dict[str, float] = {}
     for s in horizon.SIGNALS:
-        peak = None if h is None else np.asarray(h["peak"][s])
-        for j, c in enumerate(horizon.COMPONENTS[s]):
+        peak = None if h is None else np.asarray(h.peak[s])
+        for j, c in enumerate(COMPONENTS[s]):
             col = None if peak is None else peak[:, j]
             out[f"sh_{c}_max"] = float(np.nanmax(col)) if col is not None and np.isfinite(col).any() else math.nan
-        vals = [out[f"sh_{c}_max"] for c in horizon.COMPONENTS[s]]
+        vals = [out[f"sh_{c}_max"] for c in COMPONENTS[s]]
         out[f"sh_{s}_max"] = max(vals) if all(math.isfinite(v) for v in vals) else math.nan
     return out
 
@@ -521,41 +502,42 @@ def _plain(v: Any) -> Any:
     return v
 
 
-def tabulate(sweep: Sweep, p: Plan, results: Mapping[int, Mapping[str, Any]]) -> tuple[pd.DataFrame, pd.DataFrame]:
+def tabulate(sweep: Sweep, p: Plan, results: Mapping[int, TaskResult]) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The sweep table (one row per :class:`Row`) and the short-horizon windows table (may be empty)."""
     param_cols = list(dict.fromkeys(k for r in p.rows for k in r.params))
     records: list[dict[str, Any]] = []
     windows: list[dict[str, Any]] = []
     for r in p.rows:
-        res = results[r.run]
-        sim_time = float(res["t"][-1]) if len(res["t"]) else 0.0
-        wall = float(res["wall_time"])
+        task = results[r.run]
+        res = task.run
+        sim_time = float(res.t[-1]) if len(res.t) else 0.0
+        wall = float(res.wall_time)
         rec: dict[str, Any] = {
             "sweep": sweep.name, "study": r.study, "label": r.label, "role": r.role, "backend": r.backend,
             "run": r.run, "ref": r.ref if r.ref is not None else -1,
             **{c: _plain(r.params.get(c)) for c in param_cols},
-            "status": res["status"], "reason": res["reason"] or "",
+            "status": res.status, "reason": res.reason or "",
             "sim_time": sim_time, "wall_time": wall,
-            "rtf": sim_time / wall if wall > 0 and res["status"] == "ok" else math.nan,
-            "wall_per_sim_s": wall / sim_time if sim_time > 0 and res["status"] == "ok" else math.nan,
+            "rtf": sim_time / wall if wall > 0 and res.status == "ok" else math.nan,
+            "wall_per_sim_s": wall / sim_time if sim_time > 0 and res.status == "ok" else math.nan,
         }  # fmt: skip
         if r.ref is not None:
-            ref = results[r.ref]
+            ref = results[r.ref].run
             rec.update(run_metrics(res, ref, sweep.signals, sweep.skip))
-            if ref["status"] != "ok":
-                rec["reason"] = (rec["reason"] + "; " if rec["reason"] else "") + f"reference failed: {ref['reason']}"
+            if ref.status != "ok":
+                rec["reason"] = (rec["reason"] + "; " if rec["reason"] else "") + f"reference failed: {ref.reason}"
         else:
             rec.update({f"{x}_{m}": math.nan for s in sweep.signals for x in (s, *COMPONENTS[s])
                         for m in ("max", "pct")})  # fmt: skip
         if sweep.short_horizon is not None:
-            h = res.get("horizon") if r.role == "run" else None
+            h = task.horizon if r.role == "run" else None
             rec.update(_horizon_columns(h))
-            rec["sh_status"] = h["status"] if h else ""
+            rec["sh_status"] = h.status if h else ""
             if h is not None:
-                for w, t0 in enumerate(np.asarray(h["t0"])):
+                for w, t0 in enumerate(np.asarray(h.t0)):
                     for s in horizon.SIGNALS:
-                        for j, c in enumerate(horizon.COMPONENTS[s]):
-                            end, peak = float(h["end"][s][w, j]), float(h["peak"][s][w, j])
+                        for j, c in enumerate(COMPONENTS[s]):
+                            end, peak = float(h.end[s][w, j]), float(h.peak[s][w, j])
                             windows.append({"run": r.run, "ref": r.ref, "label": r.label, "backend": r.backend,
                                             "t0": float(t0), "signal": s, "component": c, "end": end,
                                             "peak": peak})  # fmt: skip
@@ -605,12 +587,18 @@ def fit_slopes(table: pd.DataFrame, metric: str, fit: Fit) -> pd.DataFrame:
 
 
 def _figure(width: float = 7.0, height: float = 5.0) -> Any:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     fig = Figure(figsize=(width, height))
     FigureCanvasAgg(fig)
     return fig
+
+
+def _save(fig: Any, ax: Any, path: Path) -> Path:
+    """Grid, legend, tight layout; the figure written to ``path`` (PNG, 120 dpi)."""
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    return path
 
 
 def _series(table: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
@@ -618,12 +606,15 @@ def _series(table: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
     return [(str(g["label"].iloc[0]), g) for _, g in runs.groupby(["study", "backend"], sort=True)]
 
 
-_MARKERS = {"pinocchio": "o", "mujoco": "s", "pybullet": "^"}
+#: Markers given to backends in registry order (so overlapping lines of different engines stay visible).
+MARKERS = ("o", "s", "^", "D", "v", "P", "X")
 
 
 def _style(g: pd.DataFrame) -> dict[str, Any]:
-    """Marker by backend (so overlapping lines of different engines stay visible), open symbols."""
-    return {"marker": _MARKERS.get(str(g["backend"].iloc[0]), "D"), "mfc": "none", "ls": "-", "ms": 7}
+    """Marker by backend (its place among the available backends), open symbols."""
+    names = [*registry.available(), str(g["backend"].iloc[0])]
+    marker = MARKERS[names.index(str(g["backend"].iloc[0])) % len(MARKERS)]
+    return {"marker": marker, "mfc": "none", "ls": "-", "ms": 7}
 
 
 def _axis_label(metric: str) -> str:
@@ -653,11 +644,7 @@ def plot_convergence(table: pd.DataFrame, fits: pd.DataFrame, metric: str, fit: 
     ax.set_xlabel(f"{fit.x} [s]" if fit.x == "dt" else fit.x)
     ax.set_ylabel(_axis_label(metric))
     ax.set_title("error against the reference run")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    return path
+    return _save(fig, ax, path)
 
 
 def plot_speed_accuracy(table: pd.DataFrame, metric: str, path: Path) -> Path:
@@ -675,11 +662,7 @@ def plot_speed_accuracy(table: pd.DataFrame, metric: str, path: Path) -> Path:
     ax.set_xlabel(_axis_label(metric))
     ax.set_ylabel("wall time per simulated second [s/s]")
     ax.set_title("speed against accuracy")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    return path
+    return _save(fig, ax, path)
 
 
 def plot_sweep(table: pd.DataFrame, metric: str, path: Path) -> Path | None:
@@ -710,11 +693,7 @@ def plot_sweep(table: pd.DataFrame, metric: str, path: Path) -> Path | None:
         ax.set_yscale("log")
     ax.set_xlabel(xcol)
     ax.set_ylabel(_axis_label(metric))
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    return path
+    return _save(fig, ax, path)
 
 
 _FIXED_COLUMNS = frozenset({"sweep", "study", "label", "role", "backend", "run", "ref", "status", "reason",
@@ -751,8 +730,6 @@ def write_sweep(result: SweepResult, out_dir: Path, executor: Mapping[str, Any] 
 
     Refuses to replace a directory holding another sweep or anything else.
     """
-    from legbench.run import platform_info, versions
-
     out_dir = Path(out_dir)
     old = out_dir / "sweep.json"
     if old.exists():
@@ -823,7 +800,7 @@ def run_sweep(
     Args:
         sweep_file: the sweep YAML file.
         out_dir: output directory; None writes nothing.
-        executor: ``"local"``, ``"dask"``, or an :class:`~legbench.executors.Executor` (not closed here).
+        executor: ``"local"``, ``"dask"``, or an :class:`~legbench.studies.executors.Executor` (not closed here).
         jobs: worker count for a named executor (default: the CPU count).
         scheduler: Dask scheduler address (``executor="dask"``); None starts a local cluster.
 

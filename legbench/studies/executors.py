@@ -1,12 +1,12 @@
-"""Executors: run independent simulation tasks on a local process pool or a Dask cluster.
+"""Executors: the one way legbench runs independent tasks in parallel, on a local process pool or Dask.
 
-A task is plain data, a :class:`RunTask` (scenario file + dotted overrides +
-backend name, and optionally a reference run to replay in short windows), and
-its result is a plain dict of numpy arrays and numbers (:func:`run_task`), so
-both pickle cheaply and any worker with legbench installed can run it. Every
-run is deterministic and single-threaded, and :meth:`Executor.map` returns
-results in task order, so a sweep's table is bit-identical whichever executor
-and however many jobs ran it; only the measured wall times differ.
+Every parallel run goes through here: ``legbench run --jobs`` (one task per
+scenario, contact mode and backend) and sweeps (:mod:`legbench.studies.tasks`).
+A task and its result are plain picklable data, so any worker with legbench
+installed can run it. Every run is deterministic and single-threaded, and
+:meth:`Executor.map` and :meth:`Executor.imap` return results in task order, so
+the output is bit-identical whichever executor and however many jobs ran it;
+only the measured wall times differ.
 
 Executors:
     * ``local`` (:class:`LocalExecutor`): ``jobs`` worker processes
@@ -25,13 +25,10 @@ import logging
 import multiprocessing
 import os
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Any, TypeVar
-
-import numpy as np
 
 from legbench.exceptions import LegbenchError
 
@@ -40,10 +37,7 @@ __all__ = [
     "DaskExecutor",
     "Executor",
     "LocalExecutor",
-    "ReplaySpec",
-    "RunTask",
     "make_executor",
-    "run_task",
 ]
 
 log = logging.getLogger("legbench.executors")
@@ -53,87 +47,6 @@ EXECUTORS = ("local", "dask")
 
 T = TypeVar("T")
 R = TypeVar("R")
-
-
-# --------------------------------------------------------------------------- #
-# Tasks
-
-
-@dataclass(frozen=True)
-class ReplaySpec:
-    """A reference run to replay in short windows (short-horizon mode, :mod:`legbench.horizon`).
-
-    Attributes:
-        window: window length [s], a whole number of control periods.
-        t: reference tick times [s], shape (n,).
-        q: reference joint positions [rad], shape (n, 3).
-        qd: reference joint velocities [rad/s], shape (n, 3).
-        tau: reference torques applied over [t_k, t_k + Ts) [N m], shape (n, 3).
-        f: reference ground force on the foot in W [N], shape (n, 3).
-    """
-
-    window: float
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    tau: np.ndarray
-    f: np.ndarray
-
-
-@dataclass(frozen=True)
-class RunTask:
-    """One run: a scenario file with dotted-key overrides on one backend.
-
-    Attributes:
-        index: position of the task in its sweep; results are ordered by it.
-        scenario: path of the scenario YAML file (readable by the worker).
-        overrides: dotted keys set before validation, e.g. ``{"backends.pinocchio.dt": 1e-4}``.
-        backend: backend name.
-        contact_mode: ``"native"``, ``"reference"`` or None (the scenario's).
-        replay: a reference run to replay in windows after the free run, or None.
-    """
-
-    index: int
-    scenario: str
-    overrides: Mapping[str, Any] = field(default_factory=dict)
-    backend: str = "pinocchio"
-    contact_mode: str | None = None
-    replay: ReplaySpec | None = None
-
-
-def run_task(task: RunTask) -> dict[str, Any]:
-    """Run one task; never raises for a simulation problem (it is reported in the result).
-
-    Returns:
-        ``index``, ``backend``, ``status`` (``ok`` / ``failed`` / ``missing``),
-        ``reason``, ``wall_time`` [s] (simulation loop only), ``info`` (the
-        backend's settings), arrays ``t`` [s], ``q`` [rad], ``qd`` [rad/s],
-        ``tau`` [N m], ``f`` [N] (W), and ``horizon`` (a dict of arrays, see
-        :func:`legbench.horizon.replay`) when the task asks for a replay.
-    """
-    from legbench import run, scenario
-
-    sc = scenario.load(task.scenario, dict(task.overrides))
-    tr = run.run_backend(sc, task.backend, task.contact_mode)
-    out: dict[str, Any] = {
-        "index": task.index,
-        "backend": task.backend,
-        "status": tr.status,
-        "reason": tr.reason,
-        "wall_time": float(tr.wall_time),
-        "info": tr.info,
-        "t": tr.t,
-        "q": tr.q,
-        "qd": tr.qd,
-        "tau": tr.tau,
-        "f": tr.f,
-        "horizon": None,
-    }
-    if task.replay is not None and tr.status == "ok":
-        from legbench import horizon
-
-        out["horizon"] = horizon.replay_task(sc, task.backend, task.replay, task.contact_mode)
-    return out
 
 
 # --------------------------------------------------------------------------- #
@@ -148,6 +61,16 @@ class Executor(ABC):
     @abstractmethod
     def map(self, fn: Callable[[T], R], items: Sequence[T]) -> list[R]:
         """``[fn(x) for x in items]``, computed by the executor's workers."""
+
+    def imap(self, fn: Callable[[T], R], items: Sequence[T], first: Sequence[int] | None = None) -> Iterator[R]:
+        """``fn(x)`` for each item, yielded in item order as each becomes available.
+
+        Args:
+            fn: a picklable top-level function.
+            items: its arguments.
+            first: item indices in the order to start them (e.g. longest first); default item order.
+        """
+        yield from self.map(fn, items)
 
     def close(self) -> None:  # noqa: B027 - optional hook
         """Release workers and connections."""
@@ -171,7 +94,7 @@ def _mp_context() -> multiprocessing.context.BaseContext:
     ctx = multiprocessing.get_context(method)
     if method == "forkserver":
         # import the engines once in the fork server, not once per worker
-        ctx.set_forkserver_preload(["legbench.executors", "legbench.run"])  # type: ignore[attr-defined]
+        ctx.set_forkserver_preload(["legbench.run", "legbench.studies.tasks"])  # type: ignore[attr-defined]
     return ctx
 
 
@@ -190,11 +113,29 @@ class LocalExecutor(Executor):
         self._pool: ProcessPoolExecutor | None = None
 
     def map(self, fn: Callable[[T], R], items: Sequence[T]) -> list[R]:
+        return list(self.imap(fn, items))
+
+    def imap(self, fn: Callable[[T], R], items: Sequence[T], first: Sequence[int] | None = None) -> Iterator[R]:
+        """As :meth:`Executor.imap`; ``jobs = 1`` runs each item in this process when its result is asked for.
+
+        On an exception while waiting (Ctrl-C), tasks not yet started are cancelled.
+        """
         if self.jobs == 1 or len(items) <= 1:
-            return [fn(x) for x in items]
+            for x in items:
+                yield fn(x)
+            return
         if self._pool is None:
             self._pool = ProcessPoolExecutor(max_workers=self.jobs, mp_context=_mp_context())
-        return list(self._pool.map(fn, items))
+        pool = self._pool
+        order = list(first) if first is not None else list(range(len(items)))
+        submitted = {j: pool.submit(fn, items[j]) for j in order}
+        futures = [submitted[j] for j in range(len(items))]
+        try:
+            for fut in futures:
+                yield fut.result()
+        finally:
+            for fut in futures:
+                fut.cancel()
 
     def close(self) -> None:
         if self._pool is not None:

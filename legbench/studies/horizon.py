@@ -9,9 +9,10 @@ torques come from the harness, so replaying them is exact), and the deviation
 accumulated within the window is measured. Only the public Backend API is used
 (``reset``, ``step``, ``state``, ``ground_force``).
 
-Data flow: reference :class:`~legbench.run.Trajectory` -> :func:`replay`
+Data flow: reference :class:`~legbench.results.RunResult` -> :func:`replay`
 (:class:`HorizonResult`, numpy) -> :func:`short_horizon` (a pandas table with
-the free-running deviation beside the windowed one).
+the free-running deviation beside the windowed one). Deviations are
+:func:`legbench.metrics.deviation` (hip wrapped).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -27,28 +28,16 @@ import pandas as pd
 from legbench import backends as registry
 from legbench.backends.base import Backend
 from legbench.exceptions import LegbenchError, ScenarioError
-from legbench.model import load_params
+from legbench.metrics import deviation, max_abs, wrapped
+from legbench.results import RunResult
+from legbench.run import run_backend
+from legbench.scenario import Scenario, physics_of
+from legbench.signals import COLUMNS, UNITS
 
-if TYPE_CHECKING:
-    from legbench.executors import ReplaySpec
-    from legbench.run import Trajectory
-    from legbench.scenario import Scenario
-
-__all__ = ["SIGNALS", "HorizonResult", "deviation", "replay", "replay_task", "short_horizon"]
+__all__ = ["SIGNALS", "HorizonResult", "replay", "replay_task", "short_horizon"]
 
 #: Signals compared per window: joint positions [rad], velocities [rad/s], ground force in W [N].
 SIGNALS = ("q", "qd", "force")
-COMPONENTS = {"q": ("q1", "q2", "q3"), "qd": ("qd1", "qd2", "qd3"), "force": ("fx", "fy", "fz")}
-UNITS = {"q": "rad", "qd": "rad/s", "force": "N"}
-
-
-def deviation(xa: np.ndarray, xr: np.ndarray, signal: str) -> np.ndarray:
-    """x_a - x_ref per component; for joint angles of continuous joints the shortest angle [rad]."""
-    d = np.asarray(xa, float) - np.asarray(xr, float)
-    if signal == "q":
-        cont = load_params().continuous
-        d[..., cont] = np.mod(d[..., cont] + np.pi, 2.0 * np.pi) - np.pi
-    return d
 
 
 @dataclass(frozen=True)
@@ -71,15 +60,6 @@ class HorizonResult:
     status: str = "ok"
     reason: str | None = None
 
-    def to_dict(self) -> dict[str, Any]:
-        """Plain values (for an executor's result)."""
-        return {"window": self.window, "t0": self.t0, "end": self.end, "peak": self.peak,
-                "status": self.status, "reason": self.reason}  # fmt: skip
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> HorizonResult:
-        return cls(d["window"], d["t0"], d["end"], d["peak"], d["status"], d["reason"])
-
 
 def window_ticks(window: float, control_dt: float) -> int:
     """Number of control periods in ``window`` [s]; it must be a whole, positive number."""
@@ -91,28 +71,26 @@ def window_ticks(window: float, control_dt: float) -> int:
     return int(n)
 
 
-def replay(
-    backend: Backend, t: np.ndarray, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, f: np.ndarray, window: float
-) -> HorizonResult:
+def replay(backend: Backend, reference: RunResult, window: float) -> HorizonResult:
     """Re-initialise ``backend`` from the reference state every ``window`` and replay the reference torques.
 
     Args:
         backend: a loaded backend (its own settings; left in an arbitrary state).
-        t: reference tick times [s], shape (n,), uniform with the control period.
-        q, qd: reference joint positions [rad] and velocities [rad/s], shape (n, 3).
-        tau: reference torques [N m] held over [t_k, t_k + Ts), shape (n, 3).
-        f: reference ground force on the foot in W [N], shape (n, 3).
+        reference: the reference run: ticks uniform with the control period, its torques held
+            over [t_k, t_k + Ts).
         window: window length [s].
 
     Returns:
         The deviation at each window's end and its maximum over the window.
     """
+    t, q, qd, tau = reference.t, reference.q, reference.qd, reference.tau
     n = len(t)
     if n < 2:
         raise LegbenchError("short-horizon replay needs a reference of at least two ticks")
     W = window_ticks(window, float(t[1] - t[0]))
     starts = [int(s) for s in range(0, n - 1, W)]
-    ref = {"q": q, "qd": qd, "force": f}
+    ref = {"q": q, "qd": qd, "force": reference.f}
+    wrap = {s: wrapped(s) for s in SIGNALS}
     end = {s: np.full((len(starts), 3), np.nan) for s in SIGNALS}
     peak = {s: np.full((len(starts), 3), np.nan) for s in SIGNALS}
     status, reason = "ok", None
@@ -126,7 +104,7 @@ def replay(
                 qb, qdb = backend.state()
                 got = {"q": qb, "qd": qdb, "force": backend.ground_force()}
                 for s in SIGNALS:
-                    d = np.abs(deviation(got[s], ref[s][k + 1], s))
+                    d = np.abs(deviation(got[s], ref[s][k + 1], wrap[s]))
                     np.maximum(acc[s], d, out=acc[s])
                     if k == stop - 1:
                         end[s][w] = d
@@ -142,29 +120,24 @@ def replay(
 
 
 def _load(scenario: Scenario, name: str, contact_mode: str | None) -> Backend:
-    from legbench.run import physics_of
-
     return registry.load(name, physics_of(scenario, contact_mode), scenario.backends.get(name, {}))
 
 
-def replay_task(scenario: Scenario, name: str, spec: ReplaySpec, contact_mode: str | None = None) -> dict[str, Any]:
-    """Load backend ``name`` for ``scenario`` and :func:`replay` a reference; plain values out."""
+def replay_task(
+    scenario: Scenario, name: str, reference: RunResult, window: float, contact_mode: str | None = None
+) -> HorizonResult:
+    """Load backend ``name`` for ``scenario`` and :func:`replay` the ``reference`` run in windows of ``window`` [s]."""
     backend = _load(scenario, name, contact_mode)
     try:
-        res = replay(backend, spec.t, spec.q, spec.qd, spec.tau, spec.f, spec.window)
+        return replay(backend, reference, window)
     finally:
         backend.close()
-    return res.to_dict()
 
 
-def _free_deviation(tr: Trajectory, ref: Trajectory, signal: str) -> np.ndarray:
+def _free_deviation(tr: RunResult, ref: RunResult, signal: str) -> np.ndarray:
     """Max over the common ticks of |x_b - x_ref| per component (free-running)."""
     n = min(len(tr.t), len(ref.t))
-    a = {"q": tr.q, "qd": tr.qd, "force": tr.f}[signal][:n]
-    r = {"q": ref.q, "qd": ref.qd, "force": ref.f}[signal][:n]
-    if n == 0:
-        return np.full(3, np.nan)
-    return np.abs(deviation(a, r, signal)).max(axis=0)
+    return max_abs(deviation(tr.signal(signal)[:n], ref.signal(signal)[:n], wrapped(signal)))
 
 
 def short_horizon(
@@ -193,8 +166,6 @@ def short_horizon(
         ScenarioError: the window is not a whole number of control periods.
         LegbenchError: the reference run failed.
     """
-    from legbench.run import run_backend
-
     ref_name = reference or scenario.comparison.reference
     try:
         window_ticks(window, scenario.control_dt)
@@ -212,12 +183,12 @@ def short_horizon(
             continue
         backend = _load(scenario, name, contact_mode)
         try:
-            res = replay(backend, ref.t, ref.q, ref.qd, ref.tau, ref.f, window)
+            res = replay(backend, ref, window)
         finally:
             backend.close()
         for s in SIGNALS:
             free = _free_deviation(tr, ref, s)
-            for j, comp in enumerate(COMPONENTS[s]):
+            for j, comp in enumerate(COLUMNS[s]):
                 col = res.peak[s][:, j]
                 rows.append({
                     "backend": name, "reference": ref_name, "window": window, "signal": s, "component": comp,

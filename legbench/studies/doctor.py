@@ -34,9 +34,10 @@ import pandas as pd
 
 from legbench import backends as registry
 from legbench import model
+from legbench import scenario as scenario_mod
 from legbench.backends.base import Backend
 from legbench.exceptions import LegbenchError
-from legbench.scenario import Scenario
+from legbench.scenario import Scenario, physics_of
 
 __all__ = ["RTOL", "ParityError", "add_cli", "check", "doctor", "preflight", "readback", "table"]
 
@@ -69,50 +70,6 @@ class ParityError(LegbenchError):
 # Read back
 
 
-def _limits_pinocchio(b: Any) -> dict[str, Any]:
-    m = b.model
-    return {
-        "gravity": -float(m.gravity.linear[2]),
-        "lower": [float(x) for x in b.lower],
-        "upper": [float(x) for x in b.upper],
-        "effort": [float(x) for x in m.effortLimit],
-    }
-
-
-def _limits_mujoco(b: Any) -> dict[str, Any]:
-    m = b.model
-    lower, upper, effort = [], [], []
-    for name in model.JOINT_NAMES:
-        j = m.joint(name).id
-        limited = bool(m.jnt_limited[j])
-        lower.append(float(m.jnt_range[j, 0]) if limited else -math.inf)
-        upper.append(float(m.jnt_range[j, 1]) if limited else math.inf)
-        a = m.actuator(name).id
-        effort.append(float(m.actuator_ctrlrange[a, 1]) if m.actuator_ctrllimited[a] else math.inf)
-    return {"gravity": -float(m.opt.gravity[2]), "lower": lower, "upper": upper, "effort": effort,
-            "timestep": float(m.opt.timestep)}  # fmt: skip
-
-
-def _limits_pybullet(b: Any) -> dict[str, Any]:
-    import pybullet as p
-
-    lower, upper, effort = [], [], []
-    for j in b.joints:
-        info = p.getJointInfo(b.body, j, physicsClientId=b.cid)
-        lo, hi = float(info[8]), float(info[9])
-        if lo > hi:  # Bullet's way of saying "no limit"
-            lo, hi = -math.inf, math.inf
-        lower.append(lo)
-        upper.append(hi)
-        effort.append(float(info[10]))
-    params = p.getPhysicsEngineParameters(physicsClientId=b.cid)
-    return {"gravity": -float(params["gravityAccelerationZ"]), "lower": lower, "upper": upper, "effort": effort,
-            "timestep": float(params["fixedTimeStep"])}  # fmt: skip
-
-
-_ENGINE_LIMITS = {"pinocchio": _limits_pinocchio, "mujoco": _limits_mujoco, "pybullet": _limits_pybullet}
-
-
 def _flatten(prefix: str, d: Mapping[str, Any], out: dict[str, Any]) -> None:
     for k, v in d.items():
         key = f"{prefix}.{k}" if prefix else str(k)
@@ -125,13 +82,10 @@ def _flatten(prefix: str, d: Mapping[str, Any], out: dict[str, Any]) -> None:
 def readback(backend: Backend) -> dict[str, Any]:
     """What a loaded backend holds, as a flat dict ``row -> value``.
 
-    Mass properties come from :meth:`Backend.mass_properties`; joint limits,
-    torque limits and gravity from the engine's own model (MuJoCo ``jnt_range``,
-    ``actuator_ctrlrange``, ``opt.gravity``; Bullet ``getJointInfo``,
-    ``getPhysicsEngineParameters``; Pinocchio ``effortLimit``, ``gravity`` and
-    the limits its integrator enforces), or, for another backend, from an
-    ``info()["readback"]`` mapping with the keys ``gravity``, ``lower``,
-    ``upper``, ``effort``; every other row from :meth:`Backend.info`.
+    Mass properties come from :meth:`Backend.mass_properties`; gravity, joint
+    and torque limits, the engine's own step and how it enforces the limits
+    from :meth:`Backend.limits` (read back from the engine's model by the
+    backend); every other row from :meth:`Backend.info`.
     """
     out: dict[str, Any] = {}
     try:
@@ -148,17 +102,18 @@ def readback(backend: Backend) -> dict[str, Any]:
         I = np.asarray(mp["inertia"], float)
         for name, r, c in _INERTIA:
             out[f"{link}.inertia.{name}"] = float(I[r, c])
+    lim = backend.limits()
+    out["gravity"] = float(lim.gravity)
+    for key, values in (("lower", lim.lower), ("upper", lim.upper), ("torque_limit", lim.effort)):
+        for jn, v in zip(model.JOINT_NAMES, values, strict=True):
+            out[f"{jn}.{key}"] = float(v)
+    if lim.timestep is not None:
+        out["engine.timestep"] = lim.timestep
+    if lim.enforcement:
+        out["engine.limit_enforcement"] = lim.enforcement
     info = backend.info()
-    lim = info.get("readback") or (_ENGINE_LIMITS[backend.name](backend) if backend.name in _ENGINE_LIMITS else {})
-    if "gravity" in lim:
-        out["gravity"] = float(lim["gravity"])
-    for key in ("lower", "upper", "effort"):
-        for jn, v in zip(model.JOINT_NAMES, lim.get(key, ()), strict=False):
-            out[f"{jn}.{'torque_limit' if key == 'effort' else key}"] = float(v)
-    if "timestep" in lim:
-        out["engine.timestep"] = lim["timestep"]
     settings: dict[str, Any] = {}
-    _flatten("", {k: v for k, v in info.items() if k != "readback"}, settings)
+    _flatten("", info, settings)
     for k, v in settings.items():
         out[f"info.{k}"] = v if isinstance(v, str | int | float | bool) or v is None else json.dumps(v, default=str)
     return out
@@ -223,9 +178,6 @@ def table(scenario: Scenario | str | Path, backends: Sequence[str] | None = None
         ``ok``, ``MISMATCH`` (a parity row off by more than :data:`RTOL`), ``missing``
         (a backend does not report a parity row) or ``info`` (not a parity row).
     """
-    from legbench import scenario as scenario_mod
-    from legbench.run import physics_of
-
     sc = scenario if isinstance(scenario, Scenario) else scenario_mod.load(scenario)
     names = list(backends) if backends is not None else registry.available()
     physics = physics_of(sc)

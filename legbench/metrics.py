@@ -1,0 +1,528 @@
+"""The metrics: deviation of one run from another, and the figures made of it (docs/metrics.md).
+
+The only implementation of each figure; compare, sweep, horizon and check use
+these.
+
+Conventions:
+    * Deviation of run a from reference r: d(t) = x_a(t) - x_r(t); for the
+      angle of a continuous joint (the hip), the shortest angle
+      mod(x_a - x_r + pi, 2 pi) - pi, so a wrapped log and an unwrapped one agree.
+    * Simulation error % = max_t |d| / max_t |x_r| * 100 per component; NaN
+      when the reference's peak is at or below :data:`PEAK_FLOOR`.
+    * Time lag: a lag L > 0 means a is late, x_a(t) ~ x_r(t - L); removing it
+      compares x_a(t + L) with x_r(t).
+    * The analytic force check inverts tau = J_poc^T h + G(q): h is the force
+      the foot exerts on the environment, the ground force on the foot is -h.
+
+Data flow: two :class:`~legbench.results.RunResult` -> :func:`align` (one time
+grid) -> :func:`deviation` -> :func:`pair_metrics` (:class:`PairMetrics`);
+one run -> :func:`steady_state`; a run in both contact modes ->
+:func:`contact_split` (:class:`ModeSplit`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from legbench import kinematics
+from legbench.exceptions import ResultsError
+from legbench.model import load_params
+from legbench.results import Run, RunResult
+from legbench.signals import LABELS, SIGNALS, SLICE
+
+__all__ = [
+    "COND_MAX",
+    "LAG_MODES",
+    "PEAK_FLOOR",
+    "T_EPS",
+    "LagEstimate",
+    "ModeSplit",
+    "PairMetrics",
+    "SteadyState",
+    "align",
+    "check_lag_mode",
+    "contact_split",
+    "deviation",
+    "estimate_lag",
+    "max_abs",
+    "pair_metrics",
+    "peak_pct",
+    "rms",
+    "signal_errors",
+    "steady_state",
+    "wrap_mask",
+    "wrapped",
+]
+
+#: Reference peaks at or below this are zero: the simulation error % is undefined (NaN) [signal unit].
+PEAK_FLOOR = 1e-12
+#: Two time stamps closer than this are the same tick [s].
+T_EPS = 1e-9
+#: How a constant time lag is treated: not estimated, estimated and recorded, or estimated and removed.
+LAG_MODES = ("off", "report", "remove")
+#: Jacobians with a larger condition number are treated as singular in the analytic check.
+COND_MAX = 1e8
+
+
+# --------------------------------------------------------------------------- #
+# Results
+
+
+@dataclass(frozen=True)
+class LagEstimate:
+    """A constant time lag found by cross-correlation.
+
+    Attributes:
+        seconds: lag L [s]; L > 0 means the backend is late, x_a(t) ~ x_ref(t - L).
+        samples: the same in samples of ``dt`` (sub-sample by parabolic interpolation).
+        dt: grid spacing of the correlation [s].
+        correlation: normalised cross-correlation at the peak, in [-1, 1].
+        signals: the signals correlated.
+    """
+
+    seconds: float
+    samples: float
+    dt: float
+    correlation: float
+    signals: tuple[str, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class PairMetrics:
+    """Deviation of one backend from a reference, per column of :data:`LABELS`.
+
+    Metric arrays have shape (12,) and are computed over ``t >= skip``; NaN where a
+    signal is missing or the window is empty.
+
+    Attributes:
+        backend: the backend compared.
+        reference: the backend compared against.
+        t: common time grid (the reference's ticks inside both spans), shape (M,) [s].
+        deviation: x_a - x_ref on ``t``, shape (M, 12) [signal units].
+        sim_error_pct: max_t |d| / max_t |x_ref| * 100 [%]; NaN if max_t |x_ref| <= PEAK_FLOOR.
+        rms: sqrt(mean_t d^2) [signal units].
+        max_abs: max_t |d| [signal units].
+        t_max_abs: first time at which |d| is largest [s].
+        ref_peak: max_t |x_ref| [signal units].
+        skip: start of the measured window [s].
+        lag: the lag estimate, if one was asked for.
+        lag_removed: lag taken out of the backend before measuring [s] (0 if none).
+    """
+
+    backend: str
+    reference: str
+    t: np.ndarray
+    deviation: np.ndarray
+    sim_error_pct: np.ndarray
+    rms: np.ndarray
+    max_abs: np.ndarray
+    t_max_abs: np.ndarray
+    ref_peak: np.ndarray
+    skip: float
+    lag: LagEstimate | None = None
+    lag_removed: float = 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class SteadyState:
+    """Means over the final window of one backend, and the analytic force check.
+
+    Attributes:
+        backend: backend name.
+        t0: start of the window [s].
+        t1: end of the window [s].
+        q: mean joint angles [rad].
+        qd: mean joint velocities [rad/s].
+        tau: mean joint torques [N m].
+        force: mean ground force on the foot in W (Fx, Fy, Fn) [N].
+        analytic_poc: ground force on the foot in W from the mean state and torques,
+            -(J_poc(q)^T)^-1 (tau - G(q)), J_poc the true point of contact's Jacobian [N].
+        analytic_centre: the same with the foot centre's Jacobian J_E; only for runs
+            whose contact law takes the poc at the sphere centre, else None [N].
+        cond: condition number of J_poc at the mean state (inf if singular).
+    """
+
+    backend: str
+    t0: float
+    t1: float
+    q: np.ndarray
+    qd: np.ndarray
+    tau: np.ndarray
+    force: np.ndarray
+    analytic_poc: np.ndarray
+    analytic_centre: np.ndarray | None
+    cond: float
+
+    @property
+    def residual(self) -> np.ndarray:
+        """Measured minus analytic (J_poc) ground force [N]."""
+        return self.force - self.analytic_poc
+
+    @property
+    def poc_compensation(self) -> np.ndarray | None:
+        """Analytic force with J_poc minus with J_E [N] (None unless the run's poc is the centre)."""
+        return None if self.analytic_centre is None else self.analytic_poc - self.analytic_centre
+
+
+@dataclass(frozen=True, eq=False)
+class ModeSplit:
+    """One backend's deviation split by cause, from its native and reference-mode runs.
+
+    With a = the backend, r = the reference backend, n = native, R = reference
+    contact mode, the native deviation splits exactly, sample by sample::
+
+        a_n - r_n = (a_n - a_R) + (a_R - r_R) + (r_R - r_n)
+                     contact      integration   drift
+
+    *contact* is what swapping the analytic contact law for the engine's own
+    does to this backend; *integration* is its deviation when every backend
+    uses the same contact law (dynamics, integrator, solver); *drift* is the
+    reference backend's own mode difference (zero when its native contact is
+    the analytic law). Arrays have shape (12,), over ``t >= skip``.
+
+    Attributes:
+        backend: the backend split.
+        reference: the reference backend.
+        native_rms: RMS of a_n - r_n [signal units].
+        contact_rms: RMS of a_n - a_R.
+        integration_rms: RMS of a_R - r_R.
+        drift_rms: RMS of r_R - r_n.
+        native_pct: max |a_n - r_n| / max |r_n| * 100 [%].
+        contact_pct: max |a_n - a_R| / max |r_n| * 100 [%].
+        integration_pct: max |a_R - r_R| / max |r_n| * 100 [%].
+        drift_pct: max |r_R - r_n| / max |r_n| * 100 [%].
+    """
+
+    backend: str
+    reference: str
+    native_rms: np.ndarray
+    contact_rms: np.ndarray
+    integration_rms: np.ndarray
+    drift_rms: np.ndarray
+    native_pct: np.ndarray
+    contact_pct: np.ndarray
+    integration_pct: np.ndarray
+    drift_pct: np.ndarray
+
+
+# --------------------------------------------------------------------------- #
+# Alignment
+
+
+def _same_grid(t1: np.ndarray, t2: np.ndarray) -> bool:
+    return len(t1) == len(t2) and bool(np.all(np.abs(t1 - t2) <= T_EPS))
+
+
+def _resample(t: np.ndarray, x: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """Linear interpolation of each column of x (N, k) onto ``grid`` (inside [t0, tN])."""
+    if _same_grid(t, grid):
+        return x
+    g = np.clip(grid, t[0], t[-1])
+    return np.column_stack([np.interp(g, t, x[:, j]) for j in range(x.shape[1])])
+
+
+def _common_grid(ref_t: np.ndarray, *spans: np.ndarray, source: str = "") -> np.ndarray:
+    lo = max([ref_t[0], *(s[0] for s in spans)])
+    hi = min([ref_t[-1], *(s[-1] for s in spans)])
+    grid = ref_t[(ref_t >= lo - T_EPS) & (ref_t <= hi + T_EPS)]
+    if len(grid) < 2:
+        raise ResultsError(source, f"time spans do not overlap (common span [{lo:.6g}, {hi:.6g}] s)")
+    return grid
+
+
+def align(a: RunResult, ref: RunResult, shift: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Put two traces on one time grid.
+
+    The grid is the reference's ticks inside the common span; ``a`` is linearly
+    interpolated onto it (no interpolation when both share the grid, as engine
+    runs do). A lag ``shift`` [s] is removed from ``a`` first (its time stamps
+    become t - shift).
+
+    Returns:
+        (t, x_a, x_ref): grid (M,) [s] and the two (M, 12) data blocks.
+
+    Raises:
+        ResultsError: the two spans do not overlap by two reference ticks.
+    """
+    ta = a.t - shift
+    grid = _common_grid(ref.t, ta, source=a.source or a.backend)
+    xr = ref.data if len(grid) == len(ref.t) else ref.data[np.searchsorted(ref.t, grid[0] - T_EPS) :][: len(grid)]
+    return grid, _resample(ta, a.data, grid), xr
+
+
+def _uniform_pair(a: RunResult, ref: RunResult, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Both traces on one uniform grid over the common span (for correlation)."""
+    if _same_grid(a.t, ref.t) and np.allclose(np.diff(ref.t), ref.t[1] - ref.t[0], rtol=1e-6, atol=T_EPS):
+        return ref.t, a.data[:, cols], ref.data[:, cols]
+    dt = min(float(np.median(np.diff(a.t))), float(np.median(np.diff(ref.t))))
+    lo, hi = max(a.t[0], ref.t[0]), min(a.t[-1], ref.t[-1])
+    if hi - lo < 2 * dt:
+        raise ResultsError(a.source or a.backend, f"time spans of {a.backend} and {ref.backend} do not overlap")
+    grid = lo + dt * np.arange(int(math.floor((hi - lo) / dt + 1e-9)) + 1)
+    return grid, _resample(a.t, a.data[:, cols], grid), _resample(ref.t, ref.data[:, cols], grid)
+
+
+def estimate_lag(a: RunResult, ref: RunResult, max_lag: float = 0.1, signals: Sequence[str] = ("q",)) -> LagEstimate:
+    """Constant time lag of ``a`` behind ``ref`` by cross-correlation.
+
+    Both traces are put on one uniform grid (the finer of the two median steps)
+    over their common span. For each candidate lag k within +-``max_lag``, the
+    Pearson correlation of x_a[n + k] with x_ref[n] is taken over the samples
+    that overlap (so a longer overlap is not favoured, unlike the plain
+    cross-correlation sum, which biases slow signals towards zero lag); the
+    per-column correlations are averaged, the best k is refined to a sub-sample
+    by a parabola through the peak and its neighbours. Sums over the overlap come
+    from prefix sums and one FFT per column, so the cost is O(M log M).
+    Constant or missing columns are left out.
+
+    Args:
+        a: the trace that may lag.
+        ref: the reference trace.
+        max_lag: largest lag searched, either sign [s]; at most half the common span is searched.
+        signals: signals correlated (any of :data:`SIGNALS`).
+
+    Returns:
+        The lag; 0 with correlation NaN when no column varies.
+    """
+    cols = np.concatenate([np.arange(len(LABELS))[SLICE[s]] for s in signals])
+    grid, xa, xr = _uniform_pair(a, ref, cols)
+    dt = float(grid[1] - grid[0])
+    keep = (
+        np.isfinite(xa).all(axis=0) & np.isfinite(xr).all(axis=0) & (np.ptp(xa, axis=0) > 0) & (np.ptp(xr, axis=0) > 0)
+    )
+    if not keep.any():
+        return LagEstimate(0.0, 0.0, dt, math.nan, tuple(signals))
+    x = xa[:, keep] - xa[:, keep].mean(axis=0)
+    y = xr[:, keep] - xr[:, keep].mean(axis=0)
+    m = len(grid)
+    kmax = max(1, min(int(round(max_lag / dt)), m // 2))
+    lags = np.arange(-kmax, kmax + 1)
+    nfft = 1 << int(math.ceil(math.log2(2 * m)))
+    # sxy[k] = sum_n x[n + k] y[n] over the overlap (n and n + k both in 0..m-1)
+    sxy = np.fft.irfft(np.fft.rfft(x, nfft, axis=0) * np.conj(np.fft.rfft(y, nfft, axis=0)), nfft, axis=0)[lags % nfft]
+    zero = np.zeros((1, x.shape[1]))
+    px, pxx = np.vstack([zero, np.cumsum(x, axis=0)]), np.vstack([zero, np.cumsum(x * x, axis=0)])
+    py, pyy = np.vstack([zero, np.cumsum(y, axis=0)]), np.vstack([zero, np.cumsum(y * y, axis=0)])
+    pos = lags >= 0
+    x_lo, x_hi = np.where(pos, lags, 0), np.where(pos, m, m + lags)  # x[n + k] segment
+    y_lo, y_hi = np.where(pos, 0, -lags), np.where(pos, m - lags, m)  # y[n] segment
+    n = (m - np.abs(lags))[:, None].astype(float)
+    sx, sxx = px[x_hi] - px[x_lo], pxx[x_hi] - pxx[x_lo]
+    sy, syy = py[y_hi] - py[y_lo], pyy[y_hi] - pyy[y_lo]
+    cov = sxy - sx * sy / n
+    var = (sxx - sx * sx / n) * (syy - sy * sy / n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rho = np.where(var > 0, cov / np.sqrt(np.where(var > 0, var, 1.0)), 0.0).mean(axis=1)
+    i = int(np.argmax(rho))
+    k = float(lags[i])
+    if 0 < i < len(rho) - 1:
+        y0, y1, y2 = rho[i - 1], rho[i], rho[i + 1]
+        den = y0 - 2 * y1 + y2
+        if den < 0:
+            k += 0.5 * (y0 - y2) / den
+    return LagEstimate(k * dt, k, dt, float(rho[i]), tuple(signals))
+
+
+# --------------------------------------------------------------------------- #
+# Metrics
+
+
+def wrapped(signal: str) -> np.ndarray:
+    """True for the components of ``signal`` that are angles of continuous joints (the hip's q)."""
+    if signal == "q":
+        return np.array(load_params().continuous, dtype=bool)
+    return np.zeros(3, dtype=bool)
+
+
+def wrap_mask() -> np.ndarray:
+    """True for the columns of :data:`~legbench.signals.LABELS` that are angles of continuous joints."""
+    return np.concatenate([wrapped(s) for s in SIGNALS])
+
+
+def deviation(xa: np.ndarray, xr: np.ndarray, wrap: np.ndarray | None = None) -> np.ndarray:
+    """x_a - x_ref per column [signal units]; shortest angle on the ``wrap`` columns.
+
+    Args:
+        xa, xr: samples, shape (..., k): the 12 data columns, or the components of one signal.
+        wrap: the columns that are angles on a circle (default: :func:`wrap_mask`, the 12 data columns).
+    """
+    d = np.asarray(xa, float) - np.asarray(xr, float)
+    w = wrap_mask() if wrap is None else np.asarray(wrap, dtype=bool)
+    if w.any():
+        d[..., w] = np.mod(d[..., w] + np.pi, 2.0 * np.pi) - np.pi
+    return d
+
+
+def peak_pct(max_abs: np.ndarray, peak: np.ndarray) -> np.ndarray:
+    """Simulation error % per column: 100 max |d| / max |x_ref|; NaN where the peak is <= :data:`PEAK_FLOOR`."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(peak > PEAK_FLOOR, 100.0 * max_abs / np.where(peak > PEAK_FLOOR, peak, 1.0), np.nan)
+
+
+def rms(d: np.ndarray) -> np.ndarray:
+    """Root mean square of each column over time [signal units]; NaN for no samples."""
+    if len(d) == 0:
+        return np.full(d.shape[1], np.nan)
+    return np.sqrt(np.mean(d * d, axis=0))
+
+
+def max_abs(d: np.ndarray) -> np.ndarray:
+    """Largest absolute value of each column over time [signal units]; NaN for no samples."""
+    if len(d) == 0:
+        return np.full(d.shape[1], np.nan)
+    return np.max(np.abs(d), axis=0)
+
+
+def signal_errors(a: RunResult, ref: RunResult, signal: str, skip: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Largest deviation [signal unit] and simulation error % per component of one signal (hip wrapped).
+
+    Over the ticks both runs logged (the shorter's span) with t >= ``skip`` [s]; the two runs must
+    share their tick times there (runs of one scenario do). NaN when there is no such tick or the
+    grids differ.
+
+    Returns:
+        (max |x_a - x_ref|, 100 max |x_a - x_ref| / max |x_ref|), each shape (3,).
+    """
+    n = min(len(a.t), len(ref.t))
+    t = ref.t[:n]
+    keep = t >= skip - T_EPS
+    if n == 0 or not np.array_equal(a.t[:n], t) or not keep.any():
+        return np.full(3, np.nan), np.full(3, np.nan)
+    xa, xr = a.signal(signal)[:n][keep], ref.signal(signal)[:n][keep]
+    d = max_abs(deviation(xa, xr, wrapped(signal)))
+    return d, peak_pct(d, max_abs(xr))
+
+
+def check_lag_mode(lag: str) -> None:
+    """Raise ValueError unless ``lag`` is one of :data:`LAG_MODES`."""
+    if lag not in LAG_MODES:
+        raise ValueError(f"lag must be 'off', 'report' or 'remove', not {lag!r}")
+
+
+def pair_metrics(
+    a: RunResult,
+    ref: RunResult,
+    skip: float = 0.0,
+    lag: str = "off",
+    max_lag: float = 0.1,
+    lag_signals: Sequence[str] = ("q",),
+    wrap: np.ndarray | None = None,
+) -> PairMetrics:
+    """Deviation metrics of ``a`` against ``ref`` (docs/metrics.md).
+
+    Args:
+        a: the backend measured.
+        ref: the reference.
+        skip: only samples with t >= skip are measured [s].
+        lag: ``"off"``, ``"report"`` (estimate and record the lag) or ``"remove"``
+            (estimate it and take it out of ``a`` before measuring).
+        max_lag: largest lag searched [s].
+        lag_signals: signals the lag is estimated from.
+        wrap: columns compared as angles on a circle (default: the hip angle).
+
+    Returns:
+        The metrics; see :class:`PairMetrics`.
+    """
+    check_lag_mode(lag)
+    est = estimate_lag(a, ref, max_lag, lag_signals) if lag != "off" else None
+    shift = est.seconds if (est is not None and lag == "remove") else 0.0
+    t, xa, xr = align(a, ref, shift)
+    d = deviation(xa, xr, wrap)
+    sel = t >= skip - T_EPS
+    ds, rs, ts = d[sel], xr[sel], t[sel]
+    largest = max_abs(ds)
+    ref_peak = max_abs(rs)
+    if len(ds):
+        t_max = ts[np.argmax(np.nan_to_num(np.abs(ds), nan=-1.0), axis=0)]
+        t_max = np.where(np.isfinite(largest), t_max, np.nan)
+    else:
+        t_max = np.full(len(LABELS), np.nan)
+    return PairMetrics(
+        backend=a.backend,
+        reference=ref.backend,
+        t=t,
+        deviation=d,
+        sim_error_pct=peak_pct(largest, ref_peak),
+        rms=rms(ds),
+        max_abs=largest,
+        t_max_abs=t_max,
+        ref_peak=ref_peak,
+        skip=skip,
+        lag=est,
+        lag_removed=shift,
+    )
+
+
+def steady_state(trace: RunResult, window: float, poc: str = "true") -> SteadyState:
+    """Means over the final ``window`` [s] of ``trace``, and the analytic force check.
+
+    The check solves J_poc(q)^T h = tau - G(q) at the window's mean q and tau
+    (valid when the leg is static: qd ~ 0 and no acceleration) and reports the
+    ground force on the foot, -h. With ``poc == "centre"`` it also does so with
+    J_E, the foot centre's Jacobian, which is what a contact law taking the poc
+    at the sphere centre applies.
+    """
+    sel = trace.t >= trace.t[-1] - window - T_EPS
+    mean = trace.data[sel].mean(axis=0)
+    q, qd, tau, force = (mean[SLICE[s]] for s in SIGNALS)
+
+    def ground_force(true_poc: bool) -> tuple[np.ndarray, float]:
+        if not np.isfinite(q).all() or not np.isfinite(tau).all():
+            return np.full(3, np.nan), math.nan
+        J = kinematics.jacobian_poc(q, true_poc=true_poc)
+        cond = float(np.linalg.cond(J))
+        if not cond < COND_MAX:
+            return np.full(3, np.nan), cond
+        h = np.linalg.solve(J.T, tau - kinematics.gravity(q))
+        return -h, cond
+
+    f_poc, cond = ground_force(True)
+    f_centre = ground_force(False)[0] if poc == "centre" else None
+    return SteadyState(
+        trace.backend, float(trace.t[sel][0]), float(trace.t[-1]), q, qd, tau, force, f_poc, f_centre, cond
+    )
+
+
+def contact_split(native: Run, refmode: Run, reference: str | None = None) -> tuple[ModeSplit, ...]:
+    """Split each backend's native-mode deviation into contact, integration and drift parts.
+
+    See :class:`ModeSplit`. Backends must be ok in both runs; all four traces
+    are put on the native reference's ticks inside their common span.
+
+    Args:
+        native: the run in native contact mode.
+        refmode: the same scenario in reference contact mode.
+        reference: reference backend (default: the native run's).
+    """
+    ref = reference or native.reference
+    if ref not in native.traces or ref not in refmode.traces:
+        return ()
+    rn, rr = native.traces[ref], refmode.traces[ref]
+    wrap = wrap_mask()
+    out = []
+    for name, an in native.traces.items():
+        if name == ref or name not in refmode.traces:
+            continue
+        ar = refmode.traces[name]
+        grid = _common_grid(rn.t, an.t, ar.t, rr.t, source=str(native.path))
+        xrn, xan = _resample(rn.t, rn.data, grid), _resample(an.t, an.data, grid)
+        xar, xrr = _resample(ar.t, ar.data, grid), _resample(rr.t, rr.data, grid)
+        sel = grid >= native.skip - T_EPS
+        parts = {
+            "native": deviation(xan, xrn, wrap)[sel],
+            "contact": deviation(xan, xar, wrap)[sel],
+            "integration": deviation(xar, xrr, wrap)[sel],
+            "drift": deviation(xrr, xrn, wrap)[sel],
+        }
+        peak = max_abs(xrn[sel])
+        kw: dict[str, Any] = {}
+        for part, d in parts.items():
+            kw[f"{part}_rms"] = rms(d)
+            kw[f"{part}_pct"] = peak_pct(max_abs(d), peak)
+        out.append(ModeSplit(backend=name, reference=ref, **kw))
+    return tuple(out)

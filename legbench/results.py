@@ -1,0 +1,610 @@
+"""The run directory: the one writer and the one validated reader of what a run leaves on disk.
+
+A run directory holds, per scenario (and contact mode):
+
+* ``<backend>.parquet`` (and optionally ``.csv``): one row per control tick,
+  columns :data:`~legbench.signals.RUN_COLUMNS`;
+* ``run.json``: the scenario as run, every backend's status, reason, settings
+  (``info``, with its declared ``integrator_family`` and ``sub_steps``), wall
+  time and real-time factor, versions and platform;
+* ``metrics.json``: what :mod:`legbench.compare` measured (schema
+  :data:`METRICS_SCHEMA`, keys in docs/metrics.md).
+
+:class:`RunResult` is the one shape a backend's run takes between stages: the
+run loop returns it, :func:`write_run` writes it, :func:`load_run` reads it
+back, the metrics, the studies and the report take it. Every reader here
+raises :class:`~legbench.exceptions.ResultsError` with one line naming the
+file and the problem on a missing, malformed or foreign directory.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import platform
+import shutil
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from legbench import backends as registry
+from legbench import kinematics
+from legbench.exceptions import LegbenchError, ResultsError
+from legbench.model import URDF_FILE
+from legbench.scenario import DEFAULT_REFERENCE, Scenario
+from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS, SLICE
+
+__all__ = [
+    "FRAME_COLUMNS",
+    "METRICS_SCHEMA",
+    "BackendStatus",
+    "EventMark",
+    "Run",
+    "RunResult",
+    "check_out_dir",
+    "json_default",
+    "load_run",
+    "load_trace",
+    "out_dir_for",
+    "platform_info",
+    "read_log",
+    "read_meta",
+    "read_metrics",
+    "result_from_frame",
+    "resumable",
+    "run_dirs",
+    "versions",
+    "write_json",
+    "write_metrics",
+    "write_run",
+]
+
+logger = logging.getLogger("legbench.results")
+
+#: Version tag written into metrics.json.
+METRICS_SCHEMA = "legbench.metrics/1"
+#: Columns of the long metrics table (rows of metrics.json).
+FRAME_COLUMNS = ("scenario", "backend", "reference", "signal", "joint", "metric", "value")
+
+
+# --------------------------------------------------------------------------- #
+# The run result
+
+
+@dataclass(eq=False)
+class RunResult:
+    """One backend's run (or an imported log): arrays of shape (n,) or (n, 3), and how it went.
+
+    Attributes:
+        backend: backend name (or the name given to an imported log).
+        t: tick times, strictly increasing [s].
+        q: joint angles [rad].
+        qd: joint velocities [rad/s].
+        tau: joint torques applied over [t_k, t_k + Ts), after saturation [N m].
+        f: ground force on the foot in W [N].
+        controller: active controller name per tick (empty strings if unknown).
+        status: ``ok``, ``failed``, ``missing`` or ``interrupted``.
+        reason: why it is not ok (None when ok).
+        info: the backend's settings as it reported them (:func:`legbench.run.backend_info`).
+        wall_time: wall-clock time of the simulation loop [s].
+        source: the file it was read from ("" for a run in memory).
+        foot: foot centre in W as logged [m], or None: computed from q.
+    """
+
+    backend: str
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    tau: np.ndarray
+    f: np.ndarray
+    controller: np.ndarray
+    status: str = "ok"
+    reason: str | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+    wall_time: float = 0.0
+    source: str = ""
+    foot: np.ndarray | None = None
+
+    @classmethod
+    def empty(cls, backend: str, status: str, reason: str) -> RunResult:
+        """A result with no ticks: a backend that is missing, failed to load or never started."""
+        none = np.empty((0, 3))
+        return cls(backend, np.empty(0), none, none, none, none, np.empty(0, dtype=object), status, reason)
+
+    @property
+    def ee(self) -> np.ndarray:
+        """Foot centre in W [m]: as logged, else from the logged joint angles."""
+        return kinematics.fk(self.q) if self.foot is None else self.foot
+
+    @cached_property
+    def data(self) -> np.ndarray:
+        """The 12 :data:`~legbench.signals.LABELS` columns (q, qd, tau, f), shape (n, 12)."""
+        return np.column_stack([self.q, self.qd, self.tau, self.f])
+
+    def signal(self, signal: str) -> np.ndarray:
+        """The (n, 3) columns of one signal (``q``, ``qd``, ``tau``, ``force`` or ``ee``) in its unit."""
+        if signal == "ee":
+            return self.ee if len(self.t) else np.empty((0, 3))
+        return self.data[:, SLICE[signal]]
+
+    def has(self, signal: str) -> bool:
+        """True if the signal has at least one finite sample."""
+        return bool(np.isfinite(self.signal(signal)).any())
+
+    def frame(self) -> pd.DataFrame:
+        """The log as a DataFrame with the columns of :data:`~legbench.signals.RUN_COLUMNS`."""
+        data = np.column_stack([self.t, self.q, self.qd, self.tau, self.f, self.ee])
+        df = pd.DataFrame(data, columns=list(RUN_COLUMNS[:-1]))
+        df["controller"] = self.controller
+        return df
+
+
+# --------------------------------------------------------------------------- #
+# Provenance
+
+
+def versions() -> dict[str, str]:
+    """Versions of legbench, Python and every engine package that imports."""
+    out = {"python": platform.python_version()}
+    for pkg in ("legbench", "numpy", "scipy", "pandas", *registry.engine_packages()):
+        try:
+            out[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            continue
+    return out
+
+
+def platform_info() -> dict[str, Any]:
+    """The machine: system, architecture, processor, CPU count and host name."""
+    return {"system": platform.system(), "machine": platform.machine(), "processor": platform.processor(),
+            "cpus": os.cpu_count(), "node": platform.node()}  # fmt: skip
+
+
+def json_default(o: Any) -> Any:
+    """JSON for numpy arrays and scalars and paths (everything else as its text)."""
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    return str(o)
+
+
+def write_json(doc: Any, path: Path) -> Path:
+    """``doc`` as indented JSON at ``path``, written atomically (numpy values converted)."""
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp.write_text(json.dumps(doc, indent=2, default=json_default))
+    tmp.replace(path)
+    return path
+
+
+# --------------------------------------------------------------------------- #
+# Writing a run directory
+
+
+def out_dir_for(root: Path, scenario: Scenario, contact_mode: str | None) -> Path:
+    """Directory of one scenario in a results tree: <root>/<name>, or <name>__reference in reference mode."""
+    mode = contact_mode or scenario.contact_mode
+    return Path(root) / (scenario.name if mode == "native" else f"{scenario.name}__reference")
+
+
+def _previous(out_dir: Path) -> dict[str, Any] | None:
+    """The run.json already in ``out_dir`` (empty if unreadable), or None."""
+    try:
+        return read_meta(out_dir)
+    except ResultsError:
+        return {} if (out_dir / "run.json").is_file() else None
+
+
+def check_out_dir(scenario: Scenario, out_dir: Path) -> None:
+    """Refuse an output directory holding another scenario's results (or anything else)."""
+    out_dir = Path(out_dir)
+    prev = _previous(out_dir)
+    if prev is None:
+        if out_dir.exists() and any(out_dir.iterdir()):
+            raise LegbenchError(f"{out_dir}: not empty and not a legbench run directory; choose another --out")
+        return
+    name = (prev.get("scenario") or {}).get("name")
+    if name != scenario.name:
+        raise LegbenchError(
+            f"{out_dir}: holds results of scenario {name!r}, not {scenario.name!r}; choose another --out or remove it"
+        )
+
+
+def resumable(scenario: Scenario, out_dir: Path, contact_mode: str | None) -> dict[str, Any]:
+    """Entries of backends already finished in an interrupted run of the same scenario (same hash and mode)."""
+    prev = _previous(Path(out_dir))
+    if not prev or prev.get("complete", True):
+        return {}
+    sc = prev.get("scenario", {})
+    if sc.get("sha256") != scenario.sha256 or sc.get("contact_mode") != (contact_mode or scenario.contact_mode):
+        return {}
+    return {name: e for name, e in prev.get("backends", {}).items() if e.get("status") == "ok"}
+
+
+def write_run(scenario: Scenario, results: Sequence[RunResult], out_dir: Path, csv: bool = False,
+              contact_mode: str | None = None, kept: dict[str, Any] | None = None) -> Path:  # fmt: skip
+    """Write <backend>.parquet (and .csv) and run.json into ``out_dir``, atomically.
+
+    Everything goes to a temporary sibling directory first, which replaces
+    ``out_dir`` only when complete. ``kept`` are entries of backends finished in
+    an earlier, interrupted run into the same directory; their files are carried
+    over. ``run.json["complete"]`` is false when a backend was interrupted.
+    """
+    out_dir = Path(out_dir)
+    check_out_dir(scenario, out_dir)
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out_dir.parent / f".{out_dir.name}.tmp-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    meta_backends: dict[str, Any] = {}
+    for name, old_entry in (kept or {}).items():
+        for suffix in (".parquet", ".csv"):
+            if (out_dir / f"{name}{suffix}").exists():
+                shutil.copy2(out_dir / f"{name}{suffix}", tmp / f"{name}{suffix}")
+        meta_backends[name] = old_entry
+    for tr in results:
+        entry: dict[str, Any] = {"status": tr.status, "reason": tr.reason, "info": tr.info,
+                                 "wall_time": tr.wall_time, "file": None, "rtf": None, "failed_at": None}  # fmt: skip
+        if len(tr.t):
+            df = tr.frame()
+            df.to_parquet(tmp / f"{tr.backend}.parquet", index=False)
+            if csv:
+                df.to_csv(tmp / f"{tr.backend}.csv", index=False)
+            entry["file"] = f"{tr.backend}.parquet"
+            sim_time = float(tr.t[-1])
+            entry["rtf"] = sim_time / tr.wall_time if tr.wall_time > 0 else None
+            entry["failed_at"] = sim_time if tr.status != "ok" else None
+        meta_backends[tr.backend] = entry
+    sdict = scenario.to_dict()
+    if contact_mode:
+        sdict["contact_mode"] = contact_mode
+    vers = versions()
+    meta = {
+        "complete": all(e["status"] != "interrupted" for e in meta_backends.values()),
+        "scenario": sdict,
+        "backends": meta_backends,
+        "versions": vers,
+        "platform": platform_info(),
+        "legbench_version": vers.get("legbench", "unknown"),
+        "urdf": str(URDF_FILE.name),
+    }
+    (tmp / "run.json").write_text(json.dumps(meta, indent=2, default=json_default))
+    if out_dir.exists():
+        old = out_dir.parent / f".{out_dir.name}.old-{os.getpid()}"
+        out_dir.rename(old)
+        tmp.rename(out_dir)
+        shutil.rmtree(old)
+    else:
+        tmp.rename(out_dir)
+    return out_dir
+
+
+def write_metrics(doc: Mapping[str, Any], path: str | Path) -> Path:
+    """Write a metrics.json document (:meth:`legbench.compare.ComparisonResult.to_json`) and return its path.
+
+    The header keys are indented, one metrics row per line (diff-friendly); the
+    document is plain JSON (NaN written as null).
+    """
+    out = Path(path)
+    doc = dict(doc)
+    rows = doc.pop("metrics")
+    head = json.dumps(doc, indent=1, allow_nan=False)
+    body = ",\n  ".join(json.dumps(r, allow_nan=False) for r in rows)
+    out.write_text(
+        f'{head[:-2]},\n "metrics": [\n  {body}\n ]\n}}\n' if rows else f'{head[:-2]},\n "metrics": []\n}}\n'
+    )
+    return out
+
+
+# --------------------------------------------------------------------------- #
+# Reading
+
+
+@dataclass(frozen=True)
+class BackendStatus:
+    """A backend's entry of run.json.
+
+    Attributes:
+        name: backend name.
+        status: ``"ok"``, ``"failed"`` or ``"missing"``.
+        reason: why it failed or is missing (None when ok).
+        info: engine, version and settings as the backend reported them.
+        wall_time: wall-clock time of the run [s] (NaN if unknown).
+        rtf: real-time factor, simulated time / wall time (NaN if unknown).
+        file: its parquet file name, relative to the run directory.
+    """
+
+    name: str
+    status: str
+    reason: str | None
+    info: Mapping[str, Any] = field(default_factory=dict, hash=False)
+    wall_time: float = math.nan
+    rtf: float = math.nan
+    file: str = ""
+
+
+@dataclass(frozen=True)
+class EventMark:
+    """A controller switch at ``t`` [s] (for vertical lines in plots)."""
+
+    t: float
+    controller: str
+
+
+@dataclass(frozen=True, eq=False)
+class Run:
+    """A run directory read into memory.
+
+    Attributes:
+        path: the directory.
+        meta: run.json as read.
+        name: scenario name.
+        label: ``name`` in native contact mode, ``name + "__reference"`` in reference mode;
+            the ``scenario`` column of the metrics table.
+        contact_mode: ``"native"`` or ``"reference"``.
+        poc: point of contact of the analytic law, ``"true"`` or ``"centre"``.
+        reference: the scenario's reference backend.
+        skip: start time excluded from the deviation metrics [s].
+        steady_window: final window of the steady-state means [s].
+        duration: scenario duration [s].
+        events: controller switches.
+        backends: every backend of run.json, by name, in file order.
+        traces: results of the backends whose status is ok.
+        partial: results of failed backends whose file exists (plotted, not measured).
+    """
+
+    path: Path
+    meta: Mapping[str, Any]
+    name: str
+    label: str
+    contact_mode: str
+    poc: str
+    reference: str
+    skip: float
+    steady_window: float
+    duration: float
+    events: tuple[EventMark, ...]
+    backends: Mapping[str, BackendStatus]
+    traces: Mapping[str, RunResult]
+    partial: Mapping[str, RunResult] = field(default_factory=dict)
+
+    @property
+    def tolerances(self) -> Mapping[str, Any]:
+        """``scenario.comparison.tolerances`` of run.json (empty if absent)."""
+        return tolerances_of(self.meta)
+
+
+def tolerances_of(meta: Mapping[str, Any]) -> Mapping[str, Any]:
+    """``scenario.comparison.tolerances`` of a run.json document (empty if absent)."""
+    tol = ((meta.get("scenario") or {}).get("comparison") or {}).get("tolerances") or {}
+    return tol if isinstance(tol, Mapping) else {}
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    try:
+        doc = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ResultsError(str(path), f"invalid JSON at line {exc.lineno}: {exc.msg}") from exc
+    if not isinstance(doc, dict):
+        raise ResultsError(str(path), "top level is not a JSON object")
+    return doc
+
+
+def _get(doc: Mapping[str, Any], keys: str, file: Path, default: Any = ...) -> Any:
+    cur: Any = doc
+    for k in keys.split("."):
+        if not isinstance(cur, Mapping) or k not in cur:
+            if default is not ...:
+                return default
+            raise ResultsError(str(file), f"missing key '{keys}'")
+        cur = cur[k]
+    return cur
+
+
+def _float_or_nan(v: Any) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def read_meta(run_dir: str | Path) -> dict[str, Any]:
+    """A run directory's run.json, checked: an object with ``scenario.name`` and a ``backends`` object.
+
+    Raises:
+        ResultsError: the directory or run.json is missing, or run.json is malformed or foreign.
+    """
+    path = Path(run_dir)
+    if not path.is_dir():
+        raise ResultsError(str(path), "no such run directory")
+    rj = path / "run.json"
+    if not rj.is_file():
+        raise ResultsError(str(path), "no run.json here: not a legbench run directory")
+    meta = _read_json(rj)
+    _get(_get(meta, "scenario", rj), "name", rj)
+    if not isinstance(_get(meta, "backends", rj), Mapping):
+        raise ResultsError(str(rj), "'backends' is not an object")
+    return meta
+
+
+def run_dirs(root: str | Path) -> dict[str, Path]:
+    """Run directories of a results tree by name (subdirectories with run.json or metrics.json, sorted).
+
+    A run directory itself maps ``""`` to itself.
+
+    Raises:
+        ResultsError: ``root`` is missing or holds no run directory.
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise ResultsError(str(root), "no such results directory")
+    if (root / "run.json").is_file() or (root / "metrics.json").is_file():
+        return {"": root}
+    dirs = {p.name: p for p in sorted(root.iterdir()) if (p / "run.json").is_file() or (p / "metrics.json").is_file()}
+    if not dirs:
+        raise ResultsError(str(root), "no run directories (with run.json or metrics.json) here")
+    return dirs
+
+
+def read_log(path: str | Path) -> pd.DataFrame:
+    """A backend's parquet log as written (every column, the controller names included).
+
+    Raises:
+        ResultsError: the file is missing or not readable parquet.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ResultsError(str(path), "no such file")
+    try:
+        return pd.read_parquet(path)
+    except Exception as exc:  # pyarrow raises several unrelated types
+        raise ResultsError(str(path), f"not a readable parquet file ({type(exc).__name__}: {exc})") from exc
+
+
+def result_from_frame(df: pd.DataFrame, name: str, source: str = "<frame>",
+                      required: Sequence[str] = ("t",)) -> RunResult:  # fmt: skip
+    """A :class:`RunResult` from a DataFrame with (some of) :data:`~legbench.signals.RUN_COLUMNS`.
+
+    Signals absent from the frame are NaN; the foot centre is taken as logged (NaN if absent).
+
+    Raises:
+        ResultsError: a ``required`` column missing, a value not numeric, ``t`` not finite or not
+            strictly increasing, or fewer than 2 rows.
+    """
+    missing = [c for c in required if c not in df.columns]
+    if missing:
+        raise ResultsError(source, f"missing column(s) {missing}; columns present: {list(df.columns)}")
+    n = len(df)
+    if n < 2:
+        raise ResultsError(source, f"has {n} row(s); at least 2 are needed")
+
+    def block(cols: Sequence[str]) -> np.ndarray:
+        out = np.full((n, len(cols)), np.nan)
+        for i, c in enumerate(cols):
+            if c in df.columns:
+                try:
+                    out[:, i] = pd.to_numeric(df[c], errors="raise").to_numpy(dtype=float, na_value=np.nan)
+                except (ValueError, TypeError) as exc:
+                    raise ResultsError(source, f"column '{c}' is not numeric ({exc})") from exc
+        return out
+
+    t = block(["t"])[:, 0]
+    if not np.isfinite(t).all():
+        raise ResultsError(source, "column 't' has non-finite values")
+    steps = np.diff(t)
+    if (steps <= 0).any():
+        i = int(np.argmax(steps <= 0))
+        raise ResultsError(source, f"time is not strictly increasing at row {i + 1} (t = {t[i + 1]!r} s)")
+    ctrl = (
+        df["controller"].astype(str).to_numpy(dtype=object)
+        if "controller" in df.columns
+        else np.full(n, "", dtype=object)
+    )
+    data = block(LABELS)
+    return RunResult(name, t, data[:, 0:3], data[:, 3:6], data[:, 6:9], data[:, 9:12], ctrl, source=source,
+                     foot=block(EE_COLUMNS))  # fmt: skip
+
+
+def load_trace(path: str | Path, name: str | None = None) -> RunResult:
+    """Read one backend's parquet log (every column of :data:`~legbench.signals.RUN_COLUMNS` required).
+
+    Raises:
+        ResultsError: the file is missing, unreadable or lacks a column.
+    """
+    path = Path(path)
+    df = read_log(path)
+    return result_from_frame(df, name or path.stem, str(path), [c for c in RUN_COLUMNS if c != "controller"])
+
+
+def load_run(run_dir: str | Path) -> Run:
+    """Read a run directory (run.json and one parquet per backend whose status is ok).
+
+    A backend listed as ok whose file is absent is reported as ``missing``;
+    a failed backend's file, if present, is kept in :attr:`Run.partial`.
+
+    Raises:
+        ResultsError: the directory or run.json is missing or malformed, or a parquet file is malformed.
+    """
+    path = Path(run_dir)
+    meta = read_meta(path)
+    rj = path / "run.json"
+    sc = _get(meta, "scenario", rj)
+    name = str(_get(sc, "name", rj))
+    mode = str(_get(sc, "contact_mode", rj, "native"))
+    if mode not in ("native", "reference"):
+        raise ResultsError(str(rj), f"scenario.contact_mode is '{mode}', not 'native' or 'reference'")
+    cmp_ = _get(sc, "comparison", rj, {}) or {}
+    events = tuple(EventMark(float(e.get("t", 0.0)), str(e.get("controller", ""))) for e in (sc.get("events") or []))
+    backends: dict[str, BackendStatus] = {}
+    traces: dict[str, RunResult] = {}
+    partial: dict[str, RunResult] = {}
+    for bname, b in meta["backends"].items():
+        if not isinstance(b, Mapping) or "status" not in b:
+            raise ResultsError(str(rj), f"backends.{bname} has no 'status'")
+        status, reason = str(b["status"]), b.get("reason")
+        fname = str(b.get("file") or f"{bname}.parquet")
+        fpath = path / fname
+        if status == "ok" and not fpath.is_file():
+            status, reason = "missing", f"run.json says ok but {fname} is not in {path}"
+        if status == "ok":
+            traces[bname] = load_trace(fpath, bname)
+        elif fpath.is_file():
+            try:
+                partial[bname] = load_trace(fpath, bname)
+            except ResultsError as exc:
+                logger.info("partial log of %s not readable: %s", bname, exc)
+        backends[bname] = BackendStatus(
+            name=bname,
+            status=status,
+            reason=None if reason is None else str(reason),
+            info=dict(b.get("info") or {}),
+            wall_time=_float_or_nan(b.get("wall_time")),
+            rtf=_float_or_nan(b.get("rtf")),
+            file=fname,
+        )
+    return Run(
+        path=path,
+        meta=meta,
+        name=name,
+        label=name if mode == "native" else f"{name}__reference",
+        contact_mode=mode,
+        poc=str((sc.get("contact") or {}).get("poc", "true")),
+        reference=str(cmp_.get("reference", DEFAULT_REFERENCE)),
+        skip=float(cmp_.get("skip", 0.0) or 0.0),
+        steady_window=float(cmp_.get("steady_window", 0.5) or 0.5),
+        duration=float(sc.get("duration", math.nan)),
+        events=events,
+        backends=backends,
+        traces=traces,
+        partial=partial,
+    )
+
+
+def read_metrics(path: str | Path) -> tuple[dict[str, Any], pd.DataFrame]:
+    """Read a metrics.json: (header without the rows, long table with NaN for null).
+
+    Raises:
+        ResultsError: missing file, wrong schema or malformed rows.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ResultsError(str(path), "no such metrics file")
+    doc = _read_json(path)
+    if doc.get("schema") != METRICS_SCHEMA:
+        raise ResultsError(str(path), f"schema is {doc.get('schema')!r}, expected {METRICS_SCHEMA!r}")
+    rows = doc.pop("metrics", None)
+    if not isinstance(rows, list) or any(not isinstance(r, dict) or set(r) != set(FRAME_COLUMNS) for r in rows):
+        raise ResultsError(str(path), f"'metrics' must be a list of objects with keys {list(FRAME_COLUMNS)}")
+    df = pd.DataFrame(rows, columns=list(FRAME_COLUMNS))
+    df["value"] = pd.to_numeric(df["value"], errors="coerce").astype(float)
+    for c in FRAME_COLUMNS[:-1]:
+        df[c] = df[c].astype(str)
+    return doc, df
