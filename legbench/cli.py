@@ -2,327 +2,55 @@
 
 One convention for every subcommand: a registrar ``(subparsers) -> None``
 adds the subcommand's parser and sets ``func``, its handler, which takes the
-parsed arguments and returns the exit status. The core commands (model, run,
-validate, compare, check) are registered here; each study registers itself
-(``add_cli`` of its module in :mod:`legbench.studies`); :data:`COMMANDS` lists
-them all in help order.
+parsed arguments and returns the exit status. :data:`COMMANDS` maps each
+subcommand, in help order, to its registrar (``module:function``): the core
+commands in :mod:`legbench.commands`, each study in its own module of
+:mod:`legbench.studies`.
+
+Start-up is kept light: the signal handlers are installed before anything
+slow is imported, and only the module of the subcommand asked for is imported
+(``legbench --help`` imports them all to list them).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import importlib
 import signal
 import sys
-from collections.abc import Callable, Sequence
-from pathlib import Path
-from typing import Any
+from collections.abc import Sequence
 
-import numpy as np
-
-from legbench import backends, check, kinematics, model, report, results, run, scenario, yamlfile
+from legbench import __version__
 from legbench.exceptions import LegbenchError
-from legbench.studies import bench, calibrate_contact, doctor, sweep, verify
+from legbench.exitcodes import EXIT_INTERRUPTED, EXIT_USER_ERROR
 
-EXIT_OK = 0
-EXIT_FAILURE = 1  # a regression (check) or an unreachable point (model ik)
-EXIT_USER_ERROR = 2  # bad input: nothing was run or written
-EXIT_BACKEND_FAILED = 3  # a backend failed or diverged; the others' results are written
-EXIT_INTERRUPTED = 130
-
-
-def _floats(values: Any) -> list[float]:
-    return [float(v) for v in values]
-
-
-# --------------------------------------------------------------------------- #
-# legbench model ...
-
-
-def _model_fk(args: argparse.Namespace) -> int:
-    ee = kinematics.fk(np.array(args.q))
-    if args.json:
-        print(json.dumps({"ee": _floats(ee)}))
-    else:
-        print(f"foot centre E in W [m]: x = {ee[0]:.6f}, y = {ee[1]:.6f}, z = {ee[2]:.6f}")
-    return 0
+#: subcommand -> registrar ``module:function``, in help order.
+COMMANDS: dict[str, str] = {
+    "model": "legbench.commands:add_model",
+    "run": "legbench.commands:add_run",
+    "validate": "legbench.commands:add_validate",
+    "compare": "legbench.commands:add_compare",
+    "check": "legbench.commands:add_check",
+    "doctor": "legbench.studies.doctor:add_cli",
+    "sweep": "legbench.studies.sweep:add_cli",
+    "verify": "legbench.studies.verify:add_cli",
+    "calibrate-contact": "legbench.studies.calibrate_contact:add_cli",
+    "bench": "legbench.studies.bench:add_cli",
+}
 
 
-def _model_ik(args: argparse.Namespace) -> int:
-    res = kinematics.ik(np.array(args.p))
-    if args.json:
-        out: dict[str, object] = {"solutions": [_floats(s) for s in res.solutions]}
-        if not res:
-            out["reason"] = res.reason
-        print(json.dumps(out))
-        return 0 if res else 1
-    if not res:
-        print(f"unreachable: {res.reason}")
-        return 1
-    for i, s in enumerate(res.solutions):
-        print(f"solution {i + 1}: q1 = {s[0]:+.6f}, q2 = {s[1]:+.6f}, q3 = {s[2]:+.6f} [rad]")
-    return 0
-
-
-def _model_gravity(args: argparse.Namespace) -> int:
-    tau = kinematics.gravity(np.array(args.q))
-    if args.json:
-        print(json.dumps({"tau": _floats(tau)}))
-    else:
-        print(f"gravity torque G(q) [N m]: {tau[0]:+.6f} {tau[1]:+.6f} {tau[2]:+.6f}")
-    return 0
-
-
-def _model_urdf(args: argparse.Namespace) -> int:
-    path = model.write_urdf(model.load_params(args.params), args.out)
-    print(f"wrote {path}")
-    return 0
-
-
-def _model_calibrate(args: argparse.Namespace) -> int:
-    scale = model.calibrate(model.load_raw(args.params))
-    print("mass scale factors that reproduce G(q*) (paste into calibration.scale of the parameter file):")
-    print("  scale: {" + ", ".join(f"{k}: {v:.8f}" for k, v in scale.items()) + "}")
-    return 0
-
-
-def _model_check(args: argparse.Namespace) -> int:
-    """Print the model's headline numbers against the spec's."""
-    p = model.load_params()
-    q_star = np.array(p.q_star)
-    G = kinematics.gravity(q_star)
-    ee = kinematics.fk(q_star)
-    print(f"FK(q*) = {np.round(ee, 5).tolist()} m (spec: [0.16669, -0.00001, 0.0225])")
-    print(f"G(q*)  = {np.round(G, 4).tolist()} N m (report: {list(p.G_star)})")
-    rel = np.abs(G - np.array(p.G_star)) / np.abs(np.array(p.G_star))
-    print(f"relative error per component: {np.round(100 * rel, 3).tolist()} %")
-    masses = {b: round(p.body_inertial(b).mass, 4) for b in model.LINK_NAMES}
-    print(f"moving masses [kg]: {masses}, total {sum(masses.values()):.4f}")
-    return 0 if np.all(rel < 0.05) else 1
-
-
-def _add_model(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    m = sub.add_parser("model", help="the leg model: kinematics, gravity, URDF generation")
-    msub = m.add_subparsers(dest="model_cmd", required=True)
-
-    def joint_cmd(name: str, fn: Callable[[argparse.Namespace], int], help_: str) -> None:
-        p = msub.add_parser(name, help=help_)
-        p.add_argument("q", nargs=3, type=float, metavar=("Q1", "Q2", "Q3"), help="joint angles [rad]")
-        p.add_argument("--json", action="store_true", help="print one JSON object")
-        p.set_defaults(func=fn)
-
-    joint_cmd("fk", _model_fk, "foot centre in W for joint angles")
-    joint_cmd("gravity", _model_gravity, "gravity torque G(q)")
-    p = msub.add_parser("ik", help="every joint solution for a foot-centre point in W")
-    p.add_argument("p", nargs=3, type=float, metavar=("X", "Y", "Z"), help="foot centre in W [m]")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_model_ik)
-    p = msub.add_parser("urdf", help="regenerate models/leg.urdf from the parameter file")
-    p.add_argument("--params", default=None, help="parameter file (default models/leg.yaml)")
-    p.add_argument("--out", default=None, help="output URDF (default models/leg.urdf)")
-    p.set_defaults(func=lambda a: _model_urdf(_with_defaults(a)))
-    p = msub.add_parser("calibrate", help="mass scale factors that reproduce the report's G(q*)")
-    p.add_argument("--params", default=None)
-    p.set_defaults(func=lambda a: _model_calibrate(_with_defaults(a)))
-    p = msub.add_parser("check", help="print FK(q*), G(q*) and masses against the spec")
-    p.set_defaults(func=_model_check)
-
-
-def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
-    if getattr(args, "params", None) is None:
-        args.params = model.PARAMS_FILE
-    if hasattr(args, "out") and args.out is None:
-        args.out = model.URDF_FILE
-    return args
-
-
-# --------------------------------------------------------------------------- #
-# legbench run
-
-
-def _run(args: argparse.Namespace) -> int:
-    overrides = yamlfile.parse_overrides(args.set)
-    scenarios = [scenario.load(path, overrides) for path in args.scenarios]  # all validated before any runs
-    names = backends.resolve(args.backends)
-    modes: list[str | None] = ["native", "reference"] if args.contact_mode == "both" else [args.contact_mode]
-    single = len(scenarios) == 1 and len(modes) == 1
-    root = Path(args.out) if args.out else Path("results") / "latest"
-    plan = [
-        (sc, mode, root if (single and args.out) else results.out_dir_for(root, sc, mode))
-        for sc in scenarios
-        for mode in modes
-    ]
-    if not args.no_preflight:
-        available = set(backends.available())
-        installed = [n for n in names if n in available]
-        checked: set[str] = set()
-        for sc in scenarios:  # every engine must hold the spec's leg before anything runs
-            key = json.dumps([sc.gravity, {k: dict(v) for k, v in sc.backends.items()}], sort_keys=True)
-            if key not in checked:  # the pre-flight depends only on gravity and backend settings
-                doctor.preflight(sc, installed)
-                checked.add(key)
-    outcome = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet)
-    failed = 0
-    for (sc, mode, out), res in zip(plan, outcome, strict=True):
-        print(f"{sc.name}: {sc.duration:g} s at {sc.control_rate:g} Hz, contact {mode or sc.contact_mode} -> {out}")
-        for tr in res:
-            if tr.status != "ok":
-                failed += 1
-                print(f"  {tr.backend:<10} {tr.status.upper()}: {tr.reason}")
-                continue
-            rtf = tr.t[-1] / tr.wall_time if tr.wall_time > 0 else float("nan")
-            print(
-                f"  {tr.backend:<10} ok  wall {tr.wall_time:6.2f} s  RTF {rtf:7.2f}  "
-                f"q_end [{', '.join(f'{x:+.4f}' for x in tr.q[-1])}] rad  "
-                f"F_end [{', '.join(f'{x:+.2f}' for x in tr.f[-1])}] N"
-            )
-    if not args.no_compare:
-        if single:
-            files = report.write_report(plan[0][2])
-            print(f"report: {files.html}")
-        else:
-            report.write_all(root)
-            print(f"report: {root / 'report.html'}")
-    return EXIT_BACKEND_FAILED if failed else EXIT_OK
-
-
-def _validate(args: argparse.Namespace) -> int:
-    """Scenario, sweep (has ``studies``) and tolerance files (only tolerance keys), told apart by content."""
-    for path in args.files:
-        try:
-            doc = yamlfile.yaml_load(Path(path).read_text())
-        except Exception:  # unreadable or malformed: scenario.load says which, with the line
-            doc = None
-        if isinstance(doc, dict) and "studies" in doc:
-            sw = sweep.load_sweep(path)
-            print(f"{path}: ok (sweep {sw.name}: {len(sw.studies)} studies)")
-        elif isinstance(doc, dict) and doc and set(doc) <= set(check.DEFAULT_TOLERANCES):
-            check.load_tolerances(path)
-            print(f"{path}: ok (tolerances: {', '.join(sorted(doc))})")
-        else:
-            sc = scenario.load(path)
-            print(f"{path}: ok ({sc.name}: {len(sc.events)} events, {sc.duration:g} s)")
-    return EXIT_OK
-
-
-def _add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("run", help="run scenarios on one or more backends, then compare them")
-    p.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="scenario YAML files")
-    p.add_argument("--backends", default="all", help="comma-separated backend names, or 'all' (default)")
-    p.add_argument("--out", default=None,
-                   help="output directory: the run directory for one scenario, else the root of one directory "
-                        "per scenario (default results/latest)")  # fmt: skip
-    p.add_argument("--jobs", type=int, default=1, help="processes to run backends and scenarios in (default 1)")
-    p.add_argument("--csv", action="store_true", help="also write <backend>.csv")
-    p.add_argument("--contact-mode", choices=("native", "reference", "both"), default=None,
-                   help="override the scenario's contact mode; 'both' runs each scenario in both modes "
-                        "(<name>/ and <name>__reference/)")  # fmt: skip
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario key, e.g. --set backends.<name>.dt=5e-5")  # fmt: skip
-    p.add_argument("--no-compare", action="store_true", help="do not write the comparison report")
-    p.add_argument("--no-preflight", action="store_true",
-                   help="skip the parity pre-flight (legbench doctor) before running")  # fmt: skip
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=_run)
-
-
-def _compare(args: argparse.Namespace) -> int:
-    column_map: dict[str, str] = {}
-    for item in args.log_columns.split(",") if args.log_columns else []:
-        src, sep, dst = item.partition("=")
-        if not sep or not src.strip() or not dst.strip():
-            raise LegbenchError(f"--log-columns {item!r}: expected HEADER=COLUMN, e.g. joint1_pos=q1")
-        column_map[src.strip()] = dst.strip()
-    written = report.write_all(
-        args.dir,
-        log=args.reference_log,
-        column_map=column_map or None,
-        log_time_scale=args.log_time_scale,
-        log_is_reference=args.log_is_reference,
-        lag=args.lag,
-        all_pairs=args.all_pairs,
-    )
-    for files in written:
-        print(f"wrote {getattr(files, 'html', files)}")
-    return EXIT_OK
-
-
-def _add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("compare", help="compare the backends of a run directory (or a tree of them) and report")
-    p.add_argument("dir", help="a run directory, or a results tree such as results/latest")
-    p.add_argument(
-        "--reference-log",
-        default=None,
-        metavar="CSV",
-        help="an external log (CSV, header with legbench column names) to compare as one more backend",
-    )
-    p.add_argument(
-        "--log-columns",
-        default="",
-        metavar="HEADER=COLUMN,...",
-        help="map the log's headers to legbench columns (t, q1..q3, qd1..qd3, tau1..tau3, fx, fy, fz)",
-    )
-    p.add_argument(
-        "--log-time-scale",
-        type=float,
-        default=1.0,
-        help="factor taking the log's time unit to seconds (e.g. 1e-3 for ms)",
-    )
-    p.add_argument(
-        "--log-is-reference",
-        action="store_true",
-        help="measure every backend against the log instead of the scenario's reference backend",
-    )
-    p.add_argument("--lag", choices=("off", "report", "remove"), default="off",
-                   help="estimate ('report') or estimate and remove ('remove') a constant time lag by "
-                        "cross-correlation")  # fmt: skip
-    p.add_argument("--all-pairs", action="store_true", help="metrics for every pair of backends, not only vs reference")
-    p.set_defaults(func=_compare)
-
-
-def _check(args: argparse.Namespace) -> int:
-    return check.run_check(args.dir, args.baseline, args.tolerances, args.summary, args.junit, all_rows=args.all)
-
-
-def _add_check(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("check", help="regression check of new results against a committed baseline")
-    p.add_argument("dir", help="new results (run directory or tree)")
-    p.add_argument("--baseline", required=True, help="baseline results, same layout (e.g. results/baseline)")
-    p.add_argument("--tolerances", default=None, help="tolerance file (YAML)")
-    p.add_argument("--summary", default=None, help="Markdown summary (default DIR/check.md)")
-    p.add_argument("--junit", default=None, help="JUnit XML (default DIR/check-junit.xml)")
-    p.add_argument("--all", action="store_true", help="print every checked row, not only what moved")
-    p.set_defaults(func=_check)
-
-
-def _add_validate(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("validate", help="check scenario, sweep and tolerance files without running them")
-    p.add_argument("files", nargs="+", help="YAML files")
-    p.set_defaults(func=_validate)
-
-
-#: Every subcommand's registrar, in help order.
-COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (  # type: ignore[type-arg]
-    _add_model,
-    _add_run,
-    _add_validate,
-    _add_compare,
-    _add_check,
-    doctor.add_cli,
-    sweep.add_cli,
-    verify.add_cli,
-    calibrate_contact.add_cli,
-    bench.add_cli,
-)
-
-
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The parser; with ``argv`` naming a subcommand, only that subcommand's module is imported."""
     parser = argparse.ArgumentParser(
         prog="legbench", description="Compare physics engines on the 3-DOF leg: run, compare, check, study."
     )
+    parser.add_argument("--version", action="version", version=f"legbench {__version__}")
     sub = parser.add_subparsers(dest="cmd", required=True)
-    for register in COMMANDS:
-        register(sub)
+    first = next((a for a in argv or () if not a.startswith("-")), None)
+    wanted = [first] if first in COMMANDS else list(COMMANDS)
+    for name in wanted:
+        module, func = COMMANDS[name].split(":")
+        getattr(importlib.import_module(module), func)(sub)
     return parser
 
 
@@ -331,10 +59,10 @@ def _sigterm(signum: int, frame: object) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    previous = signal.signal(signal.SIGTERM, _sigterm)
+    previous = signal.signal(signal.SIGTERM, _sigterm)  # before anything slow
     try:
+        argv = sys.argv[1:] if argv is None else list(argv)
+        args = build_parser(argv).parse_args(argv)
         return int(args.func(args))
     except LegbenchError as exc:
         print(f"legbench: error: {exc}", file=sys.stderr)

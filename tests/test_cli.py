@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
@@ -51,3 +52,32 @@ def test_run_records_the_declared_abilities(tmp_path: Path, capsys: pytest.Captu
     dt = info["dt"]  # the pinocchio sub-step the scenario sets [s]
     assert info["integrator_family"] == "euler" and info["sub_steps"] == round(1e-3 / dt) > 1
     assert len(pd.read_parquet(tmp_path / "r" / "pinocchio.parquet")) == 51
+
+
+def _subcommands(parser: argparse.ArgumentParser) -> list[list[str]]:
+    """Every subcommand path of ``parser`` (e.g. ["model", "fk"])."""
+    paths: list[list[str]] = []
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, child in action.choices.items():
+                paths.append([name])
+                paths.extend([name, *rest] for rest in _subcommands(child))
+    return paths
+
+
+def test_every_subcommand_has_working_help(capsys: pytest.CaptureFixture[str]) -> None:
+    """`legbench X --help` prints usage and exits 0 for every subcommand and sub-subcommand."""
+    paths = _subcommands(cli.build_parser())
+    assert {"run", "compare", "check", "doctor", "bench"} <= {p[0] for p in paths} and ["model", "fk"] in paths
+    for path in paths:
+        with pytest.raises(SystemExit) as exc:
+            cli.main([*path, "--help"])
+        assert exc.value.code == 0, path
+        assert "usage: legbench" in capsys.readouterr().out
+
+
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.startswith("legbench ")

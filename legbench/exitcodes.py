@@ -1,0 +1,7 @@
+"""Exit statuses of the ``legbench`` command."""
+
+EXIT_OK = 0
+EXIT_FAILURE = 1  # a regression (check) or an unreachable point (model ik)
+EXIT_USER_ERROR = 2  # bad input: nothing was run or written
+EXIT_BACKEND_FAILED = 3  # a backend failed or diverged; the others' results are written
+EXIT_INTERRUPTED = 130
