@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from legbench import backends, check, kinematics, model, report, results, run, scenario, yamlfile
+from legbench.backends.base import PROFILES
 from legbench.exceptions import LegbenchError
 from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK
 from legbench.studies import doctor, sweep
@@ -133,7 +134,12 @@ def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
 
 def _run(args: argparse.Namespace) -> int:
     overrides = yamlfile.parse_overrides(args.set)
-    scenarios = [scenario.load(path, overrides) for path in args.scenarios]  # all validated before any runs
+    scenarios = []  # all validated before any runs
+    for path in args.scenarios:
+        sc = scenario.load(path, overrides)
+        profiles = list(PROFILES) if args.profile == "both" else [args.profile or sc.profile]
+        for prof in profiles:  # a profile other than the file's is an override, so it is in the scenario's hash
+            scenarios.append(sc if prof == sc.profile else scenario.load(path, {**overrides, "profile": prof}))
     names = backends.resolve(args.backends)
     modes: list[str | None] = ["native", "reference"] if args.contact_mode == "both" else [args.contact_mode]
     single = len(scenarios) == 1 and len(modes) == 1
@@ -155,7 +161,10 @@ def _run(args: argparse.Namespace) -> int:
     outcome = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet)
     failed = 0
     for (sc, mode, out), res in zip(plan, outcome, strict=True):
-        print(f"{sc.name}: {sc.duration:g} s at {sc.control_rate:g} Hz, contact {mode or sc.contact_mode} -> {out}")
+        print(
+            f"{sc.name}: {sc.duration:g} s at {sc.control_rate:g} Hz, profile {sc.profile}, "
+            f"contact {mode or sc.contact_mode} -> {out}"
+        )
         for tr in res:
             if tr.status != "ok":
                 failed += 1
@@ -208,6 +217,11 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--contact-mode", choices=("native", "reference", "both"), default=None,
                    help="override the scenario's contact mode; 'both' runs each scenario in both modes "
                         "(<name>/ and <name>__reference/)")  # fmt: skip
+    p.add_argument("--profile", choices=(*PROFILES, "both"), default=None,
+                   help="how every backend is configured (default: the scenario's profile, else matched): "
+                        "'matched' maps the spec's physics as faithfully as each engine allows, "
+                        "'engine-defaults' is each engine's documented defaults with only Kp, Kd and mu set; "
+                        "'both' runs each scenario in both (<name>/ and <name>__engine-defaults/)")  # fmt: skip
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, e.g. --set backends.<name>.dt=5e-5")  # fmt: skip
     p.add_argument("--no-compare", action="store_true", help="do not write the comparison report")

@@ -190,9 +190,11 @@ def write_json(doc: Any, path: Path) -> Path:
 
 
 def out_dir_for(root: Path, scenario: Scenario, contact_mode: str | None) -> Path:
-    """Directory of one scenario in a results tree: <root>/<name>, or <name>__reference in reference mode."""
+    """Directory of one scenario in a results tree: <root>/<name>, with ``__<profile>`` for a profile other
+    than ``matched`` and ``__reference`` in reference contact mode (``effort__engine-defaults__reference``)."""
     mode = contact_mode or scenario.contact_mode
-    return Path(root) / (scenario.name if mode == "native" else f"{scenario.name}__reference")
+    name = scenario.name if scenario.profile == "matched" else f"{scenario.name}__{scenario.profile}"
+    return Path(root) / (name if mode == "native" else f"{name}__reference")
 
 
 def _previous(out_dir: Path) -> dict[str, Any] | None:

@@ -150,16 +150,17 @@ def simulate(
 
 
 def backend_info(backend: Backend) -> dict[str, Any]:
-    """What run.json records of a backend: its :meth:`~Backend.info`, plus its declared
-    ``integrator_family`` and ``sub_steps`` (what verification predicts by)."""
-    return {**backend.info(), "integrator_family": backend.integrator_family(), "sub_steps": backend.sub_steps()}
+    """What run.json records of a backend: its :meth:`~Backend.info`, the ``profile`` it was loaded with,
+    and its declared ``integrator_family`` and ``sub_steps`` (what verification predicts by)."""
+    return {**backend.info(), "profile": backend.profile, "integrator_family": backend.integrator_family(),
+            "sub_steps": backend.sub_steps()}  # fmt: skip
 
 
 def run_backend(scenario: Scenario, name: str, contact_mode: str | None = None, progress: bool = False) -> RunResult:
     """Load ``name``, run the scenario, close; any failure is returned as a failed result."""
     physics = physics_of(scenario, contact_mode)
     try:
-        backend = registry.load(name, physics, scenario.backends.get(name, {}))
+        backend = registry.load(name, physics, scenario.backends.get(name, {}), scenario.profile)
     except BackendNotFound as exc:
         return RunResult.empty(name, "missing", str(exc))
     except Exception as exc:  # an engine that cannot load must not stop the others

@@ -43,7 +43,7 @@ import numpy as np
 import yaml
 
 from legbench import backends, kinematics
-from legbench.backends.base import Physics
+from legbench.backends.base import PROFILES, Physics
 from legbench.contact import CONTACT_MODES, ContactParams
 from legbench.exceptions import BackendNotFound
 from legbench.model import load_params
@@ -121,6 +121,7 @@ class Scenario:
     gravity: float  # [m/s^2]
     contact: ContactParams
     contact_mode: str
+    profile: str  # every backend's profile unless its settings name another (backends.<name>.profile)
     backends: Mapping[str, Mapping[str, Any]] = field(hash=False)
     comparison: Comparison
     file: str = "<memory>"
@@ -147,6 +148,7 @@ class Scenario:
             "duration": self.duration,
             "control_rate": self.control_rate,
             "contact_mode": self.contact_mode,
+            "profile": self.profile,
             "gravity": self.gravity,
             "gains": {"Kp": list(self.gains.Kp), "Kd": list(self.gains.Kd), "Ki": list(self.gains.Ki)},
             "initial": {"q": list(self.q0), "qd": list(self.qd0)},
@@ -238,7 +240,7 @@ def _event(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
 # Loading
 
 TOP_KEYS = ["name", "description", "duration", "control_rate", "gains", "initial", "events", "physics",
-            "backends", "comparison"]  # fmt: skip
+            "profile", "backends", "comparison"]  # fmt: skip
 
 
 def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Scenario:
@@ -315,6 +317,10 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     vals["poc"] = "true" if poc in (True, "true") else "centre"
     contact = ContactParams(**vals)
 
+    profile = doc.get("profile", PROFILES[0])
+    if profile not in PROFILES:
+        raise ctx.error(["profile"], f"expected one of {', '.join(PROFILES)} (an engine's own profile goes under "
+                                     f"backends.<name>.profile), got {profile!r}")  # fmt: skip
     bdoc = doc.get("backends", {})
     if not isinstance(bdoc, Mapping):
         raise ctx.error(["backends"], "expected a mapping of backend name -> settings")
@@ -348,6 +354,7 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
         gravity=gravity,
         contact=contact,
         contact_mode=mode,
+        profile=profile,
         backends=backends,
         comparison=comparison,
         file=file,
@@ -393,9 +400,14 @@ def _backend_settings(ctx: YamlContext, name: str, given: Any) -> dict[str, Any]
         if name in backends.BUILTIN:
             return dict(given)  # engine not installed here: keep the settings, the run reports it missing
         raise ctx.error(path, f"unknown backend; known: {', '.join(backends.BUILTIN)}") from None
-    check_keys(ctx, path, given, list(cls.defaults))
+    check_keys(ctx, path, given, [*cls.defaults, "profile"])
     out: dict[str, Any] = {}
     for k, v in given.items():
+        if k == "profile":
+            if v not in cls.profiles:
+                raise ctx.error([*path, k], f"{name} offers the profiles {', '.join(cls.profiles)}, got {v!r}")
+            out[k] = v
+            continue
         default = cls.defaults[k]
         if k in cls.choices:
             if v not in cls.choices[k]:

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from fakes import FakeBackend
 
-from legbench import results, run, scenario, signals
+from legbench import backends, results, run, scenario, signals
 from legbench.exceptions import LegbenchError
 
 DOC = {
@@ -120,3 +120,25 @@ def test_results_are_bit_identical_for_any_number_of_jobs(tmp_path: Path) -> Non
             assert (tmp_path / f"{s.name}-1" / f"{n}.parquet").read_bytes() == (
                 tmp_path / f"{s.name}-2" / f"{n}.parquet"
             ).read_bytes()
+
+
+def test_profile_selects_settings_and_names_the_run_directory(tmp_path: Path) -> None:
+    """A scenario's profile reaches the backend (recorded in run.json) and its directory is <name>__<profile>;
+    a per-backend profile wins over the scenario's."""
+    doc = {
+        "name": "t",
+        "duration": 0.01,
+        "profile": "engine-defaults",
+        "events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}}],
+        "comparison": {"steady_window": 0.005},
+    }
+    sc = scenario.parse(doc)
+    assert results.out_dir_for(tmp_path, sc, None).name == "t__engine-defaults"
+    assert results.out_dir_for(tmp_path, sc, "reference").name == "t__engine-defaults__reference"
+    (tr,) = run.run(sc, ["pinocchio"], tmp_path / "a", progress=False)
+    assert tr.info["profile"] == "engine-defaults"
+    meta = results.read_meta(tmp_path / "a")
+    assert meta["scenario"]["profile"] == "engine-defaults"
+    assert backends.load("pinocchio", scenario.physics_of(sc), {"profile": "matched"}, "engine-defaults").profile == (
+        "matched"
+    )

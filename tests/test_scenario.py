@@ -104,3 +104,21 @@ def test_overrides_are_validated_too(tmp_path: Path) -> None:
         scenario.load(_write(tmp_path, BASE), {"backends.pinocchio.dt": -1.0})
     sc = scenario.load(_write(tmp_path, BASE), {"backends.pinocchio.dt": 1e-4})
     assert sc.backends["pinocchio"]["dt"] == 1e-4
+
+
+def test_profile_defaults_to_matched_and_is_recorded() -> None:
+    sc = scenario.parse(dict(BASE))
+    assert sc.profile == "matched" and sc.to_dict()["profile"] == "matched"
+    assert scenario.parse({**BASE, "profile": "engine-defaults"}).profile == "engine-defaults"
+
+
+@pytest.mark.parametrize(
+    ("doc", "where"),
+    [
+        ({**BASE, "profile": "fastest"}, "profile"),
+        ({**BASE, "backends": {"pinocchio": {"profile": "nope"}}}, "backends.pinocchio.profile"),
+    ],
+)
+def test_unknown_profile_is_refused_naming_the_key(doc: dict, where: str) -> None:  # type: ignore[type-arg]
+    with pytest.raises(ScenarioError, match=where.replace(".", r"\.")):
+        scenario.parse(doc)

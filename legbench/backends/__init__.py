@@ -88,7 +88,9 @@ def load(name: str, physics: Physics, settings: Mapping[str, Any], profile: str 
     """A backend instance with the generated leg loaded under ``physics``, its ``profile`` and ``settings``.
 
     The backend receives its defaults overlaid with the profile's settings and then
-    with ``settings`` (:meth:`Backend.resolve_settings`).
+    with ``settings`` (:meth:`Backend.resolve_settings`). A ``profile`` key in
+    ``settings`` (a scenario's ``backends.<name>.profile``) wins over ``profile``;
+    the instance's :attr:`Backend.profile` says which one it was loaded with.
 
     Raises:
         BackendNotFound: ``name`` is not available.
@@ -96,8 +98,11 @@ def load(name: str, physics: Physics, settings: Mapping[str, Any], profile: str 
         Exception: whatever the engine raises while loading (the instance is closed first).
     """
     cls = get(name)
-    resolved = cls.resolve_settings(settings, profile)
+    given = dict(settings)
+    profile = str(given.pop("profile", profile))
+    resolved = cls.resolve_settings(given, profile)
     backend = cls()
+    backend.profile = profile
     try:
         backend.load(URDF_FILE, physics, resolved)
     except ImportError as exc:  # a plug-in that imports its engine only when loading

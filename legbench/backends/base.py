@@ -115,6 +115,8 @@ class Backend(ABC):
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {"matched": {}, "engine-defaults": {}}
     #: One command that installs the engine where it is missing (shown by the registry).
     install: ClassVar[str] = ""
+    #: The profile this instance was loaded with (set by the registry's ``load``).
+    profile: str = "matched"
 
     @classmethod
     def resolve_settings(cls, given: Mapping[str, Any], profile: str = "matched") -> dict[str, Any]:
