@@ -24,12 +24,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import ResultsError
-from legbench.results import Run, RunResult, read_metrics, run_dirs, write_metrics
+from legbench.results import Run, RunResult, read_meta, read_metrics, run_dirs, write_metrics
 from legbench.signals import JOINTS, LABELS, SIGNAL_OF, SIGNALS, SLICE, UNITS
 from legbench.signals import label as column_label
 
@@ -574,6 +575,7 @@ def write_index(root: str | Path) -> IndexFiles:
     rows: list[tuple[str, ...]] = []
     links: dict[tuple[int, int], str] = {}
     problems: list[tuple[str, ...]] = []
+    measured: list[tuple[str, str, str, pd.DataFrame]] = []  # (scenario name, profile, contact mode, metrics)
     for d in dirs:
         mfile = d / "metrics.json"
         if mfile.is_file():
@@ -581,6 +583,9 @@ def write_index(root: str | Path) -> IndexFiles:
         else:
             res = compare(d)
             meta, df = res.to_json(), res.frame()
+        sc_meta = read_meta(d)["scenario"]
+        measured.append((str(sc_meta["name"]), str(sc_meta.get("profile", "matched")),
+                         str(meta.get("contact_mode", "native")), df))  # fmt: skip
         label = str(meta.get("scenario", d.name))
         for bname, b in (meta.get("backends") or {}).items():
             if b.get("status") != "ok":
@@ -607,12 +612,61 @@ def write_index(root: str | Path) -> IndexFiles:
     if problems:
         blocks.append(_Heading(2, "Backends that did not run"))
         blocks.append(_Table(("scenario", "backend", "status", "reason"), tuple(problems)))
+    blocks += _profile_blocks(measured)
     blocks += _study_blocks(root)
     md = root / "report.md"
     md.write_text(_to_markdown(blocks, root))
     page = root / "report.html"
     page.write_text(_to_html(blocks, "legbench: comparison summary"))
     return IndexFiles(page, md, tuple(dirs))
+
+
+def _profile_blocks(measured: Sequence[tuple[str, str, str, pd.DataFrame]]) -> list[_Block]:
+    """What configuration costs: each scenario's native-contact runs in the ``matched`` and
+    ``engine-defaults`` profiles side by side (largest joint-angle error %, steady ground force)."""
+    by_key = {(name, prof): df for name, prof, mode, df in measured if mode == "native"}
+    names = [n for n in dict.fromkeys(name for name, _, _, _ in measured) if (n, "engine-defaults") in by_key
+             and (n, "matched") in by_key]  # fmt: skip
+    if not names:
+        return []
+    rows: list[tuple[str, ...]] = []
+    for name in names:
+        cells: dict[str, dict[str, tuple[float, float]]] = {}
+        for prof in ("matched", "engine-defaults"):
+            df = by_key[(name, prof)]
+            for backend, g in df.groupby("backend", sort=False):
+                q = g[(g["metric"] == "sim_error_pct") & (g["signal"] == "q")]["value"]
+                fz = g[(g["metric"] == "steady_mean") & (g["signal"] == "force") & (g["joint"] == "z")]["value"]
+                cells.setdefault(str(backend), {})[prof] = (
+                    float(q.max()) if len(q) else math.nan,
+                    float(fz.iloc[0]) if len(fz) else math.nan,
+                )
+        for backend, by_prof in cells.items():
+            m = by_prof.get("matched", (math.nan, math.nan))
+            e = by_prof.get("engine-defaults", (math.nan, math.nan))
+            rows.append((name, backend, _fmt(m[0], 3), _fmt(e[0], 3), _fmt(m[1], 4), _fmt(e[1], 4)))
+    return [
+        _Heading(2, "Profiles side by side: what configuration costs"),
+        _Para(
+            "Native contact. 'matched': each engine configured to the spec's physics as faithfully as it allows; "
+            "'engine-defaults': the engine's documented defaults with only Kp, Kd and mu set "
+            "(docs/contact_mapping.md). "
+            "A difference between the two columns is the settings', not the engine's."
+        ),
+        _Table(
+            (
+                "scenario",
+                "backend",
+                "max q error % (matched)",
+                "max q error % (engine-defaults)",
+                "steady Fn [N] (matched)",
+                "steady Fn [N] (engine-defaults)",
+            ),  # fmt: skip
+            tuple(rows),
+            "Largest joint-angle simulation error % against the scenario's reference backend in the same profile, "
+            "and the steady normal ground force (mean over the steady window)",
+        ),
+    ]
 
 
 #: Study outputs the index shows when present under the results root:

@@ -12,11 +12,14 @@ import pandas as pd
 import pytest
 from fakerun import offset, scale, write_run
 
+from legbench import cli, results
 from legbench import report as R
 from legbench.exceptions import ResultsError
 
 IMG = re.compile(r'<img src="data:image/png;base64,([A-Za-z0-9+/=]+)"')
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 
 
 def test_report_html_embeds_every_figure_and_nothing_external(tmp_path: Path) -> None:
@@ -169,3 +172,20 @@ def test_index_shows_the_benchmark_beside_the_results_root(tmp_path: Path) -> No
     R.write_all(root)
     md = (root / "report.md").read_text()
     assert "## Performance" in md and "| effort | a | 50 | 46 | 4 | 1.087 | 20 | 1.02 | yes |" in md
+
+
+def test_index_sets_the_two_profiles_side_by_side(tmp_path: Path) -> None:
+    """A task run in both profiles gets one index row per backend with both profiles' numbers, each equal to
+    the steady Fn of that profile's own metrics (to the 4 significant digits printed)."""
+    argv = ["run", str(SCENARIOS / "effort.yaml"), "--backends", "pinocchio,mujoco", "--profile", "both",
+            "--out", str(tmp_path), "-q", "--no-preflight", "--set", "duration=0.6"]  # fmt: skip
+    assert cli.main(argv) == 0
+    md = (tmp_path / "report.md").read_text()
+    assert "Profiles side by side" in md
+    row = next(line for line in md.splitlines() if line.startswith("| effort | mujoco |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    for prof, col in (("matched", 4), ("engine-defaults", 5)):
+        d = tmp_path / ("effort" if prof == "matched" else "effort__engine-defaults")
+        _, df = results.read_metrics(d / "metrics.json")
+        fz = df[(df.backend == "mujoco") & (df.metric == "steady_mean") & (df.signal == "force") & (df.joint == "z")]
+        assert float(cells[col]) == pytest.approx(float(fz["value"].iloc[0]), rel=5e-4)
