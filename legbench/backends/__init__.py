@@ -34,6 +34,8 @@ BUILTIN: dict[str, tuple[str, str, str]] = {
     "pinocchio": ("legbench.backends.pinocchio_", "PinocchioBackend", "pin"),
     "mujoco": ("legbench.backends.mujoco_", "MujocoBackend", "mujoco"),
     "pybullet": ("legbench.backends.pybullet_", "PybulletBackend", "pybullet"),
+    "drake": ("legbench.backends.drake_", "DrakeBackend", "drake"),
+    "dart": ("legbench.backends.dart_", "DartBackend", "dartpy"),
 }
 
 _MISSING: dict[str, str] = {}
