@@ -72,6 +72,7 @@ default relaxation time of 0.1 s adds to the foot's).
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Mapping
 from importlib import metadata
@@ -264,7 +265,14 @@ class DrakeBackend(Backend):
         if self.cfg["contact_model"] == "hydroelastic":
             AddRigidHydroelasticProperties(props)
         self.contact_props["ground"] = _props_dict(props)
-        return plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(), HalfSpace(), "ground", props)
+        # Drake logs that a rigid half-space takes no part in deformable contact (there is none here)
+        drake_log = logging.getLogger("drake")
+        level = drake_log.level
+        drake_log.setLevel(logging.ERROR)
+        try:
+            return plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(), HalfSpace(), "ground", props)
+        finally:
+            drake_log.setLevel(level)
 
     def _friction(self) -> Any:
         """Discrete solvers use the dynamic coefficient only: (mu_s, mu_s); continuous: (mu_s, mu_k)."""
