@@ -233,6 +233,8 @@ class DrakeBackend(Backend):
         self._act = plant.get_actuation_input_port().FixValue(self.ctx, np.zeros(3))
         self._gen = plant.get_applied_generalized_force_input_port().FixValue(self.ctx, np.zeros(3))
         self._results_port = plant.get_contact_results_output_port()
+        #: Drake's discrete period [s] (0: continuous); targets are integer multiples of it
+        self._h = 0.0 if self.continuous else float(plant.time_step())
         self._q_idx = [j.position_start() for j in self.joints]
         self._v_idx = [j.velocity_start() for j in self.joints]
         self.contact = ReferenceContact.from_leg(c)
@@ -337,16 +339,17 @@ class DrakeBackend(Backend):
         """Advance one control period with tau [N m], clamped to the torque limits, held."""
         np.clip(tau, self._lo, self._hi, out=self._tau)
         _set(self._act, self._tau)
-        Ts, n = self.physics.control_dt, self.n_sub
+        Ts, n, h = self.physics.control_dt, self.n_sub, self._h
         if self.reference:
             q, qd, law = self._q, self._qd, self.contact.generalized
             for k in range(n):
                 _set(self._gen, law(q[0], q[1], q[2], qd[0], qd[1], qd[2]))
-                self.simulator.AdvanceTo((self.tick * n + k + 1) * Ts / n)
+                self.simulator.AdvanceTo((self.tick * n + k + 1) * h)
                 self._read()
             self._reference_force()
         else:
-            self.simulator.AdvanceTo((self.tick + 1) * Ts)
+            # an integer count of Drake's own period, so every target is exactly one of its event times
+            self.simulator.AdvanceTo((self.tick + 1) * n * h if h else (self.tick + 1) * Ts)
             self._read()
             self._native_force()
         self.tick += 1
