@@ -72,9 +72,10 @@ default relaxation time of 0.1 s adds to the foot's).
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from importlib import metadata
 from pathlib import Path
 from typing import Any, ClassVar
@@ -186,9 +187,25 @@ class DrakeBackend(Backend):
             stiction_tolerance=self.v_s,
             sap_near_rigid_threshold=float(cfg["sap_near_rigid_threshold"]),
         )
+        # Drake warns that a rigid half-space takes no part in deformable contact (there is none here)
+        with _drake_log_level(logging.ERROR):
+            self._build(urdf, physics, plant_cfg, usual)
+        self.contact = ReferenceContact.from_leg(c)
+        self._hi = np.asarray(physics.torque_limit, float)
+        self._lo = -self._hi
+        self._tau = np.zeros(3)
+        self._cmd = np.zeros(3)
+        self._force = np.zeros(3)
+        self._q = np.zeros(3)
+        self._qd = np.zeros(3)
+        self.tick = 0
+
+    def _build(self, urdf: Path, physics: Physics, plant_cfg: MultibodyPlantConfig, usual: bool) -> None:
+        """Plant, scene graph, ground, contact properties, simulator and input ports."""
+        cfg, c = self.cfg, physics.contact
         builder = DiagramBuilder()
         plant, scene_graph = AddMultibodyPlant(plant_cfg, builder)
-        Parser(plant).AddModels(str(urdf))
+        Parser(plant).AddModels(Path(urdf))
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base"))
         plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -physics.gravity])
         self.joints = [plant.GetJointByName(n) for n in JOINT_NAMES]
@@ -213,7 +230,9 @@ class DrakeBackend(Backend):
                 .ExcludeBetween(GeometrySet(others), GeometrySet([self.ground] if self.ground else []))
             )  # fmt: skip
         if self.reference:
-            scene_graph.collision_filter_manager().Apply(CollisionFilterDeclaration().ExcludeWithin(GeometrySet(leg_geoms)))
+            scene_graph.collision_filter_manager().Apply(
+                CollisionFilterDeclaration().ExcludeWithin(GeometrySet(leg_geoms))
+            )
         else:
             for g in foot_geoms:
                 scene_graph.AssignRole(plant.get_source_id(), g, self._foot_props(c, usual), RoleAssign.kReplace)
@@ -237,15 +256,6 @@ class DrakeBackend(Backend):
         self._h = 0.0 if self.continuous else float(plant.time_step())
         self._q_idx = [j.position_start() for j in self.joints]
         self._v_idx = [j.velocity_start() for j in self.joints]
-        self.contact = ReferenceContact.from_leg(c)
-        self._hi = np.asarray(physics.torque_limit, float)
-        self._lo = -self._hi
-        self._tau = np.zeros(3)
-        self._cmd = np.zeros(3)
-        self._force = np.zeros(3)
-        self._q = np.zeros(3)
-        self._qd = np.zeros(3)
-        self.tick = 0
 
     def _ground(self, plant: Any, usual: bool) -> Any:
         """Register the ground half-space on the world body: rigid, the foot's friction (or friction only)."""
@@ -267,14 +277,7 @@ class DrakeBackend(Backend):
         if self.cfg["contact_model"] == "hydroelastic":
             AddRigidHydroelasticProperties(props)
         self.contact_props["ground"] = _props_dict(props)
-        # Drake logs that a rigid half-space takes no part in deformable contact (there is none here)
-        drake_log = logging.getLogger("drake")
-        level = drake_log.level
-        drake_log.setLevel(logging.ERROR)
-        try:
-            return plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(), HalfSpace(), "ground", props)
-        finally:
-            drake_log.setLevel(level)
+        return plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(), HalfSpace(), "ground", props)
 
     def _friction(self) -> Any:
         """Discrete solvers use the dynamic coefficient only: (mu_s, mu_s); continuous: (mu_s, mu_k)."""
@@ -422,16 +425,18 @@ class DrakeBackend(Backend):
                 "Kd": c.Kd,
                 "mu_s": c.mu_s,
                 "mu_k": c.mu_k,
-                "normal_law": "linear Kelvin-Voigt Kp (x + tau_d xdot)_+" if self.cfg["solver"] == "sap"
+                "normal_law": "linear Kelvin-Voigt Kp (x + tau_d xdot)_+"
+                if self.cfg["solver"] == "sap"
                 else "Hunt-Crossley k x (1 + d xdot)_+",
                 "properties": self.contact_props,
                 "reference_law": "J_poc^T F via the applied generalized force port per sub-step"
-                if self.reference else None,
+                if self.reference
+                else None,
             },  # fmt: skip
         }
         if self.continuous:
             integ = self.simulator.get_integrator()
-            out["accuracy_in_use"] = integ.get_accuracy_in_use()
+            out["target_accuracy"] = integ.get_target_accuracy()
         return out
 
     def _integrator_name(self) -> str:
@@ -499,6 +504,18 @@ class DrakeBackend(Backend):
         self.diagram = None  # type: ignore[assignment]
 
 
+@contextlib.contextmanager
+def _drake_log_level(level: int) -> Iterator[None]:
+    """Raise the ``drake`` logger's level for the block (pydrake syncs it to Drake's C++ logger)."""
+    log = logging.getLogger("drake")
+    before = log.level
+    log.setLevel(level)
+    try:
+        yield
+    finally:
+        log.setLevel(before)
+
+
 def _set(fixed: Any, value: np.ndarray) -> None:
     """Write a fixed input port's vector in place (``GetMutableData`` also marks its dependents stale)."""
     fixed.GetMutableData().get_mutable_value().SetFromVector(value)
@@ -511,7 +528,10 @@ def _props_dict(props: ProximityProperties) -> dict[str, Any]:
         if not props.HasGroup(group):
             continue
         for name in props.GetPropertiesInGroup(group):
-            value = props.GetProperty(group, name)
+            try:
+                value = props.GetProperty(group, name)
+            except RuntimeError:  # a value type pydrake does not bind (e.g. the hydroelastic compliance type)
+                value = "<unbound>"
             if isinstance(value, CoulombFriction):
                 value = {"static": value.static_friction(), "dynamic": value.dynamic_friction()}
             elif not isinstance(value, int | float | str | bool):
