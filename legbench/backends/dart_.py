@@ -258,7 +258,7 @@ class DartBackend(Backend):
             **{k: self.cfg[k] for k in self.defaults},
             "sub_steps": self.n_sub,
             "timestep": world.getTimeStep(),
-            "integrator": "semi-implicit euler",
+            "integrator": "euler",  # World.step: semi-implicit Euler (the family verification predicts by)
             "gravity": -float(world.getGravity()[2]),
             "contact_mode": self.physics.contact_mode,
             "contact": {

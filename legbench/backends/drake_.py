@@ -411,7 +411,8 @@ class DrakeBackend(Backend):
             **{k: self.cfg[k] for k in self.defaults},
             "sub_steps": self.n_sub,
             "timestep": plant.time_step() if not self.continuous else None,
-            "integrator": self._integrator_name(),
+            "integrator": "runge_kutta3" if self.continuous else "euler",  # the family verification predicts by
+            "scheme": self._integrator_name(),
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
             "contact": {
