@@ -474,25 +474,25 @@ class DrakeBackend(Backend):
     def mass_properties(self) -> dict[str, dict[str, Any]]:
         """Per moving body: mass [kg], COM [m] and inertia about the COM [kg m^2] in the link frame.
 
-        From each body's ``default_spatial_inertia`` (about the body origin, in the
-        body frame); link 3 includes the foot, placed by its default pose in link 3.
+        From each body's spatial inertia in the simulated context (about the body
+        origin, in the body frame); link 3 includes the foot, placed by its pose in link 3.
         """
-        plant, ctx = self.plant, self.plant.CreateDefaultContext()
+        plant, ctx = self.plant, self.ctx
         out = {}
         for name in LINK_NAMES:
-            inr = self._inertial(plant.GetBodyByName(name))
+            inr = self._inertial(plant.GetBodyByName(name), ctx)
             if name == LINK_NAMES[-1]:
                 X = plant.CalcRelativeTransform(ctx, plant.GetFrameByName(name), self.foot_body.body_frame())
                 R, p = X.rotation().matrix(), X.translation()
-                foot = self._inertial(self.foot_body)
+                foot = self._inertial(self.foot_body, ctx)
                 moved = Inertial(foot.mass, tuple(R @ foot.com + p), tuple(map(tuple, R @ foot.I @ R.T)))  # type: ignore[arg-type]
                 inr = combine([inr, moved])
             out[name] = {"mass": inr.mass, "com": list(inr.com), "inertia": inr.I.tolist()}
         return out
 
     @staticmethod
-    def _inertial(body: Any) -> Inertial:
-        M = body.default_spatial_inertia()
+    def _inertial(body: Any, ctx: Any) -> Inertial:
+        M = body.CalcSpatialInertiaInBodyFrame(ctx)
         m = float(M.get_mass())
         com = np.asarray(M.get_com())
         I_o = M.CalcRotationalInertia().CopyToFullMatrix3()  # about the body origin
