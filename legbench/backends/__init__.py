@@ -72,7 +72,11 @@ def available() -> list[str]:
 
 
 def get(name: str) -> type[Backend]:
-    """The backend class registered under ``name``."""
+    """The backend class registered under ``name`` (a built-in one is imported alone, not with every engine)."""
+    if name in BUILTIN:
+        cls = _load_builtin(name)
+        if cls is not None:
+            return cls
     reg = _registry()
     if name not in reg:
         raise BackendNotFound(name, reg, _MISSING.get(name, ""))
