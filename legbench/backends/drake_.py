@@ -20,12 +20,16 @@ Native point contact, mapped onto Drake's per-geometry ``ProximityProperties``
 infinite one leaves the other), their Hunt-Crossley dissipations weighted by
 the other's stiffness (an infinitely stiff partner leaves the compliant one's),
 their relaxation times by sum, and their friction by
-mu = 2 mu_A mu_B / (mu_A + mu_B). So the ground is rigid
-(``point_contact_stiffness = inf``, relaxation time 0) with the foot's
-friction, and the foot carries the spec's numbers:
+mu = 2 mu_A mu_B / (mu_A + mu_B); the contact point lies between the two
+witness points, weighted by stiffness. An infinitely stiff geometry makes that
+weight inf/inf (SAP then fails on NaN), so the foot is near-rigid
+(``point_contact_stiffness = 1e8 Kp``, relaxation time 0) and the ground
+carries the spec's numbers: the pair's stiffness is exactly Kp and the contact
+point is the sphere's lowest point (the spec's true poc) to 1e-8 of the
+penetration. Both get the same friction and Hunt-Crossley dissipation.
 
-- ``point_contact_stiffness = Kp``: exact.
-- SAP: ``relaxation_time = Kd / Kp``, so fn = Kp (x + tau_d xdot)_+ =
+- Stiffness: ground 1 / (1/Kp - 1/(1e8 Kp)), in series with the foot: Kp exactly.
+- SAP: ground ``relaxation_time = Kd / Kp``, so fn = Kp (x + tau_d xdot)_+ =
   Kp x + Kd xdot, the spec's spring-damper exactly while pressing in. It cannot
   switch the damping off while releasing (the spec does), and the force is
   clamped at zero instead of staying Kp x while the foot lifts quickly.
@@ -42,7 +46,7 @@ friction, and the foot carries the spec's numbers:
   2 mu / v_s against mu_s / v_th in the spec); the continuous plant's Stribeck
   curve drops from mu_s at v_s to mu_k (``CoulombFriction(mu_s, mu_k)``) at
   3 v_s, where the spec's drops at 1.5 v_th. SAP regularises friction with its
-  own near-rigid scale: the foot sticks (creep ~1e-3 of the slip speed scale).
+  own regularisation: the foot sticks (measured creep 0.004 mm/s in the effort task).
 
 Hydroelastic option (``contact_model = "hydroelastic"``): the foot is a compliant
 hydroelastic sphere (``hydroelastic_modulus`` E, mesh ``resolution_hint``) on a
