@@ -28,8 +28,8 @@ def test_contact_force_equals_statics_within_0p5_percent_of_fn(profile: str) -> 
 
     DART's contact force is its LCP impulse over the last sub-step; at rest the
     foot sticks (Coulomb), so the statics hold to round-off (measured 7e-11
-    relative at 0.05 ms, 7e-8 at 1 ms). 0.5 % is the issue's bound for a
-    read-out in steady contact. Rigid contact: the foot stays within 0.1 mm of
+    relative at 0.05 ms, 7e-8 at 1 ms). 0.5 % of Fn is the accuracy
+    required of a read-out in steady contact. Rigid contact: the foot stays within 0.1 mm of
     touching (measured 5e-10 m at 0.05 ms, 3e-7 m at 1 ms); a 1e4 N/m
     spring would sink 4 mm.
     """

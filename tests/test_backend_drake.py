@@ -39,7 +39,7 @@ def test_contact_results_equal_statics_within_0p5_percent_of_fn(profile: str) ->
     foot on the compliant ground) and between the witness points in
     ``engine-defaults``: measured 1.2e-6 (matched) and 1.4e-3 (engine-defaults,
     sink ~4 mm: the 3.6 N tangential force acts ~2 mm higher than the true poc).
-    0.5 % is the issue's bound for a read-out in steady contact.
+    0.5 % of Fn is the accuracy required of a read-out in steady contact.
     """
     backend = load("drake", Physics(), {}, profile)
     try:
