@@ -13,7 +13,7 @@ LEGBENCH := $(BIN)/legbench
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[dev]'
+	$(BIN)/pip install --quiet -e '.[dev,drake,dart]'
 	touch $(STAMP)
 
 setup: $(STAMP)

@@ -21,8 +21,8 @@ from legbench.backends import get
 from legbench.backends.base import Backend, Physics
 from legbench.exceptions import LegbenchError
 
-ENGINES = ("mujoco", "pybullet")
-PACKAGE = {"mujoco": "mujoco", "pybullet": "pybullet", "pinocchio": "pinocchio"}
+ENGINES = ("mujoco", "pybullet", "drake", "dart")
+PACKAGE = {"mujoco": "mujoco", "pybullet": "pybullet", "pinocchio": "pinocchio", "drake": "pydrake", "dart": "dartpy"}
 CONTROL_DT = 1e-3  # [s]
 PARAMS = model.load_params()
 R_FOOT = PARAMS.geometry.R_foot
@@ -225,6 +225,16 @@ def engine_gravity(backend: Backend, q: np.ndarray) -> np.ndarray:
         d.qacc[:] = 0.0
         mujoco.mj_inverse(m, d)
         return np.array(d.qfrc_inverse)
+    if backend.name == "drake":
+        plant = backend.plant  # type: ignore[attr-defined]
+        ctx = plant.CreateDefaultContext()
+        plant.SetPositions(ctx, q)
+        return -np.array(plant.CalcGravityGeneralizedForces(ctx))  # Drake returns the force of gravity, -G
+    if backend.name == "dart":
+        skel = backend.skel  # type: ignore[attr-defined]
+        skel.setPositions(q)
+        skel.setVelocities(np.zeros(3))
+        return np.array(skel.getGravityForces())
     import pybullet
 
     tau = pybullet.calculateInverseDynamics(
@@ -317,18 +327,31 @@ def test_contact_force_settles_to_static_balance_within_2_percent(make: Make, en
 def test_contact_normal_force_is_kp_times_penetration_at_rest(make: Make, engine: str, mode: str) -> None:
     """At rest the normal force is Kp y (y = R_foot - z_E) to 0.1 %: the stiffness mapping is right in newtons.
 
-    Checks MuJoCo's solref = (-Kp A, -Kd A) with A = body_invweight0 and
-    Bullet's contactStiffness/plane pairing. The residual penetration rate
-    adds Kd ydot ~ 1e-4 N of the ~10 N (measured 1e-5 relative MuJoCo, 3e-5
-    PyBullet); a wrong A or a halved stiffness is off by tens of percent.
+    Checks MuJoCo's solref = (-Kp A, -Kd A) with A = body_invweight0,
+    Bullet's contactStiffness/plane pairing and Drake's ground/foot stiffness
+    pair in series. The residual penetration rate adds Kd ydot ~ 1e-4 N of
+    the ~10 N (measured 1e-5 relative MuJoCo, 3e-5 PyBullet, 1e-9 Drake SAP);
+    a wrong A or a halved stiffness is off by tens of percent.
+
+    An engine whose native contact is rigid (it declares no Kp in ``info()``,
+    e.g. DART's LCP) is held to that instead: the foot does not sink, y < 1 um
+    (measured 1e-10 m for DART at 0.05 ms; a compliant 1e4 N/m contact would
+    sink 1 mm under the same 10 N).
     """
-    log = run_press(make(engine, Physics(contact_mode=mode)), np.array([0.0, 0.0, -10.0]))
+    backend = make(engine, Physics(contact_mode=mode))
+    log = run_press(backend, np.array([0.0, 0.0, -10.0]))
     y = R_FOOT - kinematics.fk(log["q"][-1])[2]
+    if mode == "native" and backend.info()["contact"].get("Kp") is None:
+        assert log["F"][-1, 2] > 5.0 and abs(y) < 1e-6, (log["F"][-1], y)
+        return
     assert log["F"][-1, 2] == pytest.approx(PARAMS.contact.Kp * y, rel=1e-3)
 
 
 def test_reference_mode_engines_agree_to_1e9_rad(make: Make) -> None:
-    """Reference contact law, semi-implicit Euler at 0.1 ms: MuJoCo, PyBullet, Pinocchio agree to 1e-9 rad, 1e-6 N.
+    """Reference contact law, semi-implicit Euler at 0.1 ms: every engine agrees to 1e-9 rad, 1e-6 N.
+
+    MuJoCo, PyBullet, Pinocchio, DART and Drake (SAP with no contact geometry is
+    semi-implicit Euler: its free swing matches DART's to 6e-16 rad).
 
     The foot is pressed with 10 N and dragged with 6.5 N, so it slides ~7 cm
     in contact through the whole stick-slip curve (|F_t|/Fn up to mu_s). All backends
@@ -337,7 +360,7 @@ def test_reference_mode_engines_agree_to_1e9_rad(make: Make) -> None:
     separates them. A different sub-step (Pinocchio at its 5e-5 s default)
     already differs by 4e-5 rad, so this also pins the settings.
     """
-    names = ["mujoco", "pybullet", "pinocchio"]
+    names = ["mujoco", "pybullet", "pinocchio", "dart", "drake"]
     logs = {}
     for name in names:
         try:
@@ -374,6 +397,21 @@ def test_only_the_foot_touches_the_ground(make: Make, engine: str, mode: str) ->
         m, d = backend.model, backend.data  # type: ignore[attr-defined]
         pairs = {(m.geom_bodyid[c.geom1], m.geom_bodyid[c.geom2]) for c in d.contact[: d.ncon]}
         foot = {(0, m.body(model.FOOT_FRAME).id)}
+    elif engine == "drake":
+        plant = backend.plant  # type: ignore[attr-defined]
+        results = plant.get_contact_results_output_port().Eval(backend.ctx)  # type: ignore[attr-defined]
+        infos = [results.point_pair_contact_info(i) for i in range(results.num_point_pair_contacts())]
+        pairs = {tuple(sorted(plant.get_body(b).name() for b in (i.bodyA_index(), i.bodyB_index()))) for i in infos}
+        foot = {tuple(sorted((plant.world_body().name(), model.FOOT_FRAME)))}
+    elif engine == "dart":
+        contacts = backend.world.getLastCollisionResult().getContacts()  # type: ignore[attr-defined]
+        pairs = {
+            tuple(
+                sorted(o.getShapeFrame().getBodyNodePtr().getName() for o in (c.collisionObject1, c.collisionObject2))
+            )
+            for c in contacts
+        }
+        foot = {tuple(sorted((model.FOOT_FRAME, backend.ground.getBodyNode(0).getName())))}  # type: ignore[attr-defined]
     else:
         import pybullet
 

@@ -45,10 +45,22 @@ def _heavier_link2_pybullet(b: Any) -> None:
     p.changeDynamics(b.body, link, mass=mass * (1 + 1e-4), physicsClientId=b.cid)
 
 
+def _heavier_link2_drake(b: Any) -> None:
+    body = b.plant.GetBodyByName("link2")
+    body.SetMass(b.ctx, body.get_mass(b.ctx) * (1 + 1e-4))
+
+
+def _heavier_link2_dart(b: Any) -> None:
+    body = b.skel.getBodyNode("link2")
+    body.setMass(body.getMass() * (1 + 1e-4))
+
+
 PLANT: dict[str, Callable[[Any], None]] = {
     "pinocchio": _heavier_link2_pinocchio,
     "mujoco": _heavier_link2_mujoco,
     "pybullet": _heavier_link2_pybullet,
+    "drake": _heavier_link2_drake,
+    "dart": _heavier_link2_dart,
 }
 
 

@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 
 from legbench import backends
+from legbench.backends.base import Physics
 from legbench.exceptions import LegbenchError, ScenarioError
 from legbench.results import RunResult
 from legbench.studies import sweep
@@ -28,10 +29,15 @@ def timestep(tmp_path_factory: pytest.TempPathFactory) -> sweep.SweepResult:
 
 
 def _family(table: pd.DataFrame, study: int, backend: str) -> str:
+    """The study's integrator setting, else the backend's declared integrator family (default settings)."""
     rows = table[(table["study"] == study) & (table["backend"] == backend) & (table["role"] == "run")]
     integ = rows["integrator"].iloc[0] if "integrator" in rows else None
     if integ is None or (isinstance(integ, float) and math.isnan(integ)):
-        return "euler" if backend == "pybullet" else "unknown"  # Bullet integrates semi-implicit Euler
+        loaded = backends.load(backend, Physics(), {})
+        try:
+            return loaded.integrator_family()
+        finally:
+            loaded.close()
     return str(integ)
 
 

@@ -36,6 +36,8 @@ BUILTIN: dict[str, tuple[str, str, str]] = {
     "pinocchio": ("legbench.backends.pinocchio_", "PinocchioBackend", "pin"),
     "mujoco": ("legbench.backends.mujoco_", "MujocoBackend", "mujoco"),
     "pybullet": ("legbench.backends.pybullet_", "PybulletBackend", "pybullet"),
+    "drake": ("legbench.backends.drake_", "DrakeBackend", "drake"),
+    "dart": ("legbench.backends.dart_", "DartBackend", "dartpy"),
 }
 
 _MISSING: dict[str, str] = {}
@@ -77,7 +79,11 @@ def available() -> list[str]:
 
 
 def get(name: str) -> type[Backend]:
-    """The backend class registered under ``name``."""
+    """The backend class registered under ``name`` (a built-in one is imported alone, not with every engine)."""
+    if name in BUILTIN:
+        cls = _load_builtin(name)
+        if cls is not None:
+            return cls
     reg = _registry()
     if name not in reg:
         raise BackendNotFound(name, reg, _MISSING.get(name, ""))

@@ -142,6 +142,9 @@ class Calibration:
         creep: horizontal speed of the point of contact at the end of the hold [m/s].
         creep_law: the spec's law's creep for the same Fn and Ft, v_th Ft / (mu_s Fn) [m/s].
         c_tangential: Ft / creep [N s/m] (inf when the foot sticks).
+        compliant: the backend's native contact declares a stiffness (``info()["contact"]["Kp"]`` is
+            not None); a rigid one (e.g. an LCP engine) has no Kp or Kd to match, and its k_eff only
+            says how rigid it is.
         note: saturation or fit problems.
     """
 
@@ -157,6 +160,7 @@ class Calibration:
     creep: float
     creep_law: float
     c_tangential: float
+    compliant: bool = True
     note: str = ""
 
 
@@ -196,10 +200,13 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     creep = float(np.hypot(v[end, 0], v[end, 1]).mean())
     if saturated:
         notes.append(f"{saturated} ticks saturated a joint torque: h_d was not fully applied")
+    compliant = log.info.get("contact", {}).get("Kp", contact.Kp) is not None
+    if not compliant:
+        notes.append("rigid contact: no Kp, Kd to match")
     return Calibration(
         backend=log.backend, Kp=contact.Kp, Kd=contact.Kd, mu_s=contact.mu_s, v_th=contact.v_th, k_eff=k_eff,
         c_eff=c_eff, Fn=Fn, Ft=Ft, creep=creep, creep_law=contact.v_th * Ft / (contact.mu_s * Fn),
-        c_tangential=Ft / creep if creep > 0 else math.inf, note="; ".join(notes),
+        c_tangential=Ft / creep if creep > 0 else math.inf, compliant=compliant, note="; ".join(notes),
     )  # fmt: skip
 
 

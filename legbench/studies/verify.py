@@ -25,7 +25,9 @@ answer computed here from the leg's reference model (:class:`legbench.model.Dyna
 ``rest_penetration``
     The effort task at rest (``effort_rest.yaml``): y = R_foot - z_E = Fn/Kp.
     Tolerance: 0.1 % of y (the engines' contact solvers) plus Kd max|ydot|/Kp
-    (the damping force the residual motion may carry).
+    (the damping force the residual motion may carry). A backend whose native
+    contact is rigid (``info()["contact"]["Kp"]`` is None) is expected not to
+    sink, y = 0, to the same tolerance.
 ``static_balance``
     Same run: F = -(J_poc^T)^-1 (tau - G(q)) per component of the ground force.
     Tolerance: the dynamic terms left in the window, |(J_poc^T)^-1 (M qdd + C qd)|,
@@ -330,8 +332,15 @@ def check_rest(backends: Sequence[str], scenario_file: Path = VERIFICATION_DIR /
         # rest penetration
         y_m, fn = float(y.mean()), float(f[:, 2].mean())
         tol = SOLVER_RTOL * abs(fn / c.Kp) + c.Kd * float(np.abs(ydot).max()) / c.Kp
-        out.append(_check("rest_penetration", name, variant, "penetration R_foot - z_E", "m", y_m, fn / c.Kp, tol,
-                          f"Fn = {fn:.3f} N, Kp = {c.Kp:g} N/m, max|ydot| = {np.abs(ydot).max():.2e} m/s"))  # fmt: skip
+        if tr.info.get("contact", {}).get("Kp", c.Kp) is None:
+            # rigid native contact (the backend declares no stiffness): it must not sink, to the same tolerance
+            out.append(_check("rest_penetration", name, variant, "penetration R_foot - z_E", "m", y_m, 0.0, tol,
+                              f"rigid contact (no Kp declared): expected no sinking; Fn = {fn:.3f} N, "
+                              f"a {c.Kp:g} N/m spring would sink {fn / c.Kp:.2e} m"))  # fmt: skip
+        else:
+            note = f"Fn = {fn:.3f} N, Kp = {c.Kp:g} N/m, max|ydot| = {np.abs(ydot).max():.2e} m/s"
+            out.append(_check("rest_penetration", name, variant, "penetration R_foot - z_E", "m", y_m, fn / c.Kp, tol,
+                              note))  # fmt: skip
         # static balance, per tick
         F_exp = np.empty_like(f)
         dyn = np.empty_like(f)

@@ -1,0 +1,334 @@
+"""DART backend: dartpy from the generated URDF, rigid LCP contact with Coulomb friction, or the reference law.
+
+Model: ``models/leg.urdf`` through ``DartLoader`` with a fixed root joint
+(``RootJointType.FIXED``), in a ``World`` of its own. The ground is a second
+skeleton: a welded 20 m x 20 m x 1 m box whose top face is z_W = 0 (every
+collision detector offered handles sphere-box). Only the foot sphere collides:
+the link cylinders' collision aspects are removed, self-collision is off.
+Joint position limits are enforced (``setLimitEnforcement``) in ``matched``;
+DART's URDF loader leaves them off, which ``engine-defaults`` keeps.
+
+Native contact is DART's rigid contact: a ``ContactConstraint`` per contact
+point solved with the other constraints as a boxed LCP (``lcp_solver``:
+``dantzig``, DART's default, with PGS as its fallback; or ``pgs`` alone), on
+the collision detector ``collision_detector`` (``fcl`` default, ``dart``,
+``bullet``, ``ode``). Rigid contact has no stiffness or damping: the spec's
+Kp and Kd do not apply (the foot does not sink; DART only corrects the
+penetration it finds, by the error-reduction of its constraint, and reports
+no Kp y). Friction is a Coulomb pyramid with DART's combination rule
+mu = min(mu_foot, mu_ground): both shapes get mu_s; restitution 0. The foot
+sticks below mu_s Fn (no creep), unlike the spec's stick-slip law.
+
+Integration: DART's ``World.step`` is semi-implicit Euler (velocities from the
+forward dynamics and the constraint impulses, then positions with the new
+velocities), so in free space it is the Pinocchio backend's scheme: at the same
+sub-step they agree to round-off.
+
+Reference contact (``contact_mode = "reference"``): no foot collision; before
+every sub-step ``J_poc^T F`` of :class:`~legbench.contact.ReferenceContact` at
+the sub-step's start state is added to the joint forces.
+
+The contact force is read from the last collision result: DART stores on each
+contact the force of its constraint impulse over the step (impulse / dt), in W.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from importlib import metadata
+from pathlib import Path
+from typing import Any, ClassVar
+
+import dartpy as dart
+import numpy as np
+
+from legbench.backends.base import Backend, Limits, Physics, sub_step_count
+from legbench.contact import ReferenceContact
+from legbench.exceptions import LegbenchError, SimulationDiverged
+from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine
+
+_DETECTORS = {
+    "fcl": dart.collision.FCLCollisionDetector,
+    "dart": dart.collision.DARTCollisionDetector,
+    "bullet": dart.collision.BulletCollisionDetector,
+    "ode": dart.collision.OdeCollisionDetector,
+}
+_LCP = ("dantzig", "pgs")
+#: Ground box: half-extent [m] in x and y, thickness [m]; its top face is z_W = 0.
+GROUND_SIZE = (20.0, 20.0, 1.0)
+
+
+class DartBackend(Backend):
+    """DART (dartpy; rigid boxed-LCP contact) simulating the leg."""
+
+    name: ClassVar[str] = "dart"
+    defaults: ClassVar[Mapping[str, Any]] = {
+        "dt": 5.0e-5,  # sub-step [s]: the Pinocchio default, so free space is the same scheme at the same step
+        "lcp_solver": "dantzig",  # boxed LCP solver ("dantzig" with PGS fallback, or "pgs")
+        "collision_detector": "fcl",  # one of _DETECTORS
+        "enforce_limits": True,  # joint position limits as constraints (DART's URDF loader leaves them off)
+        "split_impulse": False,  # DART's split-impulse position correction (off by default)
+    }
+    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"lcp_solver": _LCP, "collision_detector": tuple(_DETECTORS)}
+    profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
+        "matched": {},
+        # World() defaults: 1 ms step, Dantzig + PGS fallback, FCL; URDF limits not enforced
+        "engine-defaults": {"dt": 1.0e-3, "enforce_limits": False},
+    }
+    install: ClassVar[str] = "pip install 'dartpy>=6.20,<7'"
+
+    # ----------------------------------------------------------------- load
+    def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
+        """Build the world: leg skeleton (fixed root), ground box, solver and detector.
+
+        Args:
+            urdf: the generated leg URDF.
+            physics: gravity, contact law and mode, control period, torque limits.
+            settings: overrides of :attr:`defaults`.
+
+        Raises:
+            LegbenchError: an unknown LCP solver or collision detector, or a ``dt`` that does not
+                divide the control period.
+        """
+        cfg = self.settings(settings)
+        for key, offered in self.choices.items():
+            if cfg[key] not in offered:
+                raise LegbenchError(f"dart: unknown {key} '{cfg[key]}'; choose one of {list(offered)}")
+        n_sub = sub_step_count(self.name, cfg["dt"], physics.control_dt)
+        self.cfg, self.physics, self.n_sub = cfg, physics, n_sub
+        self.reference = physics.contact_mode == "reference"
+        c = physics.contact
+
+        loader = dart.utils.DartLoader()
+        options = dart.utils.DartLoader.Options()
+        options.mDefaultRootJointType = dart.utils.DartLoader.RootJointType.FIXED
+        loader.setOptions(options)
+        self.skel = skel = loader.parseSkeleton(str(urdf))
+        if skel is None:
+            raise LegbenchError(f"dart: could not load {urdf}")
+        skel.disableSelfCollisionCheck()
+        self.joints = [skel.getJoint(n) for n in JOINT_NAMES]
+        self.dofs = [j.getIndexInSkeleton(0) for j in self.joints]
+        for j in self.joints:
+            j.setLimitEnforcement(bool(cfg["enforce_limits"]))
+            j.setDampingCoefficient(0, 0.0)
+            j.setCoulombFriction(0, 0.0)
+            j.setSpringStiffness(0, 0.0)
+        self.foot = skel.getBodyNode(FOOT_FRAME)
+        for name in LINK_NAMES:  # only the foot sphere collides
+            body = skel.getBodyNode(name)
+            for i in range(body.getNumShapeNodes()):
+                body.getShapeNode(i).removeCollisionAspect()
+        for i in range(self.foot.getNumShapeNodes()):
+            sn = self.foot.getShapeNode(i)
+            if self.reference:
+                sn.removeCollisionAspect()
+            elif sn.hasDynamicsAspect():
+                sn.getDynamicsAspect().setFrictionCoeff(c.mu_s)
+                sn.getDynamicsAspect().setRestitutionCoeff(0.0)
+
+        self.ground = ground = dart.dynamics.Skeleton("ground")
+        _, box_body = ground.createWeldJointAndBodyNodePair()
+        box = dart.dynamics.BoxShape(np.array(GROUND_SIZE))
+        sn = box_body.createShapeNode(box)
+        sn.createCollisionAspect()
+        dyn = sn.createDynamicsAspect()
+        dyn.setFrictionCoeff(c.mu_s)
+        dyn.setRestitutionCoeff(0.0)
+        T = np.eye(4)
+        T[2, 3] = -GROUND_SIZE[2] / 2.0
+        sn.setRelativeTransform(dart.math.Isometry3(T[:3, :3], T[:3, 3]) if hasattr(dart.math, "Isometry3")
+                                else T)  # fmt: skip
+
+        self.world = world = dart.simulation.World()
+        world.setTimeStep(physics.control_dt / n_sub)
+        world.setGravity(np.array([0.0, 0.0, -physics.gravity]))
+        world.addSkeleton(skel)
+        world.addSkeleton(ground)
+        solver = world.getConstraintSolver()
+        if cfg["lcp_solver"] == "pgs":
+            # dartpy cannot construct a solver: promote DART's PGS fallback to primary, no fallback
+            pgs = solver.getSecondaryBoxedLcpSolver()
+            solver.setSecondaryBoxedLcpSolver(None)
+            solver.setBoxedLcpSolver(pgs)
+        solver.setCollisionDetector(_DETECTORS[cfg["collision_detector"]]())
+        solver.setSplitImpulseEnabled(bool(cfg["split_impulse"]))
+
+        self.contact = ReferenceContact.from_leg(c)
+        self._hi = np.asarray(physics.torque_limit, float)
+        self._lo = -self._hi
+        self._tau = np.zeros(3)
+        self._cmd = np.zeros(3)
+        self._force = np.zeros(3)
+        self._q = np.zeros(3)
+        self._qd = np.zeros(3)
+        self.t = 0.0
+
+    # ---------------------------------------------------------------- reset
+    def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
+        """Set q [rad] and qd [rad/s], clear forces, impulses and the last collision result."""
+        skel = self.skel
+        self.world.reset()
+        skel.resetCommands()
+        skel.resetGeneralizedForces()
+        skel.clearConstraintImpulses()
+        skel.clearExternalForces()
+        skel.resetAccelerations()
+        skel.setPositions(np.asarray(q, float))
+        skel.setVelocities(np.asarray(qd, float))
+        self.world.getConstraintSolver().clearLastCollisionResult()
+        self.t = 0.0
+        self._read()
+        if self.reference:
+            self._reference_force()
+        else:
+            self._force[:] = 0.0
+
+    # ----------------------------------------------------------------- step
+    def step(self, tau: np.ndarray) -> None:
+        """Advance one control period with tau [N m], clamped to the torque limits, held."""
+        np.clip(tau, self._lo, self._hi, out=self._tau)
+        skel, world = self.skel, self.world
+        if self.reference:
+            q, qd, law, cmd = self._q, self._qd, self.contact.generalized, self._cmd
+            for _ in range(self.n_sub):
+                np.add(self._tau, law(q[0], q[1], q[2], qd[0], qd[1], qd[2]), out=cmd)
+                skel.setForces(cmd)
+                world.step()
+                self._read()
+            self._reference_force()
+        else:
+            for _ in range(self.n_sub):
+                skel.setForces(self._tau)
+                world.step()
+            self._read()
+            self._native_force()
+        self.t += self.physics.control_dt
+        q, qd = self._q, self._qd
+        if not math.isfinite(q[0] + q[1] + q[2] + qd[0] + qd[1] + qd[2]):
+            raise SimulationDiverged(self.name, self.t, "non-finite joint state")
+
+    def _read(self) -> None:
+        self._q[:] = self.skel.getPositions()
+        self._qd[:] = self.skel.getVelocities()
+
+    def _reference_force(self) -> None:
+        q, qd = self._q, self._qd
+        self.contact.generalized(q[0], q[1], q[2], qd[0], qd[1], qd[2])
+        self._force[:] = self.contact.force
+
+    def _native_force(self) -> None:
+        """Sum of the contact forces on the foot over the last sub-step, in W [N].
+
+        DART stores on each contact the force its constraint applied on the
+        first collision object (impulse / dt, along the normal that points from
+        the second object to the first); the sign is flipped where the foot is
+        the second object.
+        """
+        force, foot = self._force, FOOT_FRAME
+        force[:] = 0.0
+        for contact in self.world.getLastCollisionResult().getContacts():
+            if contact.collisionObject1.getShapeFrame().getBodyNodePtr().getName() == foot:
+                force += contact.force
+            else:
+                force -= contact.force
+
+    # ----------------------------------------------------------------- read
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint positions q [rad] (revolute angles, unwrapped) and velocities qd [rad/s]."""
+        return self._q.copy(), self._qd.copy()
+
+    def ground_force(self) -> np.ndarray:
+        """Force of the ground on the foot in W [N]: DART's contact impulse / dt (native) or the law (reference)."""
+        return self._force.copy()
+
+    def info(self) -> dict[str, Any]:
+        """Engine, version and every setting actually used, read back from the world where DART allows."""
+        world, c = self.world, self.physics.contact
+        solver = world.getConstraintSolver()
+        foot_dyn = [
+            self.foot.getShapeNode(i).getDynamicsAspect()
+            for i in range(self.foot.getNumShapeNodes())
+            if self.foot.getShapeNode(i).hasDynamicsAspect()
+        ]
+        return {
+            "engine": "dart",
+            "version": metadata.version("dartpy"),
+            **{k: self.cfg[k] for k in self.defaults},
+            "sub_steps": self.n_sub,
+            "timestep": world.getTimeStep(),
+            "integrator": "euler",  # World.step: semi-implicit Euler (the family verification predicts by)
+            "gravity": -float(world.getGravity()[2]),
+            "contact_mode": self.physics.contact_mode,
+            "contact": {
+                "enabled": not self.reference,
+                "model": "rigid (boxed LCP), Coulomb friction pyramid",
+                "lcp_solver": solver.getBoxedLcpSolver().getType(),
+                "secondary_lcp_solver": (
+                    solver.getSecondaryBoxedLcpSolver().getType() if solver.getSecondaryBoxedLcpSolver() else None
+                ),
+                "collision_detector": solver.getCollisionDetector().getType(),
+                "friction": min([d.getFrictionCoeff() for d in foot_dyn] or [c.mu_s]),
+                "restitution": 0.0,
+                "Kp": None,
+                "Kd": None,
+                "Kp_Kd_note": "rigid contact: DART has no contact stiffness or damping; Kp, Kd do not apply",
+                "reference_law": "J_poc^T F added to the joint forces per sub-step" if self.reference else None,
+            },
+            "joint_limits_enforced": bool(self.cfg["enforce_limits"]),
+        }
+
+    # ------------------------------------------------------- declared abilities
+    def integrator_family(self) -> str:
+        """DART's World.step is semi-implicit Euler (velocity, then position with the new velocity)."""
+        return "euler"
+
+    def sub_steps(self) -> int:
+        return self.n_sub
+
+    def limits(self) -> Limits:
+        """Joint position and force limits and gravity, read back from the skeleton and world."""
+        skel = self.skel
+        lower = tuple(float(skel.getPositionLowerLimit(i)) for i in self.dofs)
+        upper = tuple(float(skel.getPositionUpperLimit(i)) for i in self.dofs)
+        effort = tuple(float(skel.getForceUpperLimit(i)) for i in self.dofs)
+        enforced = all(j.areLimitsEnforced() for j in self.joints)
+        return Limits(
+            gravity=-float(self.world.getGravity()[2]), lower=lower, upper=upper, effort=effort,  # type: ignore[arg-type]
+            timestep=float(self.world.getTimeStep()),
+            enforcement="hard joint-limit constraint in the boxed LCP" if enforced else "none (not enforced)",
+        )  # fmt: skip
+
+    def mass_properties(self) -> dict[str, dict[str, Any]]:
+        """Per moving body: mass [kg], COM [m] and inertia about the COM [kg m^2] in the link frame.
+
+        From each body node's ``Inertia`` (mass, local COM, moment about the COM in
+        the body frame); link 3 includes the foot, placed by its transform in link 3.
+        """
+        out = {}
+        for name in LINK_NAMES:
+            body = self.skel.getBodyNode(name)
+            inr = _inertial(body)
+            if name == LINK_NAMES[-1]:
+                T = self.foot.getTransform(body).matrix()
+                R, p = T[:3, :3], T[:3, 3]
+                foot = _inertial(self.foot)
+                moved = Inertial(foot.mass, tuple(R @ foot.com + p), tuple(map(tuple, R @ foot.I @ R.T)))  # type: ignore[arg-type]
+                inr = combine([inr, moved])
+            out[name] = {"mass": inr.mass, "com": list(inr.com), "inertia": inr.I.tolist()}
+        return out
+
+    def close(self) -> None:
+        """Drop the world."""
+        self.world = None  # type: ignore[assignment]
+
+
+def _inertial(body: Any) -> Inertial:
+    inertia = body.getInertia()
+    I = np.asarray(inertia.getMoment())
+    com = np.asarray(inertia.getLocalCOM())
+    return Inertial(float(inertia.getMass()), tuple(com.tolist()), tuple(map(tuple, I.tolist())))  # type: ignore[arg-type]
+
+
+__all__ = ["DartBackend"]

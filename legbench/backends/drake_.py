@@ -1,0 +1,548 @@
+"""Drake backend: pydrake ``MultibodyPlant`` from the generated URDF, compliant point (or hydroelastic) contact.
+
+Model: ``models/leg.urdf`` through ``Parser``, the URDF's root link ``base``
+welded to the world, one ``JointActuator`` per joint (effort limit = the
+torque limit) and a ``HalfSpace`` ground at z_W = 0 on the world body. Only
+the foot sphere meets the ground: every other leg geometry is filtered out
+(``CollisionFilterDeclaration``). Torques enter through the actuation input
+port, fixed once per control period (zero-order hold).
+
+Solvers (setting ``solver``): the discrete plant (``time_step = dt``) with
+Drake's discrete contact approximations ``sap`` (convex, linear Kelvin-Voigt
+normal force), ``tamsi`` (Hunt-Crossley, regularised friction), ``lagged`` and
+``similar`` (Hunt-Crossley inside SAP's convex solver; ``lagged`` is Drake's
+default), or ``continuous``: ``time_step = 0`` and Drake's error-controlled
+``runge_kutta3`` integrator run by a ``Simulator`` to the end of each control
+period (``accuracy``), with Hunt-Crossley contact and Stribeck friction.
+
+Native point contact, mapped onto Drake's per-geometry ``ProximityProperties``
+(group ``material``). Drake combines two geometries' stiffnesses in series (an
+infinite one leaves the other), their Hunt-Crossley dissipations weighted by
+the other's stiffness (an infinitely stiff partner leaves the compliant one's),
+their relaxation times by sum, and their friction by
+mu = 2 mu_A mu_B / (mu_A + mu_B); the contact point lies between the two
+witness points, weighted by stiffness. An infinitely stiff geometry makes that
+weight inf/inf (SAP then fails on NaN), so the foot is near-rigid
+(``point_contact_stiffness = 1e8 Kp``, relaxation time 0) and the ground
+carries the spec's numbers: the pair's stiffness is exactly Kp and the contact
+point is the sphere's lowest point (the spec's true poc) to 1e-8 of the
+penetration. Both get the same friction and Hunt-Crossley dissipation.
+
+- Stiffness: ground 1 / (1/Kp - 1/(1e8 Kp)), in series with the foot: Kp exactly.
+- SAP: ground ``relaxation_time = Kd / Kp``, so fn = Kp (x + tau_d xdot)_+ =
+  Kp x + Kd xdot, the spec's spring-damper exactly while pressing in. It cannot
+  switch the damping off while releasing (the spec does), and the force is
+  clamped at zero instead of staying Kp x while the foot lifts quickly.
+- Hunt-Crossley (``tamsi``, ``lagged``, ``similar``, ``continuous``):
+  fn = k x (1 + d xdot)_+, a damping k d x xdot that grows with the
+  penetration x. No d gives Kd xdot at every depth; ``d = Kd / (Kp x_ref)``
+  gives it at the reference depth ``x_ref = hc_reference_depth`` (default 5 mm,
+  the order of the tasks' steady sink under 50-90 N) and less (more) above
+  (below) it; it also damps while releasing.
+- Friction: the discrete solvers use only Drake's dynamic coefficient, set to
+  ``mu_s`` (the foot holds up to mu_s Fn, like the other Coulomb engines).
+  TAMSI and the continuous plant regularise friction over
+  ``stiction_tolerance``, set to the spec's v_th (the slope near zero is
+  2 mu / v_s against mu_s / v_th in the spec); the continuous plant's Stribeck
+  curve drops from mu_s at v_s to mu_k (``CoulombFriction(mu_s, mu_k)``) at
+  3 v_s, where the spec's drops at 1.5 v_th. SAP regularises friction with its
+  own regularisation: the foot sticks (measured creep 0.004 mm/s in the effort task).
+
+Hydroelastic option (``contact_model = "hydroelastic"``): the foot is a compliant
+hydroelastic sphere (``hydroelastic_modulus`` E, mesh ``resolution_hint``) on a
+rigid half-space. Its pressure field is E times the depth-fraction inside the
+sphere, so the force at penetration x is F(x) = 2 pi E / R (R a^2 / 2 - (R^3 - h^3) / 3),
+h = R - x, a^2 = R^2 - h^2 (about pi E x^2: stiffening, not a linear spring).
+E is chosen so that F(x_ref) = Kp x_ref, and the relaxation time (SAP) as
+Kd / F'(x_ref) so the linearised damping is Kd at x_ref; Hunt-Crossley d as for
+point contact. The tessellated sphere makes the force differ from the formula
+by the mesh resolution (measured in docs/backends/drake.md).
+
+Reference contact (``contact_mode = "reference"``): no ground geometry; before
+every discrete update (sub-step) ``J_poc^T F`` of
+:class:`~legbench.contact.ReferenceContact` enters the plant's applied
+generalized force port. The continuous plant holds it over the control
+period (first order in the contact force).
+
+Profiles: ``matched`` is :attr:`DrakeBackend.defaults` (SAP at 0.1 ms, the
+mapping above). ``engine-defaults`` is what a Drake user gets from
+``MultibodyPlantConfig()`` (1 ms ``lagged``, stiction tolerance 1e-4 m/s)
+with Kp, Kd and mu set the usual way: ``point_contact_stiffness = Kp``,
+``hunt_crossley_dissipation = Kd / Kp`` and ``relaxation_time = Kd / Kp`` on
+the foot, the ground registered with friction only (so Drake's default
+stiffness from ``penetration_allowance`` acts in series with Kp, and its
+default relaxation time of 0.1 s adds to the foot's).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+from collections.abc import Iterator, Mapping
+from importlib import metadata
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+from pydrake.geometry import (
+    AddCompliantHydroelasticProperties,
+    AddContactMaterial,
+    AddRigidHydroelasticProperties,
+    CollisionFilterDeclaration,
+    GeometrySet,
+    HalfSpace,
+    ProximityProperties,
+    RoleAssign,
+)
+from pydrake.math import RigidTransform
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import AddMultibodyPlant, CoulombFriction, MultibodyPlantConfig
+from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from legbench.backends.base import Backend, Limits, Physics, sub_step_count
+from legbench.contact import ReferenceContact
+from legbench.exceptions import LegbenchError, SimulationDiverged
+from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine, load_params
+
+#: Discrete contact approximations offered, and the continuous plant.
+SOLVERS = ("sap", "tamsi", "lagged", "similar", "continuous")
+#: Solvers whose normal force is Hunt-Crossley (the others: SAP's linear Kelvin-Voigt).
+HUNT_CROSSLEY = ("tamsi", "lagged", "similar", "continuous")
+#: Contact models offered.
+CONTACT_MODELS = ("point", "hydroelastic")
+#: Foot stiffness over Kp in the matched point contact: the foot is near-rigid, the ground carries the spring.
+FOOT_STIFFNESS_RATIO = 1.0e8
+#: Ways of setting the contact parameters: the mapping of the module docstring, or the usual user way.
+CONTACT_PARAMS = ("mapped", "usual")
+
+
+def hydro_force_per_modulus(x: float, R: float) -> float:
+    """F(x) / E [m^2] of a compliant hydroelastic sphere (radius R [m]) pressed x [m] into a rigid plane."""
+    h = R - x
+    a2 = R * R - h * h
+    return 2.0 * math.pi / R * (R * a2 / 2.0 - (R**3 - h**3) / 3.0)
+
+
+def hydro_stiffness_per_modulus(x: float, R: float) -> float:
+    """dF/dx / E [m] of the same sphere: 2 pi x h / R ... exact: d/dx of :func:`hydro_force_per_modulus`."""
+    h = R - x
+    # dF/dx = 2 pi / R (R h - h^2) = 2 pi h x / R
+    return 2.0 * math.pi * h * x / R
+
+
+class DrakeBackend(Backend):
+    """Drake (MultibodyPlant; SAP, TAMSI or continuous) simulating the leg."""
+
+    name: ClassVar[str] = "drake"
+    defaults: ClassVar[Mapping[str, Any]] = {
+        "solver": "sap",  # one of SOLVERS
+        "dt": 1.0e-4,  # discrete time step [s] (ignored by "continuous", which takes one solve per period)
+        "contact_model": "point",  # "point" or "hydroelastic"
+        "contact_params": "mapped",  # "mapped" (module docstring) or "usual" (engine-defaults)
+        "hc_reference_depth": 5.0e-3,  # x_ref [m] at which Hunt-Crossley (and hydroelastic) damping equals Kd
+        "stiction_tolerance": None,  # regularisation speed v_s [m/s] (TAMSI, continuous); None: the spec's v_th
+        "accuracy": 1.0e-6,  # continuous: target accuracy of the error-controlled runge_kutta3
+        "resolution_hint": 5.0e-3,  # hydroelastic: mesh edge length of the foot sphere [m]
+        "sap_near_rigid_threshold": 1.0,  # SAP's near-rigid regime threshold (Drake's default)
+    }
+    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
+        "solver": SOLVERS,
+        "contact_model": CONTACT_MODELS,
+        "contact_params": CONTACT_PARAMS,
+    }
+    profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
+        "matched": {},
+        # MultibodyPlantConfig() defaults: 1 ms, "lagged", stiction tolerance 1e-4 m/s
+        "engine-defaults": {"solver": "lagged", "dt": 1.0e-3, "contact_params": "usual", "stiction_tolerance": 1.0e-4},
+    }
+    install: ClassVar[str] = "pip install 'drake>=1.51,<2'"
+
+    # ----------------------------------------------------------------- load
+    def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
+        """Build plant, scene graph and simulator; map the contact parameters (module docstring).
+
+        Args:
+            urdf: the generated leg URDF.
+            physics: gravity, contact law and mode, control period, torque limits.
+            settings: overrides of :attr:`defaults`.
+
+        Raises:
+            LegbenchError: an unknown solver, contact model or contact-parameter way, or a
+                ``dt`` that does not divide the control period.
+        """
+        cfg = self.settings(settings)
+        for key, offered in self.choices.items():
+            if cfg[key] not in offered:
+                raise LegbenchError(f"drake: unknown {key} '{cfg[key]}'; choose one of {list(offered)}")
+        self.cfg, self.physics = cfg, physics
+        self.reference = physics.contact_mode == "reference"
+        self.continuous = cfg["solver"] == "continuous"
+        self.n_sub = 1 if self.continuous else sub_step_count(self.name, cfg["dt"], physics.control_dt)
+        c = physics.contact
+        self.v_s = float(c.v_th if cfg["stiction_tolerance"] is None else cfg["stiction_tolerance"])
+        usual = cfg["contact_params"] == "usual"
+
+        plant_cfg = MultibodyPlantConfig(
+            time_step=0.0 if self.continuous else physics.control_dt / self.n_sub,
+            contact_model="hydroelastic" if cfg["contact_model"] == "hydroelastic" else "point",
+            discrete_contact_approximation="tamsi" if self.continuous else cfg["solver"],
+            stiction_tolerance=self.v_s,
+            sap_near_rigid_threshold=float(cfg["sap_near_rigid_threshold"]),
+        )
+        # Drake warns that a rigid half-space takes no part in deformable contact (there is none here)
+        with _drake_log_level(logging.ERROR):
+            self._build(urdf, physics, plant_cfg, usual)
+        self.contact = ReferenceContact.from_leg(c)
+        self._hi = np.asarray(physics.torque_limit, float)
+        self._lo = -self._hi
+        self._tau = np.zeros(3)
+        self._cmd = np.zeros(3)
+        self._force = np.zeros(3)
+        self._q = np.zeros(3)
+        self._qd = np.zeros(3)
+        self.tick = 0
+
+    def _build(self, urdf: Path, physics: Physics, plant_cfg: MultibodyPlantConfig, usual: bool) -> None:
+        """Plant, scene graph, ground, contact properties, simulator and input ports."""
+        cfg, c = self.cfg, physics.contact
+        builder = DiagramBuilder()
+        plant, scene_graph = AddMultibodyPlant(plant_cfg, builder)
+        Parser(plant).AddModels(Path(urdf))
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base"))
+        plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -physics.gravity])
+        self.joints = [plant.GetJointByName(n) for n in JOINT_NAMES]
+        self.actuators = [
+            plant.AddJointActuator(n, j, float(lim))
+            for n, j, lim in zip(JOINT_NAMES, self.joints, physics.torque_limit, strict=True)
+        ]
+        self.foot_body = plant.GetBodyByName(FOOT_FRAME)
+        foot_geoms = plant.GetCollisionGeometriesForBody(self.foot_body)
+        leg_geoms = [g for b in (*LINK_NAMES, FOOT_FRAME) for g in plant.GetCollisionGeometriesForBody(
+            plant.GetBodyByName(b))]  # fmt: skip
+        self.ground = None
+        self.contact_props: dict[str, Any] = {}
+        if not self.reference:
+            self.ground = self._ground(plant, usual)
+        plant.Finalize()
+        # only the foot meets the ground: every other leg geometry collides with nothing
+        others = [g for g in leg_geoms if g not in foot_geoms]
+        if others:
+            scene_graph.collision_filter_manager().Apply(
+                CollisionFilterDeclaration().ExcludeWithin(GeometrySet(leg_geoms))
+                .ExcludeBetween(GeometrySet(others), GeometrySet([self.ground] if self.ground else []))
+            )  # fmt: skip
+        if self.reference:
+            scene_graph.collision_filter_manager().Apply(
+                CollisionFilterDeclaration().ExcludeWithin(GeometrySet(leg_geoms))
+            )
+        else:
+            for g in foot_geoms:
+                scene_graph.AssignRole(plant.get_source_id(), g, self._foot_props(c, usual), RoleAssign.kReplace)
+        self.foot_geoms = frozenset(foot_geoms)
+
+        self.diagram = builder.Build()
+        self.plant, self.scene_graph = plant, scene_graph
+        self.simulator = Simulator(self.diagram)
+        self.root = self.simulator.get_mutable_context()
+        self.ctx = plant.GetMyMutableContextFromRoot(self.root)
+        if self.continuous:
+            ResetIntegratorFromFlags(self.simulator, "runge_kutta3", physics.control_dt)
+            integ = self.simulator.get_mutable_integrator()
+            integ.set_target_accuracy(float(cfg["accuracy"]))
+        self._default = self.diagram.CreateDefaultContext()
+        self.simulator.Initialize()
+        self._act = plant.get_actuation_input_port().FixValue(self.ctx, np.zeros(3))
+        self._gen = plant.get_applied_generalized_force_input_port().FixValue(self.ctx, np.zeros(3))
+        self._results_port = plant.get_contact_results_output_port()
+        #: Drake's discrete period [s] (0: continuous); targets are integer multiples of it
+        self._h = 0.0 if self.continuous else float(plant.time_step())
+        self._q_idx = [j.position_start() for j in self.joints]
+        self._v_idx = [j.velocity_start() for j in self.joints]
+
+    def _ground(self, plant: Any, usual: bool) -> Any:
+        """Register the ground half-space on the world body: rigid, the foot's friction (or friction only)."""
+        c = self.physics.contact
+        props = ProximityProperties()
+        if usual:
+            # the usual way: a half-space with friction; stiffness and dissipation left to Drake's defaults
+            friction = CoulombFriction(c.mu_s, c.mu_k)
+            AddContactMaterial(friction=friction, properties=props)
+        elif self.cfg["contact_model"] == "hydroelastic":
+            AddContactMaterial(friction=self._friction(), properties=props)
+            props.AddProperty("material", "relaxation_time", 0.0)
+        else:
+            # the ground carries the spring and its damping, the foot is near-rigid (see _foot_props)
+            k_ground = 1.0 / (1.0 / c.Kp - 1.0 / (FOOT_STIFFNESS_RATIO * c.Kp))
+            d = c.Kd / (c.Kp * float(self.cfg["hc_reference_depth"]))
+            AddContactMaterial(dissipation=d, point_stiffness=k_ground, friction=self._friction(), properties=props)
+            props.AddProperty("material", "relaxation_time", c.Kd / c.Kp)
+        if self.cfg["contact_model"] == "hydroelastic":
+            AddRigidHydroelasticProperties(props)
+        self.contact_props["ground"] = _props_dict(props)
+        return plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(), HalfSpace(), "ground", props)
+
+    def _friction(self) -> Any:
+        """Discrete solvers use the dynamic coefficient only: (mu_s, mu_s); continuous: (mu_s, mu_k)."""
+        c = self.physics.contact
+        return CoulombFriction(c.mu_s, c.mu_k if self.continuous else c.mu_s)
+
+    def _foot_props(self, c: Any, usual: bool) -> ProximityProperties:
+        """The foot sphere's proximity properties (module docstring)."""
+        props = ProximityProperties()
+        R = load_params().geometry.R_foot
+        x_ref = float(self.cfg["hc_reference_depth"])
+        if usual:
+            d, tau_d = c.Kd / c.Kp, c.Kd / c.Kp
+            AddContactMaterial(
+                dissipation=d, point_stiffness=c.Kp, friction=CoulombFriction(c.mu_s, c.mu_k), properties=props
+            )
+            props.AddProperty("material", "relaxation_time", tau_d)
+            if self.cfg["contact_model"] == "hydroelastic":
+                AddCompliantHydroelasticProperties(float(self.cfg["resolution_hint"]), c.Kp / x_ref, props)
+        elif self.cfg["contact_model"] == "hydroelastic":
+            E = c.Kp * x_ref / hydro_force_per_modulus(x_ref, R)
+            k_lin = E * hydro_stiffness_per_modulus(x_ref, R)
+            d = c.Kd / (k_lin * x_ref)
+            tau_d = c.Kd / k_lin
+            AddContactMaterial(dissipation=d, friction=self._friction(), properties=props)
+            props.AddProperty("material", "relaxation_time", tau_d)
+            AddCompliantHydroelasticProperties(float(self.cfg["resolution_hint"]), E, props)
+            self.contact_props["hydroelastic_modulus"] = E
+            self.contact_props["linearised_stiffness_at_x_ref"] = k_lin
+        else:
+            # near-rigid foot: Drake places the contact point between the two witness points weighted by
+            # stiffness, so this puts it on the sphere's lowest point (the spec's true poc) to 1e-8 x
+            d = c.Kd / (c.Kp * x_ref)
+            AddContactMaterial(dissipation=d, point_stiffness=FOOT_STIFFNESS_RATIO * c.Kp, friction=self._friction(),
+                               properties=props)  # fmt: skip
+            props.AddProperty("material", "relaxation_time", 0.0)
+        self.contact_props["foot"] = _props_dict(props)
+        return props
+
+    # ---------------------------------------------------------------- reset
+    def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
+        """Set q [rad] and qd [rad/s] at t = 0; the contact force reads zero until the first step (native)."""
+        self.root.SetTime(0.0)
+        # back to the default state (this also clears the sampled contact results of a previous run)
+        self.root.SetTimeStateAndParametersFrom(self._default)
+        x = np.zeros(6)
+        x[self._q_idx] = q
+        x[[3 + i for i in self._v_idx]] = qd
+        self.plant.SetPositionsAndVelocities(self.ctx, x)
+        _set(self._act, np.zeros(3))
+        _set(self._gen, np.zeros(3))
+        self.simulator.Initialize()
+        self.tick = 0
+        self._read()
+        if self.reference:
+            self._reference_force()
+        else:
+            self._force[:] = 0.0
+
+    # ----------------------------------------------------------------- step
+    def step(self, tau: np.ndarray) -> None:
+        """Advance one control period with tau [N m], clamped to the torque limits, held."""
+        np.clip(tau, self._lo, self._hi, out=self._tau)
+        _set(self._act, self._tau)
+        Ts, n, h = self.physics.control_dt, self.n_sub, self._h
+        if self.reference:
+            q, qd, law = self._q, self._qd, self.contact.generalized
+            for k in range(n):
+                _set(self._gen, law(q[0], q[1], q[2], qd[0], qd[1], qd[2]))
+                self.simulator.AdvanceTo((self.tick * n + k + 1) * h)
+                self._read()
+            self._reference_force()
+        else:
+            # an integer count of Drake's own period, so every target is exactly one of its event times
+            self.simulator.AdvanceTo((self.tick + 1) * n * h if h else (self.tick + 1) * Ts)
+            self._read()
+            self._native_force()
+        self.tick += 1
+        q, qd = self._q, self._qd
+        if not math.isfinite(q[0] + q[1] + q[2] + qd[0] + qd[1] + qd[2]):
+            raise SimulationDiverged(self.name, self.tick * Ts, "non-finite joint state")
+
+    def _read(self) -> None:
+        x = self.plant.GetPositionsAndVelocities(self.ctx)
+        self._q[:] = x[self._q_idx]
+        self._qd[:] = x[[3 + i for i in self._v_idx]]
+
+    def _reference_force(self) -> None:
+        q, qd = self._q, self._qd
+        self.contact.generalized(q[0], q[1], q[2], qd[0], qd[1], qd[2])
+        self._force[:] = self.contact.force
+
+    def _native_force(self) -> None:
+        """Sum of the contact forces on the foot from the plant's ContactResults, in W [N].
+
+        Discrete plant: the results of the last discrete update (sampled output ports),
+        i.e. the force over the last sub-step. Continuous: at the current state.
+        """
+        results = self._results_port.Eval(self.ctx)
+        force, foot = self._force, self.foot_body.index()
+        force[:] = 0.0
+        for i in range(results.num_point_pair_contacts()):
+            info = results.point_pair_contact_info(i)
+            if info.bodyB_index() == foot:
+                force += info.contact_force()
+            elif info.bodyA_index() == foot:
+                force -= info.contact_force()
+        for i in range(results.num_hydroelastic_contacts()):
+            info = results.hydroelastic_contact_info(i)
+            f_A = info.F_Ac_W().translational()
+            if info.contact_surface().id_M() in self.foot_geoms:
+                force += f_A
+            else:
+                force -= f_A
+
+    # ----------------------------------------------------------------- read
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint positions q [rad] (revolute angles, unwrapped) and velocities qd [rad/s]."""
+        return self._q.copy(), self._qd.copy()
+
+    def ground_force(self) -> np.ndarray:
+        """Force of the ground on the foot in W [N]: Drake's contact results (native) or the law (reference)."""
+        return self._force.copy()
+
+    def info(self) -> dict[str, Any]:
+        """Engine, version and every setting actually used, read back from the plant where Drake allows."""
+        plant, c = self.plant, self.physics.contact
+        out: dict[str, Any] = {
+            "engine": "drake",
+            "version": metadata.version("drake"),
+            **{k: self.cfg[k] for k in self.defaults},
+            "sub_steps": self.n_sub,
+            "timestep": plant.time_step() if not self.continuous else None,
+            "integrator": "runge_kutta3" if self.continuous else "euler",  # the family verification predicts by
+            "scheme": self._integrator_name(),
+            "gravity": self.physics.gravity,
+            "contact_mode": self.physics.contact_mode,
+            "contact": {
+                "enabled": not self.reference,
+                "model": str(plant.get_contact_model()),
+                "discrete_contact_approximation": (
+                    str(plant.get_discrete_contact_approximation()) if not self.continuous else None
+                ),
+                "stiction_tolerance": self.v_s,
+                "Kp": c.Kp,
+                "Kd": c.Kd,
+                "mu_s": c.mu_s,
+                "mu_k": c.mu_k,
+                "normal_law": "linear Kelvin-Voigt Kp (x + tau_d xdot)_+"
+                if self.cfg["solver"] == "sap"
+                else "Hunt-Crossley k x (1 + d xdot)_+",
+                "properties": self.contact_props,
+                "reference_law": "J_poc^T F via the applied generalized force port per sub-step"
+                if self.reference
+                else None,
+            },  # fmt: skip
+        }
+        if self.continuous:
+            integ = self.simulator.get_integrator()
+            out["target_accuracy"] = integ.get_target_accuracy()
+        return out
+
+    def _integrator_name(self) -> str:
+        if self.continuous:
+            return "runge_kutta3 (error-controlled)"
+        return f"discrete {self.cfg['solver']} (semi-implicit Euler in free space)"
+
+    # ------------------------------------------------------- declared abilities
+    def integrator_family(self) -> str:
+        """``adaptive`` (continuous), ``euler`` (discrete: symplectic Euler in free space, see the docs)."""
+        return "adaptive" if self.continuous else "euler"
+
+    def sub_steps(self) -> int:
+        return self.n_sub
+
+    def limits(self) -> Limits:
+        """Joint position limits and actuator effort limits from the plant, gravity from its gravity field."""
+        plant = self.plant
+        lower = tuple(float(j.position_lower_limits()[0]) for j in self.joints)
+        upper = tuple(float(j.position_upper_limits()[0]) for j in self.joints)
+        effort = tuple(float(a.effort_limit()) for a in self.actuators)
+        if self.continuous:
+            how = "none: a continuous MultibodyPlant does not enforce joint position limits"
+        elif self.cfg["solver"] == "tamsi":
+            how = "compliant limit springs (TAMSI: stiffness and damping from the discrete time step)"
+        else:
+            how = "SAP joint-limit constraint (near-rigid, regularised by the time step)"
+        return Limits(
+            gravity=-float(plant.gravity_field().gravity_vector()[2]), lower=lower, upper=upper,  # type: ignore[arg-type]
+            effort=effort, timestep=None if self.continuous else float(plant.time_step()),  # type: ignore[arg-type]
+            enforcement=how,
+        )  # fmt: skip
+
+    def mass_properties(self) -> dict[str, dict[str, Any]]:
+        """Per moving body: mass [kg], COM [m] and inertia about the COM [kg m^2] in the link frame.
+
+        From each body's spatial inertia in the simulated context (about the body
+        origin, in the body frame); link 3 includes the foot, placed by its pose in link 3.
+        """
+        plant, ctx = self.plant, self.ctx
+        out = {}
+        for name in LINK_NAMES:
+            inr = self._inertial(plant.GetBodyByName(name), ctx)
+            if name == LINK_NAMES[-1]:
+                X = plant.CalcRelativeTransform(ctx, plant.GetFrameByName(name), self.foot_body.body_frame())
+                R, p = X.rotation().matrix(), X.translation()
+                foot = self._inertial(self.foot_body, ctx)
+                moved = Inertial(foot.mass, tuple(R @ foot.com + p), tuple(map(tuple, R @ foot.I @ R.T)))  # type: ignore[arg-type]
+                inr = combine([inr, moved])
+            out[name] = {"mass": inr.mass, "com": list(inr.com), "inertia": inr.I.tolist()}
+        return out
+
+    @staticmethod
+    def _inertial(body: Any, ctx: Any) -> Inertial:
+        M = body.CalcSpatialInertiaInBodyFrame(ctx)
+        m = float(M.get_mass())
+        com = np.asarray(M.get_com())
+        I_o = M.CalcRotationalInertia().CopyToFullMatrix3()  # about the body origin
+        I_c = I_o - m * (float(com @ com) * np.eye(3) - np.outer(com, com))  # parallel-axis shift to the COM
+        return Inertial(m, tuple(com.tolist()), tuple(map(tuple, I_c.tolist())))  # type: ignore[arg-type]
+
+    def close(self) -> None:
+        """Drop the simulator and diagram."""
+        self.simulator = None  # type: ignore[assignment]
+        self.diagram = None  # type: ignore[assignment]
+
+
+@contextlib.contextmanager
+def _drake_log_level(level: int) -> Iterator[None]:
+    """Raise the ``drake`` logger's level for the block (pydrake syncs it to Drake's C++ logger)."""
+    log = logging.getLogger("drake")
+    before = log.level
+    log.setLevel(level)
+    try:
+        yield
+    finally:
+        log.setLevel(before)
+
+
+def _set(fixed: Any, value: np.ndarray) -> None:
+    """Write a fixed input port's vector in place (``GetMutableData`` also marks its dependents stale)."""
+    fixed.GetMutableData().get_mutable_value().SetFromVector(value)
+
+
+def _props_dict(props: ProximityProperties) -> dict[str, Any]:
+    """JSON-serialisable view of the ``material`` and ``hydroelastic`` groups of a ProximityProperties."""
+    out: dict[str, Any] = {}
+    for group in ("material", "hydroelastic"):
+        if not props.HasGroup(group):
+            continue
+        for name in props.GetPropertiesInGroup(group):
+            try:
+                value = props.GetProperty(group, name)
+            except RuntimeError:  # a value type pydrake does not bind (e.g. the hydroelastic compliance type)
+                value = "<unbound>"
+            if isinstance(value, CoulombFriction):
+                value = {"static": value.static_friction(), "dynamic": value.dynamic_friction()}
+            elif not isinstance(value, int | float | str | bool):
+                value = str(value)
+            out[f"{group}.{name}"] = value
+    return out
+
+
+__all__ = ["DrakeBackend"]

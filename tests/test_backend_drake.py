@@ -1,0 +1,117 @@
+"""The Drake backend: ContactResults against the leg's statics in both profiles, the contact mappings.
+
+The statics are the repo's analytic check (legbench.compare): h = (J_poc^T)^-1
+(tau - G(q)) at the backend's own final state and last commanded torque; the
+ground force on the foot must be -h. Presses are short (0.8 s) to keep the
+suite fast.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pydrake")
+
+from test_backends_engines import R_FOOT, run_press  # noqa: E402
+
+from legbench import kinematics, model  # noqa: E402
+from legbench.backends import load  # noqa: E402
+from legbench.backends.base import Physics  # noqa: E402
+from legbench.backends.drake_ import hydro_force_per_modulus  # noqa: E402
+
+#: A press with a tangential load inside the friction cone (|F_t| / Fn = 0.09 < mu_s) [N, W].
+PUSH = np.array([3.0, 2.0, -40.0])
+
+
+def statics_residual(log: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """(F, -h): the read ground force on the foot and the statics' ground force, at the last tick [N, W]."""
+    q, tau = log["q"][-1], log["tau"][-1]
+    h = np.linalg.solve(kinematics.jacobian_poc(q).T, tau - model.gravity_torque(q))
+    return log["F"][-1], -h
+
+
+@pytest.mark.parametrize("profile", ["matched", "engine-defaults"])
+def test_contact_results_equal_statics_within_0p5_percent_of_fn(profile: str) -> None:
+    """Pressed with 40 N and dragged with 3.6 N: |F + h| < 0.5 % of Fn, in both profiles.
+
+    Drake's contact point is the sphere's lowest point in ``matched`` (near-rigid
+    foot on the compliant ground) and between the witness points in
+    ``engine-defaults``: measured 1.2e-6 (matched) and 1.4e-3 (engine-defaults,
+    sink ~4 mm: the 3.6 N tangential force acts ~2 mm higher than the true poc).
+    0.5 % of Fn is the accuracy required of a read-out in steady contact.
+    """
+    backend = load("drake", Physics(), {}, profile)
+    try:
+        log = run_press(backend, PUSH, duration=0.8)
+    finally:
+        backend.close()
+    F, minus_h = statics_residual(log)
+    assert F[2] > 30.0  # [N], pressing
+    assert np.linalg.norm(F - minus_h) < 5e-3 * F[2], (F, minus_h)
+
+
+@pytest.mark.parametrize("solver", ["tamsi", "continuous"])
+def test_hunt_crossley_solvers_hold_kp_at_rest(solver: str) -> None:
+    """TAMSI and the continuous plant (Hunt-Crossley): Fn = Kp y at rest to 0.1 %, F = -h to 0.5 % of Fn.
+
+    At rest xdot ~ 0 so the Hunt-Crossley damping k d x xdot vanishes and
+    only the stiffness mapping is tested; measured 9e-6 (TAMSI) and 6e-5
+    (continuous) relative; statics 2e-6 and 4e-5 of Fn. A wrong series combination would be off by 50 %.
+    """
+    backend = load("drake", Physics(), {"solver": solver})
+    try:
+        log = run_press(backend, np.array([0.0, 0.0, -10.0]), duration=0.8)
+    finally:
+        backend.close()
+    y = R_FOOT - kinematics.fk(log["q"][-1])[2]
+    F, minus_h = statics_residual(log)
+    assert F[2] == pytest.approx(1e4 * y, rel=1e-3)
+    assert np.linalg.norm(F - minus_h) < 5e-3 * F[2], (F, minus_h)
+
+
+def test_hydroelastic_force_follows_the_pressure_field_formula() -> None:
+    """Hydroelastic foot pressed with 50 N sinks about x_ref = 5 mm, and F is E F1(y) within the mesh error.
+
+    E is mapped so F(x_ref) = Kp x_ref on the exact sphere; the 5 mm
+    tessellation makes the force differ from the formula (measured 6.5 %,
+    2 mm mesh: 0.4 %), so 10 % here. The read force equals the statics to
+    0.5 % of Fn (measured 0.003 %: Drake applies it at the surface centroid).
+    """
+    backend = load("drake", Physics(), {"contact_model": "hydroelastic"})
+    try:
+        log = run_press(backend, np.array([0.0, 0.0, -50.0]), duration=0.6)
+        E = backend.info()["contact"]["properties"]["hydroelastic_modulus"]
+    finally:
+        backend.close()
+    y = R_FOOT - kinematics.fk(log["q"][-1])[2]
+    F, minus_h = statics_residual(log)
+    assert 4e-3 < y < 6e-3  # [m]
+    assert F[2] == pytest.approx(E * hydro_force_per_modulus(y, R_FOOT), rel=0.1)
+    assert np.linalg.norm(F - minus_h) < 5e-3 * F[2], (F, minus_h)
+
+
+def test_sap_damping_is_kd_while_pressing_in() -> None:
+    """SAP's relaxation time Kd / Kp gives Fn = Kp y + Kd ydot while pressing in (1 %).
+
+    The foot is driven into the ground at ~0.75 m/s; on the ticks where it
+    presses in (ydot > 1 mm/s) the read normal force must equal Kp y + Kd ydot
+    of the spec's law at the end-of-step state (SAP's force is implicit in the
+    step's end velocity: measured 3e-4 relative at 0.1 ms). The first 2 ms
+    after touchdown are left out: Drake finds a point contact only where the
+    geometries overlap at the start of a step, so the step that crosses
+    y = 0 has no contact force and the next ones carry the late impulse
+    (measured 63 N against 47 N of the law at 0.1 ms, 62 N against 45 N at 1 ms).
+    """
+    backend = load("drake", Physics(), {})
+    try:
+        log = run_press(backend, np.array([0.0, 0.0, -40.0]), duration=0.15)
+    finally:
+        backend.close()
+    y = R_FOOT - kinematics.fk(log["q"])[:, 2]
+    ydot = -np.einsum("ij,ij->i", kinematics.jacobian_poc(log["q"])[:, 2, :], log["qd"])
+    settled = np.arange(len(y)) >= np.argmax(y > 0) + 2
+    pressing = (y > 1e-4) & (ydot > 1e-3) & settled
+    assert pressing.sum() > 5
+    law = 1e4 * y[pressing] + 1e2 * ydot[pressing]
+    np.testing.assert_allclose(log["F"][pressing, 2], law, rtol=1e-2)
