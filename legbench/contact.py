@@ -148,6 +148,66 @@ class ReferenceContact:
         return (Jx1 * fx + Jy1 * fy + Jz1 * fz, Jx2 * fx + Jy2 * fy + Jz2 * fz, Jx3 * fx + Jy3 * fy + Jz3 * fz,
                 fx, fy, fz)  # fmt: skip
 
+    def wrench_slope(self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
+        """:meth:`wrench` and the friction's damping in joint space, for a linearly implicit step.
+
+        Returns (tau_c1, tau_c2, tau_c3, fx, fy, fz, K11, K12, K13, K22, K23, K33): the first six as
+        :meth:`wrench`; K = -J_t^T (dF_t/dv_t) J_t [N m s/rad] (symmetric, positive semi-definite),
+        the slope of the friction force F_t in W [N] with respect to the poc's horizontal velocity
+        v_t [m/s], with Fn held, mapped through the poc's horizontal Jacobian rows J_t. With
+        c_perp = Fn mu(v)/v across the slip and c_par = Fn max(mu'(v), 0) along it,
+        -dF_t/dv_t = c_perp I + (c_par - c_perp) v v^T / v^2; below v_th both are Fn mu_s / v_th
+        (the law is viscous there). The falling branch of mu (v_th..1.5 v_th) is left out of K
+        (c_par >= 0): K only moves the implicit step's damping, never its fixed points.
+        """
+        L_12, L_23, L_3E, H, R = self._geometry
+        s1, c1 = math.sin(q1), math.cos(q1)
+        s2, c2 = math.sin(q2), math.cos(q2)
+        s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
+        reach = L_23 * s2 + L_3E * s23
+        y = R - (L_12 * s1 + c1 * reach + H)
+        if y <= 0.0:
+            return _NO_CONTACT_SLOPE
+        dr2 = L_23 * c2 + L_3E * c23
+        dr3 = L_3E * c23
+        Jx1, Jx2, Jx3 = -(L_12 * s1 + c1 * reach), -(s1 * dr2), -(s1 * dr3)
+        Jy1, Jy2, Jy3 = -0.0, -reach, -(L_3E * s23)
+        Jz1, Jz2, Jz3 = L_12 * c1 - s1 * reach, c1 * dr2, c1 * dr3
+        if self.true_poc:
+            Jx1 = Jx1 + R
+            Jy2 = Jy2 + R * c1
+            Jy3 = Jy3 + R * c1
+        vx = Jx1 * qd1 + Jx2 * qd2 + Jx3 * qd3
+        vy = Jy1 * qd1 + Jy2 * qd2 + Jy3 * qd3
+        vz = Jz1 * qd1 + Jz2 * qd2 + Jz3 * qd3
+        Kp, Kd, mu_s, mu_k, v_th, v_slip, dmu, half_v_th = self._law
+        ydot = -vz
+        fz = Kp * y + (Kd * ydot if ydot > 0.0 else 0.0)
+        v = math.hypot(vx, vy)
+        if v < v_th:
+            c_perp = c_par = fz * mu_s / v_th
+            ff = c_perp  # mu(v) fz / v
+            dxx = dyy = c_perp
+            dxy = 0.0
+        else:
+            if v < v_slip:
+                mu = mu_s - (v - v_th) * dmu / half_v_th
+            else:
+                mu = mu_k
+            ff = mu * fz / v
+            c_perp, c_par = ff, 0.0
+            ux, uy = vx / v, vy / v
+            dc = c_par - c_perp
+            dxx, dxy, dyy = c_perp + dc * ux * ux, dc * ux * uy, c_perp + dc * uy * uy
+        fx, fy = -ff * vx, -ff * vy
+        # K = J_t^T D J_t with D = [[dxx, dxy], [dxy, dyy]]
+        ax1, ax2, ax3 = dxx * Jx1 + dxy * Jy1, dxx * Jx2 + dxy * Jy2, dxx * Jx3 + dxy * Jy3
+        ay1, ay2, ay3 = dxy * Jx1 + dyy * Jy1, dxy * Jx2 + dyy * Jy2, dxy * Jx3 + dyy * Jy3
+        return (Jx1 * fx + Jy1 * fy + Jz1 * fz, Jx2 * fx + Jy2 * fy + Jz2 * fz, Jx3 * fx + Jy3 * fy + Jz3 * fz,
+                fx, fy, fz,
+                Jx1 * ax1 + Jy1 * ay1, Jx1 * ax2 + Jy1 * ay2, Jx1 * ax3 + Jy1 * ay3,
+                Jx2 * ax2 + Jy2 * ay2, Jx2 * ax3 + Jy2 * ay3, Jx3 * ax3 + Jy3 * ay3)  # fmt: skip
+
     def generalized(self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> np.ndarray:
         """J_poc^T F [N m] for the joint state (q [rad], qd [rad/s]); F in W [N] goes to :attr:`force`.
 
@@ -161,3 +221,4 @@ class ReferenceContact:
 
 
 _NO_CONTACT = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+_NO_CONTACT_SLOPE = (0.0,) * 12

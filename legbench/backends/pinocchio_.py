@@ -43,8 +43,14 @@ class PinocchioBackend(Backend):
         "max_step": 1.0e-4,  # [s], adaptive only (the report's ode45 setting)
         "limit_stiffness": 1.0e4,  # [N m/rad]
         "limit_damping": 20.0,  # [N m s/rad], about critical for the knee (I ~ 0.01 kg m^2)
+        "friction": "implicit",  # euler only: friction slope linearly implicit (docs/pinocchio.md)
     }
-    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"integrator": ("euler", "rk4", "rk45", "dop853")}
+    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
+        "integrator": ("euler", "rk4", "rk45", "dop853"),
+        "friction": ("implicit", "explicit"),
+    }
+    #: Pinocchio is legbench's own integrator: its "engine defaults" are these defaults.
+    profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {"matched": {}, "engine-defaults": {}}
 
     # ----------------------------------------------------------------- load
     def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
@@ -72,10 +78,16 @@ class PinocchioBackend(Backend):
         #: The contact law called at every sub-step (floats in, (tau_c, F) out); `legbench bench` times it.
         self.law = self.contact.wrench
         self._aba = pin.aba
-        self._step = {"euler": self._euler, "rk4": self._rk4}.get(self.cfg["integrator"], self._adaptive)
+        self.slope = self.contact.wrench_slope
+        self._crba, self._nle = pin.crba, pin.nonLinearEffects
+        self.implicit = self.cfg["integrator"] == "euler" and self.cfg["friction"] == "implicit"
+        euler = self._euler_implicit if self.implicit else self._euler
+        self._step = {"euler": euler, "rk4": self._rk4}.get(self.cfg["integrator"], self._adaptive)
+        self._fn_peak, self._q_peak = 0.0, [0.0, 0.0, 0.0]
 
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
+        self._fn_peak, self._q_peak = 0.0, [float(x) for x in q]
         self.q = [float(x) for x in q]
         self.qd = [float(x) for x in qd]
         self._update_force()
@@ -140,6 +152,68 @@ class PinocchioBackend(Backend):
         self.q = [q1, q2, q3]
         self.qd = [qd1, qd2, qd3]
 
+    def _euler_implicit(self, tau: np.ndarray) -> None:
+        """Semi-implicit Euler with the friction slope linearly implicit (the default).
+
+        Per sub-step: (M + h K) dqd = h (tau + J_poc^T F + tau_lim - nle(q, qd)), qd += dqd,
+        q += h qd, with K = -J_t^T dF_t/dv_t J_t from :meth:`ReferenceContact.wrench_slope`
+        at the sub-step's start. Below v_th the law is a viscous friction of coefficient
+        mu_s Fn / v_th, which explicit Euler resolves only for h < m v_th / (mu_s Fn); treated
+        implicitly it is stable at any h, and a fixed point of the step (dqd = 0) is a fixed
+        point of the law, so steady creep and force are the law's.
+        """
+        h = self.h
+        crba, nle, model, data, slope = self._crba, self._nle, self.model, self.data, self.slope
+        qp, v = self._qp, self._v
+        cos, sin, sqrt = math.cos, math.sin, math.sqrt
+        lo1, lo3, hi1, hi3 = self._limits
+        k, b = self.k_lim, self.b_lim
+        u1, u2, u3 = np.asarray(tau, dtype=float).tolist()
+        q1, q2, q3 = self.q
+        qd1, qd2, qd3 = self.qd
+        for _ in range(self.n_sub):
+            tc1, tc2, tc3, _, _, _, K11, K12, K13, K22, K23, K33 = slope(q1, q2, q3, qd1, qd2, qd3)
+            t1, t2, t3 = u1 + tc1, u2 + tc2, u3 + tc3
+            if q1 > hi1:
+                t1 -= k * (q1 - hi1) + (b * qd1 if qd1 > 0 else 0.0)
+            elif q1 < lo1:
+                t1 -= k * (q1 - lo1) + (b * qd1 if qd1 < 0 else 0.0)
+            if q3 > hi3:
+                t3 -= k * (q3 - hi3) + (b * qd3 if qd3 > 0 else 0.0)
+            elif q3 < lo3:
+                t3 -= k * (q3 - lo3) + (b * qd3 if qd3 < 0 else 0.0)
+            qp[0], qp[1], qp[2], qp[3] = q1, cos(q2), sin(q2), q3
+            v[0], v[1], v[2] = qd1, qd2, qd3
+            n1, n2, n3 = nle(model, data, qp, v).tolist()
+            M = crba(model, data, qp)
+            # A = M + h K (symmetric positive definite), r = h (tau_total - nle); Cholesky on floats
+            a11 = M[0, 0] + h * K11
+            a12 = M[0, 1] + h * K12
+            a13 = M[0, 2] + h * K13
+            a22 = M[1, 1] + h * K22
+            a23 = M[1, 2] + h * K23
+            a33 = M[2, 2] + h * K33
+            r1, r2, r3 = h * (t1 - n1), h * (t2 - n2), h * (t3 - n3)
+            l11 = sqrt(a11)
+            l21, l31 = a12 / l11, a13 / l11
+            l22 = sqrt(a22 - l21 * l21)
+            l32 = (a23 - l31 * l21) / l22
+            l33 = sqrt(a33 - l31 * l31 - l32 * l32)
+            z1 = r1 / l11
+            z2 = (r2 - l21 * z1) / l22
+            z3 = (r3 - l31 * z1 - l32 * z2) / l33
+            x3 = z3 / l33
+            x2 = (z2 - l32 * x3) / l22
+            x1 = (z1 - l21 * x2 - l31 * x3) / l11
+            qd1 = qd1 + x1
+            qd2 = qd2 + x2
+            qd3 = qd3 + x3
+            q1 = q1 + h * qd1
+            q2 = q2 + h * qd2
+            q3 = q3 + h * qd3
+        self.q = [q1, q2, q3]
+        self.qd = [qd1, qd2, qd3]
+
     def _rk4(self, tau: np.ndarray) -> None:
         h = self.h
         u = np.asarray(tau, dtype=float).tolist()
@@ -189,6 +263,8 @@ class PinocchioBackend(Backend):
         q, qd = self.q, self.qd
         f = self.force
         _, _, _, f[0], f[1], f[2] = self.law(q[0], q[1], q[2], qd[0], qd[1], qd[2])
+        if f[2] > self._fn_peak:
+            self._fn_peak, self._q_peak = float(f[2]), list(q)
 
     # ----------------------------------------------------------------- read
     def state(self) -> tuple[np.ndarray, np.ndarray]:
