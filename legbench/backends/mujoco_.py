@@ -63,6 +63,11 @@ LIMIT_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
 #: the spring-damper of solref and does not vary with depth.
 CONTACT_SOLIMP = (1e-4, 1e-4, 0.001, 0.5, 2.0)
 
+_CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL}
+_SOLVERS = {"newton": mujoco.mjtSolver.mjSOL_NEWTON, "cg": mujoco.mjtSolver.mjSOL_CG, "pgs": mujoco.mjtSolver.mjSOL_PGS}
+#: Contact impedance choices: pinned at 1e-4 (force = the solref spring-damper in N), or MuJoCo's default.
+_SOLIMPS = {"pinned": CONTACT_SOLIMP, "default": (0.9, 0.95, 0.001, 0.5, 2.0)}
+
 _INTEGRATORS = {
     "euler": mujoco.mjtIntegrator.mjINT_EULER,
     "rk4": mujoco.mjtIntegrator.mjINT_RK4,
@@ -78,8 +83,41 @@ class MujocoBackend(Backend):
     defaults: ClassVar[Mapping[str, Any]] = {
         "dt": 5.0e-5,  # sub-step [s]: the Pinocchio default (docs/pinocchio.md), so defaults are same-step
         "integrator": "euler",  # semi-implicit Euler, like PyBullet and the Pinocchio backend
+        "impratio": 1.0,  # opt.impratio: friction-to-normal impedance ratio (MuJoCo default 1)
+        "noslip_iterations": 10,  # opt.noslip_iterations: unregularised friction post-pass (MuJoCo default 0)
+        "cone": "elliptic",  # opt.cone (MuJoCo default pyramidal)
+        "solver": "newton",  # opt.solver (MuJoCo default Newton)
+        "iterations": 100,  # opt.iterations (MuJoCo default 100)
+        "contact_solref": "scaled",  # scaled: (-Kp A, -Kd A) [N]; raw: (-Kp, -Kd), the usual stiffness/damping form
+        "friction_solref": "deadbeat",  # deadbeat: friction rows stop the slip in one sub-step; contact: = solref
+        "contact_solimp": "pinned",  # pinned: d = 1e-4 at every depth; default: MuJoCo's (0.9, 0.95, 0.001, 0.5, 2)
     }
-    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"integrator": tuple(_INTEGRATORS)}
+    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
+        "integrator": tuple(_INTEGRATORS),
+        "cone": tuple(_CONES),
+        "solver": tuple(_SOLVERS),
+        "contact_solref": ("scaled", "raw"),
+        "friction_solref": ("deadbeat", "contact"),
+        "contact_solimp": tuple(_SOLIMPS),
+    }
+    #: ``engine-defaults``: MuJoCo's documented option defaults (2 ms is replaced by the control
+    #: period: a step must divide it), Kp and Kd as the usual direct solref (-Kp, -Kd) with the
+    #: default solimp, mu as the geom friction.
+    profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
+        "matched": {},
+        "engine-defaults": {
+            "dt": 1.0e-3,
+            "integrator": "euler",
+            "impratio": 1.0,
+            "noslip_iterations": 0,
+            "cone": "pyramidal",
+            "solver": "newton",
+            "iterations": 100,
+            "contact_solref": "raw",
+            "friction_solref": "contact",
+            "contact_solimp": "default",
+        },
+    }
 
     # ----------------------------------------------------------------- load
     def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
@@ -106,18 +144,28 @@ class MujocoBackend(Backend):
         opt.timestep = physics.control_dt / n_sub
         opt.integrator = _INTEGRATORS[cfg["integrator"]]
         opt.gravity = [0.0, 0.0, -physics.gravity]
-        opt.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+        opt.cone = _CONES[cfg["cone"]]
+        opt.solver = _SOLVERS[cfg["solver"]]
+        opt.iterations = int(cfg["iterations"])
+        opt.impratio = float(cfg["impratio"])
+        opt.noslip_iterations = int(cfg["noslip_iterations"])
         opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
         if self.reference:
             opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
 
-        # only the foot sphere collides, and only with the ground
-        for geom in spec.geoms:
-            on_foot = geom.parent.name == FOOT_FRAME
-            geom.contype, geom.conaffinity = (1 if on_foot else 0), 0
+        # only the foot sphere collides, and only with the ground: no dynamic collisions at all,
+        # one explicit pair per foot geom (its parameters bypass the two-geom mixing rules)
+        foot_names = []
+        for i, geom in enumerate(spec.geoms):
+            geom.contype, geom.conaffinity = 0, 0
+            if geom.parent.name == FOOT_FRAME:
+                geom.name = geom.name or f"foot_{i}"
+                foot_names.append(geom.name)
         spec.worldbody.add_geom(
-            name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0], contype=0, conaffinity=1
+            name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0], contype=0, conaffinity=0
         )
+        for name in foot_names:
+            spec.add_pair(geomname1="ground", geomname2=name, condim=3)
         spec.body(FOOT_FRAME).add_site(name="E", pos=[0.0, 0.0, 0.0])
 
         for joint, limit in zip(JOINT_NAMES, physics.torque_limit, strict=True):
@@ -140,20 +188,30 @@ class MujocoBackend(Backend):
         self.foot_body = m.body(FOOT_FRAME).id
         self.foot_geoms = frozenset(int(g) for g in np.flatnonzero(m.geom_bodyid == self.foot_body))
 
-        # native contact through the global override: N = Kp pen + Kd pen_rate
+        # native contact on the explicit pairs: N = Kp pen + Kd pen_rate
         c = physics.contact
         self.A = float(m.body_invweight0[self.foot_body, 0])
-        m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_OVERRIDE
-        m.opt.o_solref = [-c.Kp * self.A, -c.Kd * self.A]
-        m.opt.o_solimp = list(CONTACT_SOLIMP)
-        m.opt.o_friction = [c.mu_s, c.mu_s, 0.0, 0.0, 0.0]
-        m.opt.o_margin = 0.0
+        scale = self.A if cfg["contact_solref"] == "scaled" else 1.0
+        solimp = _SOLIMPS[cfg["contact_solimp"]]
+        if cfg["friction_solref"] == "deadbeat":
+            # friction rows' reference acceleration aref = -B v_t with B = -solreffriction[1] / dmax:
+            # B = 1 / h asks the unregularised noslip pass to stop the slip within one sub-step
+            solreffriction = [-1.0, -solimp[1] / m.opt.timestep]
+        else:
+            solreffriction = [0.0, 0.0]  # MuJoCo's default: the friction rows use solref
+        for i in range(m.npair):
+            m.pair_solref[i] = [-c.Kp * scale, -c.Kd * scale]
+            m.pair_solreffriction[i] = solreffriction
+            m.pair_solimp[i] = solimp
+            m.pair_friction[i] = [c.mu_s, c.mu_s, 0.0, 0.0, 0.0]
+            m.pair_margin[i] = 0.0
 
         self.contact = ReferenceContact.from_leg(c)
         self._step = self._step_reference if self.reference else self._step_native
         self._f6 = np.zeros(6)
         self._fw = np.zeros(3)
         self._force = np.zeros(3)
+        self._impulse = np.zeros(3)
         self._bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
 
     # ---------------------------------------------------------------- reset
@@ -171,16 +229,29 @@ class MujocoBackend(Backend):
         """Advance one control period with tau [N m] held (clamped to the torque limits by MuJoCo)."""
         self.data.ctrl[:] = tau
         self._step()
-        self._read_force()
         if self.data.warning[self._bad_qacc].number:
             raise SimulationDiverged(self.name, float(self.data.time), "MuJoCo reported a bad qacc")
 
     def _step_native(self) -> None:
-        m, d = self.model, self.data
-        mujoco.mj_step(m, d, self.n_sub)
-        # mj_step leaves the contact forces of the last sub-step's start state; one more
-        # forward pass gives those of the end state (the trajectory is bitwise unchanged)
-        mujoco.mj_forward(m, d)
+        """``n_sub`` calls of ``mj_step``, summing the contact force each sub-step applied.
+
+        After ``mj_step`` the contacts and ``efc_force`` are those the step used (computed at its
+        start state, after the noslip post-pass when there is one), so the mean over the
+        sub-steps is the impulse of the control period divided by its length: the force that
+        moved the leg. A single read at one instant is not: with a stiff friction row (large
+        impratio) the tangential force alternates from sub-step to sub-step, and the force of
+        the end state that ``mj_forward`` would recompute has not had the noslip pass applied
+        to the state actually integrated.
+        """
+        m, d, acc, fw = self.model, self.data, self._impulse, self._force
+        acc[:] = 0.0
+        for _ in range(self.n_sub):
+            mujoco.mj_step(m, d)
+            if d.ncon:
+                self._contact_force()
+                acc += fw
+        fw[:] = acc
+        fw /= self.n_sub
 
     def _step_reference(self) -> None:
         m, d = self.model, self.data
@@ -188,15 +259,21 @@ class MujocoBackend(Backend):
         for _ in range(self.n_sub):
             applied[:] = law(q[0], q[1], q[2], qd[0], qd[1], qd[2])
             mujoco.mj_step(m, d)
+        self._read_force()
 
     def _read_force(self) -> None:
-        """Ground force on the foot in W [N] at the current state, into ``self._force``."""
-        d, force = self.data, self._force
+        """Reference mode: the law at the current state; native: the contact force MuJoCo holds now."""
+        d = self.data
         if self.reference:
             q, qd = d.qpos, d.qvel
             self.contact.generalized(q[0], q[1], q[2], qd[0], qd[1], qd[2])
-            force[:] = self.contact.force
+            self._force[:] = self.contact.force
             return
+        self._contact_force()
+
+    def _contact_force(self) -> None:
+        """Force of the ground on the foot in W [N] from ``efc_force`` of the current contacts, into ``self._force``."""
+        d, force = self.data, self._force
         force[:] = 0.0
         for i in range(d.ncon):
             con = d.contact[i]
