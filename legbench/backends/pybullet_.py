@@ -54,8 +54,6 @@ from legbench.model import FOOT_FRAME, LINK_NAMES, Inertial, combine
 
 #: Joint-speed clamp [rad/s]: Bullet's default of 100 replaced by a bound the leg cannot reach.
 MAX_JOINT_VELOCITY = 1000.0
-#: Lateral friction of the plane; Bullet multiplies the two bodies' coefficients.
-PLANE_FRICTION = 1.0
 #: Contact stiffness of the plane [N/m]: Bullet combines stiffnesses in series, so a
 #: rigid plane leaves the foot's Kp (1/(1/Kp + 1e-30) = Kp in double precision).
 PLANE_STIFFNESS = 1.0e30
@@ -67,7 +65,27 @@ class PybulletBackend(Backend):
     name: ClassVar[str] = "pybullet"
     defaults: ClassVar[Mapping[str, Any]] = {
         "dt": 5.0e-5,  # sub-step [s]: the Pinocchio default (docs/pinocchio.md), so defaults are same-step
-        "solver_iterations": 50,  # sequential-impulse iterations per step
+        "solver_iterations": 50,  # sequential-impulse iterations per step (Bullet default 50)
+        "plane_contact": "rigid",  # rigid: plane (1e30 N/m, 0 N s/m); default: Bullet's plane (adds its damping)
+        "plane_friction": 1.0,  # lateral friction of the plane (Bullet multiplies it with the foot's mu)
+        "contact_margins": "zero",  # zero: contactSlop = contactProcessingThreshold = 0; default: Bullet's
+    }
+    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
+        "plane_contact": ("rigid", "default"),
+        "contact_margins": ("zero", "default"),
+    }
+    #: ``engine-defaults``: one Bullet step per control period, Bullet's plane, slop and
+    #: thresholds; Kp, Kd as the foot's contactStiffness/contactDamping, mu as its
+    #: lateralFriction on a plane of friction 1 (as pybullet_data's plane.urdf).
+    profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
+        "matched": {},
+        "engine-defaults": {
+            "dt": 1.0e-3,
+            "solver_iterations": 50,
+            "plane_contact": "default",
+            "plane_friction": 1.0,
+            "contact_margins": "default",
+        },
     }
 
     # ----------------------------------------------------------------- load
@@ -92,9 +110,11 @@ class PybulletBackend(Backend):
             fixedTimeStep=physics.control_dt / n_sub,
             numSubSteps=1,
             numSolverIterations=int(cfg["solver_iterations"]),
-            contactSlop=0.0,
             physicsClientId=cid,
         )
+        self.exact_margins = cfg["contact_margins"] == "zero"
+        if self.exact_margins:
+            p.setPhysicsEngineParameter(contactSlop=0.0, physicsClientId=cid)
         p.setGravity(0.0, 0.0, -physics.gravity, physicsClientId=cid)
         self.body = body = p.loadURDF(
             str(urdf), useFixedBase=True, flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid
@@ -126,15 +146,15 @@ class PybulletBackend(Backend):
             p.setCollisionFilterPair(body, self.ground, link, -1, int(enable), physicsClientId=cid)
 
         c = physics.contact
+        margins = {"contactProcessingThreshold": 0.0} if self.exact_margins else {}
         p.changeDynamics(
             body, self.foot, contactStiffness=c.Kp, contactDamping=c.Kd, lateralFriction=c.mu_s,
-            spinningFriction=0.0, rollingFriction=0.0, restitution=0.0, contactProcessingThreshold=0.0,
-            physicsClientId=cid,
+            spinningFriction=0.0, rollingFriction=0.0, restitution=0.0, physicsClientId=cid, **margins,
         )  # fmt: skip
+        rigid = {"contactStiffness": PLANE_STIFFNESS, "contactDamping": 0.0} if cfg["plane_contact"] == "rigid" else {}
         p.changeDynamics(
-            self.ground, -1, lateralFriction=PLANE_FRICTION, spinningFriction=0.0, rollingFriction=0.0,
-            restitution=0.0, contactProcessingThreshold=0.0, contactStiffness=PLANE_STIFFNESS,
-            contactDamping=0.0, physicsClientId=cid,
+            self.ground, -1, lateralFriction=float(cfg["plane_friction"]), spinningFriction=0.0,
+            rollingFriction=0.0, restitution=0.0, physicsClientId=cid, **margins, **rigid,
         )  # fmt: skip
 
         self.contact = ReferenceContact.from_leg(c)
@@ -256,8 +276,8 @@ class PybulletBackend(Backend):
                 "spinning_friction": foot[7],
                 "rolling_friction": foot[6],
                 "restitution": foot[5],
-                "contact_slop": 0.0,
-                "contact_processing_threshold": 0.0,
+                "contact_slop": 0.0 if self.exact_margins else "Bullet default",
+                "contact_processing_threshold": foot[11] if len(foot) > 11 else None,
                 "cone": "Coulomb cone (sticks below mu Fn, slides at mu Fn)",
                 "Kp": c.Kp,
                 "Kd": c.Kd,
