@@ -222,3 +222,54 @@ class ReferenceContact:
 
 _NO_CONTACT = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 _NO_CONTACT_SLOPE = (0.0,) * 12
+
+
+def tangential_mass(q: tuple[float, float, float] | list[float] | np.ndarray, true_poc: bool = True) -> float:
+    """Smallest apparent mass of the leg at its point of contact along the ground [kg].
+
+    1 / lambda_max(J_t M(q)^-1 J_t^T), J_t the two horizontal rows of J_poc(q), M the leg's mass
+    matrix (Pinocchio on the generated URDF), at joint angles q [rad].
+    """
+    import pinocchio as pin
+
+    from legbench import kinematics
+
+    model = kinematics.pinocchio_model()
+    data = model.createData()
+    q1, q2, q3 = (float(x) for x in q)
+    M = pin.crba(model, data, np.array([q1, math.cos(q2), math.sin(q2), q3]))
+    M = np.triu(M) + np.triu(M, 1).T
+    J_t = kinematics.jacobian_poc(np.array([q1, q2, q3]), true_poc=true_poc)[:2]
+    return float(1.0 / np.linalg.eigvalsh(J_t @ np.linalg.solve(M, J_t.T)).max())
+
+
+def friction_step_bound(fn: float, q: tuple[float, float, float] | list[float] | np.ndarray, p: ContactParams) -> float:
+    """Largest explicit sub-step [s] that resolves the stick-slip law's slope: m v_th / (mu_s Fn).
+
+    Below v_th the law is a viscous friction of coefficient mu_s Fn / v_th [N s/m]; an explicit
+    (semi-implicit Euler) step h is non-oscillating for h < m / c and stable for h < 2 m / c, with m
+    the apparent mass :func:`tangential_mass` at q [rad] and Fn [N] the normal force.
+    """
+    if fn <= 0.0:
+        return math.inf
+    return tangential_mass(q, p.poc == "true") * p.v_th / (p.mu_s * fn)
+
+
+def law_step_warnings(backend: str, h: float, fn_peak: float, q_peak: list[float], p: ContactParams) -> list[str]:
+    """The warning a backend that applies the law explicitly every sub-step ``h`` [s] gives, or none.
+
+    Args:
+        backend: backend name, for the message.
+        h: sub-step [s].
+        fn_peak: largest normal force of the run [N]; q_peak: joint angles there [rad].
+        p: contact parameters.
+    """
+    bound = friction_step_bound(fn_peak, q_peak, p)
+    if h <= bound:
+        return []
+    m = tangential_mass(q_peak, p.poc == "true")
+    return [
+        f"{backend}: sub-step {h:.3g} s is too coarse for the stick-slip law: h > m v_th / (mu_s Fn) = "
+        f"{m:.3g} kg x {p.v_th:.3g} m/s / ({p.mu_s:g} x {fn_peak:.3g} N) = {bound:.3g} s; the friction "
+        f"chatters (use a sub-step <= {bound:.2g} s, or the implicit friction step where the backend has one)"
+    ]

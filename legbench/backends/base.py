@@ -166,6 +166,14 @@ class Backend(ABC):
     def limits(self) -> Limits:
         """Gravity, joint and torque limits as the loaded engine holds them, and how it enforces them."""
 
+    def warnings(self) -> list[str]:
+        """Why this run's numbers may not be trusted, one sentence each with its numbers (default none).
+
+        E.g. a sub-step too coarse for the contact law: ``h > m v_th / (mu_s Fn)``. Called after a
+        run; the run loop carries the sentences into run.json, the terminal and the report.
+        """
+        return []
+
     def kernels(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> dict[str, Callable[[], None]]:
         """The engine's own per-sub-step calls, for the benchmark's floors.
 

@@ -51,7 +51,7 @@ import mujoco
 import numpy as np
 
 from legbench.backends.base import Backend, Limits, Physics, sub_step_count
-from legbench.contact import ReferenceContact
+from legbench.contact import ReferenceContact, law_step_warnings
 from legbench.exceptions import LegbenchError, SimulationDiverged
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine
 
@@ -212,6 +212,7 @@ class MujocoBackend(Backend):
         self._fw = np.zeros(3)
         self._force = np.zeros(3)
         self._impulse = np.zeros(3)
+        self._fn_peak, self._q_peak = 0.0, [0.0, 0.0, 0.0]
         self._bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
 
     # ---------------------------------------------------------------- reset
@@ -222,6 +223,7 @@ class MujocoBackend(Backend):
         d.qpos[:] = q
         d.qvel[:] = qd
         mujoco.mj_forward(m, d)
+        self._fn_peak = 0.0
         self._read_force()
 
     # ----------------------------------------------------------------- step
@@ -268,6 +270,8 @@ class MujocoBackend(Backend):
             q, qd = d.qpos, d.qvel
             self.contact.generalized(q[0], q[1], q[2], qd[0], qd[1], qd[2])
             self._force[:] = self.contact.force
+            if self._force[2] > self._fn_peak:
+                self._fn_peak, self._q_peak = float(self._force[2]), q.tolist()
             return
         self._contact_force()
 
@@ -327,6 +331,18 @@ class MujocoBackend(Backend):
                 "tolerance": float(m.opt.tolerance),
             },
         }
+
+    def warnings(self) -> list[str]:
+        """Reference mode: the explicit law's step bound; native: deadbeat friction without its noslip pass."""
+        if self.reference:
+            return law_step_warnings(self.name, float(self.model.opt.timestep), self._fn_peak, self._q_peak,
+                                     self.physics.contact)  # fmt: skip
+        if self.cfg["friction_solref"] == "deadbeat" and self.cfg["noslip_iterations"] == 0:
+            return [
+                "mujoco: friction_solref 'deadbeat' without noslip iterations leaves the friction rows almost "
+                "force-free in the regularised solver (the foot slides); set noslip_iterations > 0"
+            ]
+        return []
 
     # ------------------------------------------------------- declared abilities
     def integrator_family(self) -> str:

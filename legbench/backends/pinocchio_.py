@@ -26,7 +26,7 @@ import pinocchio as pin
 from scipy.integrate import solve_ivp
 
 from legbench.backends.base import Backend, Limits, Physics, sub_step_count
-from legbench.contact import ReferenceContact
+from legbench.contact import ReferenceContact, law_step_warnings
 from legbench.exceptions import LegbenchError
 from legbench.model import LINK_NAMES, load_params
 
@@ -292,6 +292,12 @@ class PinocchioBackend(Backend):
                 "poc": c.poc,
             },
         }
+
+    def warnings(self) -> list[str]:
+        """The explicit law's step bound (euler with ``friction: explicit``, rk4) at the run's peak Fn."""
+        if self.implicit or self.cfg["integrator"] not in ("euler", "rk4"):
+            return []
+        return law_step_warnings(self.name, self.h, self._fn_peak, self._q_peak, self.physics.contact)
 
     # ------------------------------------------------------- declared abilities
     def integrator_family(self) -> str:

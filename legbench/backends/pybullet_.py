@@ -48,7 +48,7 @@ import numpy as np
 import pybullet as p
 
 from legbench.backends.base import Backend, Limits, Physics, sub_step_count
-from legbench.contact import ReferenceContact
+from legbench.contact import ReferenceContact, law_step_warnings
 from legbench.exceptions import SimulationDiverged
 from legbench.model import FOOT_FRAME, LINK_NAMES, Inertial, combine
 
@@ -167,6 +167,7 @@ class PybulletBackend(Backend):
         self._q = np.zeros(3)
         self._qd = np.zeros(3)
         self.t = 0.0
+        self._fn_peak, self._q_peak = 0.0, [0.0, 0.0, 0.0]
 
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
@@ -175,6 +176,7 @@ class PybulletBackend(Backend):
             p.resetJointState(self.body, j, float(qj), float(qdj), physicsClientId=self.cid)
         self._read()
         self.t = 0.0
+        self._fn_peak = 0.0
         if self.reference:
             self._reference_force()
         else:
@@ -218,6 +220,8 @@ class PybulletBackend(Backend):
         q, qd = self._q, self._qd
         self.contact.generalized(q[0], q[1], q[2], qd[0], qd[1], qd[2])
         self._force[:] = self.contact.force
+        if self._force[2] > self._fn_peak:
+            self._fn_peak, self._q_peak = float(self._force[2]), q.tolist()
 
     def _native_force(self) -> None:
         """Sum of the foot's contact forces over the last sub-step (impulse / dt), on the foot, in W.
@@ -286,6 +290,13 @@ class PybulletBackend(Backend):
             "damping": {"linear": 0.0, "angular": 0.0, "joint": 0.0},
             "max_joint_velocity": MAX_JOINT_VELOCITY,
         }
+
+    def warnings(self) -> list[str]:
+        """Reference mode: the explicit law's step bound at the run's peak Fn (native Coulomb contact has none)."""
+        if not self.reference:
+            return []
+        return law_step_warnings(self.name, self.physics.control_dt / self.n_sub, self._fn_peak, self._q_peak,
+                                 self.physics.contact)  # fmt: skip
 
     # ------------------------------------------------------- declared abilities
     def integrator_family(self) -> str:
