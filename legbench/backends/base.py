@@ -113,6 +113,12 @@ class Backend(ABC):
     #: Kp, Kd and mu set the engine's usual way. A backend may add more (e.g. ``gazebo``).
     #: Every key of an overlay must be a key of :attr:`defaults`.
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {"matched": {}, "engine-defaults": {}}
+    #: The ContactParams coefficient the backend's native contact slides with: ``mu_k`` for the
+    #: stick-slip law, ``mu_s`` for an engine whose friction has a single (Coulomb) coefficient.
+    sliding_coefficient: ClassVar[str] = "mu_k"
+    #: Where the native contact applies its force, as the fraction of the penetration y above the
+    #: sphere's lowest point (0: the true poc; MuJoCo: 0.5, the middle of the penetration).
+    contact_point_lift: ClassVar[float] = 0.0
     #: One command that installs the engine where it is missing (shown by the registry).
     install: ClassVar[str] = ""
 

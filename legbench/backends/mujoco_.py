@@ -92,6 +92,10 @@ class MujocoBackend(Backend):
         "friction_solref": "deadbeat",  # deadbeat: friction rows stop the slip in one sub-step; contact: = solref
         "contact_solimp": "pinned",  # pinned: d = 1e-4 at every depth; default: MuJoCo's (0.9, 0.95, 0.001, 0.5, 2)
     }
+    #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
+    sliding_coefficient: ClassVar[str] = "mu_s"
+    #: MuJoCo's sphere-plane contact point is the middle of the penetration, y/2 above the lowest point.
+    contact_point_lift: ClassVar[float] = 0.5
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "integrator": tuple(_INTEGRATORS),
         "cone": tuple(_CONES),

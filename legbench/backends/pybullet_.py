@@ -70,6 +70,8 @@ class PybulletBackend(Backend):
         "plane_friction": 1.0,  # lateral friction of the plane (Bullet multiplies it with the foot's mu)
         "contact_margins": "zero",  # zero: contactSlop = contactProcessingThreshold = 0; default: Bullet's
     }
+    #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
+    sliding_coefficient: ClassVar[str] = "mu_s"
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "plane_contact": ("rigid", "default"),
         "contact_margins": ("zero", "default"),
