@@ -10,7 +10,8 @@ ground force alone:
   gives mu_k): |F_t| / (mu_k Fn);
 * the angle between the friction force and the slip direction (the law puts
   it exactly opposite the slip) [deg];
-* creep under a sub-limit load (|F_t| < 0.9 mu_s Fn): the measured slip speed
+* creep under a sub-limit load (|F_t| < 0.9 min(mu_s, mu_k) Fn, so that kinetic sliding
+  is not counted): the measured slip speed
   against the law's v_th |F_t| / (mu_s Fn) [m/s].
 
 The point of contact is the true poc (the sphere's lowest point) or the
@@ -32,7 +33,7 @@ from legbench.model import load_params
 
 #: Normal force below which a sample does not count as in contact [N].
 FN_MIN = 0.5
-#: Sub-limit load: |F_t| below this fraction of mu_s Fn.
+#: Sub-limit load: |F_t| below this fraction of min(mu_s, mu_k) Fn.
 SUB_LIMIT = 0.9
 #: Slip speed from which the friction direction is scored [m/s]: below it the direction of a
 #: Coulomb engine's (sticking) foot is numerical noise.
@@ -80,7 +81,9 @@ def _median(x: np.ndarray) -> float:
     return float(np.median(x)) if x.size else math.nan
 
 
-def residuals(t: np.ndarray, q: np.ndarray, qd: np.ndarray, force: np.ndarray, params: ContactParams) -> ContactResiduals:
+def residuals(
+    t: np.ndarray, q: np.ndarray, qd: np.ndarray, force: np.ndarray, params: ContactParams
+) -> ContactResiduals:
     """The law's residuals over a run.
 
     Args:
@@ -116,7 +119,7 @@ def residuals(t: np.ndarray, q: np.ndarray, qd: np.ndarray, force: np.ndarray, p
     cosang = -(f[scored, 0] * v[scored, 0] + f[scored, 1] * v[scored, 1]) / (ft[scored] * vt[scored])
     angle = np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0)))
 
-    creep = contact & (ft < SUB_LIMIT * params.mu_s * fn)
+    creep = contact & (ft < SUB_LIMIT * min(params.mu_s, params.mu_k) * fn)
     law = params.v_th * ft[creep] / (params.mu_s * fn[creep])
     return ContactResiduals(
         n_contact=int(contact.sum()),
