@@ -34,7 +34,7 @@ class ContactParams:
     Kd: float = 1.0e2
     mu_s: float = 0.7
     mu_k: float = 0.6
-    v_th: float = 1.08e-3  # [m/s], docs/contact_law.md
+    v_th: float = 1.0e-3  # [m/s], docs/contact_law.md
     poc: str = "true"
 
 

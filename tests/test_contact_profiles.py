@@ -107,5 +107,5 @@ def test_v_th_is_the_legs_default() -> None:
     """The leg's default threshold is the one derived from table 10 (docs/contact_law.md)."""
     from legbench.model import load_params
 
-    assert load_params().contact.v_th == pytest.approx(1.08e-3)
-    assert ContactParams().v_th == pytest.approx(1.08e-3)
+    assert load_params().contact.v_th == pytest.approx(1.0e-3)
+    assert ContactParams().v_th == pytest.approx(1.0e-3)
