@@ -10,17 +10,41 @@ ground plane z_W = 0, one ``motor`` actuator per joint (gear 1, control range
 at 2.2292 rad after a 0.02 rad overshoot) and collision filters so that only
 the foot sphere touches the ground (no link-link or other link-ground contact).
 
-Native contact (``contact_mode = "native"``), set through MuJoCo's global
-contact override (``mjENBL_OVERRIDE``), which bypasses the two-geom mixing
-rules: the "direct" reference ``solref = (-Kp A, -Kd A)`` with the impedance
-pinned at ``d = 1e-4`` (``solimp = (1e-4, 1e-4, 0.001, 0.5, 2)``) makes the
-normal force ``Kp pen + Kd pen_rate`` in newtons, where
-``A = body_invweight0[foot, 0]`` is the inverse inertia MuJoCo uses for the
-contact's regulariser (frozen at qpos0); elliptic cone, sliding friction
-``mu_s`` only (condim 3: no torsional or rolling friction). Differences from
-the spec's law (damping also while releasing, force clamped at zero, a
-regularised cone in which the foot creeps at about F_t / Kd below the limit):
-docs/contact_mapping.md.
+Native contact (``contact_mode = "native"``), on one explicit contact pair per
+foot geom (``<pair>``: its parameters bypass the two-geom mixing rules; no
+other geom collides). Profiles (docs/contact_mapping.md has the study):
+
+* ``matched`` (the defaults): the "direct" reference ``solref = (-Kp A, -Kd A)``
+  with the impedance pinned at ``d = 1e-4`` (``solimp = (1e-4, 1e-4, 0.001, 0.5, 2)``)
+  makes the normal force ``Kp pen + Kd pen_rate`` in newtons, where
+  ``A = body_invweight0[foot, 0]`` is the inverse inertia MuJoCo uses for the
+  contact's regulariser (frozen at qpos0). Friction: elliptic cone with
+  ``mu_s`` (condim 3), the noslip post-pass (``noslip_iterations = 10``) and
+  "deadbeat" friction rows, ``solreffriction = (-1, -dmax / h)``: the friction
+  rows' reference acceleration -v_t / h asks the unregularised noslip pass to
+  stop the slip within one sub-step, inside the cone. The foot then sticks below
+  mu_s Fn like a Coulomb cone (0.5 um over the effort task) and slides at mu_s Fn
+  above it. Without noslip these rows are nearly force-free (the regulariser
+  dominates) and the foot slides: :meth:`warnings` says so.
+* ``engine-defaults``: MuJoCo's option defaults (pyramidal cone, impratio 1,
+  Newton, 100 iterations, no noslip, solimp (0.9, 0.95, 0.001, 0.5, 2)) with Kp,
+  Kd as the usual direct ``solref = (-Kp, -Kd)`` and mu as the pair friction,
+  one 1 ms step per control period (MuJoCo's 2 ms default does not divide it).
+  Friction is then the regularised cone: the foot creeps at about F_t / Kd.
+
+Ground force read-out: the mean over the control period's sub-steps of the
+force each ``mj_step`` applied (``efc_force`` through ``mj_contactForce``,
+rotated out of the contact frame; after the noslip pass when there is one),
+i.e. the period's contact impulse over its length. A single read is wrong in
+two ways: with stiff friction rows (large impratio, or noslip) the tangential
+force alternates from sub-step to sub-step (the old end-of-period read gave
+(-2.3, -37.3, 53.5) N where the statics said (5.6, -8.6, 53.0)), and the force
+``mj_forward`` recomputes at the end state is not the one that was integrated.
+Measured against the leg's statics h = -(J_poc^T)^-1 (tau - G(q)) over the
+effort task's last 0.5 s: 0.2 % of Fn (matched), 0.01 % (engine-defaults);
+the 0.2 % is MuJoCo's contact point, which sits in the middle of the
+penetration, y/2 above the true poc (``contact_point_lift``). With ``rk4`` the
+forces are those of each step's first stage.
 
 Reference contact (``contact_mode = "reference"``): engine contact off
 (``mjDSBL_CONTACT``); before every sub-step, ``qfrc_applied`` is set to
@@ -300,7 +324,8 @@ class MujocoBackend(Backend):
         return self.data.qpos.copy(), self.data.qvel.copy()
 
     def ground_force(self) -> np.ndarray:
-        """Force of the ground on the foot in W [N], summed over the foot's contacts, at the current state."""
+        """Force of the ground on the foot in W [N]: native, the mean over the last control period's sub-steps
+        (impulse / control period, summed over the foot's contacts); reference, the law at the current state."""
         return self._force.copy()
 
     def info(self) -> dict[str, Any]:
@@ -315,17 +340,20 @@ class MujocoBackend(Backend):
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
             "contact": {
-                "method": "global override (mjENBL_OVERRIDE), direct solref",
+                "method": "explicit foot-ground pair, direct solref",
                 "enabled": not self.reference,
-                "solref": m.opt.o_solref.tolist(),
-                "solimp": m.opt.o_solimp.tolist(),
+                "solref": m.pair_solref[0].tolist() if m.npair else None,
+                "solreffriction": m.pair_solreffriction[0].tolist() if m.npair else None,
+                "solimp": m.pair_solimp[0].tolist() if m.npair else None,
                 "A": self.A,
                 "Kp": c.Kp,
                 "Kd": c.Kd,
-                "friction": m.opt.o_friction.tolist(),
-                "condim": int(m.geom_condim[min(self.foot_geoms)]),
-                "cone": "elliptic",
+                "friction": m.pair_friction[0].tolist() if m.npair else None,
+                "condim": int(m.pair_dim[0]) if m.npair else None,
+                "cone": mujoco.mjtCone(m.opt.cone).name,
                 "impratio": float(m.opt.impratio),
+                "noslip_iterations": int(m.opt.noslip_iterations),
+                "force_readout": "mean over the control period's sub-steps of the applied efc_force",
                 "reference_law": "J_poc^T F via qfrc_applied per sub-step" if self.reference else None,
             },
             "joint_limits": {"solref": list(LIMIT_SOLREF), "solimp": list(LIMIT_SOLIMP)},

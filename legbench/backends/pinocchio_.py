@@ -12,6 +12,19 @@ Integrators (setting ``integrator``): ``euler`` (semi-implicit: qd += dt qdd,
 then q += dt qd, as MuJoCo's Euler and Bullet), ``rk4`` (classic, fixed step),
 ``rk45`` / ``dop853`` (scipy adaptive, one solve per control period so control
 updates stay on the grid). The sub-step ``dt`` must divide the control period.
+
+Friction (setting ``friction``, ``euler`` only): ``implicit`` (default) solves
+(M + h K) dqd = h (tau + J_poc^T F + tau_lim - nle) per sub-step, K = -J_t^T dF_t/dv_t J_t
+the friction's slope (linearly implicit Euler in the friction, explicit in the
+rest); ``explicit`` is plain semi-implicit Euler, which resolves the stick-slip
+law only for h < m v_th / (mu_s Fn) (~5.6 us at the effort task's loads with
+v_th = 1e-3 m/s) and chatters above it: :meth:`warnings` says so with the numbers.
+docs/pinocchio.md has the trade-off, convergence and cost. Pinocchio is
+legbench's own integrator, so its ``engine-defaults`` profile is these defaults.
+
+Ground force read-out: the law at the state at the end of the control period
+(it is a function of the state); it matches the leg's statics over the effort
+task's last 0.5 s to 1e-6 of Fn.
 """
 
 from __future__ import annotations

@@ -22,13 +22,26 @@ spinning or rolling friction, restitution 0, and ``contactSlop = 0`` /
 ``contactProcessingThreshold = 0`` so the spring acts on the true
 penetration. Friction is a hard Coulomb cone: the foot sticks.
 
+Profiles: ``matched`` is the above (the defaults); ``engine-defaults`` keeps
+Bullet's own plane (no explicit stiffness/damping: its default contact damping
+adds to Kd), slop and processing thresholds, 50 solver iterations, and takes one
+1 ms ``stepSimulation`` per control period, with Kp, Kd as the foot's
+``contactStiffness``/``contactDamping`` and mu as its ``lateralFriction`` on a
+plane of friction 1 (pybullet_data's plane.urdf). Both stick (Coulomb cone);
+the steady effort-task force differs by 0.04 % (docs/contact_mapping.md).
+
 Reference contact: the foot-ground collision pair is disabled and ``J_poc^T F`` of
 :class:`~legbench.contact.ReferenceContact` at the sub-step's start state is
 added to the commanded torque before every ``stepSimulation``.
 
 Sub-stepping: ``numSubSteps = 1`` and ``stepSimulation`` called ``n_sub``
 times per control period, so ``getContactPoints`` reports the force of a whole
-(sub-)step (with internal sub-steps it under-reports by their number). Bullet
+(sub-)step: its impulse over that step (with Bullet's internal sub-steps,
+``numSubSteps = n``, it is the last internal step's impulse divided by the whole
+step, n times too small, so legbench does not use them). The read-out is that of
+the last sub-step; Bullet's contact sticks without chatter, and it matches the
+leg's statics over the effort task's last 0.5 s to 2e-7 of Fn (matched) and
+3e-7 (engine-defaults). Bullet
 applies a ``TORQUE_CONTROL`` command only to the next ``stepSimulation`` and
 adds up repeated commands, so the (clamped) torque is commanded exactly once
 before each call. The integrator is Bullet's semi-implicit Euler; ``dt``
@@ -283,7 +296,7 @@ class PybulletBackend(Backend):
                 "rolling_friction": foot[6],
                 "restitution": foot[5],
                 "contact_slop": 0.0 if self.exact_margins else "Bullet default",
-                "contact_processing_threshold": foot[11] if len(foot) > 11 else None,
+                "contact_processing_threshold": 0.0 if self.exact_margins else "Bullet default",
                 "cone": "Coulomb cone (sticks below mu Fn, slides at mu Fn)",
                 "Kp": c.Kp,
                 "Kd": c.Kd,
