@@ -135,7 +135,7 @@ def _short_effort() -> tuple[object, object]:
         ("pinocchio", "native", {"friction": "explicit"}, True),
         ("pinocchio", "native", {"friction": "explicit", "dt": 5e-6}, False),
         ("mujoco", "native", {}, False),
-        ("mujoco", "native", {"noslip_iterations": 0}, True),
+        ("mujoco", "native", {"noslip": False}, True),
         ("mujoco", "reference", {}, True),
         ("pybullet", "native", {}, False),
         ("pybullet", "reference", {}, True),

@@ -19,7 +19,7 @@ other geom collides). Profiles (docs/contact_mapping.md has the study):
   makes the normal force ``Kp pen + Kd pen_rate`` in newtons, where
   ``A = body_invweight0[foot, 0]`` is the inverse inertia MuJoCo uses for the
   contact's regulariser (frozen at qpos0). Friction: elliptic cone with
-  ``mu_s`` (condim 3), the noslip post-pass (``noslip_iterations = 10``) and
+  ``mu_s`` (condim 3), the noslip post-pass (``noslip``, 10 iterations) and
   "deadbeat" friction rows, ``solreffriction = (-1, -dmax / h)``: the friction
   rows' reference acceleration -v_t / h asks the unregularised noslip pass to
   stop the slip within one sub-step, inside the cone. The foot then sticks below
@@ -108,7 +108,8 @@ class MujocoBackend(Backend):
         "dt": 5.0e-5,  # sub-step [s]: the Pinocchio default (docs/pinocchio.md), so defaults are same-step
         "integrator": "euler",  # semi-implicit Euler, like PyBullet and the Pinocchio backend
         "impratio": 1.0,  # opt.impratio: friction-to-normal impedance ratio (MuJoCo default 1)
-        "noslip_iterations": 10,  # opt.noslip_iterations: unregularised friction post-pass (MuJoCo default 0)
+        "noslip": True,  # the unregularised friction post-pass on (MuJoCo default off: noslip_iterations 0)
+        "noslip_iterations": 10,  # opt.noslip_iterations when noslip is on
         "cone": "elliptic",  # opt.cone (MuJoCo default pyramidal)
         "solver": "newton",  # opt.solver (MuJoCo default Newton)
         "iterations": 100,  # opt.iterations (MuJoCo default 100)
@@ -137,7 +138,7 @@ class MujocoBackend(Backend):
             "dt": 1.0e-3,
             "integrator": "euler",
             "impratio": 1.0,
-            "noslip_iterations": 0,
+            "noslip": False,
             "cone": "pyramidal",
             "solver": "newton",
             "iterations": 100,
@@ -176,7 +177,7 @@ class MujocoBackend(Backend):
         opt.solver = _SOLVERS[cfg["solver"]]
         opt.iterations = int(cfg["iterations"])
         opt.impratio = float(cfg["impratio"])
-        opt.noslip_iterations = int(cfg["noslip_iterations"])
+        opt.noslip_iterations = int(cfg["noslip_iterations"]) if cfg["noslip"] else 0
         opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
         if self.reference:
             opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
@@ -369,10 +370,10 @@ class MujocoBackend(Backend):
         if self.reference:
             return law_step_warnings(self.name, float(self.model.opt.timestep), self._fn_peak, self._q_peak,
                                      self.physics.contact)  # fmt: skip
-        if self.cfg["friction_solref"] == "deadbeat" and self.cfg["noslip_iterations"] == 0:
+        if self.cfg["friction_solref"] == "deadbeat" and self.model.opt.noslip_iterations == 0:
             return [
                 "mujoco: friction_solref 'deadbeat' without noslip iterations leaves the friction rows almost "
-                "force-free in the regularised solver (the foot slides); set noslip_iterations > 0"
+                "force-free in the regularised solver (the foot slides); set noslip: true"
             ]
         return []
 
