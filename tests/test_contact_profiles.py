@@ -109,3 +109,19 @@ def test_v_th_is_the_legs_default() -> None:
 
     assert load_params().contact.v_th == pytest.approx(1.0e-3)
     assert ContactParams().v_th == pytest.approx(1.0e-3)
+
+
+def test_pinocchio_implicit_friction_is_plain_euler_out_of_contact() -> None:
+    """Out of contact K = 0: the implicit-friction step is the explicit one, bit for bit (free swing, 0.3 s)."""
+    _need("pinocchio")
+    from legbench.backends.base import Physics
+
+    out = []
+    for friction in ("implicit", "explicit"):
+        b = registry.load("pinocchio", Physics(), {"friction": friction})
+        b.reset(np.array([0.3, 0.5, -0.4]), np.zeros(3))
+        for _ in range(300):
+            b.step(np.array([0.5, -1.0, 0.3]))
+        out.append(np.concatenate(b.state()))
+        b.close()
+    assert np.array_equal(out[0], out[1])

@@ -14,11 +14,13 @@ then q += dt qd, as MuJoCo's Euler and Bullet), ``rk4`` (classic, fixed step),
 updates stay on the grid). The sub-step ``dt`` must divide the control period.
 
 Friction (setting ``friction``, ``euler`` only): ``implicit`` (default) solves
-(M + h K) dqd = h (tau + J_poc^T F + tau_lim - nle) per sub-step, K = -J_t^T dF_t/dv_t J_t
-the friction's slope (linearly implicit Euler in the friction, explicit in the
-rest); ``explicit`` is plain semi-implicit Euler, which resolves the stick-slip
-law only for h < m v_th / (mu_s Fn) (~5.6 us at the effort task's loads with
-v_th = 1e-3 m/s) and chatters above it: :meth:`warnings` says so with the numbers.
+(I + h M0^-1 K) dqd = h ABA(q, qd, tau + J_poc^T F + tau_lim) per sub-step, with
+K = -J_t^T dF_t/dv_t J_t the friction's slope and M0 the mass matrix frozen over
+the control period (linearly implicit Euler in the friction, a W-method; explicit
+in the rest, and exactly ``explicit`` out of contact). ``explicit`` is plain
+semi-implicit Euler, which resolves the stick-slip law only for
+h < m v_th / (mu_s Fn) (~5.6 us at the effort task's loads with v_th = 1e-3 m/s)
+and chatters above it: :meth:`warnings` says so with the numbers.
 docs/pinocchio.md has the trade-off, convergence and cost. Pinocchio is
 legbench's own integrator, so its ``engine-defaults`` profile is these defaults.
 
@@ -92,7 +94,6 @@ class PinocchioBackend(Backend):
         self.law = self.contact.wrench
         self._aba = pin.aba
         self.slope = self.contact.wrench_slope
-        self._crba, self._nle = pin.crba, pin.nonLinearEffects
         self.implicit = self.cfg["integrator"] == "euler" and self.cfg["friction"] == "implicit"
         euler = self._euler_implicit if self.implicit else self._euler
         self._step = {"euler": euler, "rk4": self._rk4}.get(self.cfg["integrator"], self._adaptive)
@@ -168,22 +169,26 @@ class PinocchioBackend(Backend):
     def _euler_implicit(self, tau: np.ndarray) -> None:
         """Semi-implicit Euler with the friction slope linearly implicit (the default).
 
-        Per sub-step: (M + h K) dqd = h (tau + J_poc^T F + tau_lim - nle(q, qd)), qd += dqd,
-        q += h qd, with K = -J_t^T dF_t/dv_t J_t from :meth:`ReferenceContact.wrench_slope`
-        at the sub-step's start. Below v_th the law is a viscous friction of coefficient
-        mu_s Fn / v_th, which explicit Euler resolves only for h < m v_th / (mu_s Fn); treated
-        implicitly it is stable at any h, and a fixed point of the step (dqd = 0) is a fixed
-        point of the law, so steady creep and force are the law's.
+        Per sub-step, with a = ABA(q, qd, tau + J_poc^T F + tau_lim) the explicit acceleration:
+        (I + h M0^-1 K) dqd = h a, qd += dqd, q += h qd. K = -J_t^T dF_t/dv_t J_t is the
+        friction's slope from :meth:`ReferenceContact.wrench_slope` at the sub-step's start, M0^-1
+        the inverse mass matrix at the period's first sub-step in contact (a W-method: the exact
+        M enters through ABA, the frozen one only the implicit correction). Below v_th the law is a viscous
+        friction of coefficient mu_s Fn / v_th, which explicit Euler resolves only for
+        h < m v_th / (mu_s Fn); treated implicitly it is stable at any h, and a fixed point of the
+        step (dqd = 0 <=> a = 0) is a fixed point of the law, so steady creep and force are the
+        law's. Out of contact K = 0 and the step is exactly :meth:`_euler`.
         """
         h = self.h
-        crba, nle, model, data, slope = self._crba, self._nle, self.model, self.data, self.slope
-        qp, v = self._qp, self._v
-        cos, sin, sqrt = math.cos, math.sin, math.sqrt
+        aba, model, data, slope = self._aba, self.model, self.data, self.slope
+        qp, v, t = self._qp, self._v, self._tau
+        cos, sin = math.cos, math.sin
         lo1, lo3, hi1, hi3 = self._limits
         k, b = self.k_lim, self.b_lim
         u1, u2, u3 = np.asarray(tau, dtype=float).tolist()
         q1, q2, q3 = self.q
         qd1, qd2, qd3 = self.qd
+        m11 = math.nan  # M0^-1, computed at the first sub-step in contact of this period
         for _ in range(self.n_sub):
             tc1, tc2, tc3, _, _, _, K11, K12, K13, K22, K23, K33 = slope(q1, q2, q3, qd1, qd2, qd3)
             t1, t2, t3 = u1 + tc1, u2 + tc2, u3 + tc3
@@ -197,27 +202,30 @@ class PinocchioBackend(Backend):
                 t3 -= k * (q3 - lo3) + (b * qd3 if qd3 < 0 else 0.0)
             qp[0], qp[1], qp[2], qp[3] = q1, cos(q2), sin(q2), q3
             v[0], v[1], v[2] = qd1, qd2, qd3
-            n1, n2, n3 = nle(model, data, qp, v).tolist()
-            M = crba(model, data, qp)
-            # A = M + h K (symmetric positive definite), r = h (tau_total - nle); Cholesky on floats
-            a11 = M[0, 0] + h * K11
-            a12 = M[0, 1] + h * K12
-            a13 = M[0, 2] + h * K13
-            a22 = M[1, 1] + h * K22
-            a23 = M[1, 2] + h * K23
-            a33 = M[2, 2] + h * K33
-            r1, r2, r3 = h * (t1 - n1), h * (t2 - n2), h * (t3 - n3)
-            l11 = sqrt(a11)
-            l21, l31 = a12 / l11, a13 / l11
-            l22 = sqrt(a22 - l21 * l21)
-            l32 = (a23 - l31 * l21) / l22
-            l33 = sqrt(a33 - l31 * l31 - l32 * l32)
-            z1 = r1 / l11
-            z2 = (r2 - l21 * z1) / l22
-            z3 = (r3 - l31 * z1 - l32 * z2) / l33
-            x3 = z3 / l33
-            x2 = (z2 - l32 * x3) / l22
-            x1 = (z1 - l21 * x2 - l31 * x3) / l11
+            t[0], t[1], t[2] = t1, t2, t3
+            a1, a2, a3 = aba(model, data, qp, v, t).tolist()
+            x1, x2, x3 = h * a1, h * a2, h * a3
+            if K11 != 0.0 or K22 != 0.0 or K33 != 0.0:
+                if m11 != m11:  # NaN: not yet computed in this period
+                    (m11, m12, m13), (_, m22, m23), (_, _, m33) = self._minverse(qp).tolist()
+                # B = I + h M0^-1 K (M0^-1 and K symmetric), solved by Cramer's rule on floats
+                c11 = 1.0 + h * (m11 * K11 + m12 * K12 + m13 * K13)
+                c12 = h * (m11 * K12 + m12 * K22 + m13 * K23)
+                c13 = h * (m11 * K13 + m12 * K23 + m13 * K33)
+                c21 = h * (m12 * K11 + m22 * K12 + m23 * K13)
+                c22 = 1.0 + h * (m12 * K12 + m22 * K22 + m23 * K23)
+                c23 = h * (m12 * K13 + m22 * K23 + m23 * K33)
+                c31 = h * (m13 * K11 + m23 * K12 + m33 * K13)
+                c32 = h * (m13 * K12 + m23 * K22 + m33 * K23)
+                c33 = 1.0 + h * (m13 * K13 + m23 * K23 + m33 * K33)
+                d1 = c22 * c33 - c23 * c32
+                d2 = c21 * c33 - c23 * c31
+                d3 = c21 * c32 - c22 * c31
+                det = c11 * d1 - c12 * d2 + c13 * d3
+                y1 = (x1 * d1 - c12 * (x2 * c33 - c23 * x3) + c13 * (x2 * c32 - c22 * x3)) / det
+                y2 = (c11 * (x2 * c33 - c23 * x3) - x1 * d2 + c13 * (c21 * x3 - x2 * c31)) / det
+                y3 = (c11 * (c22 * x3 - x2 * c32) - c12 * (c21 * x3 - x2 * c31) + x1 * d3) / det
+                x1, x2, x3 = y1, y2, y3
             qd1 = qd1 + x1
             qd2 = qd2 + x2
             qd3 = qd3 + x3
@@ -226,6 +234,11 @@ class PinocchioBackend(Backend):
             q3 = q3 + h * qd3
         self.q = [q1, q2, q3]
         self.qd = [qd1, qd2, qd3]
+
+    def _minverse(self, qp: np.ndarray) -> np.ndarray:
+        """M(q)^-1 [1/(kg m^2)] at Pinocchio's configuration vector ``qp``, symmetric (both triangles)."""
+        Mi = pin.computeMinverse(self.model, self.data, qp)
+        return np.triu(Mi) + np.triu(Mi, 1).T
 
     def _rk4(self, tau: np.ndarray) -> None:
         h = self.h
