@@ -32,19 +32,23 @@ other geom collides). Profiles (docs/contact_mapping.md has the study):
   one 1 ms step per control period (MuJoCo's 2 ms default does not divide it).
   Friction is then the regularised cone: the foot creeps at about F_t / Kd.
 
-Ground force read-out: the mean over the control period's sub-steps of the
-force each ``mj_step`` applied (``efc_force`` through ``mj_contactForce``,
-rotated out of the contact frame; after the noslip pass when there is one),
-i.e. the period's contact impulse over its length. A single read is wrong in
-two ways: with stiff friction rows (large impratio, or noslip) the tangential
-force alternates from sub-step to sub-step (the old end-of-period read gave
-(-2.3, -37.3, 53.5) N where the statics said (5.6, -8.6, 53.0)), and the force
-``mj_forward`` recomputes at the end state is not the one that was integrated.
-Measured against the leg's statics h = -(J_poc^T)^-1 (tau - G(q)) over the
-effort task's last 0.5 s: 0.2 % of Fn (matched), 0.01 % (engine-defaults);
-the 0.2 % is MuJoCo's contact point, which sits in the middle of the
-penetration, y/2 above the true poc (``contact_point_lift``). With ``rk4`` the
-forces are those of each step's first stage.
+Ground force read-out (setting ``force_readout``): ``end`` (default) is the force
+at the end state of the control period (one more ``mj_forward`` after the
+sub-steps; ``efc_force`` through ``mj_contactForce``, rotated out of the contact
+frame, after the noslip pass), aligned with the logged state as the law's is;
+``last`` is the force the last sub-step applied (Bullet's convention, one
+sub-step behind); ``mean`` averages the applied force over the control period's
+sub-steps (impulse / period, half a period behind). With a stiff friction row
+(impratio 100, or noslip with the contact's own solref) the friction alternates
+from sub-step to sub-step at the cone's edge, so any single read is wrong
+(impratio 100 on the effort task: ``end`` read (-2.3, -37.3, 53.5) N and ``last``
+(13.2, 25.8, 52.9) N where the statics said (5.6, -8.7, 53.1) N): only ``mean`` is
+right then (0.18 % of Fn), and :meth:`warnings` says so. In the
+profiles the friction does not alternate and all three agree. Measured against
+the leg's statics h = -(J_poc^T)^-1 (tau - G(q)) over the effort task's last
+0.5 s: 0.2 % of Fn (matched), 0.01 % (engine-defaults); the 0.2 % is MuJoCo's
+contact point, which sits in the middle of the penetration, y/2 above the true
+poc (``contact_point_lift``). With ``rk4`` the forces are those of a step's first stage.
 
 Reference contact (``contact_mode = "reference"``): engine contact off
 (``mjDSBL_CONTACT``); before every sub-step, ``qfrc_applied`` is set to
@@ -115,6 +119,7 @@ class MujocoBackend(Backend):
         "iterations": 100,  # opt.iterations (MuJoCo default 100)
         "contact_solref": "scaled",  # scaled: (-Kp A, -Kd A) [N]; raw: (-Kp, -Kd), the usual stiffness/damping form
         "friction_solref": "deadbeat",  # deadbeat: friction rows stop the slip in one sub-step; contact: = solref
+        "force_readout": "end",  # end: at the end state; last: the last sub-step's; mean: impulse / period
         "contact_solimp": "pinned",  # pinned: d = 1e-4 at every depth; default: MuJoCo's (0.9, 0.95, 0.001, 0.5, 2)
     }
     #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
@@ -128,6 +133,7 @@ class MujocoBackend(Backend):
         "contact_solref": ("scaled", "raw"),
         "friction_solref": ("deadbeat", "contact"),
         "contact_solimp": tuple(_SOLIMPS),
+        "force_readout": ("end", "last", "mean"),
     }
     #: ``engine-defaults``: MuJoCo's documented option defaults (2 ms is replaced by the control
     #: period: a step must divide it), Kp and Kd as the usual direct solref (-Kp, -Kd) with the
@@ -236,7 +242,10 @@ class MujocoBackend(Backend):
             m.pair_margin[i] = 0.0
 
         self.contact = ReferenceContact.from_leg(c)
-        self._step = self._step_reference if self.reference else self._step_native
+        native = {"end": self._step_native, "last": self._step_native_last, "mean": self._step_native_mean}[
+            cfg["force_readout"]
+        ]
+        self._step = self._step_reference if self.reference else native
         self._f6 = np.zeros(6)
         self._fw = np.zeros(3)
         self._force = np.zeros(3)
@@ -264,15 +273,35 @@ class MujocoBackend(Backend):
             raise SimulationDiverged(self.name, float(self.data.time), "MuJoCo reported a bad qacc")
 
     def _step_native(self) -> None:
-        """``n_sub`` calls of ``mj_step``, summing the contact force each sub-step applied.
+        """``n_sub`` steps, then the ground force at the end state (``force_readout: end``).
+
+        ``mj_step`` leaves the contact forces of the last sub-step's start state; one more
+        ``mj_forward`` gives those of the end state, aligned with the logged state like the
+        law's (it also refreshes the solver's warm start).
+        """
+        m, d = self.model, self.data
+        mujoco.mj_step(m, d, self.n_sub)
+        mujoco.mj_forward(m, d)
+        self._contact_force()
+
+    def _step_native_last(self) -> None:
+        """``n_sub`` steps; the ground force is the one the last sub-step applied (``force_readout: last``).
 
         After ``mj_step`` the contacts and ``efc_force`` are those the step used (computed at its
-        start state, after the noslip post-pass when there is one), so the mean over the
-        sub-steps is the impulse of the control period divided by its length: the force that
-        moved the leg. A single read at one instant is not: with a stiff friction row (large
-        impratio) the tangential force alternates from sub-step to sub-step, and the force of
-        the end state that ``mj_forward`` would recompute has not had the noslip pass applied
-        to the state actually integrated.
+        start state, after the noslip pass when there is one): Bullet's convention, one sub-step
+        behind the state.
+        """
+        mujoco.mj_step(self.model, self.data, self.n_sub)
+        self._contact_force()
+
+    def _step_native_mean(self) -> None:
+        """``n_sub`` calls of ``mj_step``, averaging the contact force each sub-step applied
+        (``force_readout: mean``): the control period's contact impulse over its length.
+
+        Use it with settings under which the friction force alternates from sub-step to
+        sub-step (a stiff friction row: impratio >> 1, or noslip with the contact's own
+        solref): one sub-step's force is then not the period's. Its sample is the mean over
+        the period ending at the sample, half a period behind the state.
         """
         m, d, acc, fw = self.model, self.data, self._impulse, self._force
         acc[:] = 0.0
@@ -325,8 +354,9 @@ class MujocoBackend(Backend):
         return self.data.qpos.copy(), self.data.qvel.copy()
 
     def ground_force(self) -> np.ndarray:
-        """Force of the ground on the foot in W [N]: native, the mean over the last control period's sub-steps
-        (impulse / control period, summed over the foot's contacts); reference, the law at the current state."""
+        """Force of the ground on the foot in W [N], summed over the foot's contacts: native, the force the
+        last sub-step applied (``force_readout: last``) or the period's mean (``mean``); reference, the law
+        at the current state."""
         return self._force.copy()
 
     def info(self) -> dict[str, Any]:
@@ -354,7 +384,7 @@ class MujocoBackend(Backend):
                 "cone": mujoco.mjtCone(m.opt.cone).name,
                 "impratio": float(m.opt.impratio),
                 "noslip_iterations": int(m.opt.noslip_iterations),
-                "force_readout": "mean over the control period's sub-steps of the applied efc_force",
+                "force_readout": self.cfg["force_readout"],
                 "reference_law": "J_poc^T F via qfrc_applied per sub-step" if self.reference else None,
             },
             "joint_limits": {"solref": list(LIMIT_SOLREF), "solimp": list(LIMIT_SOLIMP)},
@@ -370,12 +400,21 @@ class MujocoBackend(Backend):
         if self.reference:
             return law_step_warnings(self.name, float(self.model.opt.timestep), self._fn_peak, self._q_peak,
                                      self.physics.contact)  # fmt: skip
-        if self.cfg["friction_solref"] == "deadbeat" and self.model.opt.noslip_iterations == 0:
-            return [
+        out = []
+        noslip = self.model.opt.noslip_iterations > 0
+        if self.cfg["friction_solref"] == "deadbeat" and not noslip:
+            out.append(
                 "mujoco: friction_solref 'deadbeat' without noslip iterations leaves the friction rows almost "
                 "force-free in the regularised solver (the foot slides); set noslip: true"
-            ]
-        return []
+            )
+        stiff = self.model.opt.impratio > 1.0 or (noslip and self.cfg["friction_solref"] == "contact")
+        if stiff and self.cfg["force_readout"] != "mean":
+            out.append(
+                f"mujoco: with impratio {self.model.opt.impratio:g}, noslip {noslip} and friction_solref "
+                f"'{self.cfg['friction_solref']}' the friction force can alternate between sub-steps, so the "
+                "force of one sub-step is not the control period's; set force_readout: mean"
+            )
+        return out
 
     # ------------------------------------------------------- declared abilities
     def integrator_family(self) -> str:
