@@ -54,6 +54,16 @@ def test_stick_slip_creep_matches_table_10() -> None:
     assert np.allclose(np.abs(s.qd), TABLE10_SIMSCAPE, rtol=0.15), s.qd
 
 
+def test_stick_slip_creep_in_the_combined_task_within_15_percent_of_table_10() -> None:
+    """The combined task ends pushing like the effort task but from the pose its position phase reached:
+    |F_t|/Fn is 0.26 there against 0.20, so the law creeps faster (measured |qd| +14.6 % of the Simscape
+    row); table 10 itself is the effort task's, so this is the looser of the two comparisons."""
+    _need("pinocchio")
+    s = _run("combined", "pinocchio")
+    ref = math.sqrt(sum(x * x for x in TABLE10_SIMSCAPE))
+    assert abs(s.qd_norm / ref - 1.0) <= 0.15, (s.qd, ref)
+
+
 def test_mujoco_matched_holds_the_foot() -> None:
     """MuJoCo's matched friction (noslip, deadbeat friction rows) sticks: < 1 mm of foot motion after 50 ms."""
     _need("mujoco")
