@@ -66,6 +66,42 @@ def ground_force(y: float, ydot: float, vx: float, vy: float, p: ContactParams) 
     return -ff * vx, -ff * vy, fn
 
 
+def implicit_velocity_step(h: float, m: tuple[float, ...], K: tuple[float, ...], a1: float, a2: float,
+                           a3: float) -> tuple[float, float, float]:  # fmt: skip
+    """dqd [rad/s] of the linearly implicit friction step: (I + h M^-1 K) dqd = h a.
+
+    Args:
+        h: sub-step [s].
+        m: M^-1 as (m11, m12, m13, m22, m23, m33) [1/(kg m^2)] (symmetric).
+        K: the friction's joint-space slope as (K11, K12, K13, K22, K23, K33) [N m s/rad]
+            (:meth:`ReferenceContact.wrench_slope`).
+        a1, a2, a3: the explicit acceleration [rad/s^2].
+
+    Plain floats, Cramer's rule (the 3x3 system is well conditioned: I plus a positive semi-definite
+    product).
+    """
+    m11, m12, m13, m22, m23, m33 = m
+    K11, K12, K13, K22, K23, K33 = K
+    x1, x2, x3 = h * a1, h * a2, h * a3
+    c11 = 1.0 + h * (m11 * K11 + m12 * K12 + m13 * K13)
+    c12 = h * (m11 * K12 + m12 * K22 + m13 * K23)
+    c13 = h * (m11 * K13 + m12 * K23 + m13 * K33)
+    c21 = h * (m12 * K11 + m22 * K12 + m23 * K13)
+    c22 = 1.0 + h * (m12 * K12 + m22 * K22 + m23 * K23)
+    c23 = h * (m12 * K13 + m22 * K23 + m23 * K33)
+    c31 = h * (m13 * K11 + m23 * K12 + m33 * K13)
+    c32 = h * (m13 * K12 + m23 * K22 + m33 * K23)
+    c33 = 1.0 + h * (m13 * K13 + m23 * K23 + m33 * K33)
+    d1 = c22 * c33 - c23 * c32
+    d2 = c21 * c33 - c23 * c31
+    d3 = c21 * c32 - c22 * c31
+    det = c11 * d1 - c12 * d2 + c13 * d3
+    y1 = (x1 * d1 - c12 * (x2 * c33 - c23 * x3) + c13 * (x2 * c32 - c22 * x3)) / det
+    y2 = (c11 * (x2 * c33 - c23 * x3) - x1 * d2 + c13 * (c21 * x3 - x2 * c31)) / det
+    y3 = (c11 * (c22 * x3 - x2 * c32) - c12 * (c21 * x3 - x2 * c31) + x1 * d3) / det
+    return y1, y2, y3
+
+
 class ReferenceContact:
     """The analytic law as a generalized force, from joint state through the closed-form kinematics.
 
@@ -207,6 +243,51 @@ class ReferenceContact:
                 fx, fy, fz,
                 Jx1 * ax1 + Jy1 * ay1, Jx1 * ax2 + Jy1 * ay2, Jx1 * ax3 + Jy1 * ay3,
                 Jx2 * ax2 + Jy2 * ay2, Jx2 * ax3 + Jy2 * ay3, Jx3 * ax3 + Jy3 * ay3)  # fmt: skip
+
+    def use_implicit_friction(self, gravity: float) -> None:
+        """Prepare :meth:`implicit_generalized`: the leg's Pinocchio model under gravity [m/s^2] along -z_W."""
+        import pinocchio as pin
+
+        from legbench.model import pinocchio_model
+
+        self._pin = pin
+        self._model = pinocchio_model(gravity=gravity)
+        self._data = self._model.createData()
+        self._qp = np.zeros(self._model.nq)
+        self._v = np.zeros(3)
+        self._u = np.zeros(3)
+
+    def implicit_generalized(self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float,
+                             u1: float, u2: float, u3: float, h: float) -> np.ndarray:  # fmt: skip
+        """The law's generalized force for a step of ``h`` [s] with the friction slope treated implicitly.
+
+        For an engine that applies the law as an external torque in reference mode: with u the
+        other applied joint torques [N m], a = M^-1 (u + J_poc^T F - nle) the explicit acceleration
+        (the leg's model, the engine's own constraint forces left out) and dqd from
+        :func:`implicit_velocity_step`, the torque J_poc^T F - K dqd makes the engine's explicit
+        step take the linearly implicit friction step of the Pinocchio backend (docs/pinocchio.md).
+        Out of contact or with no friction slope it is :meth:`generalized`. F in W [N] (the law at
+        the state) goes to :attr:`force`; the returned array is reused by the next call. Call
+        :meth:`use_implicit_friction` first.
+        """
+        r = self.wrench_slope(q1, q2, q3, qd1, qd2, qd3)
+        tc1, tc2, tc3, fx, fy, fz, K11, K12, K13, K22, K23, K33 = r
+        f, tau = self.force, self._tau
+        f[0], f[1], f[2] = fx, fy, fz
+        if K11 != 0.0 or K22 != 0.0 or K33 != 0.0:
+            pin, model, data, qp, v, u = self._pin, self._model, self._data, self._qp, self._v, self._u
+            qp[0], qp[1], qp[2], qp[3] = q1, math.cos(q2), math.sin(q2), q3
+            v[0], v[1], v[2] = qd1, qd2, qd3
+            u[0], u[1], u[2] = u1 + tc1, u2 + tc2, u3 + tc3
+            a1, a2, a3 = pin.aba(model, data, qp, v, u).tolist()
+            Mi = pin.computeMinverse(model, data, qp)
+            m = (Mi[0, 0], Mi[0, 1], Mi[0, 2], Mi[1, 1], Mi[1, 2], Mi[2, 2])
+            x1, x2, x3 = implicit_velocity_step(h, m, (K11, K12, K13, K22, K23, K33), a1, a2, a3)
+            tc1 -= K11 * x1 + K12 * x2 + K13 * x3
+            tc2 -= K12 * x1 + K22 * x2 + K23 * x3
+            tc3 -= K13 * x1 + K23 * x2 + K33 * x3
+        tau[0], tau[1], tau[2] = tc1, tc2, tc3
+        return tau
 
     def generalized(self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> np.ndarray:
         """J_poc^T F [N m] for the joint state (q [rad], qd [rad/s]); F in W [N] goes to :attr:`force`.

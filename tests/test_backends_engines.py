@@ -342,9 +342,9 @@ def test_reference_mode_engines_agree_to_1e9_rad(make: Make) -> None:
     logs = {}
     for name in names:
         try:
-            # the same explicit scheme everywhere (Pinocchio's default treats friction implicitly), and a
+            # the same explicit scheme everywhere (the defaults treat friction implicitly), and a
             # threshold the 0.1 ms explicit step resolves: m v_th / (mu_s Fn) ~ 0.2 x 0.01 / 7 = 0.3 ms
-            explicit = {"friction": "explicit"} if name == "pinocchio" else {}
+            explicit = {"friction": "explicit"} if name == "pinocchio" else {"reference_friction": "explicit"}
             physics = Physics(contact_mode="reference", contact=ContactParams(v_th=0.01))
             backend = make(name, physics, dt=1e-4, **explicit)
         except pytest.skip.Exception:

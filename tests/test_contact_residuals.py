@@ -136,9 +136,11 @@ def _short_effort() -> tuple[object, object]:
         ("pinocchio", "native", {"friction": "explicit", "dt": 5e-6}, False),
         ("mujoco", "native", {}, False),
         ("mujoco", "native", {"noslip": False}, True),
-        ("mujoco", "reference", {}, True),
+        ("mujoco", "reference", {}, False),
+        ("mujoco", "reference", {"reference_friction": "explicit"}, True),
         ("pybullet", "native", {}, False),
-        ("pybullet", "reference", {}, True),
+        ("pybullet", "reference", {}, False),
+        ("pybullet", "reference", {"reference_friction": "explicit"}, True),
     ],
 )
 def test_step_warnings(backend: str, mode: str, settings: dict[str, object], warns: bool) -> None:

@@ -20,16 +20,9 @@ ENGINES = [b for b in backends.available() if b != "pinocchio"]
 pytestmark = pytest.mark.skipif(not ENGINES, reason="no engine backend installed")
 
 
-#: Reference mode applies the law explicitly in every engine; the 50 us default sub-step resolves its
-#: friction slope for v_th = 0.01 m/s (bound m v_th / (mu_s Fn) ~ 57 us), not for the leg's default
-#: 1e-3 m/s (~5.7 us: the engines then chatter and warn). So reference-mode runs take v_th = 0.01 m/s and
-#: Pinocchio the same explicit step, which keeps these tests about integration, as they were written.
-REFERENCE_RESOLVED = {"physics.contact.v_th": 0.01, "backends.pinocchio.friction": "explicit"}
-
-
 @cache
 def _run(task: str, name: str, mode: str | None = None) -> run.Trajectory:
-    sc = scenario.load(SCENARIOS / f"{task}.yaml", REFERENCE_RESOLVED if mode == "reference" else None)
+    sc = scenario.load(SCENARIOS / f"{task}.yaml")
     (tr,) = run.run(sc, [name], None, contact_mode=mode, progress=False)
     assert tr.status == "ok", tr.reason
     return tr

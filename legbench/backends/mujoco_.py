@@ -119,6 +119,7 @@ class MujocoBackend(Backend):
         "iterations": 100,  # opt.iterations (MuJoCo default 100)
         "contact_solref": "scaled",  # scaled: (-Kp A, -Kd A) [N]; raw: (-Kp, -Kd), the usual stiffness/damping form
         "friction_solref": "deadbeat",  # deadbeat: friction rows stop the slip in one sub-step; contact: = solref
+        "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
         "force_readout": "end",  # end: at the end state; last: the last sub-step's; mean: impulse / period
         "contact_solimp": "pinned",  # pinned: d = 1e-4 at every depth; default: MuJoCo's (0.9, 0.95, 0.001, 0.5, 2)
     }
@@ -134,6 +135,7 @@ class MujocoBackend(Backend):
         "friction_solref": ("deadbeat", "contact"),
         "contact_solimp": tuple(_SOLIMPS),
         "force_readout": ("end", "last", "mean"),
+        "reference_friction": ("implicit", "explicit"),
     }
     #: ``engine-defaults``: MuJoCo's documented option defaults (2 ms is replaced by the control
     #: period: a step must divide it), Kp and Kd as the usual direct solref (-Kp, -Kd) with the
@@ -242,6 +244,8 @@ class MujocoBackend(Backend):
             m.pair_margin[i] = 0.0
 
         self.contact = ReferenceContact.from_leg(c)
+        if self.reference and cfg["reference_friction"] == "implicit":
+            self.contact.use_implicit_friction(physics.gravity)
         native = {"end": self._step_native, "last": self._step_native_last, "mean": self._step_native_mean}[
             cfg["force_readout"]
         ]
@@ -314,11 +318,25 @@ class MujocoBackend(Backend):
         fw /= self.n_sub
 
     def _step_reference(self) -> None:
+        """Reference mode: ``qfrc_applied`` = the law's J_poc^T F at each sub-step's start state.
+
+        ``reference_friction: implicit`` (default) adds the linearly implicit friction correction
+        -K dqd (:meth:`ReferenceContact.implicit_generalized`, with the commanded torque as the
+        other applied torque), so the law's stiff friction slope does not chatter at the sub-step;
+        ``explicit`` applies the law as it is (stable only below m v_th / (mu_s Fn)).
+        """
         m, d = self.model, self.data
-        q, qd, applied, law = d.qpos, d.qvel, d.qfrc_applied, self.contact.generalized
-        for _ in range(self.n_sub):
-            applied[:] = law(q[0], q[1], q[2], qd[0], qd[1], qd[2])
-            mujoco.mj_step(m, d)
+        q, qd, applied = d.qpos, d.qvel, d.qfrc_applied
+        if self.cfg["reference_friction"] == "implicit":
+            law_i, h, u = self.contact.implicit_generalized, float(m.opt.timestep), d.ctrl
+            for _ in range(self.n_sub):
+                applied[:] = law_i(q[0], q[1], q[2], qd[0], qd[1], qd[2], u[0], u[1], u[2], h)
+                mujoco.mj_step(m, d)
+        else:
+            law = self.contact.generalized
+            for _ in range(self.n_sub):
+                applied[:] = law(q[0], q[1], q[2], qd[0], qd[1], qd[2])
+                mujoco.mj_step(m, d)
         self._read_force()
 
     def _read_force(self) -> None:
@@ -398,6 +416,8 @@ class MujocoBackend(Backend):
     def warnings(self) -> list[str]:
         """Reference mode: the explicit law's step bound; native: deadbeat friction without its noslip pass."""
         if self.reference:
+            if self.cfg["reference_friction"] == "implicit":
+                return []
             return law_step_warnings(self.name, float(self.model.opt.timestep), self._fn_peak, self._q_peak,
                                      self.physics.contact)  # fmt: skip
         out = []

@@ -41,7 +41,7 @@ import pinocchio as pin
 from scipy.integrate import solve_ivp
 
 from legbench.backends.base import Backend, Limits, Physics, sub_step_count
-from legbench.contact import ReferenceContact, law_step_warnings
+from legbench.contact import ReferenceContact, implicit_velocity_step, law_step_warnings
 from legbench.exceptions import LegbenchError
 from legbench.model import LINK_NAMES, load_params
 
@@ -188,7 +188,8 @@ class PinocchioBackend(Backend):
         u1, u2, u3 = np.asarray(tau, dtype=float).tolist()
         q1, q2, q3 = self.q
         qd1, qd2, qd3 = self.qd
-        m11 = math.nan  # M0^-1, computed at the first sub-step in contact of this period
+        minv: tuple[float, ...] | None = None  # M0^-1, at the period's first sub-step in contact
+        solve = implicit_velocity_step
         for _ in range(self.n_sub):
             tc1, tc2, tc3, _, _, _, K11, K12, K13, K22, K23, K33 = slope(q1, q2, q3, qd1, qd2, qd3)
             t1, t2, t3 = u1 + tc1, u2 + tc2, u3 + tc3
@@ -204,28 +205,13 @@ class PinocchioBackend(Backend):
             v[0], v[1], v[2] = qd1, qd2, qd3
             t[0], t[1], t[2] = t1, t2, t3
             a1, a2, a3 = aba(model, data, qp, v, t).tolist()
-            x1, x2, x3 = h * a1, h * a2, h * a3
-            if K11 != 0.0 or K22 != 0.0 or K33 != 0.0:
-                if m11 != m11:  # NaN: not yet computed in this period
+            if K11 == 0.0 and K22 == 0.0 and K33 == 0.0:
+                x1, x2, x3 = h * a1, h * a2, h * a3
+            else:
+                if minv is None:  # first sub-step in contact of this period
                     (m11, m12, m13), (_, m22, m23), (_, _, m33) = self._minverse(qp).tolist()
-                # B = I + h M0^-1 K (M0^-1 and K symmetric), solved by Cramer's rule on floats
-                c11 = 1.0 + h * (m11 * K11 + m12 * K12 + m13 * K13)
-                c12 = h * (m11 * K12 + m12 * K22 + m13 * K23)
-                c13 = h * (m11 * K13 + m12 * K23 + m13 * K33)
-                c21 = h * (m12 * K11 + m22 * K12 + m23 * K13)
-                c22 = 1.0 + h * (m12 * K12 + m22 * K22 + m23 * K23)
-                c23 = h * (m12 * K13 + m22 * K23 + m23 * K33)
-                c31 = h * (m13 * K11 + m23 * K12 + m33 * K13)
-                c32 = h * (m13 * K12 + m23 * K22 + m33 * K23)
-                c33 = 1.0 + h * (m13 * K13 + m23 * K23 + m33 * K33)
-                d1 = c22 * c33 - c23 * c32
-                d2 = c21 * c33 - c23 * c31
-                d3 = c21 * c32 - c22 * c31
-                det = c11 * d1 - c12 * d2 + c13 * d3
-                y1 = (x1 * d1 - c12 * (x2 * c33 - c23 * x3) + c13 * (x2 * c32 - c22 * x3)) / det
-                y2 = (c11 * (x2 * c33 - c23 * x3) - x1 * d2 + c13 * (c21 * x3 - x2 * c31)) / det
-                y3 = (c11 * (c22 * x3 - x2 * c32) - c12 * (c21 * x3 - x2 * c31) + x1 * d3) / det
-                x1, x2, x3 = y1, y2, y3
+                    minv = (m11, m12, m13, m22, m23, m33)
+                x1, x2, x3 = solve(h, minv, (K11, K12, K13, K22, K23, K33), a1, a2, a3)
             qd1 = qd1 + x1
             qd2 = qd2 + x2
             qd3 = qd3 + x3

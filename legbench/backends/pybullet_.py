@@ -81,6 +81,7 @@ class PybulletBackend(Backend):
         "solver_iterations": 50,  # sequential-impulse iterations per step (Bullet default 50)
         "plane_contact": "rigid",  # rigid: plane (1e30 N/m, 0 N s/m); default: Bullet's plane (adds its damping)
         "plane_friction": 1.0,  # lateral friction of the plane (Bullet multiplies it with the foot's mu)
+        "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
         "contact_margins": "zero",  # zero: contactSlop = contactProcessingThreshold = 0; default: Bullet's
     }
     #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
@@ -88,6 +89,7 @@ class PybulletBackend(Backend):
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "plane_contact": ("rigid", "default"),
         "contact_margins": ("zero", "default"),
+        "reference_friction": ("implicit", "explicit"),
     }
     #: ``engine-defaults``: one Bullet step per control period, Bullet's plane, slop and
     #: thresholds; Kp, Kd as the foot's contactStiffness/contactDamping, mu as its
@@ -173,6 +175,8 @@ class PybulletBackend(Backend):
         )  # fmt: skip
 
         self.contact = ReferenceContact.from_leg(c)
+        if self.reference and cfg["reference_friction"] == "implicit":
+            self.contact.use_implicit_friction(physics.gravity)
         self._hi = np.asarray(physics.torque_limit, float)
         self._lo = -self._hi
         self._step = self._step_reference if self.reference else self._step_native
@@ -216,10 +220,26 @@ class PybulletBackend(Backend):
         self._native_force()
 
     def _step_reference(self) -> None:
+        """Reference mode: the law's J_poc^T F at each sub-step's start state added to the torque.
+
+        ``reference_friction: implicit`` (default) adds the linearly implicit friction correction
+        (:meth:`ReferenceContact.implicit_generalized`, the clamped command as the other torque);
+        ``explicit`` applies the law as it is (stable only below m v_th / (mu_s Fn)).
+        """
         body, cid, joints, tau, cmd = self.body, self.cid, self.joints, self._tau, self._cmd
-        q, qd, law = self._q, self._qd, self.contact.generalized
+        q, qd = self._q, self._qd
+        implicit = self.cfg["reference_friction"] == "implicit"
+        law, law_i, h = (
+            self.contact.generalized,
+            self.contact.implicit_generalized,
+            self.physics.control_dt / self.n_sub,
+        )
+        u1, u2, u3 = tau.tolist()
         for _ in range(self.n_sub):
-            np.add(tau, law(q[0], q[1], q[2], qd[0], qd[1], qd[2]), out=cmd)
+            if implicit:
+                np.add(tau, law_i(q[0], q[1], q[2], qd[0], qd[1], qd[2], u1, u2, u3, h), out=cmd)
+            else:
+                np.add(tau, law(q[0], q[1], q[2], qd[0], qd[1], qd[2]), out=cmd)
             p.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=cmd, physicsClientId=cid)
             p.stepSimulation(physicsClientId=cid)
             self._read()
@@ -308,7 +328,7 @@ class PybulletBackend(Backend):
 
     def warnings(self) -> list[str]:
         """Reference mode: the explicit law's step bound at the run's peak Fn (native Coulomb contact has none)."""
-        if not self.reference:
+        if not self.reference or self.cfg["reference_friction"] == "implicit":
             return []
         return law_step_warnings(self.name, self.physics.control_dt / self.n_sub, self._fn_peak, self._q_peak,
                                  self.physics.contact)  # fmt: skip
