@@ -1,4 +1,4 @@
-"""The report's analytic contact law (LEG_SPEC.md section 4), on plain floats.
+"""The report's analytic contact law (docs/spec.md section 4), on plain floats.
 
 Used natively by the Pinocchio backend and, in ``reference`` contact mode, by
 every backend as an external force at each of its sub-steps, so that the one

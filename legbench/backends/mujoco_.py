@@ -5,7 +5,7 @@ hand-written MJCF copy of the leg). The URDF's ``<mujoco><compiler
 fusestatic="false"/>`` keeps the foot a body of its own, welded to link 3 at
 the foot centre E; a site ``E`` marks that point. On the spec we add the
 ground plane z_W = 0, one ``motor`` actuator per joint (gear 1, control range
-= torque limit), stiff joint limits (ENGINE_NOTES.md: solref (0.002, 1), solimp
+= torque limit), stiff joint limits (docs/contact_mapping.md: solref (0.002, 1), solimp
 (0.99, 0.999, ...): the knee driven into its 2.229 rad limit with 10 N m rests
 at 2.2292 rad after a 0.02 rad overshoot) and collision filters so that only
 the foot sphere touches the ground (no link-link or other link-ground contact).
@@ -57,12 +57,13 @@ start state. With ``euler`` this is exactly the semi-implicit Euler of the
 Pinocchio backend; with ``rk4`` the contact force is held over the sub-step's
 four stages (first order in the contact force, not a true RK4 of the law).
 
-Sub-step ``dt`` (default 1e-4 s, 10 per 1 ms control period): MuJoCo's
-``euler`` is semi-implicit Euler (the leg has no joint damping, so
-``implicitfast`` is the same scheme), first order; at 1e-4 s its free-space
-error stays below 0.1 % of the motion (tests/test_backends_engines.py), the
-same sub-step as the Pinocchio backend, and it resolves the stick-slip law's
-slope (ENGINE_NOTES.md, step sizes). MuJoCo's automatic reset on a bad
+Sub-step ``dt`` (default 5e-5 s, 20 per 1 ms control period; 1 ms in
+``engine-defaults``): MuJoCo's ``euler`` is semi-implicit Euler (the leg has no
+joint damping, so ``implicitfast`` is the same scheme), first order; the same
+sub-step as the Pinocchio backend, so in free space the two agree to round-off.
+In reference mode the law's stiff friction slope is treated implicitly by
+default (``reference_friction``; docs/contact_law.md says why it must be).
+MuJoCo's automatic reset on a bad
 acceleration is disabled: a divergence raises
 :class:`~legbench.exceptions.SimulationDiverged` instead of silently
 restarting from qpos0.

@@ -295,7 +295,7 @@ class PinocchioBackend(Backend):
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
             "contact": {
-                "law": "analytic (LEG_SPEC section 4), J_poc^T F",
+                "law": "analytic (docs/spec.md section 4), J_poc^T F",
                 "Kp": c.Kp,
                 "Kd": c.Kd,
                 "mu_s": c.mu_s,

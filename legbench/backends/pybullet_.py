@@ -5,7 +5,7 @@ Model: ``models/leg.urdf`` loaded with ``useFixedBase=True`` and
 collision shapes), in a ``DIRECT`` client of its own (several backends may run
 side by side). The ground is a static ``GEOM_PLANE`` at z_W = 0 (no
 ``pybullet_data`` needed). Every default that would make Bullet differ from
-the spec is switched off (ENGINE_NOTES.md): the velocity motors that brake the
+the spec is switched off (docs/contact_mapping.md): the velocity motors that brake the
 joints until disabled, link linear/angular damping (0.04 by default), joint
 damping, and the 100 rad/s joint-speed clamp (raised to 1000 rad/s, far above
 the 55 rad/s the motors can reach, so it never binds silently). Only the foot
