@@ -1,4 +1,4 @@
-"""The report's analytic contact law (LEG_SPEC.md section 4), on plain floats.
+"""The report's analytic contact law (docs/spec.md section 4), on plain floats.
 
 Used natively by the Pinocchio backend and, in ``reference`` contact mode, by
 every backend as an external force at each of its sub-steps, so that the one
@@ -36,7 +36,7 @@ class ContactParams:
     Kd: float = 1.0e2
     mu_s: float = 0.7
     mu_k: float = 0.6
-    v_th: float = 0.01
+    v_th: float = 1.0e-3  # [m/s], docs/contact_law.md
     poc: str = "true"
 
 
@@ -66,6 +66,42 @@ def ground_force(y: float, ydot: float, vx: float, vy: float, p: ContactParams) 
         return 0.0, 0.0, fn
     ff = friction_coefficient(v, p) * fn / v
     return -ff * vx, -ff * vy, fn
+
+
+def implicit_velocity_step(h: float, m: tuple[float, ...], K: tuple[float, ...], a1: float, a2: float,
+                           a3: float) -> tuple[float, float, float]:  # fmt: skip
+    """dqd [rad/s] of the linearly implicit friction step: (I + h M^-1 K) dqd = h a.
+
+    Args:
+        h: sub-step [s].
+        m: M^-1 as (m11, m12, m13, m22, m23, m33) [1/(kg m^2)] (symmetric).
+        K: the friction's joint-space slope as (K11, K12, K13, K22, K23, K33) [N m s/rad]
+            (:meth:`ReferenceContact.wrench_slope`).
+        a1, a2, a3: the explicit acceleration [rad/s^2].
+
+    Plain floats, Cramer's rule (the 3x3 system is well conditioned: I plus a positive semi-definite
+    product).
+    """
+    m11, m12, m13, m22, m23, m33 = m
+    K11, K12, K13, K22, K23, K33 = K
+    x1, x2, x3 = h * a1, h * a2, h * a3
+    c11 = 1.0 + h * (m11 * K11 + m12 * K12 + m13 * K13)
+    c12 = h * (m11 * K12 + m12 * K22 + m13 * K23)
+    c13 = h * (m11 * K13 + m12 * K23 + m13 * K33)
+    c21 = h * (m12 * K11 + m22 * K12 + m23 * K13)
+    c22 = 1.0 + h * (m12 * K12 + m22 * K22 + m23 * K23)
+    c23 = h * (m12 * K13 + m22 * K23 + m23 * K33)
+    c31 = h * (m13 * K11 + m23 * K12 + m33 * K13)
+    c32 = h * (m13 * K12 + m23 * K22 + m33 * K23)
+    c33 = 1.0 + h * (m13 * K13 + m23 * K23 + m33 * K33)
+    d1 = c22 * c33 - c23 * c32
+    d2 = c21 * c33 - c23 * c31
+    d3 = c21 * c32 - c22 * c31
+    det = c11 * d1 - c12 * d2 + c13 * d3
+    y1 = (x1 * d1 - c12 * (x2 * c33 - c23 * x3) + c13 * (x2 * c32 - c22 * x3)) / det
+    y2 = (c11 * (x2 * c33 - c23 * x3) - x1 * d2 + c13 * (c21 * x3 - x2 * c31)) / det
+    y3 = (c11 * (c22 * x3 - x2 * c32) - c12 * (c21 * x3 - x2 * c31) + x1 * d3) / det
+    return y1, y2, y3
 
 
 class ReferenceContact:
@@ -148,6 +184,111 @@ class ReferenceContact:
         return (Jx1 * fx + Jy1 * fy + Jz1 * fz, Jx2 * fx + Jy2 * fy + Jz2 * fz, Jx3 * fx + Jy3 * fy + Jz3 * fz,
                 fx, fy, fz)  # fmt: skip
 
+    def wrench_slope(self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
+        """:meth:`wrench` and the friction's damping in joint space, for a linearly implicit step.
+
+        Returns (tau_c1, tau_c2, tau_c3, fx, fy, fz, K11, K12, K13, K22, K23, K33): the first six as
+        :meth:`wrench`; K = -J_t^T (dF_t/dv_t) J_t [N m s/rad] (symmetric, positive semi-definite),
+        the slope of the friction force F_t in W [N] with respect to the poc's horizontal velocity
+        v_t [m/s], with Fn held, mapped through the poc's horizontal Jacobian rows J_t. With
+        c_perp = Fn mu(v)/v across the slip and c_par = Fn max(mu'(v), 0) along it,
+        -dF_t/dv_t = c_perp I + (c_par - c_perp) v v^T / v^2; below v_th both are Fn mu_s / v_th
+        (the law is viscous there). The falling branch of mu (v_th..1.5 v_th) is left out of K
+        (c_par >= 0): K only moves the implicit step's damping, never its fixed points.
+        """
+        L_12, L_23, L_3E, H, R = self._geometry
+        s1, c1 = math.sin(q1), math.cos(q1)
+        s2, c2 = math.sin(q2), math.cos(q2)
+        s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
+        reach = L_23 * s2 + L_3E * s23
+        y = R - (L_12 * s1 + c1 * reach + H)
+        if y <= 0.0:
+            return _NO_CONTACT_SLOPE
+        dr2 = L_23 * c2 + L_3E * c23
+        dr3 = L_3E * c23
+        Jx1, Jx2, Jx3 = -(L_12 * s1 + c1 * reach), -(s1 * dr2), -(s1 * dr3)
+        Jy1, Jy2, Jy3 = -0.0, -reach, -(L_3E * s23)
+        Jz1, Jz2, Jz3 = L_12 * c1 - s1 * reach, c1 * dr2, c1 * dr3
+        if self.true_poc:
+            Jx1 = Jx1 + R
+            Jy2 = Jy2 + R * c1
+            Jy3 = Jy3 + R * c1
+        vx = Jx1 * qd1 + Jx2 * qd2 + Jx3 * qd3
+        vy = Jy1 * qd1 + Jy2 * qd2 + Jy3 * qd3
+        vz = Jz1 * qd1 + Jz2 * qd2 + Jz3 * qd3
+        Kp, Kd, mu_s, mu_k, v_th, v_slip, dmu, half_v_th = self._law
+        ydot = -vz
+        fz = Kp * y + (Kd * ydot if ydot > 0.0 else 0.0)
+        v = math.hypot(vx, vy)
+        if v < v_th:
+            c_perp = c_par = fz * mu_s / v_th
+            ff = c_perp  # mu(v) fz / v
+            dxx = dyy = c_perp
+            dxy = 0.0
+        else:
+            if v < v_slip:
+                mu = mu_s - (v - v_th) * dmu / half_v_th
+            else:
+                mu = mu_k
+            ff = mu * fz / v
+            c_perp, c_par = ff, 0.0
+            ux, uy = vx / v, vy / v
+            dc = c_par - c_perp
+            dxx, dxy, dyy = c_perp + dc * ux * ux, dc * ux * uy, c_perp + dc * uy * uy
+        fx, fy = -ff * vx, -ff * vy
+        # K = J_t^T D J_t with D = [[dxx, dxy], [dxy, dyy]]
+        ax1, ax2, ax3 = dxx * Jx1 + dxy * Jy1, dxx * Jx2 + dxy * Jy2, dxx * Jx3 + dxy * Jy3
+        ay1, ay2, ay3 = dxy * Jx1 + dyy * Jy1, dxy * Jx2 + dyy * Jy2, dxy * Jx3 + dyy * Jy3
+        return (Jx1 * fx + Jy1 * fy + Jz1 * fz, Jx2 * fx + Jy2 * fy + Jz2 * fz, Jx3 * fx + Jy3 * fy + Jz3 * fz,
+                fx, fy, fz,
+                Jx1 * ax1 + Jy1 * ay1, Jx1 * ax2 + Jy1 * ay2, Jx1 * ax3 + Jy1 * ay3,
+                Jx2 * ax2 + Jy2 * ay2, Jx2 * ax3 + Jy2 * ay3, Jx3 * ax3 + Jy3 * ay3)  # fmt: skip
+
+    def use_implicit_friction(self, gravity: float) -> None:
+        """Prepare :meth:`implicit_generalized`: the leg's Pinocchio model under gravity [m/s^2] along -z_W."""
+        import pinocchio as pin
+
+        from legbench.model import pinocchio_model
+
+        self._pin = pin
+        self._model = pinocchio_model(gravity=gravity)
+        self._data = self._model.createData()
+        self._qp = np.zeros(self._model.nq)
+        self._v = np.zeros(3)
+        self._u = np.zeros(3)
+
+    def implicit_generalized(self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float,
+                             u1: float, u2: float, u3: float, h: float) -> np.ndarray:  # fmt: skip
+        """The law's generalized force for a step of ``h`` [s] with the friction slope treated implicitly.
+
+        For an engine that applies the law as an external torque in reference mode: with u the
+        other applied joint torques [N m], a = M^-1 (u + J_poc^T F - nle) the explicit acceleration
+        (the leg's model, the engine's own constraint forces left out) and dqd from
+        :func:`implicit_velocity_step`, the torque J_poc^T F - K dqd makes the engine's explicit
+        step take the linearly implicit friction step of the Pinocchio backend (docs/pinocchio.md).
+        Out of contact or with no friction slope it is :meth:`generalized`. F in W [N] (the law at
+        the state) goes to :attr:`force`; the returned array is reused by the next call. Call
+        :meth:`use_implicit_friction` first.
+        """
+        r = self.wrench_slope(q1, q2, q3, qd1, qd2, qd3)
+        tc1, tc2, tc3, fx, fy, fz, K11, K12, K13, K22, K23, K33 = r
+        f, tau = self.force, self._tau
+        f[0], f[1], f[2] = fx, fy, fz
+        if K11 != 0.0 or K22 != 0.0 or K33 != 0.0:
+            pin, model, data, qp, v, u = self._pin, self._model, self._data, self._qp, self._v, self._u
+            qp[0], qp[1], qp[2], qp[3] = q1, math.cos(q2), math.sin(q2), q3
+            v[0], v[1], v[2] = qd1, qd2, qd3
+            u[0], u[1], u[2] = u1 + tc1, u2 + tc2, u3 + tc3
+            a1, a2, a3 = pin.aba(model, data, qp, v, u).tolist()
+            Mi = pin.computeMinverse(model, data, qp)
+            m = (Mi[0, 0], Mi[0, 1], Mi[0, 2], Mi[1, 1], Mi[1, 2], Mi[2, 2])
+            x1, x2, x3 = implicit_velocity_step(h, m, (K11, K12, K13, K22, K23, K33), a1, a2, a3)
+            tc1 -= K11 * x1 + K12 * x2 + K13 * x3
+            tc2 -= K12 * x1 + K22 * x2 + K23 * x3
+            tc3 -= K13 * x1 + K23 * x2 + K33 * x3
+        tau[0], tau[1], tau[2] = tc1, tc2, tc3
+        return tau
+
     def generalized(self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> np.ndarray:
         """J_poc^T F [N m] for the joint state (q [rad], qd [rad/s]); F in W [N] goes to :attr:`force`.
 
@@ -161,3 +302,55 @@ class ReferenceContact:
 
 
 _NO_CONTACT = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+_NO_CONTACT_SLOPE = (0.0,) * 12
+
+
+def tangential_mass(q: tuple[float, float, float] | list[float] | np.ndarray, true_poc: bool = True) -> float:
+    """Smallest apparent mass of the leg at its point of contact along the ground [kg].
+
+    1 / lambda_max(J_t M(q)^-1 J_t^T), J_t the two horizontal rows of J_poc(q), M the leg's mass
+    matrix (Pinocchio on the generated URDF), at joint angles q [rad].
+    """
+    import pinocchio as pin
+
+    from legbench import kinematics
+
+    model = kinematics.pinocchio_model()
+    data = model.createData()
+    q1, q2, q3 = (float(x) for x in q)
+    M = pin.crba(model, data, np.array([q1, math.cos(q2), math.sin(q2), q3]))
+    M = np.triu(M) + np.triu(M, 1).T
+    J_t = kinematics.jacobian_poc(np.array([q1, q2, q3]), true_poc=true_poc)[:2]
+    return float(1.0 / np.linalg.eigvalsh(J_t @ np.linalg.solve(M, J_t.T)).max())
+
+
+def friction_step_bound(fn: float, q: tuple[float, float, float] | list[float] | np.ndarray, p: ContactParams) -> float:
+    """Largest explicit sub-step [s] that resolves the stick-slip law's slope: m v_th / (mu_s Fn).
+
+    Below v_th the law is a viscous friction of coefficient mu_s Fn / v_th [N s/m]; an explicit
+    (semi-implicit Euler) step h is non-oscillating for h < m / c and stable for h < 2 m / c, with m
+    the apparent mass :func:`tangential_mass` at q [rad] and Fn [N] the normal force.
+    """
+    if fn <= 0.0:
+        return math.inf
+    return tangential_mass(q, p.poc == "true") * p.v_th / (p.mu_s * fn)
+
+
+def law_step_warnings(backend: str, h: float, fn_peak: float, q_peak: list[float], p: ContactParams) -> list[str]:
+    """The warning a backend that applies the law explicitly every sub-step ``h`` [s] gives, or none.
+
+    Args:
+        backend: backend name, for the message.
+        h: sub-step [s].
+        fn_peak: largest normal force of the run [N]; q_peak: joint angles there [rad].
+        p: contact parameters.
+    """
+    bound = friction_step_bound(fn_peak, q_peak, p)
+    if h <= bound:
+        return []
+    m = tangential_mass(q_peak, p.poc == "true")
+    return [
+        f"{backend}: sub-step {h:.3g} s is too coarse for the stick-slip law: h > m v_th / (mu_s Fn) = "
+        f"{m:.3g} kg x {p.v_th:.3g} m/s / ({p.mu_s:g} x {fn_peak:.3g} N) = {bound:.3g} s; the friction "
+        f"chatters (use a sub-step <= {bound:.2g} s, or the implicit friction step where the backend has one)"
+    ]

@@ -113,6 +113,12 @@ class Backend(ABC):
     #: Kp, Kd and mu set the engine's usual way. A backend may add more (e.g. ``gazebo``).
     #: Every key of an overlay must be a key of :attr:`defaults`.
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {"matched": {}, "engine-defaults": {}}
+    #: The ContactParams coefficient the backend's native contact slides with: ``mu_k`` for the
+    #: stick-slip law, ``mu_s`` for an engine whose friction has a single (Coulomb) coefficient.
+    sliding_coefficient: ClassVar[str] = "mu_k"
+    #: Where the native contact applies its force, as the fraction of the penetration y above the
+    #: sphere's lowest point (0: the true poc; MuJoCo: 0.5, the middle of the penetration).
+    contact_point_lift: ClassVar[float] = 0.0
     #: One command that installs the engine where it is missing (shown by the registry).
     install: ClassVar[str] = ""
     #: The profile this instance was loaded with (set by the registry's ``load``).
@@ -167,6 +173,14 @@ class Backend(ABC):
     @abstractmethod
     def limits(self) -> Limits:
         """Gravity, joint and torque limits as the loaded engine holds them, and how it enforces them."""
+
+    def warnings(self) -> list[str]:
+        """Why this run's numbers may not be trusted, one sentence each with its numbers (default none).
+
+        E.g. a sub-step too coarse for the contact law: ``h > m v_th / (mu_s Fn)``. Called after a
+        run; the run loop carries the sentences into run.json, the terminal and the report.
+        """
+        return []
 
     def kernels(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> dict[str, Callable[[], None]]:
         """The engine's own per-sub-step calls, for the benchmark's floors.

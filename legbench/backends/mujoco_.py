@@ -5,22 +5,50 @@ hand-written MJCF copy of the leg). The URDF's ``<mujoco><compiler
 fusestatic="false"/>`` keeps the foot a body of its own, welded to link 3 at
 the foot centre E; a site ``E`` marks that point. On the spec we add the
 ground plane z_W = 0, one ``motor`` actuator per joint (gear 1, control range
-= torque limit), stiff joint limits (ENGINE_NOTES.md: solref (0.002, 1), solimp
+= torque limit), stiff joint limits (docs/contact_mapping.md: solref (0.002, 1), solimp
 (0.99, 0.999, ...): the knee driven into its 2.229 rad limit with 10 N m rests
 at 2.2292 rad after a 0.02 rad overshoot) and collision filters so that only
 the foot sphere touches the ground (no link-link or other link-ground contact).
 
-Native contact (``contact_mode = "native"``), set through MuJoCo's global
-contact override (``mjENBL_OVERRIDE``), which bypasses the two-geom mixing
-rules: the "direct" reference ``solref = (-Kp A, -Kd A)`` with the impedance
-pinned at ``d = 1e-4`` (``solimp = (1e-4, 1e-4, 0.001, 0.5, 2)``) makes the
-normal force ``Kp pen + Kd pen_rate`` in newtons, where
-``A = body_invweight0[foot, 0]`` is the inverse inertia MuJoCo uses for the
-contact's regulariser (frozen at qpos0); elliptic cone, sliding friction
-``mu_s`` only (condim 3: no torsional or rolling friction). Differences from
-the spec's law (damping also while releasing, force clamped at zero, a
-regularised cone in which the foot creeps at about F_t / Kd below the limit):
-docs/contact_mapping.md.
+Native contact (``contact_mode = "native"``), on one explicit contact pair per
+foot geom (``<pair>``: its parameters bypass the two-geom mixing rules; no
+other geom collides). Profiles (docs/contact_mapping.md has the study):
+
+* ``matched`` (the defaults): the "direct" reference ``solref = (-Kp A, -Kd A)``
+  with the impedance pinned at ``d = 1e-4`` (``solimp = (1e-4, 1e-4, 0.001, 0.5, 2)``)
+  makes the normal force ``Kp pen + Kd pen_rate`` in newtons, where
+  ``A = body_invweight0[foot, 0]`` is the inverse inertia MuJoCo uses for the
+  contact's regulariser (frozen at qpos0). Friction: elliptic cone with
+  ``mu_s`` (condim 3), the noslip post-pass (``noslip``, 10 iterations) and
+  "deadbeat" friction rows, ``solreffriction = (-1, -dmax / h)``: the friction
+  rows' reference acceleration -v_t / h asks the unregularised noslip pass to
+  stop the slip within one sub-step, inside the cone. The foot then sticks below
+  mu_s Fn like a Coulomb cone (0.5 um over the effort task) and slides at mu_s Fn
+  above it. Without noslip these rows are nearly force-free (the regulariser
+  dominates) and the foot slides: :meth:`warnings` says so.
+* ``engine-defaults``: MuJoCo's option defaults (pyramidal cone, impratio 1,
+  Newton, 100 iterations, no noslip, solimp (0.9, 0.95, 0.001, 0.5, 2)) with Kp,
+  Kd as the usual direct ``solref = (-Kp, -Kd)`` and mu as the pair friction,
+  one 1 ms step per control period (MuJoCo's 2 ms default does not divide it).
+  Friction is then the regularised cone: the foot creeps at about F_t / Kd.
+
+Ground force read-out (setting ``force_readout``): ``end`` (default) is the force
+at the end state of the control period (one more ``mj_forward`` after the
+sub-steps; ``efc_force`` through ``mj_contactForce``, rotated out of the contact
+frame, after the noslip pass), aligned with the logged state as the law's is;
+``last`` is the force the last sub-step applied (Bullet's convention, one
+sub-step behind); ``mean`` averages the applied force over the control period's
+sub-steps (impulse / period, half a period behind). With a stiff friction row
+(impratio 100, or noslip with the contact's own solref) the friction alternates
+from sub-step to sub-step at the cone's edge, so any single read is wrong
+(impratio 100 on the effort task: ``end`` read (-2.3, -37.3, 53.5) N and ``last``
+(13.2, 25.8, 52.9) N where the statics said (5.6, -8.7, 53.1) N): only ``mean`` is
+right then (0.18 % of Fn), and :meth:`warnings` says so. In the
+profiles the friction does not alternate and all three agree. Measured against
+the leg's statics h = -(J_poc^T)^-1 (tau - G(q)) over the effort task's last
+0.5 s: 0.2 % of Fn (matched), 0.01 % (engine-defaults); the 0.2 % is MuJoCo's
+contact point, which sits in the middle of the penetration, y/2 above the true
+poc (``contact_point_lift``). With ``rk4`` the forces are those of a step's first stage.
 
 Reference contact (``contact_mode = "reference"``): engine contact off
 (``mjDSBL_CONTACT``); before every sub-step, ``qfrc_applied`` is set to
@@ -29,12 +57,13 @@ start state. With ``euler`` this is exactly the semi-implicit Euler of the
 Pinocchio backend; with ``rk4`` the contact force is held over the sub-step's
 four stages (first order in the contact force, not a true RK4 of the law).
 
-Sub-step ``dt`` (default 1e-4 s, 10 per 1 ms control period): MuJoCo's
-``euler`` is semi-implicit Euler (the leg has no joint damping, so
-``implicitfast`` is the same scheme), first order; at 1e-4 s its free-space
-error stays below 0.1 % of the motion (tests/test_backends_engines.py), the
-same sub-step as the Pinocchio backend, and it resolves the stick-slip law's
-slope (ENGINE_NOTES.md, step sizes). MuJoCo's automatic reset on a bad
+Sub-step ``dt`` (default 5e-5 s, 20 per 1 ms control period; 1 ms in
+``engine-defaults``): MuJoCo's ``euler`` is semi-implicit Euler (the leg has no
+joint damping, so ``implicitfast`` is the same scheme), first order; the same
+sub-step as the Pinocchio backend, so in free space the two agree to round-off.
+In reference mode the law's stiff friction slope is treated implicitly by
+default (``reference_friction``; docs/contact_law.md says why it must be).
+MuJoCo's automatic reset on a bad
 acceleration is disabled: a divergence raises
 :class:`~legbench.exceptions.SimulationDiverged` instead of silently
 restarting from qpos0.
@@ -51,7 +80,7 @@ import mujoco
 import numpy as np
 
 from legbench.backends.base import Backend, Limits, Physics, sub_step_count
-from legbench.contact import ReferenceContact
+from legbench.contact import ReferenceContact, law_step_warnings
 from legbench.exceptions import LegbenchError, SimulationDiverged
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine
 
@@ -62,6 +91,11 @@ LIMIT_SOLIMP = (0.99, 0.999, 0.001, 0.5, 2.0)
 #: Contact impedance pinned at d = 1e-4 for every penetration, so the force is
 #: the spring-damper of solref and does not vary with depth.
 CONTACT_SOLIMP = (1e-4, 1e-4, 0.001, 0.5, 2.0)
+
+_CONES = {"elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC, "pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL}
+_SOLVERS = {"newton": mujoco.mjtSolver.mjSOL_NEWTON, "cg": mujoco.mjtSolver.mjSOL_CG, "pgs": mujoco.mjtSolver.mjSOL_PGS}
+#: Contact impedance choices: pinned at 1e-4 (force = the solref spring-damper in N), or MuJoCo's default.
+_SOLIMPS = {"pinned": CONTACT_SOLIMP, "default": (0.9, 0.95, 0.001, 0.5, 2.0)}
 
 _INTEGRATORS = {
     "euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -78,8 +112,50 @@ class MujocoBackend(Backend):
     defaults: ClassVar[Mapping[str, Any]] = {
         "dt": 5.0e-5,  # sub-step [s]: the Pinocchio default (docs/pinocchio.md), so defaults are same-step
         "integrator": "euler",  # semi-implicit Euler, like PyBullet and the Pinocchio backend
+        "impratio": 1.0,  # opt.impratio: friction-to-normal impedance ratio (MuJoCo default 1)
+        "noslip": True,  # the unregularised friction post-pass on (MuJoCo default off: noslip_iterations 0)
+        "noslip_iterations": 10,  # opt.noslip_iterations when noslip is on
+        "cone": "elliptic",  # opt.cone (MuJoCo default pyramidal)
+        "solver": "newton",  # opt.solver (MuJoCo default Newton)
+        "iterations": 100,  # opt.iterations (MuJoCo default 100)
+        "contact_solref": "scaled",  # scaled: (-Kp A, -Kd A) [N]; raw: (-Kp, -Kd), the usual stiffness/damping form
+        "friction_solref": "deadbeat",  # deadbeat: friction rows stop the slip in one sub-step; contact: = solref
+        "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
+        "force_readout": "end",  # end: at the end state; last: the last sub-step's; mean: impulse / period
+        "contact_solimp": "pinned",  # pinned: d = 1e-4 at every depth; default: MuJoCo's (0.9, 0.95, 0.001, 0.5, 2)
     }
-    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"integrator": tuple(_INTEGRATORS)}
+    #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
+    sliding_coefficient: ClassVar[str] = "mu_s"
+    #: MuJoCo's sphere-plane contact point is the middle of the penetration, y/2 above the lowest point.
+    contact_point_lift: ClassVar[float] = 0.5
+    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
+        "integrator": tuple(_INTEGRATORS),
+        "cone": tuple(_CONES),
+        "solver": tuple(_SOLVERS),
+        "contact_solref": ("scaled", "raw"),
+        "friction_solref": ("deadbeat", "contact"),
+        "contact_solimp": tuple(_SOLIMPS),
+        "force_readout": ("end", "last", "mean"),
+        "reference_friction": ("implicit", "explicit"),
+    }
+    #: ``engine-defaults``: MuJoCo's documented option defaults (2 ms is replaced by the control
+    #: period: a step must divide it), Kp and Kd as the usual direct solref (-Kp, -Kd) with the
+    #: default solimp, mu as the geom friction.
+    profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
+        "matched": {},
+        "engine-defaults": {
+            "dt": 1.0e-3,
+            "integrator": "euler",
+            "impratio": 1.0,
+            "noslip": False,
+            "cone": "pyramidal",
+            "solver": "newton",
+            "iterations": 100,
+            "contact_solref": "raw",
+            "friction_solref": "contact",
+            "contact_solimp": "default",
+        },
+    }
 
     # ----------------------------------------------------------------- load
     def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
@@ -106,18 +182,28 @@ class MujocoBackend(Backend):
         opt.timestep = physics.control_dt / n_sub
         opt.integrator = _INTEGRATORS[cfg["integrator"]]
         opt.gravity = [0.0, 0.0, -physics.gravity]
-        opt.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+        opt.cone = _CONES[cfg["cone"]]
+        opt.solver = _SOLVERS[cfg["solver"]]
+        opt.iterations = int(cfg["iterations"])
+        opt.impratio = float(cfg["impratio"])
+        opt.noslip_iterations = int(cfg["noslip_iterations"]) if cfg["noslip"] else 0
         opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
         if self.reference:
             opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
 
-        # only the foot sphere collides, and only with the ground
-        for geom in spec.geoms:
-            on_foot = geom.parent.name == FOOT_FRAME
-            geom.contype, geom.conaffinity = (1 if on_foot else 0), 0
+        # only the foot sphere collides, and only with the ground: no dynamic collisions at all,
+        # one explicit pair per foot geom (its parameters bypass the two-geom mixing rules)
+        foot_names = []
+        for i, geom in enumerate(spec.geoms):
+            geom.contype, geom.conaffinity = 0, 0
+            if geom.parent.name == FOOT_FRAME:
+                geom.name = geom.name or f"foot_{i}"
+                foot_names.append(geom.name)
         spec.worldbody.add_geom(
-            name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0], contype=0, conaffinity=1
+            name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0], contype=0, conaffinity=0
         )
+        for name in foot_names:
+            spec.add_pair(geomname1="ground", geomname2=name, condim=3)
         spec.body(FOOT_FRAME).add_site(name="E", pos=[0.0, 0.0, 0.0])
 
         for joint, limit in zip(JOINT_NAMES, physics.torque_limit, strict=True):
@@ -140,20 +226,36 @@ class MujocoBackend(Backend):
         self.foot_body = m.body(FOOT_FRAME).id
         self.foot_geoms = frozenset(int(g) for g in np.flatnonzero(m.geom_bodyid == self.foot_body))
 
-        # native contact through the global override: N = Kp pen + Kd pen_rate
+        # native contact on the explicit pairs: N = Kp pen + Kd pen_rate
         c = physics.contact
         self.A = float(m.body_invweight0[self.foot_body, 0])
-        m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_OVERRIDE
-        m.opt.o_solref = [-c.Kp * self.A, -c.Kd * self.A]
-        m.opt.o_solimp = list(CONTACT_SOLIMP)
-        m.opt.o_friction = [c.mu_s, c.mu_s, 0.0, 0.0, 0.0]
-        m.opt.o_margin = 0.0
+        scale = self.A if cfg["contact_solref"] == "scaled" else 1.0
+        solimp = _SOLIMPS[cfg["contact_solimp"]]
+        if cfg["friction_solref"] == "deadbeat":
+            # friction rows' reference acceleration aref = -B v_t with B = -solreffriction[1] / dmax:
+            # B = 1 / h asks the unregularised noslip pass to stop the slip within one sub-step
+            solreffriction = [-1.0, -solimp[1] / m.opt.timestep]
+        else:
+            solreffriction = [0.0, 0.0]  # MuJoCo's default: the friction rows use solref
+        for i in range(m.npair):
+            m.pair_solref[i] = [-c.Kp * scale, -c.Kd * scale]
+            m.pair_solreffriction[i] = solreffriction
+            m.pair_solimp[i] = solimp
+            m.pair_friction[i] = [c.mu_s, c.mu_s, 0.0, 0.0, 0.0]
+            m.pair_margin[i] = 0.0
 
         self.contact = ReferenceContact.from_leg(c)
-        self._step = self._step_reference if self.reference else self._step_native
+        if self.reference and cfg["reference_friction"] == "implicit":
+            self.contact.use_implicit_friction(physics.gravity)
+        native = {"end": self._step_native, "last": self._step_native_last, "mean": self._step_native_mean}[
+            cfg["force_readout"]
+        ]
+        self._step = self._step_reference if self.reference else native
         self._f6 = np.zeros(6)
         self._fw = np.zeros(3)
         self._force = np.zeros(3)
+        self._impulse = np.zeros(3)
+        self._fn_peak, self._q_peak = 0.0, [0.0, 0.0, 0.0]
         self._bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
 
     # ---------------------------------------------------------------- reset
@@ -164,6 +266,7 @@ class MujocoBackend(Backend):
         d.qpos[:] = q
         d.qvel[:] = qd
         mujoco.mj_forward(m, d)
+        self._fn_peak = 0.0
         self._read_force()
 
     # ----------------------------------------------------------------- step
@@ -171,32 +274,87 @@ class MujocoBackend(Backend):
         """Advance one control period with tau [N m] held (clamped to the torque limits by MuJoCo)."""
         self.data.ctrl[:] = tau
         self._step()
-        self._read_force()
         if self.data.warning[self._bad_qacc].number:
             raise SimulationDiverged(self.name, float(self.data.time), "MuJoCo reported a bad qacc")
 
     def _step_native(self) -> None:
+        """``n_sub`` steps, then the ground force at the end state (``force_readout: end``).
+
+        ``mj_step`` leaves the contact forces of the last sub-step's start state; one more
+        ``mj_forward`` gives those of the end state, aligned with the logged state like the
+        law's (it also refreshes the solver's warm start).
+        """
         m, d = self.model, self.data
         mujoco.mj_step(m, d, self.n_sub)
-        # mj_step leaves the contact forces of the last sub-step's start state; one more
-        # forward pass gives those of the end state (the trajectory is bitwise unchanged)
         mujoco.mj_forward(m, d)
+        self._contact_force()
+
+    def _step_native_last(self) -> None:
+        """``n_sub`` steps; the ground force is the one the last sub-step applied (``force_readout: last``).
+
+        After ``mj_step`` the contacts and ``efc_force`` are those the step used (computed at its
+        start state, after the noslip pass when there is one): Bullet's convention, one sub-step
+        behind the state.
+        """
+        mujoco.mj_step(self.model, self.data, self.n_sub)
+        self._contact_force()
+
+    def _step_native_mean(self) -> None:
+        """``n_sub`` calls of ``mj_step``, averaging the contact force each sub-step applied
+        (``force_readout: mean``): the control period's contact impulse over its length.
+
+        Use it with settings under which the friction force alternates from sub-step to
+        sub-step (a stiff friction row: impratio >> 1, or noslip with the contact's own
+        solref): one sub-step's force is then not the period's. Its sample is the mean over
+        the period ending at the sample, half a period behind the state.
+        """
+        m, d, acc, fw = self.model, self.data, self._impulse, self._force
+        acc[:] = 0.0
+        for _ in range(self.n_sub):
+            mujoco.mj_step(m, d)
+            if d.ncon:
+                self._contact_force()
+                acc += fw
+        fw[:] = acc
+        fw /= self.n_sub
 
     def _step_reference(self) -> None:
+        """Reference mode: ``qfrc_applied`` = the law's J_poc^T F at each sub-step's start state.
+
+        ``reference_friction: implicit`` (default) adds the linearly implicit friction correction
+        -K dqd (:meth:`ReferenceContact.implicit_generalized`, with the commanded torque as the
+        other applied torque), so the law's stiff friction slope does not chatter at the sub-step;
+        ``explicit`` applies the law as it is (stable only below m v_th / (mu_s Fn)).
+        """
         m, d = self.model, self.data
-        q, qd, applied, law = d.qpos, d.qvel, d.qfrc_applied, self.contact.generalized
-        for _ in range(self.n_sub):
-            applied[:] = law(q[0], q[1], q[2], qd[0], qd[1], qd[2])
-            mujoco.mj_step(m, d)
+        q, qd, applied = d.qpos, d.qvel, d.qfrc_applied
+        if self.cfg["reference_friction"] == "implicit":
+            law_i, h, u = self.contact.implicit_generalized, float(m.opt.timestep), d.ctrl
+            for _ in range(self.n_sub):
+                applied[:] = law_i(q[0], q[1], q[2], qd[0], qd[1], qd[2], u[0], u[1], u[2], h)
+                mujoco.mj_step(m, d)
+        else:
+            law = self.contact.generalized
+            for _ in range(self.n_sub):
+                applied[:] = law(q[0], q[1], q[2], qd[0], qd[1], qd[2])
+                mujoco.mj_step(m, d)
+        self._read_force()
 
     def _read_force(self) -> None:
-        """Ground force on the foot in W [N] at the current state, into ``self._force``."""
-        d, force = self.data, self._force
+        """Reference mode: the law at the current state; native: the contact force MuJoCo holds now."""
+        d = self.data
         if self.reference:
             q, qd = d.qpos, d.qvel
             self.contact.generalized(q[0], q[1], q[2], qd[0], qd[1], qd[2])
-            force[:] = self.contact.force
+            self._force[:] = self.contact.force
+            if self._force[2] > self._fn_peak:
+                self._fn_peak, self._q_peak = float(self._force[2]), q.tolist()
             return
+        self._contact_force()
+
+    def _contact_force(self) -> None:
+        """Force of the ground on the foot in W [N] from ``efc_force`` of the current contacts, into ``self._force``."""
+        d, force = self.data, self._force
         force[:] = 0.0
         for i in range(d.ncon):
             con = d.contact[i]
@@ -215,7 +373,9 @@ class MujocoBackend(Backend):
         return self.data.qpos.copy(), self.data.qvel.copy()
 
     def ground_force(self) -> np.ndarray:
-        """Force of the ground on the foot in W [N], summed over the foot's contacts, at the current state."""
+        """Force of the ground on the foot in W [N], summed over the foot's contacts: native, the force the
+        last sub-step applied (``force_readout: last``) or the period's mean (``mean``); reference, the law
+        at the current state."""
         return self._force.copy()
 
     def info(self) -> dict[str, Any]:
@@ -230,17 +390,20 @@ class MujocoBackend(Backend):
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
             "contact": {
-                "method": "global override (mjENBL_OVERRIDE), direct solref",
+                "method": "explicit foot-ground pair, direct solref",
                 "enabled": not self.reference,
-                "solref": m.opt.o_solref.tolist(),
-                "solimp": m.opt.o_solimp.tolist(),
+                "solref": m.pair_solref[0].tolist() if m.npair else None,
+                "solreffriction": m.pair_solreffriction[0].tolist() if m.npair else None,
+                "solimp": m.pair_solimp[0].tolist() if m.npair else None,
                 "A": self.A,
                 "Kp": c.Kp,
                 "Kd": c.Kd,
-                "friction": m.opt.o_friction.tolist(),
-                "condim": int(m.geom_condim[min(self.foot_geoms)]),
-                "cone": "elliptic",
+                "friction": m.pair_friction[0].tolist() if m.npair else None,
+                "condim": int(m.pair_dim[0]) if m.npair else None,
+                "cone": mujoco.mjtCone(m.opt.cone).name,
                 "impratio": float(m.opt.impratio),
+                "noslip_iterations": int(m.opt.noslip_iterations),
+                "force_readout": self.cfg["force_readout"],
                 "reference_law": "J_poc^T F via qfrc_applied per sub-step" if self.reference else None,
             },
             "joint_limits": {"solref": list(LIMIT_SOLREF), "solimp": list(LIMIT_SOLIMP)},
@@ -250,6 +413,29 @@ class MujocoBackend(Backend):
                 "tolerance": float(m.opt.tolerance),
             },
         }
+
+    def warnings(self) -> list[str]:
+        """Reference mode: the explicit law's step bound; native: deadbeat friction without its noslip pass."""
+        if self.reference:
+            if self.cfg["reference_friction"] == "implicit":
+                return []
+            return law_step_warnings(self.name, float(self.model.opt.timestep), self._fn_peak, self._q_peak,
+                                     self.physics.contact)  # fmt: skip
+        out = []
+        noslip = self.model.opt.noslip_iterations > 0
+        if self.cfg["friction_solref"] == "deadbeat" and not noslip:
+            out.append(
+                "mujoco: friction_solref 'deadbeat' without noslip iterations leaves the friction rows almost "
+                "force-free in the regularised solver (the foot slides); set noslip: true"
+            )
+        stiff = self.model.opt.impratio > 1.0 or (noslip and self.cfg["friction_solref"] == "contact")
+        if stiff and self.cfg["force_readout"] != "mean":
+            out.append(
+                f"mujoco: with impratio {self.model.opt.impratio:g}, noslip {noslip} and friction_solref "
+                f"'{self.cfg['friction_solref']}' the friction force can alternate between sub-steps, so the "
+                "force of one sub-step is not the control period's; set force_readout: mean"
+            )
+        return out
 
     # ------------------------------------------------------- declared abilities
     def integrator_family(self) -> str:

@@ -12,6 +12,21 @@ Integrators (setting ``integrator``): ``euler`` (semi-implicit: qd += dt qdd,
 then q += dt qd, as MuJoCo's Euler and Bullet), ``rk4`` (classic, fixed step),
 ``rk45`` / ``dop853`` (scipy adaptive, one solve per control period so control
 updates stay on the grid). The sub-step ``dt`` must divide the control period.
+
+Friction (setting ``friction``, ``euler`` only): ``implicit`` (default) solves
+(I + h M0^-1 K) dqd = h ABA(q, qd, tau + J_poc^T F + tau_lim) per sub-step, with
+K = -J_t^T dF_t/dv_t J_t the friction's slope and M0 the mass matrix frozen over
+the control period (linearly implicit Euler in the friction, a W-method; explicit
+in the rest, and exactly ``explicit`` out of contact). ``explicit`` is plain
+semi-implicit Euler, which resolves the stick-slip law only for
+h < m v_th / (mu_s Fn) (~5.6 us at the effort task's loads with v_th = 1e-3 m/s)
+and chatters above it: :meth:`warnings` says so with the numbers.
+docs/pinocchio.md has the trade-off, convergence and cost. Pinocchio is
+legbench's own integrator, so its ``engine-defaults`` profile is these defaults.
+
+Ground force read-out: the law at the state at the end of the control period
+(it is a function of the state); it matches the leg's statics over the effort
+task's last 0.5 s to 1e-6 of Fn.
 """
 
 from __future__ import annotations
@@ -26,7 +41,7 @@ import pinocchio as pin
 from scipy.integrate import solve_ivp
 
 from legbench.backends.base import Backend, Limits, Physics, sub_step_count
-from legbench.contact import ReferenceContact
+from legbench.contact import ReferenceContact, implicit_velocity_step, law_step_warnings
 from legbench.exceptions import LegbenchError
 from legbench.model import LINK_NAMES, load_params
 
@@ -43,8 +58,14 @@ class PinocchioBackend(Backend):
         "max_step": 1.0e-4,  # [s], adaptive only (the report's ode45 setting)
         "limit_stiffness": 1.0e4,  # [N m/rad]
         "limit_damping": 20.0,  # [N m s/rad], about critical for the knee (I ~ 0.01 kg m^2)
+        "friction": "implicit",  # euler only: friction slope linearly implicit (docs/pinocchio.md)
     }
-    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"integrator": ("euler", "rk4", "rk45", "dop853")}
+    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
+        "integrator": ("euler", "rk4", "rk45", "dop853"),
+        "friction": ("implicit", "explicit"),
+    }
+    #: Pinocchio is legbench's own integrator: its "engine defaults" are these defaults.
+    profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {"matched": {}, "engine-defaults": {}}
 
     # ----------------------------------------------------------------- load
     def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
@@ -72,10 +93,15 @@ class PinocchioBackend(Backend):
         #: The contact law called at every sub-step (floats in, (tau_c, F) out); `legbench bench` times it.
         self.law = self.contact.wrench
         self._aba = pin.aba
-        self._step = {"euler": self._euler, "rk4": self._rk4}.get(self.cfg["integrator"], self._adaptive)
+        self.slope = self.contact.wrench_slope
+        self.implicit = self.cfg["integrator"] == "euler" and self.cfg["friction"] == "implicit"
+        euler = self._euler_implicit if self.implicit else self._euler
+        self._step = {"euler": euler, "rk4": self._rk4}.get(self.cfg["integrator"], self._adaptive)
+        self._fn_peak, self._q_peak = 0.0, [0.0, 0.0, 0.0]
 
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
+        self._fn_peak, self._q_peak = 0.0, [float(x) for x in q]
         self.q = [float(x) for x in q]
         self.qd = [float(x) for x in qd]
         self._update_force()
@@ -140,6 +166,66 @@ class PinocchioBackend(Backend):
         self.q = [q1, q2, q3]
         self.qd = [qd1, qd2, qd3]
 
+    def _euler_implicit(self, tau: np.ndarray) -> None:
+        """Semi-implicit Euler with the friction slope linearly implicit (the default).
+
+        Per sub-step, with a = ABA(q, qd, tau + J_poc^T F + tau_lim) the explicit acceleration:
+        (I + h M0^-1 K) dqd = h a, qd += dqd, q += h qd. K = -J_t^T dF_t/dv_t J_t is the
+        friction's slope from :meth:`ReferenceContact.wrench_slope` at the sub-step's start, M0^-1
+        the inverse mass matrix at the period's first sub-step in contact (a W-method: the exact
+        M enters through ABA, the frozen one only the implicit correction). Below v_th the law is a viscous
+        friction of coefficient mu_s Fn / v_th, which explicit Euler resolves only for
+        h < m v_th / (mu_s Fn); treated implicitly it is stable at any h, and a fixed point of the
+        step (dqd = 0 <=> a = 0) is a fixed point of the law, so steady creep and force are the
+        law's. Out of contact K = 0 and the step is exactly :meth:`_euler`.
+        """
+        h = self.h
+        aba, model, data, slope = self._aba, self.model, self.data, self.slope
+        qp, v, t = self._qp, self._v, self._tau
+        cos, sin = math.cos, math.sin
+        lo1, lo3, hi1, hi3 = self._limits
+        k, b = self.k_lim, self.b_lim
+        u1, u2, u3 = np.asarray(tau, dtype=float).tolist()
+        q1, q2, q3 = self.q
+        qd1, qd2, qd3 = self.qd
+        minv: tuple[float, ...] | None = None  # M0^-1, at the period's first sub-step in contact
+        solve = implicit_velocity_step
+        for _ in range(self.n_sub):
+            tc1, tc2, tc3, _, _, _, K11, K12, K13, K22, K23, K33 = slope(q1, q2, q3, qd1, qd2, qd3)
+            t1, t2, t3 = u1 + tc1, u2 + tc2, u3 + tc3
+            if q1 > hi1:
+                t1 -= k * (q1 - hi1) + (b * qd1 if qd1 > 0 else 0.0)
+            elif q1 < lo1:
+                t1 -= k * (q1 - lo1) + (b * qd1 if qd1 < 0 else 0.0)
+            if q3 > hi3:
+                t3 -= k * (q3 - hi3) + (b * qd3 if qd3 > 0 else 0.0)
+            elif q3 < lo3:
+                t3 -= k * (q3 - lo3) + (b * qd3 if qd3 < 0 else 0.0)
+            qp[0], qp[1], qp[2], qp[3] = q1, cos(q2), sin(q2), q3
+            v[0], v[1], v[2] = qd1, qd2, qd3
+            t[0], t[1], t[2] = t1, t2, t3
+            a1, a2, a3 = aba(model, data, qp, v, t).tolist()
+            if K11 == 0.0 and K22 == 0.0 and K33 == 0.0:
+                x1, x2, x3 = h * a1, h * a2, h * a3
+            else:
+                if minv is None:  # first sub-step in contact of this period
+                    (m11, m12, m13), (_, m22, m23), (_, _, m33) = self._minverse(qp).tolist()
+                    minv = (m11, m12, m13, m22, m23, m33)
+                x1, x2, x3 = solve(h, minv, (K11, K12, K13, K22, K23, K33), a1, a2, a3)
+            qd1 = qd1 + x1
+            qd2 = qd2 + x2
+            qd3 = qd3 + x3
+            q1 = q1 + h * qd1
+            q2 = q2 + h * qd2
+            q3 = q3 + h * qd3
+        self.q = [q1, q2, q3]
+        self.qd = [qd1, qd2, qd3]
+
+    def _minverse(self, qp: np.ndarray) -> np.ndarray:
+        """M(q)^-1 [1/(kg m^2)] at Pinocchio's configuration vector ``qp``, symmetric (both triangles)."""
+        Mi = pin.computeMinverse(self.model, self.data, qp)
+        return np.triu(Mi) + np.triu(Mi, 1).T
+
     def _rk4(self, tau: np.ndarray) -> None:
         h = self.h
         u = np.asarray(tau, dtype=float).tolist()
@@ -189,6 +275,8 @@ class PinocchioBackend(Backend):
         q, qd = self.q, self.qd
         f = self.force
         _, _, _, f[0], f[1], f[2] = self.law(q[0], q[1], q[2], qd[0], qd[1], qd[2])
+        if f[2] > self._fn_peak:
+            self._fn_peak, self._q_peak = float(f[2]), list(q)
 
     # ----------------------------------------------------------------- read
     def state(self) -> tuple[np.ndarray, np.ndarray]:
@@ -207,7 +295,7 @@ class PinocchioBackend(Backend):
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
             "contact": {
-                "law": "analytic (LEG_SPEC section 4), J_poc^T F",
+                "law": "analytic (docs/spec.md section 4), J_poc^T F",
                 "Kp": c.Kp,
                 "Kd": c.Kd,
                 "mu_s": c.mu_s,
@@ -216,6 +304,12 @@ class PinocchioBackend(Backend):
                 "poc": c.poc,
             },
         }
+
+    def warnings(self) -> list[str]:
+        """The explicit law's step bound (euler with ``friction: explicit``, rk4) at the run's peak Fn."""
+        if self.implicit or self.cfg["integrator"] not in ("euler", "rk4"):
+            return []
+        return law_step_warnings(self.name, self.h, self._fn_peak, self._q_peak, self.physics.contact)
 
     # ------------------------------------------------------- declared abilities
     def integrator_family(self) -> str:

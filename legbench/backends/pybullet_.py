@@ -5,7 +5,7 @@ Model: ``models/leg.urdf`` loaded with ``useFixedBase=True`` and
 collision shapes), in a ``DIRECT`` client of its own (several backends may run
 side by side). The ground is a static ``GEOM_PLANE`` at z_W = 0 (no
 ``pybullet_data`` needed). Every default that would make Bullet differ from
-the spec is switched off (ENGINE_NOTES.md): the velocity motors that brake the
+the spec is switched off (docs/contact_mapping.md): the velocity motors that brake the
 joints until disabled, link linear/angular damping (0.04 by default), joint
 damping, and the 100 rad/s joint-speed clamp (raised to 1000 rad/s, far above
 the 55 rad/s the motors can reach, so it never binds silently). Only the foot
@@ -22,13 +22,26 @@ spinning or rolling friction, restitution 0, and ``contactSlop = 0`` /
 ``contactProcessingThreshold = 0`` so the spring acts on the true
 penetration. Friction is a hard Coulomb cone: the foot sticks.
 
+Profiles: ``matched`` is the above (the defaults); ``engine-defaults`` keeps
+Bullet's own plane (no explicit stiffness/damping: its default contact damping
+adds to Kd), slop and processing thresholds, 50 solver iterations, and takes one
+1 ms ``stepSimulation`` per control period, with Kp, Kd as the foot's
+``contactStiffness``/``contactDamping`` and mu as its ``lateralFriction`` on a
+plane of friction 1 (pybullet_data's plane.urdf). Both stick (Coulomb cone);
+the steady effort-task force differs by 0.04 % (docs/contact_mapping.md).
+
 Reference contact: the foot-ground collision pair is disabled and ``J_poc^T F`` of
 :class:`~legbench.contact.ReferenceContact` at the sub-step's start state is
 added to the commanded torque before every ``stepSimulation``.
 
 Sub-stepping: ``numSubSteps = 1`` and ``stepSimulation`` called ``n_sub``
 times per control period, so ``getContactPoints`` reports the force of a whole
-(sub-)step (with internal sub-steps it under-reports by their number). Bullet
+(sub-)step: its impulse over that step (with Bullet's internal sub-steps,
+``numSubSteps = n``, it is the last internal step's impulse divided by the whole
+step, n times too small, so legbench does not use them). The read-out is that of
+the last sub-step; Bullet's contact sticks without chatter, and it matches the
+leg's statics over the effort task's last 0.5 s to 2e-7 of Fn (matched) and
+3e-7 (engine-defaults). Bullet
 applies a ``TORQUE_CONTROL`` command only to the next ``stepSimulation`` and
 adds up repeated commands, so the (clamped) torque is commanded exactly once
 before each call. The integrator is Bullet's semi-implicit Euler; ``dt``
@@ -48,14 +61,12 @@ import numpy as np
 import pybullet as p
 
 from legbench.backends.base import Backend, Limits, Physics, sub_step_count
-from legbench.contact import ReferenceContact
+from legbench.contact import ReferenceContact, law_step_warnings
 from legbench.exceptions import SimulationDiverged
 from legbench.model import FOOT_FRAME, LINK_NAMES, Inertial, combine
 
 #: Joint-speed clamp [rad/s]: Bullet's default of 100 replaced by a bound the leg cannot reach.
 MAX_JOINT_VELOCITY = 1000.0
-#: Lateral friction of the plane; Bullet multiplies the two bodies' coefficients.
-PLANE_FRICTION = 1.0
 #: Contact stiffness of the plane [N/m]: Bullet combines stiffnesses in series, so a
 #: rigid plane leaves the foot's Kp (1/(1/Kp + 1e-30) = Kp in double precision).
 PLANE_STIFFNESS = 1.0e30
@@ -67,7 +78,31 @@ class PybulletBackend(Backend):
     name: ClassVar[str] = "pybullet"
     defaults: ClassVar[Mapping[str, Any]] = {
         "dt": 5.0e-5,  # sub-step [s]: the Pinocchio default (docs/pinocchio.md), so defaults are same-step
-        "solver_iterations": 50,  # sequential-impulse iterations per step
+        "solver_iterations": 50,  # sequential-impulse iterations per step (Bullet default 50)
+        "plane_contact": "rigid",  # rigid: plane (1e30 N/m, 0 N s/m); default: Bullet's plane (adds its damping)
+        "plane_friction": 1.0,  # lateral friction of the plane (Bullet multiplies it with the foot's mu)
+        "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
+        "contact_margins": "zero",  # zero: contactSlop = contactProcessingThreshold = 0; default: Bullet's
+    }
+    #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
+    sliding_coefficient: ClassVar[str] = "mu_s"
+    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
+        "plane_contact": ("rigid", "default"),
+        "contact_margins": ("zero", "default"),
+        "reference_friction": ("implicit", "explicit"),
+    }
+    #: ``engine-defaults``: one Bullet step per control period, Bullet's plane, slop and
+    #: thresholds; Kp, Kd as the foot's contactStiffness/contactDamping, mu as its
+    #: lateralFriction on a plane of friction 1 (as pybullet_data's plane.urdf).
+    profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
+        "matched": {},
+        "engine-defaults": {
+            "dt": 1.0e-3,
+            "solver_iterations": 50,
+            "plane_contact": "default",
+            "plane_friction": 1.0,
+            "contact_margins": "default",
+        },
     }
 
     # ----------------------------------------------------------------- load
@@ -92,9 +127,11 @@ class PybulletBackend(Backend):
             fixedTimeStep=physics.control_dt / n_sub,
             numSubSteps=1,
             numSolverIterations=int(cfg["solver_iterations"]),
-            contactSlop=0.0,
             physicsClientId=cid,
         )
+        self.exact_margins = cfg["contact_margins"] == "zero"
+        if self.exact_margins:
+            p.setPhysicsEngineParameter(contactSlop=0.0, physicsClientId=cid)
         p.setGravity(0.0, 0.0, -physics.gravity, physicsClientId=cid)
         self.body = body = p.loadURDF(
             str(urdf), useFixedBase=True, flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid
@@ -126,18 +163,20 @@ class PybulletBackend(Backend):
             p.setCollisionFilterPair(body, self.ground, link, -1, int(enable), physicsClientId=cid)
 
         c = physics.contact
+        margins = {"contactProcessingThreshold": 0.0} if self.exact_margins else {}
         p.changeDynamics(
             body, self.foot, contactStiffness=c.Kp, contactDamping=c.Kd, lateralFriction=c.mu_s,
-            spinningFriction=0.0, rollingFriction=0.0, restitution=0.0, contactProcessingThreshold=0.0,
-            physicsClientId=cid,
+            spinningFriction=0.0, rollingFriction=0.0, restitution=0.0, physicsClientId=cid, **margins,
         )  # fmt: skip
+        rigid = {"contactStiffness": PLANE_STIFFNESS, "contactDamping": 0.0} if cfg["plane_contact"] == "rigid" else {}
         p.changeDynamics(
-            self.ground, -1, lateralFriction=PLANE_FRICTION, spinningFriction=0.0, rollingFriction=0.0,
-            restitution=0.0, contactProcessingThreshold=0.0, contactStiffness=PLANE_STIFFNESS,
-            contactDamping=0.0, physicsClientId=cid,
+            self.ground, -1, lateralFriction=float(cfg["plane_friction"]), spinningFriction=0.0,
+            rollingFriction=0.0, restitution=0.0, physicsClientId=cid, **margins, **rigid,
         )  # fmt: skip
 
         self.contact = ReferenceContact.from_leg(c)
+        if self.reference and cfg["reference_friction"] == "implicit":
+            self.contact.use_implicit_friction(physics.gravity)
         self._hi = np.asarray(physics.torque_limit, float)
         self._lo = -self._hi
         self._step = self._step_reference if self.reference else self._step_native
@@ -147,6 +186,7 @@ class PybulletBackend(Backend):
         self._q = np.zeros(3)
         self._qd = np.zeros(3)
         self.t = 0.0
+        self._fn_peak, self._q_peak = 0.0, [0.0, 0.0, 0.0]
 
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
@@ -155,6 +195,7 @@ class PybulletBackend(Backend):
             p.resetJointState(self.body, j, float(qj), float(qdj), physicsClientId=self.cid)
         self._read()
         self.t = 0.0
+        self._fn_peak = 0.0
         if self.reference:
             self._reference_force()
         else:
@@ -179,10 +220,26 @@ class PybulletBackend(Backend):
         self._native_force()
 
     def _step_reference(self) -> None:
+        """Reference mode: the law's J_poc^T F at each sub-step's start state added to the torque.
+
+        ``reference_friction: implicit`` (default) adds the linearly implicit friction correction
+        (:meth:`ReferenceContact.implicit_generalized`, the clamped command as the other torque);
+        ``explicit`` applies the law as it is (stable only below m v_th / (mu_s Fn)).
+        """
         body, cid, joints, tau, cmd = self.body, self.cid, self.joints, self._tau, self._cmd
-        q, qd, law = self._q, self._qd, self.contact.generalized
+        q, qd = self._q, self._qd
+        implicit = self.cfg["reference_friction"] == "implicit"
+        law, law_i, h = (
+            self.contact.generalized,
+            self.contact.implicit_generalized,
+            self.physics.control_dt / self.n_sub,
+        )
+        u1, u2, u3 = tau.tolist()
         for _ in range(self.n_sub):
-            np.add(tau, law(q[0], q[1], q[2], qd[0], qd[1], qd[2]), out=cmd)
+            if implicit:
+                np.add(tau, law_i(q[0], q[1], q[2], qd[0], qd[1], qd[2], u1, u2, u3, h), out=cmd)
+            else:
+                np.add(tau, law(q[0], q[1], q[2], qd[0], qd[1], qd[2]), out=cmd)
             p.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=cmd, physicsClientId=cid)
             p.stepSimulation(physicsClientId=cid)
             self._read()
@@ -198,6 +255,8 @@ class PybulletBackend(Backend):
         q, qd = self._q, self._qd
         self.contact.generalized(q[0], q[1], q[2], qd[0], qd[1], qd[2])
         self._force[:] = self.contact.force
+        if self._force[2] > self._fn_peak:
+            self._fn_peak, self._q_peak = float(self._force[2]), q.tolist()
 
     def _native_force(self) -> None:
         """Sum of the foot's contact forces over the last sub-step (impulse / dt), on the foot, in W.
@@ -256,8 +315,8 @@ class PybulletBackend(Backend):
                 "spinning_friction": foot[7],
                 "rolling_friction": foot[6],
                 "restitution": foot[5],
-                "contact_slop": 0.0,
-                "contact_processing_threshold": 0.0,
+                "contact_slop": 0.0 if self.exact_margins else "Bullet default",
+                "contact_processing_threshold": 0.0 if self.exact_margins else "Bullet default",
                 "cone": "Coulomb cone (sticks below mu Fn, slides at mu Fn)",
                 "Kp": c.Kp,
                 "Kd": c.Kd,
@@ -266,6 +325,13 @@ class PybulletBackend(Backend):
             "damping": {"linear": 0.0, "angular": 0.0, "joint": 0.0},
             "max_joint_velocity": MAX_JOINT_VELOCITY,
         }
+
+    def warnings(self) -> list[str]:
+        """Reference mode: the explicit law's step bound at the run's peak Fn (native Coulomb contact has none)."""
+        if not self.reference or self.cfg["reference_friction"] == "implicit":
+            return []
+        return law_step_warnings(self.name, self.physics.control_dt / self.n_sub, self._fn_peak, self._q_peak,
+                                 self.physics.contact)  # fmt: skip
 
     # ------------------------------------------------------- declared abilities
     def integrator_family(self) -> str:

@@ -1,0 +1,140 @@
+"""Contact-law residuals of one run: scores that need no reference backend.
+
+:func:`residuals` compares a logged run with the contact law it was meant to
+follow (docs/spec.md section 4), sample by sample, from the joint state and the
+ground force alone:
+
+* penetration against the spring: y - (Fn - Kd max(ydot, 0)) / Kp while in
+  contact, y = R_foot - z_E the foot's penetration [m];
+* friction against mu Fn while sliding (slip speed >= 1.5 v_th, where the law
+  gives mu_k): |F_t| / (mu_k Fn);
+* the angle between the friction force and the slip direction (the law puts
+  it exactly opposite the slip) [deg];
+* creep under a sub-limit load (|F_t| < 0.9 min(mu_s, mu_k) Fn, so that kinetic sliding
+  is not counted): the measured slip speed
+  against the law's v_th |F_t| / (mu_s Fn) [m/s].
+
+The point of contact is the true poc (the sphere's lowest point) or the
+centre, as the law's ``poc`` says; velocities are J_poc(q) qd from
+:mod:`legbench.kinematics`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from legbench import kinematics
+from legbench.contact import ContactParams
+from legbench.model import load_params
+
+#: Normal force below which a sample does not count as in contact [N].
+FN_MIN = 0.5
+#: Sub-limit load: |F_t| below this fraction of min(mu_s, mu_k) Fn.
+SUB_LIMIT = 0.9
+#: Slip speed from which the friction direction is scored [m/s]: below it the direction of a
+#: Coulomb engine's (sticking) foot is numerical noise.
+V_DIRECTION = 1.0e-4
+
+
+@dataclass(frozen=True)
+class ContactResiduals:
+    """Residuals of one run against the law (NaN where no sample qualifies).
+
+    Attributes:
+        n_contact: samples in contact (Fn > :data:`FN_MIN`).
+        penetration_max: max |y - (Fn - Kd max(ydot, 0)) / Kp| over contact samples [m].
+        penetration_rms: its RMS [m].
+        penetration_rel: median |y Kp / Fn_spring - 1| over contact samples [1].
+        n_sliding: contact samples slipping at >= 1.5 v_th.
+        friction_ratio: median |F_t| / (mu_k Fn) over sliding samples [1] (1 for the law).
+        n_direction: contact samples slipping at >= :data:`V_DIRECTION` with friction.
+        angle_max: max angle between F_t and -v_t over those samples [deg].
+        angle_median: its median [deg].
+        n_creep: contact samples under a sub-limit load.
+        creep_speed: median slip speed under sub-limit load [m/s].
+        creep_law: median of the law's creep speed v_th |F_t| / (mu_s Fn) over the same samples [m/s].
+    """
+
+    n_contact: int
+    penetration_max: float
+    penetration_rms: float
+    penetration_rel: float
+    n_sliding: int
+    friction_ratio: float
+    n_direction: int
+    angle_max: float
+    angle_median: float
+    n_creep: int
+    creep_speed: float
+    creep_law: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain floats and ints (NaN stays NaN)."""
+        return asdict(self)
+
+
+def _median(x: np.ndarray) -> float:
+    return float(np.median(x)) if x.size else math.nan
+
+
+def residuals(
+    t: np.ndarray, q: np.ndarray, qd: np.ndarray, force: np.ndarray, params: ContactParams
+) -> ContactResiduals:
+    """The law's residuals over a run.
+
+    Args:
+        t: sample times [s] (n,) (only its length is used: every sample counts).
+        q: joint angles [rad] (n, 3).
+        qd: joint velocities [rad/s] (n, 3).
+        force: ground force on the foot in W [N] (n, 3), as the backend reported it.
+        params: the contact law the run was meant to follow.
+    """
+    q = np.asarray(q, float).reshape(len(t), 3)
+    qd = np.asarray(qd, float).reshape(len(t), 3)
+    f = np.asarray(force, float).reshape(len(t), 3)
+    R = load_params().geometry.R_foot
+    z_E = kinematics.fk(q)[:, 2]
+    y = R - z_E
+    J = kinematics.jacobian_poc(q, true_poc=params.poc == "true")
+    v = np.einsum("nij,nj->ni", J, qd)
+    ydot = -v[:, 2]
+    fn = f[:, 2]
+    contact = fn > FN_MIN
+
+    fn_spring = fn - params.Kd * np.maximum(ydot, 0.0)
+    pen = (y - fn_spring / params.Kp)[contact]
+    rel = np.abs(y[contact] * params.Kp / np.where(fn_spring[contact] > 0, fn_spring[contact], np.nan) - 1.0)
+    rel = rel[np.isfinite(rel)]
+
+    vt = np.hypot(v[:, 0], v[:, 1])
+    ft = np.hypot(f[:, 0], f[:, 1])
+    sliding = contact & (vt >= 1.5 * params.v_th)
+    ratio = ft[sliding] / (params.mu_k * fn[sliding])
+
+    scored = contact & (vt >= V_DIRECTION) & (ft > 1e-9)
+    cosang = -(f[scored, 0] * v[scored, 0] + f[scored, 1] * v[scored, 1]) / (ft[scored] * vt[scored])
+    angle = np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0)))
+
+    creep = contact & (ft < SUB_LIMIT * min(params.mu_s, params.mu_k) * fn)
+    law = params.v_th * ft[creep] / (params.mu_s * fn[creep])
+    return ContactResiduals(
+        n_contact=int(contact.sum()),
+        penetration_max=float(np.abs(pen).max()) if pen.size else math.nan,
+        penetration_rms=float(np.sqrt(np.mean(pen**2))) if pen.size else math.nan,
+        penetration_rel=_median(rel),
+        n_sliding=int(sliding.sum()),
+        friction_ratio=_median(ratio),
+        n_direction=int(scored.sum()),
+        angle_max=float(angle.max()) if angle.size else math.nan,
+        angle_median=_median(angle),
+        n_creep=int(creep.sum()),
+        creep_speed=_median(vt[creep]),
+        creep_law=_median(law),
+    )
+
+
+__all__ = ["ContactResiduals", "residuals"]

@@ -1,0 +1,160 @@
+"""Verification case with a closed-form answer for sliding: the foot dragged above the friction limit.
+
+The leg stands at q* on the ground and presses with the effort controller
+(h_d = (0, 0, -FN) in W) until :data:`T_DRAG`, then is dragged sideways with
+h_d = (0, FT, -FN), FT = 0.8 FN, above the static limit mu_s FN = 0.7 FN. Over the window
+:data:`WINDOW` the foot slides, and the law gives in closed form, at each logged
+sample (q, qd, tau, Fn):
+
+* the friction: |F_t| = mu Fn, opposite the slip (mu = the backend's sliding
+  coefficient: mu_k for the stick-slip law, where the slip is far above 1.5 v_th;
+  mu_s for a Coulomb engine, which has no other);
+* the slip acceleration: qdd = M(q)^-1 (tau - nle(q, qd) + J_poc^T F), F = (-mu Fn v_t/|v_t|, Fn),
+  and a_t = (J_poc qdd + Jdot_poc qd)_t, the poc's horizontal acceleration, along the slip
+  (F applied where the backend applies it: ``contact_point_lift``; MuJoCo's point is y/2 above
+  the lowest point, which alone moves its acceleration by 4 % here);
+  M and nle from the leg's model (Pinocchio on the generated URDF), the same for every
+  backend.
+
+The measured friction is the backend's reported ground force; the measured
+acceleration is the central difference of the poc's horizontal velocity J_poc qd of
+the 1 kHz log. :func:`sliding_case` returns one row per quantity.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from legbench import kinematics
+
+#: Normal push [N] and the drag as a fraction of it (above mu_s = 0.7).
+FN = 15.0
+DRAG = 0.8
+#: Start of the drag [s] and the window scored [s] (slip established, foot still near q*).
+T_DRAG = 0.3
+WINDOW = (0.33, 0.38)
+#: Tolerances: friction coefficient (relative; 1 %: the law and the cones are exact, a 1 kHz
+#: log of a force that changes by ~1 % over the window), angle [deg] (1: the law is exactly
+#: opposite), acceleration (relative; 2 %: central differences of a 1 kHz log and forces
+#: averaged over a control period against a prediction at the sample; measured 0.1-0.2 %).
+TOL_MU, TOL_ANGLE, TOL_ACC = 0.01, 1.0, 0.02
+#: A sample counts as in contact above this normal force [N].
+FN_MIN = 0.5
+
+ROW_KEYS = ("case", "backend", "quantity", "unit", "measured", "expected", "error", "tolerance", "passed", "note")
+
+
+def _scenario() -> Any:
+    from legbench import scenario as scenario_mod
+    from legbench.model import ROOT
+
+    events = [
+        {"t": 0.0, "effort": {"force": [0.0, 0.0, -FN]}},
+        {"t": T_DRAG, "effort": {"force": [0.0, DRAG * FN, -FN]}},
+    ]
+    overrides = {"events": events, "duration": WINDOW[1] + 0.01, "comparison.steady_window": 0.01, "name": "sliding"}
+    return scenario_mod.load(Path(ROOT) / "scenarios" / "effort.yaml", overrides)
+
+
+def predicted_acceleration(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force: np.ndarray,
+                           lift: float = 0.0) -> np.ndarray:  # fmt: skip
+    """Horizontal acceleration of the poc in W [m/s^2] (n x 2) under tau [N m] and the ground force in W [N].
+
+    The force acts at ``lift`` times the penetration y above the sphere's lowest point (the
+    backend's ``contact_point_lift``; 0: the true poc).
+    """
+    import pinocchio as pin
+
+    from legbench.model import load_params
+
+    R = load_params().geometry.R_foot
+    model = kinematics.pinocchio_model()
+    data = model.createData()
+    out = np.empty((len(q), 2))
+    eps = 1e-7
+    for k in range(len(q)):
+        q1, q2, q3 = q[k]
+        qp = np.array([q1, math.cos(q2), math.sin(q2), q3])
+        M = pin.crba(model, data, qp)
+        M = np.triu(M) + np.triu(M, 1).T
+        nle = pin.nonLinearEffects(model, data, qp, qd[k]).copy()
+        J = kinematics.jacobian_poc(q[k])
+        # the application point's Jacobian: E plus omega x r, r = -(R - lift y) z_W
+        d = R - lift * (R - float(kinematics.fk(q[k])[2]))
+        r_cross = np.array([[0.0, d, 0.0], [-d, 0.0, 0.0], [0.0, 0.0, 0.0]])
+        J_app = kinematics.jacobian(q[k]) - r_cross @ kinematics.angular_jacobian(q[k])
+        qdd = np.linalg.solve(M, tau[k] - nle + J_app.T @ force[k])
+        Jdot_qd = (kinematics.jacobian_poc(q[k] + eps * qd[k]) - J) / eps @ qd[k]
+        out[k] = (J @ qdd + Jdot_qd)[:2]
+    return out
+
+
+def sliding_case(backend: str, profile: str = "matched") -> list[dict[str, Any]]:
+    """Run the drag on ``backend`` (native contact, ``profile``) and score it against the closed form.
+
+    Returns:
+        Rows with :data:`ROW_KEYS`: friction coefficient, friction angle to the slip, slip
+        acceleration along the slip; a backend that cannot run gives one failed row saying why.
+    """
+    from legbench import backends as registry
+    from legbench.run import physics_of, simulate
+
+    case = "sliding"
+    sc = _scenario()
+    physics = physics_of(sc, "native")
+    try:
+        cls = registry.get(backend)
+        b = registry.load(backend, physics, {}, profile)
+    except Exception as exc:
+        return [dict(zip(ROW_KEYS, (case, backend, "run", "", math.nan, math.nan, math.nan, 0.0, False,
+                                    f"{type(exc).__name__}: {exc}"), strict=True))]  # fmt: skip
+    try:
+        tr = simulate(sc, b, physics)
+    finally:
+        b.close()
+    if tr.status != "ok":
+        return [dict(zip(ROW_KEYS, (case, backend, "run", "", math.nan, math.nan, math.nan, 0.0, False,
+                                    f"{tr.status}: {tr.reason}"), strict=True))]  # fmt: skip
+    p = physics.contact
+    mu = float(getattr(p, cls.sliding_coefficient))
+    Ts = sc.control_dt
+    J = kinematics.jacobian_poc(tr.q, true_poc=p.poc == "true")
+    v = np.einsum("nij,nj->ni", J, tr.qd)[:, :2]
+    k = np.flatnonzero((tr.t >= WINDOW[0] - 1e-9) & (tr.t <= WINDOW[1] + 1e-9))
+    k = k[(k > 0) & (k < len(tr.t) - 1)]
+    n_window = len(k)
+    # samples in contact only (an engine's foot may hop: the closed form is for sliding contact)
+    k = k[(tr.f[k, 2] > FN_MIN) & (np.linalg.norm(v[k], axis=1) > 0.0)]
+    if len(k) == 0:
+        return [dict(zip(ROW_KEYS, (case, backend, "run", "", math.nan, math.nan, math.nan, 0.0, False,
+                                    "no sample of the window in sliding contact"), strict=True))]  # fmt: skip
+    fn = tr.f[k, 2]
+    ft = tr.f[k, :2]
+    vk = v[k]
+    speed = np.linalg.norm(vk, axis=1)
+    u = vk / speed[:, None]
+    ratio = float(np.mean(np.linalg.norm(ft, axis=1) / fn))
+    cosang = -np.sum(ft * u, axis=1) / np.linalg.norm(ft, axis=1)
+    angle = float(np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0))).max())
+    a_meas = (v[k + 1] - v[k - 1]) / (2 * Ts)
+    f_pred = np.column_stack([-mu * fn[:, None] * u, fn])
+    a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, cls.contact_point_lift)
+    am, ap = float(np.mean(np.sum(a_meas * u, axis=1))), float(np.mean(np.sum(a_pred * u, axis=1)))
+    slip = (f"slip {1e3 * speed.min():.3g}-{1e3 * speed.max():.3g} mm/s, Fn {fn.mean():.3g} N, "
+            f"{len(k)} of {n_window} samples in contact")  # fmt: skip
+    rows = [
+        (case, backend, "friction |F_t| / Fn while sliding", "1", ratio, mu, abs(ratio / mu - 1.0), TOL_MU,
+         abs(ratio / mu - 1.0) <= TOL_MU, f"{cls.sliding_coefficient} = {mu:g}; {slip}"),
+        (case, backend, "angle between friction and -slip (max)", "deg", angle, 0.0, angle, TOL_ANGLE,
+         angle <= TOL_ANGLE, slip),
+        (case, backend, "slip acceleration along the slip (mean)", "m/s^2", am, ap, abs(am / ap - 1.0), TOL_ACC,
+         abs(am / ap - 1.0) <= TOL_ACC, "closed form M^-1 (tau - nle + J_poc^T F) with F = mu Fn against the slip"),
+    ]  # fmt: skip
+    return [dict(zip(ROW_KEYS, r, strict=True)) for r in rows]
+
+
+__all__ = ["ROW_KEYS", "predicted_acceleration", "sliding_case"]
