@@ -404,6 +404,12 @@ def _steady_table(result: ComparisonResult) -> _Table:
                 (s.backend, "analytic check, J_E (poc at centre)", *blank, *(_fmt(v) for v in s.analytic_centre))
             )
             rows.append((s.backend, "poc compensation (J_poc - J_E)", *blank, *(_fmt(v) for v in s.poc_compensation)))
+    published = ((result.run.meta.get("scenario") or {}).get("comparison") or {}).get("published") or []
+    for row in published:  # the lab report's numbers for this task, as the scenario file gives them
+        qd = [_fmt(v) for v in row["qd_abs"]] if "qd_abs" in row else list(blank)
+        force = [_fmt(v) for v in row["force"]] if "force" in row else list(blank)
+        rows.append((str(row["source"]), "published (|qd| magnitudes)" if "qd_abs" in row else "published",
+                     *qd, *force))  # fmt: skip
     return _Table(
         header,
         tuple(rows),

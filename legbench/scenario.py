@@ -104,6 +104,9 @@ class Comparison:
     skip: float = 0.0  # [s] ignored at the start
     steady_window: float = 0.5  # [s] at the end, for steady-state means
     tolerances: Mapping[str, Any] = field(default_factory=dict, hash=False)
+    #: Published steady states to show beside the backends' (the lab report's rows): each
+    #: ``{source: text, qd_abs: [3 magnitudes, rad/s]}`` and/or ``force: [fx, fy, fz in W, N]``.
+    published: tuple[Mapping[str, Any], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -160,6 +163,7 @@ class Scenario:
                 "skip": self.comparison.skip,
                 "steady_window": self.comparison.steady_window,
                 "tolerances": dict(self.comparison.tolerances),
+                "published": [dict(r) for r in self.comparison.published],
             },
             "raw": dict(self.raw),
         }
@@ -329,12 +333,13 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
         backends[bname] = _backend_settings(ctx, str(bname), bset or {})
 
     cmp_d = doc.get("comparison", {})
-    check_keys(ctx, ["comparison"], cmp_d, ["reference", "skip", "steady_window", "tolerances"])
+    check_keys(ctx, ["comparison"], cmp_d, ["reference", "skip", "steady_window", "tolerances", "published"])
     comparison = Comparison(
         reference=str(cmp_d.get("reference", DEFAULT_REFERENCE)),
         skip=number(ctx, ["comparison", "skip"], cmp_d.get("skip", 0.0), nonneg=True),
         steady_window=number(ctx, ["comparison", "steady_window"], cmp_d.get("steady_window", 0.5), positive=True),
         tolerances=cmp_d.get("tolerances", {}) or {},
+        published=_published(ctx, cmp_d.get("published", [])),
     )
     if not isinstance(comparison.tolerances, Mapping):
         raise ctx.error(["comparison", "tolerances"], "expected a mapping of metric -> tolerance")
@@ -388,6 +393,27 @@ def _check_speed(ctx: YamlContext, path: list[str | int], ev: Event, q_start: tu
                 f"segment {j} (to waypoint {j}) needs {speed[j, k]:.1f} rad/s on joint {k + 1}, "
                 f"above its {p.velocity[k]:.2f} rad/s limit",
             )
+
+
+def _published(ctx: YamlContext, rows: Any) -> tuple[dict[str, Any], ...]:
+    """``comparison.published``: a list of ``{source, qd_abs?, force?}`` rows, each vector of 3 numbers."""
+    path: list[str | int] = ["comparison", "published"]
+    if not isinstance(rows, list):
+        raise ctx.error(path, "expected a list of {source, qd_abs, force} rows")
+    out = []
+    for i, row in enumerate(rows):
+        check_keys(ctx, [*path, i], row, ["source", "qd_abs", "force"], ["source"])
+        if not isinstance(row["source"], str):
+            raise ctx.error([*path, i, "source"], "expected text naming the source")
+        item: dict[str, Any] = {"source": row["source"]}
+        for key in ("qd_abs", "force"):
+            if key in row:
+                vec = row[key]
+                if not isinstance(vec, list) or len(vec) != 3:
+                    raise ctx.error([*path, i, key], "expected 3 numbers")
+                item[key] = [number(ctx, [*path, i, key, j], v) for j, v in enumerate(vec)]
+        out.append(item)
+    return tuple(out)
 
 
 def _backend_settings(ctx: YamlContext, name: str, given: Any) -> dict[str, Any]:
