@@ -34,6 +34,7 @@ BUILTIN: dict[str, tuple[str, str, str]] = {
     "pinocchio": ("legbench.backends.pinocchio_", "PinocchioBackend", "pin"),
     "mujoco": ("legbench.backends.mujoco_", "MujocoBackend", "mujoco"),
     "pybullet": ("legbench.backends.pybullet_", "PybulletBackend", "pybullet"),
+    "lagrange": ("legbench.backends.lagrange_", "LagrangeBackend", "sympy"),
 }
 
 _MISSING: dict[str, str] = {}
