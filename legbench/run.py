@@ -241,7 +241,7 @@ def versions() -> dict[str, str]:
     from importlib import metadata
 
     out = {"python": platform.python_version()}
-    for pkg in ("legbench", "numpy", "scipy", "pandas", "pin", "mujoco", "pybullet"):
+    for pkg in ("legbench", "numpy", "scipy", "pandas", "pin", "mujoco", "pybullet", "sympy"):
         try:
             out[pkg] = metadata.version(pkg)
         except metadata.PackageNotFoundError:

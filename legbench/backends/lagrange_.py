@@ -178,6 +178,10 @@ class LagrangeBackend(Backend):
     def integrator_family(self) -> str:
         return "adaptive"
 
+    def engine_contact(self) -> bool:
+        """No contact model of its own: native and reference mode both apply the analytic law."""
+        return False
+
     def sub_steps(self) -> int:
         return 1
 

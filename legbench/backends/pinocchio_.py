@@ -205,6 +205,10 @@ class PinocchioBackend(Backend):
         integ = self.cfg["integrator"]
         return integ if integ in ("euler", "rk4") else "adaptive"
 
+    def engine_contact(self) -> bool:
+        """No contact model of its own: native and reference mode both apply the analytic law."""
+        return False
+
     def sub_steps(self) -> int:
         return self.n_sub
 
