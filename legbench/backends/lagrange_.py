@@ -41,7 +41,8 @@ from legbench.contact import ReferenceContact
 from legbench.exceptions import LegbenchError
 from legbench.model import LINK_NAMES, load_params
 
-_METHODS = ("RK45", "DOP853")
+#: Setting ``integrator`` -> scipy solve_ivp method (the Pinocchio backend's names for the same solvers).
+_METHODS = {"rk45": "RK45", "dop853": "DOP853"}
 _POC = ("physics", "true", "centre")
 
 
@@ -50,7 +51,7 @@ class LagrangeBackend(Backend):
 
     name: ClassVar[str] = "lagrange"
     defaults: ClassVar[Mapping[str, Any]] = {
-        "method": "RK45",  # scipy solve_ivp method, one solve per control period
+        "integrator": "rk45",  # scipy solve_ivp RK45 (or "dop853"), one solve per control period
         "rtol": 1.0e-8,  # the report's custom simulation
         "atol": 1.0e-6,
         "max_step": 1.0e-4,  # [s]
@@ -59,7 +60,7 @@ class LagrangeBackend(Backend):
         "limit_damping": joint_limits.DAMPING,  # [N m s/rad]
         "cache_dir": "",  # generated equations; "" = $LEGBENCH_CACHE_DIR or the user cache (~/.cache/legbench)
     }
-    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"method": _METHODS, "poc": _POC}
+    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"integrator": tuple(_METHODS), "poc": _POC}
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "matched": {},
         "engine-defaults": {"poc": "centre"},  # the report's custom simulation: poc at the sphere centre
@@ -77,7 +78,7 @@ class LagrangeBackend(Backend):
             settings: overrides of :attr:`defaults`.
 
         Raises:
-            LegbenchError: an unknown method or poc.
+            LegbenchError: an unknown integrator or poc.
         """
         cfg = self.settings(settings)
         for key, allowed in self.choices.items():
@@ -100,7 +101,7 @@ class LagrangeBackend(Backend):
         self.effort = tuple(float(x) for x in physics.torque_limit)
         self.g = float(physics.gravity)
         self._span = (0.0, float(physics.control_dt))
-        self._solve = {"method": cfg["method"], "rtol": float(cfg["rtol"]), "atol": float(cfg["atol"]),
+        self._solve = {"method": _METHODS[cfg["integrator"]], "rtol": float(cfg["rtol"]), "atol": float(cfg["atol"]),
                        "max_step": float(cfg["max_step"])}  # fmt: skip
         self._u = (0.0, 0.0, 0.0)
         self.x = np.zeros(6)
@@ -130,7 +131,7 @@ class LagrangeBackend(Backend):
         self._u = (min(max(t1, -e1), e1), min(max(t2, -e2), e2), min(max(t3, -e3), e3))
         sol = solve_ivp(self.rhs, self._span, self.x, **self._solve)
         if not sol.success:
-            raise LegbenchError(f"lagrange: {self.cfg['method']} failed: {sol.message}")
+            raise LegbenchError(f"lagrange: {self.cfg['integrator']} failed: {sol.message}")
         self.x = sol.y[:, -1]
         self.nfev = int(sol.nfev)
         self._update_force()

@@ -13,12 +13,14 @@ C_ij = sum_k c_ijk qd_k, and G = dV/dq. Nothing here is specific to the leg:
 :class:`Chain` describes any chain of revolute joints (the tests derive a 1-DOF
 pendulum and a planar 2-DOF arm with it), :func:`leg_chain` builds the leg's.
 
+The only simplification is exact and cheap: every entry, a polynomial in sin q_i and cos q_i, is
+reduced modulo sin^2 q_i + cos^2 q_i = 1.
+
 Generated code: one Python module per chain, written to a cache directory
 under a name that is the SHA-256 of the chain's numbers and of this
 generator's version, so a chain is derived once per machine and only loaded
 afterwards (:func:`load_eom`). Expressions go through common-subexpression
-elimination; there is no symbolic simplification beyond sympy's automatic one
-(a cold derivation of the leg takes a few seconds).
+elimination (a cold derivation of the leg takes a few seconds).
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ from sympy.printing.pycode import PythonCodePrinter
 from legbench.model import W_T_0, LegParams
 
 #: Bumped whenever the generated code changes shape; part of the cache key.
-GENERATOR_VERSION = 1
+GENERATOR_VERSION = 2
 
 #: Number of symbolic derivations made in this process (the cache test observes it).
 derivations = 0
@@ -183,10 +185,11 @@ class Derivation:
 
 
 def derive(chain: Chain) -> Derivation:
-    """Kinetic and potential energy of ``chain`` and its B(q), C(q, qd), G(q) (no simplification).
+    """Kinetic and potential energy of ``chain`` and its B(q), C(q, qd), G(q).
 
     B is collected from the kinetic energy T = sum_i (m_i v_ci^2 + w_i^T I_i w_i) / 2 as its
-    Hessian in qd, C from B's Christoffel symbols, G = dV/dq with V = sum_i m_i z_ci (unit g).
+    Hessian in qd, C from B's Christoffel symbols, G = dV/dq with V = sum_i m_i z_ci (unit g);
+    each entry reduced modulo sin^2 + cos^2 = 1 (:class:`_TrigReduction`), nothing else.
     """
     global derivations
     derivations += 1
@@ -210,14 +213,41 @@ def derive(chain: Chain) -> Derivation:
         m = _num(link.mass)
         T += (m * (v_c.T * v_c)[0, 0] + (w_local.T * inertia * w_local)[0, 0]) / 2
         V += m * p_c[2]
-    B = sp.hessian(T, qd)
+    reduce = _TrigReduction(q)
+    B = sp.hessian(T, qd).applyfunc(reduce)
     dB = [B.diff(qk) for qk in q]  # dB[k][i, j] = dB_ij / dq_k
     C = sp.zeros(n, n)
     for i in range(n):
         for j in range(n):
-            C[i, j] = sum((dB[k][i, j] + dB[j][i, k] - dB[i][j, k]) * qd[k] for k in range(n)) / 2
-    G = sp.Matrix([sp.diff(V, qi) for qi in q])
+            C[i, j] = reduce(sum((dB[k][i, j] + dB[j][i, k] - dB[i][j, k]) * qd[k] for k in range(n)) / 2)
+    G = sp.Matrix([reduce(sp.diff(V, qi)) for qi in q])
     return Derivation(q=q, qd=qd, qdd=qdd, T=T, V=V, B=B, C=C, G=G)
+
+
+class _TrigReduction:
+    """The one simplification: an expression in sin q_i, cos q_i as a polynomial reduced modulo sin^2 + cos^2 = 1.
+
+    Angle sums are expanded, sin q_i and cos q_i become polynomial variables s_i, c_i, and the
+    expanded polynomial is reduced by the ideal (s_i^2 + c_i^2 - 1) (a lex Groebner basis: every
+    s_i^2 becomes 1 - c_i^2). Exact, cheap (a fraction of a second for the leg) and it shrinks the
+    leg's forward dynamics from ~360 to ~140 operations.
+    """
+
+    def __init__(self, q: Sequence[sp.Symbol]) -> None:
+        n = len(q)
+        self.s = sp.symbols(f"_s1:{n + 1}", real=True)
+        self.c = sp.symbols(f"_c1:{n + 1}", real=True)
+        self.to_poly = {**{sp.sin(qi): si for qi, si in zip(q, self.s, strict=True)},
+                        **{sp.cos(qi): ci for qi, ci in zip(q, self.c, strict=True)}}  # fmt: skip
+        self.back = {v: k for k, v in self.to_poly.items()}
+        self.ideal = [si**2 + ci**2 - 1 for si, ci in zip(self.s, self.c, strict=True)]
+
+    def __call__(self, e: sp.Expr) -> sp.Expr:
+        e = sp.expand(sp.expand_trig(e).xreplace(self.to_poly))
+        if e == 0:
+            return sp.Integer(0)
+        _, r = sp.reduced(e, self.ideal, *self.s, *self.c, order="lex")
+        return r.xreplace(self.back)  # type: ignore[no-any-return]
 
 
 # --------------------------------------------------------------------------- #
