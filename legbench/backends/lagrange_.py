@@ -25,12 +25,13 @@ with the poc at the sphere centre.
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 from collections.abc import Callable, Mapping
+from importlib import metadata
 from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
-import sympy
 from scipy.integrate import solve_ivp
 
 from legbench.backends import joint_limits
@@ -40,6 +41,11 @@ from legbench.backends.lagrange_eom import GENERATOR_VERSION, Loaded, leg_chain,
 from legbench.contact import ReferenceContact
 from legbench.exceptions import LegbenchError
 from legbench.model import LINK_NAMES, load_params
+
+# The derivation needs sympy; a cached load does not import it, so only its presence is checked here
+# (the registry reports the backend missing, with the command that installs it, when it is absent).
+if importlib.util.find_spec("sympy") is None:
+    raise ImportError("No module named 'sympy' (the lagrange backend derives its equations with it)")
 
 #: Setting ``integrator`` -> scipy solve_ivp method (the Pinocchio backend's names for the same solvers).
 _METHODS = {"rk45": "RK45", "dop853": "DOP853"}
@@ -152,7 +158,7 @@ class LagrangeBackend(Backend):
         c = self.contact_params
         return {
             "engine": "lagrange",
-            "version": f"sympy {sympy.__version__}, generator {GENERATOR_VERSION}",
+            "version": f"sympy {metadata.version('sympy')}, generator {GENERATOR_VERSION}",
             **{k: self.cfg[k] for k in self.defaults},
             "sub_steps": 1,
             "gravity": self.physics.gravity,

@@ -28,6 +28,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import json
+import math
 import os
 import sys
 import tempfile
@@ -36,15 +37,17 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
-from typing import Any, TypeAlias
-
-import sympy as sp
-from sympy.printing.pycode import PythonCodePrinter
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 from legbench.model import W_T_0, LegParams
 
+if TYPE_CHECKING:
+    import sympy as sp
+
+# sympy is imported only where a derivation needs it: loading cached equations does not pay for it.
+
 #: Bumped whenever the generated code changes shape; part of the cache key.
-GENERATOR_VERSION = 2
+GENERATOR_VERSION = 3
 
 #: Number of symbolic derivations made in this process (the cache test observes it).
 derivations = 0
@@ -103,9 +106,11 @@ class Chain:
         def enc(x: Any) -> Any:
             if isinstance(x, tuple | list):
                 return [enc(v) for v in x]
-            if isinstance(x, sp.Basic):
-                return sp.srepr(x)
-            return float(x).hex()
+            if isinstance(x, int | float):
+                return float(x).hex()
+            import sympy as sp
+
+            return sp.srepr(x)
 
         body = {
             "version": GENERATOR_VERSION,
@@ -123,7 +128,7 @@ def leg_chain(params: LegParams) -> Chain:
     g = params.geometry
     dh = (  # (alpha_{i-1}, a_{i-1}, d_i, theta_i - q_i)
         (0, 0.0, -g.L_01, 0),
-        (sp.pi / 2, 0.0, g.L_12, -sp.pi / 2),
+        (math.pi / 2, 0.0, g.L_12, -math.pi / 2),
         (0, g.L_23, 0.0, 0),
     )
     links = []
@@ -139,15 +144,26 @@ def leg_chain(params: LegParams) -> Chain:
 
 
 def _num(x: Number) -> sp.Expr:
-    """Exact integers stay exact (so cos(pi/2) and 0 * x vanish); other floats keep all 53 bits."""
+    """A number for the derivation: sympy values as given; floats that are whole, or whole multiples of
+    pi/2 to the last bit (the DH twists and offsets), exact (so cos(pi/2) and 0 * x vanish); any
+    other float with all its 53 bits."""
+    import sympy as sp
+
     if isinstance(x, sp.Basic):
         return x  # type: ignore[return-value]
     xf = float(x)
-    return sp.Integer(int(xf)) if xf.is_integer() else sp.Float(xf)
+    if xf.is_integer():
+        return sp.Integer(int(xf))
+    k = round(xf / (math.pi / 2))
+    if k != 0 and k * (math.pi / 2) == xf:
+        return k * sp.pi / 2  # type: ignore[no-any-return]
+    return sp.Float(xf)
 
 
 def _dh(alpha: sp.Expr, a: sp.Expr, d: sp.Expr, theta: sp.Expr) -> sp.Matrix:
     """Modified-DH transform i-1_T_i."""
+    import sympy as sp
+
     ca, sa, ct, st = sp.cos(alpha), sp.sin(alpha), sp.cos(theta), sp.sin(theta)
     return sp.Matrix([[ct, -st, 0, a], [ca * st, ca * ct, -sa, -sa * d], [sa * st, sa * ct, ca, ca * d], [0, 0, 0, 1]])
 
@@ -175,6 +191,8 @@ class Derivation:
     @property
     def el(self) -> sp.Matrix:
         """Euler-Lagrange equations d/dt(dT/dqd_i) - dT/dq_i + dV/dq_i (unit g), taken from the energies."""
+        import sympy as sp
+
         n = len(self.q)
         out = []
         for i in range(n):
@@ -191,6 +209,8 @@ def derive(chain: Chain) -> Derivation:
     Hessian in qd, C from B's Christoffel symbols, G = dV/dq with V = sum_i m_i z_ci (unit g);
     each entry reduced modulo sin^2 + cos^2 = 1 (:class:`_TrigReduction`), nothing else.
     """
+    import sympy as sp
+
     global derivations
     derivations += 1
     n = chain.n
@@ -234,6 +254,8 @@ class _TrigReduction:
     """
 
     def __init__(self, q: Sequence[sp.Symbol]) -> None:
+        import sympy as sp
+
         n = len(q)
         self.s = sp.symbols(f"_s1:{n + 1}", real=True)
         self.c = sp.symbols(f"_c1:{n + 1}", real=True)
@@ -243,6 +265,8 @@ class _TrigReduction:
         self.ideal = [si**2 + ci**2 - 1 for si, ci in zip(self.s, self.c, strict=True)]
 
     def __call__(self, e: sp.Expr) -> sp.Expr:
+        import sympy as sp
+
         e = sp.expand(sp.expand_trig(e).xreplace(self.to_poly))
         if e == 0:
             return sp.Integer(0)
@@ -254,22 +278,25 @@ class _TrigReduction:
 # Code generation
 
 
-class _Printer(PythonCodePrinter):
-    """Plain ``sin``/``cos`` names and floats printed with all 17 significant digits."""
+def _printer() -> Any:
+    """A Python code printer: plain ``sin``/``cos`` names and floats with all 17 significant digits."""
+    from sympy.printing.pycode import PythonCodePrinter
 
-    def __init__(self) -> None:
-        super().__init__({"fully_qualified_modules": False, "standard": "python3"})
+    class Printer(PythonCodePrinter):  # type: ignore[misc]
+        def _print_Float(self, expr: Any) -> str:
+            return repr(float(expr))
 
-    def _print_Float(self, expr: sp.Float) -> str:
-        return repr(float(expr))
+    return Printer({"fully_qualified_modules": False, "standard": "python3"})
 
 
-def _block(printer: _Printer, exprs: Sequence[sp.Expr], fast: bool = False) -> tuple[list[str], list[str]]:
+def _block(printer: Any, exprs: Sequence[sp.Expr], fast: bool = False) -> tuple[list[str], list[str]]:
     """Code lines computing ``exprs`` through common subexpressions, and the final expressions' text.
 
     ``fast``: also sympy's basic cse optimizations (half the operations, five times the generation time;
     used for the forward dynamics, which runs at every integrator stage).
     """
+    import sympy as sp
+
     subs, reduced = sp.cse(list(exprs), symbols=sp.numbered_symbols("x"), optimizations="basic" if fast else None)
     indent = "    "
     lines = [f"{indent}{printer.doprint(s)} = {printer.doprint(e)}" for s, e in subs]
@@ -311,9 +338,11 @@ def generate(chain: Chain, d: Derivation | None = None) -> str:
     ``qdd(q..., qd..., tau..., g)`` [rad/s^2], the forward dynamics
     B^-1 (tau - C qd - g G) by an unrolled Cholesky solve.
     """
+    import sympy as sp
+
     d = d or derive(chain)
     n = chain.n
-    pr = _Printer()
+    pr = _printer()
     qs = ", ".join(f"q{i + 1}" for i in range(n))
     qds = ", ".join(f"qd{i + 1}" for i in range(n))
     taus = ", ".join(f"tau{i + 1}" for i in range(n))
@@ -426,6 +455,8 @@ def load_eom(chain: Chain, cache_dir: Path | str | None = None) -> Loaded:
 
 def lambdified(d: Derivation) -> dict[str, Any]:
     """The derivation as numpy functions (tests): B(q), C(q, qd), G(q), el(q, qd, qdd)."""
+    import sympy as sp
+
     return {
         "B": sp.lambdify([d.q], d.B, "numpy", cse=True),
         "C": sp.lambdify([d.q, d.qd], d.C, "numpy", cse=True),
