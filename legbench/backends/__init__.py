@@ -38,6 +38,7 @@ BUILTIN: dict[str, tuple[str, str, str]] = {
     "pybullet": ("legbench.backends.pybullet_", "PybulletBackend", "pybullet"),
     "drake": ("legbench.backends.drake_", "DrakeBackend", "drake"),
     "dart": ("legbench.backends.dart_", "DartBackend", "dartpy"),
+    "lagrange": ("legbench.backends.lagrange_", "LagrangeBackend", "sympy"),
 }
 
 _MISSING: dict[str, str] = {}

@@ -170,6 +170,11 @@ class Backend(ABC):
     def sub_steps(self) -> int:
         """Engine steps per control period (1 for an adaptive solve per period)."""
 
+    def engine_contact(self) -> bool:
+        """True if the engine has a contact model of its own, which ``native`` mode uses; False if it has
+        none and both contact modes apply the analytic law of :mod:`legbench.contact`."""
+        return True
+
     @abstractmethod
     def limits(self) -> Limits:
         """Gravity, joint and torque limits as the loaded engine holds them, and how it enforces them."""
