@@ -243,11 +243,11 @@ def _event(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
         return Event(t, "trajectory", waypoints=tuple(map(tuple, P)), times=tuple(tw.tolist()), params=params)
     if kind == "torque":
         check_keys(ctx, bp, body, ["amplitude", "frequency", "phase"], ["amplitude", "frequency"])
-        amp = _vec(ctx, [*bp, "amplitude"], body["amplitude"])
-        freq = _vec(ctx, [*bp, "frequency"], body["frequency"])
+        amp = vector(ctx, [*bp, "amplitude"], body["amplitude"])
+        freq = vector(ctx, [*bp, "frequency"], body["frequency"])
         for i, f in enumerate(freq):
-            _num(ctx, [*bp, "frequency", i], f, nonneg=True)
-        phase = _vec(ctx, [*bp, "phase"], body.get("phase", [0.0, 0.0, 0.0]))
+            number(ctx, [*bp, "frequency", i], f, nonneg=True)
+        phase = vector(ctx, [*bp, "phase"], body.get("phase", [0.0, 0.0, 0.0]))
         return Event(t, kind, amplitude=amp, frequency=freq, phase=phase, params=params)
     check_keys(ctx, bp, body, ["force"], ["force"])
     return Event(t, kind, force=vector(ctx, [*bp, "force"], body["force"]), params=params)
