@@ -136,6 +136,8 @@ class DrakeBackend(Backend):
     """Drake (MultibodyPlant; SAP, TAMSI or continuous) simulating the leg."""
 
     name: ClassVar[str] = "drake"
+    #: Drake's discrete solvers slide with the dynamic coefficient alone, which legbench sets to mu_s.
+    sliding_coefficient: ClassVar[str] = "mu_s"
     defaults: ClassVar[Mapping[str, Any]] = {
         "solver": "sap",  # one of SOLVERS
         "dt": 1.0e-4,  # discrete time step [s] (ignored by "continuous", which takes one solve per period)

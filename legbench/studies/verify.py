@@ -77,6 +77,7 @@ from legbench.exceptions import LegbenchError
 from legbench.results import platform_info, versions, write_json
 from legbench.run import simulate
 from legbench.scenario import physics_of
+from legbench.studies.sliding_case import sliding_case
 
 __all__ = [
     "CASES",
@@ -94,7 +95,7 @@ __all__ = [
 ]
 
 VERIFICATION_DIR = Path(__file__).resolve().parents[2] / "scenarios" / "verification"
-CASES = ("energy", "rest_penetration", "static_balance", "small_oscillation")
+CASES = ("energy", "rest_penetration", "static_balance", "small_oscillation", "sliding")
 COLUMNS = ("case", "backend", "variant", "quantity", "unit", "measured", "expected", "error", "tolerance", "pass",
            "status", "note")  # fmt: skip
 #: Row status: ``pass``, ``fail``, or ``not-applicable`` (no closed-form prediction for the backend's
@@ -512,6 +513,37 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = VERIF
 # Table and files
 
 
+def check_sliding(backends: Sequence[str]) -> list[Check]:
+    """The foot dragged above the friction limit (:mod:`legbench.studies.sliding_case`): friction = mu Fn
+    against the slip and the slip acceleration of the closed form, per backend (native contact, matched)."""
+    out = []
+    for name in backends:
+        cone = registry.get(name).friction_cone
+        for r in sliding_case(name):
+            if cone != "cone" and r["quantity"] != "run":
+                why = (
+                    f"native friction is a {cone}, not the isotropic cone the closed form assumes; measured "
+                    f"{r['measured']:.4g} {r['unit']} against the cone's {r['expected']:.4g}; {r['note']}"
+                )
+                out.append(Check("sliding", name, "native, matched", r["quantity"], r["unit"], float(r["measured"]),
+                                 float(r["expected"]), float(r["error"]), float(r["tolerance"]), False, why,
+                                 "not-applicable"))  # fmt: skip
+            elif r["quantity"] == "run":
+                out.append(_failed("sliding", name, "native, matched", r["note"]))
+            else:
+                out.append(_check("sliding", name, "native, matched", r["quantity"], r["unit"], r["measured"],
+                                  r["expected"], r["tolerance"], r["note"]) if r["quantity"].startswith("angle")
+                           else _ratio_check(r, name))  # fmt: skip
+    return out
+
+
+def _ratio_check(r: Mapping[str, Any], name: str) -> Check:
+    """A sliding row scored as a relative error (``error`` = |measured / expected - 1|)."""
+    return Check("sliding", name, "native, matched", r["quantity"], r["unit"], float(r["measured"]),
+                 float(r["expected"]), float(r["error"]), float(r["tolerance"]), bool(r["passed"]),
+                 note=str(r["note"]))  # fmt: skip
+
+
 def verify(
     out_dir: str | Path | None = None,
     backends: Sequence[str] | None = None,
@@ -543,6 +575,8 @@ def verify(
         checks += [c for c in check_rest(names) if c.case in cases]
     if "small_oscillation" in cases:
         checks += check_small_oscillation(names)
+    if "sliding" in cases:
+        checks += check_sliding(names)
     df = pd.DataFrame([dataclasses.asdict(c) for c in checks]).rename(columns={"passed": "pass"})
     df = df.reindex(columns=list(COLUMNS))
     if out_dir is not None:
