@@ -21,8 +21,10 @@ from legbench.backends import get
 from legbench.backends.base import Backend, Physics
 from legbench.exceptions import LegbenchError
 
-ENGINES = ("mujoco", "pybullet")
-PACKAGE = {"mujoco": "mujoco", "pybullet": "pybullet", "pinocchio": "pinocchio"}
+ENGINES = ("mujoco", "pybullet", "ode")
+#: Module whose import fails with ImportError where the engine is missing (the ode backend module
+#: turns a missing libode into ImportError; odepy itself raises its own error).
+PACKAGE = {"mujoco": "mujoco", "pybullet": "pybullet", "pinocchio": "pinocchio", "ode": "legbench.backends.ode_"}
 CONTROL_DT = 1e-3  # [s]
 PARAMS = model.load_params()
 R_FOOT = PARAMS.geometry.R_foot
