@@ -217,7 +217,37 @@ def test_mass_properties_equal_the_parameter_file(make: Make, engine: str) -> No
 
 
 def engine_gravity(backend: Backend, q: np.ndarray) -> np.ndarray:
-    """G(q) [N m] from the engine's own inverse dynamics at zero velocity and acceleration."""
+    """G(q) [N m] from the engine's own inverse dynamics at zero velocity and acceleration.
+
+    ODE has no inverse dynamics: its statics instead. Every hinge gets a velocity motor
+    (target 0, unbounded force) and one bare world step (no contact, no torque) from rest at q;
+    the motors' constraint torques
+    that hold the leg are G(q), read from the hinges' dJointFeedback as the torque about the
+    hinge axis through the anchor (the hinge's own rows give no torque about that axis).
+    """
+    if backend.name == "ode":
+        import ctypes
+
+        import odepy as ode
+
+        joints = backend.joints  # type: ignore[attr-defined]
+        feedback = (ode.dJointFeedback * 3)()
+        for j, fb in zip(joints, feedback, strict=True):
+            ode.dJointSetHingeParam(j, ode.dParamVel, 0.0)
+            ode.dJointSetHingeParam(j, ode.dParamFMax, 1e6)
+            ode.dJointSetFeedback(j, ctypes.byref(fb))
+        backend.reset(q, np.zeros(3))
+        ode.dWorldStep(backend.world, backend.h)  # type: ignore[attr-defined]  # no contact, no torque
+        G = np.zeros(3)
+        anchor, axis = ode.dVector3(), ode.dVector3()
+        for i, (j, fb, body) in enumerate(zip(joints, feedback, backend.bodies, strict=True)):  # type: ignore[attr-defined]
+            ode.dJointGetHingeAnchor(j, anchor)
+            ode.dJointGetHingeAxis(j, axis)
+            com = np.ctypeslib.as_array(ode.dBodyGetPosition(body), shape=(3,))
+            t_anchor = np.array(fb.t1[:3]) + np.cross(com - np.array(anchor[:3]), np.array(fb.f1[:3]))
+            G[i] = t_anchor @ np.array(axis[:3])
+            ode.dJointSetHingeParam(j, ode.dParamFMax, 0.0)
+        return G
     if backend.name == "mujoco":
         import mujoco
 
@@ -376,6 +406,13 @@ def test_only_the_foot_touches_the_ground(make: Make, engine: str, mode: str) ->
         m, d = backend.model, backend.data  # type: ignore[attr-defined]
         pairs = {(m.geom_bodyid[c.geom1], m.geom_bodyid[c.geom2]) for c in d.contact[: d.ncon]}
         foot = {(0, m.body(model.FOOT_FRAME).id)}
+    elif engine == "ode":
+        import odepy as ode
+
+        # the contact joints of the last sub-step, by the bodies they join (None: the static ground)
+        pairs = set(backend.contact_bodies())  # type: ignore[attr-defined]
+        foot = {(model.LINK_NAMES[-1], None)}  # link 3's body carries the foot sphere
+        assert ode.dSpaceGetNumGeoms(backend.space) == 2  # type: ignore[attr-defined]  # foot sphere and plane
     else:
         import pybullet
 

@@ -11,8 +11,9 @@ hinge at the URDF joint origin about the URDF axis; the hinge's zero is the
 URDF's q = 0 (bodies are created at q = 0, then posed by :meth:`reset`). The
 continuous hip has no stops; the ab/ad and knee stops are the URDF limits as
 ODE joint stops (``dParamLoStop`` / ``dParamHiStop``) with ``stop_erp`` and
-``stop_cfm`` (ODE's own defaults: the world ERP and CFM, i.e. 0.2 and 1e-10 in
-double precision: a hard stop whose penetration is corrected at 20 % per step).
+``stop_cfm`` (``matched``: ERP 0.2, CFM 0: a hard stop whose penetration is
+corrected at 20 % per step; ODE's defaults are the world ERP and CFM, 0.2 and
+1e-10 in double precision).
 
 Actuation: the clamped torque tau is applied with ``dJointAddHingeTorque`` (tau
 on the child, -tau on the parent) before every sub-step, so it is held over
@@ -51,8 +52,8 @@ Quick-step randomly reorders its constraint rows with ODE's one global random
 generator; the seed is reset before every step so that runs are deterministic
 and instances do not disturb each other.
 
-Profiles: ``matched`` (the spec's physics: exact solver, ODE's default ERP/CFM,
-0.05 ms sub-step), ``engine-defaults`` (ODE's documented defaults: quick step
+Profiles: ``matched`` (the spec's physics: exact solver, rigid joints (CFM 0),
+ERP 0.2, 0.05 ms sub-step), ``engine-defaults`` (ODE's documented defaults: quick step
 with 20 iterations and SOR 1.3, one 1 ms step per control period), ``gazebo``
 (Gazebo classic's ODE set-up; every value and its source line in
 docs/backends/ode.md).
@@ -105,9 +106,9 @@ class OdeBackend(Backend):
         "iterations": 20,  # quick-step iterations (ODE's default)
         "sor": 1.3,  # quick-step over-relaxation (ODE's default)
         "erp": ODE_ERP,  # world error reduction parameter (joint drift correction)
-        "cfm": ODE_CFM,  # world constraint force mixing
+        "cfm": 0.0,  # world constraint force mixing: rigid joints (ODE's 1e-10 softens G(q) by 5e-6 N m at 5e-5 s)
         "stop_erp": ODE_ERP,  # joint-stop ERP (ODE default: the world ERP)
-        "stop_cfm": ODE_CFM,  # joint-stop CFM (ODE default: the world CFM)
+        "stop_cfm": 0.0,  # joint-stop CFM: a hard stop (ODE default: the world CFM)
         "contact_max_correcting_vel": None,  # [m/s] world cap of the contact's ERP velocity; None: ODE's infinity
         "contact_surface_layer": 0.0,  # [m] world depth left uncorrected (ODE default 0)
         "surface_max_vel": None,  # [m/s] per-collision cap (Gazebo's ODE fork only); None: not used
@@ -119,7 +120,9 @@ class OdeBackend(Backend):
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"stepper": _STEPPERS}
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "matched": {},
-        "engine-defaults": {"dt": 1.0e-3, "stepper": "quick"},
+        # ODE's documented defaults (world ERP 0.2 and CFM 1e-10 in double precision, quick step 20
+        # iterations, SOR 1.3), stepped once per 1 ms control period
+        "engine-defaults": {"dt": 1.0e-3, "stepper": "quick", "cfm": ODE_CFM, "stop_cfm": ODE_CFM},
         # Gazebo classic 9-11 with sdformat defaults (docs/backends/ode.md gives file and line of each)
         "gazebo": {
             "dt": 1.0e-3,  # <max_step_size> 0.001
@@ -203,6 +206,7 @@ class OdeBackend(Backend):
         )
         self._feedback = (ode.dJointFeedback * MAX_CONTACTS)()
         self._n_contacts = 0
+        self._contact_joints: list[Any] = [None] * MAX_CONTACTS
         self._near = ode.dNearCallback(self._near_callback)
 
         self.contact = ReferenceContact.from_leg(c)
@@ -363,6 +367,7 @@ class OdeBackend(Backend):
             joint = ode.dJointCreateContact(self.world, self.contact_group, ctypes.byref(self.contacts[k]))
             ode.dJointAttach(joint, b1, b2)
             ode.dJointSetFeedback(joint, ctypes.byref(self._feedback[k]))
+            self._contact_joints[k] = joint
         self._n_contacts = n
         self._foot_is_g1 = bool(b1)
 
@@ -423,10 +428,13 @@ class OdeBackend(Backend):
         """
         return self._force.copy()
 
-    @property
-    def contact_count(self) -> int:
-        """Contact joints created in the last sub-step (0 in reference mode)."""
-        return self._n_contacts
+    def contact_bodies(self) -> list[tuple[str | None, str | None]]:
+        """Link names of the two bodies (None: the static world) of each contact joint of the last sub-step."""
+        names = {_address(b): name for name, b in zip(LINK_NAMES, self.bodies, strict=True)}
+        return [
+            (names.get(_address(ode.dJointGetBody(j, 0))), names.get(_address(ode.dJointGetBody(j, 1))))
+            for j in self._contact_joints[: self._n_contacts]
+        ]
 
     def info(self) -> dict[str, Any]:
         """Engine, version and every physics setting actually used, read back from ODE where it allows."""
@@ -605,6 +613,10 @@ def _dmatrix3(R: np.ndarray) -> Any:
             m[4 * r + k] = float(R[r, k])
     return m
 
+
+def _address(handle: Any) -> int | None:
+    """The address an ODE handle (a ctypes pointer) points at, None for a null handle."""
+    return ctypes.cast(handle, ctypes.c_void_p).value
 
 def _read_rotation(ptr: Any) -> np.ndarray:
     """A rotation matrix from ODE's dMatrix3 pointer."""
