@@ -93,6 +93,12 @@ ODE_ERP, ODE_CFM = 0.2, 1e-10
 SEED = 0
 
 _STEPPERS = ("world", "quick")
+_TWO_PI = 2.0 * math.pi
+_CONTACT_STRIDE = ctypes.sizeof(ode.dContact)
+# bound once: odepy's own dJointAttach re-creates its ctypes function on every call
+_attach = ode.loadOde("dJointAttach", None, ode.dJointID, ode.dBodyID, ode.dBodyID)
+_collide, _geom_body = ode.dCollide, ode.dGeomGetBody
+_create_contact, _set_feedback = ode.dJointCreateContact, ode.dJointSetFeedback
 
 
 class OdeBackend(Backend):
@@ -205,6 +211,8 @@ class OdeBackend(Backend):
             ctypes.addressof(self.contacts) + ode.dContact.geom.offset, ctypes.POINTER(ode.dContactGeom)
         )
         self._feedback = (ode.dJointFeedback * MAX_CONTACTS)()
+        self._contact_refs = [ctypes.byref(ct) for ct in self.contacts]
+        self._feedback_refs = [ctypes.byref(fb) for fb in self._feedback]
         self._n_contacts = 0
         self._contact_joints: list[Any] = [None] * MAX_CONTACTS
         self._near = ode.dNearCallback(self._near_callback)
@@ -361,12 +369,13 @@ class OdeBackend(Backend):
 
     def _near_callback(self, _data: Any, g1: Any, g2: Any) -> None:
         """ODE's near callback: contact joints with the profile's surface for the foot-ground pair."""
-        n = ode.dCollide(g1, g2, MAX_CONTACTS, self._contact_geoms, ctypes.sizeof(ode.dContact))
-        b1, b2 = ode.dGeomGetBody(g1), ode.dGeomGetBody(g2)
+        n = _collide(g1, g2, MAX_CONTACTS, self._contact_geoms, _CONTACT_STRIDE)
+        b1, b2 = _geom_body(g1), _geom_body(g2)
+        world, group, contacts, feedback = self.world, self.contact_group, self._contact_refs, self._feedback_refs
         for k in range(n):
-            joint = ode.dJointCreateContact(self.world, self.contact_group, ctypes.byref(self.contacts[k]))
-            ode.dJointAttach(joint, b1, b2)
-            ode.dJointSetFeedback(joint, ctypes.byref(self._feedback[k]))
+            joint = _create_contact(world, group, contacts[k])
+            _attach(joint, b1, b2)
+            _set_feedback(joint, feedback[k])
             self._contact_joints[k] = joint
         self._n_contacts = n
         self._foot_is_g1 = bool(b1)
@@ -393,8 +402,11 @@ class OdeBackend(Backend):
         angle, rate = ode.dJointGetHingeAngle, ode.dJointGetHingeAngleRate
         q, qd = self._q, self._qd
         for i, j in enumerate(self.joints):
-            d = angle(j) - q[i]
-            q[i] += d - 2.0 * math.pi * round(d / (2.0 * math.pi))
+            prev = float(q[i])
+            d = angle(j) - prev
+            if d > math.pi or d < -math.pi:  # the hinge angle wrapped at +-pi
+                d -= _TWO_PI * round(d / _TWO_PI)
+            q[i] = prev + d
             qd[i] = rate(j)
 
     def _reference_force(self) -> None:
