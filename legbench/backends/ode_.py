@@ -630,6 +630,7 @@ def _address(handle: Any) -> int | None:
     """The address an ODE handle (a ctypes pointer) points at, None for a null handle."""
     return ctypes.cast(handle, ctypes.c_void_p).value
 
+
 def _read_rotation(ptr: Any) -> np.ndarray:
     """A rotation matrix from ODE's dMatrix3 pointer."""
     return np.array([[ptr[4 * r + k] for k in range(3)] for r in range(3)])
