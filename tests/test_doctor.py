@@ -44,10 +44,23 @@ def _heavier_link2_pybullet(b: Any) -> None:
     p.changeDynamics(b.body, link, mass=mass * (1 + 1e-4), physicsClientId=b.cid)
 
 
+def _heavier_link2_ode(b: Any) -> None:
+    import ctypes
+
+    import odepy as ode
+
+    body = b.bodies[1]
+    mass = ode.dMass()
+    ode.dBodyGetMass(body, ctypes.byref(mass))
+    ode.dMassAdjust(ctypes.byref(mass), mass.mass * (1 + 1e-4))
+    ode.dBodySetMass(body, ctypes.byref(mass))
+
+
 PLANT: dict[str, Callable[[Any], None]] = {
     "pinocchio": _heavier_link2_pinocchio,
     "mujoco": _heavier_link2_mujoco,
     "pybullet": _heavier_link2_pybullet,
+    "ode": _heavier_link2_ode,
 }
 
 

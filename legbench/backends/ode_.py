@@ -452,6 +452,7 @@ class OdeBackend(Backend):
         """Engine, version and every physics setting actually used, read back from ODE where it allows."""
         world = self.world
         max_vel = float(ode.dWorldGetContactMaxCorrectingVel(world))
+        lim = self.limits()
         return {
             "engine": "ode",
             "version": _ode_version(),
@@ -486,6 +487,14 @@ class OdeBackend(Backend):
                 "force_reported": "dJointFeedback of the last sub-step",
                 "reference_law": "J_poc^T F added to the hinge torques per sub-step" if self.reference else None,
             },
+            # read back from ODE for `legbench doctor` (hinge stops +-inf: none)
+            "readback": {
+                "gravity": lim.gravity,
+                "lower": list(lim.lower),
+                "upper": list(lim.upper),
+                "effort": list(lim.effort),
+                "timestep": lim.timestep,
+            },
         }
 
     # ------------------------------------------------------- declared abilities
@@ -506,7 +515,11 @@ class OdeBackend(Backend):
         return self.n_sub
 
     def limits(self) -> Limits:
-        """Hinge stops (``dJointGetHingeParam``, +-dInfinity: none) and gravity (``dWorldGetGravity``)."""
+        """Hinge stops (``dJointGetHingeParam``, +-dInfinity: none), gravity (``dWorldGetGravity``), torque clamp.
+
+        ODE itself holds no torque limit; ``effort`` is the clamp this backend
+        applies to every torque before handing it to ODE.
+        """
         lower, upper = [], []
         for j in self.joints:
             lower.append(float(ode.dJointGetHingeParam(j, ode.dParamLoStop)))
@@ -517,9 +530,11 @@ class OdeBackend(Backend):
         cfm = float(ode.dJointGetHingeParam(self.joints[-1], ode.dParamStopCFM))
         return Limits(
             gravity=-float(g[2]), lower=tuple(lower), upper=tuple(upper),  # type: ignore[arg-type]
+            effort=tuple(float(x) for x in self._hi),  # type: ignore[arg-type]
             timestep=self.h,
             enforcement=(f"ODE joint stops: one-sided velocity-level constraint, stop ERP {erp:g} "
-                         f"(penetration corrected by that fraction per step), stop CFM {cfm:g}"),
+                         f"(penetration corrected by that fraction per step), stop CFM {cfm:g}; torques "
+                         f"clamped by the backend before dJointAddHingeTorque (ODE has no torque limit)"),
         )  # fmt: skip
 
     def mass_properties(self) -> dict[str, dict[str, Any]]:
