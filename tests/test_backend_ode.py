@@ -153,6 +153,15 @@ def test_gazebo_fork_surface_values_override_the_world_ones() -> None:
     assert eff(dict(OdeBackend.defaults)) == (None, 0.0)  # stock ODE: no cap
 
 
+def test_contact_without_stiffness_or_damping_exerts_no_force(loaded: list[Backend]) -> None:
+    """Kp = Kd = 0 (verification's energy case): no contact joint, zero force, the leg swings through the ground."""
+    backend = load(loaded, Physics(contact=ContactParams(Kp=0.0, Kd=0.0)))
+    backend.reset(np.array([0.0, -np.pi / 2, 0.0]), np.zeros(3))  # foot below z = 0
+    backend.step(np.zeros(3))
+    assert backend.contact_bodies() == []
+    assert np.array_equal(backend.ground_force(), np.zeros(3))
+
+
 # --------------------------------------------------------------------------- #
 # joints
 
