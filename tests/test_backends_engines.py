@@ -147,8 +147,9 @@ def test_free_space_matches_dop853_within_0p1_percent(make: Make, engine: str, c
     when the motion is larger than the angles). Semi-implicit Euler is first
     order: at 0.1 ms the worst joint is at 0.014 % (torques) and 0.073 % (swing,
     knee, of max |q|); at 0.2 ms the swing's knee reaches 0.145 %, which is why
-    the backends default to 0.1 ms. The tolerance is the accuracy the spec asks
-    of the reference comparison.
+    the backends default to 0.1 ms. ODE (first order in maximal coordinates) at
+    its 5e-5 s default: 0.0044 % and 0.050 % (0.0996 % at 0.1 ms). The tolerance
+    is the accuracy the spec asks of the reference comparison.
     """
     c = CASES[case]
     q = run_case(make(engine, Physics(gravity=c["gravity"])), case)
@@ -201,8 +202,8 @@ def test_hip_angle_is_continuous_past_pi(make: Make, engine: str) -> None:
 def test_mass_properties_equal_the_parameter_file(make: Make, engine: str) -> None:
     """Read-back mass, COM and full inertia (link 3 with the foot) equal model.body_inertial to 1e-9.
 
-    The URDF stores 12 significant digits (measured 4e-12 relative in MuJoCo;
-    4e-10 in PyBullet, whose principal-axis decomposition of link 1's inertia
+    The URDF stores 12 significant digits (measured 4e-12 relative in MuJoCo, 4e-13 in
+    ODE; 4e-10 in PyBullet, whose principal-axis decomposition of link 1's inertia
     rounds more); 1e-9 (relative for mass and inertia, metres for the COM)
     would still catch a sign flip of the products of inertia (~1e-4) or a foot
     left out of link 3 (40 % of its mass).
@@ -275,7 +276,8 @@ def test_engine_gravity_torque_equals_model_to_1e6_nm(make: Make, engine: str) -
 
     Engine contact is off (reference mode), so no constraint force enters
     mj_inverse; the poses avoid the joint limits. Both sides are exact rigid-body
-    algorithms on the same URDF: measured 9e-16 N m.
+    algorithms on the same URDF: measured 9e-16 N m (ODE's statics through its
+    constraint solver, 5e-10 N m).
     """
     backend = make(engine, Physics(contact_mode="reference"))
     rng = np.random.default_rng(7)
@@ -330,7 +332,8 @@ def test_contact_force_settles_to_static_balance_within_2_percent(make: Make, en
     ground force on the foot must be -h. Tolerances: 2 % (the spec's
     tolerance for the analytic check; the quasi-static balance neglects
     M qdd + C qd, which the creeping engines keep tiny but non-zero: measured
-    2e-5 relative for MuJoCo, 3e-6 for the reference law, 6e-9 for PyBullet).
+    2e-5 relative for MuJoCo, 3e-6 for the reference law, 6e-9 for PyBullet,
+    5e-12 for ODE).
     "Settled": Fn changes by < 2 % over the last 0.5 s (MuJoCo's regularised
     cone and the stick-slip law creep tangentially: measured 0.6 % and 0.3 %;
     Bullet sticks: 0.001 %).
@@ -352,7 +355,8 @@ def test_contact_normal_force_is_kp_times_penetration_at_rest(make: Make, engine
     Checks MuJoCo's solref = (-Kp A, -Kd A) with A = body_invweight0 and
     Bullet's contactStiffness/plane pairing. The residual penetration rate
     adds Kd ydot ~ 1e-4 N of the ~10 N (measured 1e-5 relative MuJoCo, 3e-5
-    PyBullet); a wrong A or a halved stiffness is off by tens of percent.
+    PyBullet, 2e-6 ODE with its per-contact ERP/CFM); a wrong A or a halved
+    stiffness is off by tens of percent.
     """
     log = run_press(make(engine, Physics(contact_mode=mode)), np.array([0.0, 0.0, -10.0]))
     y = R_FOOT - kinematics.fk(log["q"][-1])[2]
