@@ -463,6 +463,7 @@ class OdeBackend(Backend):
             "binding": f"ode-python {metadata.version('ode-python')}",
             **{k: self.cfg[k] for k in self.defaults},
             "integrator": f"ODE {'dWorldStep' if not self._quick else 'dWorldQuickStep'} (semi-implicit, first order)",
+            "integrator_family": self.integrator_family(),
             "sub_steps": self.n_sub,
             "timestep": self.h,
             "gravity": self.physics.gravity,
