@@ -113,6 +113,16 @@ def _limits_pybullet(b: Any) -> dict[str, Any]:
 _ENGINE_LIMITS = {"pinocchio": _limits_pinocchio, "mujoco": _limits_mujoco, "pybullet": _limits_pybullet}
 
 
+def _limits_declared(b: Backend) -> dict[str, Any]:
+    """Any other backend: its own :meth:`Backend.limits` read-back from the engine."""
+    lim = b.limits()
+    out: dict[str, Any] = {"gravity": lim.gravity, "lower": list(lim.lower), "upper": list(lim.upper),
+                           "effort": list(lim.effort)}  # fmt: skip
+    if lim.timestep is not None:
+        out["timestep"] = lim.timestep
+    return out
+
+
 def _flatten(prefix: str, d: Mapping[str, Any], out: dict[str, Any]) -> None:
     for k, v in d.items():
         key = f"{prefix}.{k}" if prefix else str(k)
@@ -131,7 +141,8 @@ def readback(backend: Backend) -> dict[str, Any]:
     ``getPhysicsEngineParameters``; Pinocchio ``effortLimit``, ``gravity`` and
     the limits its integrator enforces), or, for another backend, from an
     ``info()["readback"]`` mapping with the keys ``gravity``, ``lower``,
-    ``upper``, ``effort``; every other row from :meth:`Backend.info`.
+    ``upper``, ``effort``, else from its :meth:`Backend.limits`; every other
+    row from :meth:`Backend.info`.
     """
     out: dict[str, Any] = {}
     try:
@@ -149,7 +160,7 @@ def readback(backend: Backend) -> dict[str, Any]:
         for name, r, c in _INERTIA:
             out[f"{link}.inertia.{name}"] = float(I[r, c])
     info = backend.info()
-    lim = info.get("readback") or (_ENGINE_LIMITS[backend.name](backend) if backend.name in _ENGINE_LIMITS else {})
+    lim = info.get("readback") or _ENGINE_LIMITS.get(backend.name, _limits_declared)(backend)
     if "gravity" in lim:
         out["gravity"] = float(lim["gravity"])
     for key in ("lower", "upper", "effort"):

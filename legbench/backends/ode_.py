@@ -456,7 +456,6 @@ class OdeBackend(Backend):
         """Engine, version and every physics setting actually used, read back from ODE where it allows."""
         world = self.world
         max_vel = float(ode.dWorldGetContactMaxCorrectingVel(world))
-        lim = self.limits()
         return {
             "engine": "ode",
             "version": _ode_version(),
@@ -491,14 +490,6 @@ class OdeBackend(Backend):
                 "friction": "pyramid (dContactApprox1: bound mu x normal force per tangent direction)",
                 "force_reported": "dJointFeedback of the last sub-step",
                 "reference_law": "J_poc^T F added to the hinge torques per sub-step" if self.reference else None,
-            },
-            # read back from ODE for `legbench doctor` (hinge stops +-inf: none)
-            "readback": {
-                "gravity": lim.gravity,
-                "lower": list(lim.lower),
-                "upper": list(lim.upper),
-                "effort": list(lim.effort),
-                "timestep": lim.timestep,
             },
         }
 
