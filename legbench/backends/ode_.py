@@ -129,7 +129,7 @@ class OdeBackend(Backend):
         # ODE's documented defaults (world ERP 0.2 and CFM 1e-10 in double precision, quick step 20
         # iterations, SOR 1.3), stepped once per 1 ms control period
         "engine-defaults": {"dt": 1.0e-3, "stepper": "quick", "cfm": ODE_CFM, "stop_cfm": ODE_CFM},
-        # Gazebo classic 9-11 with sdformat defaults (docs/backends/ode.md gives file and line of each)
+        # Gazebo classic's ODE set-up with SDFormat's defaults (docs/backends/ode.md: file and line of each)
         "gazebo": {
             "dt": 1.0e-3,  # <max_step_size> 0.001
             "stepper": "quick",  # <ode><solver><type> quick
@@ -216,6 +216,7 @@ class OdeBackend(Backend):
         self._contact_refs = [ctypes.byref(ct) for ct in self.contacts]
         self._feedback_refs = [ctypes.byref(fb) for fb in self._feedback]
         self._n_contacts = 0
+        self._foot_is_g1 = True
         self._contact_joints: list[Any] = [None] * MAX_CONTACTS
         self._near = ode.dNearCallback(self._near_callback)
 
@@ -249,7 +250,6 @@ class OdeBackend(Backend):
 
         self.bodies: list[Any] = []
         self.joints: list[Any] = []
-        self.link_inertials: list[Inertial] = []
         self._T0: list[np.ndarray] = []  # link frames in W at q = 0
         self._axis_local: list[np.ndarray] = []  # joint axes in the link (child) frame
         self._com_local: list[np.ndarray] = []
@@ -294,13 +294,11 @@ class OdeBackend(Backend):
 
             self.bodies.append(body)
             self.joints.append(hinge)
-            self.link_inertials.append(inertial)
             self._T0.append(T)
             self._axis_local.append(axis_local)
             self._com_local.append(com)
             T_parent, parent_body = T, body
         self._joint_origins = [np.asarray(joints[link].origin, float) for link in LINK_NAMES]
-        self._foot_local = T_foot[:3, 3]
         T3 = self._T0[-1]
         self._foot0 = tuple(T3[:3, :3] @ T_foot[:3, 3] + T3[:3, 3])
 
@@ -422,10 +420,10 @@ class OdeBackend(Backend):
         """Sum of the contact joints' feedback forces on the foot over the last sub-step, in W."""
         force = self._force
         force[:] = 0.0
-        sign = 1.0 if getattr(self, "_foot_is_g1", True) else -1.0
+        foot_first = self._foot_is_g1
         for k in range(self._n_contacts):
             fb = self._feedback[k]
-            f = fb.f1 if sign > 0 else fb.f2
+            f = fb.f1 if foot_first else fb.f2
             force[0] += f[0]
             force[1] += f[1]
             force[2] += f[2]
