@@ -8,15 +8,24 @@ JOBS ?= 2
 TASKS := scenarios/position.yaml scenarios/ellipse.yaml scenarios/effort.yaml scenarios/combined.yaml
 LEGBENCH := $(BIN)/legbench
 
-.PHONY: setup test lint compare check baseline bench sweep verify urdf clean
+.PHONY: setup system-deps test lint compare check baseline bench sweep verify urdf clean
 
 $(STAMP): pyproject.toml
+	@$(MAKE) --no-print-directory system-deps
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[dev,drake,dart]'
 	touch $(STAMP)
 
-setup: $(STAMP)
+setup: system-deps $(STAMP)
+
+## system libraries of engines pip cannot install: ODE's libode8 (the ode backend), with apt where we are
+## root and apt exists (idempotent, quiet); elsewhere the ode backend reports itself missing with its command
+system-deps:
+	@if ldconfig -p 2>/dev/null | grep -q 'libode\.so'; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  apt-get update -qq >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libode8 >/dev/null; \
+	else echo "note: the ode backend needs libode8 (as root: apt-get install -y libode8)"; fi
 
 ## the test suite
 test: $(STAMP)

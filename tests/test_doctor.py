@@ -68,6 +68,18 @@ def _heavier_link2_lagrange(b: Any) -> None:
     b._qdd = b.eom.module.qdd
 
 
+def _heavier_link2_ode(b: Any) -> None:
+    import ctypes
+
+    import odepy as ode
+
+    body = b.bodies[1]
+    mass = ode.dMass()
+    ode.dBodyGetMass(body, ctypes.byref(mass))
+    ode.dMassAdjust(ctypes.byref(mass), mass.mass * (1 + 1e-4))
+    ode.dBodySetMass(body, ctypes.byref(mass))
+
+
 PLANT: dict[str, Callable[[Any], None]] = {
     "pinocchio": _heavier_link2_pinocchio,
     "mujoco": _heavier_link2_mujoco,
@@ -75,6 +87,7 @@ PLANT: dict[str, Callable[[Any], None]] = {
     "drake": _heavier_link2_drake,
     "dart": _heavier_link2_dart,
     "lagrange": _heavier_link2_lagrange,
+    "ode": _heavier_link2_ode,
 }
 
 
