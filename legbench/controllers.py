@@ -1,4 +1,4 @@
-"""The one controller stack (LEG_SPEC.md section 6), run by the harness for every backend.
+"""The one controller stack (docs/spec.md section 6), run by the harness for every backend.
 
 Every controller is discrete at the control rate and returns joint torques
 [N m] before saturation; the run loop saturates them at the joint limits

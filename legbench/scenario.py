@@ -1,4 +1,4 @@
-"""Scenario files: one YAML document describes one task (LEG_SPEC.md section 7).
+"""Scenario files: one YAML document describes one task (docs/spec.md section 7).
 
 Format (every key but ``name``, ``duration`` and ``events`` has a default)::
 

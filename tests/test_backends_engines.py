@@ -144,7 +144,7 @@ def test_free_space_reference_stays_clear_of_limits_and_ground(case: str) -> Non
 def test_free_space_matches_dop853_within_0p1_percent(make: Make, engine: str, case: str) -> None:
     """Default settings (semi-implicit Euler, 0.1 ms; lagrange: RK45) track the DOP853 solve to < 0.1 % of the motion.
 
-    Error % = max_t |q - q_ref| / max_t |q_ref| x 100 (LEG_SPEC section 8), and
+    Error % = max_t |q - q_ref| / max_t |q_ref| x 100 (docs/spec.md section 8), and
     also with the motion amplitude max_t |q_ref - q0| as denominator (stricter
     when the motion is larger than the angles). Semi-implicit Euler is first
     order: at 0.1 ms the worst joint is at 0.014 % (torques) and 0.073 % (swing,

@@ -1,6 +1,6 @@
 """The four tasks through the run loop on every installed backend, compared as the report does.
 
-Simulation error % = max_t |x_b - x_ref| / max_t |x_ref| x 100 (LEG_SPEC.md section 8), with the
+Simulation error % = max_t |x_b - x_ref| / max_t |x_ref| x 100 (docs/spec.md section 8), with the
 Pinocchio backend as the reference. Defaults: semi-implicit Euler at 50 us in the fixed-step backends,
 compared with Pinocchio at the same scheme and step; an adaptive backend (lagrange: RK45 per control
 period) is compared with a converged Pinocchio RK4 (:data:`REFERENCE_SETTINGS`).
