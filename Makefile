@@ -29,7 +29,7 @@ system-deps:
 
 ## the test suite
 test: $(STAMP)
-	$(BIN)/pytest -q
+	$(BIN)/pytest -q -n 2 --dist loadfile
 
 lint: $(STAMP)
 	$(BIN)/ruff check legbench tests
