@@ -11,8 +11,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
-from legbench.model import load_params
+from legbench import kinematics
+from legbench.model import Dynamics, load_params, pinocchio_model
 
 POC_MODES = ("true", "centre")
 CONTACT_MODES = ("native", "reference")
@@ -246,10 +248,6 @@ class ReferenceContact:
 
     def use_implicit_friction(self, gravity: float) -> None:
         """Prepare :meth:`implicit_generalized`: the leg's Pinocchio model under gravity [m/s^2] along -z_W."""
-        import pinocchio as pin
-
-        from legbench.model import pinocchio_model
-
         self._pin = pin
         self._model = pinocchio_model(gravity=gravity)
         self._data = self._model.createData()
@@ -311,16 +309,9 @@ def tangential_mass(q: tuple[float, float, float] | list[float] | np.ndarray, tr
     1 / lambda_max(J_t M(q)^-1 J_t^T), J_t the two horizontal rows of J_poc(q), M the leg's mass
     matrix (Pinocchio on the generated URDF), at joint angles q [rad].
     """
-    import pinocchio as pin
-
-    from legbench import kinematics
-
-    model = kinematics.pinocchio_model()
-    data = model.createData()
-    q1, q2, q3 = (float(x) for x in q)
-    M = pin.crba(model, data, np.array([q1, math.cos(q2), math.sin(q2), q3]))
-    M = np.triu(M) + np.triu(M, 1).T
-    J_t = kinematics.jacobian_poc(np.array([q1, q2, q3]), true_poc=true_poc)[:2]
+    qv = np.array([float(x) for x in q])
+    M = Dynamics().mass_matrix(qv)
+    J_t = kinematics.jacobian_poc(qv, true_poc=true_poc)[:2]
     return float(1.0 / np.linalg.eigvalsh(J_t @ np.linalg.solve(M, J_t.T)).max())
 
 

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from legbench import kinematics
+from legbench.model import Dynamics, load_params
 
 #: Normal push [N] and the drag as a fraction of it (above mu_s = 0.7).
 FN = 15.0
@@ -67,21 +68,14 @@ def predicted_acceleration(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force
     The force acts at ``lift`` times the penetration y above the sphere's lowest point (the
     backend's ``contact_point_lift``; 0: the true poc).
     """
-    import pinocchio as pin
-
-    from legbench.model import load_params
-
     R = load_params().geometry.R_foot
-    model = kinematics.pinocchio_model()
-    data = model.createData()
+    dyn = Dynamics()
     out = np.empty((len(q), 2))
     eps = 1e-7
+    zero = np.zeros(3)
     for k in range(len(q)):
-        q1, q2, q3 = q[k]
-        qp = np.array([q1, math.cos(q2), math.sin(q2), q3])
-        M = pin.crba(model, data, qp)
-        M = np.triu(M) + np.triu(M, 1).T
-        nle = pin.nonLinearEffects(model, data, qp, qd[k]).copy()
+        M = dyn.mass_matrix(q[k])
+        nle = dyn.inverse_dynamics(q[k], qd[k], zero)
         J = kinematics.jacobian_poc(q[k])
         # the application point's Jacobian: E plus omega x r, r = -(R - lift y) z_W
         d = R - lift * (R - float(kinematics.fk(q[k])[2]))
