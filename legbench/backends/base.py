@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
@@ -18,7 +18,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from legbench.contact import ContactParams
-from legbench.exceptions import LegbenchError
+from legbench.exceptions import LegbenchError, SimulationDiverged
 
 #: Integrator families, by what verification can predict for them: ``euler`` (semi-implicit
 #: Euler: qd += h qdd, then q += h qd), ``implicit`` (implicit in velocity, first order, e.g.
@@ -90,6 +90,15 @@ def sub_step_count(backend: str, dt: float, control_dt: float) -> int:
             f"(choose control_dt / n, e.g. {control_dt / max(n, 1):g} s)"
         )
     return n
+
+
+def check_finite(backend: str, t: float, q: Sequence[float] | np.ndarray, qd: Sequence[float] | np.ndarray) -> None:
+    """Raise :class:`SimulationDiverged` if the joint state q [rad], qd [rad/s] at time t [s] is not finite.
+
+    One sum of six floats per control period: cheap enough for every backend's step.
+    """
+    if not math.isfinite(q[0] + q[1] + q[2] + qd[0] + qd[1] + qd[2]):
+        raise SimulationDiverged(backend, t, "non-finite joint state")
 
 
 class Backend(ABC):

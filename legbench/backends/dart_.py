@@ -34,7 +34,6 @@ contact the force of its constraint impulse over the step (impulse / dt), in W.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from importlib import metadata
 from pathlib import Path
@@ -43,9 +42,9 @@ from typing import Any, ClassVar
 import dartpy as dart
 import numpy as np
 
-from legbench.backends.base import Backend, Limits, Physics, sub_step_count
+from legbench.backends.base import Backend, Limits, Physics, check_finite, sub_step_count
 from legbench.contact import ReferenceContact
-from legbench.exceptions import LegbenchError, SimulationDiverged
+from legbench.exceptions import LegbenchError
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine
 
 _DETECTORS = {
@@ -222,9 +221,7 @@ class DartBackend(Backend):
             self._read()
             self._native_force()
         self.t += self.physics.control_dt
-        q, qd = self._q, self._qd
-        if not math.isfinite(q[0] + q[1] + q[2] + qd[0] + qd[1] + qd[2]):
-            raise SimulationDiverged(self.name, self.t, "non-finite joint state")
+        check_finite(self.name, self.t, self._q, self._qd)
 
     def _read(self) -> None:
         self._q[:] = self.skel.getPositions()

@@ -101,9 +101,9 @@ from pydrake.multibody.plant import AddMultibodyPlant, CoulombFriction, Multibod
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from legbench.backends.base import Backend, Limits, Physics, sub_step_count
+from legbench.backends.base import Backend, Limits, Physics, check_finite, sub_step_count
 from legbench.contact import ReferenceContact
-from legbench.exceptions import LegbenchError, SimulationDiverged
+from legbench.exceptions import LegbenchError
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine, load_params
 
 #: Discrete contact approximations offered, and the continuous plant.
@@ -372,9 +372,7 @@ class DrakeBackend(Backend):
             self._read()
             self._native_force()
         self.tick += 1
-        q, qd = self._q, self._qd
-        if not math.isfinite(q[0] + q[1] + q[2] + qd[0] + qd[1] + qd[2]):
-            raise SimulationDiverged(self.name, self.tick * Ts, "non-finite joint state")
+        check_finite(self.name, self.tick * Ts, self._q, self._qd)
 
     def _read(self) -> None:
         x = self.plant.GetPositionsAndVelocities(self.ctx)

@@ -72,9 +72,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from legbench.backends.base import Backend, Limits, Physics, sub_step_count
+from legbench.backends.base import Backend, Limits, Physics, check_finite, sub_step_count
 from legbench.contact import ReferenceContact
-from legbench.exceptions import LegbenchError, SimulationDiverged
+from legbench.exceptions import LegbenchError
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine
 
 INSTALL = "apt-get install -y libode8 && pip install ode-python"
@@ -343,9 +343,7 @@ class OdeBackend(Backend):
         np.clip(tau, self._lo, self._hi, out=self._tau)
         self._step()
         self.t += self.physics.control_dt
-        q, qd = self._q, self._qd
-        if not math.isfinite(q[0] + q[1] + q[2] + qd[0] + qd[1] + qd[2]):
-            raise SimulationDiverged(self.name, self.t, "non-finite joint state")
+        check_finite(self.name, self.t, self._q, self._qd)
 
     def _step_native(self) -> None:
         world, h, joints, tau = self.world, self.h, self.joints, self._tau

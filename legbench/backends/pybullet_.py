@@ -60,9 +60,8 @@ from typing import Any, ClassVar
 import numpy as np
 import pybullet as p
 
-from legbench.backends.base import Backend, Limits, Physics, sub_step_count
+from legbench.backends.base import Backend, Limits, Physics, check_finite, sub_step_count
 from legbench.contact import ReferenceContact, law_step_warnings
-from legbench.exceptions import SimulationDiverged
 from legbench.model import FOOT_FRAME, LINK_NAMES, Inertial, combine
 
 #: Joint-speed clamp [rad/s]: Bullet's default of 100 replaced by a bound the leg cannot reach.
@@ -207,9 +206,7 @@ class PybulletBackend(Backend):
         np.clip(tau, self._lo, self._hi, out=self._tau)
         self._step()
         self.t += self.physics.control_dt
-        q, qd = self._q, self._qd
-        if not math.isfinite(q[0] + q[1] + q[2] + qd[0] + qd[1] + qd[2]):
-            raise SimulationDiverged(self.name, self.t, "non-finite joint state")
+        check_finite(self.name, self.t, self._q, self._qd)
 
     def _step_native(self) -> None:
         body, cid, joints, tau = self.body, self.cid, self.joints, self._tau
