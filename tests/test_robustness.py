@@ -93,7 +93,11 @@ CASES: list[tuple[str, Any, str, str]] = [
 ]
 
 
-@pytest.mark.parametrize(("path", "value", "key", "words"), CASES, ids=[f"{c[0]}={c[1]!r}" for c in CASES])
+@pytest.mark.parametrize(
+    ("path", "value", "key", "words"),
+    CASES,
+    ids=[f"{c[0]}={c[1]!r}" if type(c[1]) is not object else f"{c[0]} deleted" for c in CASES],
+)
 def test_malformed_scenario_exits_2_naming_the_key(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], path: str, value: Any, key: str, words: str
 ) -> None:
