@@ -36,11 +36,13 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check legbench tests
 	$(BIN)/mypy legbench
 
-## the main job: four tasks x all backends x both contact modes, verification and contact
+## the main job: four tasks x all backends x both contact modes (matched profile) and the engine-defaults profile
+## (native contact), verification and contact
 ## calibration -> results/latest/report.html
 compare: $(STAMP)
 	rm -rf results/latest
 	$(LEGBENCH) run $(TASKS) --backends all --contact-mode both --out results/latest --jobs $(JOBS) --quiet --no-compare
+	$(LEGBENCH) run $(TASKS) --backends all --profile engine-defaults --contact-mode native --out results/latest --jobs $(JOBS) --quiet --no-compare --no-preflight
 	$(LEGBENCH) verify --out results/latest/verification || echo 'verify: some checks fail; the report lists them'
 	$(LEGBENCH) calibrate-contact --out results/latest/calibration
 	$(LEGBENCH) compare results/latest

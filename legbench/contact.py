@@ -1,6 +1,6 @@
 """The report's analytic contact law (docs/spec.md section 4), on plain floats.
 
-Used natively by the Pinocchio backend and, in ``reference`` contact mode, by
+Used natively by the backends that integrate the law themselves and, in ``reference`` contact mode, by
 every backend as an external force at each of its sub-steps, so that the one
 law is the same code everywhere.
 """
@@ -263,7 +263,7 @@ class ReferenceContact:
         other applied joint torques [N m], a = M^-1 (u + J_poc^T F - nle) the explicit acceleration
         (the leg's model, the engine's own constraint forces left out) and dqd from
         :func:`implicit_velocity_step`, the torque J_poc^T F - K dqd makes the engine's explicit
-        step take the linearly implicit friction step of the Pinocchio backend (docs/pinocchio.md).
+        step take the linearly implicit friction step documented in docs/pinocchio.md.
         Out of contact or with no friction slope it is :meth:`generalized`. F in W [N] (the law at
         the state) goes to :attr:`force`; the returned array is reused by the next call. Call
         :meth:`use_implicit_friction` first.

@@ -11,9 +11,9 @@ sample (q, qd, tau, Fn):
   mu_s for a Coulomb engine, which has no other);
 * the slip acceleration: qdd = M(q)^-1 (tau - nle(q, qd) + J_poc^T F), F = (-mu Fn v_t/|v_t|, Fn),
   and a_t = (J_poc qdd + Jdot_poc qd)_t, the poc's horizontal acceleration, along the slip
-  (F applied where the backend applies it: ``contact_point_lift``; MuJoCo's point is y/2 above
-  the lowest point, which alone moves its acceleration by 4 % here);
-  M and nle from the leg's model (Pinocchio on the generated URDF), the same for every
+  (F applied where the backend applies it: ``contact_point_lift``; a point y/2 above the lowest
+  point alone moves the acceleration by 4 % here);
+  M and nle from the leg's model (``model.Dynamics`` on the generated URDF), the same for every
   backend.
 
 The measured friction is the backend's reported ground force; the measured

@@ -9,10 +9,9 @@ answer computed here from the leg's reference model (:class:`legbench.model.Dyna
     First-order integrators do not conserve it, and how they drift is known:
     the exact flow conserves E, so E_N - E_0 is the sum of the one-step energy
     errors, e2(x) h^2 + O(h^3) per step, i.e. E(t) - E(0) = h int_0^t e2 dt +
-    O(h^2). e2 is computed here for the step the backend takes (velocity-form
-    semi-implicit Euler: MuJoCo ``euler``, and ``implicitfast`` which is the
-    same without damping, Bullet, Pinocchio ``euler``; MuJoCo ``implicit``,
-    whose velocity update also holds the Coriolis derivative) along the logged
+    O(h^2). e2 is computed here for the step the backend declares (family
+    ``euler``: velocity-form semi-implicit Euler; ``implicit``: the velocity
+    update also holds the Coriolis derivative) along the logged
     motion, and the predicted curve is compared with the measured one over the
     whole run. Tolerance: max|prediction| x (h W + (Ts W)^2), the O(h^2)
     remainder relative to the O(h) term (W = max joint speed) plus the
@@ -21,7 +20,7 @@ answer computed here from the leg's reference model (:class:`legbench.model.Dyna
     (its global error) + round-off; adaptive: n_periods (rtol |x| + atol) |grad E|
     (each 1 ms solve keeps its local error near rtol |x| + atol). A backend
     declaring the family ``other`` (a first-order step with no closed form here,
-    e.g. ODE's in maximal coordinates): no prediction; max |E - E0| must stay
+    e.g. one in maximal coordinates): no prediction; max |E - E0| must stay
     within 2 h int |e2| dt with semi-implicit Euler's e2, the size a first-order
     drift has (it can differ in sign and shape from Euler's).
 ``rest_penetration``
@@ -282,7 +281,7 @@ def check_energy(
                                  tol, bool(inside and err <= tol), note))  # fmt: skip
                 continue
             if family == "other":
-                # no closed form for the step (e.g. ODE's maximal coordinates): bound the drift by the size
+                # no closed form for the step (e.g. one in maximal coordinates): bound the drift by the size
                 # a first-order step has, twice semi-implicit Euler's h int |e2| dt at the same step
                 e2 = np.abs([energy.local_rate(q, qd, "euler") for q, qd in zip(tr.q, tr.qd, strict=True)])
                 tol = 2.0 * h * float(np.sum(0.5 * (e2[1:] + e2[:-1]) * np.diff(tr.t))) + roundoff
