@@ -49,7 +49,7 @@ def test_first_order_integrators_converge_at_order_one(timestep: sweep.SweepResu
     finest step, and the O(h^2) term by h_max W ~ 1 % at the coarsest.
     """
     fits = timestep.fits
-    first = {"euler", "implicitfast", "implicit", "other"}  # "other": ODE's first-order step, maximal coordinates
+    first = {"euler", "implicitfast", "implicit", "first-order"}  # first-order: e.g. ODE's, maximal coordinates
     seen = set()
     for f in fits.itertuples():
         if _family(timestep.table, f.study, f.backend) in first:

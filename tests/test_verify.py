@@ -98,7 +98,9 @@ def test_files_written(results: tuple[pd.DataFrame, Path]) -> None:
     meta = json.loads((out / "verification.json").read_text())
     assert meta["total"] == len(df) and meta["passed"] == int(df["pass"].sum())
     md = (out / "verification.md").read_text()
-    assert md.startswith(f"# Verification: {len(df)} of {len(df)} checks pass")
+    n_pass, n_na = int(df["pass"].sum()), int((df["status"] == "not-applicable").sum())
+    assert md.startswith(f"# Verification: {n_pass} of {len(df)} checks pass")
+    assert (f"({n_na} not applicable)" in md.splitlines()[0]) == (n_na > 0)
     assert "| case | backend |" in md
 
 

@@ -23,9 +23,10 @@ from legbench.exceptions import LegbenchError, SimulationDiverged
 #: Integrator families, by what verification can predict for them: ``euler`` (semi-implicit
 #: Euler: qd += h qdd, then q += h qd), ``implicit`` (implicit in velocity, first order, e.g.
 #: MuJoCo's ``implicit``), ``rk4`` (classic fixed-step), ``adaptive`` (error-controlled, one
-#: solve per control period), ``other`` (no closed-form prediction: e.g. a convex or LCP
-#: time-stepping scheme whose energy behaviour is the solver's).
-INTEGRATOR_FAMILIES = ("euler", "implicit", "rk4", "adaptive", "other")
+#: solve per control period), ``first-order`` (a first-order step with no closed form of its own,
+#: e.g. one in maximal coordinates: verification bounds it by the size of a first-order error),
+#: ``other`` (no closed-form prediction at all: verification reports not-applicable rows).
+INTEGRATOR_FAMILIES = ("euler", "implicit", "rk4", "adaptive", "first-order", "other")
 
 #: The two profiles every backend offers (a backend may add its own, e.g. ``gazebo``).
 PROFILES = ("matched", "engine-defaults")

@@ -19,7 +19,7 @@ answer computed here from the leg's reference model (:class:`legbench.model.Dyna
     adaptive scipy integrators: expected 0; RK4 tolerance (h W)^4 W T_end max T
     (its global error) + round-off; adaptive: n_periods (rtol |x| + atol) |grad E|
     (each 1 ms solve keeps its local error near rtol |x| + atol). A backend
-    declaring the family ``other`` (a first-order step with no closed form here,
+    declaring the family ``first-order`` (a first-order step with no closed form here,
     e.g. one in maximal coordinates): no prediction; max |E - E0| must stay
     within 2 h int |e2| dt with semi-implicit Euler's e2, the size a first-order
     drift has (it can differ in sign and shape from Euler's).
@@ -47,7 +47,7 @@ answer computed here from the leg's reference model (:class:`legbench.model.Dyna
     matrix pencil method. Tolerance: 0.5 % of |s| per pole (the response
     departs from the linear model by 2e-5 of its amplitude; the pencil of
     three close, heavily damped modes amplifies that by up to ~100). Family
-    ``other``: the exact flow as the model and 0.5 % + h |s| (the O(h |s|) pole
+    ``first-order``: the exact flow as the model and 0.5 % + h |s| (the O(h |s|) pole
     shift of any first-order step).
 
 Data flow: scenario -> :func:`legbench.run.simulate` on each backend ->
@@ -106,7 +106,7 @@ COLUMNS = ("case", "backend", "variant", "quantity", "unit", "measured", "expect
 STATUSES = ("pass", "fail", "not-applicable")
 #: How a backend without an ``integrator`` setting is named in the variant column, by its family.
 FAMILY_TEXT = {"euler": "semi-implicit euler", "implicit": "implicit euler", "rk4": "rk4", "adaptive": "adaptive",
-               "other": "other"}  # fmt: skip
+               "first-order": "first order", "other": "other"}  # fmt: skip
 #: Relative tolerance on each closed-loop pole (module docstring).
 POLE_RTOL = 5e-3
 #: Share of the quantity the engines' contact solvers may miss by (rest and balance checks).
@@ -280,12 +280,12 @@ def check_energy(
                 out.append(Check("energy", name, variant, "E(t_end) - E(0)", "J", float(D[-1]), float(P[-1]), err,
                                  tol, bool(inside and err <= tol), note))  # fmt: skip
                 continue
-            if family == "other":
+            if family == "first-order":
                 # no closed form for the step (e.g. one in maximal coordinates): bound the drift by the size
                 # a first-order step has, twice semi-implicit Euler's h int |e2| dt at the same step
                 e2 = np.abs([energy.local_rate(q, qd, "euler") for q, qd in zip(tr.q, tr.qd, strict=True)])
                 tol = 2.0 * h * float(np.sum(0.5 * (e2[1:] + e2[:-1]) * np.diff(tr.t))) + roundoff
-                why = (f"other x{round(Ts / h)}: no closed-form prediction; bound 2 h int |e2_euler| dt (a first-order "
+                why = (f"first order x{round(Ts / h)}: no closed-form prediction; bound 2 h int |e2_euler| dt (a first-order "
                        f"step's drift, twice semi-implicit Euler's), W = {W:.3g} rad/s")  # fmt: skip
             elif family == "rk4":
                 tol = (h * W) ** 4 * W * float(tr.t[-1]) * float(TV[:, 0].max()) + roundoff
@@ -486,6 +486,9 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = VERIF
                 out.append(_failed("small_oscillation", name, variant, tr.reason or tr.status))
                 continue
             family = _family(tr.info)
+            if family == "other":
+                out.append(_not_applicable("small_oscillation", name, variant, "closed-loop poles", family))
+                continue
             n_sub = int(tr.info["sub_steps"])
             # an implicit step adds the Coriolis derivative, zero at rest: Euler in the linearisation
             model_family = {"euler": "euler", "implicit": "euler", "rk4": "rk4"}.get(family, "exact")
@@ -503,9 +506,9 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = VERIF
                 sc_near = s_cont[np.argmin(np.abs(s_cont - sp))]
                 note = (f"model: {model_family} x{n_sub}; pole {sp:.2f}/s, fitted {sm:.2f}/s; "
                         f"continuous-time model (no sampling) {sc_near:.2f}/s")  # fmt: skip
-                # a step with no discrete model of its own ("other", modelled by the exact flow) may move a
+                # a step with no discrete model of its own ("first-order", modelled by the exact flow) may move a
                 # pole by O(h |s|) relative, as any first-order step does
-                rel = POLE_RTOL + (h_sub * abs(sp) if family == "other" else 0.0)
+                rel = POLE_RTOL + (h_sub * abs(sp) if family == "first-order" else 0.0)
                 tol_s = rel * abs(sp)
                 if abs(sp.imag) > 1e-6 * abs(sp):
                     out.append(_check("small_oscillation", name, variant, f"mode {i} frequency", "Hz",
