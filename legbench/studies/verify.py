@@ -285,8 +285,8 @@ def check_energy(
                 # a first-order step has, twice semi-implicit Euler's h int |e2| dt at the same step
                 e2 = np.abs([energy.local_rate(q, qd, "euler") for q, qd in zip(tr.q, tr.qd, strict=True)])
                 tol = 2.0 * h * float(np.sum(0.5 * (e2[1:] + e2[:-1]) * np.diff(tr.t))) + roundoff
-                why = (f"first order x{round(Ts / h)}: no closed-form prediction; bound 2 h int |e2_euler| dt (a first-order "
-                       f"step's drift, twice semi-implicit Euler's), W = {W:.3g} rad/s")  # fmt: skip
+                why = (f"first order x{round(Ts / h)}: no closed-form prediction; bound 2 h int |e2_euler| dt "
+                       f"(a first-order step's drift, twice semi-implicit Euler's), W = {W:.3g} rad/s")  # fmt: skip
             elif family == "rk4":
                 tol = (h * W) ** 4 * W * float(tr.t[-1]) * float(TV[:, 0].max()) + roundoff
                 why = f"RK4: (h W)^4 W T_end max T with W = {W:.3g} rad/s, + round-off {roundoff:.2g} J"
