@@ -3,7 +3,7 @@
 Simulation error % = max_t |x_b - x_ref| / max_t |x_ref| x 100 (docs/spec.md section 8), with the
 Pinocchio backend as the reference. Defaults: semi-implicit Euler at 50 us in the fixed-step backends,
 compared with Pinocchio at the same scheme and step; an adaptive backend (lagrange: RK45 per control
-period) is compared with Pinocchio's converged default (:data:`REFERENCE_SETTINGS`).
+period) is compared with Pinocchio's same adaptive method and tolerances (:data:`ADAPTIVE_KEYS`).
 """
 
 from __future__ import annotations
@@ -26,11 +26,11 @@ pytestmark = pytest.mark.skipif(not ENGINES, reason="no engine backend installed
 
 #: Pinocchio settings of the reference for a backend of each integrator family: the defaults (semi-implicit
 #: Euler at 50 us) for the fixed-step engines, so the step error cancels; for an adaptive backend classic
-#: An adaptive backend is compared with Pinocchio's default (semi-implicit Euler at 50 us with the stick-slip
-#: law's friction slope implicit, within 0.002 % of the dt -> 0 limit of the effort task's steady force,
-#: docs/pinocchio.md): at the law's v_th = 1e-3 m/s an explicit RK4 at 25 us is past its stability limit in
-#: the friction's stiff ramp (mu_s Fn / (m v_th) ~ 2e5 1/s), so it is no reference there.
-REFERENCE_SETTINGS: dict[str, tuple[tuple[str, Any], ...]] = {"adaptive": ()}
+#: An adaptive backend is compared with Pinocchio running the same adaptive method with the same
+#: tolerances (the engine's ``integrator``, ``rtol``, ``atol``, ``max_step`` from its info): the same
+#: scheme on an independent implementation of the dynamics, as the fixed-step engines are compared with
+#: Pinocchio at their own scheme and step.
+ADAPTIVE_KEYS = ("integrator", "rtol", "atol", "max_step")
 
 
 @cache
@@ -48,15 +48,17 @@ def _run(
 def _reference(task: str, engine: str, mode: str | None = None) -> results.RunResult:
     """The Pinocchio run an engine is compared with, by the engine's declared integrator family: a fixed-step
     semi-implicit Euler engine against Pinocchio's Euler at the engine's own sub-step (same scheme, same step,
-    e.g. Drake's 0.1 ms), an adaptive one against Pinocchio's converged default (:data:`REFERENCE_SETTINGS`)."""
+    e.g. Drake's 0.1 ms), an adaptive one against Pinocchio's same adaptive method (:data:`ADAPTIVE_KEYS`)."""
     backend = backends.load(engine, run.physics_of(scenario.load(SCENARIOS / f"{task}.yaml"), mode), {})
     try:
-        family, dt = backend.integrator_family(), Physics().control_dt / backend.sub_steps()
+        family, dt, info = backend.integrator_family(), Physics().control_dt / backend.sub_steps(), backend.info()
     finally:
         backend.close()
     if family == "euler":
         return _run(task, "pinocchio", mode, (("dt", dt),))
-    return _run(task, "pinocchio", mode, REFERENCE_SETTINGS.get(family, ()))
+    if family == "adaptive":
+        return _run(task, "pinocchio", mode, tuple((k, info[k]) for k in ADAPTIVE_KEYS))
+    return _run(task, "pinocchio", mode)
 
 
 def _sim_error(x: np.ndarray, ref: np.ndarray) -> np.ndarray:
@@ -93,7 +95,7 @@ def test_validation_run_agrees_within_0p01_percent(engine: str) -> None:
 def test_reference_contact_mode_agrees_within_0p5_percent(task: str, engine: str) -> None:
     """Reference mode (the one analytic law inside every backend), same family (semi-implicit
     Euler) and step (50 us): joint positions and ground force agree to better than 0.5 %. An adaptive
-    backend against Pinocchio's converged default (lagrange, the report's rtol 1e-8, atol 1e-6)."""
+    backend against Pinocchio's same adaptive method (lagrange: RK45, rtol 1e-8, atol 1e-6)."""
     ref, tr = _reference(task, engine, "reference"), _run(task, engine, "reference")
     assert np.all(_sim_error(tr.q, ref.q) < 0.5)
     assert np.all(_sim_error(tr.f, ref.f) < 0.5)
