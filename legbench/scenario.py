@@ -497,6 +497,27 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
     return parse(doc, str(path), root)
 
 
+def shorten(sc: Scenario, duration: float) -> Scenario:
+    """The scenario cut to ``duration`` [s].
+
+    Events that switch (``t + delay``) at or after the new end are dropped, and the
+    comparison windows (``skip``, ``steady_window``) are shrunk to fit, so the result validates.
+    """
+    if duration >= sc.duration:
+        return sc
+    doc = dict(sc.raw)
+    doc["events"] = [e for e in doc["events"] if float(e["t"]) + float(e.get("delay", 0.0)) < duration]
+    doc["duration"] = duration
+    cmp = dict(doc.get("comparison") or {})
+    if float(cmp.get("skip", 0.0)) >= duration:
+        cmp["skip"] = 0.0
+    if float(cmp.get("steady_window", 0.0)) > duration:
+        cmp["steady_window"] = duration
+    if cmp:
+        doc["comparison"] = cmp
+    return parse(doc, sc.file)
+
+
 def physics_of(scenario: Scenario, contact_mode: str | None = None) -> Physics:
     """Physics every backend gets for this scenario (``contact_mode`` overrides the scenario's)."""
     lim = load_params().effort
