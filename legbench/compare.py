@@ -17,13 +17,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from legbench.contact import ContactParams
+from legbench.contact_residuals import ContactResiduals, residuals
 from legbench.exceptions import ResultsError
 from legbench.logs import load_log
 from legbench.metrics import (
@@ -55,6 +57,8 @@ class ComparisonResult:
         split: contact-mode split per backend (empty without a reference-mode sibling).
         split_run: the reference-mode run used for the split.
         notes: plain sentences about what could not be measured and why.
+        residuals: contact-law residuals per trace (:mod:`legbench.contact_residuals`): scores of each
+            backend against the law it was meant to follow, needing no reference backend.
     """
 
     run: Run
@@ -65,6 +69,7 @@ class ComparisonResult:
     split: tuple[ModeSplit, ...] = ()
     split_run: Run | None = None
     notes: tuple[str, ...] = ()
+    residuals: Mapping[str, ContactResiduals] = field(default_factory=dict)
 
     def frame(self) -> pd.DataFrame:
         """The long metrics table, columns :data:`FRAME_COLUMNS` (see docs/metrics.md)."""
@@ -99,6 +104,9 @@ class ComparisonResult:
             for part in ("native", "contact", "integration", "drift"):
                 add(m.backend, m.reference, f"split_{part}_rms", getattr(m, f"{part}_rms"))
                 add(m.backend, m.reference, f"split_{part}_pct", getattr(m, f"{part}_pct"))
+        for backend, r in self.residuals.items():
+            for key, value in r.to_dict().items():
+                rows.append(_row(sc, backend, "", "contact", "-", f"residual_{key}", float(value)))
         return rows
 
     def pair(self, backend: str, reference: str | None = None) -> PairMetrics | None:
@@ -241,4 +249,6 @@ def compare(
         split = contact_split(run, split_run)
         if not split:
             notes.append(f"no contact-mode split: reference backend '{run.reference}' missing in one mode")
-    return ComparisonResult(run, reference, traces, tuple(pairs), steady, split, split_run, tuple(notes))
+    law = ContactParams(**(run.meta.get("scenario") or {}).get("contact", {}))
+    res = {name: residuals(tr.t, tr.q, tr.qd, tr.f, law) for name, tr in traces.items()}
+    return ComparisonResult(run, reference, traces, tuple(pairs), steady, split, split_run, tuple(notes), res)

@@ -1,4 +1,4 @@
-"""The one controller stack (LEG_SPEC.md section 6), run by the harness for every backend.
+"""The one controller stack (docs/spec.md section 6), run by the harness for every backend.
 
 Every controller is discrete at the control rate and returns joint torques
 [N m] before saturation; the run loop saturates them at the joint limits
@@ -15,6 +15,7 @@ order; :mod:`legbench.kinematics` documents its scalar paths).
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from bisect import bisect_right
 from collections.abc import Sequence
@@ -299,6 +300,35 @@ class EffortController(Controller):
         )
 
 
+class TorqueController(Controller):
+    """Open loop: tau_i = A_i sin(2 pi f_i (t - t_event) + phi_i) [N m], whatever the state.
+
+    The torque of tick k is the value at t = k Ts (held over the period by the backend).
+    """
+
+    name = "torque"
+
+    def __init__(self, event: Event, Ts: float) -> None:
+        if event.amplitude is None or event.frequency is None:
+            raise ValueError("a torque event needs amplitude and frequency")
+        self.Ts = Ts
+        self._a = _floats(event.amplitude)
+        self._w = _floats(2.0 * math.pi * np.asarray(event.frequency, dtype=float) * Ts)  # [rad per tick]
+        self._phi = _floats(event.phase if event.phase is not None else (0.0, 0.0, 0.0))
+        self.k0 = int(round(event.t / Ts))
+
+    def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
+        self.k0 = int(round(t / self.Ts))
+
+    def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
+        a1, a2, a3 = self._a
+        w1, w2, w3 = self._w
+        p1, p2, p3 = self._phi
+        n = k - self.k0
+        sin = math.sin
+        return a1 * sin(w1 * n + p1), a2 * sin(w2 * n + p2), a3 * sin(w3 * n + p3)
+
+
 def make_controller(event: Event, gains: Gains, Ts: float, n_ticks: int) -> Controller:
     """The controller an event asks for."""
     if event.controller == "position":
@@ -307,4 +337,6 @@ def make_controller(event: Event, gains: Gains, Ts: float, n_ticks: int) -> Cont
         return TrajectoryController(event, gains, Ts, n_ticks)
     if event.controller == "effort":
         return EffortController(event, Ts)
+    if event.controller == "torque":
+        return TorqueController(event, Ts)
     raise ValueError(f"unknown controller {event.controller!r}")

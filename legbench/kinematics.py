@@ -1,4 +1,4 @@
-"""Closed-form kinematics of the leg (LEG_SPEC.md sections 1 and 5).
+"""Closed-form kinematics of the leg (docs/spec.md sections 1 and 5).
 
 Every function takes joint angles ``q = (q1, q2, q3)`` [rad] and works on a
 single configuration of shape (3,) or a batch of shape (N, 3). Positions are

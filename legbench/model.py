@@ -6,7 +6,7 @@ calibration factors), writes ``models/leg.urdf`` and builds the Pinocchio model
 that :mod:`legbench.kinematics` uses for G(q).
 
 Frames: W is the world (z up, ground z = 0); link frames are the modified-DH
-frames of LEG_SPEC.md section 1, so the URDF child frame of joint i *is* DH
+frames of docs/spec.md section 1, so the URDF child frame of joint i *is* DH
 frame i and the foot frame is E (the foot-sphere centre).
 """
 
@@ -39,7 +39,7 @@ FOOT_FRAME = "foot"
 
 @dataclass(frozen=True)
 class Geometry:
-    """Lengths of LEG_SPEC.md table 1 [m]."""
+    """Lengths of docs/spec.md section 1 [m]."""
 
     H: float
     L_B0: float
@@ -78,7 +78,7 @@ class Inertial:
 
 @dataclass(frozen=True)
 class Contact:
-    """Ground contact law parameters (LEG_SPEC.md section 4)."""
+    """Ground contact law parameters (docs/spec.md section 4)."""
 
     Kp: float  # [N/m]
     Kd: float  # [N s/m]
@@ -296,7 +296,7 @@ def _rz(a: float) -> np.ndarray:
 
 
 def W_T_0(geom: Geometry) -> np.ndarray:
-    """Pose of the fixed base frame 0 in W (LEG_SPEC.md section 1)."""
+    """Pose of the fixed base frame 0 in W (docs/spec.md section 1)."""
     return np.array([[0, -1, 0, geom.L_B0], [0, 0, -1, 0], [1, 0, 0, geom.H], [0, 0, 0, 1]], dtype=float)
 
 

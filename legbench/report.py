@@ -462,6 +462,32 @@ def _backend_table(result: ComparisonResult) -> _Table:
     return _Table(header, tuple(rows), "Backends: status, engine, version and settings (from run.json)")
 
 
+def _residual_table(result: ComparisonResult) -> _Table:
+    rows = []
+    for name, r in result.residuals.items():
+        rows.append((name, str(r.n_contact), _fmt(r.penetration_max * 1e3), _fmt(r.penetration_rel),
+                     str(r.n_sliding), _fmt(r.friction_ratio), _fmt(r.angle_max), str(r.n_creep),
+                     _fmt(r.creep_speed * 1e3), _fmt(r.creep_law * 1e3)))  # fmt: skip
+    return _Table(
+        (
+            "backend",
+            "contact samples",
+            "max |y - Fn_spring/Kp| [mm]",
+            "median |y Kp/Fn - 1|",
+            "sliding samples",
+            "|F_t| / (mu_k Fn) sliding",
+            "max angle F_t vs -v [deg]",
+            "sub-limit samples",
+            "creep [mm/s]",
+            "law's creep [mm/s]",
+        ),  # fmt: skip
+        tuple(rows),
+        "Each backend against the contact law it was meant to follow (docs/metrics.md): penetration against "
+        "the spring, friction magnitude while sliding (1 for the law), friction direction against the slip, "
+        "and creep under a sub-limit load beside the law's v_th |F_t| / (mu_s Fn); n/a where no sample qualifies",
+    )
+
+
 def _blocks(result: ComparisonResult, figures: Sequence[tuple[Path, str]]) -> list[_Block]:
     run = result.run
     sc = run.meta.get("scenario", {})
@@ -491,6 +517,9 @@ def _blocks(result: ComparisonResult, figures: Sequence[tuple[Path, str]]) -> li
         b.append(_Para(n, warn=True))
     b.append(_Heading(2, "Backends"))
     b.append(_backend_table(result))
+    for bk in result.run.backends.values():
+        for w in bk.info.get("warnings") or ():
+            b.append(_Para(f"{bk.name}: {w}", warn=True))
     if result.pairs:
         b.append(_Heading(2, "Deviation from the reference"))
         skip = f" for t >= {run.skip:g} s" if run.skip > 0 else ""
@@ -521,6 +550,9 @@ def _blocks(result: ComparisonResult, figures: Sequence[tuple[Path, str]]) -> li
             )
     b.append(_Heading(2, "Steady state and analytic force check"))
     b.append(_steady_table(result))
+    if any(r.n_contact for r in result.residuals.values()):
+        b.append(_Heading(2, "Contact-law residuals"))
+        b.append(_residual_table(result))
     if result.split:
         b.append(
             _Heading(2, f"Contact model vs integration (with {result.split_run.label if result.split_run else ''})")

@@ -1,4 +1,4 @@
-"""Scenario files: one YAML document describes one task (LEG_SPEC.md section 7).
+"""Scenario files: one YAML document describes one task (docs/spec.md section 7).
 
 Format (every key but ``name``, ``duration`` and ``events`` has a default)::
 
@@ -52,7 +52,7 @@ from legbench.model import load_params
 from legbench.trajectories import ellipse_waypoints
 from legbench.yamlfile import YamlContext, check_keys, integer, number, read_yaml, set_key, vector
 
-CONTROLLERS = ("position", "trajectory", "ellipse", "effort")
+CONTROLLERS = ("position", "trajectory", "ellipse", "effort", "torque")
 #: Scenario names become directory names: no separators, nothing that can climb out.
 #: Longest run accepted: 1e7 ticks (2.8 h at 1 kHz) keep the log under ~1.3 GB.
 MAX_TICKS = 10_000_000
@@ -81,6 +81,8 @@ class Event:
         waypoints: foot-centre waypoints in W [m], shape (n, 3) (trajectory, ellipse).
         times: waypoint times after ``t`` [s] (trajectory, ellipse).
         force: desired force h_d the foot exerts on the environment, in W [N] (effort).
+        amplitude, frequency, phase: open-loop joint torques
+            tau_i = amplitude_i sin(2 pi frequency_i (t - t_event) + phase_i), in [N m], [Hz], [rad] (torque).
         params: the event's own keys as written (for the report).
         delay: the switch happens at ``t + delay`` [s]; until then the previous controller
             keeps running (the lab report's ROS latency: 13 ms to switch to effort control).
@@ -95,6 +97,9 @@ class Event:
     waypoints: tuple[tuple[float, ...], ...] = ()
     times: tuple[float, ...] = ()
     force: tuple[float, ...] | None = None
+    amplitude: tuple[float, ...] | None = None
+    frequency: tuple[float, ...] | None = None
+    phase: tuple[float, ...] | None = None
     params: Mapping[str, Any] = field(default_factory=dict, hash=False, compare=False)
     delay: float = 0.0
     force_delay: float = 0.0
@@ -265,6 +270,14 @@ def _event_body(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
             if not kinematics.ik(point):
                 raise ctx.error(bp, f"ellipse point {i} at W {np.round(point, 4).tolist()} is unreachable")
         return Event(t, "trajectory", waypoints=tuple(map(tuple, P)), times=tuple(tw.tolist()), params=params)
+    if kind == "torque":
+        check_keys(ctx, bp, body, ["amplitude", "frequency", "phase"], ["amplitude", "frequency"])
+        amp = vector(ctx, [*bp, "amplitude"], body["amplitude"])
+        freq = vector(ctx, [*bp, "frequency"], body["frequency"])
+        for i, f in enumerate(freq):
+            number(ctx, [*bp, "frequency", i], f, nonneg=True)
+        phase = vector(ctx, [*bp, "phase"], body.get("phase", [0.0, 0.0, 0.0]))
+        return Event(t, kind, amplitude=amp, frequency=freq, phase=phase, params=params)
     check_keys(ctx, bp, body, ["force"], ["force"])
     return Event(t, kind, force=vector(ctx, [*bp, "force"], body["force"]), params=params)
 

@@ -14,8 +14,8 @@ import pytest
 
 from legbench import backends as registry
 from legbench.contact import ContactParams
-from legbench.contact_study import SteadyContact, run_case
 from legbench.model import ROOT
+from legbench.studies.contact_study import SteadyContact, run_case
 
 BACKENDS = ("pinocchio", "mujoco", "pybullet")
 PROFILES = ("matched", "engine-defaults")

@@ -104,7 +104,7 @@ def test_residuals_on_the_effort_task(backend: str) -> None:
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_sliding_case_passes(backend: str) -> None:
     _need(backend)
-    from legbench.sliding_case import ROW_KEYS, sliding_case
+    from legbench.studies.sliding_case import ROW_KEYS, sliding_case
 
     rows = sliding_case(backend)
     assert len(rows) == 3 and all(tuple(r) == ROW_KEYS for r in rows)
@@ -114,7 +114,7 @@ def test_sliding_case_passes(backend: str) -> None:
 
 
 def test_sliding_case_unknown_backend_is_a_failed_row() -> None:
-    from legbench.sliding_case import sliding_case
+    from legbench.studies.sliding_case import sliding_case
 
     rows = sliding_case("no-such-engine")
     assert len(rows) == 1 and rows[0]["passed"] is False and "no-such-engine" in rows[0]["note"]
@@ -167,7 +167,7 @@ def test_sliding_case_engine_defaults(backend: str) -> None:
     cone slides with |F_t| = mu_s Fn but not opposite the slip (measured 10 deg: friction along the pyramid's
     edges), and its 1 ms step with the default impedance lets the foot hop, so the closed form misses."""
     _need(backend)
-    from legbench.sliding_case import sliding_case
+    from legbench.studies.sliding_case import sliding_case
 
     rows = {r["quantity"].split()[0]: r for r in sliding_case(backend, "engine-defaults")}
     assert rows["friction"]["passed"], rows["friction"]

@@ -10,6 +10,7 @@ from legbench import kinematics as K
 from legbench.controllers import (
     PID,
     EffortController,
+    TorqueController,
     TrajectoryController,
     joint_waypoints,
     saturate,
@@ -98,6 +99,18 @@ def test_effort_controller_is_jt_h_plus_gravity() -> None:
     ctrl = EffortController(Event(0.0, "effort", force=(0.0, 0.0, -100.0)))
     tau = ctrl(0, q, np.zeros(3))
     np.testing.assert_allclose(tau, K.jacobian(q).T @ [0, 0, -100.0] + K.gravity(q), atol=1e-12)
+
+
+def test_torque_controller_is_open_loop_sinusoids_from_its_activation() -> None:
+    """tau_i = A_i sin(2 pi f_i (k Ts - t_event) + phi_i) whatever the state: by hand at a few ticks (1e-15 N m)."""
+    ev = Event(0.5, "torque", amplitude=(0.01, 0.02, -0.03), frequency=(3.0, 1.0, 0.0), phase=(0.0, 0.5, 1.0))
+    ctrl = TorqueController(ev, TS)
+    ctrl.start(0.5, np.zeros(3), np.zeros(3))
+    for k in (500, 583, 1234):
+        t = (k - 500) * TS
+        want = [0.01 * np.sin(6 * np.pi * t), 0.02 * np.sin(2 * np.pi * t + 0.5), -0.03 * np.sin(1.0)]
+        np.testing.assert_allclose(ctrl(k, np.array([1.0, -2.0, 0.3]), np.array([5.0, 0, 0])), want, atol=1e-15)
+        np.testing.assert_array_equal(ctrl(k, np.zeros(3), np.zeros(3)), ctrl(k, np.ones(3), -np.ones(3)))
 
 
 def _bits(x: np.ndarray | tuple[float, ...]) -> np.ndarray:

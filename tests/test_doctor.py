@@ -55,12 +55,39 @@ def _heavier_link2_dart(b: Any) -> None:
     body.setMass(body.getMass() * (1 + 1e-4))
 
 
+def _heavier_link2_lagrange(b: Any) -> None:
+    """The equations re-derived (and cached) for a link 2 1e-4 heavier: dynamics and read-back change together."""
+    import dataclasses
+
+    from legbench.backends.lagrange_eom import leg_chain, load_eom
+    from legbench.model import load_params
+
+    chain = leg_chain(load_params())
+    link2 = dataclasses.replace(chain.links[1], mass=chain.links[1].mass * (1 + 1e-4))
+    b.eom = load_eom(dataclasses.replace(chain, links=(chain.links[0], link2, chain.links[2])))
+    b._qdd = b.eom.module.qdd
+
+
+def _heavier_link2_ode(b: Any) -> None:
+    import ctypes
+
+    import odepy as ode
+
+    body = b.bodies[1]
+    mass = ode.dMass()
+    ode.dBodyGetMass(body, ctypes.byref(mass))
+    ode.dMassAdjust(ctypes.byref(mass), mass.mass * (1 + 1e-4))
+    ode.dBodySetMass(body, ctypes.byref(mass))
+
+
 PLANT: dict[str, Callable[[Any], None]] = {
     "pinocchio": _heavier_link2_pinocchio,
     "mujoco": _heavier_link2_mujoco,
     "pybullet": _heavier_link2_pybullet,
     "drake": _heavier_link2_drake,
     "dart": _heavier_link2_dart,
+    "lagrange": _heavier_link2_lagrange,
+    "ode": _heavier_link2_ode,
 }
 
 

@@ -164,3 +164,24 @@ def test_delayed_switch_and_force_delay_tau_is_gravity_compensation() -> None:
         expect = kinematics.jacobian(tr.q[k]).T @ np.array(h_d) + kinematics.gravity(tr.q[k])
         np.testing.assert_allclose(tr.tau[k], np.clip(expect, -LIMIT, LIMIT), rtol=0, atol=1e-12)
     assert np.abs(tr.tau[270] - kinematics.gravity(tr.q[270])).max() > 0.1  # the force is on
+
+
+def test_backend_warnings_reach_run_json_and_residuals_reach_metrics(tmp_path: Path) -> None:
+    """Explicit stick-slip friction at 50 us is coarser than m v_th / (mu_s Fn) on the effort task: the backend
+    says so and run.json keeps it; the implicit default gives no warning. The law's own backend follows the
+    law: its penetration residual |y - Fn_spring/Kp| is round-off (< 1e-9 m against ~5 mm of penetration)."""
+    from legbench.compare import compare
+
+    root = Path(__file__).resolve().parent.parent / "scenarios"
+    sc = scenario.load(root / "effort.yaml", {"duration": 0.6, "backends.pinocchio.friction": "explicit"})
+    (tr,) = run.run(sc, ["pinocchio"], tmp_path / "explicit", progress=False)
+    assert tr.info["warnings"] and "v_th" in " ".join(tr.info["warnings"])
+    assert results.read_meta(tmp_path / "explicit")["backends"]["pinocchio"]["info"]["warnings"] == tr.info["warnings"]
+    sc = scenario.load(root / "effort.yaml", {"duration": 0.6})
+    (tr,) = run.run(sc, ["pinocchio"], tmp_path / "implicit", progress=False)
+    assert tr.info["warnings"] == []
+    df = compare(tmp_path / "implicit").frame()
+    pen = df[(df.backend == "pinocchio") & (df.metric == "residual_penetration_max")]["value"]
+    assert len(pen) == 1 and float(pen.iloc[0]) < 1e-9
+    n = df[(df.backend == "pinocchio") & (df.metric == "residual_n_contact")]["value"]
+    assert float(n.iloc[0]) == 600  # every tick but t = 0, where q* holds the foot 4 um above the ground

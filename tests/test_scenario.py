@@ -30,6 +30,15 @@ def test_ellipse_task_runs_two_laps_after_a_one_second_approach() -> None:
     assert sc.duration >= ev.times[-1]
 
 
+def test_validation_scenario_is_gravity_free_sinusoidal_torque_from_rest() -> None:
+    """The report's validation run: g = 0, u_i = 0.01 sin(6 pi t) N m on every joint, from q = 0."""
+    sc = scenario.load(SCENARIOS / "validation.yaml")
+    (ev,) = sc.events
+    assert sc.gravity == 0.0 and sc.q0 == (0.0, 0.0, 0.0) and sc.qd0 == (0.0, 0.0, 0.0)
+    assert ev.controller == "torque" and ev.t == 0.0
+    assert ev.amplitude == (0.01,) * 3 and ev.frequency == (3.0,) * 3 and ev.phase == (0.0,) * 3
+
+
 def _write(tmp_path: Path, doc: dict) -> Path:  # type: ignore[type-arg]
     p = tmp_path / "s.yaml"
     p.write_text(yaml.safe_dump(doc))
@@ -50,6 +59,9 @@ BASE = {"name": "t", "duration": 1.0, "events": [{"t": 0.0, "position": {"joint"
          "outside the joint limits"),
         ({"physics": {"contact": {"Kp": "stiff"}}}, "physics.contact.Kp", "expected a number"),
         ({"events": [{"t": 0.0, "effort": {"force": [0, 0]}}]}, "events[0].effort.force", "list of 3"),
+        ({"events": [{"t": 0.0, "torque": {"amplitude": [0.1, 0.1, 0.1]}}]}, "events[0].torque", "frequency"),
+        ({"events": [{"t": 0.0, "torque": {"amplitude": [0.1] * 3, "frequency": [1, -1, 1]}}]},
+         "events[0].torque.frequency[1]", ">= 0"),
         ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}}, {"t": 2.0, "effort": {"force": [0, 0, -1]}}]},
          "events[1].t", "past the end"),
         ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}},

@@ -31,13 +31,16 @@ __all__ = [
     "sub_step_count",
 ]
 
-#: Built-in backends: name -> (module, class, pip package that provides the engine).
+#: Built-in backends: name -> (module, class, pip package that provides the engine, or the
+#: whole install command where a pip package is not enough, e.g. a system library too).
 BUILTIN: dict[str, tuple[str, str, str]] = {
     "pinocchio": ("legbench.backends.pinocchio_", "PinocchioBackend", "pin"),
     "mujoco": ("legbench.backends.mujoco_", "MujocoBackend", "mujoco"),
     "pybullet": ("legbench.backends.pybullet_", "PybulletBackend", "pybullet"),
     "drake": ("legbench.backends.drake_", "DrakeBackend", "drake"),
     "dart": ("legbench.backends.dart_", "DartBackend", "dartpy"),
+    "lagrange": ("legbench.backends.lagrange_", "LagrangeBackend", "sympy"),
+    "ode": ("legbench.backends.ode_", "OdeBackend", "apt-get install -y libode8 && pip install ode-python"),
 }
 
 _MISSING: dict[str, str] = {}
@@ -48,7 +51,8 @@ def _load_builtin(name: str) -> type[Backend] | None:
     try:
         return getattr(importlib.import_module(module), cls)  # type: ignore[no-any-return]
     except ImportError as exc:
-        _MISSING[name] = f"pip install {package} ({exc})"
+        command = package if " " in package else f"pip install {package}"
+        _MISSING[name] = f"{command} ({exc})"
         return None
 
 

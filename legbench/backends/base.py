@@ -116,6 +116,10 @@ class Backend(ABC):
     #: The ContactParams coefficient the backend's native contact slides with: ``mu_k`` for the
     #: stick-slip law, ``mu_s`` for an engine whose friction has a single (Coulomb) coefficient.
     sliding_coefficient: ClassVar[str] = "mu_k"
+    #: The shape of the native friction limit: ``cone`` (isotropic, |F_t| <= mu Fn, what the law and
+    #: the sliding verification's closed form assume) or ``pyramid`` (each tangent axis of the contact
+    #: frame limited on its own, so |F_t| reaches sqrt(2) mu Fn on the diagonal).
+    friction_cone: ClassVar[str] = "cone"
     #: Where the native contact applies its force, as the fraction of the penetration y above the
     #: sphere's lowest point (0: the true poc; MuJoCo: 0.5, the middle of the penetration).
     contact_point_lift: ClassVar[float] = 0.0
@@ -169,6 +173,11 @@ class Backend(ABC):
     @abstractmethod
     def sub_steps(self) -> int:
         """Engine steps per control period (1 for an adaptive solve per period)."""
+
+    def engine_contact(self) -> bool:
+        """True if the engine has a contact model of its own, which ``native`` mode uses; False if it has
+        none and both contact modes apply the analytic law of :mod:`legbench.contact`."""
+        return True
 
     @abstractmethod
     def limits(self) -> Limits:

@@ -136,6 +136,8 @@ class DrakeBackend(Backend):
     """Drake (MultibodyPlant; SAP, TAMSI or continuous) simulating the leg."""
 
     name: ClassVar[str] = "drake"
+    #: Drake's discrete solvers slide with the dynamic coefficient alone, which legbench sets to mu_s.
+    sliding_coefficient: ClassVar[str] = "mu_s"
     defaults: ClassVar[Mapping[str, Any]] = {
         "solver": "sap",  # one of SOLVERS
         "dt": 1.0e-4,  # discrete time step [s] (ignored by "continuous", which takes one solve per period)
@@ -146,11 +148,13 @@ class DrakeBackend(Backend):
         "accuracy": 1.0e-6,  # continuous: target accuracy of the error-controlled runge_kutta3
         "resolution_hint": 5.0e-3,  # hydroelastic: mesh edge length of the foot sphere [m]
         "sap_near_rigid_threshold": 1.0,  # SAP's near-rigid regime threshold (Drake's default)
+        "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
     }
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "solver": SOLVERS,
         "contact_model": CONTACT_MODELS,
         "contact_params": CONTACT_PARAMS,
+        "reference_friction": ("implicit", "explicit"),
     }
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "matched": {},
@@ -195,6 +199,9 @@ class DrakeBackend(Backend):
         with _drake_log_level(logging.ERROR):
             self._build(urdf, physics, plant_cfg, usual)
         self.contact = ReferenceContact.from_leg(c)
+        self._implicit = self.reference and cfg["reference_friction"] == "implicit"
+        if self._implicit:
+            self.contact.use_implicit_friction(physics.gravity)
         self._hi = np.asarray(physics.torque_limit, float)
         self._lo = -self._hi
         self._tau = np.zeros(3)
@@ -348,9 +355,14 @@ class DrakeBackend(Backend):
         _set(self._act, self._tau)
         Ts, n, h = self.physics.control_dt, self.n_sub, self._h
         if self.reference:
-            q, qd, law = self._q, self._qd, self.contact.generalized
+            q, qd, u = self._q, self._qd, self._tau
+            implicit = self._implicit
+            law, law_i = self.contact.generalized, self.contact.implicit_generalized
             for k in range(n):
-                _set(self._gen, law(q[0], q[1], q[2], qd[0], qd[1], qd[2]))
+                if implicit:  # the friction slope linearly implicit over the sub-step (docs/pinocchio.md)
+                    _set(self._gen, law_i(q[0], q[1], q[2], qd[0], qd[1], qd[2], u[0], u[1], u[2], h))
+                else:
+                    _set(self._gen, law(q[0], q[1], q[2], qd[0], qd[1], qd[2]))
                 self.simulator.AdvanceTo((self.tick * n + k + 1) * h)
                 self._read()
             self._reference_force()

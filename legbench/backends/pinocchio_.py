@@ -3,7 +3,8 @@
 Forward dynamics qdd = aba(q, qd, tau + tau_c + tau_lim): tau_c = J_poc^T F is the
 analytic ground force (:mod:`legbench.contact`) applied at the point of contact,
 equivalent to an external force on the foot; tau_lim is a stiff one-sided
-spring-damper at the revolute joint limits (ABA knows no limits), which makes
+spring-damper at the revolute joint limits (ABA knows no limits;
+:mod:`legbench.backends.joint_limits`), which makes
 the knee stop like the engines' limit constraints: 10 N m pushing the knee into
 its 2.229 rad limit rests at 2.230 rad (1e4 N m/rad); MuJoCo rests at 2.2292
 after overshooting to 2.252, PyBullet's hard limit peaks at 2.2293.
@@ -48,7 +49,9 @@ import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
+from legbench.backends import joint_limits
 from legbench.backends.base import Backend, Limits, Physics, sub_step_count
+from legbench.backends.joint_limits import JointLimitLaw
 from legbench.contact import ReferenceContact, implicit_velocity_step, law_step_warnings
 from legbench.exceptions import LegbenchError
 from legbench.model import LINK_NAMES, load_params
@@ -64,8 +67,8 @@ class PinocchioBackend(Backend):
         "rtol": 1.0e-8,  # adaptive integrators only
         "atol": 1.0e-10,
         "max_step": 1.0e-4,  # [s], adaptive only (the report's ode45 setting)
-        "limit_stiffness": 1.0e4,  # [N m/rad]
-        "limit_damping": 20.0,  # [N m s/rad], about critical for the knee (I ~ 0.01 kg m^2)
+        "limit_stiffness": joint_limits.STIFFNESS,  # [N m/rad]
+        "limit_damping": joint_limits.DAMPING,  # [N m s/rad], about critical for the knee (I ~ 0.01 kg m^2)
         "friction": "implicit",  # euler only: friction slope linearly implicit (docs/pinocchio.md)
     }
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
@@ -93,10 +96,8 @@ class PinocchioBackend(Backend):
         p = load_params()
         self.lower = [j.lower for j in p.joints]
         self.upper = [j.upper for j in p.joints]
-        # joints 1 and 3 are revolute (limited); the hip (joint 2) is continuous
-        self._limits = (float(self.lower[0]), float(self.lower[2]), float(self.upper[0]), float(self.upper[2]))
-        self.k_lim = float(self.cfg["limit_stiffness"])
-        self.b_lim = float(self.cfg["limit_damping"])
+        #: tau_lim at the revolute limits (the continuous hip has none: +-inf)
+        self.limit_law = JointLimitLaw(self.lower, self.upper, self.cfg["limit_stiffness"], self.cfg["limit_damping"])
         self._qp = np.zeros(self.model.nq)
         self._v = np.zeros(3)
         self._tau = np.zeros(3)
@@ -125,18 +126,8 @@ class PinocchioBackend(Backend):
         q1, q2, q3 = q
         qd1, qd2, qd3 = qd
         tc1, tc2, tc3, _, _, _ = self.law(q1, q2, q3, qd1, qd2, qd3)
-        t1, t2, t3 = tau[0] + tc1, tau[1] + tc2, tau[2] + tc3
-        lo1, lo3, hi1, hi3 = self._limits
-        k, b = self.k_lim, self.b_lim
-        # revolute limits: one-sided spring-damper
-        if q1 > hi1:
-            t1 -= k * (q1 - hi1) + (b * qd1 if qd1 > 0 else 0.0)
-        elif q1 < lo1:
-            t1 -= k * (q1 - lo1) + (b * qd1 if qd1 < 0 else 0.0)
-        if q3 > hi3:
-            t3 -= k * (q3 - hi3) + (b * qd3 if qd3 > 0 else 0.0)
-        elif q3 < lo3:
-            t3 -= k * (q3 - lo3) + (b * qd3 if qd3 < 0 else 0.0)
+        tl1, tl2, tl3 = self.limit_law(q1, q2, q3, qd1, qd2, qd3)
+        t1, t2, t3 = tau[0] + tc1 + tl1, tau[1] + tc2 + tl2, tau[2] + tc3 + tl3
         qp, v, t = self._qp, self._v, self._tau
         qp[0], qp[1], qp[2], qp[3] = q1, math.cos(q2), math.sin(q2), q3
         v[0], v[1], v[2] = qd1, qd2, qd3
@@ -150,22 +141,14 @@ class PinocchioBackend(Backend):
         aba, model, data, law = self._aba, self.model, self.data, self.law
         qp, v, t = self._qp, self._v, self._tau
         cos, sin = math.cos, math.sin
-        lo1, lo3, hi1, hi3 = self._limits
-        k, b = self.k_lim, self.b_lim
+        limit_law = self.limit_law
         u1, u2, u3 = np.asarray(tau, dtype=float).tolist()
         q1, q2, q3 = self.q
         qd1, qd2, qd3 = self.qd
         for _ in range(self.n_sub):
             tc1, tc2, tc3, _, _, _ = law(q1, q2, q3, qd1, qd2, qd3)
-            t1, t2, t3 = u1 + tc1, u2 + tc2, u3 + tc3
-            if q1 > hi1:
-                t1 -= k * (q1 - hi1) + (b * qd1 if qd1 > 0 else 0.0)
-            elif q1 < lo1:
-                t1 -= k * (q1 - lo1) + (b * qd1 if qd1 < 0 else 0.0)
-            if q3 > hi3:
-                t3 -= k * (q3 - hi3) + (b * qd3 if qd3 > 0 else 0.0)
-            elif q3 < lo3:
-                t3 -= k * (q3 - lo3) + (b * qd3 if qd3 < 0 else 0.0)
+            tl1, tl2, tl3 = limit_law(q1, q2, q3, qd1, qd2, qd3)
+            t1, t2, t3 = u1 + tc1 + tl1, u2 + tc2 + tl2, u3 + tc3 + tl3
             qp[0], qp[1], qp[2], qp[3] = q1, cos(q2), sin(q2), q3
             v[0], v[1], v[2] = qd1, qd2, qd3
             t[0], t[1], t[2] = t1, t2, t3
@@ -196,8 +179,7 @@ class PinocchioBackend(Backend):
         aba, model, data, slope = self._aba, self.model, self.data, self.slope
         qp, v, t = self._qp, self._v, self._tau
         cos, sin = math.cos, math.sin
-        lo1, lo3, hi1, hi3 = self._limits
-        k, b = self.k_lim, self.b_lim
+        limit_law = self.limit_law
         u1, u2, u3 = np.asarray(tau, dtype=float).tolist()
         q1, q2, q3 = self.q
         qd1, qd2, qd3 = self.qd
@@ -205,15 +187,8 @@ class PinocchioBackend(Backend):
         solve = implicit_velocity_step
         for _ in range(self.n_sub):
             tc1, tc2, tc3, _, _, _, K11, K12, K13, K22, K23, K33 = slope(q1, q2, q3, qd1, qd2, qd3)
-            t1, t2, t3 = u1 + tc1, u2 + tc2, u3 + tc3
-            if q1 > hi1:
-                t1 -= k * (q1 - hi1) + (b * qd1 if qd1 > 0 else 0.0)
-            elif q1 < lo1:
-                t1 -= k * (q1 - lo1) + (b * qd1 if qd1 < 0 else 0.0)
-            if q3 > hi3:
-                t3 -= k * (q3 - hi3) + (b * qd3 if qd3 > 0 else 0.0)
-            elif q3 < lo3:
-                t3 -= k * (q3 - lo3) + (b * qd3 if qd3 < 0 else 0.0)
+            tl1, tl2, tl3 = limit_law(q1, q2, q3, qd1, qd2, qd3)
+            t1, t2, t3 = u1 + tc1 + tl1, u2 + tc2 + tl2, u3 + tc3 + tl3
             qp[0], qp[1], qp[2], qp[3] = q1, cos(q2), sin(q2), q3
             v[0], v[1], v[2] = qd1, qd2, qd3
             t[0], t[1], t[2] = t1, t2, t3
@@ -329,6 +304,10 @@ class PinocchioBackend(Backend):
         integ = self.cfg["integrator"]
         return integ if integ in ("euler", "rk4") else "adaptive"
 
+    def engine_contact(self) -> bool:
+        """No contact model of its own: native and reference mode both apply the analytic law."""
+        return False
+
     def sub_steps(self) -> int:
         return self.n_sub
 
@@ -341,7 +320,7 @@ class PinocchioBackend(Backend):
             upper=tuple(float(x) for x in self.upper),  # type: ignore[arg-type]
             effort=tuple(float(x) for x in m.effortLimit),  # type: ignore[arg-type]
             timestep=self.h if self.cfg["integrator"] in ("euler", "rk4") else None,
-            enforcement=f"one-sided spring-damper {self.k_lim:g} N m/rad, {self.b_lim:g} N m s/rad",
+            enforcement=self.limit_law.describe(),
         )
 
     def kernels(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> dict[str, Any]:

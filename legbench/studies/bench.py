@@ -68,7 +68,7 @@ __all__ = [
 ]
 
 ROOT = Path(__file__).resolve().parents[2]
-#: The four tasks of LEG_SPEC.md section 7, benchmarked by default.
+#: The four tasks of docs/spec.md section 7, benchmarked by default.
 TASKS = tuple(ROOT / "scenarios" / f"{name}.yaml" for name in ("position", "ellipse", "effort", "combined"))
 DEFAULT_REPEATS = 5
 DEFAULT_WARMUP = 1
@@ -559,7 +559,7 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
                    help="override a scenario key, e.g. --set backends.<name>.dt=1e-4 (10 sub-steps)")  # fmt: skip
     p.add_argument("--no-memory", action="store_true", help="skip the (untimed, tracemalloc) memory run")
     p.add_argument("--out", default=str(DEFAULT_OUT), help=f"output directory (default {DEFAULT_OUT})")
-    p.add_argument("--check", action="store_true", help="exit 1 if a target of issue #7 is missed")
+    p.add_argument("--check", action="store_true", help="exit 1 if a performance target is missed")
     p.add_argument("-q", "--quiet", action="store_true", help="no per-row progress lines")
     p.set_defaults(func=_cli)
 

@@ -7,7 +7,7 @@ mean joint velocities (creep), how far the foot moved after the first 50 ms,
 and the read-out error against the leg's own statics
 h = -(J_poc^T)^-1 (tau - G(q)) (the force of the ground on the foot in W).
 :func:`run_case` runs a scenario on one backend with a profile and settings;
-``python -m legbench.contact_study`` prints the table of a grid (the study of
+``python -m legbench.studies.contact_study`` prints the table of a grid (the study of
 ``scenarios/sweeps/contact_profiles.yaml``, with these columns).
 """
 
@@ -152,7 +152,7 @@ def _value(text: str) -> Any:
 
 
 def main(argv: Sequence[str] | None = None) -> None:
-    """``python -m legbench.contact_study SCENARIO BACKEND [--profile P] [--grid key=v1,v2 ...]``."""
+    """``python -m legbench.studies.contact_study SCENARIO BACKEND [--profile P] [--grid key=v1,v2 ...]``."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scenario")
     ap.add_argument("backend")

@@ -1,0 +1,229 @@
+"""The lab report's own analytic model: symbolic Euler-Lagrange equations of the leg, integrated by scipy.
+
+The equations of motion B(q) qdd + C(q, qd) qd + G(q) = tau + tau_c + tau_lim are
+derived with sympy from the leg model (:mod:`legbench.backends.lagrange_eom`: link
+frames from the modified DH parameters, energies from the model's inertials, link 3
+with the foot), generated once as Python code and cached by the SHA-256 of the
+model's numbers, so a run only imports them. This is a dynamics implementation of
+its own: it shares no code with the Pinocchio backend beyond the contact law and
+the joint-limit law that every custom integrator uses.
+
+Per control period the torque is held and one ``scipy.integrate.solve_ivp`` solve
+covers the period (the report's custom simulation: RK45, rtol 1e-8, atol 1e-6,
+max step 1e-4 s). tau_c = J_poc^T F is the analytic ground contact law of
+:mod:`legbench.contact` evaluated at every right-hand-side call; tau_lim the
+one-sided spring-damper of :mod:`legbench.backends.joint_limits` at the revolute
+limits. The model has no contact of its own, so both contact modes, ``native``
+and ``reference``, apply that same law.
+
+Profiles: ``matched`` takes the point of contact from the scenario's contact
+parameters (the true poc, the sphere's lowest point, unless the scenario says
+otherwise); ``engine-defaults`` is the report's custom simulation as it ran,
+with the poc at the sphere centre.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+from collections.abc import Callable, Mapping
+from importlib import metadata
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from legbench.backends import joint_limits
+from legbench.backends.base import Backend, Limits, Physics
+from legbench.backends.joint_limits import JointLimitLaw
+from legbench.backends.lagrange_eom import GENERATOR_VERSION, Loaded, leg_chain, load_eom
+from legbench.contact import ReferenceContact
+from legbench.exceptions import LegbenchError
+from legbench.model import LINK_NAMES, load_params
+
+# The derivation needs sympy; a cached load does not import it, so only its presence is checked here
+# (the registry reports the backend missing, with the command that installs it, when it is absent).
+if importlib.util.find_spec("sympy") is None:
+    raise ImportError("No module named 'sympy' (the lagrange backend derives its equations with it)")
+
+#: Setting ``integrator`` -> scipy solve_ivp method (the Pinocchio backend's names for the same solvers).
+_METHODS = {"rk45": "RK45", "dop853": "DOP853"}
+_POC = ("physics", "true", "centre")
+
+
+class LagrangeBackend(Backend):
+    """Symbolic Euler-Lagrange model of the leg + the analytic contact law, integrated by solve_ivp."""
+
+    name: ClassVar[str] = "lagrange"
+    defaults: ClassVar[Mapping[str, Any]] = {
+        "integrator": "rk45",  # scipy solve_ivp RK45 (or "dop853"), one solve per control period
+        "rtol": 1.0e-8,  # the report's custom simulation
+        "atol": 1.0e-6,
+        "max_step": 1.0e-4,  # [s]
+        "poc": "physics",  # "physics": as the scenario's contact parameters say; "true"; "centre"
+        "limit_stiffness": joint_limits.STIFFNESS,  # [N m/rad]
+        "limit_damping": joint_limits.DAMPING,  # [N m s/rad]
+        "cache_dir": "",  # generated equations; "" = $LEGBENCH_CACHE_DIR or the user cache (~/.cache/legbench)
+    }
+    choices: ClassVar[Mapping[str, tuple[str, ...]]] = {"integrator": tuple(_METHODS), "poc": _POC}
+    profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
+        "matched": {},
+        "engine-defaults": {"poc": "centre"},  # the report's custom simulation: poc at the sphere centre
+    }
+    install: ClassVar[str] = "pip install 'sympy>=1.12,<2'"
+
+    # ----------------------------------------------------------------- load
+    def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
+        """Load (or derive once and cache) the leg's equations of motion and set up the solve.
+
+        Args:
+            urdf: the generated leg URDF (unused: the model is built from the same parameter file
+                the URDF is generated from, :func:`legbench.model.load_params`).
+            physics: gravity, contact law and mode, control period, torque limits.
+            settings: overrides of :attr:`defaults`.
+
+        Raises:
+            LegbenchError: an unknown integrator or poc.
+        """
+        cfg = self.settings(settings)
+        for key, allowed in self.choices.items():
+            if cfg[key] not in allowed:
+                raise LegbenchError(f"lagrange: unknown {key} '{cfg[key]}'; choose one of {list(allowed)}")
+        self.cfg = cfg
+        self.physics = physics
+        params = load_params()
+        #: The generated equations and whether this load derived them (cold) or read the cache.
+        self.eom: Loaded = load_eom(leg_chain(params), cfg["cache_dir"] or None)
+        self._qdd = self.eom.module.qdd
+        poc = physics.contact.poc if cfg["poc"] == "physics" else cfg["poc"]
+        self.contact_params = dataclasses.replace(physics.contact, poc=poc)
+        self.contact = ReferenceContact.from_leg(self.contact_params)
+        #: The contact law called at every right-hand-side evaluation (floats in, (tau_c, F) out).
+        self.law = self.contact.wrench
+        self.lower = tuple(float(j.lower) for j in params.joints)
+        self.upper = tuple(float(j.upper) for j in params.joints)
+        self.limit_law = JointLimitLaw(self.lower, self.upper, cfg["limit_stiffness"], cfg["limit_damping"])
+        self.effort = tuple(float(x) for x in physics.torque_limit)
+        self.g = float(physics.gravity)
+        self._span = (0.0, float(physics.control_dt))
+        self._solve = {"method": _METHODS[cfg["integrator"]], "rtol": float(cfg["rtol"]), "atol": float(cfg["atol"]),
+                       "max_step": float(cfg["max_step"])}  # fmt: skip
+        self._u = (0.0, 0.0, 0.0)
+        self.x = np.zeros(6)
+        self.force = np.zeros(3)
+        #: Right-hand-side evaluations in the last step (cost accounting).
+        self.nfev = 0
+
+    # ---------------------------------------------------------------- reset
+    def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
+        self.x = np.concatenate([np.asarray(q, dtype=float), np.asarray(qd, dtype=float)])
+        self._update_force()
+
+    # ----------------------------------------------------------------- step
+    def rhs(self, _t: float, x: np.ndarray) -> np.ndarray:
+        """d/dt (q, qd) = (qd, qdd) under the held torque, the contact law and the limit law."""
+        q1, q2, q3, qd1, qd2, qd3 = x.tolist()
+        u1, u2, u3 = self._u
+        tc1, tc2, tc3, _, _, _ = self.law(q1, q2, q3, qd1, qd2, qd3)
+        tl1, tl2, tl3 = self.limit_law(q1, q2, q3, qd1, qd2, qd3)
+        a1, a2, a3 = self._qdd(q1, q2, q3, qd1, qd2, qd3, u1 + tc1 + tl1, u2 + tc2 + tl2, u3 + tc3 + tl3, self.g)
+        return np.array((qd1, qd2, qd3, a1, a2, a3))
+
+    def step(self, tau: np.ndarray) -> None:
+        """One control period with tau [N m] (clamped to the torque limits) held, one adaptive solve."""
+        t1, t2, t3 = np.asarray(tau, dtype=float).tolist()
+        e1, e2, e3 = self.effort
+        self._u = (min(max(t1, -e1), e1), min(max(t2, -e2), e2), min(max(t3, -e3), e3))
+        sol = solve_ivp(self.rhs, self._span, self.x, **self._solve)
+        if not sol.success:
+            raise LegbenchError(f"lagrange: {self.cfg['integrator']} failed: {sol.message}")
+        self.x = sol.y[:, -1]
+        self.nfev = int(sol.nfev)
+        self._update_force()
+
+    def _update_force(self) -> None:
+        q1, q2, q3, qd1, qd2, qd3 = self.x.tolist()
+        f = self.force
+        _, _, _, f[0], f[1], f[2] = self.law(q1, q2, q3, qd1, qd2, qd3)
+
+    # ----------------------------------------------------------------- read
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.x[:3].copy(), self.x[3:].copy()
+
+    def ground_force(self) -> np.ndarray:
+        return self.force.copy()
+
+    def info(self) -> dict[str, Any]:
+        c = self.contact_params
+        return {
+            "engine": "lagrange",
+            "version": f"sympy {metadata.version('sympy')}, generator {GENERATOR_VERSION}",
+            **{k: self.cfg[k] for k in self.defaults},
+            "sub_steps": 1,
+            "gravity": self.physics.gravity,
+            "contact_mode": self.physics.contact_mode,
+            "eom_key": self.eom.module.KEY[:16],
+            "contact": {
+                "law": "analytic (the lab report's contact law), J_poc^T F; no engine contact, so native = reference",
+                "Kp": c.Kp,
+                "Kd": c.Kd,
+                "mu_s": c.mu_s,
+                "mu_k": c.mu_k,
+                "v_th": c.v_th,
+                "poc": c.poc,
+            },
+            "readback": {
+                "gravity": self.g,
+                "lower": list(self.lower),
+                "upper": list(self.upper),
+                "effort": list(self.effort),
+            },
+        }
+
+    # ------------------------------------------------------- declared abilities
+    def integrator_family(self) -> str:
+        return "adaptive"
+
+    def engine_contact(self) -> bool:
+        """No contact model of its own: native and reference mode both apply the analytic law."""
+        return False
+
+    def sub_steps(self) -> int:
+        return 1
+
+    def limits(self) -> Limits:
+        """Gravity of the solve, the clamped torque limits, position limits as the limit law enforces them."""
+        return Limits(
+            gravity=self.g,
+            lower=self.lower,  # type: ignore[arg-type]
+            upper=self.upper,  # type: ignore[arg-type]
+            effort=self.effort,  # type: ignore[arg-type]
+            timestep=None,
+            enforcement=self.limit_law.describe(),
+        )
+
+    def kernels(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> dict[str, Callable[[], None]]:
+        """The generated forward dynamics and the contact law, as one right-hand-side evaluation calls them."""
+        qdd, law, g = self._qdd, self.law, self.g
+        rows = [
+            (*a, *v, *t)
+            for a, v, t in zip(np.asarray(q).tolist(), np.asarray(qd).tolist(), np.asarray(tau).tolist(), strict=True)
+        ]
+
+        def qdd_loop() -> None:
+            for r in rows:
+                qdd(*r, g)
+
+        def law_loop() -> None:
+            for r in rows:
+                law(*r[:6])
+
+        return {"qdd": qdd_loop, "law": law_loop}
+
+    def mass_properties(self) -> dict[str, dict[str, Any]]:
+        """Mass, COM and inertia per link as the generated equations hold them (link 3 with the foot)."""
+        out = {}
+        for name, (mass, com, inertia) in zip(LINK_NAMES, self.eom.module.LINKS, strict=True):
+            out[name] = {"mass": mass, "com": list(com), "inertia": [list(row) for row in inertia]}
+        return out

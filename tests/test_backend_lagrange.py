@@ -1,0 +1,337 @@
+"""The symbolic Euler-Lagrange backend: derivation vs Pinocchio and textbook closed forms, the solve, the cache."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+sp = pytest.importorskip("sympy")
+
+from legbench import kinematics, model  # noqa: E402
+from legbench.backends import lagrange_eom as E  # noqa: E402
+from legbench.backends.base import Physics  # noqa: E402
+from legbench.backends.lagrange_ import LagrangeBackend  # noqa: E402
+
+PARAMS = model.load_params()
+CONTROL_DT = 1e-3  # [s]
+G_EARTH = 9.81  # [m/s^2]
+
+
+@pytest.fixture
+def make() -> Iterator[Any]:
+    """Factory: ``make(physics=Physics(), profile="matched", **settings)`` -> loaded lagrange backend."""
+    made: list[LagrangeBackend] = []
+
+    def _make(physics: Physics | None = None, profile: str = "matched", **settings: Any) -> LagrangeBackend:
+        backend = LagrangeBackend()
+        backend.load(model.URDF_FILE, physics or Physics(), LagrangeBackend.resolve_settings(settings, profile))
+        made.append(backend)
+        return backend
+
+    yield _make
+    for backend in made:
+        backend.close()
+
+
+@pytest.fixture(scope="module")
+def eom() -> Any:
+    """The leg's generated equations of motion (from the user cache, derived there once)."""
+    return E.load_eom(E.leg_chain(PARAMS)).module
+
+
+# --------------------------------------------------------------------------- #
+# The derivation against Pinocchio's rigid-body algorithms
+
+
+def test_B_Cqd_G_equal_pinocchio_crba_rnea_to_1e10_at_200_poses(eom: Any) -> None:
+    """B(q) = crba, C(q, qd) qd = rnea(q, qd, 0) - rnea(q, 0, 0), G(q) = rnea(q, 0, 0) to 1e-10 (SI units).
+
+    Two independent algorithms on the same leg: the derivation reads the parameter file at full
+    precision, Pinocchio the URDF, which stores 12 significant digits; that rounding is the whole
+    difference (measured 5e-13 kg m^2 for B, 1.2e-11 N m for C qd and G at |qd| <= 5 rad/s).
+    """
+    import pinocchio as pin
+
+    pm = model.pinocchio_model(gravity=G_EARTH)
+    pd = pm.createData()
+    rng = np.random.default_rng(13)
+    zero = np.zeros(3)
+    for _ in range(200):
+        q, qd = rng.uniform(-np.pi, np.pi, 3), rng.uniform(-5.0, 5.0, 3)
+        qp = model.q_to_pin(q)
+        M = pin.crba(pm, pd, qp)
+        M = np.triu(M) + np.triu(M, 1).T  # CRBA fills the upper triangle
+        g = pin.rnea(pm, pd, qp, zero, zero)
+        cqd = pin.rnea(pm, pd, qp, qd, zero) - g
+        np.testing.assert_allclose(np.reshape(eom.mass_matrix(*q), (3, 3)), M, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(eom.bias(*q, *qd), cqd, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(np.array(eom.gravity(*q)) * G_EARTH, g, rtol=0, atol=1e-10)
+        C = np.reshape(eom.coriolis(*q, *qd), (3, 3))
+        np.testing.assert_allclose(C @ qd, eom.bias(*q, *qd), rtol=0, atol=1e-12)
+
+
+def test_gravity_torque_at_q_star_is_the_report_calibration_figure(eom: Any) -> None:
+    """G(q*) = [1.0426, 0.1631, -0.2984] N m, the figure the model's masses are calibrated to (1e-9 N m:
+    the calibration solves exactly; the residual is the URDF's rounding in the calibration's own G)."""
+    np.testing.assert_allclose(np.array(eom.gravity(*PARAMS.q_star)) * PARAMS.gravity, PARAMS.G_star, atol=1e-9)
+
+
+def test_euler_lagrange_equations_from_the_energies_equal_B_qdd_plus_C_qd_plus_G() -> None:
+    """d/dt(dT/dqd) - dT/dq + dV/dq, differentiated from the energies, equals the collected form (1e-12).
+
+    Checks the collection (B as the Hessian of T, C from the Christoffel symbols) against the
+    Euler-Lagrange derivatives themselves, at 20 random states; only rounding separates the two.
+    """
+    d = E.derive(E.leg_chain(PARAMS))
+    f = E.lambdified(d)
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        q, qd, qdd = rng.uniform(-3, 3, 3), rng.uniform(-5, 5, 3), rng.uniform(-50, 50, 3)
+        lhs = np.ravel(f["el"](q, qd, qdd))
+        rhs = np.asarray(f["B"](q)) @ qdd + np.asarray(f["C"](q, qd)) @ qd + np.ravel(f["G"](q))
+        np.testing.assert_allclose(lhs, rhs, rtol=0, atol=1e-12)
+
+
+# --------------------------------------------------------------------------- #
+# The report's validation of the derivation code: textbook closed forms
+
+#: W_T_0 turning the chain's x0-y0 plane into the vertical x_W-z_W plane (y0 up), joints along -y_W.
+VERTICAL_PLANE = ((1, 0, 0, 0), (0, 0, -1, 0), (0, 1, 0, 0), (0, 0, 0, 1))
+
+
+def _planar_link(a: Any, m: Any, lc: Any, izz: Any) -> E.Link:
+    """A link of a planar arm: joint axis z, COM on the link's x axis, inertia izz about the COM."""
+    zero = sp.Integer(0)
+    return E.Link(0, a, 0, 0, m, (lc, zero, zero), ((izz, 0, 0), (0, izz, 0), (0, 0, izz)))
+
+
+def _assert_zero(expr: Any) -> None:
+    assert sp.simplify(sp.expand_trig(expr)) == 0, expr
+
+
+def test_pendulum_matches_the_textbook_closed_form() -> None:
+    """1-DOF pendulum, angle q from the horizontal: B = I + m lc^2, C = 0, G = m g lc cos q (exact, symbolic)."""
+    m, lc, izz, g = sp.symbols("m l_c I g", positive=True)
+    d = E.derive(E.Chain(VERTICAL_PLANE, (_planar_link(0, m, lc, izz),)))
+    (q,) = d.q
+    _assert_zero(d.B[0, 0] - (izz + m * lc**2))
+    _assert_zero(d.C[0, 0])
+    _assert_zero(g * d.G[0] - m * g * lc * sp.cos(q))
+    _assert_zero(g * d.V - m * g * lc * sp.sin(q))
+
+
+def test_planar_two_link_arm_matches_the_textbook_closed_form() -> None:
+    """Planar 2-DOF arm (Spong, Hutchinson and Vidyasagar, Robot Modeling and Control, the two-link
+    planar elbow manipulator): B, C (Christoffel) and G equal the closed forms exactly (symbolic)."""
+    m1, m2, l1, lc1, lc2, i1, i2, g = sp.symbols("m1 m2 l1 lc1 lc2 I1 I2 g", positive=True)
+    chain = E.Chain(VERTICAL_PLANE, (_planar_link(0, m1, lc1, i1), _planar_link(l1, m2, lc2, i2)))
+    d = E.derive(chain)
+    q1, q2 = d.q
+    qd1, qd2 = d.qd
+    c2 = sp.cos(q2)
+    B = sp.Matrix(
+        [
+            [m1 * lc1**2 + m2 * (l1**2 + lc2**2 + 2 * l1 * lc2 * c2) + i1 + i2, m2 * (lc2**2 + l1 * lc2 * c2) + i2],
+            [m2 * (lc2**2 + l1 * lc2 * c2) + i2, m2 * lc2**2 + i2],
+        ]
+    )
+    h = -m2 * l1 * lc2 * sp.sin(q2)
+    C = sp.Matrix([[h * qd2, h * qd2 + h * qd1], [-h * qd1, 0]])
+    G = sp.Matrix(
+        [(m1 * lc1 + m2 * l1) * g * sp.cos(q1) + m2 * lc2 * g * sp.cos(q1 + q2), m2 * lc2 * g * sp.cos(q1 + q2)]
+    )
+    for i in range(2):
+        _assert_zero(g * d.G[i] - G[i])
+        for j in range(2):
+            _assert_zero(d.B[i, j] - B[i, j])
+            _assert_zero(d.C[i, j] - C[i, j])
+
+
+# --------------------------------------------------------------------------- #
+# The solve: free swing, gravity, limits, contact
+
+Q_SWING = np.array([0.2, 3.0, 0.8])  # foot high above the hip; swings 1.6-2.5 rad per joint in 0.5 s
+N_SWING = 500
+
+
+def _swing(backend: Any) -> np.ndarray:
+    backend.reset(Q_SWING, np.zeros(3))
+    out = [backend.state()[0]]
+    for _ in range(N_SWING):
+        backend.step(np.zeros(3))
+        out.append(backend.state()[0])
+    return np.array(out)
+
+
+def test_free_swing_matches_dop853_of_the_same_equations_to_1e9_rad(make: Any, eom: Any) -> None:
+    """Zero torque under gravity, 0.5 s: RK45 (rtol 1e-8, atol 1e-6, max step 0.1 ms) vs DOP853 (rtol 1e-12)
+    of the same generated qdd, per control period. The 0.1 ms step cap keeps RK45's local error far below
+    its tolerances (measured 4e-14 rad); 1e-9 rad would catch any slip in the hold or the state handling."""
+
+    def f(_t: float, x: np.ndarray) -> np.ndarray:
+        return np.array([*x[3:], *eom.qdd(*x.tolist(), 0.0, 0.0, 0.0, G_EARTH)])
+
+    x = np.concatenate([Q_SWING, np.zeros(3)])
+    ref = [x[:3].copy()]
+    for _ in range(N_SWING):
+        x = solve_ivp(f, (0.0, CONTROL_DT), x, method="DOP853", rtol=1e-12, atol=1e-14).y[:, -1]
+        ref.append(x[:3].copy())
+    q = _swing(make())
+    assert np.ptp(q, axis=0).min() > 1.5  # [rad] every joint swings far
+    np.testing.assert_allclose(q, np.array(ref), rtol=0, atol=1e-9)
+
+
+def test_free_swing_matches_the_pinocchio_backend_in_reference_mode_to_1e9_rad(make: Any) -> None:
+    """Same swing on Pinocchio's ABA (DOP853, rtol 1e-11): two dynamics implementations agree to 1e-9 rad.
+
+    Measured 8e-11 rad, Pinocchio's own tolerance and the URDF's 12 digits; an error in any inertia
+    term (e.g. a product-of-inertia sign, ~1e-4 relative) moves the swing by 1e-5 rad or more.
+    """
+    pytest.importorskip("pinocchio")
+    from legbench.backends.pinocchio_ import PinocchioBackend
+
+    physics = Physics(contact_mode="reference")
+    pin_backend = PinocchioBackend()
+    pin_backend.load(model.URDF_FILE, physics, {"integrator": "dop853", "rtol": 1e-11, "atol": 1e-13})
+    np.testing.assert_allclose(_swing(make(physics)), _swing(pin_backend), rtol=0, atol=1e-9)
+
+
+def test_gravity_compensation_holds_the_leg_still(make: Any, eom: Any) -> None:
+    """tau = G(q0) at a pose in the air: the leg stays within 1e-9 rad of q0 for 0.3 s (it starts at rest,
+    the torque balances gravity exactly up to the integrator's rounding)."""
+    q0 = np.array([0.3, -0.6, -1.1])
+    backend = make()
+    backend.reset(q0, np.zeros(3))
+    tau = np.array(eom.gravity(*q0)) * G_EARTH
+    for _ in range(300):
+        backend.step(tau)
+    np.testing.assert_allclose(backend.state()[0], q0, rtol=0, atol=1e-9)
+    assert kinematics.fk(q0)[2] > PARAMS.geometry.R_foot + 0.05  # [m] clear of the ground
+
+
+def test_knee_limit_holds_like_the_other_custom_integrator(make: Any) -> None:
+    """10 N m pushing the knee into its 2.229 rad limit rests at 2.229 + 10/1e4 rad (the shared limit law)
+    to 1e-4 rad (the spring's static deflection; gravity off)."""
+    backend = make(Physics(gravity=0.0))
+    backend.reset(np.array([0.0, -0.5, 2.0]), np.zeros(3))
+    for _ in range(1000):
+        backend.step(np.array([0.0, 0.0, 10.0]))
+    assert backend.state()[0][2] == pytest.approx(PARAMS.upper[2] + 10.0 / 1e4, abs=1e-4)
+
+
+def test_foot_lowered_onto_the_ground_carries_the_supported_weight(make: Any, eom: Any) -> None:
+    """Foot lowered from 3 mm onto the ground, then pressing with the leg's weight W = m g (tau = G + J_poc^T h,
+    h = -W z_W, a little joint damping): the steady normal force equals W (12.4 N) to 1e-6, and Kp y.
+
+    A purely normal push leaves no tangential load, so the foot comes to rest (no creep) and
+    M qdd + C qd and Kd ydot vanish: measured 3e-14 relative. 1e-6 leaves room for rounding and
+    still catches a wrong Kp, a missing J_poc^T term or gravity off by a link (percent level)."""
+    weight = sum(PARAMS.body_inertial(link).mass for link in model.LINK_NAMES) * G_EARTH  # [N]
+    start = kinematics.ik_nearest(np.array([0.1667, 0.0, PARAMS.geometry.R_foot + 0.003]), np.array(PARAMS.q_star))
+    backend = make()
+    backend.reset(start, np.zeros(3))
+    push = np.array([0.0, 0.0, -weight])
+    fz = []
+    for _ in range(1500):
+        q, qd = backend.state()
+        tau = np.array(eom.gravity(*q)) * G_EARTH + kinematics.jacobian_poc(q).T @ push - 0.05 * qd
+        backend.step(tau)
+        fz.append(backend.ground_force()[2])
+    assert fz[-1] == pytest.approx(weight, rel=1e-6)
+    assert abs(fz[-1] - fz[-500]) < 1e-6 * weight  # settled over the last 0.5 s
+    y = PARAMS.geometry.R_foot - kinematics.fk(backend.state()[0])[2]
+    assert fz[-1] == pytest.approx(PARAMS.contact.Kp * y, rel=1e-6)
+
+
+def test_profiles_put_the_poc_where_the_report_did(make: Any) -> None:
+    """``matched``: the true poc (the sphere's lowest point); ``engine-defaults``: the sphere centre, as the
+    report's custom simulation. Rolling the foot in contact (hip and knee turning) moves the lowest point
+    by R (qd2 + qd3) more than the centre, so the friction force differs (measured 6.39 vs 6.78 N along y_W)."""
+    q = kinematics.ik_nearest(np.array([0.1667, 0.0, PARAMS.geometry.R_foot - 0.001]), np.array(PARAMS.q_star))
+    qd = np.array([0.0, 0.05, -0.2])
+    forces = {}
+    for profile in ("matched", "engine-defaults"):
+        backend = make(profile=profile)
+        backend.reset(q, qd)
+        forces[profile] = backend.ground_force()
+        assert backend.info()["contact"]["poc"] == {"matched": "true", "engine-defaults": "centre"}[profile]
+    assert forces["matched"][2] > 5.0  # [N] in contact
+    assert abs(forces["matched"][1] - forces["engine-defaults"][1]) > 0.1  # [N]
+
+
+def test_both_contact_modes_apply_the_same_law(make: Any) -> None:
+    """No engine contact: ``native`` and ``reference`` give identical runs, and the backend says so."""
+    runs = []
+    for mode in ("native", "reference"):
+        backend = make(Physics(contact_mode=mode))
+        assert not backend.engine_contact()
+        q = kinematics.ik_nearest(np.array([0.1667, 0.0, PARAMS.geometry.R_foot - 0.001]), np.array(PARAMS.q_star))
+        backend.reset(q, np.zeros(3))
+        for _ in range(50):
+            backend.step(np.array([0.5, 0.0, 0.0]))
+        runs.append((*backend.state(), backend.ground_force()))
+    for a, b in zip(*runs, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_mass_properties_are_the_parameter_file_to_the_last_bit(make: Any) -> None:
+    """The generated code holds the model's inertials exactly (floats printed round-trip), link 3 with the foot."""
+    props = make().mass_properties()
+    for link in model.LINK_NAMES:
+        want = PARAMS.body_inertial(link)
+        assert props[link]["mass"] == want.mass
+        assert tuple(props[link]["com"]) == tuple(want.com)
+        np.testing.assert_array_equal(props[link]["inertia"], want.I)
+
+
+def test_declared_abilities(make: Any) -> None:
+    backend = make()
+    lim = backend.limits()
+    assert backend.integrator_family() == "adaptive" and backend.sub_steps() == 1 and lim.timestep is None
+    assert lim.gravity == G_EARTH and lim.upper[2] == PARAMS.upper[2] and math.isinf(lim.upper[1])
+    assert lim.effort == Physics().torque_limit
+    assert set(backend.kernels(np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3)))) == {"qdd", "law"}
+
+
+# --------------------------------------------------------------------------- #
+# The cache
+
+
+def test_second_load_reads_the_cache_and_does_not_derive(make: Any, tmp_path: Path) -> None:
+    """First load derives and writes eom_<hash>.py; a second load imports it: the derivation counter
+    and the file's mtime do not change. A changed model (link 2 1 % heavier) has another hash and derives."""
+    before = E.derivations
+    first = make(cache_dir=str(tmp_path))
+    assert first.eom.derived and E.derivations == before + 1
+    files = list(tmp_path.glob("eom_*.py"))
+    assert files == [first.eom.path]
+    mtime = first.eom.path.stat().st_mtime_ns
+    second = make(cache_dir=str(tmp_path))
+    assert not second.eom.derived and E.derivations == before + 1
+    assert second.eom.path.stat().st_mtime_ns == mtime
+    np.testing.assert_array_equal(
+        first.eom.module.mass_matrix(0.1, 0.2, 0.3), second.eom.module.mass_matrix(0.1, 0.2, 0.3)
+    )
+    chain = E.leg_chain(PARAMS)
+    heavier = dataclasses.replace(chain.links[1], mass=chain.links[1].mass * 1.01)
+    other = E.load_eom(dataclasses.replace(chain, links=(chain.links[0], heavier, chain.links[2])), tmp_path)
+    assert other.derived and other.path != first.eom.path and E.derivations == before + 2
+
+
+def test_a_corrupt_cache_file_is_derived_again(tmp_path: Path) -> None:
+    """A cache file that does not import is replaced by a fresh derivation (a numeric pendulum: fast)."""
+    chain = E.Chain(VERTICAL_PLANE, (_planar_link(0.0, 0.5, 0.2, 1e-3),))
+    path = E.load_eom(chain, tmp_path).path
+    path.write_text("this is not python(")
+    again = E.load_eom(chain, tmp_path)
+    assert again.derived and again.module.N == 1
+    # B = I + m lc^2 and G = m lc cos q per unit g, from the regenerated file
+    assert again.module.mass_matrix(0.3)[0] == pytest.approx(1e-3 + 0.5 * 0.2**2, rel=1e-15)
+    assert again.module.gravity(0.3)[0] == pytest.approx(0.5 * 0.2 * math.cos(0.3), rel=1e-15)
