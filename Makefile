@@ -8,7 +8,7 @@ JOBS ?= 2
 TASKS := scenarios/position.yaml scenarios/ellipse.yaml scenarios/effort.yaml scenarios/combined.yaml
 LEGBENCH := $(BIN)/legbench
 
-.PHONY: setup system-deps test lint compare check baseline bench sweep verify urdf clean
+.PHONY: setup system-deps test lint compare check baseline bench sweep verify urdf clean reproduce
 
 $(STAMP): pyproject.toml
 	@$(MAKE) --no-print-directory system-deps
@@ -56,6 +56,12 @@ baseline: compare
 	rm -rf results/baseline
 	mkdir -p results/baseline
 	cd results/latest && for d in */; do mkdir -p ../baseline/$$d && cp $$d/metrics.json $$d/run.json ../baseline/$$d; done
+
+## the lab report's comparison (tables 10, 11, 12, simulation error % between its frameworks' analogues,
+## as scenarios/reproduce.yaml maps them) -> results/reproduce/reproduce.{md,html,json}
+reproduce: $(STAMP)
+	rm -rf results/reproduce
+	$(LEGBENCH) reproduce --out results/reproduce --jobs $(JOBS) --quiet
 
 ## harness overhead per backend and task -> results/bench/bench.{json,md}
 bench: $(STAMP)

@@ -36,6 +36,7 @@ COMMANDS: dict[str, str] = {
     "verify": "legbench.studies.verify:add_cli",
     "calibrate-contact": "legbench.studies.calibrate_contact:add_cli",
     "bench": "legbench.studies.bench:add_cli",
+    "reproduce": "legbench.studies.reproduce:add_cli",
 }
 
 

@@ -265,22 +265,32 @@ class TrajectoryController(Controller):
         )
 
 
+_NO_FORCE = (0.0, 0.0, 0.0)
+
+
 class EffortController(Controller):
-    """tau = Jv(q)^T h_d + G(q): the foot pushes on the environment with h_d in W [N]."""
+    """tau = Jv(q)^T h_d + G(q): the foot pushes on the environment with h_d in W [N].
+
+    With the event's ``force_delay`` [s], h_d is zero for that many control periods
+    after the switch (tau = G(q): gravity compensation only), then the event's force.
+    """
 
     name = "effort"
 
-    def __init__(self, event: Event) -> None:
+    def __init__(self, event: Event, Ts: float = 1e-3) -> None:
         self.h_d = np.array(event.force, dtype=float)
         self._h = _floats(self.h_d)
         self._geometry = load_params().geometry
         self._gravity = kinematics.GravityTorque()
+        self.n_force_delay = int(round(event.force_delay / Ts))  # control periods with h_d = 0
+        self.Ts = Ts
+        self.k_force = 0  # first tick with the event's force
 
     def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
-        pass
+        self.k_force = int(round(t / self.Ts)) + self.n_force_delay
 
     def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
-        hx, hy, hz = self._h
+        hx, hy, hz = self._h if k >= self.k_force else _NO_FORCE
         j11, j12, j13, j21, j22, j23, j31, j32, j33 = kinematics.jacobian_scalar(q1, q2, q3, self._geometry)
         g1, g2, g3 = self._gravity(q1, q2, q3)
         return (
@@ -326,7 +336,7 @@ def make_controller(event: Event, gains: Gains, Ts: float, n_ticks: int) -> Cont
     if event.controller == "trajectory":
         return TrajectoryController(event, gains, Ts, n_ticks)
     if event.controller == "effort":
-        return EffortController(event)
+        return EffortController(event, Ts)
     if event.controller == "torque":
         return TorqueController(event, Ts)
     raise ValueError(f"unknown controller {event.controller!r}")

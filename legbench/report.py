@@ -592,6 +592,40 @@ def write_report(run_dir: str | Path, result: ComparisonResult | None = None, **
     return ReportFiles(metrics, md, page, tuple(p for p, _ in figures))
 
 
+#: One piece of a page for :func:`write_page`: a heading (``"## text"``), a paragraph (any
+#: other text) or a table ``(caption, header, rows)`` of text cells.
+PageItem = str | tuple[str, Sequence[str], Sequence[Sequence[str]]]
+
+
+def _page_blocks(items: Sequence[PageItem]) -> list[_Block]:
+    blocks: list[_Block] = []
+    for item in items:
+        if isinstance(item, str):
+            level = len(item) - len(item.lstrip("#"))
+            blocks.append(_Heading(level, item[level:].strip()) if level else _Para(item))
+        else:
+            caption, header, rows = item
+            blocks.append(_Table(tuple(header), tuple(tuple(r) for r in rows), caption))
+    return blocks
+
+
+def page_markdown(items: Sequence[PageItem]) -> str:
+    """The Markdown of a page of headings, paragraphs and tables (see :data:`PageItem`)."""
+    return _to_markdown(_page_blocks(items), Path("."))
+
+
+def write_page(out_dir: str | Path, stem: str, title: str, items: Sequence[PageItem]) -> tuple[Path, Path]:
+    """Write ``out_dir/stem.md`` and ``out_dir/stem.html`` (self-contained) from headings, paragraphs and
+    tables (see :data:`PageItem`), in the same style as the run reports; returns both paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    blocks = _page_blocks(items)
+    md, page = out / f"{stem}.md", out / f"{stem}.html"
+    md.write_text(_to_markdown(blocks, out))
+    page.write_text(_to_html(blocks, title))
+    return md, page
+
+
 # --------------------------------------------------------------------------- #
 # Index of a results tree
 

@@ -544,7 +544,10 @@ def load_run(run_dir: str | Path) -> Run:
     if mode not in ("native", "reference"):
         raise ResultsError(str(rj), f"scenario.contact_mode is '{mode}', not 'native' or 'reference'")
     cmp_ = _get(sc, "comparison", rj, {}) or {}
-    events = tuple(EventMark(float(e.get("t", 0.0)), str(e.get("controller", ""))) for e in (sc.get("events") or []))
+    events = tuple(  # at the switch: t plus the event's delay, if any
+        EventMark(float(e.get("t", 0.0)) + float(e.get("delay", 0.0)), str(e.get("controller", "")))
+        for e in (sc.get("events") or [])
+    )
     backends: dict[str, BackendStatus] = {}
     traces: dict[str, RunResult] = {}
     partial: dict[str, RunResult] = {}

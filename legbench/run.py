@@ -1,7 +1,8 @@
 """The run loop: owns the clock, the controllers and the log; drives any backend.
 
 At each control tick k (t = k Ts) the loop reads the backend's state, fires the
-events due, computes the active controller's torque, saturates it at the joint
+events due (an event with a ``delay`` at its tick round((t + delay) / Ts), the
+previous controller running until then), computes the active controller's torque, saturates it at the joint
 limits, logs the tick into preallocated arrays, and steps the backend one
 control period under that torque (zero-order hold). Row k of the log holds the
 state and ground force at t_k and the torque applied over [t_k, t_k + Ts).
@@ -73,7 +74,7 @@ def simulate(
     f_log = np.full((n, 3), np.nan)
     tau_out = tau_log.view()
     tau_out.flags.writeable = False  # the backend gets read-only rows of the log
-    ticks = [int(round(e.t / Ts)) for e in scenario.events]
+    ticks = [int(round(e.t_switch / Ts)) for e in scenario.events]  # a delayed event switches late
     names = [e.controller for e in scenario.events]
     controllers: list[Controller] = [make_controller(e, scenario.gains, Ts, n) for e in scenario.events]
     backend.reset(np.array(scenario.q0), np.array(scenario.qd0))

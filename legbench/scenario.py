@@ -18,6 +18,8 @@ Format (every key but ``name``, ``duration`` and ``events`` has a default)::
                   repetitions: 2, approach: 1.0}
       - t: 2.0
         effort: {force: [0, 0, -100]}        # h_d, force the foot exerts, in W [N]
+        delay: 0.013                  # optional [s]: the switch happens this much later (ROS)
+        force_delay: 0.007            # optional, effort only [s]: h_d = 0 (tau = G(q)) this long after it
     physics:
       gravity: 9.81
       contact_mode: native            # or reference
@@ -35,7 +37,7 @@ import hashlib
 import json
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -82,6 +84,10 @@ class Event:
         amplitude, frequency, phase: open-loop joint torques
             tau_i = amplitude_i sin(2 pi frequency_i (t - t_event) + phase_i), in [N m], [Hz], [rad] (torque).
         params: the event's own keys as written (for the report).
+        delay: the switch happens at ``t + delay`` [s]; until then the previous controller
+            keeps running (the lab report's ROS latency: 13 ms to switch to effort control).
+        force_delay: effort only: for this long after the switch [s] the controller sends
+            h_d = 0, i.e. tau = G(q) (the report's 7 ms more before the force was sent).
     """
 
     t: float
@@ -95,6 +101,13 @@ class Event:
     frequency: tuple[float, ...] | None = None
     phase: tuple[float, ...] | None = None
     params: Mapping[str, Any] = field(default_factory=dict, hash=False, compare=False)
+    delay: float = 0.0
+    force_delay: float = 0.0
+
+    @property
+    def t_switch(self) -> float:
+        """When the controller actually takes over [s]: ``t + delay``."""
+        return self.t + self.delay
 
 
 #: The reference backend a scenario's comparison uses unless it names another (a setting).
@@ -184,8 +197,24 @@ def _reachable(ctx: YamlContext, path: list[str | int], p: tuple[float, ...]) ->
         raise ctx.error(path, f"W point {list(p)} is unreachable: {res.reason}")
 
 
+#: Optional event keys: delays [s] of the switch and, on effort events, of the force.
+DELAY_KEYS = ("delay", "force_delay")
+
+
 def _event(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
-    check_keys(ctx, path, d, ["t", *CONTROLLERS], ["t"])
+    """One event, with its delays (:data:`DELAY_KEYS`) checked and attached."""
+    check_keys(ctx, path, d, ["t", *CONTROLLERS, *DELAY_KEYS], ["t"])
+    ev = _event_body(ctx, path, d)
+    delays = {k: number(ctx, [*path, k], d[k], nonneg=True) for k in DELAY_KEYS if k in d}
+    if "force_delay" in delays and ev.controller != "effort":
+        raise ctx.error([*path, "force_delay"], "only an effort event has a force to delay")
+    if not delays:
+        return ev
+    delay, force_delay = delays.get("delay", 0.0), delays.get("force_delay", 0.0)
+    return replace(ev, params={**ev.params, **delays}, delay=delay, force_delay=force_delay)
+
+
+def _event_body(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
     t = number(ctx, [*path, "t"], d["t"], nonneg=True)
     kinds = [k for k in CONTROLLERS if k in d]
     if len(kinds) != 1:
@@ -303,9 +332,17 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
             raise ctx.error(["events", i + 1, "t"], f"events out of order: {b.t} s comes after {a.t} s")
     if events[0].t != 0.0:
         raise ctx.error(["events", 0, "t"], "the first event must start at t = 0 (something must control the leg)")
+    if events[0].delay != 0.0:
+        raise ctx.error(["events", 0, "delay"], "the first event cannot be delayed (nothing would control the leg)")
     for i, e in enumerate(events):
         if e.t >= duration:
             raise ctx.error(["events", i, "t"], f"event at {e.t} s is past the end ({duration} s)")
+        if e.t_switch >= duration:
+            raise ctx.error(["events", i, "delay"], f"the switch at {e.t_switch:g} s is past the end ({duration} s)")
+    for i, (a, b) in enumerate(zip(events, events[1:], strict=False)):
+        if b.t_switch < a.t_switch:
+            raise ctx.error(["events", i + 1, "t"], f"with its delay this event switches at {b.t_switch:g} s, before "
+                                                    f"the previous one ({a.t_switch:g} s)")  # fmt: skip
 
     for i, e in enumerate(events):
         if e.controller == "trajectory":
@@ -471,6 +508,27 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
     for key, value in (overrides or {}).items():
         set_key(doc, key, value)
     return parse(doc, str(path), root)
+
+
+def shorten(sc: Scenario, duration: float) -> Scenario:
+    """The scenario cut to ``duration`` [s].
+
+    Events that switch (``t + delay``) at or after the new end are dropped, and the
+    comparison windows (``skip``, ``steady_window``) are shrunk to fit, so the result validates.
+    """
+    if duration >= sc.duration:
+        return sc
+    doc = dict(sc.raw)
+    doc["events"] = [e for e in doc["events"] if float(e["t"]) + float(e.get("delay", 0.0)) < duration]
+    doc["duration"] = duration
+    cmp = dict(doc.get("comparison") or {})
+    if float(cmp.get("skip", 0.0)) >= duration:
+        cmp["skip"] = 0.0
+    if float(cmp.get("steady_window", 0.0)) > duration:
+        cmp["steady_window"] = duration
+    if cmp:
+        doc["comparison"] = cmp
+    return parse(doc, sc.file)
 
 
 def physics_of(scenario: Scenario, contact_mode: str | None = None) -> Physics:

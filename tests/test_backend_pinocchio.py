@@ -11,6 +11,7 @@ from scipy.integrate import solve_ivp
 
 from legbench import kinematics as K
 from legbench import model, run, scenario
+from legbench.backends import load as registry_load
 from legbench.backends.base import Physics
 from legbench.backends.pinocchio_ import PinocchioBackend
 from legbench.contact import ContactParams
@@ -156,3 +157,38 @@ def test_combined_task_touches_down_and_settles() -> None:
     last = tr.t >= tr.t[-1] - 0.5
     assert np.abs(tr.qd[last]).max() < 0.05  # settled [rad/s]
     assert 20.0 < tr.f[last, 2].mean() < 100.0
+
+
+def test_ode45_profile_is_the_reports_simscape_solver() -> None:
+    """Profile ``ode45``: adaptive RK45 at rtol 1e-6, atol 1e-8, max step 2e-4 s; it runs the effort task.
+
+    Over the effort task's first 0.4 s (shortened: the adaptive solve costs ~15 ms per tick in
+    contact) the leg settles onto the ground; its ground force agrees with the default fixed-step
+    run's to 1 % (two convergent integrators of the same law: the default's step error is 0.002 %
+    of Fn in docs/pinocchio.md, the transient's remaining motion dominates) and satisfies the
+    statics h = (J_poc^T)^-1 (tau - G) to 2 % (the leg is still moving slightly at 0.4 s).
+    """
+    physics = scenario.physics_of(scenario.load(SCENARIOS / "effort.yaml"))
+    be = registry_load("pinocchio", physics, {}, "ode45")
+    try:
+        assert be.profile == "ode45"
+        assert be.integrator_family() == "adaptive"
+        info = be.info()
+        assert (info["integrator"], info["rtol"], info["atol"], info["max_step"]) == ("rk45", 1e-6, 1e-8, 2e-4)
+        assert info["contact"]["poc"] == "true"
+        assert be.limits().timestep is None  # adaptive: no fixed step to report
+    finally:
+        be.close()
+    sc = scenario.load(SCENARIOS / "effort.yaml", {"duration": 0.4, "comparison.steady_window": 0.1})
+    sc45 = scenario.load(
+        SCENARIOS / "effort.yaml",
+        {"duration": 0.4, "comparison.steady_window": 0.1, "backends.pinocchio.profile": "ode45"},
+    )
+    (tr45,) = run.run(sc45, ["pinocchio"], None, progress=False)
+    (tr,) = run.run(sc, ["pinocchio"], None, progress=False)
+    assert tr45.status == "ok" and tr45.info["profile"] == "ode45" and tr45.info["integrator_family"] == "adaptive"
+    assert tr45.f[-1, 2] > 20.0
+    np.testing.assert_allclose(tr45.f[-1], tr.f[-1], rtol=0.01, atol=0.01 * tr.f[-1, 2])
+    q, tau, F = tr45.q[-1], tr45.tau[-1], tr45.f[-1]
+    h = np.linalg.solve(K.jacobian_poc(q).T, tau - K.gravity(q))
+    assert np.linalg.norm(F + h) / np.linalg.norm(F) < 0.02

@@ -189,3 +189,15 @@ def test_index_sets_the_two_profiles_side_by_side(tmp_path: Path) -> None:
         _, df = results.read_metrics(d / "metrics.json")
         fz = df[(df.backend == "mujoco") & (df.metric == "steady_mean") & (df.signal == "force") & (df.joint == "z")]
         assert float(cells[col]) == pytest.approx(float(fz["value"].iloc[0]), rel=5e-4)
+
+
+def test_write_page_renders_headings_paragraphs_and_tables(tmp_path: Path) -> None:
+    """R.write_page: the public page writer the studies use (Markdown and self-contained HTML)."""
+    items: list[R.PageItem] = ["# Title", "A paragraph.", ("caption", ("a", "b"), [["x|y", "1.5"]]), "## Sub"]
+    md, page = R.write_page(tmp_path, "p", "T", items)
+    text = md.read_text()
+    assert text == R.page_markdown(items)
+    assert "# Title\n" in text and "## Sub\n" in text and "*caption*" in text and "| x\\|y | 1.5 |" in text
+    html_text = page.read_text()
+    assert "<h1>Title</h1>" in html_text and "<caption>caption</caption>" in html_text
+    assert "<td>1.5</td>" in html_text and '<td class="text">x|y</td>' in html_text

@@ -10,8 +10,11 @@ import pandas as pd
 import pytest
 from fakes import FakeBackend
 
-from legbench import backends, results, run, scenario, signals
+from legbench import backends, kinematics, results, run, scenario, signals
 from legbench.exceptions import LegbenchError
+from legbench.model import load_params
+
+LIMIT = np.array(load_params().effort)  # joint torque limits [N m]
 
 DOC = {
     "name": "fake",
@@ -142,6 +145,25 @@ def test_profile_selects_settings_and_names_the_run_directory(tmp_path: Path) ->
     assert backends.load("pinocchio", scenario.physics_of(sc), {"profile": "matched"}, "engine-defaults").profile == (
         "matched"
     )
+
+
+def test_delayed_switch_and_force_delay_tau_is_gravity_compensation() -> None:
+    """delay 13 ms: the position controller runs to tick 262, effort from 263 (0.25 s + 0.013 s at 1 kHz);
+    force_delay 7 ms: ticks 263..269 send h_d = 0, so tau = G(q) exactly (to 1e-12 N m, float rounding
+    of J^T 0 + G), and from tick 270 tau = J^T h_d + G(q) with the event's force."""
+    h_d = [0.0, 0.0, -5.0]
+    doc = {**DOC, "events": [DOC["events"][0], {"t": 0.25, "effort": {"force": h_d}, "delay": 0.013,
+                                                  "force_delay": 0.007}]}  # fmt: skip
+    tr, _ = _simulate(doc)
+    plain, _ = _simulate({**DOC, "events": DOC["events"][:1]})  # the position controller alone
+    assert set(tr.controller[:263]) == {"position"} and set(tr.controller[263:]) == {"effort"}
+    np.testing.assert_array_equal(tr.tau[:263], plain.tau[:263])  # the previous controller kept running
+    for k in range(263, 270):
+        np.testing.assert_allclose(tr.tau[k], kinematics.gravity(tr.q[k]), rtol=0, atol=1e-12)
+    for k in (270, 300, 499):
+        expect = kinematics.jacobian(tr.q[k]).T @ np.array(h_d) + kinematics.gravity(tr.q[k])
+        np.testing.assert_allclose(tr.tau[k], np.clip(expect, -LIMIT, LIMIT), rtol=0, atol=1e-12)
+    assert np.abs(tr.tau[270] - kinematics.gravity(tr.q[270])).max() > 0.1  # the force is on
 
 
 def test_backend_warnings_reach_run_json_and_residuals_reach_metrics(tmp_path: Path) -> None:

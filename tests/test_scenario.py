@@ -11,7 +11,7 @@ from legbench import scenario
 from legbench.exceptions import ScenarioError
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
-TASKS = ("position", "ellipse", "effort", "combined")
+TASKS = ("position", "ellipse", "effort", "combined", "combined_ros")
 
 
 @pytest.mark.parametrize("task", TASKS)
@@ -64,6 +64,18 @@ BASE = {"name": "t", "duration": 1.0, "events": [{"t": 0.0, "position": {"joint"
          "events[0].torque.frequency[1]", ">= 0"),
         ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}}, {"t": 2.0, "effort": {"force": [0, 0, -1]}}]},
          "events[1].t", "past the end"),
+        ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}},
+                     {"t": 0.5, "effort": {"force": [0, 0, -1]}, "delay": -0.01}]}, "events[1].delay", ">= 0"),
+        ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}},
+                     {"t": 0.5, "position": {"joint": [0, 0, 0]}, "force_delay": 0.007}]},
+         "events[1].force_delay", "only an effort event"),
+        ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}, "delay": 0.01}]}, "events[0].delay",
+         "first event cannot be delayed"),
+        ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}},
+                     {"t": 0.9, "effort": {"force": [0, 0, -1]}, "delay": 0.2}]}, "events[1].delay", "past the end"),
+        ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}},
+                     {"t": 0.5, "effort": {"force": [0, 0, -1]}, "delay": 0.2},
+                     {"t": 0.6, "position": {"joint": [0, 0, 0]}}]}, "events[2].t", "before the previous one"),
     ],
 )  # fmt: skip
 def test_bad_input_names_file_key_and_problem(tmp_path: Path, patch: dict, key: str, words: str) -> None:  # type: ignore[type-arg]
@@ -134,3 +146,27 @@ def test_profile_defaults_to_matched_and_is_recorded() -> None:
 def test_unknown_profile_is_refused_naming_the_key(doc: dict, where: str) -> None:  # type: ignore[type-arg]
     with pytest.raises(ScenarioError, match=where.replace(".", r"\.")):
         scenario.parse(doc)
+
+
+def test_event_delays_are_read_and_recorded(tmp_path: Path) -> None:
+    """``delay`` moves the switch to t + delay; ``force_delay`` rides on the effort event; both go to run.json."""
+    effort = {"t": 0.5, "effort": {"force": [0, 0, -1]}, "delay": 0.013, "force_delay": 0.007}
+    doc = {**BASE, "events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}}, effort]}
+    sc = scenario.load(_write(tmp_path, doc))
+    ev = sc.events[1]
+    assert (ev.t, ev.delay, ev.force_delay) == (0.5, 0.013, 0.007)
+    assert ev.t_switch == pytest.approx(0.513, abs=1e-15)
+    assert sc.events[0].delay == 0.0 and sc.events[0].force_delay == 0.0
+    assert sc.to_dict()["events"][1] == {"t": 0.5, "controller": "effort", "effort": {"force": [0, 0, -1]},
+                                         "delay": 0.013, "force_delay": 0.007}  # fmt: skip
+
+
+def test_combined_ros_is_the_combined_task_with_the_reports_ros_delays() -> None:
+    """scenarios/combined_ros.yaml: combined.yaml's events, the effort switch 13 ms late and its force 7 ms later."""
+    plain = scenario.load(SCENARIOS / "combined.yaml")
+    ros = scenario.load(SCENARIOS / "combined_ros.yaml")
+    assert [(e.t, e.controller, e.cartesian, e.force) for e in ros.events] == [
+        (e.t, e.controller, e.cartesian, e.force) for e in plain.events
+    ]
+    assert [(e.delay, e.force_delay) for e in ros.events] == [(0.0, 0.0), (0.0, 0.0), (0.013, 0.007)]
+    assert (ros.duration, ros.gains, ros.q0, ros.contact) == (plain.duration, plain.gains, plain.q0, plain.contact)

@@ -25,6 +25,14 @@ and chatters above it: :meth:`warnings` says so with the numbers.
 docs/pinocchio.md has the trade-off, convergence and cost. Pinocchio is
 legbench's own integrator, so its ``engine-defaults`` profile is these defaults.
 
+Profiles: ``matched`` and ``engine-defaults`` are the defaults above (Pinocchio is
+legbench's own integrator). ``ode45`` is the lab report's Simscape Multibody set-up,
+MATLAB's ode45 (Dormand-Prince 5(4), adaptive): ``integrator: rk45`` (scipy's RK45 is the
+same Dormand-Prince pair) with the report's Simscape tolerances rtol 1e-6, atol 1e-8 and
+max step 2e-4 s, one solve per control period; the contact law at the true point of
+contact as Simscape had it (the scenario's ``physics.contact.poc``, true by default: the
+poc is physics every backend shares, not a backend setting).
+
 Ground force read-out: the law at the state at the end of the control period
 (it is a function of the state); it matches the leg's statics over the effort
 task's last 0.5 s to 1e-6 of Fn.
@@ -68,7 +76,12 @@ class PinocchioBackend(Backend):
         "friction": ("implicit", "explicit"),
     }
     #: Pinocchio is legbench's own integrator: its "engine defaults" are these defaults.
-    profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {"matched": {}, "engine-defaults": {}}
+    #: ``ode45``: the lab report's Simscape solver (adaptive Dormand-Prince, its tolerances and max step).
+    profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
+        "matched": {},
+        "engine-defaults": {},
+        "ode45": {"integrator": "rk45", "rtol": 1.0e-6, "atol": 1.0e-8, "max_step": 2.0e-4},
+    }
 
     # ----------------------------------------------------------------- load
     def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:

@@ -50,7 +50,7 @@ from legbench.backends.base import Backend
 from legbench.exceptions import BackendNotFound, LegbenchError
 from legbench.results import RunResult, platform_info, versions, write_json
 from legbench.run import simulate
-from legbench.scenario import Scenario, physics_of
+from legbench.scenario import Scenario, physics_of, shorten
 
 __all__ = [
     "DEFAULT_REPEATS",
@@ -177,27 +177,6 @@ class BenchResult:
 
 # --------------------------------------------------------------------------- #
 # Scenarios
-
-
-def shorten(sc: Scenario, duration: float) -> Scenario:
-    """The scenario cut to ``duration`` [s].
-
-    Events at or after the new end are dropped, and the comparison windows
-    (``skip``, ``steady_window``) are shrunk to fit, so the result validates.
-    """
-    if duration >= sc.duration:
-        return sc
-    doc = dict(sc.raw)
-    doc["events"] = [e for e in doc["events"] if float(e["t"]) < duration]
-    doc["duration"] = duration
-    cmp = dict(doc.get("comparison") or {})
-    if float(cmp.get("skip", 0.0)) >= duration:
-        cmp["skip"] = 0.0
-    if float(cmp.get("steady_window", 0.0)) > duration:
-        cmp["steady_window"] = duration
-    if cmp:
-        doc["comparison"] = cmp
-    return scenario.parse(doc, sc.file)
 
 
 def load_tasks(

@@ -1,0 +1,433 @@
+"""``legbench reproduce``: the lab report's comparison regenerated in one command.
+
+The lab compared three frameworks: Gazebo (ODE), Simscape Multibody (ode45) and
+its own Euler-Lagrange simulation. A *framework file* (default
+``scenarios/reproduce.yaml``) says which backend and profile stands for which
+framework, which tasks to run and which of the report's tables each task feeds;
+nothing here names an engine::
+
+    frameworks:                    # in table order
+      - {name: Gazebo, backend: <name>, profile: <one of its profiles>}
+    others: matched                # profile of every other backend that runs
+    tasks:                         # scenario files, relative to this file
+      - {file: effort.yaml, tables: [steady]}
+
+Table roles: ``steady`` (the report's tables 10 and 11: steady |qd| beside the
+scenario's published rows, and the steady ground force with the analytic check
+h = (J_poc^T)^-1 (tau - G) and the centre-poc compensation), ``force`` (table 12:
+the steady Fn, one column per task) and ``sim_error`` (sections 7.1 and 7.2: the
+simulation error % of each framework analogue against each other, per joint,
+after the scenario's ``comparison.skip``).
+
+Every task runs once on every backend through :func:`legbench.run.run_many`
+(the framework backends with their profile as ``backends.<name>.profile``), into
+``OUT/<task>/``: ordinary run directories with their metrics.json and report.
+The tables are computed from those directories with :mod:`legbench.metrics`,
+printed as Markdown and written to ``OUT/reproduce.{md,html,json}``. A backend
+that is missing or fails gets a row saying so; the others go on.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from legbench import backends as registry
+from legbench import report, results, run, scenario, yamlfile
+from legbench.backends.base import PROFILES
+from legbench.exceptions import BackendNotFound
+from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK
+from legbench.metrics import SteadyState, pair_metrics, steady_state
+from legbench.results import Run, load_run
+from legbench.scenario import Scenario
+from legbench.signals import SLICE
+
+ROOT = Path(__file__).resolve().parent.parent.parent
+FRAMEWORKS_FILE = ROOT / "scenarios" / "reproduce.yaml"
+DEFAULT_OUT = Path("results") / "reproduce"
+#: What a task can feed: tables 10 and 11, table 12, sections 7.1 / 7.2.
+ROLES = ("steady", "force", "sim_error")
+
+
+# --------------------------------------------------------------------------- #
+# The framework file
+
+
+@dataclass(frozen=True)
+class Framework:
+    """A framework of the lab report and the backend (with its profile) that stands for it."""
+
+    name: str
+    backend: str
+    profile: str
+
+
+@dataclass(frozen=True)
+class Task:
+    """A scenario file and the tables (:data:`ROLES`) it feeds."""
+
+    file: Path
+    tables: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A validated framework file."""
+
+    file: str
+    frameworks: tuple[Framework, ...]
+    others: str
+    tasks: tuple[Task, ...]
+
+    def label(self, backend: str, profile: str | None = None) -> str:
+        """Row label of a backend: ``Gazebo: ode (gazebo)`` for a framework analogue, else ``mujoco (matched)``."""
+        for fw in self.frameworks:
+            if fw.backend == backend:
+                return f"{fw.name}: {backend} ({profile or fw.profile})"
+        return f"{backend} ({profile or self.others})"
+
+
+def load_plan(path: str | Path = FRAMEWORKS_FILE) -> Plan:
+    """Read and validate a framework file; every error names the file and the key.
+
+    A backend must be one legbench knows (built in or by entry point); its profile
+    is checked against the backend's ``profiles`` where the engine is installed
+    (elsewhere the run reports the backend missing).
+
+    Raises:
+        ScenarioError: unknown key, backend, profile, role, or a task file that does not exist.
+    """
+    doc, root = yamlfile.read_yaml(path)
+    ctx = yamlfile.YamlContext(str(path), root)
+    yamlfile.check_keys(ctx, [], doc, ["frameworks", "others", "tasks"], ["frameworks", "tasks"])
+    fws = doc["frameworks"]
+    if not isinstance(fws, list) or not fws:
+        raise ctx.error(["frameworks"], "expected a non-empty list of {name, backend, profile}")
+    known = list(dict.fromkeys([*registry.BUILTIN, *registry.available()]))
+    frameworks: list[Framework] = []
+    for i, fw in enumerate(fws):
+        yamlfile.check_keys(ctx, ["frameworks", i], fw, ["name", "backend", "profile"], ["name", "backend", "profile"])
+        name, backend, profile = (fw[k] for k in ("name", "backend", "profile"))
+        if not isinstance(name, str) or not name:
+            raise ctx.error(["frameworks", i, "name"], "expected the framework's name")
+        if backend not in known:
+            raise ctx.error(["frameworks", i, "backend"], f"unknown backend {backend!r}; known: {', '.join(known)}")
+        if any(f.backend == backend for f in frameworks):
+            raise ctx.error(["frameworks", i, "backend"], f"{backend} already stands for another framework")
+        try:
+            offered = list(registry.get(backend).profiles)
+        except BackendNotFound:
+            offered = None  # not installed here: the run reports it missing
+        if not isinstance(profile, str) or (offered is not None and profile not in offered):
+            raise ctx.error(["frameworks", i, "profile"], f"{backend} offers the profiles {', '.join(offered or [])}, "
+                                                          f"got {profile!r}")  # fmt: skip
+        frameworks.append(Framework(name, backend, profile))
+    others = doc.get("others", PROFILES[0])
+    if others not in PROFILES:
+        raise ctx.error(
+            ["others"], f"expected one of {', '.join(PROFILES)} (every backend offers them), got {others!r}"
+        )
+    tdoc = doc["tasks"]
+    if not isinstance(tdoc, list) or not tdoc:
+        raise ctx.error(["tasks"], "expected a non-empty list of {file, tables}")
+    tasks: list[Task] = []
+    for i, t in enumerate(tdoc):
+        yamlfile.check_keys(ctx, ["tasks", i], t, ["file", "tables"], ["file", "tables"])
+        file = Path(path).parent / str(t["file"])
+        if not file.is_file():
+            raise ctx.error(["tasks", i, "file"], f"no scenario file {file}")
+        roles = t["tables"]
+        if not isinstance(roles, list) or not roles:
+            raise ctx.error(["tasks", i, "tables"], f"expected a list of {', '.join(ROLES)}")
+        for j, r in enumerate(roles):
+            if r not in ROLES:
+                raise ctx.error(["tasks", i, "tables", j], f"expected one of {', '.join(ROLES)}, got {r!r}")
+        tasks.append(Task(file, tuple(roles)))
+    return Plan(str(path), tuple(frameworks), str(others), tuple(tasks))
+
+
+def scenarios_of(
+    plan: Plan, overrides: Mapping[str, Any] | None = None, duration: float | None = None
+) -> list[Scenario]:
+    """Every task's scenario with the framework backends' profiles set (``backends.<name>.profile``),
+    the others' profile as the scenario's ``profile``, ``overrides`` applied, cut to ``duration`` [s]."""
+    sets: dict[str, Any] = {"profile": plan.others}
+    sets |= {f"backends.{fw.backend}.profile": fw.profile for fw in plan.frameworks}
+    out = []
+    for task in plan.tasks:
+        sc = scenario.load(task.file, {**sets, **(overrides or {})})
+        out.append(scenario.shorten(sc, duration) if duration is not None else sc)
+    return out
+
+
+def backend_names(plan: Plan, others: str | Sequence[str] = "all") -> list[str]:
+    """The framework backends (installed or not: a missing one gets its row), then the others:
+    ``"all"`` available ones, ``"none"``, or the names given."""
+    first = [fw.backend for fw in plan.frameworks]
+    if others == "none":
+        rest: list[str] = []
+    elif others == "all":
+        rest = registry.available()
+    else:
+        rest = registry.resolve(list(others) if not isinstance(others, str) else others)
+    return list(dict.fromkeys([*first, *rest]))
+
+
+# --------------------------------------------------------------------------- #
+# The tables
+
+
+@dataclass(frozen=True)
+class Table:
+    """One of the report's tables: numbers where a backend ran, text where it did not.
+
+    Attributes:
+        key: ``table10``, ``table11``, ``table12``, ``sim_error_<task>``.
+        title: heading.
+        caption: what the numbers are, with units.
+        header: column names.
+        rows: each a label, then floats (NaN: not applicable) or a text cell.
+    """
+
+    key: str
+    title: str
+    caption: str
+    header: tuple[str, ...]
+    rows: tuple[tuple[Any, ...], ...] = field(default=())
+
+    def text_rows(self) -> list[list[str]]:
+        return [[_cell(v) for v in r] for r in self.rows]
+
+
+def _cell(v: Any) -> str:
+    if isinstance(v, float | np.floating):
+        return "-" if math.isnan(v) else f"{v:.4g}"
+    return str(v)
+
+
+def _status(run_: Run, name: str) -> str | None:
+    """None if ``name`` ran to the end in ``run_``, else a sentence saying what happened."""
+    if name in run_.traces:
+        return None
+    st = run_.backends.get(name)
+    if st is None:
+        return "not run"
+    return f"{st.status}: {st.reason or 'no reason given'}"
+
+
+def _profile(run_: Run, name: str) -> str | None:
+    st = run_.backends.get(name)
+    info = (st.info if st is not None else None) or {}
+    return info.get("profile") if isinstance(info, Mapping) else None
+
+
+def backend_poc(run_: Run, name: str) -> str:
+    """The point of contact a backend's contact law used: its info's ``contact.poc``, else the scenario's."""
+    st = run_.backends.get(name)
+    contact = ((st.info if st is not None else None) or {}).get("contact") or {}
+    poc = contact.get("poc") if isinstance(contact, Mapping) else None
+    return poc if poc in ("true", "centre") else run_.poc
+
+
+def steady_of(run_: Run, name: str) -> SteadyState:
+    """The steady state of one backend over the scenario's window, its check at its own poc."""
+    return steady_state(run_.traces[name], run_.steady_window, backend_poc(run_, name))
+
+
+def table10(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
+    """Steady |qd| per joint: the scenario's published rows, then each backend."""
+    rows: list[tuple[Any, ...]] = []
+    for pub in (run_.meta.get("scenario") or {}).get("comparison", {}).get("published") or []:
+        if "qd_abs" in pub:
+            rows.append((pub["source"], *(float(x) for x in pub["qd_abs"])))
+    for n in names:
+        label = f"legbench, {plan.label(n, _profile(run_, n))}"
+        why = _status(run_, n)
+        rows.append((label, why, "", "") if why else (label, *np.abs(steady_of(run_, n).qd).tolist()))
+    return Table(
+        "table10",
+        f"Table 10: steady joint velocities, task {run_.name}",
+        f"mean |qd| over the last {run_.steady_window:g} s [rad/s]; the lab report's published rows first",
+        ("source", "|qd1|", "|qd2|", "|qd3|"),
+        tuple(rows),
+    )
+
+
+def table11(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
+    """Steady ground force, the analytic check h at the true poc, and the centre-poc compensated force."""
+    rows: list[tuple[Any, ...]] = []
+    for n in names:
+        label = plan.label(n, _profile(run_, n))
+        why = _status(run_, n)
+        if why:
+            rows.append((label, why, *[""] * 9))
+            continue
+        s = steady_of(run_, n)
+        comp = s.force + s.poc_compensation if s.poc_compensation is not None else np.full(3, np.nan)
+        rows.append((label, backend_poc(run_, n), *s.force.tolist(), *s.analytic_poc.tolist(), *comp.tolist()))
+    return Table(
+        "table11",
+        f"Table 11: steady ground force, task {run_.name}",
+        f"means over the last {run_.steady_window:g} s, ground force on the foot in W [N]: measured F; the "
+        "analytic check -h with h = (J_poc^T)^-1 (tau - G(q)) at the true poc; for a backend whose law takes "
+        "the poc at the sphere centre, its F compensated to the true poc: F + (-h(J_poc)) - (-h(J_E))",
+        ("backend", "poc", "Fx", "Fy", "Fn", "check Fx", "check Fy", "check Fn", "comp. Fx", "comp. Fy", "comp. Fn"),
+        tuple(rows),
+    )
+
+
+def table12(plan: Plan, runs: Sequence[Run], names: Sequence[str]) -> Table:
+    """Steady Fn per backend, one column per task."""
+    rows: list[tuple[Any, ...]] = []
+    for n in names:
+        cells: list[Any] = []
+        for r in runs:
+            why = _status(r, n)
+            cells.append(why if why else float(steady_of(r, n).force[2]))
+        rows.append((plan.label(n, next((p for r in runs if (p := _profile(r, n))), None)), *cells))
+    return Table(
+        "table12",
+        "Table 12: steady normal ground force",
+        "mean Fn over each task's last steady window [N]",
+        ("backend", *(f"Fn, {r.name}" for r in runs)),
+        tuple(rows),
+    )
+
+
+def sim_error_table(plan: Plan, run_: Run) -> Table:
+    """Simulation error % of q, each framework analogue against each other (the second is the reference)."""
+    rows: list[tuple[Any, ...]] = []
+    for a in plan.frameworks:
+        for b in plan.frameworks:
+            if a is b:
+                continue
+            why = _status(run_, a.backend) or _status(run_, b.backend)
+            if why:
+                missing = a.backend if _status(run_, a.backend) else b.backend
+                rows.append((a.name, b.name, f"{missing} {why}", "", ""))
+                continue
+            pm = pair_metrics(run_.traces[a.backend], run_.traces[b.backend], run_.skip)
+            rows.append((a.name, b.name, *pm.sim_error_pct[SLICE["q"]].tolist()))
+    return Table(
+        f"sim_error_{run_.name}",
+        f"Simulation error %, task {run_.name}",
+        f"max_t |q_a - q_b| / max_t |q_b| x 100 per joint, t >= {run_.skip:g} s (docs/metrics.md)",
+        ("framework a", "against b", "q1 %", "q2 %", "q3 %"),
+        tuple(rows),
+    )
+
+
+def tables(plan: Plan, runs: Sequence[Run], names: Sequence[str]) -> list[Table]:
+    """The report's tables from the run directories of the plan's tasks (same order as ``plan.tasks``)."""
+    out: list[Table] = []
+    for task, r in zip(plan.tasks, runs, strict=True):
+        if "steady" in task.tables:
+            out += [table10(plan, r, names), table11(plan, r, names)]
+    force_runs = [r for task, r in zip(plan.tasks, runs, strict=True) if "force" in task.tables]
+    if force_runs:
+        out.append(table12(plan, force_runs, names))
+    for task, r in zip(plan.tasks, runs, strict=True):
+        if "sim_error" in task.tables:
+            out.append(sim_error_table(plan, r))
+    return out
+
+
+def page_items(plan: Plan, tabs: Sequence[Table]) -> list[report.PageItem]:
+    """The tables as a page: a heading, what stands for what, then each table."""
+    items: list[report.PageItem] = [
+        "# The lab report's comparison, regenerated",
+        "Framework analogues ("
+        + plan.file
+        + "): "
+        + "; ".join(f"{fw.name} -> {fw.backend} with profile {fw.profile}" for fw in plan.frameworks)
+        + f"; every other backend with profile {plan.others}.",
+    ]
+    for t in tabs:
+        items += [f"## {t.title}", (t.caption, t.header, t.text_rows())]
+    return items
+
+
+# --------------------------------------------------------------------------- #
+# The command
+
+
+def reproduce(
+    plan: Plan,
+    out: Path,
+    names: Sequence[str],
+    overrides: Mapping[str, Any] | None = None,
+    duration: float | None = None,
+    jobs: int = 1,
+    progress: bool = False,
+    reports: bool = True,
+) -> tuple[list[Table], list[Run]]:
+    """Run every task on every backend into ``out/<task>/``, then build, print-ready, the tables.
+
+    Returns:
+        The tables and the run directories read back (``plan.tasks`` order).
+    """
+    scs = scenarios_of(plan, overrides, duration)
+    dirs = [out / sc.name for sc in scs]
+    run.run_many([(sc, None, d) for sc, d in zip(scs, dirs, strict=True)], names, jobs=jobs, progress=progress)
+    if reports:
+        for d in dirs:
+            report.write_report(d)
+    runs = [load_run(d) for d in dirs]
+    tabs = tables(plan, runs, names)
+    report.write_page(out, "reproduce", "legbench: the lab report's comparison", page_items(plan, tabs))
+    doc = {
+        "framework_file": plan.file,
+        "frameworks": [fw.__dict__ for fw in plan.frameworks],
+        "backends": list(names),
+        "runs": {r.name: str(r.path) for r in runs},
+        "tables": {
+            t.key: {"title": t.title, "header": list(t.header), "rows": [list(r) for r in t.rows]} for t in tabs
+        },
+    }
+    results.write_json(doc, out / "reproduce.json")
+    return tabs, runs
+
+
+def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Register ``legbench reproduce [--frameworks FILE] [--out DIR] [--jobs N] [--duration S] ...``."""
+    p = subparsers.add_parser(
+        "reproduce",
+        help="the lab report's comparison in one command: its tables from the framework analogues",
+        description="Run the lab report's four tasks on the backends standing for its frameworks (a framework "
+        "file) and on every other backend; print and write tables 10, 11, 12 and the simulation error % "
+        "between frameworks (OUT/reproduce.{md,html,json}; one ordinary run directory per task).",
+    )
+    p.add_argument("--frameworks", default=str(FRAMEWORKS_FILE), metavar="FILE",
+                   help="which backend and profile stands for which framework, and the tasks "
+                        "(default scenarios/reproduce.yaml)")  # fmt: skip
+    p.add_argument("--backends", default="all",
+                   help="the other backends besides the framework analogues: 'all' available (default), "
+                        "'none', or comma-separated names")  # fmt: skip
+    p.add_argument("--out", default=str(DEFAULT_OUT), help=f"results tree (default {DEFAULT_OUT})")
+    p.add_argument("--jobs", type=int, default=1, help="parallel runs (default 1)")
+    p.add_argument("--duration", type=float, default=None,
+                   help="cut every task to this many seconds (a smoke test; later events dropped)")  # fmt: skip
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a key of every task, e.g. --set physics.contact.v_th=0.01")  # fmt: skip
+    p.add_argument("--no-report", action="store_true", help="skip each run directory's report and figures")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    p.set_defaults(func=_cli)
+
+
+def _cli(args: argparse.Namespace) -> int:
+    plan = load_plan(args.frameworks)
+    others = args.backends if args.backends in ("all", "none") else args.backends.split(",")
+    names = backend_names(plan, others)
+    out = Path(args.out)
+    tabs, runs = reproduce(plan, out, names, yamlfile.parse_overrides(args.set), args.duration, args.jobs,
+                           progress=not args.quiet, reports=not args.no_report)  # fmt: skip
+    print(report.page_markdown(page_items(plan, tabs)))
+    print(f"written: {out / 'reproduce.md'}, {out / 'reproduce.html'}, {out / 'reproduce.json'}")
+    failed = any(st.status == "failed" for r in runs for st in r.backends.values())
+    return EXIT_BACKEND_FAILED if failed else EXIT_OK

@@ -1,0 +1,241 @@
+"""``legbench reproduce``: the framework file, and the tables against the metrics of the same run directories.
+
+One shortened reproduce (every task cut to 0.2 s; two cheap framework analogues and
+one that is not installed) runs once per module. Its table numbers must equal what
+metrics.json of each run directory says (written by ``legbench compare``'s path) and
+what :mod:`legbench.metrics` computes from the logs: the same code on the same data,
+so the tolerance is JSON's round trip (1e-12 relative).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from legbench import backends, cli, metrics, results
+from legbench.exceptions import ScenarioError
+from legbench.studies import reproduce as rp
+
+SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
+RTOL = 1e-12  # same computation on the same data; JSON keeps every digit of a float
+GHOST = "ghostengine"  # a built-in whose engine is not installed anywhere
+
+
+def _plan_doc(**patch: Any) -> dict[str, Any]:
+    doc: dict[str, Any] = {
+        "frameworks": [
+            {"name": "Simscape", "backend": "pinocchio", "profile": "matched"},
+            {"name": "Gazebo", "backend": "mujoco", "profile": "engine-defaults"},
+            {"name": "custom sim", "backend": GHOST, "profile": "engine-defaults"},
+        ],
+        "others": "matched",
+        "tasks": [
+            {"file": str(SCENARIOS / "position.yaml"), "tables": ["sim_error"]},
+            {"file": str(SCENARIOS / "ellipse.yaml"), "tables": ["sim_error"]},
+            {"file": str(SCENARIOS / "effort.yaml"), "tables": ["steady", "force"]},
+            {"file": str(SCENARIOS / "combined.yaml"), "tables": ["force"]},
+        ],
+    }
+    doc.update(patch)
+    return doc
+
+
+@pytest.fixture
+def ghost(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A built-in backend whose module does not exist: known to legbench, missing here."""
+    monkeypatch.setitem(backends.BUILTIN, GHOST, ("legbench.backends.ghostengine_", "GhostBackend", "ghostengine"))
+
+
+def _write(tmp_path: Path, doc: dict[str, Any]) -> Path:
+    p = tmp_path / "frameworks.yaml"
+    p.write_text(yaml.safe_dump(doc))
+    return p
+
+
+def test_shipped_framework_file_names_the_three_analogues() -> None:
+    plan = rp.load_plan()
+    assert [(f.name, f.backend, f.profile) for f in plan.frameworks] == [
+        ("Gazebo", "ode", "gazebo"),
+        ("Simscape", "pinocchio", "ode45"),
+        ("custom sim", "lagrange", "engine-defaults"),
+    ]
+    assert [t.file.name for t in plan.tasks] == [
+        "position.yaml", "ellipse.yaml", "effort.yaml", "combined.yaml", "combined_ros.yaml",
+    ]  # fmt: skip
+    assert plan.others == "matched"
+
+
+@pytest.mark.parametrize(
+    ("patch", "key", "words"),
+    [
+        ({"frameworks": [{"name": "Gazebo", "backend": "gazebo9", "profile": "matched"}]}, "frameworks[0].backend",
+         "unknown backend 'gazebo9'"),
+        ({"frameworks": [{"name": "Simscape", "backend": "pinocchio", "profile": "gazebo"}]}, "frameworks[0].profile",
+         "pinocchio offers the profiles"),
+        ({"frameworks": [{"name": "Simscape", "backend": "pinocchio"}]}, "frameworks[0]", "missing required key"),
+        ({"others": "ode45"}, "others", "expected one of matched, engine-defaults"),
+        ({"tasks": [{"file": "nowhere.yaml", "tables": ["steady"]}]}, "tasks[0].file", "no scenario file"),
+        ({"tasks": [{"file": str(SCENARIOS / "effort.yaml"), "tables": ["table10"]}]}, "tasks[0].tables[0]",
+         "expected one of steady, force, sim_error"),
+        ({"framework": []}, "framework", "did you mean 'frameworks'"),
+    ],
+)  # fmt: skip
+def test_bad_framework_file_is_one_line_naming_file_and_key(
+    tmp_path: Path, ghost: None, patch: dict[str, Any], key: str, words: str
+) -> None:
+    path = _write(tmp_path, _plan_doc(**patch))
+    with pytest.raises(ScenarioError) as err:
+        rp.load_plan(path)
+    msg = str(err.value)
+    assert str(path) in msg and err.value.key == key and words in msg
+    assert "\n" not in msg
+
+
+def test_other_backends_follow_the_framework_analogues(tmp_path: Path, ghost: None) -> None:
+    plan = rp.load_plan(_write(tmp_path, _plan_doc()))
+    names = rp.backend_names(plan, "all")
+    assert names[:3] == ["pinocchio", "mujoco", GHOST]  # a missing analogue keeps its row
+    assert set(names[3:]) == set(backends.available()) - {"pinocchio", "mujoco"}
+    assert rp.backend_names(plan, "none") == ["pinocchio", "mujoco", GHOST]
+    assert plan.label("mujoco") == "Gazebo: mujoco (engine-defaults)" and plan.label("dart") == "dart (matched)"
+
+
+@pytest.fixture(scope="module")
+def repro(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, rp.Table], str]:
+    """One shortened ``legbench reproduce`` through the CLI: every task cut to 0.2 s."""
+    mp = pytest.MonkeyPatch()
+    mp.setitem(backends.BUILTIN, GHOST, ("legbench.backends.ghostengine_", "GhostBackend", "ghostengine"))
+    tmp = tmp_path_factory.mktemp("repro")
+    fw = _write(tmp, _plan_doc())
+    out = tmp / "out"
+    try:
+        args = cli.build_parser(["reproduce"]).parse_args(
+            [
+                "reproduce",
+                "--frameworks",
+                str(fw),
+                "--out",
+                str(out),
+                "--duration",
+                "0.2",
+                "--backends",
+                "none",
+                "--quiet",
+            ]  # fmt: skip
+        )
+        status = args.func(args)
+        plan = rp.load_plan(fw)
+        runs = [results.load_run(out / name) for name in ("position", "ellipse", "effort", "combined")]
+        tabs = {t.key: t for t in rp.tables(plan, runs, rp.backend_names(plan, "none"))}
+    finally:
+        mp.undo()
+    assert status == 0  # a missing backend is a row, not a failure
+    return out, tabs, (out / "reproduce.md").read_text()
+
+
+def _metric(run_dir: Path, backend: str, signal: str, metric: str, reference: str = "") -> np.ndarray:
+    """A backend's three values of one signal and metric from the run directory's metrics.json."""
+    _, df = results.read_metrics(run_dir / "metrics.json")
+    sel: pd.DataFrame = df[(df.backend == backend) & (df.signal == signal) & (df.metric == metric)]
+    if reference:
+        sel = sel[sel.reference == reference]
+    assert len(sel) == 3, (backend, signal, metric)
+    return sel["value"].to_numpy()
+
+
+@pytest.fixture(scope="module")
+def with_metrics(repro: tuple[Path, dict[str, rp.Table], str]) -> Path:
+    """The results tree; each run directory has the metrics.json its report wrote (legbench compare's path)."""
+    return repro[0]
+
+
+def test_reproduce_writes_the_tables_and_ordinary_run_directories(repro: tuple[Path, dict[str, rp.Table], str]) -> None:
+    out, tabs, md = repro
+    assert set(tabs) == {"table10", "table11", "table12", "sim_error_position", "sim_error_ellipse"}
+    for f in ("reproduce.md", "reproduce.html", "reproduce.json"):
+        assert (out / f).stat().st_size > 500
+    for title in ("Table 10", "Table 11", "Table 12", "Simulation error %, task position", "task ellipse"):
+        assert title in md
+    assert "lab report, table 10: Gazebo (ODE, Coulomb friction)" in md
+    meta = results.read_meta(out / "effort")
+    assert meta["backends"]["pinocchio"]["info"]["profile"] == "matched"
+    assert meta["backends"]["mujoco"]["info"]["profile"] == "engine-defaults"
+    assert meta["backends"][GHOST]["status"] == "missing"
+    assert meta["scenario"]["duration"] == 0.2
+
+
+def test_table10_published_rows_and_steady_qd_equal_the_metrics(with_metrics: Path, repro: Any) -> None:
+    t10 = repro[1]["table10"]
+    published = [r for r in t10.rows if str(r[0]).startswith("lab report")]
+    assert [list(r[1:]) for r in published] == [
+        [4.0e-4, 8.7e-4, 6.4e-4],
+        [4.0e-4, 9.0e-4, 6.4e-4],
+        [2.3e-5, 3.6e-3, 8.6e-3],
+    ]
+    rows = {r[0]: r[1:] for r in t10.rows}
+    for label, name in (("legbench, Simscape: pinocchio (matched)", "pinocchio"),
+                        ("legbench, Gazebo: mujoco (engine-defaults)", "mujoco")):  # fmt: skip
+        np.testing.assert_allclose(rows[label], np.abs(_metric(with_metrics / "effort", name, "qd", "steady_mean")),
+                                   rtol=RTOL)  # fmt: skip
+    ghost_row = rows[f"legbench, custom sim: {GHOST} (engine-defaults)"]
+    assert str(ghost_row[0]).startswith("missing:")
+
+
+def test_table11_force_check_and_compensation_equal_the_metrics(with_metrics: Path, repro: Any) -> None:
+    rows = {r[0]: r[1:] for r in repro[1]["table11"].rows}
+    run_ = results.load_run(with_metrics / "effort")
+    for label, name in (("Simscape: pinocchio (matched)", "pinocchio"), ("Gazebo: mujoco (engine-defaults)", "mujoco")):
+        poc, *vals = rows[label]
+        assert poc == "true"
+        np.testing.assert_allclose(vals[0:3], _metric(with_metrics / "effort", name, "force", "steady_mean"), rtol=RTOL)
+        np.testing.assert_allclose(
+            vals[3:6], _metric(with_metrics / "effort", name, "force", "analytic_poc"), rtol=RTOL
+        )
+        assert np.isnan(vals[6:9]).all()  # true poc: nothing to compensate
+        s = metrics.steady_state(run_.traces[name], run_.steady_window, "centre")
+        assert s.poc_compensation is not None and np.abs(s.poc_compensation).max() > 0.01  # J_E != J_poc here
+    assert str(rows[f"custom sim: {GHOST} (engine-defaults)"][0]).startswith("missing:")
+
+
+def test_table11_compensates_a_centre_poc_backend(with_metrics: Path, repro: Any) -> None:
+    """A backend whose law takes the poc at the sphere centre: comp. F = F + (-h(J_poc)) - (-h(J_E))."""
+    run_ = results.load_run(with_metrics / "effort")
+    st = run_.backends["pinocchio"]
+    centre = results.Run(**{**run_.__dict__, "backends": {**run_.backends, "pinocchio": results.BackendStatus(
+        st.name, st.status, st.reason, {**st.info, "contact": {**st.info["contact"], "poc": "centre"}})}})  # fmt: skip
+    plan = rp.Plan("<memory>", (rp.Framework("Simscape", "pinocchio", "matched"),), "matched", ())
+    (row,) = rp.table11(plan, centre, ["pinocchio"]).rows
+    s = metrics.steady_state(run_.traces["pinocchio"], run_.steady_window, "centre")
+    assert row[1] == "centre" and s.analytic_centre is not None
+    np.testing.assert_allclose(row[8:11], s.force + s.analytic_poc - s.analytic_centre, rtol=RTOL)
+
+
+def test_table12_fn_equals_the_metrics_per_task(with_metrics: Path, repro: Any) -> None:
+    t12 = repro[1]["table12"]
+    assert t12.header == ("backend", "Fn, effort", "Fn, combined")
+    rows = {r[0]: r[1:] for r in t12.rows}
+    for label, name in (("Simscape: pinocchio (matched)", "pinocchio"), ("Gazebo: mujoco (engine-defaults)", "mujoco")):
+        for col, task in enumerate(("effort", "combined")):
+            fn = _metric(with_metrics / task, name, "force", "steady_mean")[2]
+            assert rows[label][col] == pytest.approx(fn, rel=RTOL, abs=1e-12)
+    assert all(str(c).startswith("missing:") for c in rows[f"custom sim: {GHOST} (engine-defaults)"])
+
+
+@pytest.mark.parametrize("task", ["position", "ellipse"])
+def test_sim_error_between_frameworks_equals_the_metrics(with_metrics: Path, repro: Any, task: str) -> None:
+    table = repro[1][f"sim_error_{task}"]
+    rows = {(r[0], r[1]): r[2:] for r in table.rows}
+    # mujoco against pinocchio (the scenarios' reference): metrics.json has it
+    from_json = _metric(with_metrics / task, "mujoco", "q", "sim_error_pct", "pinocchio")
+    np.testing.assert_allclose(rows[("Gazebo", "Simscape")], from_json, rtol=RTOL)
+    run_ = results.load_run(with_metrics / task)
+    pm = metrics.pair_metrics(run_.traces["pinocchio"], run_.traces["mujoco"], run_.skip)
+    np.testing.assert_allclose(rows[("Simscape", "Gazebo")], pm.sim_error_pct[:3], rtol=RTOL)
+    assert rows[("Gazebo", "Simscape")][0] > 0.0  # two engines: not identical traces
+    assert str(rows[("Simscape", "custom sim")][0]).startswith(f"{GHOST} missing:")
+    assert len(table.rows) == 6  # every ordered pair of the three frameworks
