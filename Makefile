@@ -55,7 +55,7 @@ check: compare
 baseline: compare
 	rm -rf results/baseline
 	mkdir -p results/baseline
-	cd results/latest && for d in */; do mkdir -p ../baseline/$$d && cp $$d/metrics.json $$d/run.json ../baseline/$$d; done
+	cd results/latest && for d in */; do if [ -f $$d/metrics.json ]; then mkdir -p ../baseline/$$d && cp $$d/metrics.json $$d/run.json ../baseline/$$d; fi; done
 
 ## the lab report's comparison (tables 10, 11, 12, simulation error % between its frameworks' analogues,
 ## as scenarios/reproduce.yaml maps them) -> results/reproduce/reproduce.{md,html,json}
