@@ -131,9 +131,14 @@ class ReferenceContact:
                      1.5 * v_th, float(params.mu_s) - float(params.mu_k), 0.5 * v_th)  # fmt: skip
 
     @classmethod
-    def from_leg(cls, params: ContactParams) -> ReferenceContact:
+    def from_leg(cls, params: ContactParams, implicit_friction_gravity: float | None = None) -> ReferenceContact:
+        """The law on the leg of ``models/leg.yaml``; with ``implicit_friction_gravity`` [m/s^2] also
+        prepared for :meth:`implicit_generalized` (:meth:`use_implicit_friction`)."""
         g = load_params().geometry
-        return cls(params, g.L_B0, g.H, g.L_01, g.L_12, g.L_23, g.L_3E, g.R_foot)
+        law = cls(params, g.L_B0, g.H, g.L_01, g.L_12, g.L_23, g.L_3E, g.R_foot)
+        if implicit_friction_gravity is not None:
+            law.use_implicit_friction(implicit_friction_gravity)
+        return law
 
     def wrench(self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
         """(tau_c1, tau_c2, tau_c3, fx, fy, fz): J_poc^T F [N m] and F in W [N] for q [rad], qd [rad/s].

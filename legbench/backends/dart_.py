@@ -163,10 +163,8 @@ class DartBackend(Backend):
         solver.setCollisionDetector(_DETECTORS[cfg["collision_detector"]]())
         solver.setSplitImpulseEnabled(bool(cfg["split_impulse"]))
 
-        self.contact = ReferenceContact.from_leg(c)
         self._implicit = self.reference and cfg["reference_friction"] == "implicit"
-        if self._implicit:
-            self.contact.use_implicit_friction(physics.gravity)
+        self.contact = ReferenceContact.from_leg(c, physics.gravity if self._implicit else None)
         self._hi = np.asarray(physics.torque_limit, float)
         self._lo = -self._hi
         self._tau = np.zeros(3)

@@ -198,10 +198,8 @@ class DrakeBackend(Backend):
         # Drake warns that a rigid half-space takes no part in deformable contact (there is none here)
         with _drake_log_level(logging.ERROR):
             self._build(urdf, physics, plant_cfg, usual)
-        self.contact = ReferenceContact.from_leg(c)
         self._implicit = self.reference and cfg["reference_friction"] == "implicit"
-        if self._implicit:
-            self.contact.use_implicit_friction(physics.gravity)
+        self.contact = ReferenceContact.from_leg(c, physics.gravity if self._implicit else None)
         self._hi = np.asarray(physics.torque_limit, float)
         self._lo = -self._hi
         self._tau = np.zeros(3)

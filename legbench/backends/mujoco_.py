@@ -244,9 +244,8 @@ class MujocoBackend(Backend):
             m.pair_friction[i] = [c.mu_s, c.mu_s, 0.0, 0.0, 0.0]
             m.pair_margin[i] = 0.0
 
-        self.contact = ReferenceContact.from_leg(c)
-        if self.reference and cfg["reference_friction"] == "implicit":
-            self.contact.use_implicit_friction(physics.gravity)
+        implicit = self.reference and cfg["reference_friction"] == "implicit"
+        self.contact = ReferenceContact.from_leg(c, physics.gravity if implicit else None)
         native = {"end": self._step_native, "last": self._step_native_last, "mean": self._step_native_mean}[
             cfg["force_readout"]
         ]

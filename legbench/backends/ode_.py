@@ -228,10 +228,8 @@ class OdeBackend(Backend):
         self._contact_joints: list[Any] = [None] * MAX_CONTACTS
         self._near = ode.dNearCallback(self._near_callback)
 
-        self.contact = ReferenceContact.from_leg(c)
         self._implicit = self.reference and cfg["reference_friction"] == "implicit"
-        if self._implicit:
-            self.contact.use_implicit_friction(physics.gravity)
+        self.contact = ReferenceContact.from_leg(c, physics.gravity if self._implicit else None)
         self._hi = np.asarray(physics.torque_limit, float)
         self._lo = -self._hi
         self._tau = np.zeros(3)

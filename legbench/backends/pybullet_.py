@@ -173,9 +173,8 @@ class PybulletBackend(Backend):
             rollingFriction=0.0, restitution=0.0, physicsClientId=cid, **margins, **rigid,
         )  # fmt: skip
 
-        self.contact = ReferenceContact.from_leg(c)
-        if self.reference and cfg["reference_friction"] == "implicit":
-            self.contact.use_implicit_friction(physics.gravity)
+        implicit = self.reference and cfg["reference_friction"] == "implicit"
+        self.contact = ReferenceContact.from_leg(c, physics.gravity if implicit else None)
         self._hi = np.asarray(physics.torque_limit, float)
         self._lo = -self._hi
         self._step = self._step_reference if self.reference else self._step_native
