@@ -34,35 +34,81 @@ Reference contact: the foot-ground collision pair is disabled and ``J_poc^T F`` 
 :class:`~legbench.contact.ReferenceContact` at the sub-step's start state is
 added to the commanded torque before every ``stepSimulation``.
 
-Sub-stepping: ``numSubSteps = 1`` and ``stepSimulation`` called ``n_sub``
-times per control period, so ``getContactPoints`` reports the force of a whole
-(sub-)step: its impulse over that step (with Bullet's internal sub-steps,
-``numSubSteps = n``, it is the last internal step's impulse divided by the whole
-step, n times too small, so legbench does not use them). The read-out is that of
-the last sub-step; Bullet's contact sticks without chatter, and it matches the
-leg's statics over the effort task's last 0.5 s to 2e-7 of Fn (matched) and
-3e-7 (engine-defaults). Bullet
+Sub-stepping: native contact (``sub_stepping: bullet``, the default) commands the (clamped)
+torque once per control period, as a list (cheaper across the binding than an array), and
+calls ``stepSimulation`` once with ``fixedTimeStep`` = the control period and ``numSubSteps =
+n_sub``: Bullet holds the torque over its internal steps and clears it after the last, so the
+states are bit-identical to ``n_sub`` x (command + ``stepSimulation``) (``sub_stepping: python``;
+tests/test_backend_pybullet.py compares the logs). ``getContactPoints`` then reports the last
+internal step's impulse divided by the whole period, ``n_sub`` times too small: the read-out is
+multiplied by ``n_sub`` (the force of the last sub-step, as with one call per sub-step). Bullet's
+contact sticks without chatter, and the read-out matches the leg's statics over the effort task's
+last 0.5 s to 2e-7 of Fn (matched) and 3e-7 (engine-defaults). Reference contact needs the law at
+every sub-step's start state, so there the backend calls ``stepSimulation`` per sub-step
+(``numSubSteps = 1``) and adds the law to the command before each call. Bullet
 applies a ``TORQUE_CONTROL`` command only to the next ``stepSimulation`` and
-adds up repeated commands, so the (clamped) torque is commanded exactly once
+adds up repeated commands, so the torque is commanded exactly once
 before each call. The integrator is Bullet's semi-implicit Euler; ``dt``
-defaults to 1e-4 s like the other backends (free-space error < 0.1 % of the
+defaults to 5e-5 s like the other backends (free-space error < 0.1 % of the
 motion, tests/test_backends_engines.py).
 """
 
 from __future__ import annotations
 
+import importlib
 import math
+import sys
 from collections.abc import Mapping
 from importlib import metadata
 from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
-import pybullet as p
 
 from legbench.backends.base import Backend, Limits, Physics, check_finite, sub_step_count
 from legbench.contact import ReferenceContact, law_step_warnings
 from legbench.model import FOOT_FRAME, LINK_NAMES, Inertial, combine
+
+#: The line pybullet's C module prints (to stderr) when it is imported.
+_BANNER = b"pybullet build time:"
+
+
+def _import_quietly() -> Any:
+    """Import pybullet without its build banner.
+
+    The banner is a C ``printf`` to stderr at module initialisation, below Python's
+    ``sys.stderr``, so file descriptor 2 is pointed at a temporary file for the import and
+    every other line written there is written back to the real stderr: only the banner is
+    hidden (an import error is an exception, raised as usual).
+    """
+    import ctypes
+    import os
+    import tempfile
+
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):  # no usable fd 2: import as it is
+        return importlib.import_module("pybullet")
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            module = importlib.import_module("pybullet")
+        finally:
+            try:  # anything C's stdio still buffers goes to the file, not after the restore
+                ctypes.CDLL(None).fflush(None)
+            except (OSError, AttributeError):
+                pass
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            kept = b"".join(line for line in tmp.readlines() if not line.startswith(_BANNER))
+            if kept:
+                os.write(2, kept)
+    return module
+
+
+p = _import_quietly()
 
 #: Joint-speed clamp [rad/s]: Bullet's default of 100 replaced by a bound the leg cannot reach.
 MAX_JOINT_VELOCITY = 1000.0
@@ -82,6 +128,7 @@ class PybulletBackend(Backend):
         "plane_friction": 1.0,  # lateral friction of the plane (Bullet multiplies it with the foot's mu)
         "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
         "contact_margins": "zero",  # zero: contactSlop = contactProcessingThreshold = 0; default: Bullet's
+        "sub_stepping": "bullet",  # native: bullet: one command + numSubSteps; python: n x (command + step)
     }
     #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
     sliding_coefficient: ClassVar[str] = "mu_s"
@@ -89,6 +136,7 @@ class PybulletBackend(Backend):
         "plane_contact": ("rigid", "default"),
         "contact_margins": ("zero", "default"),
         "reference_friction": ("implicit", "explicit"),
+        "sub_stepping": ("bullet", "python"),
     }
     #: ``engine-defaults``: one Bullet step per control period, Bullet's plane, slop and
     #: thresholds; Kp, Kd as the foot's contactStiffness/contactDamping, mu as its
@@ -120,11 +168,14 @@ class PybulletBackend(Backend):
         n_sub = sub_step_count(self.name, cfg["dt"], physics.control_dt)
         self.cfg, self.physics, self.n_sub = cfg, physics, n_sub
         self.reference = physics.contact_mode == "reference"
+        # Bullet's own sub-stepping: one stepSimulation of the control period split into n_sub
+        # internal steps; reference contact needs the law at every sub-step, so it steps itself
+        self.engine_sub = not self.reference and cfg["sub_stepping"] == "bullet"
         self.cid = cid = p.connect(p.DIRECT)
 
         p.setPhysicsEngineParameter(
-            fixedTimeStep=physics.control_dt / n_sub,
-            numSubSteps=1,
+            fixedTimeStep=physics.control_dt if self.engine_sub else physics.control_dt / n_sub,
+            numSubSteps=n_sub if self.engine_sub else 1,
             numSolverIterations=int(cfg["solver_iterations"]),
             physicsClientId=cid,
         )
@@ -177,7 +228,13 @@ class PybulletBackend(Backend):
         self.contact = ReferenceContact.from_leg(c, physics.gravity if implicit else None)
         self._hi = np.asarray(physics.torque_limit, float)
         self._lo = -self._hi
-        self._step = self._step_reference if self.reference else self._step_native
+        if self.reference:
+            self._step = self._step_reference
+        else:
+            self._step = self._step_native_engine if self.engine_sub else self._step_native
+        #: getContactPoints reports the last internal step's impulse over the whole stepSimulation
+        #: (fixedTimeStep): with Bullet's sub-stepping that is n_sub times the internal step
+        self._force_scale = float(n_sub) if self.engine_sub else 1.0
         self._tau = np.zeros(3)
         self._cmd = np.zeros(3)
         self._force = np.zeros(3)
@@ -207,11 +264,27 @@ class PybulletBackend(Backend):
         self.t += self.physics.control_dt
         check_finite(self.name, self.t, self._q, self._qd)
 
+    def _step_native_engine(self) -> None:
+        """Native contact, Bullet's own sub-stepping: one torque command (a list: cheaper across the
+        binding than an array) and one ``stepSimulation`` that takes ``numSubSteps`` internal steps.
+
+        Bullet keeps the commanded joint torque for every internal step and clears it after the
+        last, so this is bit-identical to ``n_sub`` x (command + ``stepSimulation``) of
+        :meth:`_step_native` (tests/test_backend_pybullet.py compares the logs).
+        """
+        p.setJointMotorControlArray(self.body, self.joints, p.TORQUE_CONTROL, forces=self._tau.tolist(),
+                                    physicsClientId=self.cid)  # fmt: skip
+        p.stepSimulation(physicsClientId=self.cid)
+        self._read()
+        self._native_force()
+
     def _step_native(self) -> None:
-        body, cid, joints, tau = self.body, self.cid, self.joints, self._tau
-        for _ in range(self.n_sub):
-            p.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=tau, physicsClientId=cid)
-            p.stepSimulation(physicsClientId=cid)
+        """Native contact, ``sub_stepping: python``: ``n_sub`` x (command + ``stepSimulation``)."""
+        body, cid, joints, n_sub = self.body, self.cid, self.joints, self.n_sub
+        tau, control, step, torque = self._tau.tolist(), p.setJointMotorControlArray, p.stepSimulation, p.TORQUE_CONTROL
+        for _ in range(n_sub):
+            control(body, joints, torque, forces=tau, physicsClientId=cid)
+            step(physicsClientId=cid)
         self._read()
         self._native_force()
 
@@ -236,7 +309,7 @@ class PybulletBackend(Backend):
                 np.add(tau, law_i(q[0], q[1], q[2], qd[0], qd[1], qd[2], u1, u2, u3, h), out=cmd)
             else:
                 np.add(tau, law(q[0], q[1], q[2], qd[0], qd[1], qd[2]), out=cmd)
-            p.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=cmd, physicsClientId=cid)
+            p.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=cmd.tolist(), physicsClientId=cid)
             p.stepSimulation(physicsClientId=cid)
             self._read()
         self._reference_force()
@@ -255,19 +328,24 @@ class PybulletBackend(Backend):
             self._fn_peak, self._q_peak = float(self._force[2]), q.tolist()
 
     def _native_force(self) -> None:
-        """Sum of the foot's contact forces over the last sub-step (impulse / dt), on the foot, in W.
+        """Sum of the foot's contact forces over the last sub-step (impulse / sub-step), on the foot, in W [N].
+
+        Bullet divides the impulse by ``fixedTimeStep``, the whole period with its own sub-stepping:
+        ``_force_scale`` (``n_sub`` then, else 1) turns that into the sub-step's force.
 
         With the foot as body A, ``contactNormalOnB`` points from the ground
         towards the foot, the normal force pushes the foot along it, and the
         two friction forces act on A along ``lateralFrictionDir1/2``.
         """
-        force = self._force
-        force[:] = 0.0
+        fx = fy = fz = 0.0
         for cp in p.getContactPoints(self.body, self.ground, self.foot, -1, physicsClientId=self.cid):
-            fn, f1, d1, f2, d2 = cp[9], cp[10], cp[11], cp[12], cp[13]
-            n = cp[7]
-            for k in range(3):
-                force[k] += fn * n[k] + f1 * d1[k] + f2 * d2[k]
+            fn, f1, d1, f2, d2, n = cp[9], cp[10], cp[11], cp[12], cp[13], cp[7]
+            fx += fn * n[0] + f1 * d1[0] + f2 * d2[0]
+            fy += fn * n[1] + f1 * d1[1] + f2 * d2[1]
+            fz += fn * n[2] + f1 * d1[2] + f2 * d2[2]
+        s = self._force_scale
+        force = self._force
+        force[0], force[1], force[2] = fx * s, fy * s, fz * s
 
     # ----------------------------------------------------------------- read
     def state(self) -> tuple[np.ndarray, np.ndarray]:
@@ -295,8 +373,9 @@ class PybulletBackend(Backend):
             "api_version": p.getAPIVersion(physicsClientId=cid),
             **{k: self.cfg[k] for k in self.defaults},
             "sub_steps": self.n_sub,
-            "timestep": engine["fixedTimeStep"],
+            "timestep": engine["fixedTimeStep"] / max(int(engine["numSubSteps"]), 1),
             "engine_sub_steps": engine["numSubSteps"],
+            "step_calls_per_period": 1 if self.engine_sub else self.n_sub,
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
             "contact": {
@@ -352,7 +431,8 @@ class PybulletBackend(Backend):
         params = p.getPhysicsEngineParameters(physicsClientId=cid)
         return Limits(
             gravity=-float(params["gravityAccelerationZ"]), lower=tuple(lower), upper=tuple(upper),  # type: ignore[arg-type]
-            effort=tuple(effort), timestep=float(params["fixedTimeStep"]),  # type: ignore[arg-type]
+            effort=tuple(effort),  # type: ignore[arg-type]
+            timestep=float(params["fixedTimeStep"]) / max(int(params["numSubSteps"]), 1),
             enforcement="hard joint-limit constraint in the sequential-impulse solver",
         )  # fmt: skip
 
