@@ -33,8 +33,9 @@ other geom collides). Profiles (docs/contact_mapping.md has the study):
   Friction is then the regularised cone: the foot creeps at about F_t / Kd.
 
 Ground force read-out (setting ``force_readout``): ``end`` (default) is the force
-at the end state of the control period (one more ``mj_forward`` after the
-sub-steps; ``efc_force`` through ``mj_contactForce``, rotated out of the contact
+at the end state of the control period (one more ``mj_forward`` after the sub-steps, whose position
+and velocity stages the next period's first sub-step reuses, so it adds only one acceleration stage;
+``efc_force`` through ``mj_contactForce``, rotated out of the contact
 frame, after the noslip pass), aligned with the logged state as the law's is;
 ``last`` is the force the last sub-step applied (Bullet's convention, one
 sub-step behind); ``mean`` averages the applied force over the control period's
@@ -103,6 +104,15 @@ _INTEGRATORS = {
     "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
     "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
 }
+
+#: What ``mj_step`` calls after ``mj_forward`` and ``mj_checkAcc``, per integrator.
+_INTEGRATE = {
+    "euler": mujoco.mj_Euler,
+    "rk4": lambda m, d: mujoco.mj_RungeKutta(m, d, 4),
+    "implicitfast": mujoco.mj_implicit,
+    "implicit": mujoco.mj_implicit,
+}
+_STAGE_VEL = mujoco.mjtStage.mjSTAGE_VEL
 
 
 class MujocoBackend(Backend):
@@ -255,7 +265,11 @@ class MujocoBackend(Backend):
         self._force = np.zeros(3)
         self._impulse = np.zeros(3)
         self._fn_peak, self._q_peak = 0.0, [0.0, 0.0, 0.0]
-        self._bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
+        # live views into d, taken once: the hot loop looks nothing up and allocates nothing
+        self._ctrl = self.data.ctrl
+        self._bad_qacc = self.data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
+        self._integrate = _INTEGRATE[cfg["integrator"]]
+        mujoco.mj_forward(m, self.data)  # every step may reuse the position and velocity stages of d
 
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
@@ -271,18 +285,38 @@ class MujocoBackend(Backend):
     # ----------------------------------------------------------------- step
     def step(self, tau: np.ndarray) -> None:
         """Advance one control period with tau [N m] held (clamped to the torque limits by MuJoCo)."""
-        self.data.ctrl[:] = tau
+        self._ctrl[:] = tau
         self._step()
-        if self.data.warning[self._bad_qacc].number:
+        if self._bad_qacc.number:
             raise SimulationDiverged(self.name, float(self.data.time), "MuJoCo reported a bad qacc")
 
     def _step_native(self) -> None:
         """``n_sub`` steps, then the ground force at the end state (``force_readout: end``).
 
-        ``mj_step`` leaves the contact forces of the last sub-step's start state; one more
-        ``mj_forward`` gives those of the end state, aligned with the logged state like the
-        law's (it also refreshes the solver's warm start).
+        ``mj_step`` leaves the contact forces of the last sub-step's start state; the force at
+        the end state needs the constraint solve at that state, so one ``mj_forward`` per period
+        is kept (the end-state force aligned with the logged state, like the law's). It is not
+        wasted: the next period's first sub-step starts from the same qpos and qvel with only
+        ``ctrl`` changed, so it reuses that call's position and velocity stages (kinematics,
+        mass matrix, collision, constraint Jacobians) and runs ``mj_forwardSkip`` from the
+        acceleration stage, then the integrator: bit-identical to ``mj_step``
+        (tests/test_backend_mujoco.py). :meth:`reset` and :meth:`load` end with ``mj_forward``,
+        so d always holds those stages of its current state when a period starts.
         """
+        m, d = self.model, self.data
+        mujoco.mj_checkPos(m, d)
+        mujoco.mj_checkVel(m, d)
+        mujoco.mj_forwardSkip(m, d, _STAGE_VEL, 0)
+        mujoco.mj_checkAcc(m, d)
+        self._integrate(m, d)
+        if self.n_sub > 1:
+            mujoco.mj_step(m, d, self.n_sub - 1)
+        mujoco.mj_forward(m, d)
+        self._contact_force()
+
+    def _step_native_plain(self) -> None:
+        """``n_sub`` x ``mj_step``, then ``mj_forward`` at the end state: what :meth:`_step_native`
+        does without reusing the stages (the reference its test compares against)."""
         m, d = self.model, self.data
         mujoco.mj_step(m, d, self.n_sub)
         mujoco.mj_forward(m, d)
