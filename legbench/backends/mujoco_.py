@@ -136,6 +136,8 @@ class MujocoBackend(Backend):
     }
     #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
     sliding_coefficient: ClassVar[str] = "mu_s"
+    #: ``legbench bench`` targets (CPU-time medians): the full run within 1.15x ``mj_step(m, d, n)``.
+    bench_targets: ClassVar[Mapping[str, float]] = {"full/floor": 1.15}
     #: MuJoCo's sphere-plane contact point is the middle of the penetration, y/2 above the lowest point.
     contact_point_lift: ClassVar[float] = 0.5
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
@@ -477,6 +479,30 @@ class MujocoBackend(Backend):
 
     def sub_steps(self) -> int:
         return self.n_sub
+
+    def kernels(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> dict[str, Any]:
+        """The engine-only floor: ``mj_step(m, d, n_sub)`` per control period over the given torques.
+
+        ``mj_step_tick`` (one call = one control period): from the first row's state, ``ctrl`` set
+        to each row's tau [N m] and ``mj_step(m, d, n_sub)``, nothing read back (no ground force, no
+        end-state ``mj_forward``). Rows are a run's consecutive periods, so the steps retrace the
+        run (in and out of contact as it was). In reference mode the engine's contact is off and
+        the law is not applied, so this floor is MuJoCo's stepping alone.
+        """
+        m, d, n, ctrl = self.model, self.data, self.n_sub, self._ctrl
+        q0, qd0 = np.array(q[0], float), np.array(qd[0], float)
+        rows = [np.array(t, float) for t in np.asarray(tau)]
+        step = mujoco.mj_step
+
+        def mj_step_tick() -> None:
+            mujoco.mj_resetData(m, d)
+            d.qpos[:] = q0
+            d.qvel[:] = qd0
+            for t in rows:
+                ctrl[:] = t
+                step(m, d, n)
+
+        return {"mj_step_tick": mj_step_tick}
 
     def limits(self) -> Limits:
         """``jnt_range`` where ``jnt_limited``, ``actuator_ctrlrange`` where ``ctrllimited``, ``opt.gravity``."""

@@ -132,6 +132,8 @@ class PybulletBackend(Backend):
     }
     #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
     sliding_coefficient: ClassVar[str] = "mu_s"
+    #: ``legbench bench`` targets (CPU-time medians): the full run within 1.15x Bullet's own sub-stepping.
+    bench_targets: ClassVar[Mapping[str, float]] = {"full/floor": 1.15}
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "plane_contact": ("rigid", "default"),
         "contact_margins": ("zero", "default"),
@@ -415,6 +417,51 @@ class PybulletBackend(Backend):
 
     def sub_steps(self) -> int:
         return self.n_sub
+
+    def kernels(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> dict[str, Any]:
+        """The engine-only floors, one call = one control period over the given torques [N m].
+
+        From the first row's state (q [rad], qd [rad/s]), per row: ``bullet_substeps_tick``, one
+        torque command (a list) and one ``stepSimulation`` with Bullet's own ``numSubSteps =
+        n_sub``; ``python_substeps_tick``, ``n_sub`` x (command + ``stepSimulation``) at the
+        sub-step. Nothing is read back. Each pass sets the engine's step parameters it needs and
+        restores the backend's. Rows are a run's consecutive periods, so native contact retraces
+        the run; in reference mode the foot-ground pair is off and the law is not applied (Bullet's
+        stepping alone).
+        """
+        body, cid, joints, n = self.body, self.cid, self.joints, self.n_sub
+        dt = self.physics.control_dt
+        q0, qd0 = np.asarray(q[0], float).tolist(), np.asarray(qd[0], float).tolist()
+        rows = np.asarray(tau, float).tolist()
+        control, step, torque, setp = (
+            p.setJointMotorControlArray,
+            p.stepSimulation,
+            p.TORQUE_CONTROL,
+            p.setPhysicsEngineParameter,
+        )
+        own = {"fixedTimeStep": dt if self.engine_sub else dt / n, "numSubSteps": n if self.engine_sub else 1}
+
+        def start(fixed: float, subs: int) -> None:
+            setp(fixedTimeStep=fixed, numSubSteps=subs, physicsClientId=cid)
+            for j, a, v in zip(joints, q0, qd0, strict=True):
+                p.resetJointState(body, j, a, v, physicsClientId=cid)
+
+        def bullet_substeps_tick() -> None:
+            start(dt, n)
+            for t in rows:
+                control(body, joints, torque, forces=t, physicsClientId=cid)
+                step(physicsClientId=cid)
+            setp(physicsClientId=cid, **own)
+
+        def python_substeps_tick() -> None:
+            start(dt / n, 1)
+            for t in rows:
+                for _ in range(n):
+                    control(body, joints, torque, forces=t, physicsClientId=cid)
+                    step(physicsClientId=cid)
+            setp(physicsClientId=cid, **own)
+
+        return {"bullet_substeps_tick": bullet_substeps_tick, "python_substeps_tick": python_substeps_tick}
 
     def limits(self) -> Limits:
         """``getJointInfo`` limits (lower > upper means none) and effort, ``getPhysicsEngineParameters``."""

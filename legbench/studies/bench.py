@@ -1,36 +1,50 @@
-"""``legbench bench``: what the harness costs on top of each engine, per backend and task.
+"""``legbench bench``: what a legbench run costs against the engine alone, in CPU time, per backend and task.
 
-For every backend and task, in one process and on one loaded backend, two
-loops run side by side, interleaved repeat by repeat:
+For every task, all backends are loaded side by side and these *variants* are timed, interleaved
+repeat by repeat (each repeat goes once through every backend and variant, the backend order
+rotated from one repeat to the next, so a load drift on this shared machine hits all alike):
 
-* **full**: :func:`legbench.run.simulate`, the real run (state read, checks,
-  events, controller, saturation, log);
-* **engine-only**: ``backend.reset(q0, qd0)`` and ``backend.step(tau_k)`` for
-  the torques the full run logged, in a tight loop: no controller, no log, no
-  checks. Its final state must equal the full run's last logged state bit for
-  bit (same torques through the same engine steps); if it does not, the
-  backend is not deterministic or its ``reset`` is incomplete.
+* **full**: :func:`legbench.run.simulate`, the real run (state read, checks, events, controller,
+  saturation, log);
+* **replay**: the engine-only loop called from Python, ``backend.reset(q0, qd0)`` then
+  ``backend.step(tau_k)`` for the torques the full run logged: no controller, no log, no checks.
+  Its final state must equal the full run's last logged state bit for bit (same torques through
+  the same engine steps); if not, the backend is not deterministic or its ``reset`` is incomplete;
+* **floors**: whatever the backend declares in :meth:`~legbench.backends.base.Backend.kernels`,
+  each a tight loop of the engine's own calls over the run's logged rows (e.g. ``mj_step(m, d, n)``
+  per control period, Bullet's own sub-stepping, a compiled ABA and contact law, or ``pin.aba``
+  and the law called from Python once per sub-step). A kernel is per sub-step unless its callable
+  has ``per_tick = True`` or its name ends in ``_tick`` (one call = one control period); the
+  per-sub-step kernels of a backend add up to one floor (their cost x sub-steps per period).
 
-Reported per (task, backend): wall time [s], microseconds per control period,
-real-time factor, the harness overhead ratio full / engine-only (median of the
-per-repeat ratios, with min/max), the harness's own cost per tick, and the
-peak Python memory of one full run (tracemalloc) against the size of the time
-series it returns. For a backend that offers its own per-sub-step calls
-(:meth:`~legbench.backends.base.Backend.kernels`, e.g. forward dynamics and
-the contact law) also the cost per sub-step against those calls in isolation,
-each timed in a tight loop over the run's logged states (:func:`kernel_floors`).
+Every variant is timed in CPU time (:func:`time.process_time`, what the engines' single thread
+uses, insensitive to other processes' load) and wall time, per control period [us/tick], with
+min / median / max over the repeats. Ratios are formed per repeat from the same interleaved
+samples (full / replay, full / each floor, replay / each floor) and summarised the same way. An
+overhead is a ratio >= 1 over all repeats (reported with its spread, and its cost per tick);
+where the repeats straddle 1 it is "within noise": never a negative overhead.
 
-Results go to ``<out>/bench.json`` (every figure, versions, machine) and
-``<out>/bench.md`` (the tables the docs quote). ``--quick`` (short durations,
-one repeat) is what the test suite runs; timings belong in the benchmark, not
-in tests.
+Memory (``--no-memory`` skips it): the peak RSS of one full run, measured in a fresh worker
+process per (task, backend): RSS after loading the engine and a 10 ms warm-up run is the base
+(interpreter, imports, engine); the kernel's peak-RSS mark is then reset
+(``/proc/self/clear_refs``) and the run's peak read back (``VmHWM``); the growth is compared with
+the time series the run returns. Beside it, the peak of Python allocations during a run
+(tracemalloc, in this process).
+
+A backend may state targets as ``bench_targets`` (a class attribute: ``{"full/floor": 1.15}``, where
+``floor`` is its tightest floor); they are checked against the CPU-time medians. Results go to
+``<out>/bench.json`` (every sample and figure, versions, machine) and ``<out>/bench.md`` (the
+tables the docs quote). ``--quick`` (short durations, one repeat) is what the test suite runs;
+timings belong in the benchmark, not in tests.
 """
 
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
 import gc
 import math
+import multiprocessing
 import os
 import platform
 import resource
@@ -46,7 +60,7 @@ import numpy as np
 
 from legbench import backends as registry
 from legbench import scenario, yamlfile
-from legbench.backends.base import Backend
+from legbench.backends.base import Backend, Physics
 from legbench.exceptions import BackendNotFound, LegbenchError
 from legbench.results import RunResult, platform_info, versions, write_json
 from legbench.run import simulate
@@ -55,13 +69,15 @@ from legbench.scenario import Scenario, physics_of, shorten
 __all__ = [
     "DEFAULT_REPEATS",
     "QUICK_DURATIONS",
-    "TARGETS",
     "TASKS",
     "BenchResult",
+    "Ratio",
     "Spread",
+    "Timing",
     "add_cli",
-    "bench_backend",
-    "kernel_floors",
+    "kernel_variants",
+    "memory_of_run",
+    "ratio",
     "run_bench",
     "shorten",
     "write_results",
@@ -77,12 +93,8 @@ DEFAULT_OUT = Path("results") / "bench"
 #: (combined: the touch-down at 1 s and the push from 2 s) but none lasts long.
 QUICK_DURATIONS: Mapping[str, float] = {"position": 0.5, "ellipse": 1.5, "effort": 0.5, "combined": 2.5}
 QUICK_DEFAULT_DURATION = 0.5
-#: Targets: ``overhead``, the harness overhead ratio (full / engine-only) of every backend
-#: without kernel floors; ``substep``, the cost per sub-step over the cost of the engine's own
-#: calls (:meth:`~legbench.backends.base.Backend.kernels`) of every backend that offers them.
-TARGETS: Mapping[str, float] = {"overhead": 1.25, "substep": 3.0}
-#: Minimum wall time of each isolated-kernel timing loop [s].
-KERNEL_MIN_TIME = 0.05
+#: Length of the warm-up run before the memory base is read [s].
+MEMORY_WARMUP = 0.01
 
 
 @dataclass(frozen=True)
@@ -108,6 +120,73 @@ class Spread:
         return Spread(self.median * factor, self.min * factor, self.max * factor, self.q1 * factor,
                       self.q3 * factor, self.n)  # fmt: skip
 
+    def text(self, fmt: str = ".1f") -> str:
+        """``median [min-max]``."""
+        return f"{self.median:{fmt}} [{self.min:{fmt}}-{self.max:{fmt}}]"
+
+
+@dataclass
+class Timing:
+    """One variant's cost per control period over the repeats.
+
+    Attributes:
+        kind: ``full``, ``replay`` or ``floor``.
+        what: what it times, in words.
+        cpu_samples: CPU time per control period, one per repeat [us/tick].
+        wall_samples: wall time per control period, one per repeat [us/tick].
+    """
+
+    kind: str
+    what: str
+    cpu_samples: list[float] = field(default_factory=list)
+    wall_samples: list[float] = field(default_factory=list)
+
+    @property
+    def cpu(self) -> Spread:
+        return Spread.of(self.cpu_samples)
+
+    @property
+    def wall(self) -> Spread:
+        return Spread.of(self.wall_samples)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {**asdict(self), "cpu": asdict(self.cpu), "wall": asdict(self.wall)}
+
+
+@dataclass
+class Ratio:
+    """``num / den`` of two variants, per repeat (interleaved samples of the same repeat).
+
+    Attributes:
+        num, den: variant names.
+        cpu, wall: the per-repeat ratios summarised [1].
+        verdict: ``overhead`` (every repeat's CPU ratio >= 1) or ``within noise`` (the repeats
+            straddle 1, or a single repeat below 1): never a negative overhead.
+        overhead_us: median of the per-repeat CPU differences num - den [us/tick] for an
+            ``overhead`` (>= 0 then), None when within noise.
+    """
+
+    num: str
+    den: str
+    cpu: Spread
+    wall: Spread
+    verdict: str
+    overhead_us: float | None
+
+    @property
+    def label(self) -> str:
+        return f"{self.num} / {self.den}"
+
+
+def ratio(num: str, den: str, a: Timing, b: Timing) -> Ratio:
+    """The ratio ``a / b`` of two timings with the same repeats (sample i of both from repeat i)."""
+    cpu = [x / y for x, y in zip(a.cpu_samples, b.cpu_samples, strict=True)]
+    wall = [x / y for x, y in zip(a.wall_samples, b.wall_samples, strict=True)]
+    if min(cpu) >= 1.0:
+        diff = [x - y for x, y in zip(a.cpu_samples, b.cpu_samples, strict=True)]
+        return Ratio(num, den, Spread.of(cpu), Spread.of(wall), "overhead", max(float(np.median(diff)), 0.0))
+    return Ratio(num, den, Spread.of(cpu), Spread.of(wall), "within noise", None)
+
 
 @dataclass
 class BenchResult:
@@ -120,22 +199,16 @@ class BenchResult:
         duration: simulated time of each run [s].
         steps: control periods simulated per run (ticks - 1).
         sub_steps: engine steps per control period.
-        full_wall: wall time of the full run [s].
-        engine_wall: wall time of the engine-only replay [s].
-        full_us_per_tick: full run per control period [us].
-        engine_us_per_tick: engine-only replay per control period [us].
-        harness_us_per_tick: median full minus median engine-only per control period [us].
-        overhead_ratio: full / engine-only wall time, per repeat (interleaved pairs).
-        rtf_full: real-time factor of the full run (simulated / wall time, median).
-        rtf_engine: real-time factor of the engine-only replay (median).
+        timings: variant name -> :class:`Timing` (``full``, ``replay``, then the floors).
+        ratios: full / replay, full / each floor, replay / each floor.
+        floor: the tightest floor (lowest median CPU time; ``replay`` if the backend declares none).
         replay_identical: the replay's final (q, qd) equalled the full run's last logged state, bit
             for bit, after every replay.
         replay_max_diff: largest absolute difference between them [rad, rad/s] (0 when identical).
-        mem_peak_bytes: peak Python memory (tracemalloc) during one full run [bytes].
         series_bytes: size of the time series the run returns (t, q, qd, tau, f, controller) [bytes].
-        max_rss_bytes: the process's peak resident set size so far (getrusage) [bytes].
-        kernels: backends offering :meth:`~legbench.backends.base.Backend.kernels` only: sub-step cost
-            against the engine's own calls (see :func:`kernel_floors`); None otherwise.
+        mem_peak_bytes: peak Python allocations (tracemalloc) during one full run [bytes].
+        rss: the fresh-process RSS figures of :func:`memory_of_run` [bytes], or None.
+        targets: the backend's ``bench_targets`` checked: ratio -> {limit, value, met}.
         info: the backend's ``info()``.
     """
 
@@ -146,32 +219,29 @@ class BenchResult:
     duration: float = 0.0
     steps: int = 0
     sub_steps: int | None = None
-    full_wall: Spread | None = None
-    engine_wall: Spread | None = None
-    full_us_per_tick: Spread | None = None
-    engine_us_per_tick: Spread | None = None
-    harness_us_per_tick: float = math.nan
-    overhead_ratio: Spread | None = None
-    rtf_full: float = math.nan
-    rtf_engine: float = math.nan
+    timings: dict[str, Timing] = field(default_factory=dict)
+    ratios: list[Ratio] = field(default_factory=list)
+    floor: str | None = None
     replay_identical: bool = False
     replay_max_diff: float = math.nan
-    mem_peak_bytes: int = 0
     series_bytes: int = 0
-    max_rss_bytes: int = 0
-    kernels: dict[str, float] | None = None
+    mem_peak_bytes: int = 0
+    rss: dict[str, Any] | None = None
+    targets: dict[str, dict[str, Any]] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
 
-    @property
-    def mem_ratio(self) -> float:
-        """Peak Python memory of a full run over the size of its time series [1]."""
-        return self.mem_peak_bytes / self.series_bytes if self.series_bytes else math.nan
+    def find(self, label: str) -> Ratio | None:
+        """The ratio ``num / den`` by label, or None."""
+        return next((r for r in self.ratios if r.label == label), None)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (spreads as nested dicts), plus ``mem_ratio`` and ``mem_excess_bytes`` (peak - series)."""
-        out = asdict(self)
-        out["mem_ratio"] = self.mem_ratio
-        out["mem_excess_bytes"] = self.mem_peak_bytes - self.series_bytes if self.mem_peak_bytes else None
+        """JSON-ready dict."""
+        out = {k: v for k, v in asdict(self).items() if k not in ("timings", "ratios")}
+        out["timings"] = {k: t.to_dict() for k, t in self.timings.items()}
+        out["ratios"] = [{**asdict(r), "label": r.label} for r in self.ratios]
+        out["mem_ratio"] = (
+            self.mem_peak_bytes / self.series_bytes if self.series_bytes and self.mem_peak_bytes else None
+        )
         return out
 
 
@@ -212,28 +282,47 @@ def _series_bytes(tr: RunResult) -> int:
     return int(sum(a.nbytes for a in (tr.t, tr.q, tr.qd, tr.tau, tr.f, tr.controller)))
 
 
-def _replay(backend: Backend, q0: np.ndarray, qd0: np.ndarray, taus: Sequence[np.ndarray]) -> float:
-    """Engine-only loop: reset, then one step per logged torque. Wall time [s]."""
-    reset, step = backend.reset, backend.step
-    start = time.perf_counter()
-    reset(q0, qd0)
-    for tau in taus:
-        step(tau)
-    return time.perf_counter() - start
-
-
-def _memory_peak(fn: Callable[[], Any]) -> int:
-    """Peak Python memory allocated while ``fn`` runs [bytes] (tracemalloc, everything still alive counts)."""
+def _timed(fn: Callable[[], Any]) -> tuple[float, float, Any]:
+    """CPU and wall time of one call [s], and its result."""
     gc.collect()
-    tracemalloc.start()
+    c0, w0 = time.process_time(), time.perf_counter()
+    out = fn()
+    return time.process_time() - c0, time.perf_counter() - w0, out
+
+
+def _per_tick(name: str, fn: Callable[[], None]) -> bool:
+    return bool(getattr(fn, "per_tick", False)) or name.endswith("_tick")
+
+
+def kernel_variants(backend: Backend, tr: RunResult) -> dict[str, tuple[Callable[[], None], float, str]]:
+    """The backend's floors: variant name -> (one pass over the run's rows, ticks per pass, description).
+
+    :meth:`Backend.kernels` gets the run's consecutive rows (q, qd, tau of every control period
+    but the last); a per-tick kernel's pass covers ``steps`` control periods, the per-sub-step
+    kernels (one call per row each) add up to one floor whose pass covers ``steps / sub_steps``.
+    Empty if the backend declares no kernels.
+    """
     try:
-        tracemalloc.reset_peak()
-        base = tracemalloc.get_traced_memory()[0]
-        fn()
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-    return int(peak - base)
+        loops = backend.kernels(tr.q[:-1], tr.qd[:-1], tr.tau[:-1])
+    except NotImplementedError:
+        return {}
+    steps = max(len(tr.t) - 1, 1)
+    n_sub = backend.sub_steps()
+    out: dict[str, tuple[Callable[[], None], float, str]] = {}
+    per_sub = {k: f for k, f in loops.items() if not _per_tick(k, f)}
+    for name, fn in loops.items():
+        if name not in per_sub:
+            out[name] = (fn, float(steps), getattr(fn, "__doc__", None) or f"{name}, one call per control period")
+    if per_sub:
+        calls = list(per_sub.values())
+
+        def one_pass() -> None:
+            for f in calls:
+                f()
+
+        name = "+".join(per_sub)
+        out[name] = (one_pass, steps / n_sub, f"{name}: one call each per sub-step, x {n_sub} sub-steps")
+    return out
 
 
 def _max_rss() -> int:
@@ -242,131 +331,156 @@ def _max_rss() -> int:
     return int(rss if sys.platform == "darwin" else rss * 1024)
 
 
-def _time_loop(body: Callable[[], None], calls_per_body: int) -> float:
-    """Best time per call of a loop body [s]: the body repeated until KERNEL_MIN_TIME, best of 3."""
-    reps = 1
-    while True:
-        start = time.perf_counter()
-        for _ in range(reps):
-            body()
-        took = time.perf_counter() - start
-        if took >= KERNEL_MIN_TIME:
-            break
-        reps *= 2
-    best = took
-    for _ in range(2):
-        start = time.perf_counter()
-        for _ in range(reps):
-            body()
-        best = min(best, time.perf_counter() - start)
-    return best / (reps * calls_per_body)
-
-
-def kernel_floors(backend: Backend, tr: RunResult, samples: int = 200) -> dict[str, float] | None:
-    """Cost of the engine's own calls per sub-step, each in isolation [us]; None if the backend offers none.
-
-    Every callable of :meth:`Backend.kernels` is timed in a tight loop over up
-    to ``samples`` states evenly spaced through the run's log (in or out of
-    contact as the run was), with inputs prepared beforehand by the backend.
-
-    Returns:
-        ``<kernel>_us`` per call of each kernel (e.g. ``aba_us``, ``law_us``) and
-        ``kernels_us``, their sum [us].
-    """
-    rows = np.unique(np.linspace(0, len(tr.t) - 1, min(samples, len(tr.t))).astype(int))
+def _status_kb(key: str) -> int | None:
     try:
-        loops = backend.kernels(tr.q[rows], tr.qd[rows], tr.tau[rows])
-    except NotImplementedError:
-        return None
-    out = {f"{name}_us": 1e6 * _time_loop(loop, len(rows)) for name, loop in loops.items()}
-    out["kernels_us"] = sum(out.values())
-    return out
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith(key + ":"):
+                return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
 
 
-def bench_backend(
-    sc: Scenario,
-    name: str,
-    repeats: int = DEFAULT_REPEATS,
-    warmup: int = DEFAULT_WARMUP,
-    contact_mode: str | None = None,
-    memory: bool = True,
-) -> BenchResult:
-    """Benchmark one backend on one scenario: warm-up, then ``repeats`` interleaved (full, engine-only) pairs.
+def memory_of_run(sc: Scenario, name: str, contact_mode: str | None = None) -> dict[str, Any]:
+    """Peak RSS of one full run of ``name`` on ``sc`` in this process [bytes] (run it in a fresh one).
 
-    Args:
-        sc: the scenario (a task, possibly shortened).
-        name: backend name.
-        repeats: timed (full, engine-only) pairs (>= 1).
-        warmup: untimed pairs before them (>= 0); a first full run always gives the torque log.
-        contact_mode: ``native`` or ``reference``; default the scenario's.
-        memory: also measure the peak memory of one full run (an extra, untimed run under tracemalloc).
-
-    Returns:
-        The figures; a backend that cannot load or whose run fails gives ``status="failed"``.
+    ``base``: RSS after loading the backend and a :data:`MEMORY_WARMUP` run (interpreter, imports,
+    engine, and what the engine allocates as it first steps). The peak-RSS mark is then reset
+    (Linux ``/proc/self/clear_refs``; elsewhere the mark since start is used, ``method`` says
+    which), the full run made, and ``peak`` read. ``run = peak - base`` is what the run added;
+    ``ratio`` is that over the run's time series (``series``).
     """
+    physics = physics_of(sc, contact_mode)
+    backend = registry.load(name, physics, sc.backends.get(name, {}), sc.profile)
+    try:
+        simulate(shorten(sc, MEMORY_WARMUP), backend, physics)
+        gc.collect()
+        base = _status_kb("VmRSS")
+        try:
+            Path("/proc/self/clear_refs").write_text("5")
+            method = "clear_refs"
+        except OSError:
+            method = "maxrss since start"
+        if base is None:
+            base, method = _max_rss(), "maxrss since start"
+        tr = simulate(sc, backend, physics)
+        peak = _status_kb("VmHWM") if method == "clear_refs" else None
+        peak = peak if peak is not None else _max_rss()
+        series = _series_bytes(tr)
+        return {"base": base, "peak": peak, "run": max(peak - base, 0), "series": series,
+                "ratio": max(peak - base, 0) / series, "method": method, "status": tr.status}  # fmt: skip
+    finally:
+        backend.close()
+
+
+def _memory_in_fresh_process(sc: Scenario, name: str, contact_mode: str | None) -> dict[str, Any] | None:
+    ctx = multiprocessing.get_context("spawn")
+    try:
+        with concurrent.futures.ProcessPoolExecutor(1, mp_context=ctx) as pool:
+            return pool.submit(memory_of_run, sc, name, contact_mode).result()
+    except Exception as exc:  # a worker that cannot start or fails: no memory figure, not a failed bench
+        return {"error": f"{type(exc).__name__}: {exc}"}
+
+
+def _tracemalloc_peak(fn: Callable[[], Any]) -> tuple[int, Any]:
+    """Peak Python allocations while ``fn`` runs [bytes] (tracemalloc), and its result."""
+    gc.collect()
+    tracemalloc.start()
+    try:
+        tracemalloc.reset_peak()
+        base = tracemalloc.get_traced_memory()[0]
+        out = fn()
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    return int(peak - base), out
+
+
+@dataclass
+class _Loaded:
+    """One backend under benchmark on one task: its variants and what they record."""
+
+    res: BenchResult
+    backend: Backend
+    physics: Physics
+    variants: dict[str, tuple[Callable[[], Any], float]]
+    q_end: np.ndarray
+    qd_end: np.ndarray
+
+
+def _load(sc: Scenario, name: str, contact_mode: str | None) -> _Loaded | BenchResult:
+    """Load, run once for the torque log, set up the variants; a failure gives a failed result."""
     res = BenchResult(task=sc.name, backend=name, duration=sc.duration, steps=sc.n_ticks - 1)
     physics = physics_of(sc, contact_mode)
     try:
-        backend = registry.load(name, physics, sc.backends.get(name, {}))
+        backend = registry.load(name, physics, sc.backends.get(name, {}), sc.profile)
     except BackendNotFound:
         raise
     except Exception as exc:  # an engine that cannot load must not stop the others
         res.status, res.reason = "failed", f"load failed: {type(exc).__name__}: {exc}"
         return res
-    try:
-        q0, qd0 = np.array(sc.q0), np.array(sc.qd0)
-        tr = simulate(sc, backend, physics)
-        if tr.status != "ok":
-            res.status, res.reason = "failed", tr.reason
-            return res
-        res.info = tr.info
-        res.sub_steps = backend.sub_steps()
-        taus = list(tr.tau[:-1])  # row views, the same kind of array the run loop hands the backend
-        q_end, qd_end = tr.q[-1].copy(), tr.qd[-1].copy()
-        for _ in range(warmup):
-            simulate(sc, backend, physics)
-            _replay(backend, q0, qd0, taus)
-        full: list[float] = []
-        engine: list[float] = []
-        identical, max_diff = True, 0.0
-        for _ in range(repeats):
-            gc.collect()
-            start = time.perf_counter()
-            tr_r = simulate(sc, backend, physics)
-            full.append(time.perf_counter() - start)
-            if tr_r.status != "ok":
-                res.status, res.reason = "failed", tr_r.reason
-                return res
-            gc.collect()
-            engine.append(_replay(backend, q0, qd0, taus))
-            q, qd = backend.state()
-            same = np.array_equal(q, q_end) and np.array_equal(qd, qd_end)
-            identical &= same and np.array_equal(tr_r.q[-1], q_end) and np.array_equal(tr_r.qd[-1], qd_end)
-            with np.errstate(invalid="ignore"):
-                max_diff = max(max_diff, float(np.max(np.abs(np.concatenate([q - q_end, qd - qd_end])))))
-        steps = max(res.steps, 1)
-        res.full_wall, res.engine_wall = Spread.of(full), Spread.of(engine)
-        res.full_us_per_tick = res.full_wall.scaled(1e6 / steps)
-        res.engine_us_per_tick = res.engine_wall.scaled(1e6 / steps)
-        res.harness_us_per_tick = res.full_us_per_tick.median - res.engine_us_per_tick.median
-        res.overhead_ratio = Spread.of([f / e for f, e in zip(full, engine, strict=True)])
-        res.rtf_full = sc.duration / res.full_wall.median
-        res.rtf_engine = sc.duration / res.engine_wall.median
-        res.replay_identical, res.replay_max_diff = identical, max_diff
-        if memory:
-            holder: list[RunResult] = []
-            res.mem_peak_bytes = _memory_peak(lambda: holder.append(simulate(sc, backend, physics)))
-            res.series_bytes = _series_bytes(holder[0])
-            del holder
-        res.max_rss_bytes = _max_rss()
-        k = kernel_floors(backend, tr) if res.sub_steps else None
-        if k is not None and res.sub_steps:
-            k["substep_us"] = res.engine_us_per_tick.median / res.sub_steps
-            k["ratio"] = k["substep_us"] / k["kernels_us"]
-            res.kernels = k
-        return res
-    finally:
+    tr = simulate(sc, backend, physics)
+    if tr.status != "ok":
         backend.close()
+        res.status, res.reason = "failed", tr.reason
+        return res
+    res.info, res.sub_steps = tr.info, backend.sub_steps()
+    steps = float(max(res.steps, 1))
+    q0, qd0 = np.array(sc.q0), np.array(sc.qd0)
+    taus = list(tr.tau[:-1])  # row views, the same kind of array the run loop hands the backend
+    reset, step = backend.reset, backend.step
+
+    def replay() -> None:
+        reset(q0, qd0)
+        for tau in taus:
+            step(tau)
+
+    variants: dict[str, tuple[Callable[[], Any], float]] = {
+        "full": (lambda: simulate(sc, backend, physics), steps),
+        "replay": (replay, steps),
+    }
+    res.timings["full"] = Timing("full", "legbench run loop: reads, checks, controller, saturation, log")
+    res.timings["replay"] = Timing("replay", "backend.step() per logged torque, called from Python")
+    for kname, (fn, ticks, what) in kernel_variants(backend, tr).items():
+        variants[kname] = (fn, ticks)
+        res.timings[kname] = Timing("floor", what)
+    res.series_bytes = _series_bytes(tr)
+    return _Loaded(res, backend, physics, variants, tr.q[-1].copy(), tr.qd[-1].copy())
+
+
+def _one_repeat(b: _Loaded) -> None:
+    """Time every variant of one backend once; check the replay's end state."""
+    res = b.res
+    for vname, (fn, ticks) in b.variants.items():
+        cpu, wall, out = _timed(fn)
+        if vname == "full" and isinstance(out, RunResult) and out.status != "ok":
+            raise LegbenchError(out.reason or "run failed")
+        res.timings[vname].cpu_samples.append(1e6 * cpu / ticks)
+        res.timings[vname].wall_samples.append(1e6 * wall / ticks)
+        if vname == "replay":
+            q, qd = b.backend.state()
+            same = np.array_equal(q, b.q_end) and np.array_equal(qd, b.qd_end)
+            res.replay_identical = res.replay_identical and same
+            with np.errstate(invalid="ignore"):
+                diff = float(np.max(np.abs(np.concatenate([q - b.q_end, qd - b.qd_end]))))
+            res.replay_max_diff = max(res.replay_max_diff, diff) if math.isfinite(res.replay_max_diff) else diff
+
+
+def _summarise(res: BenchResult, backend: Backend) -> None:
+    """Ratios, the tightest floor and the backend's targets from the samples."""
+    floors = [k for k, t in res.timings.items() if t.kind == "floor"]
+    t = res.timings
+    res.ratios = [ratio("full", "replay", t["full"], t["replay"])]
+    res.ratios += [ratio("full", f, t["full"], t[f]) for f in floors]
+    res.ratios += [ratio("replay", f, t["replay"], t[f]) for f in floors]
+    res.floor = min(floors, key=lambda f: t[f].cpu.median) if floors else "replay"
+    for key, limit in dict(getattr(backend, "bench_targets", {}) or {}).items():
+        num, den = key.split("/")
+        den = res.floor if den == "floor" else den
+        r = res.find(f"{num} / {den}")
+        value = r.cpu.median if r is not None else (1.0 if num == den else math.nan)
+        res.targets[key] = {"ratio": f"{num} / {den}", "limit": float(limit), "value": value,
+                            "met": bool(math.isfinite(value) and value <= limit)}  # fmt: skip
 
 
 def run_bench(
@@ -378,15 +492,54 @@ def run_bench(
     memory: bool = True,
     progress: Callable[[BenchResult], None] | None = None,
 ) -> list[BenchResult]:
-    """Benchmark every backend on every scenario (task-major order), one after the other in this process."""
+    """Benchmark every backend on every scenario (task-major order; backends interleaved within a task).
+
+    Args:
+        scenarios: the tasks (possibly shortened).
+        backend_names: backends to load.
+        repeats: timed passes through every backend and variant (>= 1).
+        warmup: untimed passes before them (>= 0).
+        contact_mode: ``native`` or ``reference``; default each scenario's.
+        memory: also measure the peak memory of a run (fresh worker process; tracemalloc here).
+        progress: called with each finished result.
+    """
     if repeats < 1:
         raise LegbenchError(f"bench: --repeats must be at least 1, got {repeats}")
     if warmup < 0:
         raise LegbenchError(f"bench: --warmup must be at least 0, got {warmup}")
     out = []
     for sc in scenarios:
-        for name in backend_names:
-            res = bench_backend(sc, name, repeats, warmup, contact_mode, memory)
+        loaded = [_load(sc, name, contact_mode) for name in backend_names]
+        live = [b for b in loaded if isinstance(b, _Loaded)]
+        try:
+            for b in live:
+                b.res.replay_identical, b.res.replay_max_diff = True, 0.0
+            for rep in range(warmup + repeats):
+                order = live[rep % len(live) :] + live[: rep % len(live)] if live else []
+                for b in order:
+                    if b.res.status != "ok":
+                        continue
+                    try:
+                        _one_repeat(b)
+                    except Exception as exc:  # a run that fails on a repeat fails that backend alone
+                        b.res.status, b.res.reason = "failed", f"{type(exc).__name__}: {exc}"
+                if rep == warmup - 1:  # warm-up samples are dropped
+                    for b in live:
+                        for tm in b.res.timings.values():
+                            tm.cpu_samples.clear()
+                            tm.wall_samples.clear()
+            for b in live:
+                if b.res.status == "ok":
+                    _summarise(b.res, b.backend)
+                    if memory:
+                        b.res.mem_peak_bytes, _ = _tracemalloc_peak(b.variants["full"][0])
+        finally:
+            for b in live:
+                b.backend.close()
+        for item in loaded:
+            res = item.res if isinstance(item, _Loaded) else item
+            if memory and res.status == "ok":
+                res.rss = _memory_in_fresh_process(sc, res.backend, contact_mode)
             if progress is not None:
                 progress(res)
             out.append(res)
@@ -408,114 +561,135 @@ def machine() -> dict[str, Any]:
     except OSError:
         pass
     aff = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    load = os.getloadavg() if hasattr(os, "getloadavg") else None
     return {
         **platform_info(),
         "cpu_model": cpu,
         "cpus_usable": aff,
+        "load_average": list(load) if load else None,
         "python_build": " ".join(platform.python_build()),
         "python_implementation": platform.python_implementation(),
     }
 
 
 def targets_met(results: Sequence[BenchResult]) -> dict[str, bool]:
-    """Each target of :data:`TARGETS` against the medians (True where met; a failed run misses)."""
+    """Per backend: every one of its targets met on every task (a failed run misses)."""
     met: dict[str, bool] = {}
     for r in results:
-        if r.kernels is None and r.status == "ok":
-            ok = r.overhead_ratio is not None and r.overhead_ratio.median <= TARGETS["overhead"]
-            met["overhead"] = met.get("overhead", True) and ok
-        elif r.kernels is not None:
-            ok = r.status == "ok" and r.kernels["ratio"] <= TARGETS["substep"]
-            met["substep"] = met.get("substep", True) and ok
-        else:  # a failed run misses the target it was under
-            met["overhead"] = False
+        if r.status != "ok":
+            met[r.backend] = False
+        elif r.targets:
+            met[r.backend] = met.get(r.backend, True) and all(t["met"] for t in r.targets.values())
     return met
 
 
-def _f(x: float | None, fmt: str) -> str:
-    return "-" if x is None or not math.isfinite(x) else format(x, fmt)
+def _ratio_cell(r: Ratio | None, bold: bool = True) -> str:
+    if r is None:
+        return "-"
+    if r.verdict == "overhead":
+        star = "**" if bold else ""
+        return f"{star}{r.cpu.median:.3f}{star} [{r.cpu.min:.3f}-{r.cpu.max:.3f}]"
+    return f"within noise ({r.cpu.min:.3f}-{r.cpu.max:.3f})"
 
 
 def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
-    """The benchmark as Markdown: settings, one table per measure, targets."""
+    """The benchmark as Markdown: settings, the timing table, ratios, memory, targets."""
     s = meta["settings"]
     m = meta["machine"]
     v = meta["versions"]
     engines = ", ".join(f"{k} {v[k]}" for k in registry.engine_packages() if k in v)
+    load = m.get("load_average")
     lines = [
         "# legbench bench",
         "",
         f"Command: `{meta['command']}`  ",
-        f"Machine: {m['cpu_model']}, {m['cpus_usable']} usable CPUs, {m['system']} {m['machine']}; "
+        f"Machine: {m['cpu_model']}, {m['cpus_usable']} usable CPUs, {m['system']} {m['machine']}"
+        f"{f', load average {load[0]:.2f} at the end' if load else ''}; "
         f"Python {v['python']}, numpy {v.get('numpy', '?')}, {engines}.  ",
-        f"Settings: {s['repeats']} timed repeats after {s['warmup']} warm-up, contact mode "
-        f"{s['contact_mode'] or 'from each scenario'}{', quick' if s['quick'] else ''}"
+        f"Settings: {s['repeats']} timed repeats after {s['warmup']} warm-up, interleaved across backends and "
+        f"variants; contact mode {s['contact_mode'] or 'from each scenario'}{', quick' if s['quick'] else ''}"
         f"{''.join(f', {k} = {val}' for k, val in (s.get('overrides') or {}).items())}. "
-        "Figures are medians; brackets give min-max over the repeats.",
+        "CPU time (process_time) per control period; figures are medians, brackets min-max over the repeats.",
         "",
-        "## Full run against engine-only replay",
+        "## Cost per control period [us/tick, CPU time]",
         "",
-        "| task | backend | sim [s] | sub-steps | full [us/tick] | engine-only [us/tick] | harness [us/tick] "
-        "| overhead ratio | RTF full | replay identical |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "`full`: the legbench run; `replay`: backend.step() over the logged torques; the floors: the engine's own "
+        "calls in a tight loop (`Backend.kernels`). Wall-time medians are in bench.json.",
+        "",
+        "| task | backend | sub-steps | full | replay | floors | replay identical |",
+        "|---|---|---|---|---|---|---|",
     ]
     for r in results:
         if r.status != "ok":
-            lines.append(f"| {r.task} | {r.backend} | {r.duration:g} | - | FAILED: {r.reason} | | | | | |")
+            lines.append(f"| {r.task} | {r.backend} | - | FAILED: {r.reason} | | | |")
             continue
-        assert r.full_us_per_tick and r.engine_us_per_tick and r.overhead_ratio
-        o = r.overhead_ratio
-        lines.append(
-            f"| {r.task} | {r.backend} | {r.duration:g} | {r.sub_steps} "
-            f"| {r.full_us_per_tick.median:.1f} [{r.full_us_per_tick.min:.1f}-{r.full_us_per_tick.max:.1f}] "
-            f"| {r.engine_us_per_tick.median:.1f} [{r.engine_us_per_tick.min:.1f}-{r.engine_us_per_tick.max:.1f}] "
-            f"| {r.harness_us_per_tick:.1f} | **{o.median:.3f}** [{o.min:.3f}-{o.max:.3f}] "
-            f"| {r.rtf_full:.1f} | {'yes' if r.replay_identical else f'NO (max diff {r.replay_max_diff:.3g})'} |"
-        )
-    if any(r.mem_peak_bytes for r in results):
+        t = r.timings
+        floors = "; ".join(f"{k} {tm.cpu.text()}" for k, tm in t.items() if tm.kind == "floor") or "-"
+        same = "yes" if r.replay_identical else f"NO (max diff {r.replay_max_diff:.3g})"
+        lines.append(f"| {r.task} | {r.backend} | {r.sub_steps} | {t['full'].cpu.text()} | {t['replay'].cpu.text()} "
+                     f"| {floors} | {same} |")  # fmt: skip
+    lines += [
+        "",
+        "## Ratios [CPU time]",
+        "",
+        "Per repeat from the same interleaved samples, then median [min-max]; an overhead is a ratio >= 1 in "
+        "every repeat, with its cost per tick; where the repeats straddle 1 it is within noise. `floor` is the "
+        "backend's tightest floor.",
+        "",
+        "| task | backend | full / replay | harness [us/tick] | tightest floor | full / floor | replay / floor |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        if r.status != "ok":
+            continue
+        h = r.find("full / replay")
+        fl = r.floor or "replay"
+        full_fl = h if fl == "replay" else r.find(f"full / {fl}")
+        rep_fl = None if fl == "replay" else r.find(f"replay / {fl}")
+        cost = f"{h.overhead_us:.1f}" if h is not None and h.overhead_us is not None else "within noise"
+        lines.append(f"| {r.task} | {r.backend} | {_ratio_cell(h)} | {cost} | {fl} | {_ratio_cell(full_fl)} "
+                     f"| {_ratio_cell(rep_fl) if rep_fl else '-'} |")  # fmt: skip
+    other = [(r, x) for r in results if r.status == "ok" for x in r.ratios
+             if x.den not in ("replay", r.floor)]  # fmt: skip
+    if other:
+        lines += [
+            "",
+            "Against the other floors:",
+            "",
+            "| task | backend | ratio | CPU | wall |",
+            "|---|---|---|---|---|",
+        ]
+        lines += [f"| {r.task} | {r.backend} | {x.label} | {_ratio_cell(x)} | {x.wall.text('.3f')} |" for r, x in other]
+    mem = [r for r in results if r.status == "ok" and (r.mem_peak_bytes or r.rss)]
+    if mem:
         lines += [
             "",
             "## Memory of one full run",
             "",
-            "Peak Python memory (tracemalloc) during `simulate`, against the time series it returns "
-            "(t, q, qd, tau, f, controller).",
+            "RSS in a fresh worker process: `base` after loading the engine and a 10 ms warm-up run; `run` the peak "
+            "during the full run above that base. Python allocations (tracemalloc) during a run beside it. "
+            "`series`: the time series the run returns (t, q, qd, tau, f, controller).",
             "",
-            "| task | backend | ticks | peak [MB] | time series [MB] | peak / series | peak - series [kB] |",
-            "|---|---|---|---|---|---|---|",
+            "| task | backend | ticks | series [MB] | base RSS [MB] | run peak RSS - base [MB] "
+            "| (peak - base) / series | tracemalloc peak [MB] |",
+            "|---|---|---|---|---|---|---|---|",
         ]
-        for r in results:
-            if r.status == "ok" and r.mem_peak_bytes:
-                lines.append(
-                    f"| {r.task} | {r.backend} | {r.steps + 1} | {r.mem_peak_bytes / 1e6:.3f} "
-                    f"| {r.series_bytes / 1e6:.3f} | {r.mem_ratio:.3f} "
-                    f"| {(r.mem_peak_bytes - r.series_bytes) / 1e3:.1f} |"
-                )
-    kernel_rows = [r for r in results if r.kernels]
-    if kernel_rows:
-        lines += [
-            "",
-            "## Cost per sub-step against the engine's own calls",
-            "",
-            "Engine-only cost per sub-step against the calls the backend makes at every sub-step "
-            "(`Backend.kernels`), each timed alone in a tight loop over the run's logged states.",
-            "",
-            "| backend | task | per sub-step [us] | own calls [us] | ratio |",
-            "|---|---|---|---|---|",
-        ]
-        for r in kernel_rows:
-            k = r.kernels or {}
-            calls = ", ".join(f"{n.removesuffix('_us')} {v:.2f}" for n, v in k.items()
-                              if n.endswith("_us") and n not in ("kernels_us", "substep_us"))  # fmt: skip
-            lines.append(f"| {r.backend} | {r.task} | {k['substep_us']:.2f} | {calls} | **{k['ratio']:.2f}** |")
-    met = meta["targets_met"]
-    if met:
-        lines += ["", "## Targets", ""]
-        names = {
-            "overhead": "overhead ratio of each backend without kernel floors",
-            "substep": "sub-step / own calls of each backend with kernel floors",
-        }
-        for key, ok in met.items():
-            lines.append(f"- {names[key]} <= {TARGETS[key]:g} on every task: {'met' if ok else 'MISSED'}")
+        for r in mem:
+            x = r.rss or {}
+            if "run" in x:
+                rss = f"{x['base'] / 1e6:.1f} | {x['run'] / 1e6:.2f} | **{x['ratio']:.2f}**"
+            else:
+                rss = f"- | {x.get('error', '-')} | -"
+            lines.append(f"| {r.task} | {r.backend} | {r.steps + 1} | {r.series_bytes / 1e6:.3f} | {rss} "
+                         f"| {r.mem_peak_bytes / 1e6:.3f} |")  # fmt: skip
+    with_targets = [r for r in results if r.targets]
+    if with_targets:
+        lines += ["", "## Targets (CPU-time medians)", "", "| task | backend | ratio | limit | value | met |",
+                  "|---|---|---|---|---|---|"]  # fmt: skip
+        for r in with_targets:
+            for tg in r.targets.values():
+                lines.append(f"| {r.task} | {r.backend} | {tg['ratio']} | {tg['limit']:g} | {tg['value']:.3f} "
+                             f"| {'met' if tg['met'] else 'MISSED'} |")  # fmt: skip
     return "\n".join(lines) + "\n"
 
 
@@ -539,9 +713,10 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
     """Register ``legbench bench [SCENARIO ...] [--quick] [--backends all] [--out DIR] ...``."""
     p = subparsers.add_parser(
         "bench",
-        help="time the full run against an engine-only replay per backend and task",
-        description="Time the full legbench run against an engine-only replay of its torques, per backend "
-        "and task; write bench.json and bench.md.",
+        help="time the full run against the engine alone (CPU time), per backend and task",
+        description="Time the full legbench run against an engine-only replay of its torques and the engine's own "
+        "tightest loops, in CPU and wall time, per backend and task; peak RSS of a run; write bench.json and "
+        "bench.md.",
     )
     p.add_argument("scenarios", nargs="*", metavar="SCENARIO",
                    help="scenario YAML files (default: the four tasks in scenarios/)")  # fmt: skip
@@ -549,7 +724,7 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
     p.add_argument("--repeats", type=int, default=None,
                    help=f"timed repeats per backend and task (default {DEFAULT_REPEATS}; 1 with --quick)")  # fmt: skip
     p.add_argument("--warmup", type=int, default=DEFAULT_WARMUP,
-                   help=f"untimed warm-up runs before them (default {DEFAULT_WARMUP})")  # fmt: skip
+                   help=f"untimed warm-up passes before them (default {DEFAULT_WARMUP})")  # fmt: skip
     p.add_argument("--quick", action="store_true",
                    help="short durations (later events dropped), one repeat: a smoke test, not figures")  # fmt: skip
     p.add_argument("--duration", type=float, default=None, help="cut every scenario to this many seconds")
@@ -557,9 +732,9 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
                    help="override the scenarios' contact mode")  # fmt: skip
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, e.g. --set backends.<name>.dt=1e-4 (10 sub-steps)")  # fmt: skip
-    p.add_argument("--no-memory", action="store_true", help="skip the (untimed, tracemalloc) memory run")
+    p.add_argument("--no-memory", action="store_true", help="skip the memory runs (fresh process, tracemalloc)")
     p.add_argument("--out", default=str(DEFAULT_OUT), help=f"output directory (default {DEFAULT_OUT})")
-    p.add_argument("--check", action="store_true", help="exit 1 if a performance target is missed")
+    p.add_argument("--check", action="store_true", help="exit 1 if a backend's target is missed")
     p.add_argument("-q", "--quiet", action="store_true", help="no per-row progress lines")
     p.set_defaults(func=_cli)
 
@@ -580,14 +755,16 @@ def _cli(args: argparse.Namespace) -> int:
     def show(r: BenchResult) -> None:
         if args.quiet:
             return
-        if r.status != "ok" or r.overhead_ratio is None or r.full_us_per_tick is None:
+        if r.status != "ok":
             print(f"{r.task:<10} {r.backend:<10} FAILED: {r.reason}", flush=True)
             return
-        extra = f"  sub-step/own calls {r.kernels['ratio']:.2f}" if r.kernels else ""
+        h = r.find("full / replay")
+        fl = r.find(f"full / {r.floor}") if r.floor != "replay" else None
         print(
-            f"{r.task:<10} {r.backend:<10} full {r.full_us_per_tick.median:7.1f} us/tick  harness "
-            f"{r.harness_us_per_tick:6.1f} us/tick  ratio {r.overhead_ratio.median:.3f}  RTF {r.rtf_full:6.1f}"
-            f"  replay {'identical' if r.replay_identical else 'DIFFERS'}{extra}",
+            f"{r.task:<10} {r.backend:<10} full {r.timings['full'].cpu.median:7.1f} us/tick CPU  "
+            f"full/replay {_ratio_cell(h, bold=False)}"
+            f"{f'  full/{r.floor} {_ratio_cell(fl, bold=False)}' if fl else ''}"
+            f"  replay {'identical' if r.replay_identical else 'DIFFERS'}",
             flush=True,
         )
 
@@ -601,13 +778,13 @@ def _cli(args: argparse.Namespace) -> int:
         "overrides": overrides,
         "scenarios": [str(p) for p in paths],
         "backends": names,
+        "clock": "time.process_time (CPU) and time.perf_counter (wall)",
     }
     met = targets_met(results)
     meta = {
         "command": " ".join(["legbench", "bench", *sys.argv[2:]]) if sys.argv[1:2] == ["bench"] else "legbench bench",
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "settings": settings,
-        "targets": dict(TARGETS),
         "targets_met": met,
         "versions": versions(),
         "machine": machine(),
