@@ -263,6 +263,7 @@ class MujocoBackend(Backend):
         ]
         self._step = self._step_reference if self.reference else native
         self._f6 = np.zeros(6)
+        self._frame: tuple[float, ...] | None = None  # the ground contact's frame, read at the first contact
         self._fw = np.zeros(3)
         self._force = np.zeros(3)
         self._impulse = np.zeros(3)
@@ -388,7 +389,36 @@ class MujocoBackend(Backend):
         self._contact_force()
 
     def _contact_force(self) -> None:
-        """Force of the ground on the foot in W [N] from ``efc_force`` of the current contacts, into ``self._force``."""
+        """Force of the ground on the foot in W [N] from ``efc_force`` of the current contacts, into ``self._force``.
+
+        The only contacts are the explicit pairs (ground as geom1, a foot geom as geom2), so each
+        contact's force in its frame is the one the ground exerts on the foot. The frame of a
+        contact with the static plane z_W = 0 is the same at every contact (normal +z_W, tangents
+        from it), so it is read once, at the first contact, and kept as floats: per contact
+        then one ``mj_contactForce`` and F_W = frame^T f, in ``mju_mulMatTVec3``'s order of
+        operations (:meth:`_contact_force_general` reads everything each time; the test compares).
+        """
+        d, force = self.data, self._force
+        ncon = d.ncon
+        if not ncon:
+            force[0] = force[1] = force[2] = 0.0
+            return
+        frame = self._frame
+        if frame is None:
+            frame = self._frame = tuple(d.contact.frame[0].tolist())
+        f6, contact_force, m = self._f6, mujoco.mj_contactForce, self.model
+        a0, a1, a2, b0, b1, b2, c0, c1, c2 = frame
+        fx = fy = fz = 0.0
+        for i in range(ncon):
+            contact_force(m, d, i, f6)
+            f0, f1, f2, _, _, _ = f6.tolist()
+            fx += a0 * f0 + b0 * f1 + c0 * f2
+            fy += a1 * f0 + b1 * f1 + c1 * f2
+            fz += a2 * f0 + b2 * f1 + c2 * f2
+        force[0], force[1], force[2] = fx, fy, fz
+
+    def _contact_force_general(self) -> None:
+        """:meth:`_contact_force` reading each contact's frame and geoms from ``d`` every time (the reference)."""
         d, force = self.data, self._force
         force[:] = 0.0
         for i in range(d.ncon):
