@@ -93,6 +93,7 @@ def test_ratios_come_from_the_same_samples_and_never_show_a_negative_overhead(
             num, den = t[x["num"]], t[x["den"]]
             per_repeat = [a / b for a, b in zip(num["cpu_samples"], den["cpu_samples"], strict=True)]
             assert x["cpu"]["median"] == pytest.approx(float(np.median(per_repeat)), rel=1e-12)
+            assert x["best"] == pytest.approx(min(num["cpu_samples"]) / min(den["cpu_samples"]), rel=1e-12)
             if x["verdict"] == "overhead":
                 assert x["cpu"]["min"] >= 1.0 and x["overhead_us"] >= 0.0
             else:
@@ -228,6 +229,7 @@ def test_ratio_is_an_overhead_only_when_every_repeat_is_at_least_one() -> None:
 
     over = bench.ratio("a", "b", timing([2.0, 3.0, 2.2]), timing([1.0, 1.5, 1.0]))
     assert over.verdict == "overhead" and over.cpu.median == 2.0 and over.overhead_us == pytest.approx(1.2)
+    assert over.best == 2.0  # fastest repeats: 2.0 / 1.0
     noise = bench.ratio("a", "b", timing([1.0, 1.2]), timing([1.1, 1.0]))
     assert noise.verdict == "within noise" and noise.overhead_us is None
     below = bench.ratio("a", "b", timing([0.9]), timing([1.0]))
