@@ -202,14 +202,19 @@ class Backend(ABC):
         return []
 
     def kernels(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> dict[str, Callable[[], None]]:
-        """The engine's own per-sub-step calls, for the benchmark's floors.
+        """The engine's own calls, for the benchmark's floors (``legbench bench``).
 
         Args:
-            q, qd, tau: states [rad, rad/s] and torques [N m], one row per sample (N x 3).
+            q, qd, tau: states [rad, rad/s] and torques [N m], one row per control period of a
+                run, consecutive (N x 3): a kernel may start from the first row's state and step
+                through the torques, or use each row on its own.
 
         Returns:
-            name -> a callable that makes exactly one such call for each of the N samples
-            (inputs prepared beforehand), e.g. ``{"aba": ..., "law": ...}``.
+            name -> a callable that makes one pass over the N rows (inputs prepared beforehand).
+            By default a call per row is one sub-step's call (e.g. ``{"aba": ..., "law": ...}``:
+            the bench adds such kernels up and multiplies by :meth:`sub_steps`); a callable with
+            the attribute ``per_tick = True``, or a name ending in ``_tick``, covers one whole
+            control period per row (e.g. ``mj_step(m, d, n)``, a compiled sub-step loop).
         """
         raise NotImplementedError(f"kernels are not supported by {self.name}")
 
