@@ -72,7 +72,7 @@ def chain0(q: np.ndarray, params: LegParams | None = None) -> np.ndarray:
     joint, the knee joint and the foot centre E (the last equals :func:`fk0`), for drawing the leg."""
     g = _params(params).geometry
     q = np.asarray(q, float)
-    q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
+    q1, q2 = q[..., 0], q[..., 1]
     s1, c1 = np.sin(q1), np.cos(q1)
     zero = np.zeros_like(q1)
     p1 = np.stack([zero, zero, zero - g.L_01], axis=-1)

@@ -130,8 +130,13 @@ def sim_class(value: float, signal: str, joint: str, tolerances: Mapping[str, An
 
 
 def _value(df: pd.DataFrame, backend: str, ref: str, signal: str, joint: str, metric: str) -> float:
-    m = df[(df["backend"] == backend) & (df["reference"] == ref) & (df["signal"] == signal)
-           & (df["joint"] == joint) & (df["metric"] == metric)]["value"]  # fmt: skip
+    m = df[
+        (df["backend"] == backend)
+        & (df["reference"] == ref)
+        & (df["signal"] == signal)
+        & (df["joint"] == joint)
+        & (df["metric"] == metric)
+    ]["value"]
     return float(m.iloc[0]) if len(m) else math.nan
 
 
@@ -149,19 +154,23 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
     t = _value(df, b, ref, s, j, "t_max_abs")
     others = sim[sim["backend"] != b]["value"]
     if v < BANDS[0][0]:
-        text = (f"Every backend agrees with {ref} to round-off: the largest simulation error is {num(v, 3)} % "
-                f"({b}, {lab}).")  # fmt: skip
+        text = (
+            f"Every backend agrees with {ref} to round-off: the largest simulation error is {num(v, 3)} % ({b}, {lab})."
+        )
     else:
-        text = (f"Largest difference: {b}'s {lab} ({NAMES[s]}) deviates from {ref} by up to {num(dev, 3)} "
-                f"{UNITS[s]} at t = {num(t, 4)} s, {num(v, 3)} % of the reference's peak")  # fmt: skip
+        text = (
+            f"Largest difference: {b}'s {lab} ({NAMES[s]}) deviates from {ref} by up to {num(dev, 3)} "
+            f"{UNITS[s]} at t = {num(t, 4)} s, {num(v, 3)} % of the reference's peak"
+        )
         text += f"; every other backend stays within {num(float(others.max()), 3)} %." if len(others) else "."
     contact = _value(df, b, ref, s, j, "split_contact_pct")
     integ = _value(df, b, ref, s, j, "split_integration_pct")
     n_contact = df[df["metric"] == "residual_n_contact"]["value"]
     if v >= BANDS[0][0] and math.isfinite(contact) and math.isfinite(integ):
         part = "contact model" if contact >= integ else "integration and dynamics"
-        text += (f" Why: mostly the {part} (contact-mode split: contact {num(contact, 3)} %, "
-                 f"integration {num(integ, 3)} %).")  # fmt: skip
+        text += (
+            f" Why: mostly the {part} (contact-mode split: contact {num(contact, 3)} %, integration {num(integ, 3)} %)."
+        )
     elif meta.get("contact_mode") == "reference":
         text += " Every engine runs the same contact law here, so what differs is integration and dynamics."
     elif len(n_contact) and float(n_contact.max()) == 0:
@@ -211,14 +220,17 @@ def _steady_table(result: ComparisonResult) -> Table:
         rows.append((s.backend, "analytic check, J_poc", *blank, *(num(v) for v in s.analytic_poc)))
         rows.append((s.backend, "measured - analytic (J_poc)", *blank, *(num(v) for v in s.residual)))
         if s.analytic_centre is not None and s.poc_compensation is not None:
-            rows.append((s.backend, "analytic check, J_E (poc at centre)", *blank, *(num(v) for v in s.analytic_centre)))
+            rows.append(
+                (s.backend, "analytic check, J_E (poc at centre)", *blank, *(num(v) for v in s.analytic_centre))
+            )
             rows.append((s.backend, "poc compensation (J_poc - J_E)", *blank, *(num(v) for v in s.poc_compensation)))
     published = ((result.run.meta.get("scenario") or {}).get("comparison") or {}).get("published") or []
     for row in published:  # the lab report's numbers for this task, as the scenario file gives them
         qd = [num(v) for v in row["qd_abs"]] if "qd_abs" in row else list(blank)
         force = [num(v) for v in row["force"]] if "force" in row else list(blank)
-        rows.append((str(row["source"]), "published (|qd| magnitudes)" if "qd_abs" in row else "published",
-                     *qd, *force))  # fmt: skip
+        rows.append(
+            (str(row["source"]), "published (|qd| magnitudes)" if "qd_abs" in row else "published", *qd, *force)
+        )
     return Table(
         header,
         tuple(rows),
@@ -254,8 +266,10 @@ def _flat(d: Mapping[str, Any], prefix: str = "") -> dict[str, str]:
         elif isinstance(v, int | float):
             out[key] = num(v, 6)
         elif isinstance(v, list | tuple):
-            out[key] = ", ".join(num(x, 6) if isinstance(x, int | float) and not isinstance(x, bool) else str(x)
-                                 for x in v) or "[]"  # fmt: skip
+            out[key] = (
+                ", ".join(num(x, 6) if isinstance(x, int | float) and not isinstance(x, bool) else str(x) for x in v)
+                or "[]"
+            )
         else:
             out[key] = str(v)
     return out
@@ -272,8 +286,17 @@ def _backend_tables(result: ComparisonResult) -> list[Block]:
     header = ("backend", "status", "reason", "engine", "version", "wall time [s]", "RTF")
     rows = []
     for b in result.run.backends.values():
-        rows.append((b.name, b.status, b.reason or "", str(b.info.get("engine", "")), str(b.info.get("version", "")),
-                     num(b.wall_time, 3), num(b.rtf, 3)))  # fmt: skip
+        rows.append(
+            (
+                b.name,
+                b.status,
+                b.reason or "",
+                str(b.info.get("engine", "")),
+                str(b.info.get("version", "")),
+                num(b.wall_time, 3),
+                num(b.rtf, 3),
+            )
+        )
     for name, tr in result.traces.items():
         if name not in result.run.backends:
             rows.append((name, "ok", "", "imported log", tr.source, "", ""))
@@ -283,20 +306,41 @@ def _backend_tables(result: ComparisonResult) -> list[Block]:
     if keys:
         names = list(per)
         srows = tuple((k, *(per[n].get(k, "") for n in names)) for k in keys)
-        blocks.append(Table(("setting", *names), srows, "Settings each backend reports it used (run.json)"))
+        table = Table(("setting", *names), srows, "Settings each backend reports it used (run.json)")
+        blocks.append(Details(f"Settings of every backend ({len(keys)} rows)", (table,)))
     return blocks
 
 
 def _residual_table(result: ComparisonResult) -> Table:
     rows = []
     for name, r in result.residuals.items():
-        rows.append((name, str(r.n_contact), num(r.penetration_max * 1e3), num(r.penetration_rel),
-                     str(r.n_sliding), num(r.friction_ratio), num(r.angle_max), str(r.n_creep),
-                     num(r.creep_speed * 1e3), num(r.creep_law * 1e3)))  # fmt: skip
+        rows.append(
+            (
+                name,
+                str(r.n_contact),
+                num(r.penetration_max * 1e3),
+                num(r.penetration_rel),
+                str(r.n_sliding),
+                num(r.friction_ratio),
+                num(r.angle_max),
+                str(r.n_creep),
+                num(r.creep_speed * 1e3),
+                num(r.creep_law * 1e3),
+            )
+        )
     return Table(
-        ("backend", "contact samples", "max |y - Fn_spring/Kp| [mm]", "median |y Kp/Fn - 1|", "sliding samples",
-         "|F_t| / (mu_k Fn) sliding", "max angle F_t vs -v [deg]", "sub-limit samples", "creep [mm/s]",
-         "law's creep [mm/s]"),  # fmt: skip
+        (
+            "backend",
+            "contact samples",
+            "max |y - Fn_spring/Kp| [mm]",
+            "median |y Kp/Fn - 1|",
+            "sliding samples",
+            "|F_t| / (mu_k Fn) sliding",
+            "max angle F_t vs -v [deg]",
+            "sub-limit samples",
+            "creep [mm/s]",
+            "law's creep [mm/s]",
+        ),
         tuple(rows),
         "Each backend against the contact law it was meant to follow (docs/metrics.md): penetration against "
         "the spring, friction magnitude while sliding (1 for the law), friction direction against the slip, "
@@ -314,8 +358,10 @@ def _scenario_table(result: ComparisonResult) -> Table:
         ("duration [s]", num(run.duration)),
         ("control rate [Hz]", num(sc.get("control_rate", math.nan))),
         ("contact mode", run.contact_mode),
-        *((f"contact {k}", num(v) if isinstance(v, int | float) and not isinstance(v, bool) else str(v))
-          for k, v in contact.items()),  # fmt: skip
+        *(
+            (f"contact {k}", num(v) if isinstance(v, int | float) and not isinstance(v, bool) else str(v))
+            for k, v in contact.items()
+        ),
         ("reference", result.reference),
         ("skip [s]", num(run.skip)),
         ("steady window [s]", num(run.steady_window)),
@@ -347,25 +393,46 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
         b.append(Heading(2, "Deviation from the reference"))
         skip = f" for t >= {num(run.skip)} s" if run.skip > 0 else ""
         legend = "; ".join(why for _, _, why in BANDS)
-        b.append(_pair_table(result, "sim_error_pct", f"Simulation error % = max|x - x_ref| / max|x_ref| x 100{skip} "
-                             f"(colours: the scenario's limits where it sets them, else {legend})", False))  # fmt: skip
+        b.append(
+            _pair_table(
+                result,
+                "sim_error_pct",
+                f"Simulation error % = max|x - x_ref| / max|x_ref| x 100{skip} "
+                f"(colours: the scenario's limits where it sets them, else {legend})",
+                False,
+            )
+        )
         b.append(_pair_table(result, "rms", f"RMS deviation{skip}", True))
         b.append(_maxdev_table(result))
         lags = [p for p in result.pairs if p.lag is not None]
         if lags:
-            b.append(Table(
-                ("backend", "vs", "lag [ms]", "samples", "correlation", "removed [ms]"),
-                tuple((p.backend, p.reference, num(p.lag.seconds * 1e3), num(p.lag.samples), num(p.lag.correlation),
-                       num(p.lag_removed * 1e3)) for p in lags if p.lag is not None),
-                "Constant time lag by cross-correlation (> 0: the backend is late)",
-            ))  # fmt: skip
+            b.append(
+                Table(
+                    ("backend", "vs", "lag [ms]", "samples", "correlation", "removed [ms]"),
+                    tuple(
+                        (
+                            p.backend,
+                            p.reference,
+                            num(p.lag.seconds * 1e3),
+                            num(p.lag.samples),
+                            num(p.lag.correlation),
+                            num(p.lag_removed * 1e3),
+                        )
+                        for p in lags
+                        if p.lag is not None
+                    ),
+                    "Constant time lag by cross-correlation (> 0: the backend is late)",
+                )
+            )
     b.append(Heading(2, "Steady state and analytic force check"))
     b.append(_steady_table(result))
     if any(r.n_contact for r in result.residuals.values()):
         b.append(Heading(2, "Contact-law residuals"))
         b.append(_residual_table(result))
     if result.split:
-        b.append(Heading(2, f"Contact model vs integration (with {result.split_run.label if result.split_run else ''})"))
+        b.append(
+            Heading(2, f"Contact model vs integration (with {result.split_run.label if result.split_run else ''})")
+        )
         b.append(_split_table(result, "rms"))
         b.append(_split_table(result, "pct"))
     b.append(Heading(2, "Figures", "figures"))
@@ -418,6 +485,8 @@ def write_report(
         index = "../report.html"
     for old in (path / "figures").glob("*.png") if (path / "figures").is_dir() else ():
         old.unlink()  # the static figures of earlier versions
+    if (path / "figures").is_dir() and not any((path / "figures").iterdir()):
+        (path / "figures").rmdir()
     arrays = Arrays()
     figures = run_figures(res, arrays)
     blocks = _blocks(res, figures, index)
@@ -472,7 +541,7 @@ class _Entry:
     """One run directory as the index sees it."""
 
     dir: Path
-    label: str
+    label: str  # the run directory's name: unique in a tree (a profile's runs share the scenario label)
     name: str
     profile: str
     mode: str
@@ -492,8 +561,18 @@ def _entries(dirs: Sequence[Path]) -> list[_Entry]:
             meta, df = res.to_json(), res.frame()
         run_meta = read_meta(d)
         sc = run_meta["scenario"]
-        out.append(_Entry(d, str(meta.get("scenario", d.name)), str(sc["name"]), str(sc.get("profile", "matched")),
-                          str(meta.get("contact_mode", "native")), meta, tolerances_of(run_meta), df))  # fmt: skip
+        out.append(
+            _Entry(
+                d,
+                d.name or str(meta.get("scenario", "")),
+                str(sc["name"]),
+                str(sc.get("profile", "matched")),
+                str(meta.get("contact_mode", "native")),
+                meta,
+                tolerances_of(run_meta),
+                df,
+            )
+        )
     return out
 
 
@@ -502,8 +581,10 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
     header = ("run", "profile", "contact", "backend", "vs", *LABELS)
     blocks: list[Block] = []
     for name in dict.fromkeys(e.name for e in entries):
-        runs = sorted((e for e in entries if e.name == name),
-                      key=lambda e: (_PROFILE_ORDER.get(e.profile, 9), _MODE_ORDER.get(e.mode, 9), e.label))  # fmt: skip
+        runs = sorted(
+            (e for e in entries if e.name == name),
+            key=lambda e: (_PROFILE_ORDER.get(e.profile, 9), _MODE_ORDER.get(e.mode, 9), e.label),
+        )
         blocks.append(Heading(2, name, f"task-{name}"))
         rows: list[tuple[str, ...]] = []
         links: dict[tuple[int, int], str] = {}
@@ -517,8 +598,10 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
             sim = e.df[e.df["metric"] == "sim_error_pct"]
             first = len(rows)
             for (backend, ref), g in sim.groupby(["backend", "reference"], sort=False):
-                vals = {column_label(s, j): (s, j, float(v))
-                        for s, j, v in zip(g["signal"], g["joint"], g["value"], strict=True)}  # fmt: skip
+                vals = {
+                    column_label(s, j): (s, j, float(v))
+                    for s, j, v in zip(g["signal"], g["joint"], g["value"], strict=True)
+                }
                 r = len(rows)
                 cells = []
                 for c, lab in enumerate(LABELS):
@@ -529,12 +612,23 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
                         classes[(r, 5 + c)], titles[(r, 5 + c)] = cls, why
                 rows.append((e.label, e.profile, e.mode, str(backend), str(ref), *cells))
             if len(rows) == first:
-                rows.append((e.label, e.profile, e.mode, "-", str(e.meta.get("reference", "")), *("n/a" for _ in LABELS)))
+                rows.append(
+                    (e.label, e.profile, e.mode, "-", str(e.meta.get("reference", "")), *("n/a" for _ in LABELS))
+                )
             if href:
                 for i in range(first, len(rows)):
                     links[(i, 0)] = href
-        blocks.append(Table(header, tuple(rows), f"{name}: simulation error % (backend x signal component)",
-                            links, classes, titles, groups))  # fmt: skip
+        blocks.append(
+            Table(
+                header,
+                tuple(rows),
+                f"{name}: simulation error % (backend x signal component)",
+                links,
+                classes,
+                titles,
+                groups,
+            )
+        )
     return blocks
 
 
@@ -590,8 +684,11 @@ def _profile_blocks(entries: Sequence[_Entry]) -> list[Block]:
     """What configuration costs: each scenario's native-contact runs in the ``matched`` and
     ``engine-defaults`` profiles side by side (largest joint-angle error %, steady ground force)."""
     by_key = {(e.name, e.profile): e.df for e in entries if e.mode == "native"}
-    names = [n for n in dict.fromkeys(e.name for e in entries) if (n, "engine-defaults") in by_key
-             and (n, "matched") in by_key]  # fmt: skip
+    names = [
+        n
+        for n in dict.fromkeys(e.name for e in entries)
+        if (n, "engine-defaults") in by_key and (n, "matched") in by_key
+    ]
     if not names:
         return []
     rows: list[tuple[str, ...]] = []
@@ -619,8 +716,14 @@ def _profile_blocks(entries: Sequence[_Entry]) -> list[Block]:
             "A difference between the two columns is the settings', not the engine's."
         ),
         Table(
-            ("scenario", "backend", "max q error % (matched)", "max q error % (engine-defaults)",
-             "steady Fn [N] (matched)", "steady Fn [N] (engine-defaults)"),  # fmt: skip
+            (
+                "scenario",
+                "backend",
+                "max q error % (matched)",
+                "max q error % (engine-defaults)",
+                "steady Fn [N] (matched)",
+                "steady Fn [N] (engine-defaults)",
+            ),
             tuple(rows),
             "Largest joint-angle simulation error % against the scenario's reference backend in the same profile, "
             "and the steady normal ground force (mean over the steady window)",
@@ -671,8 +774,11 @@ def _study_blocks(root: Path) -> list[Block]:
         except (ValueError, KeyError, TypeError) as exc:
             raise ResultsError(str(path), f"malformed study output: {exc}") from None
         rows = tuple(tuple(_cell(r.get(c, "")) for c in cols) for r in records)
-        classes = {(i, len(cols) - 1): ("pass" if r.get("pass") else "fail") for i, r in enumerate(records)
-                   if "pass" in cols and isinstance(r.get("pass"), bool)}  # fmt: skip
+        classes = {
+            (i, len(cols) - 1): ("pass" if r.get("pass") else "fail")
+            for i, r in enumerate(records)
+            if "pass" in cols and isinstance(r.get("pass"), bool)
+        }
         table = Table(cols, rows, caption, classes=classes)
         link = f"{rel.rsplit('/', 1)[0]}/"
         if "pass" in cols:
@@ -680,8 +786,14 @@ def _study_blocks(root: Path) -> list[Block]:
             summary = f"{heading}: {len(records) - len(failed)} of {len(records)} checks pass"
             blocks.append(Heading(2, summary))
             if failed:
-                blocks.append(Table(cols, tuple(rows[i] for i in failed), "Failing checks",
-                                    classes={(k, len(cols) - 1): "fail" for k in range(len(failed))}))  # fmt: skip
+                blocks.append(
+                    Table(
+                        cols,
+                        tuple(rows[i] for i in failed),
+                        "Failing checks",
+                        classes={(k, len(cols) - 1): "fail" for k in range(len(failed))},
+                    )
+                )
             blocks.append(Details(f"all {len(records)} checks", (table,), "fail" if failed else ""))
         else:
             blocks.append(Heading(2, f"{heading}: {len(records)} backends measured"))
@@ -703,18 +815,36 @@ def _bench_blocks(root: Path) -> list[Block]:
                 rows.append((r["task"], r["backend"], r.get("status", "?"), "", "", "", "", "", ""))
                 continue
             mem = r["mem_peak_bytes"] / r["series_bytes"] if r.get("mem_peak_bytes") and r.get("series_bytes") else None
-            rows.append((
-                r["task"], r["backend"], _cell(r["full_us_per_tick"]["median"]),
-                _cell(r["engine_us_per_tick"]["median"]), _cell(r["harness_us_per_tick"]),
-                _cell(r["overhead_ratio"]["median"]), _cell(r["rtf_full"]),
-                _cell(mem) if mem is not None else "-", "yes" if r.get("replay_identical") else "NO",
-            ))  # fmt: skip
+            rows.append(
+                (
+                    r["task"],
+                    r["backend"],
+                    _cell(r["full_us_per_tick"]["median"]),
+                    _cell(r["engine_us_per_tick"]["median"]),
+                    _cell(r["harness_us_per_tick"]),
+                    _cell(r["overhead_ratio"]["median"]),
+                    _cell(r["rtf_full"]),
+                    _cell(mem) if mem is not None else "-",
+                    "yes" if r.get("replay_identical") else "NO",
+                )
+            )
     except (ValueError, KeyError, TypeError) as exc:
         raise ResultsError(str(path), f"malformed benchmark output: {exc}") from None
-    cols = ("task", "backend", "full [us/tick]", "engine only [us/tick]", "harness [us/tick]", "overhead ratio",
-            "RTF", "memory / series", "replay identical")  # fmt: skip
-    caption = (f"legbench bench ({doc.get('created', '')}, {doc.get('machine', {}).get('cpus', '?')} CPUs): medians; "
-               "overhead ratio = full run / engine-only replay of the same torques")  # fmt: skip
+    cols = (
+        "task",
+        "backend",
+        "full [us/tick]",
+        "engine only [us/tick]",
+        "harness [us/tick]",
+        "overhead ratio",
+        "RTF",
+        "memory / series",
+        "replay identical",
+    )
+    caption = (
+        f"legbench bench ({doc.get('created', '')}, {doc.get('machine', {}).get('cpus', '?')} CPUs): medians; "
+        "overhead ratio = full run / engine-only replay of the same torques"
+    )
     return [Heading(2, "Performance"), Details(f"{len(rows)} rows", (Table(cols, tuple(rows), caption),))]
 
 

@@ -66,8 +66,13 @@ ASSETS = "assets"
 PLOTLY_JS = "plotly.min.js"
 LEGBENCH_FILE = "legbench.js"
 
-NAMES = {"q": "joint angle", "qd": "joint velocity", "tau": "joint torque", "force": "ground force on the foot (W)",
-         "ee": "foot centre position (W)"}  # fmt: skip
+NAMES = {
+    "q": "joint angle",
+    "qd": "joint velocity",
+    "tau": "joint torque",
+    "force": "ground force on the foot (W)",
+    "ee": "foot centre position (W)",
+}
 _PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#bcbd22", "#17becf")
 _DASHES = ("solid", "dash", "dot", "dashdot", "longdash")
 
@@ -105,7 +110,7 @@ LEGBENCH_JS = r"""/* legbench report figures: decode float32 arrays, draw with p
     for (var b = 0; b < nb; b++) {
       var xyz = pose(b, 0), be = spec.backends[b];
       data.push({type: "scatter3d", mode: "lines+markers", name: be.name, legendgroup: be.name,
-                 x: xyz[0], y: xyz[1], z: xyz[2], line: {color: be.color, width: 7},
+                 x: xyz[0], y: xyz[1], z: xyz[2], line: {color: be.color, width: be.width},
                  marker: {color: be.color, size: [3, 4, 4, 4, spec.foot_size]}});
       idx.push(data.length - 1);
     }
@@ -256,13 +261,20 @@ def _styles(names: Sequence[str], reference: str) -> dict[str, tuple[str, str]]:
 
 
 def _axis(title: str, **extra: Any) -> dict[str, Any]:
-    return {"title": {"text": title, "font": {"size": 11}}, "showgrid": True, "gridcolor": "#e5e5e5",
-            "zeroline": False, "exponentformat": "e", "hoverformat": ".6g", **extra}  # fmt: skip
+    return {
+        "title": {"text": title, "font": {"size": 11}},
+        "showgrid": True,
+        "gridcolor": "#e5e5e5",
+        "zeroline": False,
+        "exponentformat": "e",
+        "hoverformat": ".6g",
+        **extra,
+    }
 
 
 def _layout(title: str, rows: int, ylabels: Sequence[str], shared: bool = True, height: int = 0) -> dict[str, Any]:
     """Rows of subplots; with ``shared`` one time axis for all (zoom one, all follow)."""
-    gap = 0.05
+    gap = 0.05 if shared else 0.1
     h = (1.0 - gap * (rows - 1)) / rows
     lay: dict[str, Any] = {
         "title": {"text": title, "font": {"size": 14}, "x": 0.01},
@@ -288,10 +300,34 @@ def _layout(title: str, rows: int, ylabels: Sequence[str], shared: bool = True, 
 
 def _events(lay: dict[str, Any], run: Run) -> None:
     """Controller switches: dashed lines across every row, named at the top."""
-    shapes = [{"type": "line", "xref": "x", "yref": "paper", "x0": ev.t, "x1": ev.t, "y0": 0, "y1": 1,
-               "line": {"color": "#8c8c8c", "width": 1, "dash": "dash"}, "layer": "below"} for ev in run.events]  # fmt: skip
-    notes = [{"x": ev.t, "y": 1.0, "xref": "x", "yref": "paper", "text": ev.controller, "showarrow": False,
-              "xanchor": "left", "yanchor": "bottom", "font": {"size": 10, "color": "#595959"}} for ev in run.events]  # fmt: skip
+    shapes = [
+        {
+            "type": "line",
+            "xref": "x",
+            "yref": "paper",
+            "x0": ev.t,
+            "x1": ev.t,
+            "y0": 0,
+            "y1": 1,
+            "line": {"color": "#8c8c8c", "width": 1, "dash": "dash"},
+            "layer": "below",
+        }
+        for ev in run.events
+    ]
+    notes = [
+        {
+            "x": ev.t,
+            "y": 1.0,
+            "xref": "x",
+            "yref": "paper",
+            "text": ev.controller,
+            "showarrow": False,
+            "xanchor": "left",
+            "yanchor": "bottom",
+            "font": {"size": 10, "color": "#595959"},
+        }
+        for ev in run.events
+    ]
     lay["shapes"] = lay.get("shapes", []) + shapes
     lay["annotations"] = lay.get("annotations", []) + notes
 
@@ -302,12 +338,32 @@ def _xrange(run: Run, traces: Mapping[str, RunResult]) -> list[float]:
     return [0.0, float(max(hi, max(ends, default=hi)))]
 
 
-def _trace(arrays: Arrays, x: np.ndarray, y: np.ndarray, row: int, name: str, color: str, dash: str,
-           width: float, legend: bool, opacity: float = 1.0) -> dict[str, Any]:  # fmt: skip
+def _trace(
+    arrays: Arrays,
+    x: np.ndarray,
+    y: np.ndarray,
+    row: int,
+    name: str,
+    color: str,
+    dash: str,
+    width: float,
+    legend: bool,
+    opacity: float = 1.0,
+) -> dict[str, Any]:
     suffix = "" if row == 0 else str(row + 1)
-    return {"type": "scatter", "mode": "lines", "x": arrays.ref(x), "y": arrays.ref(y), "name": name,
-            "legendgroup": name, "showlegend": legend, "xaxis": f"x{suffix}", "yaxis": f"y{suffix}",
-            "line": {"color": color, "width": width, "dash": dash}, "opacity": opacity}  # fmt: skip
+    return {
+        "type": "scatter",
+        "mode": "lines",
+        "x": arrays.ref(x),
+        "y": arrays.ref(y),
+        "name": name,
+        "legendgroup": name,
+        "showlegend": legend,
+        "xaxis": f"x{suffix}",
+        "yaxis": f"y{suffix}",
+        "line": {"color": color, "width": width, "dash": dash},
+        "opacity": opacity,
+    }
 
 
 def _overlay(result: ComparisonResult, signal: str, arrays: Arrays) -> Figure | None:
@@ -327,15 +383,30 @@ def _overlay(result: ComparisonResult, signal: str, arrays: Arrays) -> Figure | 
         tt, yy = envelope(tr.t, tr.signal(signal))
         label = f"{name} (reference)" if is_ref else name
         for j in range(3):
-            data.append(_trace(arrays, tt, yy[:, j], j, label, color, "dot" if name != base else dash,
-                               3.0 if is_ref else 1.5, j == 0, 0.5 if is_ref else 0.95))  # fmt: skip
+            data.append(
+                _trace(
+                    arrays,
+                    tt,
+                    yy[:, j],
+                    j,
+                    label,
+                    color,
+                    "dot" if name != base else dash,
+                    3.0 if is_ref else 1.5,
+                    j == 0,
+                    0.5 if is_ref else 0.95,
+                )
+            )
     ylabels = [f"{'ee_' + c if signal == 'ee' else column_label(signal, c)} [{unit}]" for c in comps]
     lay = _layout(f"{run.label}: {NAMES[signal]}, every backend", 3, ylabels)
     lay["xaxis"]["range"] = _xrange(run, shown)
     _events(lay, run)
-    return Figure(f"overlay-{signal}", f"Overlay of the {NAMES[signal]}, every backend, one row per component; "
-                  "zoom one row and the others follow; dashed lines are controller switches.", {"data": data,
-                  "layout": lay})  # fmt: skip
+    return Figure(
+        f"overlay-{signal}",
+        f"Overlay of the {NAMES[signal]}, every backend, one row per component; "
+        "zoom one row and the others follow; dashed lines are controller switches.",
+        {"data": data, "layout": lay},
+    )
 
 
 def _pairs(result: ComparisonResult, signal: str) -> list[Any]:
@@ -362,12 +433,27 @@ def _deviation(result: ComparisonResult, signal: str, arrays: Arrays) -> Figure 
     lay = _layout(f"{run.label}: {NAMES[signal]}, deviation from {result.reference}", 3, ylabels)
     lay["xaxis"]["range"] = _xrange(run, result.traces)
     if run.skip > 0:
-        lay["shapes"] = [{"type": "rect", "xref": "x", "yref": "paper", "x0": 0, "x1": run.skip, "y0": 0, "y1": 1,
-                          "fillcolor": "#ebebeb", "line": {"width": 0}, "layer": "below"}]  # fmt: skip
+        lay["shapes"] = [
+            {
+                "type": "rect",
+                "xref": "x",
+                "yref": "paper",
+                "x0": 0,
+                "x1": run.skip,
+                "y0": 0,
+                "y1": 1,
+                "fillcolor": "#ebebeb",
+                "line": {"width": 0},
+                "layer": "below",
+            }
+        ]
     _events(lay, run)
-    return Figure(f"deviation-{signal}", f"Deviation of the {NAMES[signal]} from {result.reference} (x - x_ref), "
-                  "min/max envelope of every bin so short transients keep their height.", {"data": data,
-                  "layout": lay})  # fmt: skip
+    return Figure(
+        f"deviation-{signal}",
+        f"Deviation of the {NAMES[signal]} from {result.reference} (x - x_ref), "
+        "min/max envelope of every bin so short transients keep their height.",
+        {"data": data, "layout": lay},
+    )
 
 
 def _focus_transients(result: ComparisonResult, arrays: Arrays) -> Figure | None:
@@ -398,9 +484,12 @@ def _focus_transients(result: ComparisonResult, arrays: Arrays) -> Figure | None
     lay = _layout(f"{result.run.label}: the largest deviations at full resolution", len(rows), ylabels, shared=False)
     for r, (_, _, tm) in enumerate(rows):
         lay["xaxis" if r == 0 else f"xaxis{r + 1}"]["title"]["text"] = f"t [s] (around {tm:.4f} s)"
-    return Figure("focus-transients", f"Focus on transients: for each signal the component with the largest "
-                  f"deviation, every sample within {FOCUS_HALF_WIDTH * 1e3:g} ms of its peak.", {"data": data,
-                  "layout": lay})  # fmt: skip
+    return Figure(
+        "focus-transients",
+        f"Focus on transients: for each signal the component with the largest "
+        f"deviation, every sample within {FOCUS_HALF_WIDTH * 1e3:g} ms of its peak.",
+        {"data": data, "layout": lay},
+    )
 
 
 def _focus_steady(result: ComparisonResult, arrays: Arrays) -> Figure | None:
@@ -418,9 +507,12 @@ def _focus_steady(result: ComparisonResult, arrays: Arrays) -> Figure | None:
             data.append(_trace(arrays, p.t[k0:], p.deviation[k0:, j], j, p.backend, color, dash, 1.4, j == 0))
     ylabels = [f"\u0394{column_label('q', c)} [rad]" for c in JOINTS["q"]]
     lay = _layout(f"{run.label}: joint-angle deviation over the steady window", 3, ylabels)
-    return Figure("focus-steady", f"Focus on the steady state: deviation of q from {result.reference} over the "
-                  f"final {run.steady_window:g} s, every sample, each row on its own scale.", {"data": data,
-                  "layout": lay})  # fmt: skip
+    return Figure(
+        "focus-steady",
+        f"Focus on the steady state: deviation of q from {result.reference} over the "
+        f"final {run.steady_window:g} s, every sample, each row on its own scale.",
+        {"data": data, "layout": lay},
+    )
 
 
 def _leg_view(result: ComparisonResult, arrays: Arrays) -> Figure | None:
@@ -432,7 +524,8 @@ def _leg_view(result: ComparisonResult, arrays: Arrays) -> Figure | None:
     styles = _styles(list(shown), result.reference)
     t_end = max(float(tr.t[-1]) for tr in shown.values())
     times = np.linspace(0.0, t_end, LEG_FRAMES)
-    backends, static = [], []
+    backends: list[dict[str, Any]] = []
+    static: list[dict[str, Any]] = []
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     for name, tr in shown.items():
         k = np.clip(np.searchsorted(tr.t, times), 0, len(tr.t) - 1)
@@ -440,33 +533,77 @@ def _leg_view(result: ComparisonResult, arrays: Arrays) -> Figure | None:
         lo, hi = np.minimum(lo, pts.min(axis=(0, 1))), np.maximum(hi, pts.max(axis=(0, 1)))
         color = styles[name][0]
         label = f"{name} (reference)" if name == result.reference else name
-        backends.append({"name": label, "color": color, "points": arrays.ref(pts.ravel())})
+        width = max(3, 11 - 2 * len(backends))  # thinner for each later backend, so coinciding legs stay visible
+        backends.append({"name": label, "color": color, "width": width, "points": arrays.ref(pts.ravel())})
         foot = kinematics.fk(tr.q[:: max(1, len(tr.t) // 1000)])
-        static.append({"type": "scatter3d", "mode": "lines", "name": f"{name} foot path", "legendgroup": label,
-                       "showlegend": False, "x": arrays.ref(foot[:, 0]), "y": arrays.ref(foot[:, 1]),
-                       "z": arrays.ref(foot[:, 2]), "line": {"color": color, "width": 2}, "opacity": 0.5})  # fmt: skip
+        static.append(
+            {
+                "type": "scatter3d",
+                "mode": "lines",
+                "name": f"{name} foot path",
+                "legendgroup": label,
+                "showlegend": False,
+                "x": arrays.ref(foot[:, 0]),
+                "y": arrays.ref(foot[:, 1]),
+                "z": arrays.ref(foot[:, 2]),
+                "line": {"color": color, "width": 2},
+                "opacity": 0.5,
+            }
+        )
     pad = 0.05
     x0, x1 = float(lo[0] - pad), float(hi[0] + pad)
     y0, y1 = float(lo[1] - pad), float(hi[1] + pad)
-    static.insert(0, {"type": "mesh3d", "name": "ground (z = 0)", "x": [x0, x1, x1, x0], "y": [y0, y0, y1, y1],
-                      "z": [0, 0, 0, 0], "i": [0, 0], "j": [1, 2], "k": [2, 3], "color": "#c8b99a", "opacity": 0.5,
-                      "hoverinfo": "skip", "showlegend": True})  # fmt: skip
+    static.insert(
+        0,
+        {
+            "type": "mesh3d",
+            "name": "ground (z = 0)",
+            "x": [x0, x1, x1, x0],
+            "y": [y0, y0, y1, y1],
+            "z": [0, 0, 0, 0],
+            "i": [0, 0],
+            "j": [1, 2],
+            "k": [2, 3],
+            "color": "#c8b99a",
+            "opacity": 0.5,
+            "hoverinfo": "skip",
+            "showlegend": True,
+        },
+    )
     z1 = float(max(hi[2], 0.0) + pad)
     span = max(x1 - x0, y1 - y0, z1)
-    scene = {"xaxis": {"title": {"text": "x [m]"}, "range": [x0, x1]},
-             "yaxis": {"title": {"text": "y [m]"}, "range": [y0, y1]},
-             "zaxis": {"title": {"text": "z [m]"}, "range": [-0.02, z1]},
-             "aspectmode": "manual", "aspectratio": {"x": (x1 - x0) / span, "y": (y1 - y0) / span, "z": z1 / span},
-             "camera": {"eye": {"x": 1.6, "y": -1.6, "z": 0.9}}}  # fmt: skip
-    layout = {"title": {"text": f"{run.label}: the leg of every backend (W)", "font": {"size": 14}, "x": 0.01},
-              "height": 620, "margin": {"l": 0, "r": 0, "t": 40, "b": 0}, "scene": scene,
-              "legend": {"orientation": "h", "y": 0.02}, "uirevision": "leg"}  # fmt: skip
+    scene = {
+        "xaxis": {"title": {"text": "x [m]"}, "range": [x0, x1]},
+        "yaxis": {"title": {"text": "y [m]"}, "range": [y0, y1]},
+        "zaxis": {"title": {"text": "z [m]"}, "range": [-0.02, z1]},
+        "aspectmode": "manual",
+        "aspectratio": {"x": (x1 - x0) / span, "y": (y1 - y0) / span, "z": z1 / span},
+        "camera": {"eye": {"x": 1.6, "y": -1.6, "z": 0.9}},
+    }
+    layout = {
+        "title": {"text": f"{run.label}: the leg of every backend (W)", "font": {"size": 14}, "x": 0.01},
+        "height": 620,
+        "margin": {"l": 0, "r": 0, "t": 40, "b": 0},
+        "scene": scene,
+        "legend": {"orientation": "h", "y": 0.02},
+        "uirevision": "leg",
+    }
     # the foot marker's size in pixels stands for the foot sphere; only a visual cue
-    spec = {"times": [round(float(x), 6) for x in times], "backends": backends, "static": static,
-            "layout": layout, "foot_size": 9}  # fmt: skip
-    return Figure("leg", "The leg of every backend, drawn from its logged joint angles through the forward "
-                  "kinematics (frame 0, ab/ad, hip, knee, foot centre); thin lines are each foot's path, the "
-                  "plane is the ground. Drag the slider or press play; drag the view to turn it.", spec, "leg")  # fmt: skip
+    spec = {
+        "times": [round(float(x), 6) for x in times],
+        "backends": backends,
+        "static": static,
+        "layout": layout,
+        "foot_size": 9,
+    }
+    return Figure(
+        "leg",
+        "The leg of every backend, drawn from its logged joint angles through the forward "
+        "kinematics (frame 0, ab/ad, hip, knee, foot centre); thin lines are each foot's path, the "
+        "plane is the ground. Drag the slider or press play; drag the view to turn it.",
+        spec,
+        "leg",
+    )
 
 
 def run_figures(result: ComparisonResult, arrays: Arrays) -> list[Figure]:

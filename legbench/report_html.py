@@ -115,8 +115,10 @@ def _md(blocks: Sequence[Block], out: list[str], page: str) -> None:
             out.append(f"{b.summary}\n")
             _md(b.blocks, out, page)
         elif isinstance(b, Nav):
-            out.append(" | ".join(f"[{t}]({h.replace('.html', '.md') if h.endswith('.html') else h})"
-                                  for t, h in b.links) + "\n")  # fmt: skip
+            out.append(
+                " | ".join(f"[{t}]({h.replace('.html', '.md') if h.endswith('.html') else h})" for t, h in b.links)
+                + "\n"
+            )
         else:
             out.append(f"- Figure ({b.key}): {b.caption} Interactive in [{page}]({page}#{b.key}).\n")
 
@@ -132,7 +134,7 @@ CSS = """
 body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1200px; padding: 0 1em; color: #222; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ddd; }
 h3 { font-size: 1.05em; margin-top: 1.2em; }
-table { border-collapse: collapse; margin: 0.4em 0 1.2em; font-size: 0.82em; }
+table { border-collapse: collapse; margin: 0.4em 0 1.2em; font-size: 0.82em; display: block; overflow-x: auto; }
 th, td { border: 1px solid #d0d0d0; padding: 2px 6px; text-align: right; white-space: nowrap; }
 th { background: #f0f0f0; position: sticky; top: 0; }
 td.text { text-align: left; white-space: normal; }
