@@ -129,30 +129,19 @@ def sim_class(value: float, signal: str, joint: str, tolerances: Mapping[str, An
     return "", ""
 
 
-def _value(df: pd.DataFrame, backend: str, ref: str, signal: str, joint: str, metric: str) -> float:
-    m = df[
-        (df["backend"] == backend)
-        & (df["reference"] == ref)
-        & (df["signal"] == signal)
-        & (df["joint"] == joint)
-        & (df["metric"] == metric)
-    ]["value"]
-    return float(m.iloc[0]) if len(m) else math.nan
-
-
 def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
     """One sentence from the metrics of a run: the largest deviation, whose, in what signal, and why."""
     ref = str(meta.get("reference", ""))
-    sim = df[(df["metric"] == "sim_error_pct") & (df["reference"] == ref)]
-    sim = sim[sim["value"].map(lambda v: math.isfinite(float(v)))]
-    if sim.empty:
+    cols = [df[c].tolist() for c in ("backend", "reference", "signal", "joint", "metric", "value")]
+    value = {(b, r, s, j, m): float(v) for b, r, s, j, m, v in zip(*cols, strict=True)}
+    sim = {k: v for k, v in value.items() if k[4] == "sim_error_pct" and k[1] == ref and math.isfinite(v)}
+    if not sim:
         return f"No deviation measured: the reference backend '{ref}' has no data."
-    worst = sim.loc[sim["value"].astype(float).idxmax()]
-    b, s, j, v = str(worst["backend"]), str(worst["signal"]), str(worst["joint"]), float(worst["value"])
+    (b, _, s, j, _), v = max(sim.items(), key=lambda kv: kv[1])
     lab = column_label(s, j)
-    dev = _value(df, b, ref, s, j, "max_abs")
-    t = _value(df, b, ref, s, j, "t_max_abs")
-    others = sim[sim["backend"] != b]["value"]
+    nan = math.nan
+    dev, t = value.get((b, ref, s, j, "max_abs"), nan), value.get((b, ref, s, j, "t_max_abs"), nan)
+    others = [x for k, x in sim.items() if k[0] != b]
     if v < BANDS[0][0]:
         text = (
             f"Every backend agrees with {ref} to round-off: the largest simulation error is {num(v, 3)} % ({b}, {lab})."
@@ -162,10 +151,10 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
             f"Largest difference: {b}'s {lab} ({NAMES[s]}) deviates from {ref} by up to {num(dev, 3)} "
             f"{UNITS[s]} at t = {num(t, 4)} s, {num(v, 3)} % of the reference's peak"
         )
-        text += f"; every other backend stays within {num(float(others.max()), 3)} %." if len(others) else "."
-    contact = _value(df, b, ref, s, j, "split_contact_pct")
-    integ = _value(df, b, ref, s, j, "split_integration_pct")
-    n_contact = df[df["metric"] == "residual_n_contact"]["value"]
+        text += f"; every other backend stays within {num(max(others), 3)} %." if others else "."
+    contact = value.get((b, ref, s, j, "split_contact_pct"), nan)
+    integ = value.get((b, ref, s, j, "split_integration_pct"), nan)
+    n_contact = [x for k, x in value.items() if k[4] == "residual_n_contact"]
     if v >= BANDS[0][0] and math.isfinite(contact) and math.isfinite(integ):
         part = "contact model" if contact >= integ else "integration and dynamics"
         text += (
@@ -173,7 +162,7 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
         )
     elif meta.get("contact_mode") == "reference":
         text += " Every engine runs the same contact law here, so what differs is integration and dynamics."
-    elif len(n_contact) and float(n_contact.max()) == 0:
+    elif n_contact and max(n_contact) == 0:
         text += " The foot never touches the ground, so what differs is integration and dynamics."
     return text
 
