@@ -56,7 +56,7 @@ __all__ = [
 ]
 
 #: Bins of the display envelope: at most 2 * BINS points per trace.
-BINS = 700
+BINS = 500
 #: Half-width of the focused window around a largest deviation [s].
 FOCUS_HALF_WIDTH = 0.05
 #: Frames of the 3D leg view (its time slider's steps).
@@ -578,7 +578,7 @@ def _leg_view(result: ComparisonResult, arrays: Arrays) -> Figure | None:
         "zaxis": {"title": {"text": "z [m]"}, "range": [-0.02, z1]},
         "aspectmode": "manual",
         "aspectratio": {"x": (x1 - x0) / span, "y": (y1 - y0) / span, "z": z1 / span},
-        "camera": {"eye": {"x": 1.6, "y": -1.6, "z": 0.9}},
+        "camera": {"eye": {"x": 1.25, "y": -1.25, "z": 0.7}},
     }
     layout = {
         "title": {"text": f"{run.label}: the leg of every backend (W)", "font": {"size": 14}, "x": 0.01},

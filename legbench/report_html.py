@@ -131,14 +131,14 @@ def to_markdown(blocks: Sequence[Block], page: str = "report.html") -> str:
 
 
 CSS = """
-body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1200px; padding: 0 1em; color: #222; }
+body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1400px; padding: 0 1em; color: #222; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ddd; }
 h3 { font-size: 1.05em; margin-top: 1.2em; }
 table { border-collapse: collapse; margin: 0.4em 0 1.2em; font-size: 0.82em; display: block; overflow-x: auto; }
 th, td { border: 1px solid #d0d0d0; padding: 2px 6px; text-align: right; white-space: nowrap; }
 th { background: #f0f0f0; position: sticky; top: 0; }
 td.text { text-align: left; white-space: normal; }
-td:first-child, th:first-child { text-align: left; }
+td:first-child, th:first-child { text-align: left; white-space: nowrap; }
 tr.group td { background: #f7f7f7; font-weight: 600; text-align: left; }
 caption { caption-side: top; text-align: left; font-style: italic; padding-bottom: 3px; color: #444; }
 .warn { background: #fde8e8; border-left: 4px solid #c00; padding: 4px 8px; }

@@ -132,8 +132,9 @@ class Browser:
             self.proc.kill()
             self.proc.wait()
 
-    def load(self, url: str) -> tuple[dict[str, Any], list[str]]:
-        """Open ``url`` in a new tab; returns what :data:`PROBE` found and every error the page produced."""
+    def load(self, url: str, then: str = "") -> tuple[dict[str, Any], list[str]]:
+        """Open ``url`` in a new tab; returns what :data:`PROBE` found (with the value of the expression
+        ``then``, evaluated after it, under "then") and every error the page produced."""
         target = self.send("Target.createTarget", {"url": "about:blank"})["targetId"]
         session = self.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
         for domain in ("Runtime", "Log", "Page"):
@@ -145,6 +146,12 @@ class Browser:
         if "exceptionDetails" in res:
             raise RuntimeError(f"probe failed on {url}: {res['exceptionDetails']}")
         found = json.loads(res["result"]["value"])
+        if then:
+            res = self.send("Runtime.evaluate", {"expression": then, "awaitPromise": True, "returnByValue": True},
+                            session)  # fmt: skip
+            if "exceptionDetails" in res:
+                raise RuntimeError(f"{then!r} failed on {url}: {res['exceptionDetails']}")
+            found["then"] = res["result"]["value"]
         errors = []
         for ev in self.events:
             if ev.get("sessionId") != session:
@@ -210,6 +217,38 @@ def test_every_page_loads_from_file_urls_with_no_console_error_and_every_figure_
             if href.startswith("file://"):
                 target = Path(re.sub(r"#.*$", "", href.removeprefix("file://")))
                 assert target.exists(), f"{page}: broken link {href}"
+
+
+#: Moves the 3D view's slider to its middle step: the time label and the drawn legs must follow.
+SLIDE = """new Promise(done => {
+  const plot = document.getElementById('leg-plot'), slider = document.getElementById('leg-plot-slider');
+  const label = document.getElementById('leg-plot-time'), n = plot.data.length;
+  const before = [label.textContent, Array.from(plot.data[n - 1].z)];
+  slider.value = 100; slider.dispatchEvent(new Event('input'));
+  requestAnimationFrame(() => done(JSON.stringify({max: +slider.max, before: before,
+                                                   after: [label.textContent, Array.from(plot.data[n - 1].z)]})));
+})"""
+
+
+def test_the_leg_view_follows_its_time_slider(browser: Browser, tree: Path) -> None:
+    """Moving the slider to step 100 of 200 redraws each leg at the logged pose of that time: the label reads
+    t = 100 x 2 s / 199 and the last backend's joint heights are kinematics.chain of its q there (to float32,
+    1e-6 m), not those of t = 0."""
+    import numpy as np
+
+    from legbench import kinematics
+    from legbench.results import load_run
+
+    found, errors = browser.load((tree / "one" / "report.html").as_uri(), SLIDE)
+    assert errors == []
+    out = json.loads(found["then"])
+    t_step = 100 * 2.0 / 199
+    assert out["max"] == 199 and out["before"][0] == "t = 0.000 s" and out["after"][0] == f"t = {t_step:.3f} s"
+    b = load_run(tree / "one").traces["b"]
+    k = int(np.searchsorted(b.t, t_step))
+    assert out["after"][1] == pytest.approx(list(kinematics.chain(b.q[k])[:, 2]), abs=1e-6)
+    assert out["before"][1] == pytest.approx(list(kinematics.chain(b.q[0])[:, 2]), abs=1e-6)
+    assert abs(out["after"][1][-1] - out["before"][1][-1]) > 1e-3  # the foot moved
 
 
 def test_pages_need_no_network_and_share_one_plotly(tree: Path) -> None:

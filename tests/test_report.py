@@ -19,7 +19,7 @@ from legbench import cli, kinematics, results
 from legbench import report as R
 from legbench.compare import compare
 from legbench.exceptions import ResultsError
-from legbench.report_figures import Arrays, envelope, run_figures
+from legbench.report_figures import BINS, Arrays, envelope, run_figures
 from legbench.report_html import num
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
@@ -138,7 +138,7 @@ def test_deviation_figure_holds_the_largest_deviation_and_the_leg_view_is_the_ki
     dev = figs["deviation-q"].spec["data"]
     q2 = next(tr for tr in dev if tr["yaxis"] == "y2")
     assert np.max(np.abs(_decode(arrays, q2["y"]))) == pytest.approx(res.pairs[0].max_abs[1], rel=1e-6)
-    assert len(_decode(arrays, q2["y"])) <= 2 * 700  # 20 001 samples decimated
+    assert len(_decode(arrays, q2["y"])) <= 2 * BINS  # 20 001 samples decimated
     leg = figs["leg"].spec
     times = np.array(leg["times"])
     a = res.traces["a"]
