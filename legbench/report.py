@@ -167,6 +167,15 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
     return text
 
 
+def colour_key() -> Table:
+    """One row showing every colour of a simulation error % and what it means."""
+    header = ("< 0.01 %", "< 1 %", "< 10 %", ">= 10 %", "scenario limit", "scenario limit")
+    row = ("the same to round-off", "close", "differs", "differs a lot", "within", "exceeded")
+    classes = {(0, j): c for j, c in enumerate(("agree", "close", "differ", "far", "within", "over"))}
+    return Table(header, (row,), "Colour key of the simulation error % (a scenario's own limit overrides the bands)",
+                 classes=classes)  # fmt: skip
+
+
 # --------------------------------------------------------------------------- #
 # Tables of a run report
 
@@ -655,6 +664,7 @@ def write_index(root: str | Path) -> IndexFiles:
             f"{legend}. Hover a cell for its exact value; run names link to their reports."
         ),
     ]
+    blocks.append(colour_key())
     blocks += _study_blocks(root)
     if problems:
         blocks.append(Heading(2, "Backends that did not run"))
