@@ -135,9 +135,9 @@ body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1400px
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ddd; }
 h3 { font-size: 1.05em; margin-top: 1.2em; }
 table { border-collapse: collapse; margin: 0.4em 0 1.2em; font-size: 0.82em; display: block; overflow-x: auto; }
-th, td { border: 1px solid #d0d0d0; padding: 2px 6px; text-align: right; white-space: nowrap; }
+th, td { border: 1px solid #d0d0d0; padding: 2px 5px; text-align: right; white-space: nowrap; }
 th { background: #f0f0f0; position: sticky; top: 0; }
-td.text { text-align: left; white-space: normal; }
+td.text { text-align: left; white-space: normal; } td.short { white-space: nowrap; }
 td:first-child, th:first-child { text-align: left; white-space: nowrap; }
 tr.group td { background: #f7f7f7; font-weight: 600; text-align: left; }
 caption { caption-side: top; text-align: left; font-style: italic; padding-bottom: 3px; color: #444; }
@@ -169,7 +169,7 @@ def _html_table(b: Table, e: Any) -> list[str]:
             txt = e(c)
             if b.links and (i, j) in b.links:
                 txt = f'<a href="{e(b.links[(i, j)])}">{txt}</a>'
-            cls = [] if _is_number(c) else ["text"]
+            cls = [] if _is_number(c) else (["text", "short"] if len(c) <= 24 else ["text"])
             if b.classes and (i, j) in b.classes:
                 cls.append(b.classes[(i, j)])
             attr = f' class="{" ".join(cls)}"' if cls else ""

@@ -353,9 +353,12 @@ def test_index_collapses_verification_and_calibration_to_counts_with_the_tables_
     page = (root / "report.html").read_text()
     failing = page.index("<caption>Failing checks</caption>")
     details = page.index('<details class="fail"><summary>all 3 checks</summary>')
-    assert failing < details and page.count("<td>balance</td>", 0, details) == 0  # the failing row, outside
-    assert page[failing:details].count('<td class="text">balance</td>') == 1
-    assert page.count('<td class="text fail">NO</td>') == 2 and page.count('<td class="text pass">yes</td>') == 2
+    assert failing < details and page.count(">energy</td>", 0, details) == 0  # passing rows only on demand
+    assert page[failing:details].count('<td class="text short">balance</td>') == 1
+    assert (
+        page.count('<td class="text short fail">NO</td>') == 2
+        and page.count('<td class="text short pass">yes</td>') == 2
+    )
 
 
 def test_index_shows_the_benchmark_beside_the_results_root(tmp_path: Path) -> None:
@@ -423,5 +426,5 @@ def test_write_page_renders_headings_paragraphs_and_tables(tmp_path: Path) -> No
     assert "# Title\n" in text and "## Sub\n" in text and "*caption*" in text and "| x\\|y | 1.5 |" in text
     html_text = page.read_text()
     assert "<h1>Title</h1>" in html_text and "<caption>caption</caption>" in html_text
-    assert "<td>1.5</td>" in html_text and '<td class="text">x|y</td>' in html_text
+    assert "<td>1.5</td>" in html_text and '<td class="text short">x|y</td>' in html_text
     assert "<script" not in html_text
