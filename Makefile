@@ -19,13 +19,18 @@ $(STAMP): pyproject.toml
 
 setup: system-deps $(STAMP)
 
-## system libraries of engines pip cannot install: ODE's libode8 (the ode backend), with apt where we are
-## root and apt exists (idempotent, quiet); elsewhere the ode backend reports itself missing with its command
+## system libraries of engines pip cannot install: ODE's libode8 (the ode backend), and Chromium for the
+## report's browser test (tests/test_browser.py), with apt where we are root and apt exists (idempotent,
+## quiet); elsewhere the ode backend reports itself missing and the browser test skips, each with its command
 system-deps:
 	@if ldconfig -p 2>/dev/null | grep -q 'libode\.so'; then :; \
 	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
 	  apt-get update -qq >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libode8 >/dev/null; \
 	else echo "note: the ode backend needs libode8 (as root: apt-get install -y libode8)"; fi
+	@if command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  apt-get update -qq >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; \
+	else echo "note: the report's browser test needs Chromium (as root: apt-get install -y chromium)"; fi
 
 ## the test suite
 test: $(STAMP)
@@ -45,7 +50,7 @@ compare: $(STAMP)
 	$(LEGBENCH) run $(TASKS) --backends all --profile engine-defaults --contact-mode native --out results/latest --jobs $(JOBS) --quiet --no-compare --no-preflight
 	$(LEGBENCH) verify --out results/latest/verification || echo 'verify: some checks fail; the report lists them'
 	$(LEGBENCH) calibrate-contact --out results/latest/calibration
-	$(LEGBENCH) compare results/latest
+	$(LEGBENCH) compare results/latest --jobs $(JOBS)
 
 ## regression check of a fresh comparison against the committed baseline (CI)
 check: compare

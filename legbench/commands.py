@@ -183,7 +183,7 @@ def _run(args: argparse.Namespace) -> int:
             files = report.write_report(plan[0][2])
             print(f"report: {files.html}")
         else:
-            report.write_all(root)
+            report.write_all(root, jobs=args.jobs)
             print(f"report: {root / 'report.html'}")
     return EXIT_BACKEND_FAILED if failed else EXIT_OK
 
@@ -248,6 +248,7 @@ def _compare(args: argparse.Namespace) -> int:
         log_is_reference=args.log_is_reference,
         lag=args.lag,
         all_pairs=args.all_pairs,
+        jobs=args.jobs,
     )
     for files in written:
         print(f"wrote {getattr(files, 'html', files)}")
@@ -284,6 +285,7 @@ def add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
                    help="estimate ('report') or estimate and remove ('remove') a constant time lag by "
                         "cross-correlation")  # fmt: skip
     p.add_argument("--all-pairs", action="store_true", help="metrics for every pair of backends, not only vs reference")
+    p.add_argument("--jobs", type=int, default=1, help="processes rendering the run reports of a tree (default 1)")
     p.set_defaults(func=_compare)
 
 

@@ -67,6 +67,27 @@ def fk0(q: np.ndarray, params: LegParams | None = None) -> np.ndarray:
     return np.stack([x0, y0, z0], axis=-1)
 
 
+def chain0(q: np.ndarray, params: LegParams | None = None) -> np.ndarray:
+    """Points of the leg in frame 0 [m], shape (..., 5, 3): frame 0's origin, the ab/ad joint, the hip
+    joint, the knee joint and the foot centre E (the last equals :func:`fk0`), for drawing the leg."""
+    g = _params(params).geometry
+    q = np.asarray(q, float)
+    q1, q2 = q[..., 0], q[..., 1]
+    s1, c1 = np.sin(q1), np.cos(q1)
+    zero = np.zeros_like(q1)
+    p1 = np.stack([zero, zero, zero - g.L_01], axis=-1)
+    p2 = np.stack([g.L_12 * s1, -g.L_12 * c1, zero - g.L_01], axis=-1)
+    thigh = g.L_23 * np.sin(q2)
+    p3 = p2 + np.stack([c1 * thigh, s1 * thigh, -g.L_23 * np.cos(q2)], axis=-1)
+    pts = np.stack([np.zeros_like(p1), p1, p2, p3, fk0(q, params)], axis=-2)
+    return pts
+
+
+def chain(q: np.ndarray, params: LegParams | None = None) -> np.ndarray:
+    """:func:`chain0` in W [m], shape (..., 5, 3); the last point is :func:`fk`."""
+    return frame0_to_world(chain0(q, params), params)
+
+
 def frame0_to_world(p0: np.ndarray, params: LegParams | None = None) -> np.ndarray:
     """A point in frame 0 -> W [m]."""
     g = _params(params).geometry

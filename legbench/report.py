@@ -1,49 +1,72 @@
-"""Reports of a comparison: Markdown, one self-contained HTML file, PNG figures.
+"""Reports of a comparison: Markdown and HTML pages with interactive figures, and the index of a tree.
 
 :func:`write_report` turns one run directory into ``metrics.json``,
-``report.md``, ``report.html`` (every figure embedded as a base64 PNG, no
-external assets) and ``figures/*.png``. :func:`write_index` writes the
-top-level ``report.html``/``report.md`` of a results tree (one directory per
-scenario) with links to each scenario's report and one table of every
-simulation error %. :func:`write_all` does both for a tree.
+``report.md`` and ``report.html`` (tables, then the interactive figures of
+:mod:`legbench.report_figures`). :func:`write_index` writes the top-level
+``report.html``/``report.md`` of a results tree: every scenario grouped by task
+with its profiles and contact modes, one sentence per run on what differs and
+why, simulation error % coloured against the tolerances, the studies collapsed
+to counts. :func:`write_all` does both for a tree, one page per worker process
+(``jobs``), with an optional callback per page written.
 
-Figures use matplotlib's object API on the Agg canvas (no pyplot, no global
-state), so they can be drawn from any thread and never open a window.
+plotly.js and the figures' loader are written once per results tree into
+``<tree>/assets/`` (:func:`legbench.report_figures.write_assets`); every page
+refers to them by a relative URL, so the report works from ``file://``
+without a network.
 """
 
 from __future__ import annotations
 
-import base64
-import html
 import json
 import logging
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import ResultsError
-from legbench.results import Run, RunResult, read_meta, read_metrics, run_dirs, write_metrics
-from legbench.signals import JOINTS, LABELS, SIGNAL_OF, SIGNALS, SLICE, UNITS
+from legbench.report_figures import ASSETS, NAMES, PLOTLY_JS, Arrays, run_figures, write_assets
+from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num, relpath, to_html, to_markdown
+from legbench.results import read_meta, read_metrics, run_dirs, tolerances_of, write_metrics
+from legbench.signals import LABELS, SIGNAL_OF, UNITS
 from legbench.signals import label as column_label
+from legbench.studies.executors import make_executor
 
-__all__ = ["IndexFiles", "ReportFiles", "write_all", "write_index", "write_report"]
+__all__ = [
+    "BANDS",
+    "IndexFiles",
+    "PageItem",
+    "Progress",
+    "ReportFiles",
+    "colour_key",
+    "page_markdown",
+    "sentence",
+    "sim_class",
+    "write_all",
+    "write_index",
+    "write_page",
+    "write_report",
+]
 
 logger = logging.getLogger("legbench.report")
 
-#: Resolution of the PNG figures [dots per inch].
-DPI = 90
-_FIGSIZE = (10.0, 7.0)
-_NAMES = {"q": "joint angle", "qd": "joint velocity", "tau": "joint torque", "force": "ground force on the foot (W)"}
-_EE = "ee"
-_EE_NAME = "foot centre position (W)"
+#: Colour bands of a simulation error % without a ceiling in the scenario's tolerances: (upper bound [%],
+#: class, meaning). 0.01 % is the regression check's absolute tolerance (round-off across machines).
+BANDS: tuple[tuple[float, str, str], ...] = (
+    (0.01, "agree", "< 0.01 %: the same to round-off"),
+    (1.0, "close", "< 1 %: close"),
+    (10.0, "differ", "< 10 %: differs"),
+    (math.inf, "far", ">= 10 %: differs a lot"),
+)
+_PROFILE_ORDER = {"matched": 0, "engine-defaults": 1}
+_MODE_ORDER = {"native": 0, "reference": 1}
+
+#: Called once per page written, with its path.
+Progress = Callable[[Path], None]
 
 
 @dataclass(frozen=True)
@@ -53,14 +76,16 @@ class ReportFiles:
     Attributes:
         metrics: ``DIR/metrics.json``.
         markdown: ``DIR/report.md``.
-        html: ``DIR/report.html`` (self-contained).
-        figures: the PNGs in ``DIR/figures/``, in report order.
+        html: ``DIR/report.html``.
+        figures: the ids of the figures in report.html, in page order.
+        assets: the directory holding plotly.min.js and legbench.js that report.html loads.
     """
 
     metrics: Path
     markdown: Path
     html: Path
-    figures: tuple[Path, ...]
+    figures: tuple[str, ...]
+    assets: Path
 
 
 @dataclass(frozen=True)
@@ -79,338 +104,136 @@ class IndexFiles:
 
 
 # --------------------------------------------------------------------------- #
-# A tiny document model rendered to Markdown and HTML
+# Colours and sentences
 
 
-@dataclass(frozen=True)
-class _Heading:
-    level: int
-    text: str
+def _lookup(spec: Any, signal: str, joint: str) -> float:
+    """A tolerance keyed by component label, signal or ``default`` (inf if none applies)."""
+    if not isinstance(spec, Mapping):
+        return float(spec) if isinstance(spec, int | float) else math.inf
+    for key in (column_label(signal, joint), signal, "default"):
+        if key in spec:
+            return float(spec[key])
+    return math.inf
 
 
-@dataclass(frozen=True)
-class _Para:
-    text: str
-    warn: bool = False
+def sim_class(value: float, signal: str, joint: str, tolerances: Mapping[str, Any]) -> tuple[str, str]:
+    """(CSS class, why) of one simulation error % against the scenario's ceiling
+    (``comparison.tolerances.max_sim_error_pct``), else against :data:`BANDS`."""
+    if not math.isfinite(value):
+        return "", ""
+    ceiling = _lookup(tolerances.get("max_sim_error_pct") or {}, signal, joint)
+    if math.isfinite(ceiling):
+        if value > ceiling:
+            return "over", f"{num(value)} % exceeds the scenario's limit {num(ceiling)} %"
+        return "within", f"{num(value)} % within the scenario's limit {num(ceiling)} %"
+    for bound, cls, why in BANDS:
+        if value < bound:
+            return cls, f"{num(value, 6)} %: {why}"
+    return "", ""
 
 
-@dataclass(frozen=True)
-class _Table:
-    header: tuple[str, ...]
-    rows: tuple[tuple[str, ...], ...]
-    caption: str = ""
-    links: Mapping[tuple[int, int], str] | None = None  # (row, col) -> href
-
-
-@dataclass(frozen=True)
-class _Image:
-    path: Path
-    caption: str
-
-
-_Block = _Heading | _Para | _Table | _Image
-
-
-def _md_cell(s: str) -> str:
-    return s.replace("|", "\\|").replace("\n", " ")
-
-
-def _to_markdown(blocks: Sequence[_Block], base: Path) -> str:
-    out: list[str] = []
-    for b in blocks:
-        if isinstance(b, _Heading):
-            out.append(f"{'#' * b.level} {b.text}\n")
-        elif isinstance(b, _Para):
-            out.append(f"{'**Warning:** ' if b.warn else ''}{b.text}\n")
-        elif isinstance(b, _Table):
-            if b.caption:
-                out.append(f"*{b.caption}*\n")
-            out.append("| " + " | ".join(_md_cell(h) for h in b.header) + " |")
-            out.append("|" + "|".join("---" for _ in b.header) + "|")
-            for i, r in enumerate(b.rows):
-                cells = [
-                    f"[{_md_cell(c)}]({b.links[(i, j)]})" if b.links and (i, j) in b.links else _md_cell(c)
-                    for j, c in enumerate(r)
-                ]
-                out.append("| " + " | ".join(cells) + " |")
-            out.append("")
-        else:
-            out.append(f"![{b.caption}]({b.path.relative_to(base).as_posix()})\n")
-    return "\n".join(out)
-
-
-_CSS = """
-body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1100px; color: #222; }
-table { border-collapse: collapse; margin: 0.5em 0 1.5em; font-size: 0.85em; }
-th, td { border: 1px solid #ccc; padding: 2px 6px; text-align: right; }
-th { background: #f0f0f0; }
-td:first-child, th:first-child, td.text { text-align: left; }
-caption { caption-side: top; text-align: left; font-style: italic; padding-bottom: 3px; }
-.warn { background: #fde8e8; border-left: 4px solid #c00; padding: 4px 8px; }
-img { max-width: 100%; display: block; margin: 0.3em 0 0.2em; }
-figcaption { font-size: 0.85em; color: #555; margin-bottom: 1.2em; }
-"""
-
-
-def _to_html(blocks: Sequence[_Block], title: str) -> str:
-    e = html.escape
-    out = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        f"<title>{e(title)}</title><style>{_CSS}</style></head><body>",
-    ]
-    for b in blocks:
-        if isinstance(b, _Heading):
-            out.append(f"<h{b.level}>{e(b.text)}</h{b.level}>")
-        elif isinstance(b, _Para):
-            out.append(f'<p class="warn">{e(b.text)}</p>' if b.warn else f"<p>{e(b.text)}</p>")
-        elif isinstance(b, _Table):
-            out.append("<table>")
-            if b.caption:
-                out.append(f"<caption>{e(b.caption)}</caption>")
-            out.append("<tr>" + "".join(f"<th>{e(h)}</th>" for h in b.header) + "</tr>")
-            for i, r in enumerate(b.rows):
-                cells = []
-                for j, c in enumerate(r):
-                    txt = e(c)
-                    if b.links and (i, j) in b.links:
-                        txt = f'<a href="{e(b.links[(i, j)])}">{txt}</a>'
-                    cls = ' class="text"' if not _is_number(c) else ""
-                    cells.append(f"<td{cls}>{txt}</td>")
-                out.append("<tr>" + "".join(cells) + "</tr>")
-            out.append("</table>")
-        else:
-            data = base64.b64encode(b.path.read_bytes()).decode("ascii")
-            out.append(
-                f'<figure><img src="data:image/png;base64,{data}" alt="{e(b.caption)}">'
-                f"<figcaption>{e(b.caption)}</figcaption></figure>"
-            )
-    out.append("</body></html>")
-    return "\n".join(out) + "\n"
-
-
-def _is_number(s: str) -> bool:
-    try:
-        float(s.split(" ")[0].replace("\u2212", "-"))
-    except ValueError:
-        return False
-    return True
-
-
-def _fmt(v: float, digits: int = 4) -> str:
-    if v is None or not math.isfinite(v):
-        return "n/a"
-    return f"{v:.{digits}g}"
-
-
-# --------------------------------------------------------------------------- #
-# Figures
-
-
-def _colors(names: Iterable[str], reference: str) -> dict[str, str]:
-    palette = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown", "tab:pink", "tab:olive"]
-    out = {reference: "black"}
-    for n in names:
-        if n not in out:
-            out[n] = palette[(len(out) - 1) % len(palette)]
-    return out
-
-
-def _dashes(names: Iterable[str], reference: str) -> dict[str, Any]:
-    """A line style per backend, so curves that coincide (engines often agree to 1e-12) stay visible."""
-    styles: list[Any] = ["-", (0, (5, 3)), (0, (1, 2)), (0, (6, 2, 1, 2))]
-    out: dict[str, Any] = {reference: "-"}
-    for n in names:
-        if n not in out:
-            out[n] = styles[(len(out) - 1) % len(styles)]
-    return out
-
-
-def _events(fig: Figure, axes: Sequence[Any], run: Run) -> None:
-    for ax in axes:
-        for ev in run.events:
-            ax.axvline(ev.t, color="0.55", linestyle="--", linewidth=0.8, zorder=0)
-    top = axes[0]
-    for ev in run.events:
-        top.annotate(
-            ev.controller,
-            xy=(ev.t, 1.0),
-            xycoords=("data", "axes fraction"),
-            xytext=(2, -2),
-            textcoords="offset points",
-            fontsize=7,
-            color="0.35",
-            va="top",
+def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
+    """One sentence from the metrics of a run: the largest deviation, whose, in what signal, and why."""
+    ref = str(meta.get("reference", ""))
+    cols = [df[c].tolist() for c in ("backend", "reference", "signal", "joint", "metric", "value")]
+    value = {(b, r, s, j, m): float(v) for b, r, s, j, m, v in zip(*cols, strict=True)}
+    sim = {k: v for k, v in value.items() if k[4] == "sim_error_pct" and k[1] == ref and math.isfinite(v)}
+    if not sim:
+        return f"No deviation measured: the reference backend '{ref}' has no data."
+    (b, _, s, j, _), v = max(sim.items(), key=lambda kv: kv[1])
+    lab = column_label(s, j)
+    nan = math.nan
+    dev, t = value.get((b, ref, s, j, "max_abs"), nan), value.get((b, ref, s, j, "t_max_abs"), nan)
+    others = [x for k, x in sim.items() if k[0] != b]
+    if v < BANDS[0][0]:
+        text = (
+            f"Every backend agrees with {ref} to round-off: the largest simulation error is {num(v, 3)} % ({b}, {lab})."
         )
+    else:
+        text = (
+            f"Largest difference: {b}'s {lab} ({NAMES[s]}) deviates from {ref} by up to {num(dev, 3)} "
+            f"{UNITS[s]} at t = {num(t, 4)} s, {num(v, 3)} % of the reference's peak"
+        )
+        text += f"; every other backend stays within {num(max(others), 3)} %." if others else "."
+    contact = value.get((b, ref, s, j, "split_contact_pct"), nan)
+    integ = value.get((b, ref, s, j, "split_integration_pct"), nan)
+    n_contact = [x for k, x in value.items() if k[4] == "residual_n_contact"]
+    if v >= BANDS[0][0] and math.isfinite(contact) and math.isfinite(integ):
+        part = "contact model" if contact >= integ else "integration and dynamics"
+        text += (
+            f" Why: mostly the {part} (contact-mode split: contact {num(contact, 3)} %, integration {num(integ, 3)} %)."
+        )
+    elif meta.get("contact_mode") == "reference":
+        text += " Every engine runs the same contact law here, so what differs is integration and dynamics."
+    elif n_contact and max(n_contact) == 0:
+        text += " The foot never touches the ground, so what differs is integration and dynamics."
+    return text
 
 
-def _new_figure(title: str) -> tuple[Figure, Sequence[Any]]:
-    fig = Figure(figsize=_FIGSIZE, dpi=DPI, layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(3, 1, sharex=True)
-    fig.suptitle(title, fontsize=11)
-    return fig, axes
-
-
-def _legend(fig: Figure, ax: Any) -> None:
-    """One legend below the axes, outside the data."""
-    handles, labels = ax.get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncol=min(5, len(labels)), fontsize=8, frameon=False)
-
-
-def _save(fig: Figure, path: Path) -> Path:
-    fig.savefig(path, format="png", dpi=DPI)
-    return path
-
-
-def _xlim(run: Run, traces: Mapping[str, RunResult]) -> tuple[float, float]:
-    ends = [tr.t[-1] for tr in traces.values()]
-    hi = run.duration if math.isfinite(run.duration) else max(ends, default=1.0)
-    return 0.0, float(max(hi, max(ends, default=hi)))
-
-
-def _overlay(result: ComparisonResult, signal: str, path: Path) -> Path | None:
-    run = result.run
-    traces = dict(result.traces)
-    shown = {**traces, **{f"{k} (failed)": v for k, v in run.partial.items()}}
-    if signal != _EE and not any(tr.has(signal) for tr in shown.values()):
-        return None
-    colors = _colors(list(traces) + list(run.partial), result.reference)
-    dashes = _dashes(list(traces) + list(run.partial), result.reference)
-    name = _EE_NAME if signal == _EE else _NAMES[signal]
-    fig, axes = _new_figure(f"{run.label}: {name}, all backends")
-    comps = ("x", "y", "z") if signal == _EE else JOINTS[signal]
-    unit = UNITS[signal]
-    for label, tr in shown.items():
-        base = label.removesuffix(" (failed)")
-        y = tr.ee if signal == _EE else tr.signal(signal)
-        is_ref = base == result.reference
-        style: dict[str, Any] = {
-            "color": colors[base],
-            "linewidth": 2.4 if is_ref else 1.2,
-            "alpha": 0.45 if is_ref else 0.95,
-            "linestyle": ":" if label.endswith("(failed)") else dashes[base],
-            "label": f"{label} (reference)" if is_ref else label,
-        }
-        for j, ax in enumerate(axes):
-            ax.plot(tr.t, y[:, j], **style)
-    for j, ax in enumerate(axes):
-        sym = f"ee_{comps[j]}" if signal == _EE else column_label(signal, comps[j])
-        ax.set_ylabel(f"{sym} [{unit}]")
-        ax.grid(True, linewidth=0.3)
-    axes[-1].set_xlabel("t [s]")
-    axes[-1].set_xlim(*_xlim(run, shown))
-    _events(fig, axes, run)
-    _legend(fig, axes[0])
-    return _save(fig, path)
-
-
-def _deviation(result: ComparisonResult, signal: str, path: Path) -> Path | None:
-    run = result.run
-    pairs = [p for p in result.pairs if p.reference == result.reference]
-    cols = np.arange(12)[SLICE[signal]]
-    pairs = [p for p in pairs if np.isfinite(p.deviation[:, cols]).any()]
-    if not pairs:
-        return None
-    colors = _colors([p.backend for p in pairs], result.reference)
-    dashes = _dashes([p.backend for p in pairs], result.reference)
-    fig, axes = _new_figure(f"{run.label}: {_NAMES[signal]}, deviation from {result.reference}")
-    unit = UNITS[signal]
-    for p in pairs:
-        for j, ax in enumerate(axes):
-            c = cols[j]
-            lag = f", lag {p.lag_removed * 1e3:.3g} ms removed" if p.lag_removed else ""
-            ax.plot(
-                p.t,
-                p.deviation[:, c],
-                color=colors[p.backend],
-                linestyle=dashes[p.backend],
-                linewidth=1.1,
-                label=f"{p.backend}{lag}",
-            )
-            if math.isfinite(p.t_max_abs[c]):
-                k = int(np.searchsorted(p.t, p.t_max_abs[c]))
-                ax.plot(p.t[k], p.deviation[k, c], "o", color=colors[p.backend], markersize=4)
-    for j, ax in enumerate(axes):
-        ax.axhline(0.0, color="black", linewidth=0.6)
-        if run.skip > 0:
-            ax.axvspan(0.0, run.skip, color="0.92", zorder=-1, label="skipped" if j == 0 else None)
-        ax.set_ylabel(f"\u0394{column_label(signal, JOINTS[signal][j])} [{unit}]")
-        ax.grid(True, linewidth=0.3)
-    axes[-1].set_xlabel("t [s]")
-    axes[-1].set_xlim(*_xlim(run, result.traces))
-    _events(fig, axes, run)
-    _legend(fig, axes[0])
-    return _save(fig, path)
-
-
-def _figures(result: ComparisonResult, fig_dir: Path) -> list[tuple[Path, str]]:
-    fig_dir.mkdir(parents=True, exist_ok=True)
-    for old in fig_dir.glob("*.png"):
-        old.unlink()
-    out: list[tuple[Path, str]] = []
-    for s in (*SIGNALS, _EE):
-        p = _overlay(result, s, fig_dir / f"overlay_{s}.png")
-        if p is not None:
-            name = _EE_NAME if s == _EE else _NAMES[s]
-            out.append((p, f"Overlay of {name} per component, every backend; dashed lines are controller switches."))
-    for s in SIGNALS:
-        p = _deviation(result, s, fig_dir / f"deviation_{s}.png")
-        if p is not None:
-            out.append((p, f"Deviation of {_NAMES[s]} from {result.reference}; dots mark the largest deviation."))
-    return out
+def colour_key() -> Table:
+    """One row showing every colour of a simulation error % and what it means."""
+    header = ("< 0.01 %", "< 1 %", "< 10 %", ">= 10 %", "scenario limit", "scenario limit")
+    row = ("the same to round-off", "close", "differs", "differs a lot", "within", "exceeded")
+    classes = {(0, j): c for j, c in enumerate(("agree", "close", "differ", "far", "within", "over"))}
+    return Table(header, (row,), "Colour key of the simulation error % (a scenario's own limit overrides the bands)",
+                 classes=classes)  # fmt: skip
 
 
 # --------------------------------------------------------------------------- #
-# Tables
+# Tables of a run report
 
 
 def _col_header(i: int) -> str:
     return f"{LABELS[i]} [{UNITS[SIGNAL_OF[i]]}]"
 
 
-def _pair_table(result: ComparisonResult, metric: str, caption: str, unit: bool) -> _Table:
+def _pair_table(result: ComparisonResult, metric: str, caption: str, unit: bool) -> Table:
     header = ("backend", "vs", *(_col_header(i) if unit else LABELS[i] for i in range(12)))
-    rows = tuple(
-        (p.backend, p.reference, *(_fmt(v) for v in getattr(p, metric))) for p in result.pairs
-    )  # fmt: skip
-    return _Table(header, rows, caption)
+    rows = tuple((p.backend, p.reference, *(num(v) for v in getattr(p, metric))) for p in result.pairs)
+    classes: dict[tuple[int, int], str] = {}
+    titles: dict[tuple[int, int], str] = {}
+    if metric == "sim_error_pct":
+        tol = result.run.tolerances
+        for r, p in enumerate(result.pairs):
+            for i, v in enumerate(p.sim_error_pct):
+                cls, why = sim_class(float(v), SIGNAL_OF[i], LABELS[i][-1], tol)
+                if cls:
+                    classes[(r, i + 2)], titles[(r, i + 2)] = cls, why
+    return Table(header, rows, caption, classes=classes, titles=titles)
 
 
-def _maxdev_table(result: ComparisonResult) -> _Table:
+def _maxdev_table(result: ComparisonResult) -> Table:
     header = ("backend", "vs", *(_col_header(i) for i in range(12)))
     rows = tuple(
-        (
-            p.backend,
-            p.reference,
-            *(f"{_fmt(m, 3)} @ {_fmt(t, 4)} s" for m, t in zip(p.max_abs, p.t_max_abs, strict=True)),
-        )
+        (p.backend, p.reference, *(f"{num(m, 3)} @ {num(t, 4)} s" for m, t in zip(p.max_abs, p.t_max_abs, strict=True)))
         for p in result.pairs
     )
-    return _Table(header, rows, "Largest deviation |x - x_ref| and the time it happens")
+    return Table(header, rows, "Largest deviation |x - x_ref| and the time it happens")
 
 
-def _steady_table(result: ComparisonResult) -> _Table:
+def _steady_table(result: ComparisonResult) -> Table:
     header = ("backend", "row", "qd1 [rad/s]", "qd2 [rad/s]", "qd3 [rad/s]", "Fx [N]", "Fy [N]", "Fn [N]")
     rows: list[tuple[str, ...]] = []
     blank = ("", "", "")
     for s in result.steady:
         win = f"measured (mean over {s.t0:.3f}..{s.t1:.3f} s)"
-        rows.append((s.backend, win, *(_fmt(v) for v in s.qd), *(_fmt(v) for v in s.force)))
-        rows.append((s.backend, "analytic check, J_poc", *blank, *(_fmt(v) for v in s.analytic_poc)))
-        rows.append((s.backend, "measured - analytic (J_poc)", *blank, *(_fmt(v) for v in s.residual)))
+        rows.append((s.backend, win, *(num(v) for v in s.qd), *(num(v) for v in s.force)))
+        rows.append((s.backend, "analytic check, J_poc", *blank, *(num(v) for v in s.analytic_poc)))
+        rows.append((s.backend, "measured - analytic (J_poc)", *blank, *(num(v) for v in s.residual)))
         if s.analytic_centre is not None and s.poc_compensation is not None:
             rows.append(
-                (s.backend, "analytic check, J_E (poc at centre)", *blank, *(_fmt(v) for v in s.analytic_centre))
+                (s.backend, "analytic check, J_E (poc at centre)", *blank, *(num(v) for v in s.analytic_centre))
             )
-            rows.append((s.backend, "poc compensation (J_poc - J_E)", *blank, *(_fmt(v) for v in s.poc_compensation)))
+            rows.append((s.backend, "poc compensation (J_poc - J_E)", *blank, *(num(v) for v in s.poc_compensation)))
     published = ((result.run.meta.get("scenario") or {}).get("comparison") or {}).get("published") or []
     for row in published:  # the lab report's numbers for this task, as the scenario file gives them
-        qd = [_fmt(v) for v in row["qd_abs"]] if "qd_abs" in row else list(blank)
-        force = [_fmt(v) for v in row["force"]] if "force" in row else list(blank)
-        rows.append((str(row["source"]), "published (|qd| magnitudes)" if "qd_abs" in row else "published",
-                     *qd, *force))  # fmt: skip
-    return _Table(
+        qd = [num(v) for v in row["qd_abs"]] if "qd_abs" in row else list(blank)
+        force = [num(v) for v in row["force"]] if "force" in row else list(blank)
+        rows.append(
+            (str(row["source"]), "published (|qd| magnitudes)" if "qd_abs" in row else "published", *qd, *force)
+        )
+    return Table(
         header,
         tuple(rows),
         "Steady state over the final window; analytic check F = -(J^T)^-1 (tau - G(q)) at the mean q and tau "
@@ -418,14 +241,14 @@ def _steady_table(result: ComparisonResult) -> _Table:
     )
 
 
-def _split_table(result: ComparisonResult, kind: str) -> _Table:
+def _split_table(result: ComparisonResult, kind: str) -> Table:
     header = ("backend", "part", *(_col_header(i) if kind == "rms" else LABELS[i] for i in range(12)))
     rows = []
     for m in result.split:
         for part in ("native", "contact", "integration", "drift"):
-            rows.append((m.backend, part, *(_fmt(v) for v in getattr(m, f"{part}_{kind}"))))
+            rows.append((m.backend, part, *(num(v) for v in getattr(m, f"{part}_{kind}"))))
     what = "RMS" if kind == "rms" else "max |part| / max |x_ref| x 100 [%]"
-    return _Table(
+    return Table(
         header,
         tuple(rows),
         f"Contact-mode split ({what}): native = contact (a_native - a_reference-mode) + integration "
@@ -433,15 +256,36 @@ def _split_table(result: ComparisonResult, kind: str) -> _Table:
     )
 
 
-def _info_text(info: Mapping[str, Any]) -> str:
-    rest = {k: v for k, v in info.items() if k not in ("engine", "version")}
+def _flat(d: Mapping[str, Any], prefix: str = "") -> dict[str, str]:
+    """Nested settings as ``a.b = value`` strings, numbers in the report's format."""
+    out: dict[str, str] = {}
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, Mapping):
+            out |= _flat(v, key + ".") if v else {key: "{}"}
+        elif isinstance(v, bool) or v is None:
+            out[key] = str(v).lower() if v is not None else "none"
+        elif isinstance(v, int | float):
+            out[key] = num(v, 6)
+        elif isinstance(v, list | tuple):
+            out[key] = (
+                ", ".join(num(x, 6) if isinstance(x, int | float) and not isinstance(x, bool) else str(x) for x in v)
+                or "[]"
+            )
+        else:
+            out[key] = str(v)
+    return out
+
+
+def _settings(info: Mapping[str, Any]) -> dict[str, str]:
+    rest = {k: v for k, v in info.items() if k not in ("engine", "version", "warnings")}
     if set(rest) == {"settings"} and isinstance(rest["settings"], Mapping):
         rest = dict(rest["settings"])
-    return json.dumps(rest, sort_keys=True, default=str, separators=(", ", ": ")) if rest else ""
+    return _flat(rest)
 
 
-def _backend_table(result: ComparisonResult) -> _Table:
-    header = ("backend", "status", "reason", "engine", "version", "wall time [s]", "RTF", "settings")
+def _backend_tables(result: ComparisonResult) -> list[Block]:
+    header = ("backend", "status", "reason", "engine", "version", "wall time [s]", "RTF")
     rows = []
     for b in result.run.backends.values():
         rows.append(
@@ -451,24 +295,42 @@ def _backend_table(result: ComparisonResult) -> _Table:
                 b.reason or "",
                 str(b.info.get("engine", "")),
                 str(b.info.get("version", "")),
-                _fmt(b.wall_time, 3),
-                _fmt(b.rtf, 3),
-                _info_text(b.info),
+                num(b.wall_time, 3),
+                num(b.rtf, 3),
             )
         )
     for name, tr in result.traces.items():
         if name not in result.run.backends:
-            rows.append((name, "ok", "", "imported log", "", "", "", tr.source))
-    return _Table(header, tuple(rows), "Backends: status, engine, version and settings (from run.json)")
+            rows.append((name, "ok", "", "imported log", tr.source, "", ""))
+    blocks: list[Block] = [Table(header, tuple(rows), "Backends: status, engine and version (from run.json)")]
+    per = {b.name: _settings(b.info) for b in result.run.backends.values()}
+    keys = list(dict.fromkeys(k for s in per.values() for k in s))
+    if keys:
+        names = list(per)
+        srows = tuple((k, *(per[n].get(k, "") for n in names)) for k in keys)
+        table = Table(("setting", *names), srows, "Settings each backend reports it used (run.json)")
+        blocks.append(Details(f"Settings of every backend ({len(keys)} rows)", (table,)))
+    return blocks
 
 
-def _residual_table(result: ComparisonResult) -> _Table:
+def _residual_table(result: ComparisonResult) -> Table:
     rows = []
     for name, r in result.residuals.items():
-        rows.append((name, str(r.n_contact), _fmt(r.penetration_max * 1e3), _fmt(r.penetration_rel),
-                     str(r.n_sliding), _fmt(r.friction_ratio), _fmt(r.angle_max), str(r.n_creep),
-                     _fmt(r.creep_speed * 1e3), _fmt(r.creep_law * 1e3)))  # fmt: skip
-    return _Table(
+        rows.append(
+            (
+                name,
+                str(r.n_contact),
+                num(r.penetration_max * 1e3),
+                num(r.penetration_rel),
+                str(r.n_sliding),
+                num(r.friction_ratio),
+                num(r.angle_max),
+                str(r.n_creep),
+                num(r.creep_speed * 1e3),
+                num(r.creep_law * 1e3),
+            )
+        )
+    return Table(
         (
             "backend",
             "contact samples",
@@ -480,7 +342,7 @@ def _residual_table(result: ComparisonResult) -> _Table:
             "sub-limit samples",
             "creep [mm/s]",
             "law's creep [mm/s]",
-        ),  # fmt: skip
+        ),
         tuple(rows),
         "Each backend against the contact law it was meant to follow (docs/metrics.md): penetration against "
         "the spring, friction magnitude while sliding (1 for the law), friction direction against the slip, "
@@ -488,89 +350,127 @@ def _residual_table(result: ComparisonResult) -> _Table:
     )
 
 
-def _blocks(result: ComparisonResult, figures: Sequence[tuple[Path, str]]) -> list[_Block]:
+def _scenario_table(result: ComparisonResult) -> Table:
     run = result.run
     sc = run.meta.get("scenario", {})
-    b: list[_Block] = [_Heading(1, f"legbench comparison: {run.label}")]
-    if sc.get("description"):
-        b.append(_Para(str(sc["description"])))
     contact = sc.get("contact") or {}
-    b.append(
-        _Table(
-            ("item", "value"),
-            (
-                ("scenario file", f"{sc.get('file', '')} (sha256 {str(sc.get('sha256', ''))[:12]})"),
-                ("duration [s]", _fmt(run.duration)),
-                ("control rate [Hz]", _fmt(float(sc.get("control_rate", math.nan)))),
-                ("contact mode", run.contact_mode),
-                ("contact", ", ".join(f"{k} = {v}" for k, v in contact.items())),
-                ("reference", result.reference),
-                ("skip [s]", _fmt(run.skip)),
-                ("steady window [s]", _fmt(run.steady_window)),
-                ("events", ", ".join(f"{e.controller} @ {e.t:g} s" for e in run.events)),
-                ("legbench version", str(run.meta.get("legbench_version", ""))),
-                ("platform", json.dumps(run.meta.get("platform", {}), sort_keys=True, default=str)),
-            ),
-        )
-    )
+    rows = [
+        ("scenario file", f"{sc.get('file', '')} (sha256 {str(sc.get('sha256', ''))[:12]})"),
+        ("profile", str(sc.get("profile", "matched"))),
+        ("duration [s]", num(run.duration)),
+        ("control rate [Hz]", num(sc.get("control_rate", math.nan))),
+        ("contact mode", run.contact_mode),
+        *(
+            (f"contact {k}", num(v) if isinstance(v, int | float) and not isinstance(v, bool) else str(v))
+            for k, v in contact.items()
+        ),
+        ("reference", result.reference),
+        ("skip [s]", num(run.skip)),
+        ("steady window [s]", num(run.steady_window)),
+        ("events", ", ".join(f"{e.controller} @ {num(e.t)} s" for e in run.events)),
+        ("legbench version", str(run.meta.get("legbench_version", ""))),
+        *((f"platform {k}", v) for k, v in _flat(run.meta.get("platform") or {}).items()),
+    ]
+    return Table(("item", "value"), tuple(rows), "Scenario")
+
+
+def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None) -> list[Block]:
+    run = result.run
+    sc = run.meta.get("scenario", {})
+    nav = [("\u2190 all scenarios", index)] if index else []
+    nav += [("tables", "#tables"), ("figures", "#figures"), ("3D leg", "#leg")]
+    b: list[Block] = [Nav(tuple(nav)), Heading(1, f"legbench comparison: {run.label}")]
+    if sc.get("description"):
+        b.append(Para(str(sc["description"])))
+    b.append(Para(sentence(result.to_json(), result.frame())))
     for n in result.notes:
-        b.append(_Para(n, warn=True))
-    b.append(_Heading(2, "Backends"))
-    b.append(_backend_table(result))
+        b.append(Para(n, warn=True))
     for bk in result.run.backends.values():
         for w in bk.info.get("warnings") or ():
-            b.append(_Para(f"{bk.name}: {w}", warn=True))
+            b.append(Para(f"{bk.name}: {w}", warn=True))
+    b.append(Heading(2, "Settings", "tables"))
+    b.append(_scenario_table(result))
+    b += _backend_tables(result)
     if result.pairs:
-        b.append(_Heading(2, "Deviation from the reference"))
-        skip = f" for t >= {run.skip:g} s" if run.skip > 0 else ""
+        b.append(Heading(2, "Deviation from the reference"))
+        skip = f" for t >= {num(run.skip)} s" if run.skip > 0 else ""
+        legend = "; ".join(why for _, _, why in BANDS)
         b.append(
-            _pair_table(result, "sim_error_pct", f"Simulation error % = max|x - x_ref| / max|x_ref| x 100{skip}", False)
+            _pair_table(
+                result,
+                "sim_error_pct",
+                f"Simulation error % = max|x - x_ref| / max|x_ref| x 100{skip} "
+                f"(colours: the scenario's limits where it sets them, else {legend})",
+                False,
+            )
         )
         b.append(_pair_table(result, "rms", f"RMS deviation{skip}", True))
         b.append(_maxdev_table(result))
         lags = [p for p in result.pairs if p.lag is not None]
         if lags:
             b.append(
-                _Table(
+                Table(
                     ("backend", "vs", "lag [ms]", "samples", "correlation", "removed [ms]"),
                     tuple(
                         (
                             p.backend,
                             p.reference,
-                            _fmt(p.lag.seconds * 1e3),
-                            _fmt(p.lag.samples),
-                            _fmt(p.lag.correlation),
-                            _fmt(p.lag_removed * 1e3),
+                            num(p.lag.seconds * 1e3),
+                            num(p.lag.samples),
+                            num(p.lag.correlation),
+                            num(p.lag_removed * 1e3),
                         )
                         for p in lags
                         if p.lag is not None
-                    ),  # fmt: skip
+                    ),
                     "Constant time lag by cross-correlation (> 0: the backend is late)",
                 )
             )
-    b.append(_Heading(2, "Steady state and analytic force check"))
+    b.append(Heading(2, "Steady state and analytic force check"))
     b.append(_steady_table(result))
     if any(r.n_contact for r in result.residuals.values()):
-        b.append(_Heading(2, "Contact-law residuals"))
+        b.append(Heading(2, "Contact-law residuals"))
         b.append(_residual_table(result))
     if result.split:
         b.append(
-            _Heading(2, f"Contact model vs integration (with {result.split_run.label if result.split_run else ''})")
+            Heading(2, f"Contact model vs integration (with {result.split_run.label if result.split_run else ''})")
         )
         b.append(_split_table(result, "rms"))
         b.append(_split_table(result, "pct"))
-    b.append(_Heading(2, "Figures"))
-    b.extend(_Image(p, cap) for p, cap in figures)
+    b.append(Heading(2, "Figures", "figures"))
+    b.append(Para("Drag to zoom (double-click to reset), hover for values; rows of a figure share their time axis."))
+    b.extend(figures)
+    if index:
+        b.append(Nav((("\u2190 all scenarios", index), ("top", "#"))))
     return b
 
 
-def write_report(run_dir: str | Path, result: ComparisonResult | None = None, **compare_kwargs: Any) -> ReportFiles:
-    """Write metrics.json, report.md, report.html and figures/*.png into a run directory.
+def _assets_for(run_dir: Path) -> Path:
+    """The tree's assets directory when the run directory sits in a tree that has one, else its own."""
+    shared = run_dir.parent / ASSETS
+    if (shared / PLOTLY_JS).is_file():
+        return shared
+    in_tree = any((p / "run.json").is_file() for p in run_dir.parent.iterdir() if p.is_dir() and p != run_dir)
+    return shared if in_tree else run_dir / ASSETS
+
+
+def write_report(
+    run_dir: str | Path,
+    result: ComparisonResult | None = None,
+    *,
+    assets: str | Path | None = None,
+    index: str | None = None,
+    **compare_kwargs: Any,
+) -> ReportFiles:
+    """Write metrics.json, report.md and report.html into a run directory.
 
     Args:
         run_dir: the run directory.
         result: a comparison already computed for it (else :func:`legbench.compare.compare`
             is called with ``compare_kwargs``).
+        assets: directory for plotly.min.js and legbench.js (default: the tree's ``assets/`` beside the
+            run directory when it exists, else ``run_dir/assets``); written there if absent.
+        index: relative URL of the tree's index for the back link (default: ``../report.html`` when it exists).
         **compare_kwargs: passed to :func:`legbench.compare.compare` (log, lag, all_pairs, ...).
 
     Returns:
@@ -582,14 +482,22 @@ def write_report(run_dir: str | Path, result: ComparisonResult | None = None, **
     path = Path(run_dir)
     res = result if result is not None else compare(path, **compare_kwargs)
     metrics = write_metrics(res.to_json(), path / "metrics.json")
-    figures = _figures(res, path / "figures")
-    blocks = _blocks(res, figures)
+    adir = write_assets(Path(assets) if assets is not None else _assets_for(path))
+    if index is None and (path.parent / "report.html").is_file() and path.parent != path:
+        index = "../report.html"
+    for old in (path / "figures").glob("*.png") if (path / "figures").is_dir() else ():
+        old.unlink()  # the static figures of earlier versions
+    if (path / "figures").is_dir() and not any((path / "figures").iterdir()):
+        (path / "figures").rmdir()
+    arrays = Arrays()
+    figures = run_figures(res, arrays)
+    blocks = _blocks(res, figures, index)
     md = path / "report.md"
-    md.write_text(_to_markdown(blocks, path))
+    md.write_text(to_markdown(blocks))
     page = path / "report.html"
-    page.write_text(_to_html(blocks, f"legbench: {res.run.label}"))
-    logger.info("wrote %s, %s and %d figures", md, page, len(figures))
-    return ReportFiles(metrics, md, page, tuple(p for p, _ in figures))
+    page.write_text(to_html(blocks, f"legbench: {res.run.label}", relpath(adir, path), arrays))
+    logger.info("wrote %s and %s (%d figures)", md, page, len(figures))
+    return ReportFiles(metrics, md, page, tuple(f.key for f in figures), adir)
 
 
 #: One piece of a page for :func:`write_page`: a heading (``"## text"``), a paragraph (any
@@ -597,21 +505,21 @@ def write_report(run_dir: str | Path, result: ComparisonResult | None = None, **
 PageItem = str | tuple[str, Sequence[str], Sequence[Sequence[str]]]
 
 
-def _page_blocks(items: Sequence[PageItem]) -> list[_Block]:
-    blocks: list[_Block] = []
+def _page_blocks(items: Sequence[PageItem]) -> list[Block]:
+    blocks: list[Block] = []
     for item in items:
         if isinstance(item, str):
             level = len(item) - len(item.lstrip("#"))
-            blocks.append(_Heading(level, item[level:].strip()) if level else _Para(item))
+            blocks.append(Heading(level, item[level:].strip()) if level else Para(item))
         else:
             caption, header, rows = item
-            blocks.append(_Table(tuple(header), tuple(tuple(r) for r in rows), caption))
+            blocks.append(Table(tuple(header), tuple(tuple(r) for r in rows), caption))
     return blocks
 
 
 def page_markdown(items: Sequence[PageItem]) -> str:
     """The Markdown of a page of headings, paragraphs and tables (see :data:`PageItem`)."""
-    return _to_markdown(_page_blocks(items), Path("."))
+    return to_markdown(_page_blocks(items))
 
 
 def write_page(out_dir: str | Path, stem: str, title: str, items: Sequence[PageItem]) -> tuple[Path, Path]:
@@ -621,8 +529,8 @@ def write_page(out_dir: str | Path, stem: str, title: str, items: Sequence[PageI
     out.mkdir(parents=True, exist_ok=True)
     blocks = _page_blocks(items)
     md, page = out / f"{stem}.md", out / f"{stem}.html"
-    md.write_text(_to_markdown(blocks, out))
-    page.write_text(_to_html(blocks, title))
+    md.write_text(to_markdown(blocks))
+    page.write_text(to_html(blocks, title))
     return md, page
 
 
@@ -630,24 +538,22 @@ def write_page(out_dir: str | Path, stem: str, title: str, items: Sequence[PageI
 # Index of a results tree
 
 
-def write_index(root: str | Path) -> IndexFiles:
-    """Write ROOT/report.html and ROOT/report.md for a tree of run directories.
+@dataclass(frozen=True)
+class _Entry:
+    """One run directory as the index sees it."""
 
-    Each scenario directory (a subdirectory with run.json) is linked to its
-    report.html; one table holds every simulation error % (scenario x backend x
-    signal component), read from each directory's metrics.json (computed in
-    memory if absent). Backends that failed are listed with their reason.
+    dir: Path
+    label: str  # the run directory's name: unique in a tree (a profile's runs share the scenario label)
+    name: str
+    profile: str
+    mode: str
+    meta: Mapping[str, Any]  # metrics.json without its rows
+    tolerances: Mapping[str, Any]
+    df: pd.DataFrame
 
-    Raises:
-        ResultsError: ROOT is missing or holds no run directory.
-    """
-    root = Path(root)
-    dirs = list(run_dirs(root).values())
-    header = ("scenario", "backend", "vs", *LABELS)
-    rows: list[tuple[str, ...]] = []
-    links: dict[tuple[int, int], str] = {}
-    problems: list[tuple[str, ...]] = []
-    measured: list[tuple[str, str, str, pd.DataFrame]] = []  # (scenario name, profile, contact mode, metrics)
+
+def _entries(dirs: Sequence[Path]) -> list[_Entry]:
+    out = []
     for d in dirs:
         mfile = d / "metrics.json"
         if mfile.is_file():
@@ -655,50 +561,137 @@ def write_index(root: str | Path) -> IndexFiles:
         else:
             res = compare(d)
             meta, df = res.to_json(), res.frame()
-        sc_meta = read_meta(d)["scenario"]
-        measured.append((str(sc_meta["name"]), str(sc_meta.get("profile", "matched")),
-                         str(meta.get("contact_mode", "native")), df))  # fmt: skip
-        label = str(meta.get("scenario", d.name))
-        for bname, b in (meta.get("backends") or {}).items():
+        run_meta = read_meta(d)
+        sc = run_meta["scenario"]
+        out.append(
+            _Entry(
+                d,
+                d.name or str(meta.get("scenario", "")),
+                str(sc["name"]),
+                str(sc.get("profile", "matched")),
+                str(meta.get("contact_mode", "native")),
+                meta,
+                tolerances_of(run_meta),
+                df,
+            )
+        )
+    return out
+
+
+def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
+    """Per task: one sentence per run, then one table of simulation error % grouped by profile and contact."""
+    header = ("run", "profile", "contact", "backend", "vs", *LABELS)
+    blocks: list[Block] = []
+    for name in dict.fromkeys(e.name for e in entries):
+        runs = sorted(
+            (e for e in entries if e.name == name),
+            key=lambda e: (_PROFILE_ORDER.get(e.profile, 9), _MODE_ORDER.get(e.mode, 9), e.label),
+        )
+        blocks.append(Heading(2, name, f"task-{name}"))
+        rows: list[tuple[str, ...]] = []
+        links: dict[tuple[int, int], str] = {}
+        classes: dict[tuple[int, int], str] = {}
+        titles: dict[tuple[int, int], str] = {}
+        groups: dict[int, str] = {}
+        for e in runs:
+            href = f"{e.dir.name}/report.html" if (e.dir / "report.html").is_file() else ""
+            blocks.append(Para(f"{e.label} ({e.profile} profile, {e.mode} contact): {sentence(e.meta, e.df)}"))
+            groups[len(rows)] = f"{e.profile} profile, {e.mode} contact"
+            sim = e.df[e.df["metric"] == "sim_error_pct"]
+            first = len(rows)
+            for (backend, ref), g in sim.groupby(["backend", "reference"], sort=False):
+                vals = {
+                    column_label(s, j): (s, j, float(v))
+                    for s, j, v in zip(g["signal"], g["joint"], g["value"], strict=True)
+                }
+                r = len(rows)
+                cells = []
+                for c, lab in enumerate(LABELS):
+                    s, j, v = vals.get(lab, (SIGNAL_OF[c], lab[-1], math.nan))
+                    cells.append(num(v, 3))
+                    cls, why = sim_class(v, s, j, e.tolerances)
+                    if cls:
+                        classes[(r, 5 + c)], titles[(r, 5 + c)] = cls, why
+                rows.append((e.label, e.profile, e.mode, str(backend), str(ref), *cells))
+            if len(rows) == first:
+                rows.append(
+                    (e.label, e.profile, e.mode, "-", str(e.meta.get("reference", "")), *("n/a" for _ in LABELS))
+                )
+            if href:
+                for i in range(first, len(rows)):
+                    links[(i, 0)] = href
+        blocks.append(
+            Table(
+                header,
+                tuple(rows),
+                f"{name}: simulation error % (backend x signal component)",
+                links,
+                classes,
+                titles,
+                groups,
+            )
+        )
+    return blocks
+
+
+def write_index(root: str | Path) -> IndexFiles:
+    """Write ROOT/report.html and ROOT/report.md for a tree of run directories.
+
+    Scenarios are grouped by task, each task's runs ordered by profile and
+    contact mode, each with one sentence on what differs most and why, and one
+    table of simulation error % (backend x signal component) coloured against
+    the scenario's ceilings or :data:`BANDS`; run names link to their reports.
+    Numbers come from each directory's metrics.json (computed in memory if
+    absent). Backends that failed are listed with their reason; verification
+    and calibration are collapsed to counts.
+
+    Raises:
+        ResultsError: ROOT is missing or holds no run directory.
+    """
+    root = Path(root)
+    dirs = list(run_dirs(root).values())
+    entries = _entries(dirs)
+    problems: list[tuple[str, ...]] = []
+    for e in entries:
+        for bname, b in (e.meta.get("backends") or {}).items():
             if b.get("status") != "ok":
-                problems.append((label, bname, str(b.get("status")), str(b.get("reason") or "")))
-        sim = df[df["metric"] == "sim_error_pct"]
-        first = len(rows)
-        for (backend, ref), g in sim.groupby(["backend", "reference"], sort=False):
-            vals = {column_label(s, j): v for s, j, v in zip(g["signal"], g["joint"], g["value"], strict=True)}
-            rows.append((label, str(backend), str(ref), *(_fmt(vals.get(c, math.nan), 3) for c in LABELS)))
-        if len(rows) == first:
-            rows.append((label, "-", str(meta.get("reference", "")), *("n/a" for _ in LABELS)))
-        if (d / "report.html").is_file():
-            for i in range(first, len(rows)):
-                links[(i, 0)] = f"{d.name}/report.html"
-    blocks: list[_Block] = [
-        _Heading(1, "legbench: comparison summary"),
-        _Para(
+                problems.append((e.label, bname, str(b.get("status")), str(b.get("reason") or "")))
+    tasks = list(dict.fromkeys(e.name for e in entries))
+    legend = "; ".join(why for _, _, why in BANDS)
+    blocks: list[Block] = [
+        Heading(1, "legbench: comparison summary"),
+        Nav(tuple((t, f"#task-{t}") for t in tasks)),
+        Para(
             "Simulation error % = max_t |x_a - x_ref| / max_t |x_ref| x 100 per signal component, each backend "
             "against its scenario's reference backend (n/a: the reference signal is zero, or missing). "
-            "Scenario names link to their reports."
+            f"Colours: the scenario's limits (comparison.tolerances.max_sim_error_pct) where it sets them, else "
+            f"{legend}. Hover a cell for its exact value; run names link to their reports."
         ),
-        _Table(header, tuple(rows), "Simulation error % (scenario x backend x signal)", links),
     ]
-    if problems:
-        blocks.append(_Heading(2, "Backends that did not run"))
-        blocks.append(_Table(("scenario", "backend", "status", "reason"), tuple(problems)))
-    blocks += _profile_blocks(measured)
+    blocks.append(colour_key())
     blocks += _study_blocks(root)
+    if problems:
+        blocks.append(Heading(2, "Backends that did not run"))
+        blocks.append(Table(("scenario", "backend", "status", "reason"), tuple(problems)))
+    blocks += _task_blocks(entries)
+    blocks += _profile_blocks(entries)
+    blocks += _bench_blocks(root)
     md = root / "report.md"
-    md.write_text(_to_markdown(blocks, root))
+    md.write_text(to_markdown(blocks))
     page = root / "report.html"
-    page.write_text(_to_html(blocks, "legbench: comparison summary"))
+    page.write_text(to_html(blocks, "legbench: comparison summary"))
     return IndexFiles(page, md, tuple(dirs))
 
 
-def _profile_blocks(measured: Sequence[tuple[str, str, str, pd.DataFrame]]) -> list[_Block]:
+def _profile_blocks(entries: Sequence[_Entry]) -> list[Block]:
     """What configuration costs: each scenario's native-contact runs in the ``matched`` and
     ``engine-defaults`` profiles side by side (largest joint-angle error %, steady ground force)."""
-    by_key = {(name, prof): df for name, prof, mode, df in measured if mode == "native"}
-    names = [n for n in dict.fromkeys(name for name, _, _, _ in measured) if (n, "engine-defaults") in by_key
-             and (n, "matched") in by_key]  # fmt: skip
+    by_key = {(e.name, e.profile): e.df for e in entries if e.mode == "native"}
+    names = [
+        n
+        for n in dict.fromkeys(e.name for e in entries)
+        if (n, "engine-defaults") in by_key and (n, "matched") in by_key
+    ]
     if not names:
         return []
     rows: list[tuple[str, ...]] = []
@@ -716,16 +709,16 @@ def _profile_blocks(measured: Sequence[tuple[str, str, str, pd.DataFrame]]) -> l
         for backend, by_prof in cells.items():
             m = by_prof.get("matched", (math.nan, math.nan))
             e = by_prof.get("engine-defaults", (math.nan, math.nan))
-            rows.append((name, backend, _fmt(m[0], 3), _fmt(e[0], 3), _fmt(m[1], 4), _fmt(e[1], 4)))
+            rows.append((name, backend, num(m[0], 3), num(e[0], 3), num(m[1], 4), num(e[1], 4)))
     return [
-        _Heading(2, "Profiles side by side: what configuration costs"),
-        _Para(
+        Heading(2, "Profiles side by side: what configuration costs"),
+        Para(
             "Native contact. 'matched': each engine configured to the spec's physics as faithfully as it allows; "
             "'engine-defaults': the engine's documented defaults with only Kp, Kd and mu set "
             "(docs/contact_mapping.md). "
             "A difference between the two columns is the settings', not the engine's."
         ),
-        _Table(
+        Table(
             (
                 "scenario",
                 "backend",
@@ -733,7 +726,7 @@ def _profile_blocks(measured: Sequence[tuple[str, str, str, pd.DataFrame]]) -> l
                 "max q error % (engine-defaults)",
                 "steady Fn [N] (matched)",
                 "steady Fn [N] (engine-defaults)",
-            ),  # fmt: skip
+            ),
             tuple(rows),
             "Largest joint-angle simulation error % against the scenario's reference backend in the same profile, "
             "and the steady normal ground force (mean over the steady window)",
@@ -767,13 +760,14 @@ def _cell(v: Any) -> str:
     if isinstance(v, bool):
         return "yes" if v else "NO"
     if isinstance(v, int | float):
-        return _fmt(float(v), 4)
+        return num(float(v), 4)
     return str(v)
 
 
-def _study_blocks(root: Path) -> list[_Block]:
-    """Tables of the verification and calibration studies found under ``root``."""
-    blocks: list[_Block] = []
+def _study_blocks(root: Path) -> list[Block]:
+    """The verification and calibration studies found under ``root``: a count, the table on demand
+    (failing checks shown open)."""
+    blocks: list[Block] = []
     for rel, heading, key, cols, caption in STUDIES:
         path = root / rel
         if not path.is_file():
@@ -783,11 +777,35 @@ def _study_blocks(root: Path) -> list[_Block]:
         except (ValueError, KeyError, TypeError) as exc:
             raise ResultsError(str(path), f"malformed study output: {exc}") from None
         rows = tuple(tuple(_cell(r.get(c, "")) for c in cols) for r in records)
-        blocks += [_Heading(2, heading), _Table(cols, rows, caption)]
-    return blocks + _bench_blocks(root)
+        classes = {
+            (i, len(cols) - 1): ("pass" if r.get("pass") else "fail")
+            for i, r in enumerate(records)
+            if "pass" in cols and isinstance(r.get("pass"), bool)
+        }
+        table = Table(cols, rows, caption, classes=classes)
+        link = f"{rel.rsplit('/', 1)[0]}/"
+        if "pass" in cols:
+            failed = [i for i, r in enumerate(records) if r.get("pass") is False]
+            summary = f"{heading}: {len(records) - len(failed)} of {len(records)} checks pass"
+            blocks.append(Heading(2, summary))
+            if failed:
+                blocks.append(
+                    Table(
+                        cols,
+                        tuple(rows[i] for i in failed),
+                        "Failing checks",
+                        classes={(k, len(cols) - 1): "fail" for k in range(len(failed))},
+                    )
+                )
+            blocks.append(Details(f"all {len(records)} checks", (table,), "fail" if failed else ""))
+        else:
+            blocks.append(Heading(2, f"{heading}: {len(records)} backends measured"))
+            blocks.append(Details(f"the {len(records)} rows", (table,)))
+        blocks.append(Nav(((f"files in {link}", link),)))
+    return blocks
 
 
-def _bench_blocks(root: Path) -> list[_Block]:
+def _bench_blocks(root: Path) -> list[Block]:
     """The latest `legbench bench` figures (results/bench/bench.json beside the results root), if any."""
     path = next((p for p in (root / "bench" / "bench.json", root.parent / "bench" / "bench.json") if p.is_file()), None)
     if path is None:
@@ -800,26 +818,54 @@ def _bench_blocks(root: Path) -> list[_Block]:
                 rows.append((r["task"], r["backend"], r.get("status", "?"), "", "", "", "", "", ""))
                 continue
             mem = r["mem_peak_bytes"] / r["series_bytes"] if r.get("mem_peak_bytes") and r.get("series_bytes") else None
-            rows.append((
-                r["task"], r["backend"], _cell(r["full_us_per_tick"]["median"]),
-                _cell(r["engine_us_per_tick"]["median"]), _cell(r["harness_us_per_tick"]),
-                _cell(r["overhead_ratio"]["median"]), _cell(r["rtf_full"]),
-                _cell(mem) if mem is not None else "-", "yes" if r.get("replay_identical") else "NO",
-            ))  # fmt: skip
+            rows.append(
+                (
+                    r["task"],
+                    r["backend"],
+                    _cell(r["full_us_per_tick"]["median"]),
+                    _cell(r["engine_us_per_tick"]["median"]),
+                    _cell(r["harness_us_per_tick"]),
+                    _cell(r["overhead_ratio"]["median"]),
+                    _cell(r["rtf_full"]),
+                    _cell(mem) if mem is not None else "-",
+                    "yes" if r.get("replay_identical") else "NO",
+                )
+            )
     except (ValueError, KeyError, TypeError) as exc:
         raise ResultsError(str(path), f"malformed benchmark output: {exc}") from None
-    cols = ("task", "backend", "full [us/tick]", "engine only [us/tick]", "harness [us/tick]", "overhead ratio",
-            "RTF", "memory / series", "replay identical")  # fmt: skip
-    caption = (f"legbench bench ({doc.get('created', '')}, {doc.get('machine', {}).get('cpus', '?')} CPUs): medians; "
-               "overhead ratio = full run / engine-only replay of the same torques")  # fmt: skip
-    return [_Heading(2, "Performance"), _Table(cols, tuple(rows), caption)]
+    cols = (
+        "task",
+        "backend",
+        "full [us/tick]",
+        "engine only [us/tick]",
+        "harness [us/tick]",
+        "overhead ratio",
+        "RTF",
+        "memory / series",
+        "replay identical",
+    )
+    caption = (
+        f"legbench bench ({doc.get('created', '')}, {doc.get('machine', {}).get('cpus', '?')} CPUs): medians; "
+        "overhead ratio = full run / engine-only replay of the same torques"
+    )
+    return [Heading(2, "Performance"), Details(f"{len(rows)} rows", (Table(cols, tuple(rows), caption),))]
 
 
-def write_all(root: str | Path, **compare_kwargs: Any) -> list[ReportFiles | IndexFiles]:
+def _report_page(task: tuple[str, str, dict[str, Any]]) -> ReportFiles:
+    """One run directory's report (a top-level function, so a process pool can map it)."""
+    run_dir, assets, compare_kwargs = task
+    return write_report(run_dir, assets=assets, index="../report.html", **compare_kwargs)
+
+
+def write_all(
+    root: str | Path, *, jobs: int = 1, progress: Progress | None = None, **compare_kwargs: Any
+) -> list[ReportFiles | IndexFiles]:
     """Report a run directory, or every run directory under ``root`` and then the index.
 
     Args:
         root: a run directory (has run.json) or a tree of them (results/latest).
+        jobs: worker processes rendering the run reports (one page per task; 1: this process).
+        progress: called with each page's path once it is written (run reports in order, then the index).
         **compare_kwargs: passed to :func:`legbench.compare.compare`.
 
     Returns:
@@ -827,11 +873,25 @@ def write_all(root: str | Path, **compare_kwargs: Any) -> list[ReportFiles | Ind
     """
     root = Path(root)
     if (root / "run.json").is_file():
-        return [write_report(root, **compare_kwargs)]
+        files = write_report(root, **compare_kwargs)
+        if progress is not None:
+            progress(files.html)
+        return [files]
     if not root.is_dir():
         raise ResultsError(str(root), "no such results directory")
     if compare_kwargs.get("log") is not None:
         raise ResultsError(str(root), "an imported log belongs to one scenario: pass that scenario's run directory")
-    out: list[ReportFiles | IndexFiles] = [write_report(d, **compare_kwargs) for d in run_dirs(root).values()]
-    out.append(write_index(root))
+    dirs = list(run_dirs(root).values())
+    assets = write_assets(root / ASSETS)
+    tasks = [(str(d), str(assets), dict(compare_kwargs)) for d in dirs]
+    out: list[ReportFiles | IndexFiles] = []
+    with make_executor("local", jobs) as ex:
+        for files in ex.imap(_report_page, tasks):
+            out.append(files)
+            if progress is not None:
+                progress(files.html)
+    index = write_index(root)
+    if progress is not None:
+        progress(index.html)
+    out.append(index)
     return out

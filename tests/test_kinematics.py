@@ -194,3 +194,19 @@ def test_gravity_torque_on_floats_equals_gravity_bit_for_bit() -> None:
     for q in random_q(200):
         q1, q2, q3 = q.tolist()
         np.testing.assert_array_equal(_bits(G(q1, q2, q3)), _bits(K.gravity(q)))
+
+
+def test_chain_points_are_pinocchio_joint_origins_and_end_at_fk() -> None:
+    """The drawn leg (report's 3D view): ab/ad, hip and knee points at Pinocchio's joint origins of the
+    generated URDF to 1e-9 m (the FK test's bound) at 200 random poses; the last point is fk(q) exactly."""
+    m = model.pinocchio_model()
+    d = m.createData()
+    ids = [m.getJointId(n) for n in model.JOINT_NAMES]
+    qs = random_q(200)
+    pts = K.chain(qs)
+    assert pts.shape == (200, 5, 3)
+    np.testing.assert_array_equal(pts[:, -1], K.fk(qs))
+    for q, p in zip(qs, pts, strict=True):
+        pin.forwardKinematics(m, d, model.q_to_pin(q))
+        for k, jid in enumerate(ids):
+            np.testing.assert_allclose(d.oMi[jid].translation, p[k + 1], atol=1e-9)

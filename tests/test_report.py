@@ -1,66 +1,93 @@
-"""Reports on synthetic runs: every figure embedded, nothing external, failures and settings shown."""
+"""Reports on synthetic runs: interactive figures from the tree's one plotly.js, nothing external, failures,
+settings, colours and sentences shown; the index grouped by task; parallel rendering identical to serial."""
 
 from __future__ import annotations
 
 import base64
 import json
+import math
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 import pytest
-from fakerun import offset, scale, write_run
+from fakerun import add_to, offset, scale, write_run
 
-from legbench import cli, results
+from legbench import cli, kinematics, results
 from legbench import report as R
+from legbench.compare import compare
 from legbench.exceptions import ResultsError
-
-IMG = re.compile(r'<img src="data:image/png;base64,([A-Za-z0-9+/=]+)"')
-PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+from legbench.report_figures import BINS, Arrays, envelope, run_figures
+from legbench.report_html import num
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
+#: 5 overlays (q, qd, tau, force, foot) + 4 deviations + 2 focused views + the 3D leg
+N_FIGURES = 12
+PLOT = re.compile(r'legbench\.(plot|leg)\("([\w-]+)-plot", ')
+DATA = re.compile(r"<script>legbench\.data\((\{.*?\})\);</script>")
 
 
-def test_report_html_embeds_every_figure_and_nothing_external(tmp_path: Path) -> None:
-    """report.html holds one base64 PNG per file in figures/ (byte for byte), and no external URL or script."""
+def _arrays(page: str) -> dict[str, np.ndarray]:
+    """The float32 arrays a page holds, decoded as the browser does."""
+    m = DATA.search(page)
+    assert m is not None
+    return {k: np.frombuffer(base64.b64decode(v), dtype="<f4") for k, v in json.loads(m.group(1)).items()}
+
+
+def _decode(arrays: Arrays, ref: str) -> np.ndarray:
+    return np.frombuffer(base64.b64decode(arrays.items[ref.removeprefix("@")]), dtype="<f4")
+
+
+def test_report_html_draws_every_figure_from_the_one_plotly_js_and_nothing_external(tmp_path: Path) -> None:
+    """report.html loads plotly.js from assets/ (a copy of the plotly package's own file) and calls it once per
+    figure; every figure's div exists, its arrays are on the page; no external URL; report.md links each figure."""
     d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.1), "b": offset(0.01)}, skip=0.2)
     files = R.write_report(d)
-    pngs = sorted((d / "figures").glob("*.png"))
-    assert len(pngs) == len(files.figures) == 9  # 5 overlays (q, qd, tau, force, foot) + 4 deviations
+    assert len(files.figures) == N_FIGURES and files.assets == d / "assets"
     page = files.html.read_text()
-    embedded = [base64.b64decode(m) for m in IMG.findall(page)]
-    assert len(embedded) == len(pngs)
-    assert all(e.startswith(PNG_MAGIC) for e in embedded)
-    assert sorted(embedded) == sorted(p.read_bytes() for p in pngs)
-    assert not re.search(r'(src|href)="(https?:|//)', page) and "<script" not in page and "<link" not in page
+    assert '<script src="assets/plotly.min.js"></script><script src="assets/legbench.js"></script>' in page
+    import plotly
+
+    shipped = Path(plotly.__file__).parent / "package_data" / "plotly.min.js"
+    assert (files.assets / "plotly.min.js").read_bytes() == shipped.read_bytes()
+    assert [k for _, k in PLOT.findall(page)] == list(files.figures)
+    assert all(f'<div id="{k}-plot" class="lb-plot' in page for k in files.figures)
+    refs = set(re.findall(r'"@(a\d+)"', page))
+    assert refs and refs <= set(_arrays(page))
+    assert not re.search(r'(src|href)="(https?:|//)', page) and "<link" not in page
     md = files.markdown.read_text()
-    assert all(f"(figures/{p.name})" in md for p in pngs)
+    assert all(f"(report.html#{k})" in md for k in files.figures)
     assert files.metrics == d / "metrics.json" and files.metrics.is_file()
 
 
-def test_report_shows_failed_backends_with_reason_and_every_backend_version(tmp_path: Path) -> None:
-    """A failed backend is listed with its reason as a warning; engine, version and settings come from run.json."""
+def test_report_shows_failed_backends_with_reason_versions_and_settings_as_a_table(tmp_path: Path) -> None:
+    """A failed backend is listed with its reason as a warning; engine and version come from run.json; the
+    settings are a table with one row per setting and one column per backend (not a JSON blob)."""
     d = write_run(tmp_path / "s", {"ref": None, "a": None}, failed={"c": "diverged at t = 0.3 s"})
     files = R.write_report(d)
     page, md = files.html.read_text(), files.markdown.read_text()
     for text in (page, md):
         assert "diverged at t = 0.3 s" in text
         assert "fake-ref" in text and "fake-a" in text and "fake-c" in text
-        assert '"dt": 0.0001' in text.replace("&quot;", '"')
+        assert '"dt"' not in text.replace("&quot;", '"')
+    assert "| setting | ref | a | c |" in md and "| dt | 1e-4 | 1e-4 |  |" in md
+    assert "<details><summary>Settings of every backend (1 rows)</summary>" in page
     assert '<p class="warn">backend &#x27;c&#x27; failed: diverged at t = 0.3 s</p>' in page
 
 
 def test_partial_log_of_a_failed_backend_is_plotted_not_measured(tmp_path: Path) -> None:
     """A failed backend whose parquet exists is drawn in the overlays but has no metrics."""
-    d = write_run(tmp_path / "s", {"ref": None, "a": None, "c": offset(0.5)})
+    d = write_run(tmp_path / "s", {"ref": None, "a": offset(0.01), "c": offset(0.5)})
     meta = json.loads((d / "run.json").read_text())
     meta["backends"]["c"].update(status="failed", reason="diverged")
     (d / "run.json").write_text(json.dumps(meta))
     files = R.write_report(d)
     metrics = json.loads(files.metrics.read_text())["metrics"]
     assert {r["backend"] for r in metrics} == {"ref", "a"}
-    assert len(files.figures) == 9
+    assert len(files.figures) == N_FIGURES
+    assert '"name":"c (failed)"' in files.html.read_text()
 
 
 def test_a_signal_missing_everywhere_gets_no_figure_and_stale_pngs_go(tmp_path: Path) -> None:
@@ -72,12 +99,56 @@ def test_a_signal_missing_everywhere_gets_no_figure_and_stale_pngs_go(tmp_path: 
 
     d = write_run(tmp_path / "s", {"ref": no_force, "a": no_force})
     (d / "figures").mkdir()
-    (d / "figures" / "stale.png").write_bytes(PNG_MAGIC)
+    (d / "figures" / "stale.png").write_bytes(b"\x89PNG\r\n\x1a\n")
     files = R.write_report(d)
-    names = {p.name for p in files.figures}
-    assert "overlay_force.png" not in names and "deviation_force.png" not in names
-    assert {p.name for p in (d / "figures").glob("*.png")} == names
-    assert len(IMG.findall(files.html.read_text())) == len(names)
+    assert "overlay-force" not in files.figures and "deviation-force" not in files.figures
+    assert "overlay-q" in files.figures and "deviation-q" in files.figures
+    assert not (d / "figures").exists()
+
+
+def test_envelope_keeps_a_one_sample_spike_and_the_order_of_extremes() -> None:
+    """A 1-sample transient of height 5 in 100 000 samples survives decimation to 2 x 700 points exactly
+    (float64 values copied, not averaged), at the time of its bin (within one bin width of the truth)."""
+    n, k = 100_000, 61_234
+    t = np.arange(n) * 1e-3
+    y = np.sin(t)
+    y[k] = 5.0
+    tt, yy = envelope(t, y, bins=700)
+    assert len(tt) == len(yy) <= 1400
+    assert yy.max() == 5.0 and yy.min() == y.min()
+    width = t[-1] / 700 * 1.01
+    assert abs(tt[int(np.argmax(yy))] - t[k]) <= width
+    assert np.all(np.diff(tt) >= 0)  # times stay ordered for the line
+    short_t, short_y = envelope(t[:1000], y[:1000], bins=700)
+    assert short_t is not None and np.array_equal(short_y, y[:1000])  # short series as they are
+    y2 = np.column_stack([y, -y])
+    y2[5:200, 1] = np.nan  # a gap: ignored inside the bin, not spread
+    _, yy2 = envelope(t, y2, bins=700)
+    assert yy2[:, 1].min() == -5.0 and np.isfinite(yy2[:, 1]).all()
+
+
+def test_deviation_figure_holds_the_largest_deviation_and_the_leg_view_is_the_kinematics(tmp_path: Path) -> None:
+    """The deviation figure's data reach each pair's max |x - x_ref| (to float32 rounding, rel 1e-6); the 3D
+    view's points are kinematics.chain of the logged q at the slider's times (to float32, 1e-6 m)."""
+    spike = add_to("q2", lambda t: 1e-3 * (np.abs(t - 1.2345) < 5e-4))  # one sample, 1 mrad
+    d = write_run(tmp_path / "s", {"ref": None, "a": spike}, duration=20.0)
+    res = compare(d)
+    arrays = Arrays()
+    figs = {f.key: f for f in run_figures(res, arrays)}
+    dev = figs["deviation-q"].spec["data"]
+    q2 = next(tr for tr in dev if tr["yaxis"] == "y2")
+    assert np.max(np.abs(_decode(arrays, q2["y"]))) == pytest.approx(res.pairs[0].max_abs[1], rel=1e-6)
+    assert len(_decode(arrays, q2["y"])) <= 2 * BINS  # 20 001 samples decimated
+    leg = figs["leg"].spec
+    times = np.array(leg["times"])
+    a = res.traces["a"]
+    pts = _decode(arrays, leg["backends"][1]["points"]).reshape(len(times), 5, 3)
+    want = kinematics.chain(a.q[np.clip(np.searchsorted(a.t, times), 0, len(a.t) - 1)])
+    np.testing.assert_allclose(pts, want, atol=1e-6)
+    focus = figs["focus-transients"].spec["data"]
+    assert max(float(np.max(np.abs(_decode(arrays, tr["y"])))) for tr in focus if tr["yaxis"] == "y") == (
+        pytest.approx(1e-3, rel=1e-6)
+    )
 
 
 def test_report_includes_the_contact_mode_split_when_the_sibling_exists(tmp_path: Path) -> None:
@@ -99,21 +170,94 @@ def test_report_with_an_imported_log_lists_it_as_a_backend(tmp_path: Path) -> No
     assert "| log:bench | ref | 0 | 0 | 0 |" in md
 
 
-def test_index_links_every_scenario_and_tabulates_every_sim_error(tmp_path: Path) -> None:
-    """results/latest/report.html links each scenario's report; its table has one row per (scenario, backend)."""
+@pytest.mark.parametrize(
+    ("value", "digits", "text"),
+    [
+        (156.0, 3, "156"),
+        (1800.0, 3, "1800"),
+        (2.41e-13, 3, "2.41e-13"),
+        (0.0123, 3, "0.0123"),
+        (1e4, 4, "10000"),
+        (1.0874, 4, "1.087"),
+        (-0.5, 4, "-0.5"),
+        (1e6, 4, "1e6"),
+        (0.0, 4, "0"),
+        (math.nan, 4, "n/a"),
+        (None, 4, "n/a"),
+        (9.9996, 4, "10"),
+        (0.001, 3, "0.001"),
+        (-3.5e-4, 3, "-3.5e-4"),
+    ],
+)
+def test_one_number_format(value: float, digits: int, text: str) -> None:
+    """Plain decimals from 1e-3 to 1e6, a short exponent outside, never '+03' or trailing zeros."""
+    assert num(value, digits) == text
+
+
+def test_colours_follow_the_scenario_ceiling_else_the_bands() -> None:
+    """A ceiling of the scenario (by label, then signal, then default) decides over/within; without one the
+    value falls in BANDS (0.01 % is the check's round-off tolerance)."""
+    tol = {"max_sim_error_pct": {"q2": 5.0, "q": 15.0}}
+    assert R.sim_class(6.0, "q", "2", tol)[0] == "over" and R.sim_class(6.0, "q", "1", tol)[0] == "within"
+    assert R.sim_class(16.0, "q", "1", tol)[0] == "over"
+    assert [R.sim_class(v, "tau", "1", tol)[0] for v in (1e-13, 0.5, 5.0, 50.0)] == ["agree", "close", "differ", "far"]
+    assert R.sim_class(math.nan, "q", "1", {})[0] == ""
+
+
+def test_the_sentence_names_the_largest_deviation_and_says_why(tmp_path: Path) -> None:
+    """Largest simulation error: backend, component, size and time; in reference contact mode the reason is
+    integration; identical backends agree to round-off."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.05), "b": add_to("tau2", lambda t: 0.5 * (t > 1.5))})
+    res = compare(d)
+    text = R.sentence(res.to_json(), res.frame())
+    assert text.startswith("Largest difference: b's tau2 (joint torque) deviates from ref by up to 0.5 N m")
+    best = max(res.pair("b").sim_error_pct)  # type: ignore[union-attr]
+    assert f"{num(best, 3)} % of the reference's peak" in text and "every other backend stays within 5 %" in text
+    r = write_run(tmp_path / "r", {"ref": None, "a": scale(1.05)}, contact_mode="reference")
+    res_r = compare(r)
+    assert "same contact law" in R.sentence(res_r.to_json(), res_r.frame())
+    same = compare(write_run(tmp_path / "z", {"ref": None, "a": None}))
+    assert R.sentence(same.to_json(), same.frame()).startswith("Every backend agrees with ref to round-off")
+
+
+def test_index_groups_by_task_links_both_ways_and_tabulates_every_sim_error(tmp_path: Path) -> None:
+    """results/latest/report.html: a section per task, its runs grouped by profile and contact mode, one row per
+    (run, backend), run names linking to their reports and the reports linking back; failed backends listed."""
     root = tmp_path / "latest"
     write_run(root / "one", {"ref": None, "a": scale(1.1)}, name="one")
+    write_run(root / "one__reference", {"ref": None, "a": scale(1.01)}, name="one", contact_mode="reference")
     write_run(root / "two", {"ref": None, "a": scale(1.2), "b": None}, name="two", failed={"c": "no engine"})
     out = R.write_all(root)
     index = out[-1]
     assert isinstance(index, R.IndexFiles)
     page = index.html.read_text()
     assert 'href="one/report.html"' in page and 'href="two/report.html"' in page
+    assert '<tr class="group"><td colspan="17">matched profile, reference contact</td></tr>' in page
     md = index.markdown.read_text()
-    assert "| [one](one/report.html) | a | ref | 10 | 10 |" in md
-    assert "| [two](two/report.html) | a | ref | 20 | 20 |" in md
+    assert "## one\n" in md and "## two\n" in md
+    assert "| [one](one/report.html) | matched | native | a | ref | 10 | 10 |" in md
+    assert "| [one__reference](one__reference/report.html) | matched | reference | a | ref | 1 | 1 |" in md
+    assert "| [two](two/report.html) | matched | native | a | ref | 20 | 20 |" in md
     assert "| two | c | failed | no engine |" in md
     assert md.count("](two/report.html) |") == 2  # backends a and b
+    assert md.index("| [one](one/report.html)") < md.index("| [one__reference]")  # native before reference
+    assert "one (matched profile, native contact): Largest difference: a's" in md
+    for d in ("one", "one__reference", "two"):
+        run_page = (root / d / "report.html").read_text()
+        assert '<a href="../report.html">' in run_page
+        assert '<script src="../assets/plotly.min.js"></script>' in run_page
+    assert [p.relative_to(root).as_posix() for p in root.rglob("plotly.min.js")] == ["assets/plotly.min.js"]
+
+
+def test_index_colours_each_sim_error_against_the_scenario_ceiling(tmp_path: Path) -> None:
+    """A scenario's max_sim_error_pct ceiling colours each cell over/within, with the reason on hover."""
+    root = tmp_path / "latest"
+    write_run(root / "one", {"ref": None, "a": scale(1.2)}, name="one", tolerances={"max_sim_error_pct": {"q": 15}})
+    write_run(root / "two", {"ref": None, "a": scale(1.1)}, name="two", tolerances={"max_sim_error_pct": {"q": 15}})
+    page = R.write_index(root).html.read_text()
+    assert '<td class="over" title="20 % exceeds the scenario&#x27;s limit 15 %">20</td>' in page
+    assert '<td class="within" title="10 % within the scenario&#x27;s limit 15 %">10</td>' in page
+    assert '<td class="far" title="20 %: &gt;= 10 %: differs a lot">20</td>' in page  # qd: no ceiling, bands
 
 
 def test_index_reads_metrics_without_reports(tmp_path: Path) -> None:
@@ -121,7 +265,29 @@ def test_index_reads_metrics_without_reports(tmp_path: Path) -> None:
     root = tmp_path / "latest"
     write_run(root / "one", {"ref": None, "a": scale(1.1)}, name="one")
     md = R.write_index(root).markdown.read_text()
-    assert "| one | a | ref | 10 |" in md
+    assert "| one | matched | native | a | ref | 10 |" in md
+
+
+def test_write_all_in_parallel_writes_the_same_pages_and_reports_progress(tmp_path: Path) -> None:
+    """jobs = 2 (a process pool, one page per task) writes byte-identical files to jobs = 1, and the progress
+    callback is called once per page written: every run report in order, then the index."""
+    pages: dict[int, list[Path]] = {}
+    text: dict[int, dict[str, bytes]] = {}
+    for jobs in (1, 2):
+        root = tmp_path / f"j{jobs}" / "latest"
+        for name, k in (("one", 1.1), ("two", 1.2), ("three", 1.3)):
+            write_run(root / name, {"ref": None, "a": scale(k)}, name=name)
+        pages[jobs] = []
+        R.write_all(root, jobs=jobs, progress=pages[jobs].append)
+        text[jobs] = {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("report.*"))}
+        text[jobs] |= {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("metrics.json"))}
+        assert [p.relative_to(root).as_posix() for p in pages[jobs]] == [
+            "one/report.html",
+            "three/report.html",
+            "two/report.html",
+            "report.html",
+        ]
+    assert text[1] == text[2] and len(text[1]) == 11
 
 
 def test_a_log_cannot_be_attached_to_a_whole_tree(tmp_path: Path) -> None:
@@ -139,23 +305,60 @@ def test_index_of_a_missing_or_empty_directory_raises(tmp_path: Path) -> None:
         R.write_index(tmp_path)
 
 
-def test_index_shows_verification_and_calibration_tables_when_present(tmp_path: Path) -> None:
-    """The study outputs under the results root become tables of the index, one row per record."""
+def _check(case: str, ok: bool) -> dict[str, Any]:
+    return {
+        "case": case,
+        "backend": "a",
+        "variant": "euler",
+        "quantity": "dE",
+        "unit": "J",
+        "measured": 1e-4,
+        "expected": 1e-4,
+        "error": 1e-9,
+        "tolerance": 1e-6,
+        "pass": ok,
+    }
+
+
+def test_index_collapses_verification_and_calibration_to_counts_with_the_tables_on_demand(tmp_path: Path) -> None:
+    """The study outputs become a count each (failing checks shown open), the full tables inside <details>;
+    report.md keeps every row."""
     root = tmp_path / "results"
     write_run(root / "fake", {"ref": None, "a": scale(1.02)})
     (root / "verification").mkdir()
-    checks = [{"case": "energy", "backend": "a", "variant": "euler", "quantity": "dE", "unit": "J", "measured": 1e-4,
-               "expected": 1e-4, "error": 1e-9, "tolerance": 1e-6, "pass": True}]  # fmt: skip
+    checks = [_check("energy", True), _check("rest", True), _check("balance", False)]
     (root / "verification" / "verification.json").write_text(json.dumps({"checks": checks}))
     (root / "calibration").mkdir()
-    rows = [{"backend": "a", "Kp": 1e4, "k_eff": 9999.0, "Kd": 100.0, "c_eff": 99.0, "mu_s": 0.7, "Fn": 40.0,
-             "Ft": 13.0, "creep": 0.1, "creep_law": 0.005, "c_tangential": 130.0}]  # fmt: skip
+    rows = [
+        {
+            "backend": "a",
+            "Kp": 1e4,
+            "k_eff": 9999.0,
+            "Kd": 100.0,
+            "c_eff": 99.0,
+            "mu_s": 0.7,
+            "Fn": 40.0,
+            "Ft": 13.0,
+            "creep": 0.1,
+            "creep_law": 0.005,
+            "c_tangential": 130.0,
+        }
+    ]
     (root / "calibration" / "calibration.json").write_text(json.dumps({"rows": rows}))
     R.write_all(root)
     md = (root / "report.md").read_text()
-    assert "## Verification against closed-form answers" in md and "| energy | a | euler |" in md
-    assert "## Contact calibration" in md and "| a | 1e+04 | 9999 |" in md
-    assert "Contact calibration" in (root / "report.html").read_text()
+    assert "## Verification against closed-form answers: 2 of 3 checks pass" in md
+    assert "| energy | a | euler |" in md and "| balance | a | euler |" in md
+    assert "## Contact calibration: 1 backends measured" in md and "| a | 10000 | 9999 |" in md
+    page = (root / "report.html").read_text()
+    failing = page.index("<caption>Failing checks</caption>")
+    details = page.index('<details class="fail"><summary>all 3 checks</summary>')
+    assert failing < details and page.count(">energy</td>", 0, details) == 0  # passing rows only on demand
+    assert page[failing:details].count('<td class="text short">balance</td>') == 1
+    assert (
+        page.count('<td class="text short fail">NO</td>') == 2
+        and page.count('<td class="text short pass">yes</td>') == 2
+    )
 
 
 def test_index_shows_the_benchmark_beside_the_results_root(tmp_path: Path) -> None:
@@ -164,9 +367,19 @@ def test_index_shows_the_benchmark_beside_the_results_root(tmp_path: Path) -> No
     write_run(root / "fake", {"ref": None, "a": scale(1.02)})
     (tmp_path / "results" / "bench").mkdir()
     stat = {"median": 50.0}
-    rec = {"task": "effort", "backend": "a", "status": "ok", "full_us_per_tick": stat,
-           "engine_us_per_tick": {"median": 46.0}, "harness_us_per_tick": 4.0, "overhead_ratio": {"median": 1.087},
-           "rtf_full": 20.0, "mem_peak_bytes": 1020, "series_bytes": 1000, "replay_identical": True}  # fmt: skip
+    rec = {
+        "task": "effort",
+        "backend": "a",
+        "status": "ok",
+        "full_us_per_tick": stat,
+        "engine_us_per_tick": {"median": 46.0},
+        "harness_us_per_tick": 4.0,
+        "overhead_ratio": {"median": 1.087},
+        "rtf_full": 20.0,
+        "mem_peak_bytes": 1020,
+        "series_bytes": 1000,
+        "replay_identical": True,
+    }
     doc = {"created": "now", "machine": {"cpus": 2}, "results": [rec]}
     (tmp_path / "results" / "bench" / "bench.json").write_text(json.dumps(doc))
     R.write_all(root)
@@ -177,8 +390,20 @@ def test_index_shows_the_benchmark_beside_the_results_root(tmp_path: Path) -> No
 def test_index_sets_the_two_profiles_side_by_side(tmp_path: Path) -> None:
     """A task run in both profiles gets one index row per backend with both profiles' numbers, each equal to
     the steady Fn of that profile's own metrics (to the 4 significant digits printed)."""
-    argv = ["run", str(SCENARIOS / "effort.yaml"), "--backends", "pinocchio,mujoco", "--profile", "both",
-            "--out", str(tmp_path), "-q", "--no-preflight", "--set", "duration=0.6"]  # fmt: skip
+    argv = [
+        "run",
+        str(SCENARIOS / "effort.yaml"),
+        "--backends",
+        "pinocchio,mujoco",
+        "--profile",
+        "both",
+        "--out",
+        str(tmp_path),
+        "-q",
+        "--no-preflight",
+        "--set",
+        "duration=0.6",
+    ]
     assert cli.main(argv) == 0
     md = (tmp_path / "report.md").read_text()
     assert "Profiles side by side" in md
@@ -189,10 +414,11 @@ def test_index_sets_the_two_profiles_side_by_side(tmp_path: Path) -> None:
         _, df = results.read_metrics(d / "metrics.json")
         fz = df[(df.backend == "mujoco") & (df.metric == "steady_mean") & (df.signal == "force") & (df.joint == "z")]
         assert float(cells[col]) == pytest.approx(float(fz["value"].iloc[0]), rel=5e-4)
+    assert "| [effort__engine-defaults](effort__engine-defaults/report.html) | engine-defaults | native |" in md
 
 
 def test_write_page_renders_headings_paragraphs_and_tables(tmp_path: Path) -> None:
-    """R.write_page: the public page writer the studies use (Markdown and self-contained HTML)."""
+    """R.write_page: the public page writer the studies use (Markdown and self-contained HTML, no script)."""
     items: list[R.PageItem] = ["# Title", "A paragraph.", ("caption", ("a", "b"), [["x|y", "1.5"]]), "## Sub"]
     md, page = R.write_page(tmp_path, "p", "T", items)
     text = md.read_text()
@@ -200,4 +426,5 @@ def test_write_page_renders_headings_paragraphs_and_tables(tmp_path: Path) -> No
     assert "# Title\n" in text and "## Sub\n" in text and "*caption*" in text and "| x\\|y | 1.5 |" in text
     html_text = page.read_text()
     assert "<h1>Title</h1>" in html_text and "<caption>caption</caption>" in html_text
-    assert "<td>1.5</td>" in html_text and '<td class="text">x|y</td>' in html_text
+    assert "<td>1.5</td>" in html_text and '<td class="text short">x|y</td>' in html_text
+    assert "<script" not in html_text
