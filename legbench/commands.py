@@ -240,7 +240,7 @@ def _compare(args: argparse.Namespace) -> int:
         if not sep or not src.strip() or not dst.strip():
             raise LegbenchError(f"--log-columns {item!r}: expected HEADER=COLUMN, e.g. joint1_pos=q1")
         column_map[src.strip()] = dst.strip()
-    written = report.write_all(
+    report.write_all(
         args.dir,
         log=args.reference_log,
         column_map=column_map or None,
@@ -249,9 +249,8 @@ def _compare(args: argparse.Namespace) -> int:
         lag=args.lag,
         all_pairs=args.all_pairs,
         jobs=args.jobs,
+        progress=lambda page: print(f"wrote {page}", flush=True),  # each page as soon as it is written
     )
-    for files in written:
-        print(f"wrote {getattr(files, 'html', files)}")
     return EXIT_OK
 
 

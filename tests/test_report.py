@@ -428,3 +428,16 @@ def test_write_page_renders_headings_paragraphs_and_tables(tmp_path: Path) -> No
     assert "<h1>Title</h1>" in html_text and "<caption>caption</caption>" in html_text
     assert "<td>1.5</td>" in html_text and '<td class="text short">x|y</td>' in html_text
     assert "<script" not in html_text
+
+
+def test_compare_command_renders_a_tree_with_jobs_and_prints_each_page(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`legbench compare TREE --jobs 2` exits 0 and prints each page as it is written, the index last."""
+    root = tmp_path / "latest"
+    for name in ("one", "two"):
+        write_run(root / name, {"ref": None, "a": scale(1.1)}, name=name)
+    assert cli.main(["compare", str(root), "--jobs", "2"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines == [f"wrote {root / 'one' / 'report.html'}", f"wrote {root / 'two' / 'report.html'}",
+                     f"wrote {root / 'report.html'}"]  # fmt: skip
