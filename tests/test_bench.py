@@ -140,6 +140,22 @@ def test_versions_machine_and_settings_are_recorded(quick: tuple[int, dict[str, 
     assert "process_time" in doc["settings"]["clock"]
 
 
+def test_json_keeps_the_summary_the_report_reads(quick: tuple[int, dict[str, Any], str], tmp_path: Path) -> None:
+    """The report's Performance table reads full and engine-only medians, harness, ratio, RTF from bench.json."""
+    from legbench import report
+
+    _, doc, _ = quick
+    for r in doc["results"]:
+        assert r["full_us_per_tick"] == r["timings"]["full"]["cpu"]
+        assert r["engine_us_per_tick"] == r["timings"]["replay"]["cpu"]
+        assert r["overhead_ratio"] == _ratios(r)["full / replay"]["cpu"]
+        assert r["rtf_full"] > 0
+    (tmp_path / "bench").mkdir()
+    (tmp_path / "bench" / "bench.json").write_text(json.dumps(doc))
+    blocks = report._bench_blocks(tmp_path)
+    assert len(blocks) == 2  # heading and table, no malformed-output error
+
+
 def test_markdown_has_a_row_per_backend_and_task_in_each_table(quick: tuple[int, dict[str, Any], str]) -> None:
     _, doc, md = quick
     for r in doc["results"]:

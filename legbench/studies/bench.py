@@ -246,6 +246,14 @@ class BenchResult:
         out["mem_ratio"] = (
             self.mem_peak_bytes / self.series_bytes if self.series_bytes and self.mem_peak_bytes else None
         )
+        full, replay, h = self.timings.get("full"), self.timings.get("replay"), self.find("full / replay")
+        if full is not None and replay is not None and full.cpu_samples and h is not None:
+            # the summary the report's Performance table reads: CPU-time medians of full and replay
+            out["full_us_per_tick"] = asdict(full.cpu)
+            out["engine_us_per_tick"] = asdict(replay.cpu)
+            out["harness_us_per_tick"] = h.overhead_us if h.overhead_us is not None else "within noise"
+            out["overhead_ratio"] = asdict(h.cpu)
+            out["rtf_full"] = self.duration / (full.wall.median * max(self.steps, 1) / 1e6)
         return out
 
 
