@@ -210,6 +210,8 @@ class LagrangeBackend(Backend):
         self._span = (0.0, float(physics.control_dt))
         self._solve = {"method": _METHODS[cfg["integrator"]], "rtol": float(cfg["rtol"]), "atol": float(cfg["atol"]),
                        "max_step": float(cfg["max_step"])}  # fmt: skip
+        #: (rtol, atol, max_step [s]) of the rk45 solve.
+        self._tols = (float(cfg["rtol"]), float(cfg["atol"]), float(cfg["max_step"]))
         self._u = [0.0, 0.0, 0.0]  # the held torque [N m], updated in place
         self.f = self._make_f()
         self.x = np.zeros(6)
@@ -255,8 +257,7 @@ class LagrangeBackend(Backend):
         e1, e2, e3 = self.effort
         self._u[:] = (min(max(t1, -e1), e1), min(max(t2, -e2), e2), min(max(t3, -e3), e3))
         if self._solve["method"] == "RK45":
-            s = self._solve
-            y, self.nfev = dopri5_period(self.f, self.x.tolist(), self._span[1], s["rtol"], s["atol"], s["max_step"])
+            y, self.nfev = dopri5_period(self.f, self.x.tolist(), self._span[1], *self._tols)
             self.x[:] = y
             self._update_force()
             return
