@@ -17,7 +17,7 @@ sp = pytest.importorskip("sympy")
 from legbench import kinematics, model  # noqa: E402
 from legbench.backends import lagrange_eom as E  # noqa: E402
 from legbench.backends.base import Physics  # noqa: E402
-from legbench.backends.lagrange_ import LagrangeBackend  # noqa: E402
+from legbench.backends.lagrange_ import LagrangeBackend, dopri5_period  # noqa: E402
 
 PARAMS = model.load_params()
 CONTROL_DT = 1e-3  # [s]
@@ -336,3 +336,47 @@ def test_a_corrupt_cache_file_is_derived_again(tmp_path: Path) -> None:
     # B = I + m lc^2 and G = m lc cos q per unit g, from the regenerated file
     assert again.module.mass_matrix(0.3)[0] == pytest.approx(1e-3 + 0.5 * 0.2**2, rel=1e-15)
     assert again.module.gravity(0.3)[0] == pytest.approx(0.5 * 0.2 * math.cos(0.3), rel=1e-15)
+
+
+# --------------------------------------------------------------------------- #
+# The Dormand-Prince stepper on plain floats
+
+
+def test_dopri5_period_takes_scipy_rk45s_steps_in_stick_slip_contact(make: Any) -> None:
+    """One control period from 200 states of the foot pressed 1 mm into the ground (random joint speeds
+    and torques, so stick, slip and the stiff stick-slip ramp all occur), with the backend's tolerances:
+    :func:`dopri5_period` makes exactly solve_ivp(RK45)'s right-hand-side evaluations (same initial step,
+    same accepted and rejected steps) and ends within 1e-12 of it (measured 5e-14: the two differ only in
+    the rounding of the stage sums; a wrong tableau entry or step control moves the end state by 1e-8
+    or the evaluation count)."""
+    backend = make()
+    rng = np.random.default_rng(7)
+    start = kinematics.ik_nearest(np.array([0.1667, 0.0, PARAMS.geometry.R_foot - 0.001]), np.array(PARAMS.q_star))
+    s = backend._solve
+    nfev = []
+    for _ in range(200):
+        x = np.concatenate([start + rng.normal(0.0, 0.01, 3), rng.normal(0.0, 0.3, 3)])
+        backend._u[:] = rng.normal(0.0, 2.0, 3).tolist()
+        ref = solve_ivp(backend.rhs, (0.0, CONTROL_DT), x, method="RK45", rtol=s["rtol"], atol=s["atol"],
+                        max_step=s["max_step"])  # fmt: skip
+        y, n = dopri5_period(backend.f, x.tolist(), CONTROL_DT, s["rtol"], s["atol"], s["max_step"])
+        assert n == ref.nfev
+        np.testing.assert_allclose(y, ref.y[:, -1], rtol=0, atol=1e-12)
+        nfev.append(n)
+    assert max(nfev) > 62  # some periods needed more than the ten 0.1 ms steps (error control at work)
+
+
+def test_dopri5_period_rejects_steps_like_scipy_on_a_stiff_problem() -> None:
+    """Van der Pol with mu = 1000 over 1 ms from its fast transient, no step cap: the error control
+    rejects and shrinks steps (1-2 rejections from each start); evaluation count equal to solve_ivp(RK45)'s
+    and the end state within 1e-12 relative (rounding of the stage sums)."""
+    mu = 1000.0
+
+    def f(y: Any) -> tuple[float, float]:
+        return (y[1], mu * (1.0 - y[0] ** 2) * y[1] - y[0])
+
+    for y0 in ([2.0, 0.0], [0.5, 3.0], [1.9, -50.0]):
+        ref = solve_ivp(lambda _t, y: np.array(f(y)), (0.0, 1e-3), y0, method="RK45", rtol=1e-6, atol=1e-9)
+        y, n = dopri5_period(f, y0, 1e-3, 1e-6, 1e-9, math.inf)
+        assert n == ref.nfev and (n - 2) // 6 > len(ref.t) - 1  # 6 per attempt: some attempts were rejected
+        np.testing.assert_allclose(y, ref.y[:, -1], rtol=1e-12, atol=1e-15)
