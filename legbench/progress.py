@@ -17,12 +17,16 @@ to stderr when there is no bar), so messages and the bar do not mix.
 from __future__ import annotations
 
 import os
+import shutil
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any, TextIO
 
-__all__ = ["Progress", "bar", "enabled"]
+__all__ = ["BAR_FORMAT", "Progress", "bar", "enabled"]
+
+#: What the bar shows: ``runs: 3/56 runs |####    | 00:41<02:10, effort/mujoco`` (count, elapsed<ETA, last done).
+BAR_FORMAT = "{desc}: {n}/{total} {unit}s |{bar}| {elapsed}<{remaining}{postfix}"
 
 
 def enabled(quiet: bool = False, stream: TextIO | None = None) -> bool:
@@ -53,9 +57,13 @@ class Progress:
         if draw:
             from tqdm import tqdm  # imported only when a bar is drawn
 
-            self._tqdm = tqdm(total=self.total, desc=desc, unit=unit, file=self._stream, dynamic_ncols=True,
-                              leave=False, bar_format="{desc}: {n}/{total} {unit}s |{bar}| "
-                              "{elapsed}<{remaining}{postfix}")  # fmt: skip
+            # every update drawn (a few hundred at most): the count is what a watcher (or a test) waits for
+            # the size given, not asked of the terminal: a pseudo-terminal of size 0 x 0 would hide the bar
+            size = shutil.get_terminal_size((100, 24))
+            self._tqdm = tqdm(total=self.total, desc=desc, unit=unit, file=self._stream,
+                              ncols=min(size.columns, 120), nrows=max(size.lines, 2),
+                              leave=False, mininterval=0.0, miniters=1,
+                              bar_format=BAR_FORMAT)  # fmt: skip
 
     @property
     def drawn(self) -> bool:
