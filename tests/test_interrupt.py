@@ -39,7 +39,8 @@ def _start_and_wait_for_progress(cmd: list[str], percent: float) -> tuple[subpro
     """Start ``cmd`` with stderr on a pseudo-terminal (so the progress bar is drawn) and return once it shows
     at least ``percent`` % simulated: the observable event that simulation is under way."""
     master, slave = pty.openpty()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=slave, cwd=ROOT)
+    env = {k: v for k, v in os.environ.items() if k != "CI"}  # progress is quiet in CI
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=slave, cwd=ROOT, env=env)
     os.close(slave)
     seen, deadline = b"", time.monotonic() + START_TIMEOUT
     while time.monotonic() < deadline:
