@@ -330,11 +330,14 @@ def run_many(
                     break
         except (KeyboardInterrupt, BrokenExecutor):  # Ctrl-C; workers killed by a signal to the process group
             interrupted = True
-        finally:
-            if interrupted:
-                pool.terminate()
-            else:
-                pool.close()
+        except BaseException:
+            pool.terminate()
+            raise
+        try:
+            pool.close() if not interrupted else pool.terminate()
+        except KeyboardInterrupt:  # while idle workers were being joined: every run has finished
+            interrupted = True
+            pool.terminate()
     results: list[list[RunResult]] = [[] for _ in jobs_list]
     for j in sorted(got):  # plan order: scenario by scenario, backends in the order asked for
         results[plan[j][0]].append(got[j])

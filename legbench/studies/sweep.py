@@ -487,6 +487,8 @@ def execute(sweep: Sweep, p: Plan, executor: Executor, bar: progress.Progress | 
         order = sorted(range(len(batch)), key=lambda j: (-_cost(batch[j], 1.0e3), j))
         for _, r in executor.imap_unordered(run_task, batch, order):
             results[r.index] = r
+            if r.run.status == "interrupted":  # Ctrl-C reached a run in this process (one job)
+                raise KeyboardInterrupt
             if bar is not None:
                 bar.update(1, r.run.backend)
 
@@ -882,20 +884,18 @@ def run_sweep(
         interrupted, results, described = True, exc.results, {"executor": getattr(ex, "name", "")}
         for t in p.tasks:  # what did not finish, as rows marked interrupted
             if t.index not in results:
-                results[t.index] = TaskResult(
-                    t.index, RunResult.empty(t.backend, "interrupted", "not run: interrupted")
-                )
+                results[t.index] = TaskResult(t.index, RunResult.empty(t.backend, "interrupted", NOT_RUN))
     finally:
         if own:
             ex.close()
-    table, windows = tabulate(sw, p, results) if p.rows else (pd.DataFrame(), pd.DataFrame())
-    fits = fit_slopes(table, sw.metric, sw.fit) if sw.fit is not None and len(table) else pd.DataFrame()
-    result = SweepResult(sw, table, fits, windows, p.notes, None, not interrupted)
-    if out_dir is not None and len(table) and (not interrupted or any(t.run.status != "interrupted"
-                                                                       for t in results.values())):  # fmt: skip
-        with deferred_interrupts():
+    with deferred_interrupts():  # a signal now acts once the table is written (the runs are done)
+        table, windows = tabulate(sw, p, results) if p.rows else (pd.DataFrame(), pd.DataFrame())
+        fits = fit_slopes(table, sw.metric, sw.fit) if sw.fit is not None and len(table) else pd.DataFrame()
+        result = SweepResult(sw, table, fits, windows, p.notes, None, not interrupted)
+        kept = any(t.run.status != "interrupted" for t in results.values())
+        if out_dir is not None and len(table) and (not interrupted or kept):
             path = write_sweep(result, Path(out_dir), described)
-        result = SweepResult(sw, table, fits, windows, p.notes, path, not interrupted)
+            result = SweepResult(sw, table, fits, windows, p.notes, path, not interrupted)
     if interrupted:
         done = sum(t.run.status != "interrupted" for t in results.values())
         where = f"written to {result.out_dir} (complete: false)" if result.out_dir else "nothing written"
