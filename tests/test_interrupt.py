@@ -204,3 +204,14 @@ studies:
     m = re.search(r"interrupted: sweep s: (\d+) of 6 runs finished and kept", err)
     assert m is not None, err
     assert not list(tmp_path.glob(".*"))
+
+    # one job: the run in this process is stopped at once (the longest, started first); nothing finished,
+    # nothing is written, and it says so
+    out1 = tmp_path / "out1"
+    cmd = [sys.executable, "-m", "legbench.cli", "sweep", str(sw), "--out", str(out1), "--jobs", "1"]
+    proc, master = _start_group_and_wait_for(cmd, rb"sweep s: (\d+)/6", 0)
+    err = _interrupt_group(proc, master, signal.SIGINT)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err, err
+    assert re.search(r"interrupted: sweep s: \d of 6 runs finished and kept", err), err
+    assert not out1.exists() or json.loads((out1 / "sweep.json").read_text())["complete"] is False
