@@ -69,7 +69,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"legbench: error: {exc}", file=sys.stderr)
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
-        print("legbench: interrupted; what was simulated is kept, marked incomplete (rerun to finish)",
+        print("legbench: interrupted; what finished is kept (lines above), rerun the same command to finish",
               file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPTED
     finally:

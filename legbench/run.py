@@ -11,20 +11,25 @@ state and ground force at t_k and the torque applied over [t_k, t_k + Ts).
 from __future__ import annotations
 
 import math
+import signal
 import sys
+import threading
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import BrokenExecutor
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from legbench import backends as registry
+from legbench import progress as progress_mod
 from legbench.backends.base import Backend, Physics
 from legbench.controllers import Controller, make_controller
 from legbench.exceptions import BackendNotFound, LegbenchError, SimulationDiverged
 from legbench.model import load_params
-from legbench.results import RunResult, check_out_dir, resumable, write_run
+from legbench.results import RunResult, check_out_dir, read_meta, resumable, write_run
 from legbench.scenario import Scenario, physics_of
 from legbench.studies.executors import LocalExecutor
 
@@ -177,11 +182,11 @@ def run_backend(scenario: Scenario, name: str, contact_mode: str | None = None, 
 
 
 class _ProgressBar:
-    """A one-line progress bar on stderr, only on a terminal."""
+    """One run's progress on one stderr line, only where a bar is drawn (:func:`legbench.progress.enabled`)."""
 
     def __init__(self, label: str) -> None:
         self.label = label
-        self.tty = sys.stderr.isatty()
+        self.tty = progress_mod.enabled()
 
     def __call__(self, frac: float) -> None:
         if self.tty:
@@ -200,6 +205,79 @@ def _task(args: tuple[Scenario, str, str | None, bool]) -> RunResult:
     return run_backend(scenario, name, mode, progress)
 
 
+#: Where earlier measured wall times are looked up to order the runs (besides each output directory itself).
+BASELINE_ROOT = Path("results") / "baseline"
+
+
+def cost_hints(
+    out_dirs: Sequence[Path | None], roots: Sequence[Path] = (BASELINE_ROOT,)
+) -> dict[tuple[str, str], float]:
+    """Measured wall time per simulated second [s/s] of earlier runs, by (run directory name, backend).
+
+    Read from the run.json already in each output directory and in the
+    directory of the same name under each of ``roots`` (the committed
+    baseline); unreadable or missing files give no hint. Only used to start
+    the longest runs first: results never depend on it.
+    """
+    hints: dict[tuple[str, str], float] = {}
+    for out in out_dirs:
+        if out is None:
+            continue
+        for d in (out, *(Path(r) / out.name for r in roots)):
+            try:
+                meta = read_meta(d)
+                duration = float(meta["scenario"]["duration"])
+                for name, e in meta["backends"].items():
+                    wall = float(e.get("wall_time") or 0.0)
+                    sim = float(e.get("failed_at") or duration) if e.get("status") != "ok" else duration
+                    if wall > 0 and sim > 0 and (out.name, name) not in hints:
+                        hints[(out.name, name)] = wall / sim
+            except (LegbenchError, KeyError, TypeError, ValueError, AttributeError):
+                continue
+    return hints
+
+
+def _estimates(
+    plan: Sequence[tuple[int, Scenario, str, str | None]],
+    outs: Sequence[Path | None],
+    hints: Mapping[tuple[str, str], float],
+) -> list[float]:
+    """Expected wall time [s] of each planned run: duration x the measured s/s of that run, else of that backend
+    in any other directory (median), else 1 s/s (then only the durations order the runs)."""
+    by_backend: dict[str, list[float]] = {}
+    for (_, name), v in hints.items():
+        by_backend.setdefault(name, []).append(v)
+    median = {k: float(np.median(v)) for k, v in by_backend.items()}
+    out = []
+    for i, sc, name, _ in plan:
+        d = outs[i]
+        rate = hints.get((d.name, name)) if d is not None else None
+        out.append(sc.duration * (rate if rate is not None else median.get(name, 1.0)))
+    return out
+
+
+@contextmanager
+def deferred_interrupts() -> Iterator[list[int]]:
+    """Hold SIGINT and SIGTERM while results are written: a signal then is acted on (KeyboardInterrupt) after
+    the block, so a write is never cut half-way. Only in the main thread (elsewhere a plain block)."""
+    got: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield got
+        return
+
+    def hold(signum: int, frame: object) -> None:
+        got.append(signum)
+
+    previous = {sig: signal.signal(sig, hold) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield got
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if got:
+        raise KeyboardInterrupt
+
+
 def run_many(
     jobs_list: Sequence[tuple[Scenario, str | None, Path | None]],
     backend_names: Sequence[str],
@@ -209,12 +287,21 @@ def run_many(
 ) -> list[list[RunResult]]:
     """Run several (scenario, contact mode, output dir) on every backend, in ``jobs`` processes.
 
-    Each (scenario, mode, backend) is one task; results are collected in input
-    order, so the output is the same (bit-identical logs) for any ``jobs``. A
-    failing backend is logged up to its failure and the others still run. On
-    Ctrl-C (or SIGTERM turned into KeyboardInterrupt by the CLI) what was
-    simulated is written, marked incomplete, and the interrupt re-raised; a
-    rerun into the same directories runs only the backends that did not finish.
+    Each (scenario, mode, backend) is one task, handed to the pool longest
+    first (duration x the wall time per simulated second measured in an earlier
+    run of it, :func:`cost_hints`), so no long run is left alone at the end.
+    Results are put back in input order, so the output is the same
+    (bit-identical logs) for any ``jobs``. A failing backend is logged up to its
+    failure and the others still run. ``progress``: with ``jobs > 1`` an overall
+    count with the ETA, with ``jobs = 1`` each run's bar, both only on a terminal
+    and outside CI (:mod:`legbench.progress`).
+
+    On Ctrl-C (or SIGTERM, turned into KeyboardInterrupt by the CLI) the
+    workers are stopped; every run that finished is written as a complete
+    backend of its directory (run.json marks the others ``interrupted``, the
+    directory incomplete), a line on stderr says what was kept, and the
+    interrupt is re-raised. A rerun into the same directories runs only the
+    backends that did not finish.
     """
     plan: list[tuple[int, Scenario, str, str | None]] = []
     kept: list[dict[str, Any]] = []
@@ -225,35 +312,71 @@ def run_many(
             done = {k: v for k, v in resumable(sc, out, mode).items() if k in backend_names}
         kept.append(done)
         plan += [(i, sc, name, mode) for name in backend_names if name not in done]
-    results: list[list[RunResult]] = [[] for _ in jobs_list]
+    outs = [out for _, _, out in jobs_list]
+    cost = _estimates(plan, outs, cost_hints(outs) if jobs > 1 and len(plan) > jobs else {})
+    first = sorted(range(len(plan)), key=lambda j: (-cost[j], j))
+    per_run_bar = progress and jobs <= 1
+    tasks = [(sc, name, mode, per_run_bar) for _, sc, name, mode in plan]
+    got: dict[int, RunResult] = {}
     interrupted = False
-    # longest runs first, so the pool does not wait on one long run at the end; results are
-    # still collected in plan order, so the output does not depend on ``jobs``
-    first = sorted(range(len(plan)), key=lambda j: -plan[j][1].duration)
-    tasks = [(sc, name, mode, progress and jobs <= 1) for _, sc, name, mode in plan]
-    with LocalExecutor(max(jobs, 1)) as pool:
+    pool = LocalExecutor(max(jobs, 1))
+    with progress_mod.bar(len(plan), "runs", quiet=not progress or jobs <= 1) as bar:
         try:
-            for (i, *_), tr in zip(plan, pool.imap(_task, tasks, first), strict=False):
-                results[i].append(tr)
-                if tr.status == "interrupted":
+            for j, tr in pool.imap_unordered(_task, tasks, first):
+                got[j] = tr
+                bar.update(1, f"{plan[j][1].name}/{plan[j][2]}")
+                if tr.status == "interrupted":  # Ctrl-C reached the run in this process
                     interrupted = True
                     break
-        except KeyboardInterrupt:
+        except (KeyboardInterrupt, BrokenExecutor):  # Ctrl-C; workers killed by a signal to the process group
             interrupted = True
-    for (sc, mode, out), res, done in zip(jobs_list, results, kept, strict=True):
-        if out is not None and (res or done):
-            if interrupted and len(res) + len(done) < len(backend_names):
-                res = [*res, *_not_run(sc, backend_names, res, done)]
-            write_run(sc, res, out, csv, mode, done)
+        except BaseException:
+            pool.terminate()
+            raise
+        try:
+            pool.close() if not interrupted else pool.terminate()
+        except KeyboardInterrupt:  # while idle workers were being joined: every run has finished
+            interrupted = True
+            pool.terminate()
+    results: list[list[RunResult]] = [[] for _ in jobs_list]
+    for j in sorted(got):  # plan order: scenario by scenario, backends in the order asked for
+        results[plan[j][0]].append(got[j])
+    with deferred_interrupts():
+        for (sc, mode, out), res, done in zip(jobs_list, results, kept, strict=True):
+            if out is not None and (res or done):
+                if interrupted and len(res) + len(done) < len(backend_names):
+                    res = [*res, *_not_run(sc, backend_names, res, done)]
+                write_run(sc, res, out, csv, mode, done)
     if interrupted:
+        _say_kept(jobs_list, results, kept, len(backend_names))
         raise KeyboardInterrupt
     return results
 
 
+def _say_kept(
+    jobs_list: Sequence[tuple[Scenario, str | None, Path | None]],
+    results: Sequence[Sequence[RunResult]],
+    kept: Sequence[Mapping[str, Any]],
+    n_backends: int,
+) -> None:
+    """One stderr line per output directory of an interrupted run: which backends are kept, which are not."""
+    for (_, _, out), res, done in zip(jobs_list, results, kept, strict=True):
+        finished = [*done, *(tr.backend for tr in res if tr.status != "interrupted")]
+        partial = [tr.backend for tr in res if tr.status == "interrupted" and len(tr.t)]
+        where = str(out) if out is not None else "(not written)"
+        line = f"interrupted: {where}: {len(finished)} of {n_backends} backends finished and kept"
+        if finished:
+            line += f" ({', '.join(finished)})"
+        if partial:
+            line += f"; kept up to the interrupt, marked interrupted: {', '.join(partial)}"
+        print(line, file=sys.stderr, flush=True)
+
+
 def _not_run(sc: Scenario, names: Sequence[str], res: Sequence[RunResult], done: Mapping[str, Any]) -> list[RunResult]:
-    """Placeholders for backends an interrupt stopped before they started."""
+    """Placeholders for backends an interrupt stopped before they finished (their run is not kept)."""
     have = {tr.backend for tr in res} | set(done)
-    return [RunResult.empty(n, "interrupted", "interrupted before it started") for n in names if n not in have]
+    why = "not run: interrupted before it finished"
+    return [RunResult.empty(n, "interrupted", why) for n in names if n not in have]
 
 
 def run(scenario: Scenario, backend_names: Sequence[str], out_dir: Path | None, csv: bool = False,

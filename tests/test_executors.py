@@ -87,3 +87,85 @@ def test_executor_errors_are_clear() -> None:
         executors.make_executor("local", scheduler="tcp://x:8786")
     with pytest.raises(LegbenchError, match="jobs must be >= 1"):
         executors.LocalExecutor(-1)
+
+
+def _worker_state(_: int) -> tuple[int, bool, bool]:
+    """In a worker: its pid, whether it ignores SIGINT, whether the run loop and the engines were preloaded."""
+    import os
+    import signal
+    import sys
+
+    engines = any(m.startswith("legbench.backends.") and m.endswith("_") for m in sys.modules)
+    return os.getpid(), signal.getsignal(signal.SIGINT) is signal.SIG_IGN, "legbench.run" in sys.modules and engines
+
+
+def test_workers_ignore_sigint_import_once_and_are_reused() -> None:
+    """Workers are long-lived: two maps on one executor run in the same <= jobs processes, which imported
+    the run loop and the engines when they started and leave Ctrl-C to the parent."""
+    with executors.LocalExecutor(2) as ex:
+        first = ex.map(_worker_state, list(range(4)))
+        second = ex.map(_worker_state, list(range(4)))
+    pids = {pid for pid, _, _ in first + second}
+    assert 1 <= len(pids) <= 2 and {pid for pid, _, _ in second} <= pids | {pid for pid, _, _ in first}
+    assert all(ign for _, ign, _ in first) and all(pre for _, _, pre in first)
+
+
+def test_imap_unordered_starts_in_the_given_order_and_yields_every_item_once() -> None:
+    items = [0.0, 1.0, 4.0, 9.0, 16.0]
+    order = [4, 2, 0, 1, 3]
+    serial = list(executors.LocalExecutor(1).imap_unordered(math.sqrt, items, order))
+    assert serial == [(j, math.sqrt(items[j])) for j in order]  # one job: exactly the order given
+    with executors.LocalExecutor(2) as ex:
+        pooled = list(ex.imap_unordered(math.sqrt, items, order))
+        assert list(ex.imap(math.sqrt, items, order)) == [0.0, 1.0, 2.0, 3.0, 4.0]  # imap: item order
+    assert sorted(pooled) == sorted(serial)
+    with pytest.raises(ValueError, match="permutation"):
+        list(executors.LocalExecutor(1).imap_unordered(math.sqrt, items, [0, 0, 1, 2, 3]))
+
+
+def test_terminate_stops_running_workers_and_keeps_what_finished() -> None:
+    """A worker busy with a long task is stopped by terminate(); the result that finished before is kept."""
+    import time
+
+    ex = executors.LocalExecutor(2)
+    it = ex.imap_unordered(_pid_or_block, [0, 600, 600], [0, 1, 2])
+    j, pid = next(it)  # the quick item finished: the others are running or queued
+    assert j == 0 and isinstance(pid, int)
+    pool = ex._pool
+    assert pool is not None
+    procs = list(pool._processes.values())  # type: ignore[attr-defined]
+    t0 = time.monotonic()
+    ex.terminate()
+    assert time.monotonic() - t0 < 60.0  # SIGTERM then SIGKILL after 2 s: far below the 600 s task
+    assert procs and all(not p.is_alive() for p in procs)
+    assert all(p.pid is not None and not _alive(p.pid) for p in procs)
+    it.close()
+
+
+def _pid_or_block(seconds: int) -> int:
+    """In a worker: its pid now (0), or after ``seconds`` of sleep (a task to be stopped)."""
+    import os
+    import time
+
+    if seconds:
+        time.sleep(seconds)
+    return os.getpid()
+
+
+def _alive(pid: int) -> bool:
+    import os
+
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def test_dask_imap_unordered_yields_every_item_once() -> None:
+    pytest.importorskip("distributed")
+    items = [1.0, 4.0, 9.0]
+    with executors.DaskExecutor(jobs=2, processes=False, preload=()) as ex:
+        got = sorted(ex.imap_unordered(math.sqrt, items, [2, 1, 0]))
+        assert ex.map(math.sqrt, items) == [1.0, 2.0, 3.0]
+    assert got == [(0, 1.0), (1, 2.0), (2, 3.0)]

@@ -185,3 +185,44 @@ def test_backend_warnings_reach_run_json_and_residuals_reach_metrics(tmp_path: P
     assert len(pen) == 1 and float(pen.iloc[0]) < 1e-9
     n = df[(df.backend == "pinocchio") & (df.metric == "residual_n_contact")]["value"]
     assert float(n.iloc[0]) == 600  # every tick but t = 0, where q* holds the foot 4 um above the ground
+
+
+def _run_json(d: Path, name: str, duration: float, walls: dict[str, float]) -> None:
+    d.mkdir(parents=True)
+    doc = {"scenario": {"name": name, "duration": duration},
+           "backends": {b: {"status": "ok", "wall_time": w} for b, w in walls.items()}}  # fmt: skip
+    (d / "run.json").write_text(json.dumps(doc))
+
+
+def test_runs_are_ordered_longest_first_by_earlier_measured_wall_times(tmp_path: Path) -> None:
+    """Cost hints: wall time per simulated second from the run.json already in an output directory, else from
+    the same directory under the baseline root, else the backend's median elsewhere, else 1 s/s."""
+    out = tmp_path / "latest"
+    base = tmp_path / "baseline"
+    _run_json(out / "fake", "fake", 2.0, {"slow": 8.0, "fast": 0.5})  # 4 s/s and 0.25 s/s
+    _run_json(base / "other", "other", 4.0, {"slow": 4.0, "mid": 4.0})  # 1 s/s each
+    _run_json(base / "fake", "fake", 2.0, {"slow": 100.0})  # the output directory's own measurement wins
+    hints = run.cost_hints([out / "fake", out / "other", None], roots=[base])
+    assert hints == {("fake", "slow"): 4.0, ("fake", "fast"): 0.25, ("other", "slow"): 1.0, ("other", "mid"): 1.0}
+    sc = scenario.parse(DOC)  # 0.5 s
+    plan = [(0, sc, "fast", None), (0, sc, "slow", None), (0, sc, "mid", None), (0, sc, "unknown", None)]
+    est = run._estimates(plan, [out / "fake"], hints)
+    # fast 0.25 s/s; slow 4 s/s (own); mid: median elsewhere 1 s/s; unknown: 1 s/s
+    assert est == pytest.approx([0.125, 2.0, 0.5, 0.5])
+    assert run.cost_hints([tmp_path / "missing"], roots=[]) == {}  # nothing there: no hint, no error
+
+
+def test_signals_are_held_while_results_are_written() -> None:
+    """A SIGINT inside deferred_interrupts() lets the block finish, then raises KeyboardInterrupt once."""
+    import os
+    import signal
+
+    finished = []
+    with pytest.raises(KeyboardInterrupt):
+        with run.deferred_interrupts() as got:
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):  # bytecode boundaries at which the handler runs
+                pass
+            finished.append(got[:])
+    assert finished == [[signal.SIGINT]]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored

@@ -11,8 +11,9 @@ only the measured wall times differ.
 Executors:
     * ``local`` (:class:`LocalExecutor`): ``jobs`` worker processes
       (:class:`concurrent.futures.ProcessPoolExecutor`, started by a fork
-      server so the parent's threads are never forked); ``jobs = 1`` runs in
-      this process, one task after the other.
+      server so the parent's threads are never forked), long-lived: each
+      imports the engines once (``preload``) and ignores SIGINT, the parent
+      stops them; ``jobs = 1`` runs in this process, one task after the other.
     * ``dask`` (:class:`DaskExecutor`): one Dask ``distributed`` task per run,
       on the scheduler at ``scheduler`` (``tcp://host:8786``) or on a
       :class:`distributed.LocalCluster` of ``jobs`` single-threaded workers.
@@ -21,18 +22,21 @@ Executors:
 
 from __future__ import annotations
 
+import importlib
 import logging
 import multiprocessing
 import os
+import signal
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from types import TracebackType
 from typing import Any, TypeVar
 
 from legbench.exceptions import LegbenchError
 
 __all__ = [
+    "DEFAULT_PRELOAD",
     "EXECUTORS",
     "DaskExecutor",
     "Executor",
@@ -54,13 +58,24 @@ R = TypeVar("R")
 
 
 class Executor(ABC):
-    """Maps a picklable top-level function over tasks; results come back in task order."""
+    """Maps a picklable top-level function over tasks.
+
+    The API other modules use (runs, sweeps, report pages): :meth:`map` (a list
+    in item order), :meth:`imap` (item order, as each becomes available) and
+    :meth:`imap_unordered` (``(index, result)`` pairs as each finishes, longest
+    first if ``first`` says so), :meth:`terminate` (stop now: pending items are
+    dropped, running ones stopped) and :meth:`close`. An executor is a context
+    manager; leaving it by an exception terminates it, otherwise closes it.
+    """
 
     name: str = ""
 
-    @abstractmethod
     def map(self, fn: Callable[[T], R], items: Sequence[T]) -> list[R]:
         """``[fn(x) for x in items]``, computed by the executor's workers."""
+        out: list[Any] = [None] * len(items)
+        for i, r in self.imap_unordered(fn, items):
+            out[i] = r
+        return out
 
     def imap(self, fn: Callable[[T], R], items: Sequence[T], first: Sequence[int] | None = None) -> Iterator[R]:
         """``fn(x)`` for each item, yielded in item order as each becomes available.
@@ -70,10 +85,26 @@ class Executor(ABC):
             items: its arguments.
             first: item indices in the order to start them (e.g. longest first); default item order.
         """
-        yield from self.map(fn, items)
+        ready: dict[int, R] = {}
+        nxt = 0
+        for i, r in self.imap_unordered(fn, items, first):
+            ready[i] = r
+            while nxt in ready:
+                yield ready.pop(nxt)
+                nxt += 1
+
+    @abstractmethod
+    def imap_unordered(
+        self, fn: Callable[[T], R], items: Sequence[T], first: Sequence[int] | None = None
+    ) -> Iterator[tuple[int, R]]:
+        """``(i, fn(items[i]))`` for each item, as each finishes; started in the order of ``first``."""
 
     def close(self) -> None:  # noqa: B027 - optional hook
-        """Release workers and connections."""
+        """Release workers and connections (waits for nothing: every result asked for has been returned)."""
+
+    def terminate(self) -> None:
+        """Stop now: drop items not started, stop running ones, release the workers (after Ctrl-C)."""
+        self.close()
 
     def describe(self) -> dict[str, Any]:
         """Executor name and settings, for the sweep's metadata."""
@@ -85,7 +116,41 @@ class Executor(ABC):
     def __exit__(
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
-        self.close()
+        if exc_type is None:
+            self.close()
+        else:
+            self.terminate()
+
+
+#: What a worker imports once when it starts (``module`` or ``module:function`` to call): the run loop, the
+#: study tasks and every installed engine (the registry's ``available`` imports them), so no task pays for it.
+DEFAULT_PRELOAD = ("legbench.run", "legbench.studies.tasks", "legbench.backends:available")
+
+
+def _worker_init(preload: Sequence[str]) -> None:
+    """Start of a worker process: Ctrl-C is the parent's business (it stops its workers), then the imports."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _preload(preload)
+
+
+def _preload(preload: Sequence[str]) -> None:
+    """Import each ``module`` (and call ``module:function``) of ``preload``; failures are left to the tasks."""
+    for name in preload:
+        module, _, func = name.partition(":")
+        try:
+            mod = importlib.import_module(module)
+            if func:
+                getattr(mod, func)()
+        except Exception as exc:  # a task that needs it reports the problem itself
+            log.debug("worker preload %s failed: %s", name, exc)
+
+
+def _call(fn: Callable[[T], R], x: T) -> R | None:
+    """Run one task in a worker; an interrupt reaching it anyway ends the task quietly (no traceback)."""
+    try:
+        return fn(x)
+    except KeyboardInterrupt:
+        return None
 
 
 def _mp_context() -> multiprocessing.context.BaseContext:
@@ -93,54 +158,99 @@ def _mp_context() -> multiprocessing.context.BaseContext:
     method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
     ctx = multiprocessing.get_context(method)
     if method == "forkserver":
-        # import the engines once in the fork server, not once per worker
-        ctx.set_forkserver_preload(["legbench.run", "legbench.studies.tasks"])  # type: ignore[attr-defined]
+        # the numerical stack imported once in the fork server and shared by every worker forked from it
+        ctx.set_forkserver_preload(["numpy", "scipy.integrate", "pandas", "legbench.run"])  # type: ignore[attr-defined]
     return ctx
 
 
 class LocalExecutor(Executor):
-    """A pool of ``jobs`` local worker processes; ``jobs = 1`` runs in this process."""
+    """A pool of ``jobs`` long-lived local worker processes; ``jobs = 1`` runs in this process.
+
+    The pool is started on first use and kept until :meth:`close`, so a study
+    that maps several times (a sweep's references, then its runs) reuses the
+    same workers, each of which imported the engines once (``preload``).
+    Workers ignore SIGINT: Ctrl-C reaches the parent, which stops them
+    (:meth:`terminate`), so no worker prints a traceback.
+    """
 
     name = "local"
 
-    def __init__(self, jobs: int | None = None) -> None:
+    def __init__(self, jobs: int | None = None, preload: Sequence[str] = DEFAULT_PRELOAD) -> None:
         """Args:
         jobs: number of worker processes (default: the CPU count).
+        preload: imported by each worker when it starts (see :data:`DEFAULT_PRELOAD`).
         """
         self.jobs = int(jobs) if jobs else (os.cpu_count() or 1)
         if self.jobs < 1:
             raise LegbenchError(f"jobs must be >= 1, got {jobs}")
+        self.preload = tuple(preload)
         self._pool: ProcessPoolExecutor | None = None
 
-    def map(self, fn: Callable[[T], R], items: Sequence[T]) -> list[R]:
-        return list(self.imap(fn, items))
-
-    def imap(self, fn: Callable[[T], R], items: Sequence[T], first: Sequence[int] | None = None) -> Iterator[R]:
-        """As :meth:`Executor.imap`; ``jobs = 1`` runs each item in this process when its result is asked for.
-
-        On an exception while waiting (Ctrl-C), tasks not yet started are cancelled.
-        """
-        if self.jobs == 1 or len(items) <= 1:
-            for x in items:
-                yield fn(x)
-            return
+    def _get_pool(self) -> ProcessPoolExecutor:
         if self._pool is None:
-            self._pool = ProcessPoolExecutor(max_workers=self.jobs, mp_context=_mp_context())
-        pool = self._pool
+            self._pool = ProcessPoolExecutor(
+                max_workers=self.jobs, mp_context=_mp_context(), initializer=_worker_init, initargs=(self.preload,)
+            )
+        return self._pool
+
+    def imap_unordered(
+        self, fn: Callable[[T], R], items: Sequence[T], first: Sequence[int] | None = None
+    ) -> Iterator[tuple[int, R]]:
+        """As :meth:`Executor.imap_unordered`; ``jobs = 1`` runs each item in this process, in ``first`` order.
+
+        Items are handed to the workers one at a time as workers free up, in the
+        order of ``first``, so the longest can be started first. On an exception
+        while waiting (Ctrl-C) the items not started are cancelled.
+        """
         order = list(first) if first is not None else list(range(len(items)))
-        submitted = {j: pool.submit(fn, items[j]) for j in order}
-        futures = [submitted[j] for j in range(len(items))]
+        if sorted(order) != list(range(len(items))):
+            raise ValueError("first must be a permutation of the item indices")
+        if self.jobs == 1 or len(items) <= 1:
+            for j in order:
+                yield j, fn(items[j])
+            return
+        pool = self._get_pool()
+        pending = iter(order)
+        running: dict[Future[Any], int] = {}
+
+        def submit() -> None:
+            j = next(pending, None)
+            if j is not None:
+                running[pool.submit(_call, fn, items[j])] = j
+
         try:
-            for fut in futures:
-                yield fut.result()
+            for _ in range(self.jobs):
+                submit()
+            while running:
+                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                for fut in sorted(done, key=lambda f: running[f]):
+                    j = running.pop(fut)
+                    submit()
+                    yield j, fut.result()
         finally:
-            for fut in futures:
+            for fut in running:
                 fut.cancel()
 
     def close(self) -> None:
         if self._pool is not None:
             self._pool.shutdown(wait=True)
             self._pool = None
+
+    def terminate(self) -> None:
+        """Stop the workers now (SIGTERM, then SIGKILL after ``2 s``); results already returned are kept."""
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        procs = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for p in procs:
+            if p.is_alive():
+                p.terminate()
+        for p in procs:
+            p.join(2.0)
+            if p.is_alive():
+                p.kill()
+                p.join()
 
     def describe(self) -> dict[str, Any]:
         return {"executor": self.name, "jobs": self.jobs}
@@ -151,12 +261,19 @@ class DaskExecutor(Executor):
 
     name = "dask"
 
-    def __init__(self, scheduler: str | None = None, jobs: int | None = None, processes: bool = True) -> None:
+    def __init__(
+        self,
+        scheduler: str | None = None,
+        jobs: int | None = None,
+        processes: bool = True,
+        preload: Sequence[str] = DEFAULT_PRELOAD,
+    ) -> None:
         """Args:
         scheduler: address of a running scheduler (``tcp://host:8786``); None starts a
             :class:`distributed.LocalCluster` owned by this executor.
         jobs: workers of the local cluster (default: the CPU count); ignored with a scheduler.
         processes: local cluster workers are processes (True) or threads of this process.
+        preload: imported once by every worker before the first task (:data:`DEFAULT_PRELOAD`).
         """
         try:
             import distributed
@@ -179,12 +296,31 @@ class DaskExecutor(Executor):
                 self.client = distributed.Client(scheduler, timeout="10s")
             except OSError as exc:
                 raise LegbenchError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from exc
+        if preload:  # each worker imports the engines once, before the first task
+            self.client.run(_preload, tuple(preload))
 
-    def map(self, fn: Callable[[T], R], items: Sequence[T]) -> list[R]:
+    def imap_unordered(
+        self, fn: Callable[[T], R], items: Sequence[T], first: Sequence[int] | None = None
+    ) -> Iterator[tuple[int, R]]:
+        """As :meth:`Executor.imap_unordered`: one Dask task per item, with priority by ``first``.
+
+        The workers are long-lived (a Dask worker keeps its imports between
+        tasks), so the engines are imported once per worker.
+        """
         if not items:
-            return []
-        futures = self.client.map(fn, list(items), pure=False)
-        return list(self.client.gather(futures))
+            return
+        import distributed
+
+        order = list(first) if first is not None else list(range(len(items)))
+        rank = {j: len(order) - r for r, j in enumerate(order)}  # higher priority starts first
+        futures = {self.client.submit(fn, items[j], pure=False, priority=rank[j]): j for j in order}
+        try:
+            for fut in distributed.as_completed(list(futures)):
+                yield futures[fut], fut.result()
+        finally:
+            for fut in futures:
+                if not fut.done():
+                    fut.cancel()
 
     def close(self) -> None:
         self.client.close()
@@ -200,13 +336,16 @@ class DaskExecutor(Executor):
         }
 
 
-def make_executor(kind: str = "local", jobs: int | None = None, scheduler: str | None = None) -> Executor:
+def make_executor(
+    kind: str = "local", jobs: int | None = None, scheduler: str | None = None, preload: Sequence[str] = DEFAULT_PRELOAD
+) -> Executor:
     """The executor named ``kind`` (one of :data:`EXECUTORS`).
 
     Args:
         kind: ``"local"`` or ``"dask"``.
         jobs: worker count (local pool size, or local Dask cluster size).
         scheduler: Dask scheduler address; only with ``kind = "dask"``.
+        preload: what each local worker imports once when it starts (:data:`DEFAULT_PRELOAD`).
 
     Raises:
         LegbenchError: an unknown executor, a scheduler given to the local one,
@@ -215,7 +354,7 @@ def make_executor(kind: str = "local", jobs: int | None = None, scheduler: str |
     if kind == "local":
         if scheduler:
             raise LegbenchError("--scheduler needs --executor dask")
-        return LocalExecutor(jobs)
+        return LocalExecutor(jobs, preload)
     if kind == "dask":
-        return DaskExecutor(scheduler, jobs)
+        return DaskExecutor(scheduler, jobs, preload=preload)
     raise LegbenchError(f"unknown executor '{kind}'; choose one of {', '.join(EXECUTORS)}")

@@ -49,7 +49,9 @@ import json
 import math
 import os
 import shutil
+import sys
 from collections.abc import Mapping, Sequence
+from concurrent.futures import BrokenExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -60,11 +62,13 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from legbench import backends as registry
+from legbench import progress
 from legbench import scenario as scenario_mod
 from legbench.contact import CONTACT_MODES
 from legbench.exceptions import LegbenchError, ScenarioError
 from legbench.metrics import signal_errors
 from legbench.results import RunResult, platform_info, versions
+from legbench.run import deferred_interrupts
 from legbench.scenario import NAME_RE
 from legbench.signals import COLUMNS, UNITS
 from legbench.studies import horizon
@@ -438,25 +442,75 @@ def _doc_of(sweep: Sweep) -> YamlContext:
 # Execute
 
 
-def execute(sweep: Sweep, p: Plan, executor: Executor) -> dict[int, TaskResult]:
-    """Run the references, then the other runs (with a replay of their reference in short-horizon mode).
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C (or SIGTERM) during :func:`execute`; ``results`` holds every run that finished."""
+
+    def __init__(self, results: dict[int, TaskResult]) -> None:
+        super().__init__("interrupted")
+        self.results = results
+
+
+#: Reason given to a run an interrupt stopped before it finished.
+NOT_RUN = "not run: interrupted"
+
+
+def _cost(task: RunTask, default: float) -> float:
+    """Relative cost of a run, to start the longest first: 1 / its finest step override (``*.dt``, ``*.max_step``)
+    [1/s], else ``default``; the same scenario for every run, so its duration does not matter."""
+    steps = [float(v) for k, v in task.overrides.items() if k.rsplit(".", 1)[-1] in ("dt", "max_step")
+             and isinstance(v, int | float) and not isinstance(v, bool) and v > 0]  # fmt: skip
+    return 1.0 / min(steps) if steps else default
+
+
+def execute(sweep: Sweep, p: Plan, executor: Executor, bar: progress.Progress | None = None) -> dict[int, TaskResult]:
+    """Run every task of the plan, the longest first.
+
+    Without short-horizon replays every run is independent: all go to the
+    executor at once. With them, the references run first and the other runs
+    after, each with its reference's log to replay.
+
+    Args:
+        sweep: the sweep.
+        p: its plan.
+        executor: where the runs go.
+        bar: counts finished runs (one :meth:`~legbench.progress.Progress.update` per run).
 
     Returns:
         task index -> the :class:`~legbench.studies.tasks.TaskResult`.
+
+    Raises:
+        SweepInterrupted: Ctrl-C; carries the runs that finished (the executor is terminated).
     """
-    ref_ids = sorted({r.ref for r in p.rows if r.ref is not None})
-    first = [p.tasks[i] for i in ref_ids]
-    results = {r.index: r for r in executor.map(run_task, first)}
-    second: list[RunTask] = []
-    ref_of = {r.run: r.ref for r in p.rows if r.role == "run"}
-    for t in p.tasks:
-        if t.index in results:
-            continue
-        ref = ref_of.get(t.index)
-        if sweep.short_horizon is not None and ref is not None and results[ref].run.status == "ok":
-            t = dataclasses.replace(t, replay_window=sweep.short_horizon, reference=results[ref].run)
-        second.append(t)
-    results.update({r.index: r for r in executor.map(run_task, second)})
+    results: dict[int, TaskResult] = {}
+
+    def run(batch: list[RunTask]) -> None:
+        order = sorted(range(len(batch)), key=lambda j: (-_cost(batch[j], 1.0e3), j))
+        for _, r in executor.imap_unordered(run_task, batch, order):
+            results[r.index] = r
+            if r.run.status == "interrupted":  # Ctrl-C reached a run in this process (one job)
+                raise KeyboardInterrupt
+            if bar is not None:
+                bar.update(1, r.run.backend)
+
+    try:
+        if sweep.short_horizon is None:
+            run(list(p.tasks))
+            return results
+        ref_ids = sorted({r.ref for r in p.rows if r.ref is not None})
+        run([p.tasks[i] for i in ref_ids])
+        second: list[RunTask] = []
+        ref_of = {r.run: r.ref for r in p.rows if r.role == "run"}
+        for t in p.tasks:
+            if t.index in results:
+                continue
+            ref = ref_of.get(t.index)
+            if ref is not None and results[ref].run.status == "ok":
+                t = dataclasses.replace(t, replay_window=sweep.short_horizon, reference=results[ref].run)
+            second.append(t)
+        run(second)
+    except (KeyboardInterrupt, BrokenExecutor):
+        executor.terminate()
+        raise SweepInterrupted(results) from None
     return results
 
 
@@ -715,6 +769,8 @@ class SweepResult:
         windows: short-horizon windows (empty without ``short_horizon``).
         notes: what was skipped and why.
         out_dir: where the files are (None if not written).
+        complete: every run finished (False after an interrupt: the runs not finished have status
+            ``interrupted``).
     """
 
     sweep: Sweep
@@ -723,6 +779,7 @@ class SweepResult:
     windows: pd.DataFrame
     notes: tuple[str, ...]
     out_dir: Path | None
+    complete: bool = True
 
 
 def write_sweep(result: SweepResult, out_dir: Path, executor: Mapping[str, Any] | None = None) -> Path:
@@ -767,13 +824,15 @@ def write_sweep(result: SweepResult, out_dir: Path, executor: Mapping[str, Any] 
     meta = {
         "schema": SCHEMA,
         "name": sw.name,
+        "complete": result.complete,
         "description": sw.description,
         "file": sw.file,
         "scenario": str(sw.scenario),
         "sweep": dict(sw.raw),
         "metric": sw.metric,
         "runs": int((result.table["role"] == "run").sum()),
-        "failed": int((result.table["status"] != "ok").sum()),
+        "failed": int(result.table["status"].isin(["failed", "missing"]).sum()),
+        "not_run": int((result.table["status"] == "interrupted").sum()),
         "fits": result.fits.to_dict(orient="records"),
         "notes": list(result.notes),
         "executor": dict(executor or {}),
@@ -794,6 +853,7 @@ def run_sweep(
     executor: str | Executor = "local",
     jobs: int | None = None,
     scheduler: str | None = None,
+    quiet: bool = True,
 ) -> SweepResult:
     """Validate, plan, run and tabulate a sweep, and write it to ``out_dir`` (None: do not write).
 
@@ -803,27 +863,45 @@ def run_sweep(
         executor: ``"local"``, ``"dask"``, or an :class:`~legbench.studies.executors.Executor` (not closed here).
         jobs: worker count for a named executor (default: the CPU count).
         scheduler: Dask scheduler address (``executor="dask"``); None starts a local cluster.
+        quiet: no progress bar (else a count of finished runs with the ETA, on a terminal outside CI).
 
     Raises:
         ScenarioError: the sweep file, or a value it sets, is invalid.
         LegbenchError: the executor cannot start, or ``out_dir`` holds something else.
+        KeyboardInterrupt: Ctrl-C or SIGTERM; the runs that finished are written first (``sweep.json``
+            ``complete: false``, the others ``interrupted`` in the table) and a line on stderr says so.
     """
     sw = load_sweep(sweep_file)
     p = plan(sw)
     own = not isinstance(executor, Executor)
     ex = make_executor(executor, jobs, scheduler) if isinstance(executor, str) else executor
+    interrupted = False
     try:
-        results = execute(sw, p, ex) if p.tasks else {}
+        with progress.bar(len(p.tasks), f"sweep {sw.name}", quiet=quiet) as bar:
+            results = execute(sw, p, ex, bar) if p.tasks else {}
         described = ex.describe()
+    except SweepInterrupted as exc:
+        interrupted, results, described = True, exc.results, {"executor": getattr(ex, "name", "")}
+        for t in p.tasks:  # what did not finish, as rows marked interrupted
+            if t.index not in results:
+                results[t.index] = TaskResult(t.index, RunResult.empty(t.backend, "interrupted", NOT_RUN))
     finally:
         if own:
             ex.close()
-    table, windows = tabulate(sw, p, results) if p.rows else (pd.DataFrame(), pd.DataFrame())
-    fits = fit_slopes(table, sw.metric, sw.fit) if sw.fit is not None and len(table) else pd.DataFrame()
-    result = SweepResult(sw, table, fits, windows, p.notes, None)
-    if out_dir is not None and len(table):
-        path = write_sweep(result, Path(out_dir), described)
-        result = SweepResult(sw, table, fits, windows, p.notes, path)
+    with deferred_interrupts():  # a signal now acts once the table is written (the runs are done)
+        table, windows = tabulate(sw, p, results) if p.rows else (pd.DataFrame(), pd.DataFrame())
+        fits = fit_slopes(table, sw.metric, sw.fit) if sw.fit is not None and len(table) else pd.DataFrame()
+        result = SweepResult(sw, table, fits, windows, p.notes, None, not interrupted)
+        kept = any(t.run.status != "interrupted" for t in results.values())
+        if out_dir is not None and len(table) and (not interrupted or kept):
+            path = write_sweep(result, Path(out_dir), described)
+            result = SweepResult(sw, table, fits, windows, p.notes, path, not interrupted)
+    if interrupted:
+        done = sum(t.run.status != "interrupted" for t in results.values())
+        where = f"written to {result.out_dir} (complete: false)" if result.out_dir else "nothing written"
+        print(f"interrupted: sweep {sw.name}: {done} of {len(p.tasks)} runs finished and kept, {where}",
+              file=sys.stderr, flush=True)  # fmt: skip
+        raise KeyboardInterrupt
     return result
 
 
@@ -833,7 +911,7 @@ def run_sweep(
 
 def _cli(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("results") / "sweeps" / load_sweep(args.sweep).name
-    res = run_sweep(args.sweep, out, args.executor, args.jobs, args.scheduler)
+    res = run_sweep(args.sweep, out, args.executor, args.jobs, args.scheduler, quiet=args.quiet)
     t = res.table
     if not len(t):
         print(f"{res.sweep.name}: nothing to run")
@@ -863,4 +941,5 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
     p.add_argument("--executor", choices=EXECUTORS, default="local", help="local process pool or Dask")
     p.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://host:8786 "
                                                      "(default with --executor dask: a local cluster)")  # fmt: skip
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cli)
