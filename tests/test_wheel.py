@@ -131,9 +131,12 @@ def test_every_subcommand_from_another_directory(installed: dict[str, object]) -
     _legbench(inst, "check", "r", "--baseline", "r")
     _legbench(inst, "doctor", str(s / "effort.yaml"), "--backends", "pinocchio,mujoco")
     sweep = Path(str(inst["work"])) / "tiny_sweep.yaml"
-    sweep.write_text(f"name: tiny\nscenario: {s / 'verification' / 'free_space.yaml'}\nset: {{duration: 0.05, comparison.steady_window: 0.01}}\n"
-                     "studies:\n  - label: '{backend}'\n    backends: [mujoco]\n    grid: {gains: [{Kp: 5, Kd: 0.5}]}\n"
-                     "    reference: {backend: pinocchio}\n")  # fmt: skip
+    sweep.write_text(
+        f"name: tiny\nscenario: {s / 'verification' / 'free_space.yaml'}\n"
+        "set: {duration: 0.05, comparison.steady_window: 0.01}\n"
+        "studies:\n  - label: '{backend}'\n    backends: [mujoco]\n    grid: {gains: [{Kp: 5, Kd: 0.5}]}\n"
+        "    reference: {backend: pinocchio}\n"
+    )
     _legbench(inst, "sweep", str(sweep), "--out", "sw", "--jobs", "1")
     _legbench(inst, "verify", "--backends", "pinocchio", "--cases", "energy", "--out", "ver", ok=(0, 1))
     _legbench(inst, "calibrate-contact", "--backends", "pinocchio", "--out", "cal")
