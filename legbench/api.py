@@ -296,7 +296,7 @@ def run_scenario(
     if contact_mode == "both":
         plan = [(sc, m, out_dir_for(root, sc, m)) for m in ("native", "reference")]
     else:
-        plan = [(sc, contact_mode, root)]
+        plan = [(sc, contact_mode or sc.contact_mode, root)]
     outcome = run_mod.run_many(plan, names, jobs=jobs, progress=progress)
     made = [
         Result(s, d, {tr.backend: tr for tr in res}, load_run(d).contact_mode)

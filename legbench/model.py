@@ -17,7 +17,7 @@ import math
 import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -30,6 +30,12 @@ from legbench.exceptions import ModelError
 #: The source checkout's root (only meaningful when running from one; data paths come from
 #: :mod:`legbench.resources`).
 ROOT = Path(__file__).resolve().parent.parent
+
+
+if TYPE_CHECKING:  # resolved by __getattr__ below
+    PARAMS_FILE: Path
+    URDF_FILE: Path
+    MODELS_DIR: Path
 
 
 def __getattr__(name: str) -> Path:
