@@ -12,17 +12,12 @@ The Python API (:mod:`legbench.api`, imported on first use so ``import legbench`
     res.frames["mujoco"], res.compare().summary(), res.report("out")
 """
 
-from importlib import metadata
-
-try:
-    __version__ = metadata.version("legbench")
-except metadata.PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0+unknown"
-
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from legbench.api import Comparison, Result, load_scenario, run_scenario
+
+    __version__: str
 
 __all__ = ["Comparison", "Result", "__version__", "load_scenario", "run_scenario"]
 
@@ -32,6 +27,15 @@ _API = {"Comparison", "Result", "load_scenario", "run_scenario"}
 def __getattr__(name: str) -> Any:
     """The API names, imported from :mod:`legbench.api` when first asked for (it imports numpy, pandas, the engines'
     registry): ``import legbench`` alone imports nothing heavy."""
+    if name == "__version__":  # importlib.metadata costs more than the rest of ``import legbench``
+        from importlib import metadata
+
+        try:
+            version = metadata.version("legbench")
+        except metadata.PackageNotFoundError:  # running from a source tree that is not installed
+            version = "0+unknown"
+        globals()["__version__"] = version
+        return version
     if name in _API:
         from legbench import api
 
@@ -40,4 +44,4 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | _API)
+    return sorted(set(globals()) | _API | {"__version__"})
