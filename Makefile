@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	@$(MAKE) --no-print-directory system-deps
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[dev,drake,dart]'
+	$(BIN)/pip install --quiet -e '.[dev,drake,dart,ros,dask]'
 	touch $(STAMP)
 
 setup: system-deps $(STAMP)

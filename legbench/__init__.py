@@ -4,13 +4,44 @@ Data flows ``scenario`` -> ``controllers`` -> ``backends`` -> ``run`` -> ``resul
 directory) -> ``metrics`` / ``compare`` -> ``report`` (-> ``check``); the leg is ``model``
 (parameters, URDF) and ``kinematics``; the studies are in ``legbench.studies``.
 docs/architecture.md lists every module and what may import what.
+
+The Python API (:mod:`legbench.api`, imported on first use so ``import legbench`` stays fast)::
+
+    import legbench
+    res = legbench.run_scenario("effort", backends=["pinocchio", "mujoco"], overrides={"duration": 0.5})
+    res.frames["mujoco"], res.compare().summary(), res.report("out")
 """
 
-from importlib import metadata
+from typing import TYPE_CHECKING, Any
 
-try:
-    __version__ = metadata.version("legbench")
-except metadata.PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0+unknown"
+if TYPE_CHECKING:
+    from legbench.api import Comparison, Result, load_scenario, run_scenario
 
-__all__ = ["__version__"]
+    __version__: str
+
+__all__ = ["Comparison", "Result", "__version__", "load_scenario", "run_scenario"]
+
+_API = {"Comparison", "Result", "load_scenario", "run_scenario"}
+
+
+def __getattr__(name: str) -> Any:
+    """The API names, imported from :mod:`legbench.api` when first asked for (it imports numpy, pandas, the engines'
+    registry): ``import legbench`` alone imports nothing heavy."""
+    if name == "__version__":  # importlib.metadata costs more than the rest of ``import legbench``
+        from importlib import metadata
+
+        try:
+            version = metadata.version("legbench")
+        except metadata.PackageNotFoundError:  # running from a source tree that is not installed
+            version = "0+unknown"
+        globals()["__version__"] = version
+        return version
+    if name in _API:
+        from legbench import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'legbench' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | _API | {"__version__"})

@@ -10,18 +10,25 @@ commands in :mod:`legbench.commands`, each study in its own module of
 Start-up is kept light: the signal handlers are installed before anything
 slow is imported, and only the module of the subcommand asked for is imported
 (``legbench --help`` imports them all to list them).
+
+Global options: ``--version``; ``--model PATH``, another leg parameter file for this command
+(also ``LEGBENCH_MODEL``, see :mod:`legbench.resources`). Shell completion comes from argcomplete:
+``eval "$(legbench completion bash)"`` (or ``zsh``, ``fish``, ``tcsh``).
 """
+# PYTHON_ARGCOMPLETE_OK
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import signal
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
-from legbench import __version__
-from legbench.exceptions import LegbenchError
+from legbench import __version__, resources
+from legbench.exceptions import LegbenchError, ModelError
 from legbench.exitcodes import EXIT_INTERRUPTED, EXIT_USER_ERROR
 
 #: subcommand -> registrar ``module:function``, in help order.
@@ -37,7 +44,42 @@ COMMANDS: dict[str, str] = {
     "calibrate-contact": "legbench.studies.calibrate_contact:add_cli",
     "bench": "legbench.studies.bench:add_cli",
     "reproduce": "legbench.studies.reproduce:add_cli",
+    "completion": "legbench.cli:add_completion",
 }
+#: Global options that take a value (skipped when looking for the subcommand's name).
+_VALUED = ("--model",)
+
+
+def _first_command(argv: Sequence[str]) -> str | None:
+    """The first positional word of ``argv``, skipping global options and their values."""
+    skip = False
+    for a in argv:
+        if skip:
+            skip = False
+        elif a in _VALUED:
+            skip = True
+        elif not a.startswith("-"):
+            return a
+    return None
+
+
+def _completion(args: argparse.Namespace) -> int:
+    import argcomplete
+
+    sys.stdout.write(argcomplete.shellcode(["legbench"], shell=args.shell))
+    return 0
+
+
+def add_completion(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """``legbench completion SHELL``: the shell code that enables tab completion (argcomplete)."""
+    p = sub.add_parser(
+        "completion",
+        help='print shell code for tab completion: eval "$(legbench completion bash)"',
+        description="Print the code that enables tab completion of legbench commands and options in SHELL "
+        '(argcomplete). bash: add `eval "$(legbench completion bash)"` to ~/.bashrc.',
+    )
+    p.add_argument("shell", nargs="?", default="bash", choices=("bash", "zsh", "fish", "tcsh"))
+    p.set_defaults(func=_completion)
 
 
 def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
@@ -46,13 +88,30 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
         prog="legbench", description="Compare physics engines on the 3-DOF leg: run, compare, check, study."
     )
     parser.add_argument("--version", action="version", version=f"legbench {__version__}")
+    parser.add_argument(
+        "--model",
+        metavar="PATH",
+        default=None,
+        help=f"another leg parameter file (the format of models/leg.yaml; also ${resources.MODEL_ENV})",
+    )
     sub = parser.add_subparsers(dest="cmd", required=True)
-    first = next((a for a in argv or () if not a.startswith("-")), None)
+    first = _first_command(argv or ())
     wanted = [first] if first in COMMANDS else list(COMMANDS)
     for name in wanted:
         module, func = COMMANDS[name].split(":")
         getattr(importlib.import_module(module), func)(sub)
     return parser
+
+
+def _select_model(path: str) -> None:
+    """Make ``path`` the active leg model after checking it reads (a bad file is one line, exit 2)."""
+    from legbench import model
+
+    file = Path(path)
+    if not file.is_file():
+        raise ModelError(f"--model {path}: no such parameter file")
+    model.load_params(file)  # raises ModelError naming the file and the entry
+    resources.select_model(file)
 
 
 def _sigterm(signum: int, frame: object) -> None:
@@ -63,7 +122,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     previous = signal.signal(signal.SIGTERM, _sigterm)  # before anything slow
     try:
         argv = sys.argv[1:] if argv is None else list(argv)
+        if "_ARGCOMPLETE" in os.environ:  # tab completion: import only the subcommand being completed
+            import argcomplete
+
+            argcomplete.autocomplete(build_parser(os.environ.get("COMP_LINE", "").split()[1:]))
         args = build_parser(argv).parse_args(argv)
+        if args.model is not None:
+            _select_model(args.model)
         return int(args.func(args))
     except LegbenchError as exc:
         print(f"legbench: error: {exc}", file=sys.stderr)

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from legbench import backends, check, kinematics, model, report, results, run, scenario, yamlfile
+from legbench import backends, check, kinematics, logs, model, report, results, run, scenario, yamlfile
 from legbench.backends.base import PROFILES
 from legbench.exceptions import LegbenchError
 from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK
@@ -240,9 +240,17 @@ def _compare(args: argparse.Namespace) -> int:
         if not sep or not src.strip() or not dst.strip():
             raise LegbenchError(f"--log-columns {item!r}: expected HEADER=COLUMN, e.g. joint1_pos=q1")
         column_map[src.strip()] = dst.strip()
+    ros = None
+    if args.reference_log is not None and logs.is_ros_bag(args.reference_log):
+        ros = logs.RosOptions(
+            joint_topic=args.ros_joint_topic, wrench_topic=args.ros_wrench_topic, force_sign=args.ros_force_sign
+        )
+    elif args.ros_joint_topic is not None or args.ros_wrench_topic is not None:
+        raise LegbenchError("--ros-joint-topic / --ros-wrench-topic need --reference-log naming a ROS bag")
     report.write_all(
         args.dir,
         log=args.reference_log,
+        ros=ros,
         column_map=column_map or None,
         log_time_scale=args.log_time_scale,
         log_is_reference=args.log_is_reference,
@@ -260,14 +268,24 @@ def add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument(
         "--reference-log",
         default=None,
-        metavar="CSV",
-        help="an external log (CSV, header with legbench column names) to compare as one more backend",
+        metavar="LOG",
+        help="an external log to compare as one more backend: a CSV file (header with legbench column names) or "
+        "a ROS bag (ROS 1 .bag file, ROS 2 bag directory, sqlite3 or MCAP; needs legbench[ros])",
     )
+    p.add_argument("--ros-joint-topic", default=None, metavar="TOPIC",
+                   help="the bag's sensor_msgs/JointState topic (default: its only one)")  # fmt: skip
+    p.add_argument("--ros-wrench-topic", default=None, metavar="TOPIC",
+                   help="the bag's geometry_msgs/WrenchStamped topic of the ground force on the foot in W "
+                        "(default: its only one, if any; '' for none)")  # fmt: skip
+    p.add_argument("--ros-force-sign", type=float, choices=(1.0, -1.0), default=1.0,
+                   help="-1 if the wrench is the force the foot exerts on the ground (default +1: the ground "
+                        "on the foot)")  # fmt: skip
     p.add_argument(
         "--log-columns",
         default="",
         metavar="HEADER=COLUMN,...",
-        help="map the log's headers to legbench columns (t, q1..q3, qd1..qd3, tau1..tau3, fx, fy, fz)",
+        help="map the log's headers to legbench columns (t, q1..q3, qd1..qd3, tau1..tau3, fx, fy, fz); for a "
+        "ROS bag, its joint names to joints 1..3 (NAME=q1,NAME=q2,NAME=q3; default q1_abad, q2_hip, q3_knee)",
     )
     p.add_argument(
         "--log-time-scale",

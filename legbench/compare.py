@@ -27,7 +27,7 @@ import pandas as pd
 from legbench.contact import ContactParams
 from legbench.contact_residuals import ContactResiduals, residuals
 from legbench.exceptions import ResultsError
-from legbench.logs import load_log
+from legbench.logs import RosOptions, load_log
 from legbench.metrics import (
     COND_MAX,
     ModeSplit,
@@ -174,6 +174,7 @@ def compare(
     column_map: Mapping[str, str] | None = None,
     log_time_scale: float = 1.0,
     log_is_reference: bool = False,
+    ros: RosOptions | None = None,
     all_pairs: bool = False,
     lag: str = "off",
     max_lag: float = 0.1,
@@ -184,12 +185,13 @@ def compare(
 
     Args:
         run_dir: a ``legbench run`` output directory (run.json + parquet files).
-        log: an external CSV log (see :func:`load_log`) compared as one more backend.
+        log: an external log, CSV or ROS bag (see :func:`load_log`), compared as one more backend.
         log_name: its name in tables and plots (default: ``log:<file stem>``).
         column_map: header name -> legbench column, for the log.
         log_time_scale: factor taking the log's time unit to seconds.
         log_is_reference: measure every backend against the log instead of the
             scenario's reference backend.
+        ros: topics and joints of a ROS bag log (:class:`legbench.logs.RosOptions`).
         all_pairs: also measure every ordered pair of traces (a against b, a != b).
         lag: ``"off"``, ``"report"`` or ``"remove"``: estimate (and remove) a
             constant time lag of each backend behind its reference.
@@ -217,7 +219,7 @@ def compare(
         name = log_name or f"log:{Path(log).stem}"
         if name in traces:
             raise ResultsError(str(log), f"log name '{name}' is already a backend of {run.path}; pass another name")
-        traces[name] = result_from_frame(load_log(log, column_map, log_time_scale), name, str(log))
+        traces[name] = result_from_frame(load_log(log, column_map, log_time_scale, ros), name, str(log))
         if log_is_reference:
             reference = name
     pairs: list[PairMetrics] = []

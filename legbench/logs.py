@@ -1,15 +1,25 @@
 """External logs (hardware, another simulator such as Gazebo) read as one more backend.
 
-A CSV log is matched to legbench's columns by header name and becomes a
-DataFrame of :data:`~legbench.signals.RUN_COLUMNS` (then a
+Two kinds, told apart by the path:
+
+- a CSV file, matched to legbench's columns by header name;
+- a ROS bag, read with the ``rosbags`` library (pure Python, no ROS install; ``pip install
+  'legbench[ros]'``): a ROS 1 ``.bag`` file, or a ROS 2 bag directory (sqlite3 or MCAP storage; its
+  ``.db3`` / ``.mcap`` file may be named instead). ``sensor_msgs/JointState`` gives q, qd and tau per
+  joint (position [rad], velocity [rad/s], effort [N m]), a ``geometry_msgs/WrenchStamped`` topic the
+  ground force on the foot in W [N], resampled linearly onto the joint-state times.
+
+Either becomes a DataFrame of :data:`~legbench.signals.RUN_COLUMNS` (then a
 :class:`~legbench.results.RunResult` in :func:`legbench.compare.compare`).
 """
 
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -18,7 +28,13 @@ from legbench.exceptions import ResultsError
 from legbench.results import result_from_frame
 from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS
 
-__all__ = ["load_log"]
+__all__ = ["JOINT_STATE", "WRENCH", "RosOptions", "is_ros_bag", "load_log", "load_ros_bag"]
+
+#: The message types read from a bag (rosbags' names, the same for ROS 1 and ROS 2).
+JOINT_STATE = "sensor_msgs/msg/JointState"
+WRENCH = "geometry_msgs/msg/WrenchStamped"
+#: legbench's joint names (the generated URDF's), the default joint mapping of a bag.
+DEFAULT_JOINTS = ("q1_abad", "q2_hip", "q3_knee")
 
 #: Header names (after unit stripping, lower case) taken for legbench columns.
 ALIASES = {"time": "t", "fn": "fz", "f_x": "fx", "f_y": "fy", "f_z": "fz"}
@@ -30,8 +46,18 @@ def _normalise_header(col: str) -> str:
     return ALIASES.get(base, base)
 
 
-def load_log(path: str | Path, column_map: Mapping[str, str] | None = None, time_scale: float = 1.0) -> pd.DataFrame:
-    """Read an external CSV log into the run columns, as one more "backend".
+def load_log(
+    path: str | Path,
+    column_map: Mapping[str, str] | None = None,
+    time_scale: float = 1.0,
+    ros: RosOptions | None = None,
+) -> pd.DataFrame:
+    """Read an external log, a CSV file or a ROS bag (:func:`is_ros_bag`), into the run columns, as one more "backend".
+
+    A bag is read by :func:`load_ros_bag` with ``ros`` (default :class:`RosOptions`); there
+    ``column_map`` maps joint names of the JointState messages to ``q1``, ``q2``, ``q3`` (the joint's
+    position, velocity and effort all go to that joint) and ``time_scale`` is not used (bag time is
+    in ns). What follows is the CSV case.
 
     Header names are matched to :data:`RUN_COLUMNS` case-insensitively, with a
     trailing unit in brackets or parentheses ignored (``"q1 [rad]"`` is ``q1``;
@@ -53,6 +79,12 @@ def load_log(path: str | Path, column_map: Mapping[str, str] | None = None, time
             numeric or time is not strictly increasing.
     """
     path = Path(path)
+    if is_ros_bag(path):
+        opts = ros or RosOptions()
+        if column_map:
+            opts = RosOptions(opts.joint_topic, opts.wrench_topic, _joints_from_map(path, column_map),
+                              opts.force_sign, opts.t0)  # fmt: skip
+        return load_ros_bag(path, opts)
     if not path.is_file():
         raise ResultsError(str(path), "no such log file")
     try:
@@ -84,4 +116,181 @@ def load_log(path: str | Path, column_map: Mapping[str, str] | None = None, time
     out |= {c: trace.data[:, i] for i, c in enumerate(LABELS)}
     out |= {c: trace.ee[:, i] for i, c in enumerate(EE_COLUMNS)}
     out["controller"] = trace.controller.astype(str) if "controller" in df.columns else np.full(len(df), "")
+    return pd.DataFrame(out, columns=list(RUN_COLUMNS))
+
+
+# --------------------------------------------------------------------------- #
+# ROS bags
+
+
+@dataclass(frozen=True)
+class RosOptions:
+    """How a ROS bag maps to legbench's signals.
+
+    Attributes:
+        joint_topic: the ``sensor_msgs/JointState`` topic; None: the bag's only one.
+        wrench_topic: the ``geometry_msgs/WrenchStamped`` topic of the ground force; None: the bag's only
+            one, or no force (NaN) if it has none; ``""``: no force even if there is one.
+        joints: the JointState names of joints 1, 2, 3 (ab/ad, hip, knee); None: legbench's own
+            (:data:`DEFAULT_JOINTS`).
+        force_sign: +1 if the wrench is the force the ground exerts on the foot (legbench's convention),
+            -1 if it is the force the foot exerts on the ground. Its frame is taken as W: a bag carries
+            no transform legbench could apply.
+        t0: the bag time [s] that is legbench's t = 0; None: the first joint-state sample. Times are
+            the messages' header stamps, or the recording times where every stamp is zero.
+    """
+
+    joint_topic: str | None = None
+    wrench_topic: str | None = None
+    joints: tuple[str, str, str] | None = None
+    force_sign: float = 1.0
+    t0: float | None = None
+
+
+def is_ros_bag(path: str | Path) -> bool:
+    """True for a ROS 1 ``.bag`` file, a ROS 2 bag directory (``metadata.yaml``) or its ``.db3`` / ``.mcap`` file."""
+    path = Path(path)
+    if path.suffix == ".bag":
+        return True
+    if path.is_dir():
+        return (path / "metadata.yaml").is_file()
+    return path.suffix in (".db3", ".mcap")
+
+
+def _joints_from_map(path: Path, column_map: Mapping[str, str]) -> tuple[str, str, str]:
+    """``{"hip_aa": "q1", "hip_fe": "q2", "knee": "q3"}`` -> the names of joints 1, 2, 3."""
+    by_col = {v: k for k, v in column_map.items()}
+    wrong = sorted(set(by_col) - {"q1", "q2", "q3"})
+    if wrong or len(by_col) != 3 or len(column_map) != 3:
+        raise ResultsError(
+            str(path), f"a bag's column map names its three joints, NAME=q1,NAME=q2,NAME=q3; got {dict(column_map)}"
+        )
+    return (by_col["q1"], by_col["q2"], by_col["q3"])
+
+
+def _stamp(msg: Any) -> int:
+    """Header stamp [ns] (``sec``/``nanosec`` in rosbags' types for ROS 1 and ROS 2). Integer: a float of
+    seconds since 1970 resolves only 0.24 us."""
+    st = msg.header.stamp
+    return int(st.sec) * 1_000_000_000 + int(st.nanosec)
+
+
+def _pick_topic(path: Path, topics: Mapping[str, str], msgtype: str, asked: str | None, required: bool) -> str | None:
+    have = sorted(t for t, typ in topics.items() if typ == msgtype)
+    short = msgtype.replace("/msg/", "/")
+    if asked is not None:
+        if asked == "" and not required:
+            return None
+        if topics.get(asked) != msgtype:
+            found = f"it is {topics[asked]}" if asked in topics else "no such topic"
+            raise ResultsError(str(path), f"topic '{asked}': expected {short}, {found}; {short} topics: {have}")
+        return asked
+    if len(have) == 1:
+        return have[0]
+    if not have and not required:
+        return None
+    option = "--ros-joint-topic" if msgtype == JOINT_STATE else "--ros-wrench-topic"
+    if not have:
+        raise ResultsError(str(path), f"no {short} topic in the bag (topics: {sorted(topics)})")
+    raise ResultsError(str(path), f"several {short} topics ({', '.join(have)}); name one with {option}")
+
+
+def _times(stamps: Sequence[int], recorded: Sequence[int]) -> np.ndarray:
+    """Header stamps [ns], or the recording times where every stamp is zero (int64)."""
+    st = np.asarray(stamps, np.int64)
+    return st if st.size and np.any(st != 0) else np.asarray(recorded, np.int64)
+
+
+def load_ros_bag(path: str | Path, options: RosOptions | None = None) -> pd.DataFrame:
+    """Read a ROS 1 or ROS 2 bag into the run columns (see the module docstring and :class:`RosOptions`).
+
+    Returns:
+        DataFrame with the columns of :data:`RUN_COLUMNS`: t [s] from ``t0``; q, qd, tau per joint
+        (NaN where a JointState has no velocity or effort); fx, fy, fz, the ground force on the foot in
+        W [N] linearly interpolated at the joint-state times (NaN outside the wrench samples or
+        without a wrench topic); ee from q; controller "".
+
+    Raises:
+        ResultsError: rosbags is not installed, the bag is unreadable, a topic is missing or ambiguous,
+            a joint name is absent, or time is not strictly increasing.
+    """
+    opts = options or RosOptions()
+    path = Path(path)
+    try:
+        from rosbags.highlevel import AnyReader
+    except ImportError as exc:
+        raise ResultsError(str(path), "reading ROS bags needs rosbags: pip install 'legbench[ros]'") from exc
+    bag = path.parent if path.suffix in (".db3", ".mcap") and (path.parent / "metadata.yaml").is_file() else path
+    if not bag.exists():
+        raise ResultsError(str(path), "no such bag")
+    joints = opts.joints or DEFAULT_JOINTS
+    try:
+        reader = AnyReader([bag])
+        reader.open()
+    except Exception as exc:  # rosbags raises several types for unreadable bags
+        raise ResultsError(str(path), f"not a readable ROS bag ({type(exc).__name__}: {exc})") from exc
+    try:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        jt = _pick_topic(path, topics, JOINT_STATE, opts.joint_topic, required=True)
+        wt = _pick_topic(path, topics, WRENCH, opts.wrench_topic, required=False)
+        j_stamp: list[int] = []
+        j_rec: list[int] = []
+        rows: list[np.ndarray] = []  # (9,): q1..q3, qd1..qd3, tau1..tau3
+        w_stamp: list[int] = []
+        w_rec: list[int] = []
+        forces: list[tuple[float, float, float]] = []
+        index: dict[tuple[str, ...], list[int]] = {}
+        conns = [c for c in reader.connections if c.topic in (jt, wt)]
+        for conn, recorded, raw in reader.messages(connections=conns):
+            msg: Any = reader.deserialize(raw, conn.msgtype)
+            if conn.topic == jt:
+                names = tuple(msg.name)
+                idx = index.get(names)
+                if idx is None:
+                    missing = [j for j in joints if j not in names]
+                    if missing:
+                        raise ResultsError(
+                            str(path),
+                            f"topic '{jt}': joints {missing} not in the message's names {list(names)}; "
+                            "map them with --log-columns NAME=q1,NAME=q2,NAME=q3",
+                        )
+                    idx = index[names] = [names.index(j) for j in joints]
+                row = np.full(9, np.nan)
+                for k, field in enumerate(("position", "velocity", "effort")):
+                    values = np.asarray(getattr(msg, field), float)
+                    if values.size == len(names):
+                        row[3 * k : 3 * k + 3] = values[idx]
+                rows.append(row)
+                j_stamp.append(_stamp(msg))
+                j_rec.append(recorded)
+            else:
+                f = msg.wrench.force
+                forces.append((f.x, f.y, f.z))
+                w_stamp.append(_stamp(msg))
+                w_rec.append(recorded)
+    except ResultsError:
+        raise
+    except Exception as exc:
+        raise ResultsError(str(path), f"not a readable ROS bag ({type(exc).__name__}: {exc})") from exc
+    finally:
+        reader.close()
+    if not rows:
+        raise ResultsError(str(path), f"topic '{jt}' has no messages")
+    ns = _times(j_stamp, j_rec)
+    ns0 = int(ns[0]) if opts.t0 is None else round(opts.t0 * 1e9)
+    t_abs = (ns - ns0) * 1e-9  # [s] from t0, exact to the ns
+    data = np.vstack(rows)
+    force = np.full((len(rows), 3), np.nan)
+    if forces:
+        tw = (_times(w_stamp, w_rec) - ns0) * 1e-9
+        order = np.argsort(tw, kind="stable")
+        fw = opts.force_sign * np.asarray(forces, float)[order]
+        for i in range(3):
+            force[:, i] = np.interp(t_abs, tw[order], fw[:, i], left=np.nan, right=np.nan)
+    df = pd.DataFrame(np.column_stack([t_abs, data, force]), columns=["t", *LABELS])
+    trace = result_from_frame(df, path.stem, str(path), ["t", "q1", "q2", "q3"])  # validates (t increasing)
+    out = {"t": trace.t}
+    out |= {c: trace.data[:, i] for i, c in enumerate(LABELS)}
+    out |= {c: trace.ee[:, i] for i, c in enumerate(EE_COLUMNS)}
+    out["controller"] = np.full(len(df), "")
     return pd.DataFrame(out, columns=list(RUN_COLUMNS))

@@ -17,19 +17,39 @@ import math
 import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
 import yaml
 from scipy import integrate
 
+from legbench import resources
 from legbench.exceptions import ModelError
 
+#: The source checkout's root (only meaningful when running from one; data paths come from
+#: :mod:`legbench.resources`).
 ROOT = Path(__file__).resolve().parent.parent
-MODELS_DIR = ROOT / "models"
-PARAMS_FILE = MODELS_DIR / "leg.yaml"
-URDF_FILE = MODELS_DIR / "leg.urdf"
+
+
+if TYPE_CHECKING:  # resolved by __getattr__ below
+    PARAMS_FILE: Path
+    URDF_FILE: Path
+    MODELS_DIR: Path
+
+
+def __getattr__(name: str) -> Path:
+    """``PARAMS_FILE`` (the active parameter file), ``URDF_FILE`` (where its URDF is written),
+    ``MODELS_DIR`` (the bundled model directory), resolved when asked for: ``--model`` and
+    ``LEGBENCH_MODEL`` can change them after import."""
+    if name == "PARAMS_FILE":
+        return resources.model_file()
+    if name == "URDF_FILE":
+        return resources.urdf_target()
+    if name == "MODELS_DIR":
+        return resources.models_dir()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 JOINT_NAMES = ("q1_abad", "q2_hip", "q3_knee")
 LINK_NAMES = ("link1", "link2", "link3")
@@ -189,7 +209,7 @@ def part_inertial(part: dict[str, Any], density: float) -> Inertial:
     elif shape == "sphere":
         m, I = _holed_sphere(density, part["r"], part.get("hole_r", 0.0), part.get("axis", "z"))
     else:
-        raise ModelError(f"{PARAMS_FILE}: part '{part.get('name')}': unknown shape '{shape}'")
+        raise ModelError(f"{resources.model_file()}: part '{part.get('name')}': unknown shape '{shape}'")
     pos = tuple(float(v) for v in part["pos"])
     return Inertial(m, pos, tuple(map(tuple, I)))  # type: ignore[arg-type]
 
@@ -223,9 +243,9 @@ def cad_estimate(raw: dict[str, Any]) -> dict[str, Inertial]:
 # Loading
 
 
-def load_raw(path: Path | str = PARAMS_FILE) -> dict[str, Any]:
-    """The parameter file as a dict."""
-    path = Path(path)
+def load_raw(path: Path | str | None = None) -> dict[str, Any]:
+    """The parameter file (default: the active one, :func:`legbench.resources.model_file`) as a dict."""
+    path = Path(path) if path is not None else resources.model_file()
     try:
         raw = yaml.safe_load(path.read_text())
     except FileNotFoundError as exc:
@@ -237,7 +257,7 @@ def load_raw(path: Path | str = PARAMS_FILE) -> dict[str, Any]:
     return raw
 
 
-def params_from_raw(raw: dict[str, Any], path: Path | str = PARAMS_FILE) -> LegParams:
+def params_from_raw(raw: dict[str, Any], path: Path | str = "leg parameters") -> LegParams:
     """Resolve a raw parameter dict to :class:`LegParams`."""
     try:
         geom = Geometry(**{k: float(v) for k, v in raw["geometry"].items()})
@@ -275,9 +295,13 @@ def params_from_raw(raw: dict[str, Any], path: Path | str = PARAMS_FILE) -> LegP
         raise ModelError(f"{path}: missing or malformed entry: {exc}") from exc
 
 
+def load_params(path: Path | str | None = None) -> LegParams:
+    """The leg's parameters from ``path`` (default: the active parameter file) [cached per file]."""
+    return _load_params(Path(path).resolve() if path is not None else resources.model_file().resolve())
+
+
 @functools.cache
-def load_params(path: Path | str = PARAMS_FILE) -> LegParams:
-    """The leg's parameters (cached per path)."""
+def _load_params(path: Path) -> LegParams:
     return params_from_raw(load_raw(path), path)
 
 
@@ -349,7 +373,7 @@ def _geometry_xml(shape: dict[str, Any]) -> tuple[str, np.ndarray]:
         elif axis == "y":
             T[:3, :3] = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]])
         return f'<cylinder radius="{_fmt(shape["r"])}" length="{_fmt(shape["length"])}"/>', T
-    raise ModelError(f"{PARAMS_FILE}: collision: unknown shape '{shape['shape']}'")
+    raise ModelError(f"{resources.model_file()}: collision: unknown shape '{shape['shape']}'")
 
 
 def _inertial_xml(inr: Inertial) -> str:
@@ -424,10 +448,12 @@ def urdf_text(params: LegParams) -> str:
     return "\n".join(lines)
 
 
-def write_urdf(params: LegParams | None = None, path: Path | str = URDF_FILE) -> Path:
-    """Write the generated URDF (atomically) and return its path."""
+def write_urdf(params: LegParams | None = None, path: Path | str | None = None) -> Path:
+    """Write the generated URDF (atomically) to ``path`` (default: the active model's, see
+    :func:`legbench.resources.urdf_target`) and return its path."""
     params = params or load_params()
-    path = Path(path)
+    path = Path(path) if path is not None else resources.urdf_target()
+    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".urdf.tmp")
     tmp.write_text(urdf_text(params))
     tmp.replace(path)
@@ -438,14 +464,18 @@ def write_urdf(params: LegParams | None = None, path: Path | str = URDF_FILE) ->
 # Pinocchio
 
 
+def pinocchio_model(urdf: str | Path | None = None, gravity: float | None = None) -> Any:
+    """Pinocchio model of the URDF (default: the active model's; fixed base; gravity -g z_W) [cached]."""
+    path = str(urdf) if urdf is not None else str(resources.urdf_file())
+    g = load_params().gravity if gravity is None else gravity
+    return _pinocchio_model(path, g)
+
+
 @functools.cache
-def pinocchio_model(urdf: str | None = None, gravity: float | None = None) -> Any:
-    """Pinocchio model of the URDF (fixed base; gravity -g z_W) [cached]."""
-    path = str(urdf or URDF_FILE)
+def _pinocchio_model(path: str, g: float) -> Any:
     if not Path(path).exists():
         raise ModelError(f"{path}: URDF not found; run `legbench model urdf`")
     model = pin.buildModelFromUrdf(path)
-    g = load_params().gravity if gravity is None else gravity
     model.gravity.linear = np.array([0.0, 0.0, -g])
     return model
 

@@ -13,9 +13,9 @@ from collections.abc import Mapping
 from importlib import metadata
 from typing import Any
 
+from legbench import resources
 from legbench.backends.base import INTEGRATOR_FAMILIES, PROFILES, Backend, Limits, Physics, sub_step_count
 from legbench.exceptions import BackendNotFound
-from legbench.model import URDF_FILE
 
 __all__ = [
     "INTEGRATOR_FAMILIES",
@@ -114,7 +114,7 @@ def load(name: str, physics: Physics, settings: Mapping[str, Any], profile: str 
     backend = cls()
     backend.profile = profile
     try:
-        backend.load(URDF_FILE, physics, resolved)
+        backend.load(resources.urdf_file(), physics, resolved)
     except ImportError as exc:  # a plug-in that imports its engine only when loading
         backend.close()
         hint = cls.install or "install the package that provides it"

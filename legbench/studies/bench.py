@@ -59,7 +59,7 @@ from typing import Any
 import numpy as np
 
 from legbench import backends as registry
-from legbench import scenario, yamlfile
+from legbench import resources, scenario, yamlfile
 from legbench.backends.base import Backend, Physics
 from legbench.exceptions import BackendNotFound, LegbenchError
 from legbench.results import RunResult, platform_info, versions, write_json
@@ -83,7 +83,7 @@ __all__ = [
     "write_results",
 ]
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = resources.scenarios_dir().parent  # the package data: ROOT / "scenarios" is the bundled scenarios
 #: The four tasks of docs/spec.md section 7, benchmarked by default.
 TASKS = tuple(ROOT / "scenarios" / f"{name}.yaml" for name in ("position", "ellipse", "effort", "combined"))
 DEFAULT_REPEATS = 5

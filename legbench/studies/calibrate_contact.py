@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from legbench import backends as registry
-from legbench import kinematics, model
+from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
 from legbench.controllers import EffortController, saturate
 from legbench.exceptions import LegbenchError
@@ -47,7 +47,7 @@ from legbench.scenario import Event, physics_of
 
 __all__ = ["Calibration", "Program", "add_cli", "calibrate", "estimate", "push", "write_calibration"]
 
-SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "effort.yaml"
+SCENARIO = resources.scenario("effort")
 
 
 @dataclass(frozen=True)

@@ -278,7 +278,7 @@ class DaskExecutor(Executor):
         try:
             import distributed
         except ImportError as exc:
-            raise LegbenchError("executor 'dask' needs Dask distributed: pip install 'dask[distributed]'") from exc
+            raise LegbenchError("executor 'dask' needs Dask distributed: pip install 'legbench[dask]'") from exc
         self.scheduler = scheduler
         self.jobs = int(jobs) if jobs else (os.cpu_count() or 1)
         self.processes = processes

@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from legbench import backends as registry
-from legbench import report, results, run, scenario, yamlfile
+from legbench import report, resources, results, run, scenario, yamlfile
 from legbench.backends.base import PROFILES
 from legbench.exceptions import BackendNotFound
 from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK
@@ -48,8 +48,7 @@ from legbench.results import Run, load_run
 from legbench.scenario import Scenario
 from legbench.signals import SLICE
 
-ROOT = Path(__file__).resolve().parent.parent.parent
-FRAMEWORKS_FILE = ROOT / "scenarios" / "reproduce.yaml"
+FRAMEWORKS_FILE = resources.scenario("reproduce")
 DEFAULT_OUT = Path("results") / "reproduce"
 #: What a task can feed: tables 10 and 11, table 12, sections 7.1 / 7.2.
 ROLES = ("steady", "force", "sim_error")

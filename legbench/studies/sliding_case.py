@@ -24,7 +24,6 @@ the 1 kHz log. :func:`sliding_case` returns one row per quantity.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -50,15 +49,15 @@ ROW_KEYS = ("case", "backend", "quantity", "unit", "measured", "expected", "erro
 
 
 def _scenario() -> Any:
+    from legbench import resources
     from legbench import scenario as scenario_mod
-    from legbench.model import ROOT
 
     events = [
         {"t": 0.0, "effort": {"force": [0.0, 0.0, -FN]}},
         {"t": T_DRAG, "effort": {"force": [0.0, DRAG * FN, -FN]}},
     ]
     overrides = {"events": events, "duration": WINDOW[1] + 0.01, "comparison.steady_window": 0.01, "name": "sliding"}
-    return scenario_mod.load(Path(ROOT) / "scenarios" / "effort.yaml", overrides)
+    return scenario_mod.load(resources.scenario("effort"), overrides)
 
 
 def predicted_acceleration(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force: np.ndarray,

@@ -73,7 +73,7 @@ import scipy.linalg
 from scipy.optimize import linear_sum_assignment
 
 from legbench import backends as registry
-from legbench import kinematics, model
+from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
 from legbench.backends.base import Physics
 from legbench.exceptions import LegbenchError
@@ -97,7 +97,7 @@ __all__ = [
     "write_verification",
 ]
 
-VERIFICATION_DIR = Path(__file__).resolve().parents[2] / "scenarios" / "verification"
+VERIFICATION_DIR = resources.scenarios_dir() / "verification"
 CASES = ("energy", "rest_penetration", "static_balance", "small_oscillation", "sliding")
 COLUMNS = ("case", "backend", "variant", "quantity", "unit", "measured", "expected", "error", "tolerance", "pass",
            "status", "note")  # fmt: skip

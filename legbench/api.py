@@ -1,0 +1,311 @@
+"""The Python API: run a scenario, get pandas DataFrames, compare, report.
+
+Example (also in the README)::
+
+    import legbench
+
+    res = legbench.run_scenario("effort", backends=["pinocchio", "mujoco"], overrides={"duration": 0.5})
+    res["mujoco"]            # the log of one backend: DataFrame of the run columns (t [s], q1 [rad], ...)
+    cmp = res.compare()      # every metric of docs/metrics.md against the scenario's reference backend
+    cmp.metrics              # the long metrics table (DataFrame)
+    res.report("my-report")  # report.html / report.md / metrics.json in a new directory
+
+Everything is measured by :mod:`legbench.compare` and :mod:`legbench.metrics` and written by
+:mod:`legbench.report`, as by the command line; this module only ties them together. A
+:class:`Result` and a :class:`Comparison` render as small HTML tables in Jupyter.
+
+Runs are written to a run directory (the same layout as ``legbench run --out``): the ``out``
+argument, else a new temporary directory, so nothing the user has is ever overwritten.
+"""
+
+from __future__ import annotations
+
+import copy
+import html
+import math
+import shutil
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from legbench import resources, yamlfile
+from legbench import scenario as scenario_mod
+from legbench.compare import ComparisonResult, compare
+from legbench.exceptions import LegbenchError, ResultsError
+from legbench.results import RunResult, load_run, out_dir_for
+from legbench.scenario import Scenario
+from legbench.signals import RUN_COLUMNS, SLICE
+
+__all__ = ["Comparison", "Result", "load_scenario", "run_scenario"]
+
+
+def load_scenario(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | None = None) -> Scenario:
+    """A validated scenario from a file, a bundled scenario's name or a mapping (the YAML format).
+
+    Args:
+        source: a path to a scenario YAML; a bundled scenario's name (``"effort"``,
+            ``"verification/energy"``) when no such file exists; or a mapping with the keys of
+            the scenario format.
+        overrides: dotted keys set before validation (``{"duration": 0.5, "backends.mujoco.dt": 5e-4}``).
+
+    Raises:
+        ScenarioError: the scenario is invalid (file, key and problem).
+    """
+    if isinstance(source, Mapping):
+        doc: dict[str, Any] = copy.deepcopy(dict(source))
+        for key, value in (overrides or {}).items():
+            yamlfile.set_key(doc, key, value)
+        return scenario_mod.parse(doc, "<mapping>")
+    path = Path(source)
+    if not path.exists() and resources.scenario(str(source)).is_file():
+        path = resources.scenario(str(source))
+    return scenario_mod.load(path, overrides)
+
+
+def _fmt(v: float, unit: str = "") -> str:
+    if not math.isfinite(v):
+        return "&ndash;"
+    return f"{v:.4g}{(' ' + unit) if unit else ''}"
+
+
+def _html_table(caption: str, header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
+    return (
+        f"<table><caption>{html.escape(caption)}</caption><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+    )
+
+
+def _nanmax(a: np.ndarray) -> float:
+    a = np.asarray(a, float)
+    return float(np.nanmax(np.abs(a))) if np.isfinite(a).any() else float("nan")
+
+
+@dataclass(frozen=True, eq=False)
+class Comparison:
+    """The comparison of one run: a thin view of :class:`legbench.compare.ComparisonResult`.
+
+    Attributes:
+        result: everything :func:`legbench.compare.compare` measured.
+    """
+
+    result: ComparisonResult
+
+    @property
+    def reference(self) -> str:
+        """The backend (or log) every other one was measured against."""
+        return self.result.reference
+
+    @property
+    def metrics(self) -> pd.DataFrame:
+        """The long metrics table (columns and metric names in docs/metrics.md)."""
+        return self.result.frame()
+
+    def summary(self) -> pd.DataFrame:
+        """One row per trace: steady-state means over the final window and the largest deviations from the reference.
+
+        Columns: ``backend``; ``q1..q3_steady`` [rad] and ``fx, fy, fz_steady`` [N] (means over the
+        scenario's steady window, force on the foot in W); ``q_max_abs`` [rad], the largest
+        |q - q_ref| over the joints after ``skip``; ``q_sim_error_pct`` [%], the largest simulation
+        error of q over the joints (NaN for the reference itself or where undefined).
+        """
+        pairs = {p.backend: p for p in self.result.pairs if p.reference == self.reference}
+        rows = []
+        q = SLICE["q"]
+        for s in self.result.steady:
+            p = pairs.get(s.backend)
+            row: dict[str, Any] = {"backend": s.backend}
+            row |= {f"q{i + 1}_steady": float(s.q[i]) for i in range(3)}
+            row |= {f"f{c}_steady": float(s.force[i]) for i, c in enumerate("xyz")}
+            row["q_max_abs"] = _nanmax(p.max_abs[q]) if p is not None else float("nan")
+            row["q_sim_error_pct"] = _nanmax(p.sim_error_pct[q]) if p is not None else float("nan")
+            rows.append(row)
+        return pd.DataFrame(rows)
+
+    def _repr_html_(self) -> str:
+        df = self.summary()
+        header = ["backend", "q steady [rad]", "F steady in W [N]", "max |q - q_ref| [rad]", "sim error q [%]"]
+        rows = []
+        for r in df.itertuples(index=False):
+            name = html.escape(str(r.backend)) + (" (reference)" if r.backend == self.reference else "")
+            rows.append(
+                [
+                    name,
+                    ", ".join(_fmt(getattr(r, f"q{i}_steady")) for i in (1, 2, 3)),
+                    ", ".join(_fmt(getattr(r, f"f{c}_steady")) for c in "xyz"),
+                    _fmt(r.q_max_abs),
+                    _fmt(r.q_sim_error_pct),
+                ]
+            )
+        notes = "".join(f"<li>{html.escape(n)}</li>" for n in self.result.notes)
+        caption = f"{self.result.run.label}: against {self.reference}"
+        return _html_table(caption, header, rows) + (f"<ul>{notes}</ul>" if notes else "")
+
+    def __repr__(self) -> str:
+        return f"Comparison({self.result.run.label!r}, reference={self.reference!r}, pairs={len(self.result.pairs)})"
+
+
+@dataclass(eq=False)
+class Result:
+    """One scenario run on several backends, held in its run directory.
+
+    Attributes:
+        scenario: the validated scenario that ran.
+        path: the run directory (run.json, ``<backend>.parquet``).
+        traces: each backend's outcome, by name (``status`` ``ok``, ``failed`` or ``missing``).
+        contact_mode: the contact mode it ran in.
+        reference_mode: with ``contact_mode="both"``, the same scenario in the reference contact
+            mode (its :meth:`compare` is then split into contact and integration parts), else None.
+    """
+
+    scenario: Scenario
+    path: Path
+    traces: dict[str, RunResult]
+    contact_mode: str
+    reference_mode: Result | None = None
+    _comparison: Comparison | None = field(default=None, repr=False)
+
+    @property
+    def backends(self) -> list[str]:
+        """The backends asked for, in order."""
+        return list(self.traces)
+
+    @property
+    def frames(self) -> dict[str, pd.DataFrame]:
+        """The log of every backend that ran: DataFrames with the columns of :data:`RUN_COLUMNS`
+        (t [s]; q [rad], qd [rad/s], tau [N m] per joint; fx, fy, fz, the ground force on the foot in W [N];
+        ee_x, ee_y, ee_z, the foot centre in W [m]; controller)."""
+        return {name: tr.frame() for name, tr in self.traces.items() if tr.status == "ok"}
+
+    def __getitem__(self, backend: str) -> pd.DataFrame:
+        tr = self.traces[backend]
+        if tr.status != "ok":
+            raise KeyError(f"backend '{backend}' {tr.status}: {tr.reason}")
+        return tr.frame()
+
+    def status(self) -> dict[str, str]:
+        """``ok``, or the status and reason, per backend."""
+        return {n: tr.status if tr.status == "ok" else f"{tr.status}: {tr.reason}" for n, tr in self.traces.items()}
+
+    def compare(self, **kwargs: Any) -> Comparison:
+        """Every metric of docs/metrics.md for this run (:func:`legbench.compare.compare`; its keyword arguments,
+        e.g. ``log=`` an external log, ``lag="report"``, ``all_pairs=True``). Cached when called without arguments."""
+        if kwargs:
+            return Comparison(compare(self.path, **kwargs))
+        if self._comparison is None:
+            self._comparison = Comparison(compare(self.path))
+        return self._comparison
+
+    def report(self, out_dir: str | Path | None = None, **kwargs: Any) -> Path:
+        """Write the report (report.html, report.md, metrics.json, figures) and return report.html.
+
+        Args:
+            out_dir: a new or empty directory the run is copied into first (an existing non-empty one is
+                refused, so nothing is overwritten); None writes into the run directory itself.
+            **kwargs: as for :meth:`compare`.
+
+        Raises:
+            ResultsError: ``out_dir`` exists and is not empty.
+        """
+        from legbench import report  # deferred: matplotlib
+
+        target = self.path
+        if out_dir is not None and Path(out_dir).resolve() != self.path.resolve():
+            target = Path(out_dir)
+            if target.exists() and any(target.iterdir()):
+                raise ResultsError(str(target), "exists and is not empty; name a new directory")
+            shutil.copytree(self.path, target, dirs_exist_ok=True)
+        result = None if kwargs or self._comparison is None else self._comparison.result
+        files = report.write_report(target, result, **kwargs)
+        return Path(files.html)
+
+    def _repr_html_(self) -> str:
+        sc = self.scenario
+        head = (
+            f"<p><b>{html.escape(sc.name)}</b>: {sc.duration:g} s at {sc.control_rate:g} Hz, profile "
+            f"{html.escape(sc.profile)}, contact {html.escape(self.contact_mode)} &rarr; "
+            f"<code>{html.escape(str(self.path))}</code></p>"
+        )
+        rows = []
+        for name, tr in self.traces.items():
+            if tr.status != "ok":
+                rows.append([html.escape(name), html.escape(f"{tr.status}: {tr.reason}"), "", ""])
+                continue
+            rtf = tr.t[-1] / tr.wall_time if tr.wall_time > 0 else float("nan")
+            rows.append([html.escape(name), "ok", _fmt(tr.wall_time, "s"), _fmt(rtf)])
+        out = head + _html_table("backends", ["backend", "status", "wall time", "real-time factor"], rows)
+        if any(tr.status == "ok" for tr in self.traces.values()):
+            try:
+                out += self.compare()._repr_html_()
+            except LegbenchError as exc:
+                out += f"<p>comparison: {html.escape(str(exc))}</p>"
+        return out
+
+    def __repr__(self) -> str:
+        return f"Result({self.scenario.name!r}, backends={self.status()}, path={str(self.path)!r})"
+
+
+def run_scenario(
+    scenario: str | Path | Mapping[str, Any] | Scenario,
+    backends: str | Sequence[str] = "all",
+    overrides: Mapping[str, Any] | None = None,
+    profile: str | None = None,
+    contact_mode: str | None = None,
+    out: str | Path | None = None,
+    jobs: int = 1,
+    progress: bool = False,
+) -> Result:
+    """Run one scenario on several backends, as ``legbench run`` does, and return the :class:`Result`.
+
+    Args:
+        scenario: a scenario file, a bundled scenario's name (``"effort"``), a mapping in the scenario
+            format, or a :class:`~legbench.scenario.Scenario`.
+        backends: backend names, a comma-separated string, or ``"all"`` (every installed backend).
+        overrides: dotted scenario keys set before validation (``{"duration": 0.5}``), as ``--set``.
+        profile: ``"matched"`` or ``"engine-defaults"`` (default: the scenario's).
+        contact_mode: ``"native"``, ``"reference"`` or ``"both"`` (default: the scenario's). With
+            ``"both"`` the result is the native run and :attr:`Result.reference_mode` the other.
+        out: the run directory (with ``"both"``: the root of ``<name>/`` and ``<name>__reference/``); it
+            must not hold another scenario's run. Default: a new temporary directory.
+        jobs: processes to run the backends in.
+        progress: show a progress bar on stderr.
+
+    Raises:
+        ScenarioError: invalid scenario or override.
+        BackendNotFound: an unknown backend name.
+        ResultsError: ``out`` holds another scenario's run.
+    """
+    from legbench import backends as registry
+    from legbench import run as run_mod  # deferred: imports the backends
+
+    if isinstance(scenario, Scenario):
+        sc = load_scenario(scenario.raw, overrides) if overrides else scenario
+    else:
+        sc = load_scenario(scenario, overrides)
+    if profile is not None and profile != sc.profile:  # as the CLI: a profile override is part of the scenario
+        sc = load_scenario(sc.raw, {"profile": profile})
+    names = registry.resolve(list(backends) if not isinstance(backends, str) else backends)
+    if contact_mode not in (None, "native", "reference", "both"):
+        raise LegbenchError(f"contact_mode {contact_mode!r}: expected 'native', 'reference' or 'both'")
+    root = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix=f"legbench-{sc.name}-"))
+    if contact_mode == "both":
+        plan = [(sc, m, out_dir_for(root, sc, m)) for m in ("native", "reference")]
+    else:
+        plan = [(sc, contact_mode or sc.contact_mode, root)]
+    outcome = run_mod.run_many(plan, names, jobs=jobs, progress=progress)
+    made = [
+        Result(s, d, {tr.backend: tr for tr in res}, load_run(d).contact_mode)
+        for (s, _, d), res in zip(plan, outcome, strict=True)
+    ]
+    if len(made) == 2:
+        made[0].reference_mode = made[1]
+    return made[0]
+
+
+#: The log columns of every DataFrame the API returns (see :attr:`Result.frames`).
+COLUMNS = RUN_COLUMNS

@@ -1,0 +1,127 @@
+"""The Python API: legbench.run_scenario -> Result (DataFrames, compare, report, Jupyter rendering)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import legbench
+from legbench import api, resources
+from legbench.compare import compare
+from legbench.exceptions import ResultsError, ScenarioError
+from legbench.signals import RUN_COLUMNS
+
+pytest.importorskip("mujoco")
+
+#: The position task cut to 0.3 s (free space, PD holding the start pose against gravity), as a mapping.
+SHORT = {"duration": 0.3, "comparison.steady_window": 0.1}
+
+
+@pytest.fixture(scope="module")
+def result(tmp_path_factory: pytest.TempPathFactory) -> api.Result:
+    out = tmp_path_factory.mktemp("api") / "position"
+    return legbench.run_scenario("position", backends=["pinocchio", "mujoco"], overrides=SHORT, out=out)
+
+
+def test_frames_are_the_documented_log_columns(result: api.Result) -> None:
+    """One DataFrame per backend, the run-directory columns, one row per control tick (0.3 s at 1 kHz: 301), and the
+    same numbers as the parquet file legbench run writes (the API reads what the CLI writes, nothing recomputed)."""
+    assert result.backends == ["pinocchio", "mujoco"] and result.status() == {"pinocchio": "ok", "mujoco": "ok"}
+    for name, df in result.frames.items():
+        assert list(df.columns) == list(RUN_COLUMNS) and len(df) == 301
+        np.testing.assert_allclose(df["t"].iloc[-1], 0.3, rtol=0, atol=1e-12)
+        import pandas as pd
+
+        on_disk = pd.read_parquet(result.path / f"{name}.parquet")
+        np.testing.assert_array_equal(df[["q1", "q2", "q3", "fz"]].to_numpy(), on_disk[["q1", "q2", "q3", "fz"]])
+    assert result["mujoco"].equals(result.frames["mujoco"])
+
+
+def test_two_engines_agree_in_free_space(result: api.Result) -> None:
+    """Free space, the same PD torques at the same ticks, matched profile: MuJoCo stays within 1e-9 rad of Pinocchio
+    over 0.3 s (measured 1e-16 rad: in free space the matched profile integrates alike; 1e-9 rad leaves room for
+    round-off across platforms, while a wrong joint mapping, sign or tick would give 1e-3 rad or more); the leg sags
+    (q2 moves by more than 0.1 rad from 0), and no ground force (the foot is in the air)."""
+    s = result.compare().summary().set_index("backend")
+    assert s.loc["mujoco", "q_max_abs"] < 1e-9
+    assert s.loc["mujoco", "q2_steady"] < -0.1
+    assert np.isnan(s.loc["pinocchio", "q_max_abs"])  # the reference against itself: not measured
+    assert (result["mujoco"][["fx", "fy", "fz"]].abs().to_numpy() == 0.0).all()
+
+
+def test_compare_is_legbench_compare(result: api.Result) -> None:
+    """Comparison is a view of legbench.compare.compare on the run directory: the same metrics table row for row, and
+    the summary's max |q - q_ref| is the largest q entry of the pair's max_abs."""
+    mine = result.compare()
+    theirs = compare(result.path)
+    assert mine.metrics.equals(theirs.frame())
+    pair = theirs.pair("mujoco")
+    assert pair is not None
+    assert mine.summary().set_index("backend").loc["mujoco", "q_max_abs"] == float(np.max(pair.max_abs[:3]))
+    assert result.compare() is mine  # cached
+
+
+def test_repr_html_tables(result: api.Result) -> None:
+    page = result._repr_html_()
+    assert page.count("<table>") == 2 and "<td>mujoco</td>" in page and "pinocchio (reference)" in page
+    assert "max |q - q_ref| [rad]" in result.compare()._repr_html_()
+
+
+def test_report_goes_to_a_new_directory_only(result: api.Result, tmp_path: Path) -> None:
+    html = result.report(tmp_path / "rep")
+    assert html == tmp_path / "rep" / "report.html" and html.is_file()
+    metrics = json.loads((tmp_path / "rep" / "metrics.json").read_text())
+    assert metrics["reference"] == "pinocchio" and set(metrics["backends"]) == {"pinocchio", "mujoco"}
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "mine.txt").write_text("keep")
+    with pytest.raises(ResultsError, match="exists and is not empty"):
+        result.report(tmp_path / "full")
+    assert (tmp_path / "full" / "mine.txt").read_text() == "keep"
+
+
+def test_mapping_profile_and_both_contact_modes(tmp_path: Path) -> None:
+    """A mapping scenario, the engine-defaults profile and both contact modes: two sibling run directories, the
+    profile recorded in each run.json, and the native comparison split against the reference-mode one."""
+    doc = {
+        "name": "hold",
+        "duration": 0.05,
+        "initial": {"q": [0.0, -0.8, -1.6]},
+        "events": [{"t": 0.0, "position": {"joint": [0.0, -0.8, -1.6]}}],
+        "comparison": {"steady_window": 0.02},
+    }
+    res = legbench.run_scenario(doc, backends="pinocchio,mujoco", profile="engine-defaults", contact_mode="both",
+                                out=tmp_path)  # fmt: skip
+    assert res.reference_mode is not None
+    assert res.path.parent == res.reference_mode.path.parent == tmp_path
+    assert (res.contact_mode, res.reference_mode.contact_mode) == ("native", "reference")
+    meta = json.loads((res.path / "run.json").read_text())
+    assert meta["scenario"]["profile"] == "engine-defaults"
+    assert res.compare().result.split_run is not None
+
+
+def test_bad_input_is_a_scenario_error(tmp_path: Path) -> None:
+    with pytest.raises(ScenarioError, match=r"<mapping>: duration"):
+        api.load_scenario({"name": "x", "duration": -1, "events": []})
+    with pytest.raises(ScenarioError, match="duration"):
+        legbench.run_scenario("position", backends="pinocchio", overrides={"duration": "soon"}, out=tmp_path)
+    assert not any(tmp_path.iterdir())  # nothing half-written
+
+
+def test_bundled_scenarios_by_name() -> None:
+    assert api.load_scenario("effort").sha256 == api.load_scenario(resources.scenario("effort")).sha256
+    assert api.load_scenario("verification/energy").name == "energy"
+
+
+def test_import_legbench_is_light() -> None:
+    """``import legbench`` imports no numpy, pandas or engine; the API names resolve on first use."""
+    code = (
+        "import sys, legbench; print(sorted(m for m in ('numpy', 'pandas', 'pinocchio', 'mujoco') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+    assert legbench.run_scenario is api.run_scenario and "run_scenario" in dir(legbench)

@@ -1,0 +1,183 @@
+"""External logs: ROS 1 bags, ROS 2 sqlite3 and MCAP bags written by rosbags' own writers, read back into the run
+columns, and compared from the command line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from fakerun import scale, write_run
+
+from legbench import cli, logs
+from legbench.exceptions import ResultsError
+from legbench.signals import LABELS, RUN_COLUMNS
+
+rosbags = pytest.importorskip("rosbags", reason="pip install 'legbench[ros]'")
+from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
+from rosbags.rosbag2 import StoragePlugin  # noqa: E402
+from rosbags.rosbag2 import Writer as Writer2  # noqa: E402
+from rosbags.typesys import Stores, get_typestore  # noqa: E402
+
+T_BAG0_NS = 1_700_000_000_250_000_000  # bag time of legbench's t = 0 [ns]: a hardware clock, far from 0
+KINDS = ("ros1", "sqlite3", "mcap")
+
+
+def _writer(kind: str, path: Path):  # type: ignore[no-untyped-def]
+    if kind == "ros1":
+        ts = get_typestore(Stores.ROS1_NOETIC)
+        return ts, Writer1(path), ts.serialize_ros1, {}
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    plugin = StoragePlugin.SQLITE3 if kind == "sqlite3" else StoragePlugin.MCAP
+    return ts, Writer2(path, version=9, storage_plugin=plugin), ts.serialize_cdr, {}
+
+
+def write_bag(
+    kind: str,
+    path: Path,
+    t: np.ndarray,
+    data: np.ndarray,
+    names: tuple[str, ...],
+    order: tuple[int, ...],
+    force_t: np.ndarray | None = None,
+    force: np.ndarray | None = None,
+    joint_topic: str = "/leg/joint_states",
+    wrench_topic: str = "/leg/foot_force",
+    extra_joint_topic: str | None = None,
+) -> Path:
+    """A bag of JointState messages at times t [s from T_BAG0_NS] carrying data[:, 0:9] (q, qd, tau of joints 1..3)
+    under ``names`` (message slot i holds legbench joint order[i]; a slot with order -1 is another joint, 0.5 rad),
+    and WrenchStamped messages of ``force`` at ``force_t``."""
+    ts, writer, ser, _ = _writer(kind, path)
+    JointState = ts.types["sensor_msgs/msg/JointState"]
+    Wrench = ts.types["geometry_msgs/msg/WrenchStamped"]
+    Header = ts.types["std_msgs/msg/Header"]
+    Time = ts.types["builtin_interfaces/msg/Time"]
+    Vector3 = ts.types["geometry_msgs/msg/Vector3"]
+    WrenchBody = ts.types["geometry_msgs/msg/Wrench"]
+
+    def header(tt: float, k: int) -> object:
+        ns = T_BAG0_NS + round(tt * 1e9)
+        stamp = Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+        return Header(seq=k, stamp=stamp, frame_id="world") if kind == "ros1" else Header(stamp=stamp, frame_id="world")
+
+    def pick(row: np.ndarray, block: int) -> np.ndarray:
+        return np.array([row[3 * block + j] if j >= 0 else 0.5 for j in order], dtype=np.float64)
+
+    with writer:
+        jc = writer.add_connection(joint_topic, JointState.__msgtype__, typestore=ts)
+        ec = None
+        if extra_joint_topic:
+            ec = writer.add_connection(extra_joint_topic, JointState.__msgtype__, typestore=ts)
+        wc = writer.add_connection(wrench_topic, Wrench.__msgtype__, typestore=ts) if force is not None else None
+        events: list[tuple[float, int, object, object]] = []
+        for k, (tt, row) in enumerate(zip(t, data, strict=True)):
+            msg = JointState(header=header(tt, k), name=list(names), position=pick(row, 0), velocity=pick(row, 1),
+                             effort=pick(row, 2))  # fmt: skip
+            events.append((tt, 0, jc, msg))
+            if ec is not None:
+                events.append((tt, 1, ec, msg))
+        if force is not None and force_t is not None:
+            for k, (tt, f) in enumerate(zip(force_t, force, strict=True)):
+                w = WrenchBody(force=Vector3(x=f[0], y=f[1], z=f[2]), torque=Vector3(x=0.0, y=0.0, z=0.0))
+                events.append((tt, 2, wc, Wrench(header=header(tt, k), wrench=w)))
+        for tt, _, conn, msg in sorted(events, key=lambda e: (e[0], e[1])):
+            rec = T_BAG0_NS + round((tt + 0.003) * 1e9)  # recorded 3 ms after the stamp: stamps must win
+            writer.write(conn, rec, ser(msg, msg.__msgtype__))  # type: ignore[attr-defined]
+    return path
+
+
+def _bag_path(tmp_path: Path, kind: str) -> Path:
+    return tmp_path / ("run.bag" if kind == "ros1" else f"run_{kind}")
+
+
+def _signals(t: np.ndarray) -> np.ndarray:
+    """Smooth q [rad], qd [rad/s], tau [N m] of three joints, shape (N, 9)."""
+    w = 2 * np.pi
+    return np.column_stack([a * np.sin(w * f * t + p) for a, f, p in
+                            [(0.1, 0.5, 0), (0.3, 1, 0.3), (0.2, 1.5, 1), (0.5, 0.5, 0), (1, 1, 0), (2, 1.5, 0),
+                             (1, 1, 0), (2, 0.7, 0), (1.5, 2, 0)]])  # fmt: skip
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_bag_round_trip(tmp_path: Path, kind: str) -> None:
+    """JointState at 1 kHz (names in another order than legbench's, a fourth joint among them) and WrenchStamped at
+    500 Hz offset by 0.3 ms: q, qd, tau come back exactly (float64 through the serialisation) in legbench's joint
+    order, t starts at 0 from the header stamps (not the recording times, 3 ms later), and the force, linear in t,
+    is interpolated onto the joint-state ticks to 1e-9 N (rounding only); outside the wrench samples it is NaN."""
+    t = np.arange(0, 0.2, 1e-3)
+    data = _signals(t)
+    ft = np.arange(0.0003, 0.2, 2e-3)
+    force = np.column_stack([1.0 + 2.0 * ft, -3.0 * ft, 20.0 + 50.0 * ft])
+    names = ("knee", "extra", "hip_aa", "hip_fe")
+    bag = write_bag(kind, _bag_path(tmp_path, kind), t, data, names, (2, -1, 0, 1), ft, force)
+    df = logs.load_log(bag, {"hip_aa": "q1", "hip_fe": "q2", "knee": "q3"})
+    assert list(df.columns) == list(RUN_COLUMNS)
+    np.testing.assert_allclose(df["t"], t, rtol=0, atol=1e-12)  # integer ns stamps, t exact to rounding
+    np.testing.assert_array_equal(df[list(LABELS[:9])].to_numpy(), data)
+    inside = (t >= ft[0]) & (t <= ft[-1])
+    expected = np.column_stack([1.0 + 2.0 * t, -3.0 * t, 20.0 + 50.0 * t])
+    np.testing.assert_allclose(df[["fx", "fy", "fz"]].to_numpy()[inside], expected[inside], rtol=0, atol=1e-9)
+    # t = 0 is before the first wrench (0.3 ms), t = 0.199 s after the last (0.1983 s)
+    assert df.loc[~inside, ["fx", "fy", "fz"]].isna().all().all() and (~inside).sum() == 2
+
+
+def test_defaults_force_sign_and_ros2_file_path(tmp_path: Path) -> None:
+    """legbench's own joint names need no mapping; the .mcap file inside a ROS 2 bag directory names the bag;
+    force_sign -1 flips a foot-on-ground wrench into legbench's ground-on-foot force; without a wrench topic the
+    force is NaN."""
+    t = np.arange(0, 0.05, 1e-3)
+    data = _signals(t)
+    own = ("q1_abad", "q2_hip", "q3_knee")
+    bag = write_bag("mcap", tmp_path / "b", t, data, own, (0, 1, 2), t, np.ones((len(t), 3)))
+    mcap = next(bag.glob("*.mcap"))
+    df = logs.load_log(mcap, ros=logs.RosOptions(force_sign=-1.0))
+    np.testing.assert_array_equal(df[["fx", "fy", "fz"]].to_numpy(), -np.ones((len(t), 3)))
+    no_force = write_bag("ros1", tmp_path / "nf.bag", t, data, own, (0, 1, 2))
+    assert logs.load_log(no_force)[["fx", "fy", "fz"]].isna().all().all()
+
+
+def test_bag_errors_name_the_problem(tmp_path: Path) -> None:
+    t = np.arange(0, 0.01, 1e-3)
+    data = _signals(t)
+    bag = write_bag("ros1", tmp_path / "two.bag", t, data, ("a", "b", "c"), (0, 1, 2), extra_joint_topic="/other/js")
+    with pytest.raises(ResultsError, match=r"several sensor_msgs/JointState topics? .*/leg/joint_states"):
+        logs.load_log(bag)
+    with pytest.raises(ResultsError, match=r"joints \['q1_abad', 'q2_hip', 'q3_knee'\] not in .*\['a', 'b', 'c'\]"):
+        logs.load_log(bag, ros=logs.RosOptions(joint_topic="/leg/joint_states"))
+    with pytest.raises(ResultsError, match="topic '/nope': expected sensor_msgs/JointState, no such topic"):
+        logs.load_log(bag, ros=logs.RosOptions(joint_topic="/nope"))
+    with pytest.raises(ResultsError, match="NAME=q1,NAME=q2,NAME=q3"):
+        logs.load_log(bag, {"a": "q1", "b": "q2"})
+    (tmp_path / "junk.bag").write_bytes(b"not a bag")
+    with pytest.raises(ResultsError, match="not a readable ROS bag"):
+        logs.load_log(tmp_path / "junk.bag")
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_compare_reads_a_bag_from_the_command_line(tmp_path: Path, kind: str) -> None:
+    """Backend a's own log written as a bag (joint names of the lab's, topics named by option) and made the reference:
+    a deviates from it by 0 in every signal (to 1e-9: stamps are integer ns), as with the CSV import."""
+    run_dir = tmp_path / "fake"
+    write_run(run_dir, {"ref": None, "a": scale(1.02)})
+    df = pd.read_parquet(run_dir / "a.parquet")
+    t = df["t"].to_numpy()
+    bag = write_bag(kind, _bag_path(tmp_path, kind), t, df[list(LABELS[:9])].to_numpy(), ("j1", "j2", "j3"),
+                    (0, 1, 2), t, df[["fx", "fy", "fz"]].to_numpy(), joint_topic="/js", wrench_topic="/ft",
+                    extra_joint_topic="/cmd")  # fmt: skip
+    argv = ["compare", str(run_dir), "--reference-log", str(bag), "--log-columns", "j1=q1,j2=q2,j3=q3",
+            "--ros-joint-topic", "/js", "--ros-wrench-topic", "/ft", "--log-is-reference"]  # fmt: skip
+    assert cli.main(argv) == 0
+    rows = json.loads((run_dir / "metrics.json").read_text())["metrics"]
+    ours = [r for r in rows if r["backend"] == "a" and r["metric"] == "max_abs" and r["value"] is not None]
+    assert {r["signal"] for r in ours} == {"q", "qd", "tau", "force"}
+    assert max(abs(r["value"]) for r in ours) < 1e-9
+
+
+def test_ros_options_without_a_bag_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    run_dir = tmp_path / "fake"
+    write_run(run_dir, {"ref": None, "a": scale(1.02)})
+    assert cli.main(["compare", str(run_dir), "--ros-joint-topic", "/js"]) == 2
+    assert "need --reference-log naming a ROS bag" in capsys.readouterr().err
