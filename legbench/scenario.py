@@ -50,12 +50,12 @@ from legbench.contact import CONTACT_MODES, ContactParams
 from legbench.exceptions import BackendNotFound
 from legbench.model import load_params
 from legbench.trajectories import ellipse_waypoints
-from legbench.yamlfile import YamlContext, check_keys, integer, number, read_yaml, set_key, vector
+from legbench.yamlfile import YamlContext, check_keys, integer, limit, number, read_yaml, set_key, vector
 
 CONTROLLERS = ("position", "trajectory", "ellipse", "effort", "torque")
 #: Scenario names become directory names: no separators, nothing that can climb out.
 #: Longest run accepted: 1e7 ticks (2.8 h at 1 kHz) keep the log under ~1.3 GB.
-MAX_TICKS = 10_000_000
+MAX_TICKS = 10_000_000  # the default of limit('ticks'); LEGBENCH_LIMITS=ticks=N raises it
 MAX_WAYPOINTS = 100_000
 NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}")
 
@@ -301,8 +301,9 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
         raise ctx.error(["description"], "expected text")
     duration = number(ctx, ["duration"], doc["duration"], positive=True)
     rate = number(ctx, ["control_rate"], doc.get("control_rate", 1000.0), positive=True)
-    if duration * rate > MAX_TICKS:
-        raise ctx.error(["duration"], f"{duration} s at {rate} Hz is more than {MAX_TICKS:.0e} control ticks")
+    if duration * rate > limit("ticks"):
+        raise ctx.error(["duration"], f"{duration} s at {rate} Hz is more than {limit('ticks'):.0e} control ticks "
+                                      "(limit ticks: LEGBENCH_LIMITS=ticks=N raises it)")  # fmt: skip
     if abs(duration * rate - round(duration * rate)) > 1e-6:
         raise ctx.error(["duration"], f"{duration} s is not a whole number of control periods at {rate} Hz")
 
@@ -314,6 +315,11 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
             vector(ctx, ["gains", k], gains_d[k]) if k in gains_d else getattr(gdef, k) for k in ("Kp", "Kd", "Ki")
         )
     )
+    for k in ("Kp", "Kd", "Ki"):
+        for i, g in enumerate(getattr(gains, k)):
+            if g < 0:
+                raise ctx.error(["gains", k, i] if isinstance(gains_d.get(k), list) else ["gains", k],
+                                f"a negative gain ({g}) destabilises the controller; must be >= 0")  # fmt: skip
     init = doc.get("initial", {})
     check_keys(ctx, ["initial"], init, ["q", "qd"])
     q0 = vector(ctx, ["initial", "q"], init.get("q", [0.0, 0.0, 0.0]))
@@ -330,6 +336,9 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     for i, (a, b) in enumerate(zip(events, events[1:], strict=False)):
         if b.t < a.t:
             raise ctx.error(["events", i + 1, "t"], f"events out of order: {b.t} s comes after {a.t} s")
+        if b.t == a.t:
+            raise ctx.error(["events", i + 1, "t"], f"two events at the same instant ({b.t} s): the first would "
+                                                    "never act")  # fmt: skip
     if events[0].t != 0.0:
         raise ctx.error(["events", 0, "t"], "the first event must start at t = 0 (something must control the leg)")
     if events[0].delay != 0.0:
@@ -365,6 +374,9 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     for k in ("Kp", "v_th"):
         if vals[k] <= 0:
             raise ctx.error(["physics", "contact", k], "must be > 0")
+    if vals["mu_k"] > vals["mu_s"]:
+        raise ctx.error(["physics", "contact", "mu_k" if "mu_k" in cdoc else "mu_s"],
+                        f"kinetic friction mu_k = {vals['mu_k']} above static mu_s = {vals['mu_s']}")  # fmt: skip
     poc = cdoc.get("poc", True)
     if poc not in (True, False, "true", "centre"):
         raise ctx.error(["physics", "contact", "poc"], f"expected true (true poc) or 'centre', got {poc!r}")
@@ -381,6 +393,16 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     backends: dict[str, dict[str, Any]] = {}
     for bname, bset in bdoc.items():
         backends[bname] = _backend_settings(ctx, str(bname), bset or {})
+        dt = backends[bname].get("dt")
+        if isinstance(dt, float) and dt > 0:
+            ratio = 1.0 / (rate * dt)
+            if ratio > limit("sub_steps"):
+                raise ctx.error(["backends", bname, "dt"], f"{dt:g} s is {ratio:.3g} sub-steps per control tick, more "
+                                f"than {limit('sub_steps')} (limit sub_steps)")  # fmt: skip
+            if round(ratio) < 1 or abs(ratio - round(ratio)) > 1e-9:
+                raise ctx.error(["backends", bname, "dt"], f"{dt:g} s does not divide the control period "
+                                f"{1.0 / rate:g} s (choose control period / n, e.g. "
+                                f"{1.0 / (rate * max(round(ratio), 1)):g} s)")  # fmt: skip
 
     cmp_d = doc.get("comparison", {})
     check_keys(ctx, ["comparison"], cmp_d, ["reference", "skip", "steady_window", "tolerances", "published"])
@@ -391,6 +413,9 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
         tolerances=cmp_d.get("tolerances", {}) or {},
         published=_published(ctx, cmp_d.get("published", [])),
     )
+    if not _known_backend(comparison.reference):
+        raise ctx.error(["comparison", "reference"], f"unknown backend {comparison.reference!r}; known: "
+                        f"{', '.join(_BUILTIN)}")  # fmt: skip
     if not isinstance(comparison.tolerances, Mapping):
         raise ctx.error(["comparison", "tolerances"], "expected a mapping of metric -> tolerance")
     if comparison.skip >= duration:
@@ -464,6 +489,20 @@ def _published(ctx: YamlContext, rows: Any) -> tuple[dict[str, Any], ...]:
                 item[key] = [number(ctx, [*path, i, key, j], v) for j, v in enumerate(vec)]
         out.append(item)
     return tuple(out)
+
+
+_BUILTIN = tuple(backends.BUILTIN)
+
+
+def _known_backend(name: str) -> bool:
+    """``name`` is a built-in backend (installed or not) or a registered plug-in."""
+    if name in backends.BUILTIN:
+        return True
+    try:
+        backends.get(name)
+    except BackendNotFound:
+        return False
+    return True
 
 
 def _backend_settings(ctx: YamlContext, name: str, given: Any) -> dict[str, Any]:
