@@ -22,7 +22,7 @@ from collections.abc import Sequence
 
 from legbench import __version__
 from legbench.exceptions import LegbenchError
-from legbench.exitcodes import EXIT_INTERRUPTED, EXIT_USER_ERROR
+from legbench.exitcodes import EXIT_INTERRUPTED, EXIT_IO_ERROR, EXIT_USER_ERROR
 
 #: subcommand -> registrar ``module:function``, in help order.
 COMMANDS: dict[str, str] = {
@@ -55,6 +55,29 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+#: Subcommands whose ``--out`` is a directory (``model urdf --out`` is a file).
+_OUT_DIRS = ("run", "sweep", "bench", "verify", "calibrate-contact", "reproduce")
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Options every writing subcommand shares, checked before any work: ``--jobs`` >= 1, ``--out`` a usable
+    directory (or file for ``model urdf``), ``--summary``/``--junit`` files in an existing folder."""
+    from legbench import results  # the subcommand's module has imported it already
+
+    jobs = getattr(args, "jobs", None)
+    if jobs is not None and jobs < 1:
+        raise LegbenchError(f"--jobs {jobs}: must be at least 1")
+    out = getattr(args, "out", None)
+    if out is not None:
+        if args.cmd in _OUT_DIRS:
+            results.check_out_path(out)
+        else:
+            results.check_out_file(out)
+    for opt in ("summary", "junit"):
+        if getattr(args, opt, None) is not None:
+            results.check_out_file(getattr(args, opt), f"--{opt}")
+
+
 def _sigterm(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
@@ -64,9 +87,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         argv = sys.argv[1:] if argv is None else list(argv)
         args = build_parser(argv).parse_args(argv)
+        _check_outputs(args)
         return int(args.func(args))
     except LegbenchError as exc:
         print(f"legbench: error: {exc}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    except OSError as exc:  # full disk, read-only or vanished output: one line, the previous result is intact
+        where = f" {exc.filename}" if exc.filename else ""
+        print(f"legbench: I/O error:{where}: {exc.strerror or exc}; nothing was replaced", file=sys.stderr)
+        return EXIT_IO_ERROR
+    except RecursionError:
+        print("legbench: error: input nested too deep", file=sys.stderr)
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
         print("legbench: interrupted; what was simulated is kept, marked incomplete (rerun to finish)",
