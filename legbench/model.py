@@ -280,8 +280,10 @@ def check_physical(raw: dict[str, Any], path: Path | str = PARAMS_FILE) -> None:
             for k in ("reduction", "effort", "velocity"):
                 if k in j and num(f"joints[{i}].{k}", j[k]) <= 0:
                     raise bad(f"joints[{i}].{k}", j[k], "must be > 0")
-            if "lower" in j and "upper" in j and num(f"joints[{i}].lower", j["lower"]) >= num(
-                f"joints[{i}].upper", j["upper"]
+            if (
+                "lower" in j
+                and "upper" in j
+                and num(f"joints[{i}].lower", j["lower"]) >= num(f"joints[{i}].upper", j["upper"])
             ):
                 raise bad(f"joints[{i}].lower", j["lower"], f"must be below upper ({j['upper']!r})")
         c = raw.get("contact") or {}

@@ -33,6 +33,7 @@ Unknown keys are errors. Every error names the file, the key path and the proble
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import re
@@ -47,7 +48,7 @@ import yaml
 from legbench import backends, kinematics
 from legbench.backends.base import PROFILES, Physics
 from legbench.contact import CONTACT_MODES, ContactParams
-from legbench.exceptions import BackendNotFound
+from legbench.exceptions import BackendNotFound, ScenarioError
 from legbench.model import load_params
 from legbench.trajectories import ellipse_waypoints
 from legbench.yamlfile import YamlContext, check_keys, integer, limit, number, read_yaml, set_key, vector
@@ -547,6 +548,47 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
     for key, value in (overrides or {}).items():
         set_key(doc, key, value)
     return parse(doc, str(path), root)
+
+
+#: Optional sections dropped (their defaults apply) to look for further errors after one in them.
+_DROPPABLE = ("description", "gains", "initial", "physics", "profile", "backends", "comparison")
+
+
+def errors(path: str | Path) -> list[ScenarioError]:
+    """Every independent problem of a scenario file, one :class:`ScenarioError` each (empty: valid).
+
+    After an error, the optional section it is in (or the one backend's settings) is dropped, so its
+    defaults apply, and the document is validated again; an error in ``events`` replaces them by one
+    hold so the sections after them are still checked; an error in ``name``, ``duration`` or
+    ``control_rate`` ends the search (what follows depends on them). At most 50 errors.
+    """
+    try:
+        doc, root = read_yaml(path)
+    except ScenarioError as exc:
+        return [exc]
+    found: list[ScenarioError] = []
+    doc = copy.deepcopy(doc)
+    while len(found) < 50:
+        try:
+            parse(doc, str(path), root)
+            return found
+        except ScenarioError as exc:
+            found.append(exc)
+            top = re.split(r"[.\[]", exc.key, maxsplit=1)[0] if exc.key else ""
+            if not isinstance(doc, dict) or top not in doc:
+                return found
+            if top == "backends" and isinstance(doc["backends"], dict) and exc.key.count(".") >= 1:
+                bname = exc.key.split(".")[1]
+                if bname in doc["backends"]:
+                    del doc["backends"][bname]
+                    continue
+            if top in _DROPPABLE or top not in TOP_KEYS:
+                del doc[top]
+            elif top == "events" and doc["events"] != [{"t": 0.0, "position": {"joint": [0.0, 0.0, 0.0]}}]:
+                doc["events"] = [{"t": 0.0, "position": {"joint": [0.0, 0.0, 0.0]}}]
+            else:
+                return found
+    return found
 
 
 def shorten(sc: Scenario, duration: float) -> Scenario:

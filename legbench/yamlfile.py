@@ -283,7 +283,9 @@ def parse_text(text: str, file: str) -> tuple[Any, yaml.Node | None]:
         problem = getattr(exc, "problem", None) or str(exc)
         raise ScenarioError(file, "", f"malformed YAML: {_one_line(problem)}", line) from None
     except RecursionError:
-        raise ScenarioError(file, "", f"nested more than {limit('yaml_depth')} levels deep (limit yaml_depth)") from None
+        raise ScenarioError(
+            file, "", f"nested more than {limit('yaml_depth')} levels deep (limit yaml_depth)"
+        ) from None
     return doc, root
 
 
