@@ -225,8 +225,8 @@ def _validate(args: argparse.Namespace) -> int:
             ok, problems = _validate_one(path)
         except LegbenchError as exc:
             ok, problems = "", [exc]
-        for exc in problems:
-            print(f"legbench: error: {exc}", file=sys.stderr)
+        for problem in problems:
+            print(f"legbench: error: {problem}", file=sys.stderr)
         if problems:
             bad += 1
         else:
@@ -276,7 +276,8 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--no-preflight", action="store_true",
                    help="skip the parity pre-flight (legbench doctor) before running")  # fmt: skip
     p.add_argument("--force", action="store_true",
-                   help="without --out: replace a finished run in results/latest/<name> (refused otherwise)")  # fmt: skip
+                   help="without --out: replace a finished run in results/latest/<name> "
+                        "(refused otherwise)")  # fmt: skip
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 

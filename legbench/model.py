@@ -21,7 +21,6 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
-import yaml
 from scipy import integrate
 
 from legbench.exceptions import ModelError

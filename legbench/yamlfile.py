@@ -269,8 +269,8 @@ def parse_text(text: str, file: str) -> tuple[Any, yaml.Node | None]:
     """YAML text's document and node tree, checked against the limits and for duplicate keys, before the
     aliases are expanded; a one-line :class:`ScenarioError` naming ``file`` and the line."""
     if "\x00" in text:
-        line = text[: text.index("\x00")].count("\n") + 1
-        raise ScenarioError(file, "", "NUL byte in a text file", line)
+        nul_line = text[: text.index("\x00")].count("\n") + 1
+        raise ScenarioError(file, "", "NUL byte in a text file", nul_line)
     try:
         _check_depth(file, text)
         root = yaml_compose(text)
