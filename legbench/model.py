@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -490,9 +491,13 @@ def write_urdf(params: LegParams | None = None, path: Path | str = URDF_FILE) ->
     """Write the generated URDF (atomically) and return its path."""
     params = params or load_params()
     path = Path(path)
-    tmp = path.with_suffix(".urdf.tmp")
-    tmp.write_text(urdf_text(params))
-    tmp.replace(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")  # the name results.clean_stale knows
+    try:
+        tmp.write_text(urdf_text(params))
+        tmp.replace(path)
+    except BaseException:  # full disk, read-only, a kill: the previous file stays, no temporary is left
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 
