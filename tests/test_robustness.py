@@ -583,3 +583,31 @@ def test_read_only_output_keeps_the_previous_file(readonly_dir: Path) -> None:
     assert (target.read_text() if target.exists() else None) == before
     with pytest.raises(LegbenchError, match="not writable"):
         results.check_out_path(readonly_dir / "run")
+
+
+_cli_docs = st.fixed_dictionaries(
+    {"name": st.one_of(st.just("t"), st.text(max_size=6)), "duration": st.one_of(st.just(0.01), _scalars)},
+    optional={k: _values for k in scenario.TOP_KEYS if k not in ("name", "duration")},
+)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                  HealthCheck.function_scoped_fixture])  # fmt: skip
+@given(doc=_cli_docs, good_events=st.booleans())
+def test_generated_documents_through_the_cli_exit_0_or_2_never_a_traceback(
+    tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch, doc: dict[str, Any], good_events: bool
+) -> None:
+    """``legbench validate`` and ``legbench run`` (the fake backend, 10 ms) on generated documents: every
+    outcome is exit 0 or a one-line exit 2; anything else (a traceback) fails the test."""
+    reg = registry._registry
+    monkeypatch.setattr(registry, "_registry", lambda: {**reg(), "fake": FakeBackend})
+    if good_events:
+        doc = {**doc, "events": [{"t": 0.0, "position": {"joint": [0.0, -1.0, -1.0]}}]}
+    d = tmp_path_factory.mktemp("gen")
+    f = d / "gen.yaml"
+    f.write_text(yaml.safe_dump(doc))
+    for argv in (["validate", str(f)],
+                 ["run", str(f), "--backends", "fake", "--out", str(d / "out"), "-q", "--no-compare",
+                  "--no-preflight"]):  # fmt: skip
+        status = cli.main(argv)
+        assert status in (0, 2), argv
