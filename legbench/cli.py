@@ -29,6 +29,7 @@ COMMANDS: dict[str, str] = {
     "model": "legbench.commands:add_model",
     "run": "legbench.commands:add_run",
     "validate": "legbench.commands:add_validate",
+    "schema": "legbench.commands:add_schema",
     "compare": "legbench.commands:add_compare",
     "check": "legbench.commands:add_check",
     "doctor": "legbench.studies.doctor:add_cli",

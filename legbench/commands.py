@@ -351,6 +351,16 @@ def add_check(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg
     p.set_defaults(func=_check)
 
 
+def _schema(args: argparse.Namespace) -> int:
+    print(json.dumps(scenario.json_schema(), indent=2))
+    return EXIT_OK
+
+
+def add_schema(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("schema", help="print the JSON Schema of the scenario format (for editors)")
+    p.set_defaults(func=_schema)
+
+
 def add_validate(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("validate", help="check scenario, sweep and tolerance files without running them")
     p.add_argument("files", nargs="+", help="YAML files")

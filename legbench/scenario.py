@@ -51,9 +51,25 @@ from legbench.contact import CONTACT_MODES, ContactParams
 from legbench.exceptions import BackendNotFound, ScenarioError
 from legbench.model import load_params
 from legbench.trajectories import ellipse_waypoints
-from legbench.yamlfile import YamlContext, check_keys, integer, limit, number, read_yaml, set_key, vector
+from legbench.yamlfile import LIMITS, YamlContext, check_keys, integer, limit, number, read_yaml, set_key, vector
 
 CONTROLLERS = ("position", "trajectory", "ellipse", "effort", "torque")
+#: Keys of each controller's event body: (allowed, required). The validator and :func:`json_schema` use them.
+EVENT_BODY_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "position": (("joint", "cartesian"), ()),
+    "trajectory": (("waypoints", "times"), ("waypoints", "times")),
+    "ellipse": (("a", "b", "DY", "DZ", "dth", "T", "points", "repetitions", "approach"), ("a", "b", "DY", "DZ", "T")),
+    "torque": (("amplitude", "frequency", "phase"), ("amplitude", "frequency")),
+    "effort": (("force",), ("force",)),
+}
+#: Keys of the scenario's sections: (allowed, required).
+SECTION_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "gains": (("Kp", "Kd", "Ki"), ()),
+    "initial": (("q", "qd"), ()),
+    "physics": (("gravity", "contact_mode", "contact"), ()),
+    "physics.contact": (("Kp", "Kd", "mu_s", "mu_k", "v_th", "poc"), ()),
+    "comparison": (("reference", "skip", "steady_window", "tolerances", "published"), ()),
+}
 #: Scenario names become directory names: no separators, nothing that can climb out.
 #: Longest run accepted: 1e7 ticks (2.8 h at 1 kHz) keep the log under ~1.3 GB.
 MAX_TICKS = 10_000_000  # the default of limit('ticks'); LEGBENCH_LIMITS=ticks=N raises it
@@ -226,7 +242,7 @@ def _event_body(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
     params = {kind: body}
     p = load_params()
     if kind == "position":
-        check_keys(ctx, bp, body, ["joint", "cartesian"])
+        check_keys(ctx, bp, body, *EVENT_BODY_KEYS[kind])
         if ("joint" in body) == ("cartesian" in body):
             raise ctx.error(bp, "give exactly one of 'joint' or 'cartesian'")
         if "joint" in body:
@@ -239,7 +255,7 @@ def _event_body(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
         _reachable(ctx, [*bp, "cartesian"], c)
         return Event(t, kind, cartesian=c, params=params)
     if kind == "trajectory":
-        check_keys(ctx, bp, body, ["waypoints", "times"], ["waypoints", "times"])
+        check_keys(ctx, bp, body, *EVENT_BODY_KEYS[kind])
         wps, times = body["waypoints"], body["times"]
         if not isinstance(wps, list) or not wps:
             raise ctx.error([*bp, "waypoints"], "expected a non-empty list of [x, y, z] points")
@@ -253,8 +269,7 @@ def _event_body(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
             _reachable(ctx, [*bp, "waypoints", i], w)
         return Event(t, kind, waypoints=W, times=ts, params=params)
     if kind == "ellipse":
-        keys = ["a", "b", "DY", "DZ", "dth", "T", "points", "repetitions", "approach"]
-        check_keys(ctx, bp, body, keys, ["a", "b", "DY", "DZ", "T"])
+        check_keys(ctx, bp, body, *EVENT_BODY_KEYS[kind])
         a = number(ctx, [*bp, "a"], body["a"], positive=True)
         b = number(ctx, [*bp, "b"], body["b"], positive=True)
         DY = number(ctx, [*bp, "DY"], body["DY"])
@@ -272,14 +287,14 @@ def _event_body(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
                 raise ctx.error(bp, f"ellipse point {i} at W {np.round(point, 4).tolist()} is unreachable")
         return Event(t, "trajectory", waypoints=tuple(map(tuple, P)), times=tuple(tw.tolist()), params=params)
     if kind == "torque":
-        check_keys(ctx, bp, body, ["amplitude", "frequency", "phase"], ["amplitude", "frequency"])
+        check_keys(ctx, bp, body, *EVENT_BODY_KEYS[kind])
         amp = vector(ctx, [*bp, "amplitude"], body["amplitude"])
         freq = vector(ctx, [*bp, "frequency"], body["frequency"])
         for i, f in enumerate(freq):
             number(ctx, [*bp, "frequency", i], f, nonneg=True)
         phase = vector(ctx, [*bp, "phase"], body.get("phase", [0.0, 0.0, 0.0]))
         return Event(t, kind, amplitude=amp, frequency=freq, phase=phase, params=params)
-    check_keys(ctx, bp, body, ["force"], ["force"])
+    check_keys(ctx, bp, body, *EVENT_BODY_KEYS[kind])
     return Event(t, kind, force=vector(ctx, [*bp, "force"], body["force"]), params=params)
 
 
@@ -309,7 +324,7 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
         raise ctx.error(["duration"], f"{duration} s is not a whole number of control periods at {rate} Hz")
 
     gains_d = doc.get("gains", {})
-    check_keys(ctx, ["gains"], gains_d, ["Kp", "Kd", "Ki"])
+    check_keys(ctx, ["gains"], gains_d, *SECTION_KEYS["gains"])
     gdef = Gains()
     gains = Gains(
         *(  # type: ignore[arg-type]
@@ -322,7 +337,7 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
                 raise ctx.error(["gains", k, i] if isinstance(gains_d.get(k), list) else ["gains", k],
                                 f"a negative gain ({g}) destabilises the controller; must be >= 0")  # fmt: skip
     init = doc.get("initial", {})
-    check_keys(ctx, ["initial"], init, ["q", "qd"])
+    check_keys(ctx, ["initial"], init, *SECTION_KEYS["initial"])
     q0 = vector(ctx, ["initial", "q"], init.get("q", [0.0, 0.0, 0.0]))
     qd0 = vector(ctx, ["initial", "qd"], init.get("qd", [0.0, 0.0, 0.0]))
     p = load_params()
@@ -359,14 +374,14 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
             _check_speed(ctx, ["events", i, next(iter(e.params), "trajectory")], e, q0 if e.t == 0.0 else None)
 
     phys = doc.get("physics", {})
-    check_keys(ctx, ["physics"], phys, ["gravity", "contact_mode", "contact"])
+    check_keys(ctx, ["physics"], phys, *SECTION_KEYS["physics"])
     gravity = number(ctx, ["physics", "gravity"], phys.get("gravity", p.gravity), nonneg=True)
     mode = phys.get("contact_mode", "native")
     if mode not in CONTACT_MODES:
         raise ctx.error(["physics", "contact_mode"], f"expected one of {', '.join(CONTACT_MODES)}, got {mode!r}")
     cdoc = phys.get("contact", {})
-    ckeys = ["Kp", "Kd", "mu_s", "mu_k", "v_th", "poc"]
-    check_keys(ctx, ["physics", "contact"], cdoc, ckeys)
+    ckeys = SECTION_KEYS["physics.contact"][0]
+    check_keys(ctx, ["physics", "contact"], cdoc, *SECTION_KEYS["physics.contact"])
     leg_c = p.contact
     vals: dict[str, Any] = {}
     for k in ckeys[:-1]:
@@ -406,7 +421,7 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
                                 f"{1.0 / (rate * max(round(ratio), 1)):g} s)")  # fmt: skip
 
     cmp_d = doc.get("comparison", {})
-    check_keys(ctx, ["comparison"], cmp_d, ["reference", "skip", "steady_window", "tolerances", "published"])
+    check_keys(ctx, ["comparison"], cmp_d, *SECTION_KEYS["comparison"])
     comparison = Comparison(
         reference=str(cmp_d.get("reference", DEFAULT_REFERENCE)),
         skip=number(ctx, ["comparison", "skip"], cmp_d.get("skip", 0.0), nonneg=True),
@@ -548,6 +563,107 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
     for key, value in (overrides or {}).items():
         set_key(doc, key, value)
     return parse(doc, str(path), root)
+
+
+def json_schema() -> dict[str, Any]:
+    """A JSON Schema (draft 2020-12) of the scenario format, built from the validator's own key tables
+    (:data:`TOP_KEYS`, :data:`SECTION_KEYS`, :data:`EVENT_BODY_KEYS`, :data:`CONTROLLERS`, the contact modes,
+    the profiles and each installed backend's defaults and choices). It describes the shape (keys, types,
+    enumerations, signs); the physical checks (joint limits, reachability, speeds) are ``legbench validate``'s.
+    """
+    num: dict[str, Any] = {"type": "number"}
+    pos: dict[str, Any] = {"type": "number", "exclusiveMinimum": 0}
+    nonneg: dict[str, Any] = {"type": "number", "minimum": 0}
+    vec3: dict[str, Any] = {"oneOf": [num, {"type": "array", "items": num, "minItems": 3, "maxItems": 3}]}
+    vec3_nonneg: dict[str, Any] = {"oneOf": [nonneg, {"type": "array", "items": nonneg, "minItems": 3,
+                                                      "maxItems": 3}]}  # fmt: skip
+    points = {"type": "array", "minItems": 1, "items": {"type": "array", "items": num, "minItems": 3, "maxItems": 3}}
+
+    def obj(keys: tuple[tuple[str, ...], tuple[str, ...]], props: Mapping[str, Any]) -> dict[str, Any]:
+        allowed, required = keys
+        out: dict[str, Any] = {"type": "object", "additionalProperties": False,
+                               "properties": {k: props.get(k, {}) for k in allowed}}  # fmt: skip
+        if required:
+            out["required"] = list(required)
+        return out
+
+    body_props: dict[str, Mapping[str, Any]] = {
+        "position": {"joint": vec3, "cartesian": vec3},
+        "trajectory": {"waypoints": points, "times": {"type": "array", "items": pos}},
+        "ellipse": {
+            "a": pos,
+            "b": pos,
+            "DY": num,
+            "DZ": num,
+            "dth": num,
+            "T": pos,
+            "points": {"type": "integer", "minimum": 3},
+            "repetitions": {"type": "integer", "minimum": 1},
+            "approach": pos,
+        },  # fmt: skip
+        "torque": {"amplitude": vec3, "frequency": vec3_nonneg, "phase": vec3},
+        "effort": {"force": vec3},
+    }
+    event = {
+        "type": "object",
+        "additionalProperties": False,
+        "required": ["t"],
+        "properties": {
+            "t": nonneg,
+            **{k: nonneg for k in DELAY_KEYS},
+            **{c: obj(EVENT_BODY_KEYS[c], body_props[c]) for c in CONTROLLERS},
+        },  # fmt: skip
+        "oneOf": [{"required": [c]} for c in CONTROLLERS],
+    }
+    backend_props: dict[str, Any] = {}
+    for name in backends.BUILTIN:
+        try:
+            cls = backends.get(name)
+        except BackendNotFound:  # not installed here: its settings are not known, any mapping
+            backend_props[name] = {"type": "object"}
+            continue
+        props: dict[str, Any] = {"profile": {"enum": list(cls.profiles)}}
+        for k, default in cls.defaults.items():
+            if k in cls.choices:
+                props[k] = {"enum": list(cls.choices[k])}
+            elif isinstance(default, bool):
+                props[k] = {"type": "boolean"}
+            elif isinstance(default, int):
+                props[k] = {"type": "integer", "minimum": 1, "maximum": LIMITS["integer"]}
+            elif isinstance(default, float):
+                props[k] = pos
+        backend_props[name] = {"type": "object", "additionalProperties": False, "properties": props}
+    sections = {
+        "gains": obj(SECTION_KEYS["gains"], {"Kp": vec3_nonneg, "Kd": vec3_nonneg, "Ki": vec3_nonneg}),
+        "initial": obj(SECTION_KEYS["initial"], {"q": vec3, "qd": vec3}),
+        "physics": obj(SECTION_KEYS["physics"], {
+            "gravity": nonneg, "contact_mode": {"enum": list(CONTACT_MODES)},
+            "contact": obj(SECTION_KEYS["physics.contact"], {"Kp": pos, "Kd": nonneg, "mu_s": nonneg, "mu_k": nonneg,
+                                                              "v_th": pos, "poc": {"enum": [True, False, "true",
+                                                                                           "centre"]}})}),
+        "comparison": obj(SECTION_KEYS["comparison"], {
+            "reference": {"type": "string"}, "skip": nonneg, "steady_window": pos, "tolerances": {"type": "object"},
+            "published": {"type": "array", "items": {"type": "object", "required": ["source"]}}}),
+    }  # fmt: skip
+    top: dict[str, Any] = {
+        "name": {"type": "string", "pattern": f"^{NAME_RE.pattern}$"},
+        "description": {"type": "string"},
+        "duration": pos,
+        "control_rate": pos,
+        "events": {"type": "array", "minItems": 1, "items": event},
+        "profile": {"enum": list(PROFILES)},
+        "backends": {"type": "object", "additionalProperties": False, "properties": backend_props},
+        **sections,
+    }
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": "https://legbench/scenario.schema.json",
+        "title": "legbench scenario",
+        "type": "object",
+        "additionalProperties": False,
+        "required": ["name", "duration", "events"],
+        "properties": {k: top[k] for k in TOP_KEYS},
+    }
 
 
 #: Optional sections dropped (their defaults apply) to look for further errors after one in them.

@@ -3,16 +3,22 @@
 from __future__ import annotations
 
 import copy
+import os
+import subprocess
+import sys
+import time
 from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
+from fakes import FakeBackend
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from legbench import cli, scenario
-from legbench.exceptions import ScenarioError
+from legbench import backends as registry
+from legbench import cli, model, results, scenario, yamlfile
+from legbench.exceptions import LegbenchError, ModelError, ScenarioError
 
 GOOD: dict[str, Any] = {
     "name": "t",
@@ -211,16 +217,6 @@ def test_planted_divergence_stops_only_that_backend(tmp_path: Path, capsys: pyte
 # --------------------------------------------------------------------------- #
 # Issue classes: limits, guarded readers, atomic writes, validation, no silent overwrite
 
-import os  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-
-from fakes import FakeBackend  # noqa: E402
-
-from legbench import backends as registry  # noqa: E402
-from legbench import model, results  # noqa: E402
-from legbench.exceptions import LegbenchError, ModelError  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 EFFORT = ROOT / "scenarios" / "effort.yaml"
@@ -611,3 +607,24 @@ def test_generated_documents_through_the_cli_exit_0_or_2_never_a_traceback(
                   "--no-preflight"]):  # fmt: skip
         status = cli.main(argv)
         assert status in (0, 2), argv
+
+
+def test_schema_accepts_every_bundled_scenario_and_refuses_bad_ones(capsys: pytest.CaptureFixture[str]) -> None:
+    """``legbench schema`` is a valid JSON Schema (draft 2020-12) that every bundled scenario satisfies and that
+    refuses what the validator refuses by shape (unknown key, negative duration, two controllers in one event)."""
+    import json
+
+    jsonschema = pytest.importorskip("jsonschema")
+    assert cli.main(["schema"]) == 0
+    schema = json.loads(capsys.readouterr().out)
+    jsonschema.Draft202012Validator.check_schema(schema)
+    v = jsonschema.Draft202012Validator(schema)
+    files = [p for p in sorted((ROOT / "scenarios").rglob("*.yaml")) if "sweeps" not in p.parts
+             and p.name != "reproduce.yaml"]  # fmt: skip
+    assert len(files) >= 10
+    for f in files:
+        assert [e.message for e in v.iter_errors(yamlfile.read_yaml(f)[0])] == [], f
+    assert not v.is_valid(GOOD | {"duraton": 1.0})
+    assert not v.is_valid(GOOD | {"duration": -1.0})
+    assert not v.is_valid(_set(GOOD, "events.0.effort", {"force": [0, 0, 1]}))
+    assert v.is_valid(GOOD)
