@@ -60,6 +60,10 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
 _OUT_DIRS = ("run", "sweep", "bench", "verify", "calibrate-contact", "reproduce")
 
 
+#: Address schemes of a Dask scheduler (distributed's communication back-ends).
+_SCHEMES = ("tcp", "tls", "inproc", "ws", "wss", "ucx")
+
+
 def _check_outputs(args: argparse.Namespace) -> None:
     """Options every writing subcommand shares, checked before any work: ``--jobs`` >= 1, ``--out`` a usable
     directory (or file for ``model urdf``), ``--summary``/``--junit`` files in an existing folder."""
@@ -74,6 +78,12 @@ def _check_outputs(args: argparse.Namespace) -> None:
             results.check_out_path(out)
         else:
             results.check_out_file(out)
+    scheduler = getattr(args, "scheduler", None)
+    if scheduler is not None:
+        scheme, sep, rest = str(scheduler).rpartition("://")
+        if (sep and scheme not in _SCHEMES) or not rest:
+            raise LegbenchError(f"--scheduler {scheduler}: expected an address such as tcp://host:8786 "
+                                f"(schemes: {', '.join(_SCHEMES)})")  # fmt: skip
     for opt in ("summary", "junit"):
         if getattr(args, opt, None) is not None:
             results.check_out_file(getattr(args, opt), f"--{opt}")
