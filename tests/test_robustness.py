@@ -628,3 +628,36 @@ def test_schema_accepts_every_bundled_scenario_and_refuses_bad_ones(capsys: pyte
     assert not v.is_valid(GOOD | {"duration": -1.0})
     assert not v.is_valid(_set(GOOD, "events.0.effort", {"force": [0, 0, 1]}))
     assert v.is_valid(GOOD)
+
+
+def test_external_logs_with_implausible_values_or_units(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """1e308 or NaN-only angles are refused; ms and degrees are accepted with a warning giving the evidence
+    (a 1 kHz log in ms has 1 s steps; 57 'rad' is one radian in degrees)."""
+    import numpy as np
+    import pandas as pd
+
+    from legbench import logs
+    from legbench.exceptions import ResultsError
+
+    t = np.arange(21) * 1e-3
+
+    def csv(name: str, tt: np.ndarray, q: float) -> Path:
+        f = tmp_path / name
+        pd.DataFrame({"t": tt, **{f"q{i}": np.full(len(tt), q) for i in (1, 2, 3)}}).to_csv(f, index=False)
+        return f
+
+    with pytest.raises(ResultsError, match="reaches 1e\\+308"):
+        logs.load_log(csv("big.csv", t, 1e308))
+    with pytest.raises(ResultsError, match="NaN only"):
+        logs.load_log(csv("nan.csv", t, float("nan")))
+    with pytest.raises(LegbenchError, match="--log-time-scale"):
+        logs.load_log(csv("ok.csv", t, 0.0), time_scale=0.0)
+    caplog.clear()
+    assert len(logs.load_log(csv("ms.csv", t * 1000, 0.0))) == 21
+    assert "median time step 1 s" in caplog.text
+    caplog.clear()
+    assert len(logs.load_log(csv("deg.csv", t, -57.0))) == 21
+    assert "degrees" in caplog.text and "57" in caplog.text
+    caplog.clear()
+    logs.load_log(csv("fine.csv", t, -1.0))
+    assert caplog.text == ""
