@@ -35,11 +35,19 @@ from typing import Any, TextIO
 
 import numpy as np
 import pandas as pd
-import yaml
 
+from legbench import yamlfile
 from legbench.compare import compare
 from legbench.exceptions import ResultsError, ScenarioError
-from legbench.results import read_log, read_meta, read_metrics, run_dirs, tolerances_of
+from legbench.results import (
+    atomic_write_bytes,
+    atomic_write_text,
+    read_log,
+    read_meta,
+    read_metrics,
+    run_dirs,
+    tolerances_of,
+)
 from legbench.signals import label as column_label
 
 __all__ = [
@@ -231,12 +239,9 @@ def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[st
         ScenarioError: the file is missing or malformed, naming the key.
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.is_file() and not path.is_dir():
         raise ScenarioError(str(path), "", "no such tolerance file")
-    try:
-        doc = yaml.safe_load(path.read_text()) or {}
-    except yaml.YAMLError as exc:
-        raise ScenarioError(str(path), "", f"not valid YAML/JSON ({exc})") from exc
+    doc = yamlfile.parse_text(yamlfile.read_text(path, "tolerance file"), str(path))[0] or {}
     if not isinstance(doc, Mapping):
         raise ScenarioError(str(path), "", "top level must be a mapping")
     doc = dict(doc)
@@ -245,6 +250,33 @@ def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[st
         raise ScenarioError(str(path), "scenarios", "must be a mapping of scenario name to tolerances")
     common = _validate(doc, str(path), "")
     return common, {str(k): _validate(v, str(path), f"scenarios.{k}") for k, v in per.items()}
+
+
+def tolerance_errors(path: str | Path) -> list[ScenarioError]:
+    """Every problem of a tolerance file, one :class:`ScenarioError` each (empty: the file is valid)."""
+    try:
+        doc = yamlfile.read_yaml(path)[0]
+    except ScenarioError as exc:
+        return [exc]
+    if not isinstance(doc, Mapping):
+        return [ScenarioError(str(path), "", "top level must be a mapping")]
+    errors: list[ScenarioError] = []
+    sections: list[tuple[str, Any]] = [(str(k), {k: v}) for k, v in doc.items() if k != "scenarios"]
+    per = doc.get("scenarios", {}) or {}
+    if not isinstance(per, Mapping):
+        errors.append(ScenarioError(str(path), "scenarios", "must be a mapping of scenario name to tolerances"))
+        per = {}
+    for name, tol in per.items():
+        if not isinstance(tol, Mapping):
+            sections.append((f"scenarios.{name}", tol))
+            continue
+        sections += [(f"scenarios.{name}", {k: v}) for k, v in tol.items()]
+    for prefix, one in sections:
+        try:
+            _validate(one, str(path), prefix if prefix.startswith("scenarios.") else "")
+        except ScenarioError as exc:
+            errors.append(exc)
+    return errors
 
 
 def _lookup(spec: Any, signal: str, joint: str, default: float) -> float:
@@ -442,7 +474,11 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
         ndir = nd[key]
         bmeta, bdf = _metrics(bdir)
         nmeta, ndf = _metrics(ndir)
-        sc = str(nmeta.get("scenario", key))
+        bname, nname = str(bmeta.get("scenario", key)), str(nmeta.get("scenario", key))
+        if bname != nname:  # another scenario's baseline: name the mismatch instead of 66 "regressions"
+            raise ResultsError(str(ndir), f"holds scenario {nname!r} but the baseline {bdir} holds {bname!r}: "
+                                          "not the same scenario; choose the matching --baseline")  # fmt: skip
+        sc = nname
         tol, sources[sc] = _tolerances(ndir, str(nmeta.get("name", sc)), common, per, tfile)
         rows += _status_rows(sc, bmeta, nmeta)
         rows += _check_rows(sc, bdf, ndf, tol)
@@ -541,7 +577,7 @@ def write_markdown(report: CheckReport, path: str | Path) -> Path:
         lines += [f"| {t.scenario} | {t.backend} | {t.status} | {t.detail} |" for t in report.traces]
         lines.append("")
     lines += ["## Tolerances", ""] + [f"- {sc}: {src}" for sc, src in report.tolerance_sources.items()] + [""]
-    path.write_text("\n".join(lines))
+    atomic_write_text(path, "\n".join(lines))
     return path
 
 
@@ -572,7 +608,7 @@ def write_junit(report: CheckReport, path: str | Path) -> Path:
     suites.set("tests", str(len(report.rows)))
     suites.set("failures", str(len(report.regressions)))
     ET.indent(suites)
-    ET.ElementTree(suites).write(path, encoding="utf-8", xml_declaration=True)
+    atomic_write_bytes(path, ET.tostring(suites, encoding="utf-8", xml_declaration=True))
     return path
 
 

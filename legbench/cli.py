@@ -29,13 +29,14 @@ from pathlib import Path
 
 from legbench import __version__, resources
 from legbench.exceptions import LegbenchError, ModelError
-from legbench.exitcodes import EXIT_INTERRUPTED, EXIT_USER_ERROR
+from legbench.exitcodes import EXIT_INTERRUPTED, EXIT_IO_ERROR, EXIT_USER_ERROR
 
 #: subcommand -> registrar ``module:function``, in help order.
 COMMANDS: dict[str, str] = {
     "model": "legbench.commands:add_model",
     "run": "legbench.commands:add_run",
     "validate": "legbench.commands:add_validate",
+    "schema": "legbench.commands:add_schema",
     "compare": "legbench.commands:add_compare",
     "check": "legbench.commands:add_check",
     "doctor": "legbench.studies.doctor:add_cli",
@@ -114,6 +115,39 @@ def _select_model(path: str) -> None:
     resources.select_model(file)
 
 
+#: Subcommands whose ``--out`` is a directory (``model urdf --out`` is a file).
+_OUT_DIRS = ("run", "sweep", "bench", "verify", "calibrate-contact", "reproduce")
+
+
+#: Address schemes of a Dask scheduler (distributed's communication back-ends).
+_SCHEMES = ("tcp", "tls", "inproc", "ws", "wss", "ucx")
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Options every writing subcommand shares, checked before any work: ``--jobs`` >= 1, ``--out`` a usable
+    directory (or file for ``model urdf``), ``--summary``/``--junit`` files in an existing folder."""
+    from legbench import results  # the subcommand's module has imported it already
+
+    jobs = getattr(args, "jobs", None)
+    if jobs is not None and jobs < 1:
+        raise LegbenchError(f"--jobs {jobs}: must be at least 1")
+    out = getattr(args, "out", None)
+    if out is not None:
+        if args.cmd in _OUT_DIRS:
+            results.check_out_path(out)
+        else:
+            results.check_out_file(out)
+    scheduler = getattr(args, "scheduler", None)
+    if scheduler is not None:
+        scheme, sep, rest = str(scheduler).rpartition("://")
+        if (sep and scheme not in _SCHEMES) or not rest:
+            raise LegbenchError(f"--scheduler {scheduler}: expected an address such as tcp://host:8786 "
+                                f"(schemes: {', '.join(_SCHEMES)})")  # fmt: skip
+    for opt in ("summary", "junit"):
+        if getattr(args, opt, None) is not None:
+            results.check_out_file(getattr(args, opt), f"--{opt}")
+
+
 def _sigterm(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
@@ -129,9 +163,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = build_parser(argv).parse_args(argv)
         if args.model is not None:
             _select_model(args.model)
+        _check_outputs(args)
         return int(args.func(args))
     except LegbenchError as exc:
         print(f"legbench: error: {exc}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    except OSError as exc:  # full disk, read-only or vanished output: one line, the previous result is intact
+        where = f" {exc.filename}" if exc.filename else ""
+        print(f"legbench: I/O error:{where}: {exc.strerror or exc}; nothing was replaced", file=sys.stderr)
+        return EXIT_IO_ERROR
+    except RecursionError:
+        print("legbench: error: input nested too deep", file=sys.stderr)
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
         print("legbench: interrupted; what finished is kept (lines above), rerun the same command to finish",

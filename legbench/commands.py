@@ -19,7 +19,7 @@ import numpy as np
 from legbench import backends, check, kinematics, logs, model, report, results, run, scenario, yamlfile
 from legbench.backends.base import PROFILES
 from legbench.exceptions import LegbenchError
-from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK
+from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK, EXIT_USER_ERROR
 from legbench.studies import doctor, sweep
 
 
@@ -66,7 +66,7 @@ def _model_gravity(args: argparse.Namespace) -> int:
 
 
 def _model_urdf(args: argparse.Namespace) -> int:
-    path = model.write_urdf(model.load_params(args.params), args.out)
+    path = model.write_urdf(model.params_from_raw(model.load_raw(args.params), args.params), args.out)
     print(f"wrote {path}")
     return 0
 
@@ -140,6 +140,8 @@ def _run(args: argparse.Namespace) -> int:
         profiles = list(PROFILES) if args.profile == "both" else [args.profile or sc.profile]
         for prof in profiles:  # a profile other than the file's is an override, so it is in the scenario's hash
             scenarios.append(sc if prof == sc.profile else scenario.load(path, {**overrides, "profile": prof}))
+    if not [n for n in str(args.backends).split(",") if n.strip()]:
+        raise LegbenchError(f"--backends {args.backends!r}: names no backend (give names, or 'all')")
     names = backends.resolve(args.backends)
     modes: list[str | None] = ["native", "reference"] if args.contact_mode == "both" else [args.contact_mode]
     single = len(scenarios) == 1 and len(modes) == 1
@@ -149,6 +151,7 @@ def _run(args: argparse.Namespace) -> int:
         for sc in scenarios
         for mode in modes
     ]
+    _check_plan(plan, args)
     if not args.no_preflight:
         available = set(backends.available())
         installed = [n for n in names if n in available]
@@ -188,23 +191,66 @@ def _run(args: argparse.Namespace) -> int:
     return EXIT_BACKEND_FAILED if failed else EXIT_OK
 
 
+def _check_plan(plan: list[tuple[scenario.Scenario, str | None, Path]], args: argparse.Namespace) -> None:
+    """Before any work: no two runs of the plan into one directory, and no finished result replaced that the
+    user did not ask to replace (a run without ``--out`` into an existing finished run needs ``--force``)."""
+    seen: dict[Path, str] = {}
+    for sc, _, out in plan:
+        if out in seen:
+            raise LegbenchError(f"{sc.file} and {seen[out]} are both scenario {sc.name!r}: their results would "
+                                f"collide in {out}; rename one")  # fmt: skip
+        seen[out] = sc.file
+    for sc, mode, out in plan:
+        results.check_out_dir(sc, out)
+        if (
+            args.out is None
+            and not args.force
+            and (out / "run.json").is_file()
+            and not results.resumable(sc, out, mode)
+        ):
+            raise LegbenchError(f"{out} holds a finished run; pass --out DIR for a new one, or --force to replace it")
+
+
 def _validate(args: argparse.Namespace) -> int:
-    """Scenario, sweep (has ``studies``) and tolerance files (only tolerance keys), told apart by content."""
+    """Scenario, sweep (has ``studies``) and tolerance files, told apart by content.
+
+    Every file is checked and every independent problem of a file is one line on stderr
+    (:func:`legbench.scenario.errors`, :func:`legbench.check.tolerance_errors`); exit 2 if any.
+    """
+    import sys
+
+    bad = 0
     for path in args.files:
         try:
-            doc = yamlfile.yaml_load(Path(path).read_text())
-        except Exception:  # unreadable or malformed: scenario.load says which, with the line
-            doc = None
-        if isinstance(doc, dict) and "studies" in doc:
-            sw = sweep.load_sweep(path)
-            print(f"{path}: ok (sweep {sw.name}: {len(sw.studies)} studies)")
-        elif isinstance(doc, dict) and doc and set(doc) <= set(check.DEFAULT_TOLERANCES):
-            check.load_tolerances(path)
-            print(f"{path}: ok (tolerances: {', '.join(sorted(doc))})")
+            ok, problems = _validate_one(path)
+        except LegbenchError as exc:
+            ok, problems = "", [exc]
+        for problem in problems:
+            print(f"legbench: error: {problem}", file=sys.stderr)
+        if problems:
+            bad += 1
         else:
-            sc = scenario.load(path)
-            print(f"{path}: ok ({sc.name}: {len(sc.events)} events, {sc.duration:g} s)")
-    return EXIT_OK
+            print(ok)
+    return EXIT_USER_ERROR if bad else EXIT_OK
+
+
+def _validate_one(path: str) -> tuple[str, list[LegbenchError]]:
+    try:
+        doc, _ = yamlfile.read_yaml(path)
+    except LegbenchError as exc:
+        return "", [exc]
+    if isinstance(doc, dict) and "studies" in doc:
+        sw = sweep.load_sweep(path)
+        return f"{path}: ok (sweep {sw.name}: {len(sw.studies)} studies)", []
+    tol_keys = {*check.DEFAULT_TOLERANCES, "scenarios"}
+    if isinstance(doc, dict) and doc and set(doc) & tol_keys and not set(doc) & set(scenario.TOP_KEYS):
+        problems: list[LegbenchError] = list(check.tolerance_errors(path))
+        return f"{path}: ok (tolerances: {', '.join(sorted(map(str, doc)))})", problems
+    problems = list(scenario.errors(path))
+    if problems:
+        return "", problems
+    sc = scenario.load(path)
+    return f"{path}: ok ({sc.name}: {len(sc.events)} events, {sc.duration:g} s)", []
 
 
 def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -229,6 +275,9 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--no-compare", action="store_true", help="do not write the comparison report")
     p.add_argument("--no-preflight", action="store_true",
                    help="skip the parity pre-flight (legbench doctor) before running")  # fmt: skip
+    p.add_argument("--force", action="store_true",
+                   help="without --out: replace a finished run in results/latest/<name> "
+                        "(refused otherwise)")  # fmt: skip
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
@@ -319,6 +368,16 @@ def add_check(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg
     p.add_argument("--junit", default=None, help="JUnit XML (default DIR/check-junit.xml)")
     p.add_argument("--all", action="store_true", help="print every checked row, not only what moved")
     p.set_defaults(func=_check)
+
+
+def _schema(args: argparse.Namespace) -> int:
+    print(json.dumps(scenario.json_schema(), indent=2))
+    return EXIT_OK
+
+
+def add_schema(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("schema", help="print the JSON Schema of the scenario format (for editors)")
+    p.set_defaults(func=_schema)
 
 
 def add_validate(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

@@ -15,6 +15,8 @@ Either becomes a DataFrame of :data:`~legbench.signals.RUN_COLUMNS` (then a
 
 from __future__ import annotations
 
+import logging
+import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -24,7 +26,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from legbench.exceptions import ResultsError
+from legbench.exceptions import LegbenchError, ResultsError
 from legbench.results import result_from_frame
 from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS
 
@@ -36,6 +38,9 @@ WRENCH = "geometry_msgs/msg/WrenchStamped"
 #: legbench's joint names (the generated URDF's), the default joint mapping of a bag.
 DEFAULT_JOINTS = ("q1_abad", "q2_hip", "q3_knee")
 
+logger = logging.getLogger("legbench.logs")
+
+
 #: Header names (after unit stripping, lower case) taken for legbench columns.
 ALIASES = {"time": "t", "fn": "fz", "f_x": "fx", "f_y": "fy", "f_z": "fz"}
 
@@ -44,6 +49,31 @@ def _normalise_header(col: str) -> str:
     """``"q1 [rad]"`` -> ``"q1"``; ``" Fz (N)"`` -> ``"fz"``; ``"time"`` -> ``"t"``."""
     base = re.sub(r"\s*[\[(].*?[\])]\s*$", "", str(col)).strip().lower()
     return ALIASES.get(base, base)
+
+
+#: Largest magnitude a logged value may have [SI units]: beyond it the column is not a physical signal.
+PLAUSIBLE_MAX = 1e9
+
+
+def _check_plausible(t: np.ndarray, data: np.ndarray, source: str) -> None:
+    """Refuse a log with no finite joint angle or with values no leg produces; warn, with the evidence, on
+    units that look wrong (time in ms, angles in degrees)."""
+    q = data[:, 0:3]
+    if not np.isfinite(q).any():
+        raise ResultsError(source, "q1..q3 hold no finite value (NaN only): nothing to compare")
+    finite = np.abs(np.where(np.isfinite(data), data, 0.0))
+    if finite.max(initial=0.0) > PLAUSIBLE_MAX:
+        i, j = np.unravel_index(int(np.argmax(finite)), finite.shape)
+        raise ResultsError(source, f"column '{LABELS[j]}' reaches {data[i, j]:.3g} at row {i + 1}: not a physical "
+                                   f"value (limit {PLAUSIBLE_MAX:g})")  # fmt: skip
+    step = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    if step > 0.1:
+        logger.warning("legbench: warning: %s: median time step %.4g s: is the time in ms? (--log-time-scale 1e-3)",
+                       source, step)  # fmt: skip
+    qmax = float(np.nanmax(np.abs(q)))
+    if qmax > 2 * np.pi + 0.1:
+        logger.warning("legbench: warning: %s: joint angles reach %.4g: above 2 pi rad, are they in degrees? "
+                       "legbench logs radians", source, qmax)  # fmt: skip
 
 
 def load_log(
@@ -85,6 +115,8 @@ def load_log(
             opts = RosOptions(opts.joint_topic, opts.wrench_topic, _joints_from_map(path, column_map),
                               opts.force_sign, opts.t0)  # fmt: skip
         return load_ros_bag(path, opts)
+    if not (math.isfinite(time_scale) and time_scale > 0):
+        raise LegbenchError(f"--log-time-scale {time_scale!r}: must be a finite number > 0 (1e-3 for ms)")
     if not path.is_file():
         raise ResultsError(str(path), "no such log file")
     try:
@@ -112,6 +144,7 @@ def load_log(
     df = raw[list(rename)].rename(columns=rename)
     required = ["t", "q1", "q2", "q3"]
     trace = result_from_frame(df, path.stem, str(path), required)  # validates
+    _check_plausible(trace.t * time_scale, trace.data, str(path))
     out = {"t": trace.t * time_scale}
     out |= {c: trace.data[:, i] for i, c in enumerate(LABELS)}
     out |= {c: trace.ee[:, i] for i, c in enumerate(EE_COLUMNS)}

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -21,7 +22,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
-import yaml
 from scipy import integrate
 
 from legbench import resources
@@ -244,21 +244,85 @@ def cad_estimate(raw: dict[str, Any]) -> dict[str, Inertial]:
 
 
 def load_raw(path: Path | str | None = None) -> dict[str, Any]:
-    """The parameter file (default: the active one, :func:`legbench.resources.model_file`) as a dict."""
+    """The parameter file (default: the active one, :func:`legbench.resources.model_file`) as a dict,
+    read through the guarded YAML reader (size, nesting, duplicate keys)."""
+    from legbench.yamlfile import read_yaml  # noqa: PLC0415 - yamlfile imports nothing of the model
+
     path = Path(path) if path is not None else resources.model_file()
-    try:
-        raw = yaml.safe_load(path.read_text())
-    except FileNotFoundError as exc:
-        raise ModelError(f"{path}: no such parameter file") from exc
-    except yaml.YAMLError as exc:
-        raise ModelError(f"{path}: malformed YAML: {exc}") from exc
+    if path.is_dir():
+        raise ModelError(f"{path}: is a directory, not a parameter file")
+    if not path.exists():
+        raise ModelError(f"{path}: no such parameter file")
+    raw, _ = read_yaml(path)
     if not isinstance(raw, dict):
         raise ModelError(f"{path}: expected a mapping at the top level")
     return raw
 
 
+#: Dimensions of CAD parts and collision primitives that must be > 0 [m] or [kg].
+_POSITIVE_DIMS = ("r", "r_out", "length", "mass", "a", "b", "c", "size")
+
+
+def check_physical(raw: dict[str, Any], path: Path | str = "leg parameters") -> None:
+    """Refuse physically meaningless parameters: lengths, radii, densities, masses, scale factors, joint
+    limits, the contact law's constants (Kp > 0, Kd >= 0, 0 <= mu_k <= mu_s, v_th > 0).
+
+    Raises:
+        ModelError: naming the file, the key and the value.
+    """
+
+    def bad(key: str, v: Any, why: str) -> ModelError:
+        return ModelError(f"{path}: {key}: {v!r} {why}")
+
+    def num(key: str, v: Any) -> float:
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise bad(key, v, "is not a finite number")
+        return float(v)
+
+    try:
+        for k in ("L_12", "L_23", "L_3E", "R_foot"):
+            if num(f"geometry.{k}", raw["geometry"][k]) <= 0:
+                raise bad(f"geometry.{k}", raw["geometry"][k], "must be > 0 (a length)")
+        for name, rho in (raw.get("materials") or {}).items():
+            if num(f"materials.{name}", rho) <= 0:
+                raise bad(f"materials.{name}", rho, "must be > 0 (a density [kg/m^3])")
+        for link, spec in (raw.get("links") or {}).items():
+            for i, part in enumerate(spec.get("parts") or []):
+                for k in _POSITIVE_DIMS:
+                    for v in part[k] if isinstance(part.get(k), list) else [part.get(k)] if k in part else []:
+                        if num(f"links.{link}.parts[{i}].{k}", v) <= 0:
+                            raise bad(f"links.{link}.parts[{i}].{k}", part[k], "must be > 0")
+                if "r_in" in part and not 0 <= num(f"links.{link}.parts[{i}].r_in", part["r_in"]) < part["r_out"]:
+                    raise bad(f"links.{link}.parts[{i}].r_in", part["r_in"], "must be in [0, r_out)")
+        for k, v in (raw.get("calibration", {}).get("scale") or {}).items():
+            if num(f"calibration.scale.{k}", v) <= 0:
+                raise bad(f"calibration.scale.{k}", v, "must be > 0 (a mass scale factor)")
+        for i, j in enumerate(raw.get("joints") or []):
+            for k in ("reduction", "effort", "velocity"):
+                if k in j and num(f"joints[{i}].{k}", j[k]) <= 0:
+                    raise bad(f"joints[{i}].{k}", j[k], "must be > 0")
+            if (
+                "lower" in j
+                and "upper" in j
+                and num(f"joints[{i}].lower", j["lower"]) >= num(f"joints[{i}].upper", j["upper"])
+            ):
+                raise bad(f"joints[{i}].lower", j["lower"], f"must be below upper ({j['upper']!r})")
+        c = raw.get("contact") or {}
+        for k in c:
+            if num(f"contact.{k}", c[k]) < 0:
+                raise bad(f"contact.{k}", c[k], "must be >= 0 (negative damping, stiffness or friction)")
+        for k in ("Kp", "v_th"):
+            if k in c and c[k] <= 0:
+                raise bad(f"contact.{k}", c[k], "must be > 0")
+        if "mu_k" in c and "mu_s" in c and c["mu_k"] > c["mu_s"]:
+            raise bad("contact.mu_k", c["mu_k"], f"above the static coefficient mu_s = {c['mu_s']!r}")
+    except (KeyError, TypeError, AttributeError) as exc:
+        raise ModelError(f"{path}: missing or malformed entry: {exc}") from exc
+
+
 def params_from_raw(raw: dict[str, Any], path: Path | str = "leg parameters") -> LegParams:
-    """Resolve a raw parameter dict to :class:`LegParams`."""
+    """Resolve a raw parameter dict to :class:`LegParams` (checked by :func:`check_physical` first)."""
+    check_physical(raw, path)
     try:
         geom = Geometry(**{k: float(v) for k, v in raw["geometry"].items()})
         joints = []
@@ -454,9 +518,13 @@ def write_urdf(params: LegParams | None = None, path: Path | str | None = None) 
     params = params or load_params()
     path = Path(path) if path is not None else resources.urdf_target()
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".urdf.tmp")
-    tmp.write_text(urdf_text(params))
-    tmp.replace(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")  # the name results.clean_stale knows
+    try:
+        tmp.write_text(urdf_text(params))
+        tmp.replace(path)
+    except BaseException:  # full disk, read-only, a kill: the previous file stays, no temporary is left
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 

@@ -19,13 +19,15 @@ file and the problem on a missing, malformed or foreign directory.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import math
 import os
 import platform
+import re
 import shutil
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from importlib import metadata
@@ -49,7 +51,13 @@ __all__ = [
     "EventMark",
     "Run",
     "RunResult",
+    "atomic_dir",
+    "atomic_write_bytes",
+    "atomic_write_text",
     "check_out_dir",
+    "check_out_file",
+    "check_out_path",
+    "clean_stale",
     "json_default",
     "load_run",
     "load_trace",
@@ -179,9 +187,168 @@ def json_default(o: Any) -> Any:
 
 def write_json(doc: Any, path: Path) -> Path:
     """``doc`` as indented JSON at ``path``, written atomically (numpy values converted)."""
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_text(json.dumps(doc, indent=2, default=json_default))
-    tmp.replace(path)
+    return atomic_write_text(path, json.dumps(doc, indent=2, default=json_default))
+
+
+# --------------------------------------------------------------------------- #
+# Atomic writes: a temporary name in the same directory, then a rename
+
+#: Temporary and displaced names this module (and earlier code) leaves while writing:
+#: ``.<name>.tmp-<pid>``, ``.<name>.old-<pid>``, ``.<name>.out.tmp-<pid>``.
+_TEMP_RE = re.compile(r"^\.(?P<name>.+?)\.(?P<kind>tmp|old|out\.tmp)-(?P<pid>\d+)$")
+
+
+def _pid_alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's live process
+        return True
+    except OSError:
+        return False
+    return True
+
+
+def clean_stale(parent: str | Path) -> list[Path]:
+    """Remove temporary files and directories of earlier killed runs in ``parent`` (their PID is dead).
+
+    A displaced ``.<name>.old-<pid>`` whose ``<name>`` is missing (a kill between the two renames of a
+    directory swap) is renamed back, so the previous result comes back. Returns what was removed or restored.
+    """
+    parent = Path(parent)
+    done: list[Path] = []
+    try:
+        entries = list(parent.iterdir())
+    except OSError:
+        return done
+    for p in entries:
+        m = _TEMP_RE.match(p.name)
+        if not m or _pid_alive(int(m["pid"])):
+            continue
+        target = parent / m["name"]
+        try:
+            if m["kind"] == "old" and not target.exists():
+                p.rename(target)
+            elif p.is_dir() and not p.is_symlink():
+                shutil.rmtree(p)
+            else:
+                p.unlink()
+            done.append(p)
+        except OSError as exc:  # not ours to remove (permissions): leave it, say so in the log
+            logger.info("cannot clean %s: %s", p, exc)
+    return done
+
+
+def _tmp_name(path: Path, kind: str = "tmp") -> Path:
+    return path.with_name(f".{path.name}.{kind}-{os.getpid()}")
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` through a temporary file in the same directory, renamed over ``path``.
+
+    A failure (full disk, read-only directory, a kill) leaves the previous ``path`` intact and no
+    temporary file behind (one left by a kill is removed by :func:`clean_stale`).
+
+    Raises:
+        OSError: the write or the rename failed (:mod:`legbench.cli` reports it in one line, exit 4).
+    """
+    path = Path(path)
+    tmp = _tmp_name(path)
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    return path
+
+
+def atomic_write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically (:func:`atomic_write_bytes`)."""
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+@contextlib.contextmanager
+def atomic_dir(path: str | Path, keep: Sequence[str] = ()) -> Iterator[Path]:
+    """Build a directory whole, then swap it in place of ``path``.
+
+    Yields a temporary sibling directory (``.<name>.tmp-<pid>``) to write into. On a normal exit it
+    replaces ``path`` (the old one is moved aside, the new one renamed in, the old one removed); on an
+    exception the temporary directory is removed and ``path`` is left as it was. Files named in ``keep``
+    that exist in the old ``path`` and were not written anew are carried over. Stale temporaries of
+    killed runs beside ``path`` are cleaned first (:func:`clean_stale`).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    clean_stale(path.parent)
+    tmp = _tmp_name(path)
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    try:
+        yield tmp
+        for name in keep:
+            if (path / name).exists() and not (tmp / name).exists():
+                if (path / name).is_dir():
+                    shutil.copytree(path / name, tmp / name)
+                else:
+                    shutil.copy2(path / name, tmp / name)
+        if path.exists():
+            old = _tmp_name(path, "old")
+            shutil.rmtree(old, ignore_errors=True)
+            path.rename(old)
+            try:
+                tmp.rename(path)
+            except BaseException:
+                old.rename(path)
+                raise
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            tmp.rename(path)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def _writable_dir(d: Path, what: str) -> None:
+    """The nearest existing ancestor of ``d`` is a directory we can write into."""
+    probe = d
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if probe.exists() and not probe.is_dir():
+        raise LegbenchError(f"{what} {d}: {probe} is a regular file, not a directory")
+    if probe.exists() and not os.access(probe, os.W_OK | os.X_OK):
+        raise LegbenchError(f"{what} {d}: {probe} is not writable")
+
+
+def check_out_path(path: str | Path, what: str = "--out") -> Path:
+    """An output directory given on the command line, checked before any work: not a regular file,
+    inside a writable place (missing folders are created when writing)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise LegbenchError(f"{what} {path}: is a regular file, not a directory")
+    _writable_dir(path, what)
+    return path
+
+
+def check_out_file(path: str | Path, what: str = "--out") -> Path:
+    """An output file given on the command line, checked before any work: not a directory, its folder exists
+    and is writable."""
+    path = Path(path)
+    if path.is_dir():
+        raise LegbenchError(f"{what} {path}: is a directory, not a file")
+    if not path.parent.is_dir():
+        raise LegbenchError(f"{what} {path}: no such folder {path.parent}")
+    if not os.access(path.parent, os.W_OK | os.X_OK):
+        raise LegbenchError(f"{what} {path}: {path.parent} is not writable")
     return path
 
 
@@ -213,7 +380,10 @@ def check_out_dir(scenario: Scenario, out_dir: Path) -> None:
         if out_dir.exists() and any(out_dir.iterdir()):
             raise LegbenchError(f"{out_dir}: not empty and not a legbench run directory; choose another --out")
         return
-    name = (prev.get("scenario") or {}).get("name")
+    name = (prev.get("scenario") or {}).get("name") if isinstance(prev.get("scenario"), Mapping) else None
+    if name is None:
+        raise LegbenchError(f"{out_dir}: its run.json is unreadable or corrupt (not written by legbench); "
+                            "choose another --out or remove it")  # fmt: skip
     if name != scenario.name:
         raise LegbenchError(
             f"{out_dir}: holds results of scenario {name!r}, not {scenario.name!r}; choose another --out or remove it"
@@ -242,50 +412,41 @@ def write_run(scenario: Scenario, results: Sequence[RunResult], out_dir: Path, c
     """
     out_dir = Path(out_dir)
     check_out_dir(scenario, out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out_dir.parent / f".{out_dir.name}.tmp-{os.getpid()}"
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir()
     meta_backends: dict[str, Any] = {}
-    for name, old_entry in (kept or {}).items():
-        for suffix in (".parquet", ".csv"):
-            if (out_dir / f"{name}{suffix}").exists():
-                shutil.copy2(out_dir / f"{name}{suffix}", tmp / f"{name}{suffix}")
-        meta_backends[name] = old_entry
-    for tr in results:
-        entry: dict[str, Any] = {"status": tr.status, "reason": tr.reason, "info": tr.info,
-                                 "wall_time": tr.wall_time, "file": None, "rtf": None, "failed_at": None}  # fmt: skip
-        if len(tr.t):
-            df = tr.frame()
-            df.to_parquet(tmp / f"{tr.backend}.parquet", index=False)
-            if csv:
-                df.to_csv(tmp / f"{tr.backend}.csv", index=False)
-            entry["file"] = f"{tr.backend}.parquet"
-            sim_time = float(tr.t[-1])
-            entry["rtf"] = sim_time / tr.wall_time if tr.wall_time > 0 else None
-            entry["failed_at"] = sim_time if tr.status != "ok" else None
-        meta_backends[tr.backend] = entry
-    sdict = scenario.to_dict()
-    if contact_mode:
-        sdict["contact_mode"] = contact_mode
-    vers = versions()
-    meta = {
-        "complete": all(e["status"] != "interrupted" for e in meta_backends.values()),
-        "scenario": sdict,
-        "backends": meta_backends,
-        "versions": vers,
-        "platform": platform_info(),
-        "legbench_version": vers.get("legbench", "unknown"),
-        "urdf": str(URDF_FILE.name),
-    }
-    (tmp / "run.json").write_text(json.dumps(meta, indent=2, default=json_default))
-    if out_dir.exists():
-        old = out_dir.parent / f".{out_dir.name}.old-{os.getpid()}"
-        out_dir.rename(old)
-        tmp.rename(out_dir)
-        shutil.rmtree(old)
-    else:
-        tmp.rename(out_dir)
+    with atomic_dir(out_dir) as tmp:
+        for name, old_entry in (kept or {}).items():
+            for suffix in (".parquet", ".csv"):
+                if (out_dir / f"{name}{suffix}").exists():
+                    shutil.copy2(out_dir / f"{name}{suffix}", tmp / f"{name}{suffix}")
+            meta_backends[name] = old_entry
+        for tr in results:
+            entry: dict[str, Any] = {"status": tr.status, "reason": tr.reason, "info": tr.info,
+                                     "wall_time": tr.wall_time, "file": None, "rtf": None,
+                                     "failed_at": None}  # fmt: skip
+            if len(tr.t):
+                df = tr.frame()
+                df.to_parquet(tmp / f"{tr.backend}.parquet", index=False)
+                if csv:
+                    df.to_csv(tmp / f"{tr.backend}.csv", index=False)
+                entry["file"] = f"{tr.backend}.parquet"
+                sim_time = float(tr.t[-1])
+                entry["rtf"] = sim_time / tr.wall_time if tr.wall_time > 0 else None
+                entry["failed_at"] = sim_time if tr.status != "ok" else None
+            meta_backends[tr.backend] = entry
+        sdict = scenario.to_dict()
+        if contact_mode:
+            sdict["contact_mode"] = contact_mode
+        vers = versions()
+        meta = {
+            "complete": all(e["status"] != "interrupted" for e in meta_backends.values()),
+            "scenario": sdict,
+            "backends": meta_backends,
+            "versions": vers,
+            "platform": platform_info(),
+            "legbench_version": vers.get("legbench", "unknown"),
+            "urdf": str(URDF_FILE.name),
+        }
+        write_json(meta, tmp / "run.json")
     return out_dir
 
 
@@ -300,10 +461,9 @@ def write_metrics(doc: Mapping[str, Any], path: str | Path) -> Path:
     rows = doc.pop("metrics")
     head = json.dumps(doc, indent=1, allow_nan=False)
     body = ",\n  ".join(json.dumps(r, allow_nan=False) for r in rows)
-    out.write_text(
-        f'{head[:-2]},\n "metrics": [\n  {body}\n ]\n}}\n' if rows else f'{head[:-2]},\n "metrics": []\n}}\n'
+    return atomic_write_text(
+        out, f'{head[:-2]},\n "metrics": [\n  {body}\n ]\n}}\n' if rows else f'{head[:-2]},\n "metrics": []\n}}\n'
     )
-    return out
 
 
 # --------------------------------------------------------------------------- #
@@ -391,10 +551,19 @@ def tolerances_of(meta: Mapping[str, Any]) -> Mapping[str, Any]:
 
 
 def _read_json(path: Path) -> dict[str, Any]:
+    """A JSON object from ``path``; every way it can be unreadable is one :class:`ResultsError` line."""
     try:
-        doc = json.loads(path.read_text())
+        doc = json.loads(path.read_bytes().decode("utf-8"))
     except json.JSONDecodeError as exc:
         raise ResultsError(str(path), f"invalid JSON at line {exc.lineno}: {exc.msg}") from exc
+    except UnicodeDecodeError as exc:
+        raise ResultsError(str(path), f"not UTF-8 text (byte {exc.start}): corrupt") from exc
+    except IsADirectoryError as exc:
+        raise ResultsError(str(path), "is a directory, not a JSON file") from exc
+    except OSError as exc:
+        raise ResultsError(str(path), f"cannot read: {exc.strerror or exc}") from exc
+    except RecursionError as exc:
+        raise ResultsError(str(path), "nested too deep") from exc
     if not isinstance(doc, dict):
         raise ResultsError(str(path), "top level is not a JSON object")
     return doc

@@ -33,6 +33,7 @@ Unknown keys are errors. Every error names the file, the key path and the proble
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import re
@@ -47,15 +48,31 @@ import yaml
 from legbench import backends, kinematics
 from legbench.backends.base import PROFILES, Physics
 from legbench.contact import CONTACT_MODES, ContactParams
-from legbench.exceptions import BackendNotFound
+from legbench.exceptions import BackendNotFound, ScenarioError
 from legbench.model import load_params
 from legbench.trajectories import ellipse_waypoints
-from legbench.yamlfile import YamlContext, check_keys, integer, number, read_yaml, set_key, vector
+from legbench.yamlfile import LIMITS, YamlContext, check_keys, integer, limit, number, read_yaml, set_key, vector
 
 CONTROLLERS = ("position", "trajectory", "ellipse", "effort", "torque")
+#: Keys of each controller's event body: (allowed, required). The validator and :func:`json_schema` use them.
+EVENT_BODY_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "position": (("joint", "cartesian"), ()),
+    "trajectory": (("waypoints", "times"), ("waypoints", "times")),
+    "ellipse": (("a", "b", "DY", "DZ", "dth", "T", "points", "repetitions", "approach"), ("a", "b", "DY", "DZ", "T")),
+    "torque": (("amplitude", "frequency", "phase"), ("amplitude", "frequency")),
+    "effort": (("force",), ("force",)),
+}
+#: Keys of the scenario's sections: (allowed, required).
+SECTION_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "gains": (("Kp", "Kd", "Ki"), ()),
+    "initial": (("q", "qd"), ()),
+    "physics": (("gravity", "contact_mode", "contact"), ()),
+    "physics.contact": (("Kp", "Kd", "mu_s", "mu_k", "v_th", "poc"), ()),
+    "comparison": (("reference", "skip", "steady_window", "tolerances", "published"), ()),
+}
 #: Scenario names become directory names: no separators, nothing that can climb out.
 #: Longest run accepted: 1e7 ticks (2.8 h at 1 kHz) keep the log under ~1.3 GB.
-MAX_TICKS = 10_000_000
+MAX_TICKS = 10_000_000  # the default of limit('ticks'); LEGBENCH_LIMITS=ticks=N raises it
 MAX_WAYPOINTS = 100_000
 NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}")
 
@@ -225,7 +242,7 @@ def _event_body(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
     params = {kind: body}
     p = load_params()
     if kind == "position":
-        check_keys(ctx, bp, body, ["joint", "cartesian"])
+        check_keys(ctx, bp, body, *EVENT_BODY_KEYS[kind])
         if ("joint" in body) == ("cartesian" in body):
             raise ctx.error(bp, "give exactly one of 'joint' or 'cartesian'")
         if "joint" in body:
@@ -238,7 +255,7 @@ def _event_body(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
         _reachable(ctx, [*bp, "cartesian"], c)
         return Event(t, kind, cartesian=c, params=params)
     if kind == "trajectory":
-        check_keys(ctx, bp, body, ["waypoints", "times"], ["waypoints", "times"])
+        check_keys(ctx, bp, body, *EVENT_BODY_KEYS[kind])
         wps, times = body["waypoints"], body["times"]
         if not isinstance(wps, list) or not wps:
             raise ctx.error([*bp, "waypoints"], "expected a non-empty list of [x, y, z] points")
@@ -252,8 +269,7 @@ def _event_body(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
             _reachable(ctx, [*bp, "waypoints", i], w)
         return Event(t, kind, waypoints=W, times=ts, params=params)
     if kind == "ellipse":
-        keys = ["a", "b", "DY", "DZ", "dth", "T", "points", "repetitions", "approach"]
-        check_keys(ctx, bp, body, keys, ["a", "b", "DY", "DZ", "T"])
+        check_keys(ctx, bp, body, *EVENT_BODY_KEYS[kind])
         a = number(ctx, [*bp, "a"], body["a"], positive=True)
         b = number(ctx, [*bp, "b"], body["b"], positive=True)
         DY = number(ctx, [*bp, "DY"], body["DY"])
@@ -271,14 +287,14 @@ def _event_body(ctx: YamlContext, path: list[str | int], d: Any) -> Event:
                 raise ctx.error(bp, f"ellipse point {i} at W {np.round(point, 4).tolist()} is unreachable")
         return Event(t, "trajectory", waypoints=tuple(map(tuple, P)), times=tuple(tw.tolist()), params=params)
     if kind == "torque":
-        check_keys(ctx, bp, body, ["amplitude", "frequency", "phase"], ["amplitude", "frequency"])
+        check_keys(ctx, bp, body, *EVENT_BODY_KEYS[kind])
         amp = vector(ctx, [*bp, "amplitude"], body["amplitude"])
         freq = vector(ctx, [*bp, "frequency"], body["frequency"])
         for i, f in enumerate(freq):
             number(ctx, [*bp, "frequency", i], f, nonneg=True)
         phase = vector(ctx, [*bp, "phase"], body.get("phase", [0.0, 0.0, 0.0]))
         return Event(t, kind, amplitude=amp, frequency=freq, phase=phase, params=params)
-    check_keys(ctx, bp, body, ["force"], ["force"])
+    check_keys(ctx, bp, body, *EVENT_BODY_KEYS[kind])
     return Event(t, kind, force=vector(ctx, [*bp, "force"], body["force"]), params=params)
 
 
@@ -301,21 +317,27 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
         raise ctx.error(["description"], "expected text")
     duration = number(ctx, ["duration"], doc["duration"], positive=True)
     rate = number(ctx, ["control_rate"], doc.get("control_rate", 1000.0), positive=True)
-    if duration * rate > MAX_TICKS:
-        raise ctx.error(["duration"], f"{duration} s at {rate} Hz is more than {MAX_TICKS:.0e} control ticks")
+    if duration * rate > limit("ticks"):
+        raise ctx.error(["duration"], f"{duration} s at {rate} Hz is more than {limit('ticks'):.0e} control ticks "
+                                      "(limit ticks: LEGBENCH_LIMITS=ticks=N raises it)")  # fmt: skip
     if abs(duration * rate - round(duration * rate)) > 1e-6:
         raise ctx.error(["duration"], f"{duration} s is not a whole number of control periods at {rate} Hz")
 
     gains_d = doc.get("gains", {})
-    check_keys(ctx, ["gains"], gains_d, ["Kp", "Kd", "Ki"])
+    check_keys(ctx, ["gains"], gains_d, *SECTION_KEYS["gains"])
     gdef = Gains()
     gains = Gains(
         *(  # type: ignore[arg-type]
             vector(ctx, ["gains", k], gains_d[k]) if k in gains_d else getattr(gdef, k) for k in ("Kp", "Kd", "Ki")
         )
     )
+    for k in ("Kp", "Kd", "Ki"):
+        for i, g in enumerate(getattr(gains, k)):
+            if g < 0:
+                raise ctx.error(["gains", k, i] if isinstance(gains_d.get(k), list) else ["gains", k],
+                                f"a negative gain ({g}) destabilises the controller; must be >= 0")  # fmt: skip
     init = doc.get("initial", {})
-    check_keys(ctx, ["initial"], init, ["q", "qd"])
+    check_keys(ctx, ["initial"], init, *SECTION_KEYS["initial"])
     q0 = vector(ctx, ["initial", "q"], init.get("q", [0.0, 0.0, 0.0]))
     qd0 = vector(ctx, ["initial", "qd"], init.get("qd", [0.0, 0.0, 0.0]))
     p = load_params()
@@ -330,6 +352,9 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     for i, (a, b) in enumerate(zip(events, events[1:], strict=False)):
         if b.t < a.t:
             raise ctx.error(["events", i + 1, "t"], f"events out of order: {b.t} s comes after {a.t} s")
+        if b.t == a.t:
+            raise ctx.error(["events", i + 1, "t"], f"two events at the same instant ({b.t} s): the first would "
+                                                    "never act")  # fmt: skip
     if events[0].t != 0.0:
         raise ctx.error(["events", 0, "t"], "the first event must start at t = 0 (something must control the leg)")
     if events[0].delay != 0.0:
@@ -349,14 +374,14 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
             _check_speed(ctx, ["events", i, next(iter(e.params), "trajectory")], e, q0 if e.t == 0.0 else None)
 
     phys = doc.get("physics", {})
-    check_keys(ctx, ["physics"], phys, ["gravity", "contact_mode", "contact"])
+    check_keys(ctx, ["physics"], phys, *SECTION_KEYS["physics"])
     gravity = number(ctx, ["physics", "gravity"], phys.get("gravity", p.gravity), nonneg=True)
     mode = phys.get("contact_mode", "native")
     if mode not in CONTACT_MODES:
         raise ctx.error(["physics", "contact_mode"], f"expected one of {', '.join(CONTACT_MODES)}, got {mode!r}")
     cdoc = phys.get("contact", {})
-    ckeys = ["Kp", "Kd", "mu_s", "mu_k", "v_th", "poc"]
-    check_keys(ctx, ["physics", "contact"], cdoc, ckeys)
+    ckeys = SECTION_KEYS["physics.contact"][0]
+    check_keys(ctx, ["physics", "contact"], cdoc, *SECTION_KEYS["physics.contact"])
     leg_c = p.contact
     vals: dict[str, Any] = {}
     for k in ckeys[:-1]:
@@ -365,6 +390,9 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     for k in ("Kp", "v_th"):
         if vals[k] <= 0:
             raise ctx.error(["physics", "contact", k], "must be > 0")
+    if vals["mu_k"] > vals["mu_s"]:
+        raise ctx.error(["physics", "contact", "mu_k" if "mu_k" in cdoc else "mu_s"],
+                        f"kinetic friction mu_k = {vals['mu_k']} above static mu_s = {vals['mu_s']}")  # fmt: skip
     poc = cdoc.get("poc", True)
     if poc not in (True, False, "true", "centre"):
         raise ctx.error(["physics", "contact", "poc"], f"expected true (true poc) or 'centre', got {poc!r}")
@@ -381,9 +409,19 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     backends: dict[str, dict[str, Any]] = {}
     for bname, bset in bdoc.items():
         backends[bname] = _backend_settings(ctx, str(bname), bset or {})
+        dt = backends[bname].get("dt")
+        if isinstance(dt, float) and dt > 0:
+            ratio = 1.0 / (rate * dt)
+            if ratio > limit("sub_steps"):
+                raise ctx.error(["backends", bname, "dt"], f"{dt:g} s is {ratio:.3g} sub-steps per control tick, more "
+                                f"than {limit('sub_steps')} (limit sub_steps)")  # fmt: skip
+            if round(ratio) < 1 or abs(ratio - round(ratio)) > 1e-9:
+                raise ctx.error(["backends", bname, "dt"], f"{dt:g} s does not divide the control period "
+                                f"{1.0 / rate:g} s (choose control period / n, e.g. "
+                                f"{1.0 / (rate * max(round(ratio), 1)):g} s)")  # fmt: skip
 
     cmp_d = doc.get("comparison", {})
-    check_keys(ctx, ["comparison"], cmp_d, ["reference", "skip", "steady_window", "tolerances", "published"])
+    check_keys(ctx, ["comparison"], cmp_d, *SECTION_KEYS["comparison"])
     comparison = Comparison(
         reference=str(cmp_d.get("reference", DEFAULT_REFERENCE)),
         skip=number(ctx, ["comparison", "skip"], cmp_d.get("skip", 0.0), nonneg=True),
@@ -391,6 +429,9 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
         tolerances=cmp_d.get("tolerances", {}) or {},
         published=_published(ctx, cmp_d.get("published", [])),
     )
+    if not _known_backend(comparison.reference):
+        raise ctx.error(["comparison", "reference"], f"unknown backend {comparison.reference!r}; known: "
+                        f"{', '.join(_BUILTIN)}")  # fmt: skip
     if not isinstance(comparison.tolerances, Mapping):
         raise ctx.error(["comparison", "tolerances"], "expected a mapping of metric -> tolerance")
     if comparison.skip >= duration:
@@ -466,6 +507,20 @@ def _published(ctx: YamlContext, rows: Any) -> tuple[dict[str, Any], ...]:
     return tuple(out)
 
 
+_BUILTIN = tuple(backends.BUILTIN)
+
+
+def _known_backend(name: str) -> bool:
+    """``name`` is a built-in backend (installed or not) or a registered plug-in."""
+    if name in backends.BUILTIN:
+        return True
+    try:
+        backends.get(name)
+    except BackendNotFound:
+        return False
+    return True
+
+
 def _backend_settings(ctx: YamlContext, name: str, given: Any) -> dict[str, Any]:
     path: list[str | int] = ["backends", name]
     if not isinstance(given, Mapping):
@@ -508,6 +563,148 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
     for key, value in (overrides or {}).items():
         set_key(doc, key, value)
     return parse(doc, str(path), root)
+
+
+def json_schema() -> dict[str, Any]:
+    """A JSON Schema (draft 2020-12) of the scenario format, built from the validator's own key tables
+    (:data:`TOP_KEYS`, :data:`SECTION_KEYS`, :data:`EVENT_BODY_KEYS`, :data:`CONTROLLERS`, the contact modes,
+    the profiles and each installed backend's defaults and choices). It describes the shape (keys, types,
+    enumerations, signs); the physical checks (joint limits, reachability, speeds) are ``legbench validate``'s.
+    """
+    num: dict[str, Any] = {"type": "number"}
+    pos: dict[str, Any] = {"type": "number", "exclusiveMinimum": 0}
+    nonneg: dict[str, Any] = {"type": "number", "minimum": 0}
+    vec3: dict[str, Any] = {"oneOf": [num, {"type": "array", "items": num, "minItems": 3, "maxItems": 3}]}
+    vec3_nonneg: dict[str, Any] = {"oneOf": [nonneg, {"type": "array", "items": nonneg, "minItems": 3,
+                                                      "maxItems": 3}]}  # fmt: skip
+    points = {"type": "array", "minItems": 1, "items": {"type": "array", "items": num, "minItems": 3, "maxItems": 3}}
+
+    def obj(keys: tuple[tuple[str, ...], tuple[str, ...]], props: Mapping[str, Any]) -> dict[str, Any]:
+        allowed, required = keys
+        out: dict[str, Any] = {"type": "object", "additionalProperties": False,
+                               "properties": {k: props.get(k, {}) for k in allowed}}  # fmt: skip
+        if required:
+            out["required"] = list(required)
+        return out
+
+    body_props: dict[str, Mapping[str, Any]] = {
+        "position": {"joint": vec3, "cartesian": vec3},
+        "trajectory": {"waypoints": points, "times": {"type": "array", "items": pos}},
+        "ellipse": {
+            "a": pos,
+            "b": pos,
+            "DY": num,
+            "DZ": num,
+            "dth": num,
+            "T": pos,
+            "points": {"type": "integer", "minimum": 3},
+            "repetitions": {"type": "integer", "minimum": 1},
+            "approach": pos,
+        },  # fmt: skip
+        "torque": {"amplitude": vec3, "frequency": vec3_nonneg, "phase": vec3},
+        "effort": {"force": vec3},
+    }
+    event = {
+        "type": "object",
+        "additionalProperties": False,
+        "required": ["t"],
+        "properties": {
+            "t": nonneg,
+            **{k: nonneg for k in DELAY_KEYS},
+            **{c: obj(EVENT_BODY_KEYS[c], body_props[c]) for c in CONTROLLERS},
+        },  # fmt: skip
+        "oneOf": [{"required": [c]} for c in CONTROLLERS],
+    }
+    backend_props: dict[str, Any] = {}
+    for name in backends.BUILTIN:
+        try:
+            cls = backends.get(name)
+        except BackendNotFound:  # not installed here: its settings are not known, any mapping
+            backend_props[name] = {"type": "object"}
+            continue
+        props: dict[str, Any] = {"profile": {"enum": list(cls.profiles)}}
+        for k, default in cls.defaults.items():
+            if k in cls.choices:
+                props[k] = {"enum": list(cls.choices[k])}
+            elif isinstance(default, bool):
+                props[k] = {"type": "boolean"}
+            elif isinstance(default, int):
+                props[k] = {"type": "integer", "minimum": 1, "maximum": LIMITS["integer"]}
+            elif isinstance(default, float):
+                props[k] = pos
+        backend_props[name] = {"type": "object", "additionalProperties": False, "properties": props}
+    sections = {
+        "gains": obj(SECTION_KEYS["gains"], {"Kp": vec3_nonneg, "Kd": vec3_nonneg, "Ki": vec3_nonneg}),
+        "initial": obj(SECTION_KEYS["initial"], {"q": vec3, "qd": vec3}),
+        "physics": obj(SECTION_KEYS["physics"], {
+            "gravity": nonneg, "contact_mode": {"enum": list(CONTACT_MODES)},
+            "contact": obj(SECTION_KEYS["physics.contact"], {"Kp": pos, "Kd": nonneg, "mu_s": nonneg, "mu_k": nonneg,
+                                                              "v_th": pos, "poc": {"enum": [True, False, "true",
+                                                                                           "centre"]}})}),
+        "comparison": obj(SECTION_KEYS["comparison"], {
+            "reference": {"type": "string"}, "skip": nonneg, "steady_window": pos, "tolerances": {"type": "object"},
+            "published": {"type": "array", "items": {"type": "object", "required": ["source"]}}}),
+    }  # fmt: skip
+    top: dict[str, Any] = {
+        "name": {"type": "string", "pattern": f"^{NAME_RE.pattern}$"},
+        "description": {"type": "string"},
+        "duration": pos,
+        "control_rate": pos,
+        "events": {"type": "array", "minItems": 1, "items": event},
+        "profile": {"enum": list(PROFILES)},
+        "backends": {"type": "object", "additionalProperties": False, "properties": backend_props},
+        **sections,
+    }
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": "https://legbench/scenario.schema.json",
+        "title": "legbench scenario",
+        "type": "object",
+        "additionalProperties": False,
+        "required": ["name", "duration", "events"],
+        "properties": {k: top[k] for k in TOP_KEYS},
+    }
+
+
+#: Optional sections dropped (their defaults apply) to look for further errors after one in them.
+_DROPPABLE = ("description", "gains", "initial", "physics", "profile", "backends", "comparison")
+
+
+def errors(path: str | Path) -> list[ScenarioError]:
+    """Every independent problem of a scenario file, one :class:`ScenarioError` each (empty: valid).
+
+    After an error, the optional section it is in (or the one backend's settings) is dropped, so its
+    defaults apply, and the document is validated again; an error in ``events`` replaces them by one
+    hold so the sections after them are still checked; an error in ``name``, ``duration`` or
+    ``control_rate`` ends the search (what follows depends on them). At most 50 errors.
+    """
+    try:
+        doc, root = read_yaml(path)
+    except ScenarioError as exc:
+        return [exc]
+    found: list[ScenarioError] = []
+    doc = copy.deepcopy(doc)
+    while len(found) < 50:
+        try:
+            parse(doc, str(path), root)
+            return found
+        except ScenarioError as exc:
+            found.append(exc)
+            top = re.split(r"[.\[]", exc.key, maxsplit=1)[0] if exc.key else ""
+            if not isinstance(doc, dict) or top not in doc:
+                return found
+            if top == "backends" and isinstance(doc["backends"], dict) and exc.key.count(".") >= 1:
+                bname = exc.key.split(".")[1]
+                if bname in doc["backends"]:
+                    del doc["backends"][bname]
+                    continue
+            if top in _DROPPABLE or top not in TOP_KEYS:
+                del doc[top]
+            elif top == "events" and doc["events"] != [{"t": 0.0, "position": {"joint": [0.0, 0.0, 0.0]}}]:
+                doc["events"] = [{"t": 0.0, "position": {"joint": [0.0, 0.0, 0.0]}}]
+            else:
+                return found
+    return found
 
 
 def shorten(sc: Scenario, duration: float) -> Scenario:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -22,11 +23,13 @@ import yaml
 from legbench.exceptions import ScenarioError
 
 __all__ = [
+    "LIMITS",
     "Loader",
     "YamlContext",
     "check_keys",
     "integer",
     "keypath",
+    "limit",
     "number",
     "parse_overrides",
     "read_yaml",
@@ -35,6 +38,32 @@ __all__ = [
     "yaml_compose",
     "yaml_load",
 ]
+
+
+#: Size limits checked when a file is read, before any work. Raise one deliberately with the environment
+#: variable ``LEGBENCH_LIMITS``, e.g. ``LEGBENCH_LIMITS="ticks=5e7,file_bytes=1e7"``.
+LIMITS: dict[str, int] = {
+    "file_bytes": 1_000_000,  # size of a YAML file [bytes]
+    "yaml_nodes": 200_000,  # values of a YAML document once its aliases are expanded
+    "yaml_aliases": 1_000,  # aliases (*name) in a YAML document
+    "yaml_depth": 64,  # nesting of mappings and lists
+    "ticks": 10_000_000,  # control ticks of one scenario (duration x control_rate)
+    "sub_steps": 100_000,  # engine sub-steps per control tick (control period / dt)
+    "sweep_points": 10_000,  # points of one sweep (product of its grid sizes)
+    "integer": 2**31 - 1,  # largest integer setting (iterations, points): the engines' C int
+}
+
+
+def limit(name: str) -> int:
+    """The limit ``name`` of :data:`LIMITS`, raised by ``LEGBENCH_LIMITS=name=value,...`` if set."""
+    for item in os.environ.get("LEGBENCH_LIMITS", "").split(","):
+        key, sep, value = item.partition("=")
+        if sep and key.strip() == name:
+            try:
+                return int(float(value))
+            except (ValueError, OverflowError):
+                raise ScenarioError("LEGBENCH_LIMITS", name, f"expected a number, got {value!r}") from None
+    return LIMITS[name]
 
 
 class Loader(yaml.SafeLoader):
@@ -157,29 +186,133 @@ def vector(ctx: YamlContext, path: list[str | int], v: Any, n: int = 3) -> tuple
 
 
 def integer(ctx: YamlContext, path: list[str | int], v: Any, minimum: int = 1) -> int:
-    """An integer (not a bool) >= ``minimum``."""
+    """An integer (not a bool) >= ``minimum`` and at most ``limit("integer")`` (the engines' C int)."""
     if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
         raise ctx.error(path, f"expected an integer >= {minimum}, got {v!r}")
+    if v > limit("integer"):
+        raise ctx.error(path, f"{v} is more than {limit('integer')}, the largest integer the engines take")
     return v
 
 
-def read_yaml(path: str | Path) -> tuple[Any, yaml.Node | None]:
-    """A YAML file's document and node tree (for line numbers), or a one-line :class:`ScenarioError`."""
-    path = Path(path)
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def _check_tree(file: str, root: yaml.Node) -> None:
+    """Depth, alias count, expanded size and duplicate keys of a composed (not yet expanded) node tree.
+
+    An alias shares its anchor's node in the composed tree, so each node's expanded size is computed
+    once (memoised): a billion-laughs document is refused without being expanded.
+    """
+    max_depth, max_nodes, max_aliases = limit("yaml_depth"), limit("yaml_nodes"), limit("yaml_aliases")
+    size: dict[int, int] = {}  # expanded size of a finished node; -1 while its children are visited
+    aliases = 0
+
+    def fail(node: yaml.Node, problem: str) -> ScenarioError:
+        return ScenarioError(file, "", problem, node.start_mark.line + 1)
+
+    stack: list[tuple[yaml.Node, int, bool]] = [(root, 1, False)]
+    while stack:
+        node, depth, done = stack.pop()
+        if isinstance(node, yaml.SequenceNode):
+            children = list(node.value)
+        elif isinstance(node, yaml.MappingNode):
+            children = [n for kv in node.value for n in kv]
+        else:
+            children = []
+        if done:
+            size[id(node)] = 1 + sum(size[id(c)] for c in children)
+            if size[id(node)] > max_nodes:
+                raise fail(node, f"more than {max_nodes} values once its aliases are expanded (limit yaml_nodes)")
+            continue
+        if id(node) in size:
+            if size[id(node)] < 0:
+                raise fail(node, "an alias refers to a node that contains it (recursive alias)")
+            aliases += 1
+            if aliases > max_aliases:
+                raise fail(node, f"more than {max_aliases} aliases (limit yaml_aliases)")
+            continue
+        if depth > max_depth:
+            raise fail(node, f"nested more than {max_depth} levels deep (limit yaml_depth)")
+        if isinstance(node, yaml.MappingNode):
+            seen: dict[Any, int] = {}
+            for k, _ in node.value:
+                if isinstance(k, yaml.ScalarNode) and k.value != "<<":
+                    if k.value in seen:
+                        raise ScenarioError(file, str(k.value), f"duplicate key (first at line {seen[k.value]})",
+                                            k.start_mark.line + 1)  # fmt: skip
+                    seen[k.value] = k.start_mark.line + 1
+        size[id(node)] = -1
+        stack.append((node, depth, True))
+        stack.extend((c, depth + 1, False) for c in reversed(children))
+
+
+_OPEN = (yaml.FlowSequenceStartToken, yaml.FlowMappingStartToken, yaml.BlockSequenceStartToken,
+         yaml.BlockMappingStartToken)  # fmt: skip
+_CLOSE = (yaml.FlowSequenceEndToken, yaml.FlowMappingEndToken, yaml.BlockEndToken)
+
+
+def _check_depth(file: str, text: str) -> None:
+    """Refuse nesting deeper than ``limit("yaml_depth")`` from the token stream, before the (recursive) composer."""
+    depth, max_depth = 0, limit("yaml_depth")
+    for tok in yaml.scan(text, Loader=Loader):
+        if isinstance(tok, _OPEN):
+            depth += 1
+            if depth > max_depth:
+                raise ScenarioError(file, "", f"nested more than {max_depth} levels deep (limit yaml_depth)",
+                                    tok.start_mark.line + 1)  # fmt: skip
+        elif isinstance(tok, _CLOSE):
+            depth -= 1
+
+
+def parse_text(text: str, file: str) -> tuple[Any, yaml.Node | None]:
+    """YAML text's document and node tree, checked against the limits and for duplicate keys, before the
+    aliases are expanded; a one-line :class:`ScenarioError` naming ``file`` and the line."""
+    if "\x00" in text:
+        nul_line = text[: text.index("\x00")].count("\n") + 1
+        raise ScenarioError(file, "", "NUL byte in a text file", nul_line)
     try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ScenarioError(str(path), "", "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(str(path), "", f"cannot read: {exc}") from None
-    try:
+        _check_depth(file, text)
         root = yaml_compose(text)
+        if root is not None:
+            _check_tree(file, root)
         doc = yaml_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark is not None else None
         problem = getattr(exc, "problem", None) or str(exc)
-        raise ScenarioError(str(path), "", f"malformed YAML: {problem}", line) from None
+        raise ScenarioError(file, "", f"malformed YAML: {_one_line(problem)}", line) from None
+    except RecursionError:
+        raise ScenarioError(
+            file, "", f"nested more than {limit('yaml_depth')} levels deep (limit yaml_depth)"
+        ) from None
+    return doc, root
+
+
+def read_text(path: str | Path, what: str = "file") -> str:
+    """A UTF-8 text file no larger than ``limit("file_bytes")``, or a one-line :class:`ScenarioError`."""
+    path = Path(path)
+    try:
+        if path.is_dir():
+            raise ScenarioError(str(path), "", f"is a directory, not a {what}")
+        size = path.stat().st_size
+        if size > limit("file_bytes"):
+            raise ScenarioError(str(path), "", f"{size} bytes is more than {limit('file_bytes')} (limit file_bytes)")
+        return path.read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise ScenarioError(str(path), "", "no such file") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(str(path), "", f"not UTF-8 text (byte {exc.start})") from None
+    except OSError as exc:
+        raise ScenarioError(str(path), "", f"cannot read: {exc.strerror or exc}") from None
+
+
+def read_yaml(path: str | Path) -> tuple[Any, yaml.Node | None]:
+    """A YAML file's document and node tree (for line numbers), or a one-line :class:`ScenarioError`.
+
+    The file's size, nesting, aliases and duplicate keys are checked before its aliases are expanded.
+    """
+    doc, root = parse_text(read_text(path), str(path))
     if doc is None:
         raise ScenarioError(str(path), "", "empty file")
     return doc, root
@@ -190,16 +323,39 @@ def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for item in items:
         key, sep, value = item.partition("=")
-        if not sep or not key:
+        key = key.strip()
+        if not sep or not key or any(not p for p in key.split(".")):
             raise ScenarioError("--set", item, "expected KEY=VALUE, e.g. backends.<name>.dt=5e-5")
-        out[key] = yaml_load(value)
+        try:
+            doc, _ = parse_text(value, "--set")
+        except ScenarioError as exc:
+            raise ScenarioError("--set", key, f"value {value!r}: {exc.problem}") from None
+        out[key] = doc
     return out
 
 
 def set_key(doc: dict[str, Any], dotted: str, value: Any) -> None:
-    """Set ``a.b.c`` in a nested dict, creating mappings as needed."""
+    """Set ``a.b.c`` (``events.0.t``: a list index) in a nested document, creating mappings as needed.
+
+    Raises:
+        ScenarioError: a part of the path is a value, not a mapping or list, or an index is out of range.
+    """
     parts = dotted.split(".")
-    d = doc
-    for k in parts[:-1]:
-        d = d.setdefault(k, {})
-    d[parts[-1]] = value
+    d: Any = doc
+    for i, k in enumerate(parts):
+        last = i == len(parts) - 1
+        if isinstance(d, list):
+            if not k.lstrip("-").isdigit() or not -len(d) <= int(k) < len(d):
+                raise ScenarioError("--set", dotted, f"'{'.'.join(parts[:i])}' is a list of {len(d)}: "
+                                    f"'{k}' is not an index of it")  # fmt: skip
+            if last:
+                d[int(k)] = value
+            else:
+                d = d[int(k)]
+        elif isinstance(d, dict):
+            if last:
+                d[k] = value
+            else:
+                d = d.setdefault(k, {})
+        else:
+            raise ScenarioError("--set", dotted, f"'{'.'.join(parts[:i])}' is {d!r}, not a mapping")

@@ -3,16 +3,22 @@
 from __future__ import annotations
 
 import copy
+import os
+import subprocess
+import sys
+import time
 from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
+from fakes import FakeBackend
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from legbench import cli, scenario
-from legbench.exceptions import ScenarioError
+from legbench import backends as registry
+from legbench import cli, model, results, scenario, yamlfile
+from legbench.exceptions import LegbenchError, ModelError, ScenarioError
 
 GOOD: dict[str, Any] = {
     "name": "t",
@@ -206,3 +212,452 @@ def test_planted_divergence_stops_only_that_backend(tmp_path: Path, capsys: pyte
             assert entry["status"] == "ok"
     assert "pinocchio' failed" in (out / "report.md").read_text()
     assert "FAILED" in capsys.readouterr().out
+
+
+# --------------------------------------------------------------------------- #
+# Issue classes: limits, guarded readers, atomic writes, validation, no silent overwrite
+
+
+ROOT = Path(__file__).resolve().parent.parent
+EFFORT = ROOT / "scenarios" / "effort.yaml"
+
+
+def _bomb(levels: int) -> str:
+    """A billion-laughs document: 10**levels strings once its aliases are expanded (~0.1 KB a level)."""
+    text = 'name: t\nduration: 1.0\nl0: &l0 ["x","x","x","x","x","x","x","x","x","x"]\n'
+    for i in range(1, levels):
+        text += f"l{i}: &l{i} [" + ",".join([f"*l{i - 1}"] * 10) + "]\n"
+    return text
+
+
+def test_alias_bomb_is_refused_before_expansion(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """10**9 values once expanded: refused from the composed tree (memoised sizes). The bound of 10 s is ~100x
+    the measured 0.05 s; an expansion would need tens of GB and never finish."""
+    f = tmp_path / "bomb.yaml"
+    f.write_text(_bomb(9))
+    t0 = time.perf_counter()
+    assert cli.main(["validate", str(f)]) == 2
+    assert time.perf_counter() - t0 < 10.0
+    err = capsys.readouterr().err
+    assert "limit yaml_nodes" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        ("name: t\nname: u\nduration: 1\n", "name: duplicate key (first at line 1)"),
+        ("a: " + "[" * 50_000 + "]" * 50_000 + "\n", "limit yaml_depth"),
+        ("name: t\x00\n", "NUL byte"),
+        ("x: &a [*a]\n", "recursive alias"),
+        ("a: {b: 1}\nc: *nope\n", "malformed YAML"),
+        ("".join(f"k{i}: &a{i} 1\nv{i}: *a{i}\n" for i in range(1001)), "limit yaml_aliases"),
+    ],
+    ids=["duplicate", "deep", "nul", "recursive", "undefined-alias", "many-aliases"],
+)
+def test_hostile_yaml_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, words: str) -> None:
+    f = tmp_path / "x.yaml"
+    f.write_text(text)
+    assert cli.main(["validate", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert words in err and str(f) in err and err.count("\n") == 1
+
+
+def test_non_utf8_and_oversized_files(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                      monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    f = tmp_path / "latin.yaml"
+    f.write_bytes(b"name: caf\xe9\nduration: 1\n")
+    assert cli.main(["validate", str(f)]) == 2
+    assert "not UTF-8" in capsys.readouterr().err
+    big = tmp_path / "big.yaml"
+    big.write_text(EFFORT.read_text() + "#" * 2_000_000 + "\n")
+    assert cli.main(["validate", str(big)]) == 2
+    assert "limit file_bytes" in capsys.readouterr().err
+    monkeypatch.setenv("LEGBENCH_LIMITS", "file_bytes=1e7")  # the documented way to raise a limit
+    assert cli.main(["validate", str(big)]) == 0
+
+
+def test_tick_limit_can_be_raised(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    doc = _set(GOOD, "duration", 20_000.0)  # 2e7 ticks at 1 kHz
+    with pytest.raises(ScenarioError, match="limit ticks"):
+        scenario.parse(doc, "x.yaml")
+    monkeypatch.setenv("LEGBENCH_LIMITS", "ticks=3e7")
+    assert scenario.parse(doc, "x.yaml").n_ticks > 10_000_000
+
+
+@pytest.mark.parametrize(
+    ("setting", "words"),
+    [
+        ("duration=[0.3", "malformed YAML"),
+        ("duration.x=1", "'duration' is 3.0, not a mapping"),
+        ("events.7.t=1", "not an index"),
+        ("name=!!python/object/apply:os.system ['echo hacked']", "malformed YAML"),
+        ("=1", "expected KEY=VALUE"),
+        ("backends.pinocchio.dt=1e-9", "limit sub_steps"),
+        ("backends.pinocchio.dt=3e-4", "does not divide the control period"),
+        ("backends.pybullet.solver_iterations=1e20", "expected an integer"),
+        ("backends.pybullet.solver_iterations=100000000000000000000", "largest integer"),
+        ("comparison.reference=pinochio", "unknown backend 'pinochio'"),
+    ],
+)
+def test_malformed_set_values_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], setting: str,
+                                           words: str) -> None:  # fmt: skip
+    out = tmp_path / "out"
+    assert cli.main(["run", str(EFFORT), "--backends", "pinocchio", "--out", str(out), "-q", "--set", setting]) == 2
+    err = capsys.readouterr().err
+    assert words in err and err.count("\n") == 1
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "key", "words"),
+    [
+        ("gains", {"Kd": -1.0}, "gains.Kd", "negative gain"),
+        ("gains", {"Kp": [1.0, -2.0, 3.0]}, "gains.Kp[1]", "negative gain"),
+        ("events.1.t", 0.0, "events[1].t", "same instant"),
+        ("physics", {"contact": {"mu_k": 0.9, "mu_s": 0.5}}, "physics.contact.mu_k", "above static"),
+        ("comparison", {"reference": "pinochio"}, "comparison.reference", "unknown backend"),
+    ],
+)
+def test_physically_meaningless_scenarios_are_refused(path: str, value: Any, key: str, words: str) -> None:
+    with pytest.raises(ScenarioError) as exc:
+        scenario.parse(_set(GOOD, path, value), "x.yaml")
+    assert exc.value.key == key and words in exc.value.problem
+
+
+@pytest.mark.parametrize(
+    ("section", "key", "value", "words"),
+    [
+        ("geometry", "L_23", -0.2, "geometry.L_23: -0.2 must be > 0"),
+        ("materials", "cfrp", -2000.0, "materials.cfrp: -2000.0 must be > 0"),
+        ("contact", "Kd", -1.0, "contact.Kd: -1.0 must be >= 0"),
+        ("contact", "mu_k", 0.9, "above the static coefficient"),
+    ],
+)
+def test_meaningless_leg_parameters_are_refused(section: str, key: str, value: float, words: str) -> None:
+    raw = copy.deepcopy(model.load_raw())
+    raw[section][key] = value
+    with pytest.raises(ModelError, match=words.replace("(", r"\(")):
+        model.params_from_raw(raw, "p.yaml")
+
+
+def test_validate_reports_every_error_of_a_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    f = tmp_path / "bad.yaml"
+    f.write_text(
+        "name: t\nduration: 2.0\ngains: {Kd: -1}\nevents:\n"
+        "  - {t: 0.0, position: {joint: [0.0, -1.0, -1.0]}}\n  - {t: 0.0, position: {joint: [0.0, -1.0, -1.0]}}\n"
+        "physics: {contact: {mu_k: 0.9}}\nbackends: {pinocchio: {dt: 3e-4}, mujoco: {dt: -1}}\n"
+        "comparison: {reference: pinochio}\n"
+    )
+    good = tmp_path / "good.yaml"
+    good.write_text(yaml.safe_dump(GOOD))
+    assert cli.main(["validate", str(f), str(good)]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert [ln.split(": ")[3] for ln in lines] == ["gains.Kd", "events[1].t", "physics.contact.mu_k",
+                                                   "backends.pinocchio.dt", "backends.mujoco.dt",
+                                                   "comparison.reference"]  # fmt: skip
+    assert [ln.split(": ")[2].rsplit(":", 1)[1] for ln in lines] == ["3", "6", "7", "8", "8", "9"]  # lines
+    assert f"{good}: ok" in captured.out
+
+
+def test_validate_tolerance_and_sweep_files_fully(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tol = tmp_path / "tol.yaml"
+    tol.write_text("rms: {abs: -1}\nbogus: {abs: 1}\nscenarios: {effort: {rms: {rel: abc}}}\n")
+    assert cli.main(["validate", str(tol)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 3 and "bogus: unknown tolerance" in err and "scenarios.effort.rms.rel" in err
+    sw = tmp_path / "sw.yaml"
+    sw.write_text(f"name: s\nscenario: {EFFORT}\nstudies:\n  - backends: [pinocchio]\n"
+                  "    grid: {backends.*.dt: [1e-4, abc]}\n    reference: {backend: pinocchio}\n")  # fmt: skip
+    assert cli.main(["validate", str(sw)]) == 2
+    err = capsys.readouterr().err
+    assert "studies[0].grid.backends.*.dt" in err and "'abc'" in err
+    sw.write_text(sw.read_text().replace("[1e-4, abc]", str([1e-4] * 200) + ", physics.contact.Kp: " +
+                                         str(list(range(1, 101)))))  # fmt: skip
+    assert cli.main(["validate", str(sw)]) == 2
+    assert "limit sweep_points" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- #
+# Output paths checked before any work; readers guarded
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", str(EFFORT), "--backends", "pinocchio"],
+        ["sweep", str(ROOT / "scenarios" / "sweeps" / "gains.yaml")],
+        ["bench", "--quick"],
+        ["verify"],
+        ["calibrate-contact"],
+        ["reproduce"],
+    ],
+    ids=lambda a: a[0],
+)
+def test_out_that_is_a_regular_file_is_refused_before_any_work(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                               argv: list[str]) -> None:  # fmt: skip
+    f = tmp_path / "file"
+    f.write_text("keep me")
+    assert cli.main([*argv, "--out", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert "is a regular file" in err and err.count("\n") == 1
+    assert f.read_text() == "keep me"
+
+
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (["run", str(EFFORT), "--backends", "", "--out", "X"], "names no backend"),
+        (["run", str(EFFORT), "--backends", "pinocchio", "--jobs", "0", "--out", "X"], "--jobs 0"),
+        (["run", str(EFFORT), "--backends", "pinocchio", "--jobs", "-3", "--out", "X"], "--jobs -3"),
+        (["model", "urdf", "--params", "DIR"], "is a directory"),
+        (["model", "urdf", "--out", "DIR/missing/leg.urdf"], "no such folder"),
+        (["check", "DIR", "--baseline", "DIR", "--summary", "DIR/missing/s.md"], "no such folder"),
+    ],
+)
+def test_bad_options_are_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str],
+                                         words: str) -> None:  # fmt: skip
+    argv = [a.replace("DIR", str(tmp_path)).replace("X", str(tmp_path / "x")) for a in argv]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert words in err and err.count("\n") == 1
+    assert not (tmp_path / "x").exists()
+
+
+def _fake_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str = "t") -> Path:
+    """A finished run directory of the fake backend (0.01 s)."""
+    reg = registry._registry
+    monkeypatch.setattr(registry, "_registry", lambda: {**reg(), "fake": FakeBackend})
+    f = tmp_path / f"{name}.yaml"
+    f.write_text(yaml.safe_dump({**_set(GOOD, "duration", 2.0), "name": name}))
+    return f
+
+
+def test_corrupt_results_are_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                      capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    f = _fake_run(tmp_path, monkeypatch)
+    out = tmp_path / "r"
+    argv = ["run", str(f), "--backends", "fake", "--out", str(out), "-q", "--no-compare", "--no-preflight"]
+    assert cli.main(argv) == 0
+    (out / "run.json").write_bytes(b"\xff\xfe garbage")
+    assert cli.main(["compare", str(out)]) == 2
+    assert "not UTF-8" in capsys.readouterr().err
+    # a rerun into it names the corruption instead of "scenario None"
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert "unreadable or corrupt" in err and "None" not in err
+    (out / "run.json").write_text('{"scenario": {"name": "t"}, "backends": {"fake": {"status": "ok"}}}')
+    (out / "fake.parquet").write_bytes(b"PAR1 truncated")
+    assert cli.main(["compare", str(out)]) == 2
+    assert "not a readable parquet file" in capsys.readouterr().err
+
+
+def test_check_against_another_scenarios_baseline_names_the_mismatch(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    dirs = []
+    for name in ("a", "b"):
+        f = _fake_run(tmp_path, monkeypatch, name)
+        out = tmp_path / f"r_{name}"
+        assert cli.main(["run", str(f), "--backends", "fake", "--out", str(out), "-q", "--no-preflight"]) in (0, 3)
+        dirs.append(out)
+    assert cli.main(["check", str(dirs[0]), "--baseline", str(dirs[1])]) == 2
+    err = capsys.readouterr().err
+    assert "holds scenario 'a' but the baseline" in err and "'b'" in err
+
+
+def test_run_without_out_never_replaces_a_finished_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    f = _fake_run(tmp_path, monkeypatch)
+    monkeypatch.chdir(tmp_path)
+    argv = ["run", str(f), "--backends", "fake", "-q", "--no-compare", "--no-preflight"]
+    assert cli.main(argv) == 0
+    meta = tmp_path / "results" / "latest" / "t" / "run.json"
+    before = meta.read_bytes()
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert "--out" in err and "--force" in err and err.count("\n") == 1
+    assert meta.read_bytes() == before
+    assert cli.main([*argv, "--force"]) == 0
+
+
+def test_two_scenarios_with_one_name_are_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    f = _fake_run(tmp_path, monkeypatch)
+    g = tmp_path / "copy.yaml"
+    g.write_text(f.read_text())
+    out = tmp_path / "tree"
+    assert cli.main(["run", str(f), str(g), "--backends", "fake", "--out", str(out), "-q", "--no-preflight"]) == 2
+    assert "collide" in capsys.readouterr().err
+    assert not out.exists()
+
+
+# --------------------------------------------------------------------------- #
+# Atomic writes
+
+
+def test_atomic_dir_keeps_the_previous_result_on_failure(tmp_path: Path) -> None:
+    d = tmp_path / "run"
+    with results.atomic_dir(d) as tmp:
+        (tmp / "a.txt").write_text("one")
+    with pytest.raises(RuntimeError), results.atomic_dir(d) as tmp:
+        (tmp / "a.txt").write_text("two, half")
+        raise RuntimeError("killed while writing")
+    assert (d / "a.txt").read_text() == "one"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+def _dead_pid() -> int:
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    return proc.pid
+
+
+def test_temporaries_of_killed_runs_are_cleaned(tmp_path: Path) -> None:
+    dead = _dead_pid()
+    (tmp_path / f".effort.tmp-{dead}").mkdir()
+    (tmp_path / f".effort.tmp-{dead}" / "pinocchio.parquet").write_bytes(b"x" * 100)
+    (tmp_path / f".sweep.out.tmp-{dead}").mkdir()
+    (tmp_path / f".metrics.json.tmp-{dead}").write_text("{")
+    (tmp_path / f".position.old-{dead}").mkdir()  # a kill between the two renames of a swap
+    (tmp_path / f".position.old-{dead}" / "run.json").write_text("{}")
+    (tmp_path / f".live.tmp-{os.getpid()}").mkdir()  # ours, alive: kept
+    results.clean_stale(tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f".live.tmp-{os.getpid()}", "position"]
+    assert (tmp_path / "position" / "run.json").is_file()
+
+
+_FULL_DISK = """
+import resource, sys
+from pathlib import Path
+from legbench import cli
+resource.setrlimit(resource.RLIMIT_FSIZE, (2000, 2000))
+sys.exit(cli.main(["model", "urdf", "--out", sys.argv[1]]))
+"""
+
+
+def test_full_disk_is_one_line_exit_4_and_the_previous_file_intact(tmp_path: Path) -> None:
+    """RLIMIT_FSIZE (2 KB, the URDF is ~10 KB) stands for a full disk: the write fails with EFBIG
+    (SIGXFSZ ignored so the process sees the error)."""
+    target = tmp_path / "leg.urdf"
+    target.write_text("previous")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    code = "import signal; signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n" + _FULL_DISK
+    proc = subprocess.run([sys.executable, "-c", code, str(target)], capture_output=True, text=True, env=env,
+                          timeout=300)  # fmt: skip
+    assert proc.returncode == 4, proc.stderr
+    err = [ln for ln in proc.stderr.splitlines() if ln.startswith("legbench")]
+    assert len(err) == 1 and "I/O error" in err[0] and "Traceback" not in proc.stderr
+    assert target.read_text() == "previous"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["leg.urdf"]
+
+
+@pytest.fixture
+def readonly_dir(tmp_path: Path) -> Path:
+    """A read-only tmpfs (root ignores chmod); skipped where mounting is not allowed."""
+    d = tmp_path / "ro"
+    d.mkdir()
+    if os.geteuid() != 0:
+        d.chmod(0o555)
+        yield d
+        d.chmod(0o755)
+        return
+    ok = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(d)], capture_output=True)
+    if ok.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs as root here: {ok.stderr.decode().strip()}")
+    (d / "metrics.json").write_text("previous")
+    subprocess.run(["mount", "-o", "remount,ro", str(d)], check=True)
+    yield d
+    subprocess.run(["umount", str(d)], check=False)
+
+
+def test_read_only_output_keeps_the_previous_file(readonly_dir: Path) -> None:
+    target = readonly_dir / "metrics.json"
+    before = target.read_text() if target.exists() else None
+    with pytest.raises(OSError):
+        results.atomic_write_text(target, "new")
+    assert (target.read_text() if target.exists() else None) == before
+    with pytest.raises(LegbenchError, match="not writable"):
+        results.check_out_path(readonly_dir / "run")
+
+
+_cli_docs = st.fixed_dictionaries(
+    {"name": st.one_of(st.just("t"), st.text(max_size=6)), "duration": st.one_of(st.just(0.01), _scalars)},
+    optional={k: _values for k in scenario.TOP_KEYS if k not in ("name", "duration")},
+)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                  HealthCheck.function_scoped_fixture])  # fmt: skip
+@given(doc=_cli_docs, good_events=st.booleans())
+def test_generated_documents_through_the_cli_exit_0_or_2_never_a_traceback(
+    tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch, doc: dict[str, Any], good_events: bool
+) -> None:
+    """``legbench validate`` and ``legbench run`` (the fake backend, 10 ms) on generated documents: every
+    outcome is exit 0 or a one-line exit 2; anything else (a traceback) fails the test."""
+    reg = registry._registry
+    monkeypatch.setattr(registry, "_registry", lambda: {**reg(), "fake": FakeBackend})
+    if good_events:
+        doc = {**doc, "events": [{"t": 0.0, "position": {"joint": [0.0, -1.0, -1.0]}}]}
+    d = tmp_path_factory.mktemp("gen")
+    f = d / "gen.yaml"
+    f.write_text(yaml.safe_dump(doc))
+    for argv in (["validate", str(f)],
+                 ["run", str(f), "--backends", "fake", "--out", str(d / "out"), "-q", "--no-compare",
+                  "--no-preflight"]):  # fmt: skip
+        status = cli.main(argv)
+        assert status in (0, 2), argv
+
+
+def test_schema_accepts_every_bundled_scenario_and_refuses_bad_ones(capsys: pytest.CaptureFixture[str]) -> None:
+    """``legbench schema`` is a valid JSON Schema (draft 2020-12) that every bundled scenario satisfies and that
+    refuses what the validator refuses by shape (unknown key, negative duration, two controllers in one event)."""
+    import json
+
+    jsonschema = pytest.importorskip("jsonschema")
+    assert cli.main(["schema"]) == 0
+    schema = json.loads(capsys.readouterr().out)
+    jsonschema.Draft202012Validator.check_schema(schema)
+    v = jsonschema.Draft202012Validator(schema)
+    files = [p for p in sorted((ROOT / "scenarios").rglob("*.yaml")) if "sweeps" not in p.parts
+             and p.name != "reproduce.yaml"]  # fmt: skip
+    assert len(files) >= 10
+    for f in files:
+        assert [e.message for e in v.iter_errors(yamlfile.read_yaml(f)[0])] == [], f
+    assert not v.is_valid(GOOD | {"duraton": 1.0})
+    assert not v.is_valid(GOOD | {"duration": -1.0})
+    assert not v.is_valid(_set(GOOD, "events.0.effort", {"force": [0, 0, 1]}))
+    assert v.is_valid(GOOD)
+
+
+def test_external_logs_with_implausible_values_or_units(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """1e308 or NaN-only angles are refused; ms and degrees are accepted with a warning giving the evidence
+    (a 1 kHz log in ms has 1 s steps; 57 'rad' is one radian in degrees)."""
+    import numpy as np
+    import pandas as pd
+
+    from legbench import logs
+    from legbench.exceptions import ResultsError
+
+    t = np.arange(21) * 1e-3
+
+    def csv(name: str, tt: np.ndarray, q: float) -> Path:
+        f = tmp_path / name
+        pd.DataFrame({"t": tt, **{f"q{i}": np.full(len(tt), q) for i in (1, 2, 3)}}).to_csv(f, index=False)
+        return f
+
+    with pytest.raises(ResultsError, match="reaches 1e\\+308"):
+        logs.load_log(csv("big.csv", t, 1e308))
+    with pytest.raises(ResultsError, match="NaN only"):
+        logs.load_log(csv("nan.csv", t, float("nan")))
+    with pytest.raises(LegbenchError, match="--log-time-scale"):
+        logs.load_log(csv("ok.csv", t, 0.0), time_scale=0.0)
+    caplog.clear()
+    assert len(logs.load_log(csv("ms.csv", t * 1000, 0.0))) == 21
+    assert "median time step 1 s" in caplog.text
+    caplog.clear()
+    assert len(logs.load_log(csv("deg.csv", t, -57.0))) == 21
+    assert "degrees" in caplog.text and "57" in caplog.text
+    caplog.clear()
+    logs.load_log(csv("fine.csv", t, -1.0))
+    assert caplog.text == ""

@@ -75,7 +75,7 @@ from legbench.studies import horizon
 from legbench.studies.executors import EXECUTORS, Executor, make_executor
 from legbench.studies.horizon import HorizonResult
 from legbench.studies.tasks import RunTask, TaskResult, run_task
-from legbench.yamlfile import YamlContext, check_keys, read_yaml
+from legbench.yamlfile import YamlContext, check_keys, limit, read_yaml
 
 __all__ = [
     "COMPONENTS",
@@ -239,8 +239,29 @@ def load_sweep(path: str | Path) -> Sweep:
     studies = tuple(_study(doc, i, s) for i, s in enumerate(studies_raw))
     if fit is not None and not any(_column(k) == fit.x for st in studies for k in st.grid):
         raise doc.error(["fit", "x"], f"no study sweeps a column named {fit.x!r}")
+    _check_values(doc, scenario, common, studies)
     return Sweep(name, description, str(path), scenario, common, mode, tuple(signals), skip, metric, fit, window,
                  studies, raw)  # fmt: skip
+
+
+def _check_values(doc: YamlContext, scenario: Path, common: Mapping[str, Any], studies: Sequence[Study]) -> None:
+    """Every value of every grid (and set) validated as the scenario would take it, one value at a time
+    (linear in the grid sizes, not their product): ``dt: [abc]`` is refused here, naming the sweep's key."""
+    for i, st in enumerate(studies):
+        for backend in st.backends:
+            base = {_fill(k, backend): v for k, v in {**common, **st.set}.items() if _applies(_fill(k, backend),
+                                                                                               backend)}  # fmt: skip
+            checks: list[tuple[list[str | int], dict[str, Any]]] = [(["studies", i, "set"], base)]
+            for key, values in st.grid.items():
+                for v in values:
+                    if _applies(_fill(key, backend), backend):
+                        checks.append((["studies", i, "grid", key], {**base, _fill(key, backend): v}))
+            for path, overrides in checks:
+                try:
+                    scenario_mod.load(scenario, overrides)
+                except ScenarioError as exc:
+                    where = f"{exc.key}: " if exc.key else ""
+                    raise doc.error(path, f"with {backend}: {where}{exc.problem}") from None
 
 
 def _study(doc: YamlContext, i: int, d: Any) -> Study:
@@ -267,6 +288,11 @@ def _study(doc: YamlContext, i: int, d: Any) -> Study:
         if k in fixed:
             raise doc.error([*p, "grid", k], "also given in this study's set; give it in one place")
         grid[k] = tuple(v)
+    points = math.prod(len(v) for v in grid.values()) * len(names)
+    if points > limit("sweep_points"):
+        raise doc.error([*p, "grid"], f"{points} runs ({' x '.join(str(len(v)) for v in grid.values())} grid points "
+                                      f"x {len(names)} backends) is more than {limit('sweep_points')} "
+                                      "(limit sweep_points: LEGBENCH_LIMITS=sweep_points=N raises it)")  # fmt: skip
     ref = d["reference"]
     check_keys(doc, [*p, "reference"], ref, ["backend", "set"])
     ref_backend = ref.get("backend")
