@@ -320,9 +320,11 @@ def check_physical(raw: dict[str, Any], path: Path | str = "leg parameters") -> 
         raise ModelError(f"{path}: missing or malformed entry: {exc}") from exc
 
 
-def params_from_raw(raw: dict[str, Any], path: Path | str = "leg parameters") -> LegParams:
-    """Resolve a raw parameter dict to :class:`LegParams` (checked by :func:`check_physical` first)."""
-    check_physical(raw, path)
+def params_from_raw(raw: dict[str, Any], path: Path | str = "leg parameters", check: bool = True) -> LegParams:
+    """Resolve a raw parameter dict to :class:`LegParams` (checked by :func:`check_physical` first unless
+    ``check`` is false: :func:`calibrate`'s basis solves set scale factors to 0 on purpose)."""
+    if check:
+        check_physical(raw, path)
     try:
         geom = Geometry(**{k: float(v) for k, v in raw["geometry"].items()})
         joints = []
@@ -602,6 +604,7 @@ def calibrate(raw: dict[str, Any] | None = None) -> dict[str, float]:
     so one solve gives the factors exactly.
     """
     raw = raw or load_raw()
+    check_physical(raw)
     base = dict(raw)
     A = np.zeros((3, 3))
     with tempfile.TemporaryDirectory() as tmp:
@@ -609,7 +612,7 @@ def calibrate(raw: dict[str, Any] | None = None) -> dict[str, float]:
             cal = dict(raw["calibration"])
             cal["scale"] = {n: (1.0 if n == link else 0.0) for n in LINK_NAMES}
             base["calibration"] = cal
-            p = params_from_raw(base)
+            p = params_from_raw(base, check=False)  # one link at scale 1, the others at 0
             # zero-mass links are replaced by a negligible mass so the URDF stays loadable
             inertials = {
                 k: (v if v.mass > 0 else Inertial(1e-12, v.com, ((1e-15, 0, 0), (0, 1e-15, 0), (0, 0, 1e-15))))

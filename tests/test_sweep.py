@@ -140,7 +140,7 @@ def test_value_the_scenario_rejects_is_reported_at_its_sweep_key(tmp_path: Path)
         sweep.plan(sweep.load_sweep(path))
     assert err.value.file == str(path)
     assert err.value.key == "studies[0].set.backends.*.integrator"
-    assert "'bogus' for pinocchio" in err.value.problem and err.value.line is not None
+    assert "pinocchio" in err.value.problem and "'bogus'" in err.value.problem and err.value.line is not None
 
 
 def test_malformed_yaml_and_missing_file(tmp_path: Path) -> None:

@@ -251,7 +251,13 @@ def _check_values(doc: YamlContext, scenario: Path, common: Mapping[str, Any], s
         for backend in st.backends:
             base = {_fill(k, backend): v for k, v in {**common, **st.set}.items() if _applies(_fill(k, backend),
                                                                                                backend)}  # fmt: skip
-            checks: list[tuple[list[str | int], dict[str, Any]]] = [(["studies", i, "set"], base)]
+            # each fixed value on its own first, so the message names its key; then all of them together
+            checks: list[tuple[list[str | int], dict[str, Any]]] = [
+                (["studies", i, "set", key], {_fill(key, backend): v})
+                for key, v in st.set.items()
+                if _applies(_fill(key, backend), backend)
+            ]
+            checks.append((["studies", i, "set"], base))
             for key, values in st.grid.items():
                 for v in values:
                     if _applies(_fill(key, backend), backend):
