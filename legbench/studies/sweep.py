@@ -908,12 +908,14 @@ def run_sweep(
     own = not isinstance(executor, Executor)
     ex = make_executor(executor, jobs, scheduler) if isinstance(executor, str) else executor
     interrupted = False
+    results: dict[int, TaskResult] = {}
     try:
         with progress.bar(len(p.tasks), f"sweep {sw.name}", quiet=quiet) as bar:
             results = execute(sw, p, ex, bar) if p.tasks else {}
         described = ex.describe()
-    except SweepInterrupted as exc:
-        interrupted, results, described = True, exc.results, {"executor": getattr(ex, "name", "")}
+    except KeyboardInterrupt as exc:  # SweepInterrupted carries the finished runs; one before the first, none
+        results = dict(exc.results) if isinstance(exc, SweepInterrupted) else {}
+        interrupted, described = True, {"executor": getattr(ex, "name", "")}
         for t in p.tasks:  # what did not finish, as rows marked interrupted
             if t.index not in results:
                 results[t.index] = TaskResult(t.index, RunResult.empty(t.backend, "interrupted", NOT_RUN))
