@@ -299,18 +299,24 @@ def test_bad_repeats_or_warmup_is_a_user_error() -> None:
         bench.run_bench(sc, ["pinocchio"], warmup=-1)
 
 
-def test_a_backend_that_cannot_load_is_reported_failed_and_exits_3(tmp_path: Path) -> None:
-    """The other backends are still benchmarked and written."""
-    bad = tmp_path / "bad.yaml"
-    sc = scenario.load(bench.TASKS[0])
-    doc = {**bench.shorten(sc, 0.01).raw, "backends": {"pinocchio": {"dt": 3e-4}}}  # does not divide 1 ms
-    bad.write_text(yaml.safe_dump(doc))
+def test_a_backend_that_cannot_load_is_reported_failed_and_exits_3(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A backend whose load fails (the scenario itself is valid) is reported failed; the other backends are
+    still benchmarked and written."""
+    from legbench.backends.pinocchio_ import PinocchioBackend
+
+    def broken(self: PinocchioBackend, *args: object, **kwargs: object) -> None:
+        raise LegbenchError("pinocchio: planted load failure")
+
+    monkeypatch.setattr(PinocchioBackend, "load", broken)
     out = tmp_path / "out"
-    args = _parser().parse_args(["bench", str(bad), "--backends", "pinocchio", "--repeats", "1", "--quiet",
-                                 "--out", str(out)])  # fmt: skip
+    args = _parser().parse_args(["bench", str(bench.TASKS[0]), "--duration", "0.01", "--backends", "pinocchio,mujoco",
+                                 "--repeats", "1", "--warmup", "0", "--no-memory", "--quiet", "--out", str(out)])  # fmt: skip
     assert args.func(args) == 3
-    (row,) = json.loads((out / "bench.json").read_text())["results"]
-    assert row["status"] == "failed" and "does not divide" in row["reason"]
+    rows = {r["backend"]: r for r in json.loads((out / "bench.json").read_text())["results"]}
+    assert rows["pinocchio"]["status"] == "failed" and "planted load failure" in rows["pinocchio"]["reason"]
+    assert rows["mujoco"]["status"] == "ok"
     assert "FAILED" in (out / "bench.md").read_text()
 
 
