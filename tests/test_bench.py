@@ -16,7 +16,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-import yaml
 from fakes import FakeBackend
 
 from legbench import backends, scenario
@@ -311,8 +310,9 @@ def test_a_backend_that_cannot_load_is_reported_failed_and_exits_3(
 
     monkeypatch.setattr(PinocchioBackend, "load", broken)
     out = tmp_path / "out"
-    args = _parser().parse_args(["bench", str(bench.TASKS[0]), "--duration", "0.01", "--backends", "pinocchio,mujoco",
-                                 "--repeats", "1", "--warmup", "0", "--no-memory", "--quiet", "--out", str(out)])  # fmt: skip
+    args = _parser().parse_args(["bench", str(bench.TASKS[0]), "--duration", "0.01", "--backends",
+                                 "pinocchio,mujoco", "--repeats", "1", "--warmup", "0", "--no-memory", "--quiet",
+                                 "--out", str(out)])  # fmt: skip
     assert args.func(args) == 3
     rows = {r["backend"]: r for r in json.loads((out / "bench.json").read_text())["results"]}
     assert rows["pinocchio"]["status"] == "failed" and "planted load failure" in rows["pinocchio"]["reason"]
