@@ -31,7 +31,7 @@ from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import ResultsError
 from legbench.report_figures import ASSETS, NAMES, PLOTLY_JS, Arrays, run_figures, write_assets
 from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num, relpath, to_html, to_markdown
-from legbench.results import read_meta, read_metrics, run_dirs, tolerances_of, write_metrics
+from legbench.results import atomic_write_text, read_meta, read_metrics, run_dirs, tolerances_of, write_metrics
 from legbench.signals import LABELS, SIGNAL_OF, UNITS
 from legbench.signals import label as column_label
 from legbench.studies.executors import make_executor
@@ -493,9 +493,9 @@ def write_report(
     figures = run_figures(res, arrays)
     blocks = _blocks(res, figures, index)
     md = path / "report.md"
-    md.write_text(to_markdown(blocks))
+    atomic_write_text(md, to_markdown(blocks))
     page = path / "report.html"
-    page.write_text(to_html(blocks, f"legbench: {res.run.label}", relpath(adir, path), arrays))
+    atomic_write_text(page, to_html(blocks, f"legbench: {res.run.label}", relpath(adir, path), arrays))
     logger.info("wrote %s and %s (%d figures)", md, page, len(figures))
     return ReportFiles(metrics, md, page, tuple(f.key for f in figures), adir)
 
@@ -529,8 +529,8 @@ def write_page(out_dir: str | Path, stem: str, title: str, items: Sequence[PageI
     out.mkdir(parents=True, exist_ok=True)
     blocks = _page_blocks(items)
     md, page = out / f"{stem}.md", out / f"{stem}.html"
-    md.write_text(to_markdown(blocks))
-    page.write_text(to_html(blocks, title))
+    atomic_write_text(md, to_markdown(blocks))
+    atomic_write_text(page, to_html(blocks, title))
     return md, page
 
 
@@ -677,9 +677,9 @@ def write_index(root: str | Path) -> IndexFiles:
     blocks += _profile_blocks(entries)
     blocks += _bench_blocks(root)
     md = root / "report.md"
-    md.write_text(to_markdown(blocks))
+    atomic_write_text(md, to_markdown(blocks))
     page = root / "report.html"
-    page.write_text(to_html(blocks, "legbench: comparison summary"))
+    atomic_write_text(page, to_html(blocks, "legbench: comparison summary"))
     return IndexFiles(page, md, tuple(dirs))
 
 

@@ -41,7 +41,7 @@ import numpy as np
 
 from legbench import kinematics
 from legbench.compare import ComparisonResult
-from legbench.results import Run, RunResult
+from legbench.results import Run, RunResult, atomic_write_text
 from legbench.signals import JOINTS, SIGNALS, SLICE, UNITS
 from legbench.signals import label as column_label
 
@@ -159,7 +159,7 @@ def write_assets(directory: Path) -> Path:
             tmp.replace(dst)
     js = directory / LEGBENCH_FILE
     if not js.is_file() or js.read_text() != LEGBENCH_JS:
-        js.write_text(LEGBENCH_JS)
+        atomic_write_text(js, LEGBENCH_JS)
     return directory
 
 

@@ -41,7 +41,7 @@ from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
 from legbench.controllers import EffortController, saturate
 from legbench.exceptions import LegbenchError
-from legbench.results import RunResult, platform_info, versions, write_json
+from legbench.results import RunResult, atomic_write_text, platform_info, versions, write_json
 from legbench.run import backend_info
 from legbench.scenario import Event, physics_of
 
@@ -257,7 +257,7 @@ def write_calibration(df: pd.DataFrame, out_dir: Path, program: Program = Progra
     notes = [f"- {r['backend']}: {r['note']}" for r in df.to_dict(orient="records") if r["note"]]
     text = ["# Contact calibration\n", f"Program: {dataclasses.asdict(program)} (legbench/calibrate_contact.py).\n",
             markdown(df), *notes]  # fmt: skip
-    (out_dir / "calibration.md").write_text("\n".join(text) + "\n")
+    atomic_write_text(out_dir / "calibration.md", "\n".join(text) + "\n")
     return out_dir
 
 

@@ -77,7 +77,7 @@ from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
 from legbench.backends.base import Physics
 from legbench.exceptions import LegbenchError
-from legbench.results import platform_info, versions, write_json
+from legbench.results import atomic_write_text, platform_info, versions, write_json
 from legbench.run import simulate
 from legbench.scenario import physics_of
 from legbench.studies.sliding_case import sliding_case
@@ -631,7 +631,7 @@ def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
           markdown(df), "\n## Notes\n"]  # fmt: skip
     md += [f"- {r['case']} / {r['backend']} / {r['variant']} / {r['quantity']}: {r['note']}"
            for r in df.to_dict(orient="records") if r["note"]]  # fmt: skip
-    (out_dir / "verification.md").write_text("\n".join(md) + "\n")
+    atomic_write_text(out_dir / "verification.md", "\n".join(md) + "\n")
     return out_dir
 
 
