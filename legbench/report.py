@@ -857,6 +857,10 @@ def _report_page(task: tuple[str, str, dict[str, Any]]) -> ReportFiles:
     return write_report(run_dir, assets=assets, index="../report.html", **compare_kwargs)
 
 
+#: What a report worker imports once when it starts: the page renderer and what it reads with (no engine).
+REPORT_PRELOAD = ("legbench.report",)
+
+
 def write_all(
     root: str | Path, *, jobs: int = 1, progress: Progress | None = None, **compare_kwargs: Any
 ) -> list[ReportFiles | IndexFiles]:
@@ -885,7 +889,8 @@ def write_all(
     assets = write_assets(root / ASSETS)
     tasks = [(str(d), str(assets), dict(compare_kwargs)) for d in dirs]
     out: list[ReportFiles | IndexFiles] = []
-    with make_executor("local", jobs) as ex:
+    # the workers render pages only: they import the report's modules, not the engines
+    with make_executor("local", jobs, preload=REPORT_PRELOAD) as ex:
         for files in ex.imap(_report_page, tasks):
             out.append(files)
             if progress is not None:

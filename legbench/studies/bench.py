@@ -752,7 +752,36 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
     p.add_argument("--out", default=str(DEFAULT_OUT), help=f"output directory (default {DEFAULT_OUT})")
     p.add_argument("--check", action="store_true", help="exit 1 if a backend's target is missed")
     p.add_argument("-q", "--quiet", action="store_true", help="no per-row progress lines")
+    p.add_argument("--parallel", type=int, default=None, metavar="N",
+                   help="instead: the batch of runs with --jobs N against --jobs 1 (wall time), beside this "
+                   "machine's own N-process ceiling; writes scaling.json and scaling.md")  # fmt: skip
     p.set_defaults(func=_cli)
+
+
+def _meta(settings: Mapping[str, Any]) -> dict[str, Any]:
+    return {
+        "command": " ".join(["legbench", "bench", *sys.argv[2:]]) if sys.argv[1:2] == ["bench"] else "legbench bench",
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "settings": dict(settings),
+        "versions": versions(),
+        "machine": machine(),
+    }
+
+
+def _parallel_cli(
+    args: argparse.Namespace, scenarios: Sequence[Scenario], names: Sequence[str], repeats: int, paths: Sequence[str]
+) -> int:
+    """``legbench bench --parallel N`` (:mod:`legbench.studies.scaling`)."""
+    from legbench.studies import scaling
+
+    res = scaling.run_scaling(scenarios, names, args.parallel, repeats, None if args.quiet else print)
+    settings = {"parallel": args.parallel, "repeats": repeats, "quick": args.quick, "duration": args.duration,
+                "scenarios": [str(p) for p in paths], "backends": list(names)}  # fmt: skip
+    js, md = scaling.write_scaling(res, Path(args.out), _meta(settings))
+    if not args.quiet:
+        print(scaling.markdown(res, _meta(settings)))
+        print(f"wrote {js} and {md}")
+    return 0
 
 
 def _cli(args: argparse.Namespace) -> int:
@@ -767,6 +796,8 @@ def _cli(args: argparse.Namespace) -> int:
     scenarios = load_tasks(paths, quick=args.quick, duration=args.duration, overrides=overrides)
     names = registry.resolve(args.backends)
     repeats = args.repeats if args.repeats is not None else (1 if args.quick else DEFAULT_REPEATS)
+    if args.parallel is not None:
+        return _parallel_cli(args, scenarios, names, repeats, paths)
 
     def show(r: BenchResult) -> None:
         if args.quiet:
