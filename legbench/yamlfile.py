@@ -10,6 +10,7 @@ path, the line and the problem.
 
 from __future__ import annotations
 
+import copy
 import difflib
 import math
 import os
@@ -265,9 +266,32 @@ def _check_depth(file: str, text: str) -> None:
             depth -= 1
 
 
+#: Parsed documents by (file, text): a sweep loads its scenario once per grid point and a study once per run;
+#: the YAML is scanned, composed and loaded once, each caller gets its own copy of the document.
+#: The key holds ``LEGBENCH_LIMITS`` too: a document is checked against the limits in force when it is read.
+_PARSED: dict[tuple[str, str, str], tuple[Any, yaml.Node | None]] = {}
+_PARSED_MAX = 64
+
+
 def parse_text(text: str, file: str) -> tuple[Any, yaml.Node | None]:
     """YAML text's document and node tree, checked against the limits and for duplicate keys, before the
-    aliases are expanded; a one-line :class:`ScenarioError` naming ``file`` and the line."""
+    aliases are expanded; a one-line :class:`ScenarioError` naming ``file`` and the line.
+
+    The document is the caller's own (a deep copy: overrides may change it); the node tree, which only
+    gives line numbers, is shared and must not be changed. Only documents that parsed are remembered.
+    """
+    key = (file, text, os.environ.get("LEGBENCH_LIMITS", ""))
+    hit = _PARSED.get(key)
+    if hit is None:
+        hit = _parse_text(text, file)
+        if len(_PARSED) >= _PARSED_MAX:
+            _PARSED.pop(next(iter(_PARSED)))
+        _PARSED[key] = hit
+    doc, root = hit
+    return copy.deepcopy(doc), root
+
+
+def _parse_text(text: str, file: str) -> tuple[Any, yaml.Node | None]:
     if "\x00" in text:
         nul_line = text[: text.index("\x00")].count("\n") + 1
         raise ScenarioError(file, "", "NUL byte in a text file", nul_line)

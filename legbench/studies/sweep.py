@@ -679,10 +679,13 @@ def _figure(width: float = 7.0, height: float = 5.0) -> Any:
 
 
 def _save(fig: Any, ax: Any, path: Path) -> Path:
-    """Grid, legend, tight layout; the figure written to ``path`` (PNG, 120 dpi)."""
+    """Grid, legend, fixed margins; the figure written to ``path`` (PNG, 120 dpi).
+
+    Fixed margins instead of ``tight_layout``: it measured every tick label's extent, 0.7 s of the 1.2 s a
+    figure took, serial after the parallel runs; the labels here are short and fit the margins."""
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.13, right=0.97, bottom=0.1, top=0.93)
     fig.savefig(path, dpi=120)
     return path
 
