@@ -97,7 +97,12 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="cmd", required=True)
     first = _first_command(argv or ())
-    wanted = [first] if first in COMMANDS else list(COMMANDS)
+    if first in COMMANDS:
+        wanted = [first]
+    elif "--version" in (argv or ()):  # argparse prints the version and exits before any subcommand
+        wanted = []
+    else:
+        wanted = list(COMMANDS)
     for name in wanted:
         module, func = COMMANDS[name].split(":")
         getattr(importlib.import_module(module), func)(sub)

@@ -16,11 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from legbench import backends, check, kinematics, logs, model, report, results, run, scenario, yamlfile
+from legbench import backends, kinematics, model, results, scenario, yamlfile
 from legbench.backends.base import PROFILES
 from legbench.exceptions import LegbenchError
 from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK, EXIT_USER_ERROR
-from legbench.studies import doctor, sweep
+
+# check, logs, report, run, doctor and sweep (pandas, matplotlib, plotly's page code) are imported by the
+# handlers that use them: `legbench validate` or `schema` does not pay for the report's imports.
 
 
 def _floats(values: Any) -> list[float]:
@@ -133,6 +135,9 @@ def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from legbench import report, run
+    from legbench.studies import doctor
+
     overrides = yamlfile.parse_overrides(args.set)
     scenarios = []  # all validated before any runs
     for path in args.scenarios:
@@ -240,8 +245,12 @@ def _validate_one(path: str) -> tuple[str, list[LegbenchError]]:
     except LegbenchError as exc:
         return "", [exc]
     if isinstance(doc, dict) and "studies" in doc:
+        from legbench.studies import sweep
+
         sw = sweep.load_sweep(path)
         return f"{path}: ok (sweep {sw.name}: {len(sw.studies)} studies)", []
+    from legbench import check
+
     tol_keys = {*check.DEFAULT_TOLERANCES, "scenarios"}
     if isinstance(doc, dict) and doc and set(doc) & tol_keys and not set(doc) & set(scenario.TOP_KEYS):
         problems: list[LegbenchError] = list(check.tolerance_errors(path))
@@ -283,6 +292,8 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def _compare(args: argparse.Namespace) -> int:
+    from legbench import logs, report
+
     column_map: dict[str, str] = {}
     for item in args.log_columns.split(",") if args.log_columns else []:
         src, sep, dst = item.partition("=")
@@ -356,6 +367,8 @@ def add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
 
 
 def _check(args: argparse.Namespace) -> int:
+    from legbench import check
+
     return check.run_check(args.dir, args.baseline, args.tolerances, args.summary, args.junit, all_rows=args.all)
 
 
