@@ -110,6 +110,23 @@ def test_workers_ignore_sigint_import_once_and_are_reused() -> None:
     assert all(ign for _, ign, _ in first) and all(pre for _, _, pre in first)
 
 
+def test_start_spawns_the_workers_before_the_first_task() -> None:
+    """``start()`` spawns ``jobs`` workers at once (they import the engines while the caller plans); the tasks
+    then run in those same processes. With one job nothing is spawned (tasks run in this process)."""
+    serial = executors.LocalExecutor(1)
+    serial.start()
+    assert serial._pool is None
+    with executors.LocalExecutor(2) as ex:
+        ex.start()
+        pool = ex._pool
+        assert pool is not None
+        started = {p.pid for p in (getattr(pool, "_processes", None) or {}).values()}
+        assert len(started) == 2  # spawned by start(), before any task was submitted by a map
+        got = ex.map(_worker_state, list(range(4)))
+    assert {pid for pid, _, _ in got} <= started
+    assert all(ign and pre for _, ign, pre in got)
+
+
 def test_imap_unordered_starts_in_the_given_order_and_yields_every_item_once() -> None:
     items = [0.0, 1.0, 4.0, 9.0, 16.0]
     order = [4, 2, 0, 1, 3]

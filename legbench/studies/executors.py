@@ -99,6 +99,10 @@ class Executor(ABC):
     ) -> Iterator[tuple[int, R]]:
         """``(i, fn(items[i]))`` for each item, as each finishes; started in the order of ``first``."""
 
+    def start(self) -> None:  # noqa: B027 - optional hook
+        """Start the workers now, in the background, so their start-up overlaps the caller's own work (loading
+        and planning) instead of delaying the first task. Optional: the first task starts them otherwise."""
+
     def close(self) -> None:  # noqa: B027 - optional hook
         """Release workers and connections (waits for nothing: every result asked for has been returned)."""
 
@@ -143,6 +147,10 @@ def _preload(preload: Sequence[str]) -> None:
                 getattr(mod, func)()
         except Exception as exc:  # a task that needs it reports the problem itself
             log.debug("worker preload %s failed: %s", name, exc)
+
+
+def _noop() -> None:
+    """The task :meth:`LocalExecutor.start` gives each worker so that it is spawned."""
 
 
 def _call(fn: Callable[[T], R], x: T) -> R | None:
@@ -230,6 +238,14 @@ class LocalExecutor(Executor):
         finally:
             for fut in running:
                 fut.cancel()
+
+    def start(self) -> None:
+        """Spawn the ``jobs`` workers now (one no-op task each, not waited for): they import ``preload`` while
+        the caller goes on. Nothing with ``jobs = 1`` (the tasks run in this process)."""
+        if self.jobs > 1 and self._pool is None:
+            pool = self._get_pool()
+            for _ in range(self.jobs):
+                pool.submit(_noop)
 
     def close(self) -> None:
         if self._pool is not None:

@@ -50,7 +50,7 @@ import math
 import os
 import shutil
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import BrokenExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -817,8 +817,26 @@ class SweepResult:
     complete: bool = True
 
 
-def write_sweep(result: SweepResult, out_dir: Path, executor: Mapping[str, Any] | None = None) -> Path:
+def _plot(figure: tuple[str, Any]) -> str | None:
+    """One of the sweep's figures, ``(kind, arguments)``, drawn in this process (or a pool worker): its path."""
+    kind, args = figure
+    draws: dict[str, Callable[..., Path | None]] = {
+        "convergence": plot_convergence, "speed_accuracy": plot_speed_accuracy, "sweep": plot_sweep}  # fmt: skip
+    draw = draws[kind]
+    path = draw(*args[:-1], Path(args[-1]))
+    return str(path) if path is not None else None
+
+
+def write_sweep(
+    result: SweepResult,
+    out_dir: Path,
+    executor: Mapping[str, Any] | None = None,
+    plots_on: Executor | None = None,
+) -> Path:
     """Write the table (CSV + Parquet), fits, windows, ``sweep.json`` and plots into ``out_dir`` atomically.
+
+    ``plots_on``: an executor whose workers draw the figures side by side (the sweep's own pool, still
+    running); None draws them here, one after the other.
 
     Refuses to replace a directory holding another sweep or anything else.
     """
@@ -849,13 +867,13 @@ def write_sweep(result: SweepResult, out_dir: Path, executor: Mapping[str, Any] 
         result.windows.to_csv(tmp / "short_horizon.csv", index=False)
         result.windows.to_parquet(tmp / "short_horizon.parquet", index=False)
         files += ["short_horizon.csv", "short_horizon.parquet"]
+    figures: list[tuple[str, Any]] = [("speed_accuracy", (result.table, sw.metric, str(tmp / "speed_accuracy.png"))),
+                                       ("sweep", (result.table, sw.metric, str(tmp / "sweep.png")))]  # fmt: skip
     if sw.fit is not None:
-        plot_convergence(result.table, result.fits, sw.metric, sw.fit, tmp / "convergence.png")
-        files.append("convergence.png")
-    plot_speed_accuracy(result.table, sw.metric, tmp / "speed_accuracy.png")
-    files.append("speed_accuracy.png")
-    if plot_sweep(result.table, sw.metric, tmp / "sweep.png") is not None:
-        files.append("sweep.png")
+        args = (result.table, result.fits, sw.metric, sw.fit, str(tmp / "convergence.png"))
+        figures.insert(0, ("convergence", args))
+    drawn = plots_on.map(_plot, figures) if plots_on is not None else [_plot(f) for f in figures]
+    files += [Path(p).name for p in drawn if p is not None]
     meta = {
         "schema": SCHEMA,
         "name": sw.name,
@@ -906,10 +924,16 @@ def run_sweep(
         KeyboardInterrupt: Ctrl-C or SIGTERM; the runs that finished are written first (``sweep.json``
             ``complete: false``, the others ``interrupted`` in the table) and a line on stderr says so.
     """
-    sw = load_sweep(sweep_file)
-    p = plan(sw)
     own = not isinstance(executor, Executor)
     ex = make_executor(executor, jobs, scheduler) if isinstance(executor, str) else executor
+    try:
+        ex.start()  # the workers start (imports, engines) while the sweep is read and planned here
+        sw = load_sweep(sweep_file)
+        p = plan(sw)
+    except BaseException:
+        if own:
+            ex.terminate()
+        raise
     interrupted = False
     results: dict[int, TaskResult] = {}
     try:
@@ -922,17 +946,24 @@ def run_sweep(
         for t in p.tasks:  # what did not finish, as rows marked interrupted
             if t.index not in results:
                 results[t.index] = TaskResult(t.index, RunResult.empty(t.backend, "interrupted", NOT_RUN))
+    except BaseException:
+        if own:
+            ex.close()
+        raise
+    try:
+        with deferred_interrupts():  # a signal now acts once the table is written (the runs are done)
+            table, windows = tabulate(sw, p, results) if p.rows else (pd.DataFrame(), pd.DataFrame())
+            fits = fit_slopes(table, sw.metric, sw.fit) if sw.fit is not None and len(table) else pd.DataFrame()
+            result = SweepResult(sw, table, fits, windows, p.notes, None, not interrupted)
+            kept = any(t.run.status != "interrupted" for t in results.values())
+            if out_dir is not None and len(table) and (not interrupted or kept):
+                # the figures on the sweep's own pool while it still runs (not after an interrupt: it is stopped)
+                plots_on = ex if own and not interrupted and getattr(ex, "jobs", 1) > 1 else None
+                path = write_sweep(result, Path(out_dir), described, plots_on)
+                result = SweepResult(sw, table, fits, windows, p.notes, path, not interrupted)
     finally:
         if own:
             ex.close()
-    with deferred_interrupts():  # a signal now acts once the table is written (the runs are done)
-        table, windows = tabulate(sw, p, results) if p.rows else (pd.DataFrame(), pd.DataFrame())
-        fits = fit_slopes(table, sw.metric, sw.fit) if sw.fit is not None and len(table) else pd.DataFrame()
-        result = SweepResult(sw, table, fits, windows, p.notes, None, not interrupted)
-        kept = any(t.run.status != "interrupted" for t in results.values())
-        if out_dir is not None and len(table) and (not interrupted or kept):
-            path = write_sweep(result, Path(out_dir), described)
-            result = SweepResult(sw, table, fits, windows, p.notes, path, not interrupted)
     if interrupted:
         done = sum(t.run.status != "interrupted" for t in results.values())
         where = f"written to {result.out_dir} (complete: false)" if result.out_dir else "nothing written"
