@@ -31,12 +31,21 @@ def test_urdf_marks_the_hip_continuous_and_carries_the_foot_sphere() -> None:
     np.testing.assert_allclose(col.origin[:3, 3], 0.0)  # sphere centre is the E frame
 
 
-def test_urdf_loads_in_mujoco_and_pybullet_without_edits() -> None:
+def test_urdf_is_plain_urdf_and_loads_in_mujoco_and_pybullet() -> None:
+    """The generated URDF names no engine (MuJoCo's compiler options are its backend's business) and loads
+    in MuJoCo as is (fusing the fixed foot into link 3) and with the backend's options (foot kept a body)."""
     import mujoco
 
-    spec = mujoco.MjSpec.from_file(str(model.URDF_FILE))
-    m = spec.compile()
-    assert m.njnt == 3
+    from legbench.backends.mujoco_ import urdf_with_compiler
+
+    text = model.URDF_FILE.read_text()
+    assert "<mujoco" not in text and "<gazebo" not in text and "<drake" not in text
+    plain = mujoco.MjSpec.from_file(str(model.URDF_FILE)).compile()
+    m = mujoco.MjSpec.from_string(urdf_with_compiler(model.URDF_FILE)).compile()
+    assert plain.njnt == m.njnt == 3
+    names = {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, i) for i in range(m.nbody)}
+    plain_names = {mujoco.mj_id2name(plain, mujoco.mjtObj.mjOBJ_BODY, i) for i in range(plain.nbody)}
+    assert "foot" in names and "foot" not in plain_names  # a body of its own only with fusestatic="false"
     cid = pybullet.connect(pybullet.DIRECT)
     try:
         body = pybullet.loadURDF(

@@ -1,9 +1,9 @@
 """MuJoCo backend: the generated URDF compiled through ``MjSpec``, native soft contact or the reference law.
 
-Model: ``models/leg.urdf`` is loaded with :func:`mujoco.MjSpec.from_file` (no
-hand-written MJCF copy of the leg). The URDF's ``<mujoco><compiler
-fusestatic="false"/>`` keeps the foot a body of its own, welded to link 3 at
-the foot centre E; a site ``E`` marks that point. On the spec we add the
+Model: ``models/leg.urdf`` is loaded with :func:`mujoco.MjSpec.from_string` (no
+hand-written MJCF copy of the leg), with MuJoCo's ``<mujoco><compiler fusestatic="false"/>``
+added by this backend (:data:`COMPILER`): it keeps the foot a body of its own, welded to link 3
+at the foot centre E; a site ``E`` marks that point. On the spec we add the
 ground plane z_W = 0, one ``motor`` actuator per joint (gear 1, control range
 = torque limit), stiff joint limits (docs/contact_mapping.md: solref (0.002, 1), solimp
 (0.99, 0.999, ...): the knee driven into its 2.229 rad limit with 10 N m rests
@@ -115,6 +115,22 @@ _INTEGRATE = {
 _STAGE_VEL = mujoco.mjtStage.mjSTAGE_VEL
 
 
+#: MuJoCo's own URDF import options, which this backend adds (the generated URDF carries no engine's element):
+#: angles in radians, visual geoms kept, no inertia balancing, and ``fusestatic="false"`` so that the foot,
+#: welded to link 3 by a fixed joint, stays a body of its own (its contact pair and the site E need it).
+COMPILER = '<mujoco><compiler angle="radian" discardvisual="false" fusestatic="false" balanceinertia="false"/></mujoco>'
+
+
+def urdf_with_compiler(urdf: Path) -> str:
+    """The URDF's text with :data:`COMPILER` as the first element of ``<robot>`` (kept if it has a ``<mujoco>``)."""
+    text = urdf.read_text()
+    if "<mujoco>" in text:
+        return text
+    start = text.index("<robot")
+    end = text.index(">", start) + 1
+    return text[:end] + COMPILER + text[end:]
+
+
 class MujocoBackend(Backend):
     """MuJoCo simulating the leg from the generated URDF."""
 
@@ -189,7 +205,7 @@ class MujocoBackend(Backend):
         self.cfg, self.physics, self.n_sub = cfg, physics, n_sub
         self.reference = physics.contact_mode == "reference"
 
-        spec = mujoco.MjSpec.from_file(str(urdf))
+        spec = mujoco.MjSpec.from_string(urdf_with_compiler(urdf))
         opt = spec.option
         opt.timestep = physics.control_dt / n_sub
         opt.integrator = _INTEGRATORS[cfg["integrator"]]
