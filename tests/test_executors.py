@@ -117,7 +117,8 @@ def test_start_spawns_the_workers_before_the_first_task() -> None:
     serial.start()
     assert serial._pool is None
     with executors.LocalExecutor(2) as ex:
-        ex.start()
+        ex.start()  # returns at once; the workers are spawned from a thread
+        ex._started()  # the thread has handed out its tasks: the processes exist
         pool = ex._pool
         assert pool is not None
         started = {p.pid for p in (getattr(pool, "_processes", None) or {}).values()}

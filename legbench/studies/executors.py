@@ -27,6 +27,7 @@ import logging
 import multiprocessing
 import os
 import signal
+import threading
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -153,6 +154,12 @@ def _noop() -> None:
     """The task :meth:`LocalExecutor.start` gives each worker so that it is spawned."""
 
 
+def _spawn(pool: ProcessPoolExecutor, n: int) -> None:
+    """Hand ``n`` no-op tasks to ``pool``: it spawns its workers (:meth:`LocalExecutor.start`, in a thread)."""
+    for _ in range(n):
+        pool.submit(_noop)
+
+
 def _call(fn: Callable[[T], R], x: T) -> R | None:
     """Run one task in a worker; an interrupt reaching it anyway ends the task quietly (no traceback)."""
     try:
@@ -193,6 +200,7 @@ class LocalExecutor(Executor):
             raise LegbenchError(f"jobs must be >= 1, got {jobs}")
         self.preload = tuple(preload)
         self._pool: ProcessPoolExecutor | None = None
+        self._starter: threading.Thread | None = None
 
     def _get_pool(self) -> ProcessPoolExecutor:
         if self._pool is None:
@@ -217,6 +225,7 @@ class LocalExecutor(Executor):
             for j in order:
                 yield j, fn(items[j])
             return
+        self._started()
         pool = self._get_pool()
         pending = iter(order)
         running: dict[Future[Any], int] = {}
@@ -244,16 +253,25 @@ class LocalExecutor(Executor):
         the caller goes on. Nothing with ``jobs = 1`` (the tasks run in this process)."""
         if self.jobs > 1 and self._pool is None:
             pool = self._get_pool()
-            for _ in range(self.jobs):
-                pool.submit(_noop)
+            # from a thread: the first worker's start waits for the fork server to import its preload (~1.5 s)
+            self._starter = threading.Thread(target=_spawn, args=(pool, self.jobs), daemon=True)
+            self._starter.start()
+
+    def _started(self) -> None:
+        """Wait until :meth:`start`'s thread has handed out its tasks (before using or stopping the pool)."""
+        if self._starter is not None:
+            self._starter.join()
+            self._starter = None
 
     def close(self) -> None:
+        self._started()
         if self._pool is not None:
             self._pool.shutdown(wait=True)
             self._pool = None
 
     def terminate(self) -> None:
         """Stop the workers now (SIGTERM, then SIGKILL after ``2 s``); results already returned are kept."""
+        self._started()
         pool, self._pool = self._pool, None
         if pool is None:
             return

@@ -72,7 +72,7 @@ from legbench.run import deferred_interrupts
 from legbench.scenario import NAME_RE
 from legbench.signals import COLUMNS, UNITS
 from legbench.studies import horizon
-from legbench.studies.executors import EXECUTORS, Executor, make_executor
+from legbench.studies.executors import DEFAULT_PRELOAD, EXECUTORS, Executor, make_executor
 from legbench.studies.horizon import HorizonResult
 from legbench.studies.tasks import RunTask, TaskResult, run_task
 from legbench.yamlfile import YamlContext, check_keys, limit, read_yaml
@@ -925,7 +925,9 @@ def run_sweep(
             ``complete: false``, the others ``interrupted`` in the table) and a line on stderr says so.
     """
     own = not isinstance(executor, Executor)
-    ex = make_executor(executor, jobs, scheduler) if isinstance(executor, str) else executor
+    # the workers also import this module (matplotlib) while they start: they draw the figures at the end
+    preload = (*DEFAULT_PRELOAD, "legbench.studies.sweep")
+    ex = make_executor(executor, jobs, scheduler, preload) if isinstance(executor, str) else executor
     try:
         ex.start()  # the workers start (imports, engines) while the sweep is read and planned here
         sw = load_sweep(sweep_file)
