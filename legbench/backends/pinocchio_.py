@@ -49,7 +49,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
-from legbench.backends import joint_limits
+from legbench.backends import joint_limits, pinocchio_kernel
 from legbench.backends.base import Backend, Limits, Physics, sub_step_count
 from legbench.backends.joint_limits import JointLimitLaw
 from legbench.contact import ReferenceContact, implicit_velocity_step, law_step_warnings
@@ -70,10 +70,12 @@ class PinocchioBackend(Backend):
         "limit_stiffness": joint_limits.STIFFNESS,  # [N m/rad]
         "limit_damping": joint_limits.DAMPING,  # [N m s/rad], about critical for the knee (I ~ 0.01 kg m^2)
         "friction": "implicit",  # euler only: friction slope linearly implicit (docs/pinocchio.md)
+        "kernel": "compiled",  # euler only: one compiled call per control period (pinocchio_kernel), or python
     }
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "integrator": ("euler", "rk4", "rk45", "dop853"),
         "friction": ("implicit", "explicit"),
+        "kernel": ("compiled", "python"),
     }
     #: Pinocchio is legbench's own integrator: its "engine defaults" are these defaults.
     #: ``ode45``: the lab report's Simscape solver (adaptive Dormand-Prince, its tolerances and max step).
@@ -112,6 +114,32 @@ class PinocchioBackend(Backend):
         euler = self._euler_implicit if self.implicit else self._euler
         self._step = {"euler": euler, "rk4": self._rk4}.get(self.cfg["integrator"], self._adaptive)
         self._fn_peak, self._q_peak = 0.0, [0.0, 0.0, 0.0]
+        self._kernel_note = ""
+        self._compiled = self._load_kernel() if self.cfg["integrator"] == "euler" else None
+        if self._compiled is not None:
+            self._step = self._euler_compiled
+
+    def _load_kernel(self) -> tuple[Any, ...] | None:
+        """The compiled period's arguments (:mod:`legbench.backends.pinocchio_kernel`), or None: the Python
+        path then runs (setting ``kernel: python``, numba missing, or a model the kernel cannot integrate)."""
+        if self.cfg["kernel"] != "compiled":
+            return None
+        if not pinocchio_kernel.available():
+            self._kernel_note = "pinocchio: numba is not installed: the Python sub-steps run (pip install numba)"
+            return None
+        try:
+            R, p, inertia, a0 = pinocchio_kernel.model_arrays(self.model)
+        except pinocchio_kernel.KernelUnavailable as exc:
+            self._kernel_note = f"pinocchio: {exc}: the Python sub-steps run"
+            return None
+        c = self.contact
+        lc = np.array([*c._geometry, *c._law, 1.0 if c.true_poc else 0.0])
+        lim = np.array([*self.lower, *self.upper, self.limit_law.k, self.limit_law.b], dtype=float)
+        #: state and read-out (q1..3, qd1..3, fx, fy, fz), the held torque, scratch: all reused every period
+        self._x = np.zeros(9)
+        self._u = np.zeros(3)
+        work, tmp, buf = np.zeros((3, 6, 16)), np.zeros((6, 16)), np.zeros(64)
+        return (R, p, inertia, a0, lc, lim, self.h, self.n_sub, self.implicit, self._u, self._x, work, tmp, buf)
 
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
@@ -119,6 +147,9 @@ class PinocchioBackend(Backend):
         self.q = [float(x) for x in q]
         self.qd = [float(x) for x in qd]
         self._update_force()
+        if self._compiled is not None:
+            x = self._x
+            x[0:3], x[3:6], x[6:9] = self.q, self.qd, self.force
 
     # ----------------------------------------------------------------- step
     def _qdd(self, q: Sequence[float], qd: Sequence[float], tau: Sequence[float]) -> tuple[float, float, float]:
@@ -255,7 +286,20 @@ class PinocchioBackend(Backend):
         x = sol.y[:, -1]
         self.q, self.qd = x[:3].tolist(), x[3:].tolist()
 
+    def _euler_compiled(self, tau: np.ndarray) -> None:
+        """:meth:`_euler_implicit` (or :meth:`_euler`) and the force read-out in one compiled call."""
+        self._u[:] = tau
+        self._period(*self._compiled)  # type: ignore[misc]
+        x = self._x
+        if x[8] > self._fn_peak:
+            self._fn_peak, self._q_peak = float(x[8]), x[0:3].tolist()
+
+    _period = staticmethod(pinocchio_kernel.period)
+
     def step(self, tau: np.ndarray) -> None:
+        if self._compiled is not None:
+            self._euler_compiled(tau)
+            return
         self._step(tau)
         self._update_force()
 
@@ -268,9 +312,13 @@ class PinocchioBackend(Backend):
 
     # ----------------------------------------------------------------- read
     def state(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._compiled is not None:
+            return self._x[0:3].copy(), self._x[3:6].copy()
         return np.array(self.q), np.array(self.qd)
 
     def ground_force(self) -> np.ndarray:
+        if self._compiled is not None:
+            return self._x[6:9].copy()
         return self.force.copy()
 
     def info(self) -> dict[str, Any]:
@@ -280,6 +328,7 @@ class PinocchioBackend(Backend):
             "version": pin.__version__,
             **{k: self.cfg[k] for k in self.defaults},
             "sub_steps": self.n_sub,
+            "kernel_used": "compiled (numba)" if self._compiled is not None else "python",
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
             "contact": {
@@ -295,9 +344,10 @@ class PinocchioBackend(Backend):
 
     def warnings(self) -> list[str]:
         """The explicit law's step bound (euler with ``friction: explicit``, rk4) at the run's peak Fn."""
+        notes = [self._kernel_note] if self._kernel_note else []
         if self.implicit or self.cfg["integrator"] not in ("euler", "rk4"):
-            return []
-        return law_step_warnings(self.name, self.h, self._fn_peak, self._q_peak, self.physics.contact)
+            return notes
+        return notes + law_step_warnings(self.name, self.h, self._fn_peak, self._q_peak, self.physics.contact)
 
     # ------------------------------------------------------- declared abilities
     def integrator_family(self) -> str:

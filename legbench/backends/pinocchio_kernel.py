@@ -1,0 +1,475 @@
+"""The Pinocchio backend's control period in one compiled call (numba): ABA, the contact law, the joint limits.
+
+Part of the Pinocchio backend (:mod:`legbench.backends.pinocchio_`), which keeps its Python path as the
+reference. The model crosses as plain numbers read from the ``pin.Model`` at load (:func:`model_arrays`):
+per joint its placement in the parent joint's frame (R, p) and its body's spatial inertia, and gravity.
+The kernel knows one kind of joint, a revolute joint about its own z axis (Pinocchio's ``JointModelRZ``
+and ``JointModelRUBZ``, the continuous hip: the same motion, only the configuration is stored as
+cos/sin), and refuses a model with any other (:class:`KernelUnavailable`).
+
+* :func:`aba` is Featherstone's articulated-body algorithm in the joint frames, the algorithm of
+  ``pinocchio::aba`` (motion vectors linear part first, as Pinocchio): forward pass for the velocities
+  and bias terms, backward pass for the articulated inertias, forward pass for the accelerations.
+  It agrees with ``pin.aba`` to round-off (tests/test_backend_pinocchio.py), not bit for bit: the
+  operations are the same algorithm, not the same order.
+* :func:`law` and :func:`limit_torques` are :meth:`legbench.contact.ReferenceContact.wrench_slope`
+  and :class:`legbench.backends.joint_limits.JointLimitLaw`, the same IEEE operations in the same
+  order (numba without ``fastmath``; ``math.sin``/``cos``/``hypot`` are the C library's, as in Python).
+* :func:`period` is :meth:`PinocchioBackend._euler_implicit` (``implicit``: the friction's slope
+  linearly implicit, M^-1 frozen over the period at its first sub-step in contact) or ``_euler``.
+
+Units: q [rad], qd [rad/s], tau [N m], F in W [N], h [s].
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+try:
+    import numba
+except ImportError:  # the backend runs its Python path and says so
+    numba = None  # type: ignore[assignment]
+
+__all__ = [
+    "KernelUnavailable",
+    "aba",
+    "available",
+    "floor",
+    "minverse",
+    "model_arrays",
+    "period",
+    "wrench",
+    "wrench_slope",
+]
+
+#: The joint types the kernel integrates (all: revolute about the joint frame's z axis).
+JOINT_TYPES = ("JointModelRZ", "JointModelRUBZ")
+
+
+class KernelUnavailable(Exception):
+    """The compiled kernel cannot run this model (or numba is missing): the Python path runs instead."""
+
+
+def available() -> bool:
+    """numba is installed."""
+    return numba is not None
+
+
+def model_arrays(model: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The numbers the kernel needs from a ``pin.Model`` of a serial chain of z-revolute joints.
+
+    Returns:
+        R (n, 3, 3) and p (n, 3): joint i's placement in its parent joint's frame at q = 0 [1, m];
+        inertia (n, 6, 6): body i's spatial inertia in its joint frame, motion ordered (v, w)
+        [kg, kg m, kg m^2]; a0 (6,): the root's spatial acceleration standing for gravity, -g [m/s^2].
+    """
+    n = model.njoints - 1
+    names = [model.joints[i].shortname() for i in range(1, n + 1)]
+    bad = [f"{model.names[i + 1]} ({t})" for i, t in enumerate(names) if t not in JOINT_TYPES]
+    if bad:
+        raise KernelUnavailable(f"joints the compiled kernel does not integrate: {', '.join(bad)}")
+    if list(model.parents)[1:] != list(range(n)):
+        raise KernelUnavailable("the model is not a serial chain")
+    R = np.empty((n, 3, 3))
+    p = np.empty((n, 3))
+    inertia = np.empty((n, 6, 6))
+    for i in range(n):
+        placement = model.jointPlacements[i + 1]
+        R[i] = placement.rotation
+        p[i] = placement.translation
+        inertia[i] = model.inertias[i + 1].matrix()
+    a0 = np.zeros(6)
+    a0[:3] = -np.asarray(model.gravity.linear, dtype=float)
+    return R, p, inertia, a0
+
+
+def _njit(fn: Any) -> Any:
+    return numba.njit(cache=True, nogil=True)(fn) if numba is not None else fn
+
+
+# --------------------------------------------------------------------------- #
+# Spatial algebra on (6,) motion / force vectors, linear part first
+
+
+@_njit
+def aba(
+    R: np.ndarray,
+    p: np.ndarray,
+    inertia: np.ndarray,
+    a0: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    tau: np.ndarray,
+    qdd: np.ndarray,
+    work: np.ndarray,
+    tmp: np.ndarray,
+) -> None:
+    """qdd = ABA(q, qd, tau) [rad/s^2] for a chain of z-revolute joints (:func:`model_arrays`).
+
+    Scratch space, nothing allocated: ``work`` (n, 6, 16), per joint the rows of X_i (columns 0-5,
+    motion vectors parent -> joint frame), the articulated inertia IA_i (6-11), v_i (12), c_i (13),
+    pA_i (14), U_i (15); ``tmp`` (6, 16). Indexed directly (no array views in the loops).
+    """
+    n = q.shape[0]
+    for i in range(n):  # forward: transforms, velocities, bias accelerations and forces
+        cq, sq = math.cos(q[i]), math.sin(q[i])
+        # E = (R Rz(q))^T: rows Rz^T R^T; X = [[E, -E [p]x], [0, E]]
+        for k in range(3):
+            e0 = cq * R[i, k, 0] + sq * R[i, k, 1]
+            e1 = -sq * R[i, k, 0] + cq * R[i, k, 1]
+            e2 = R[i, k, 2]
+            work[i, 0, k] = e0
+            work[i, 1, k] = e1
+            work[i, 2, k] = e2
+            work[i, 3, k + 3] = e0
+            work[i, 4, k + 3] = e1
+            work[i, 5, k + 3] = e2
+            work[i, 3, k] = 0.0
+            work[i, 4, k] = 0.0
+            work[i, 5, k] = 0.0
+        p0, p1, p2 = p[i, 0], p[i, 1], p[i, 2]
+        for r in range(3):
+            e0, e1, e2 = work[i, r, 0], work[i, r, 1], work[i, r, 2]
+            work[i, r, 3] = -(e1 * p2 - e2 * p1)
+            work[i, r, 4] = -(-e0 * p2 + e2 * p0)
+            work[i, r, 5] = -(e0 * p1 - e1 * p0)
+        if i == 0:
+            for r in range(6):
+                work[i, r, 12] = 0.0
+        else:
+            for r in range(6):
+                acc = 0.0
+                for k in range(6):
+                    acc += work[i, r, k] * work[i - 1, k, 12]
+                work[i, r, 12] = acc
+        w = qd[i]
+        work[i, 5, 12] += w
+        vx, vy, vz = work[i, 0, 12], work[i, 1, 12], work[i, 2, 12]
+        wx, wy, wz = work[i, 3, 12], work[i, 4, 12], work[i, 5, 12]
+        # c = v x (S qd), S qd = (0, 0, 0, 0, 0, qd)
+        work[i, 0, 13] = vy * w
+        work[i, 1, 13] = -vx * w
+        work[i, 2, 13] = 0.0
+        work[i, 3, 13] = wy * w
+        work[i, 4, 13] = -wx * w
+        work[i, 5, 13] = 0.0
+        for r in range(6):
+            acc = 0.0
+            for k in range(6):
+                ib = inertia[i, r, k]
+                work[i, r, 6 + k] = ib
+                acc += ib * work[i, k, 12]
+            tmp[r, 0] = acc  # f = I v
+        f0, f1, f2, f3, f4, f5 = tmp[0, 0], tmp[1, 0], tmp[2, 0], tmp[3, 0], tmp[4, 0], tmp[5, 0]
+        # pA = v x* f = [w x f_lin ; v_lin x f_lin + w x f_ang]
+        work[i, 0, 14] = wy * f2 - wz * f1
+        work[i, 1, 14] = wz * f0 - wx * f2
+        work[i, 2, 14] = wx * f1 - wy * f0
+        work[i, 3, 14] = vy * f2 - vz * f1 + wy * f5 - wz * f4
+        work[i, 4, 14] = vz * f0 - vx * f2 + wz * f3 - wx * f5
+        work[i, 5, 14] = vx * f1 - vy * f0 + wx * f4 - wy * f3
+    for i in range(n - 1, -1, -1):  # backward: articulated inertias and bias forces
+        for r in range(6):
+            work[i, r, 15] = work[i, r, 11]  # U = IA S, S = e_5
+        D = work[i, 5, 15]
+        u = tau[i] - work[i, 5, 14]
+        qdd[i] = u  # kept for the last pass
+        if i == 0:
+            continue
+        # Ia = IA - U U^T / D (tmp cols 4-9); pa = pA + Ia c + U u / D (tmp col 1)
+        for r in range(6):
+            ur = work[i, r, 15]
+            for k in range(6):
+                tmp[r, 4 + k] = work[i, r, 6 + k] - ur * work[i, k, 15] / D
+        for r in range(6):
+            acc = 0.0
+            for k in range(6):
+                acc += tmp[r, 4 + k] * work[i, k, 13]
+            tmp[r, 1] = work[i, r, 14] + acc + work[i, r, 15] * u / D
+        # T = Ia X (tmp cols 10-15); IAp += X^T T; pAp += X^T pa
+        for r in range(6):
+            for k in range(6):
+                acc = 0.0
+                for m in range(6):
+                    acc += tmp[r, 4 + m] * work[i, m, k]
+                tmp[r, 10 + k] = acc
+        for r in range(6):
+            for k in range(6):
+                acc = 0.0
+                for m in range(6):
+                    acc += work[i, m, r] * tmp[m, 10 + k]
+                work[i - 1, r, 6 + k] += acc
+            acc = 0.0
+            for m in range(6):
+                acc += work[i, m, r] * tmp[m, 1]
+            work[i - 1, r, 14] += acc
+    for r in range(6):  # forward: accelerations (a_parent in tmp col 3, a in col 2)
+        tmp[r, 3] = a0[r]
+    for i in range(n):
+        for r in range(6):
+            acc = 0.0
+            for k in range(6):
+                acc += work[i, r, k] * tmp[k, 3]
+            tmp[r, 2] = acc + work[i, r, 13]
+        ua = 0.0
+        for r in range(6):
+            ua += work[i, r, 15] * tmp[r, 2]
+        qdd_i = (qdd[i] - ua) / work[i, 5, 15]
+        qdd[i] = qdd_i
+        tmp[5, 2] += qdd_i
+        for r in range(6):
+            tmp[r, 3] = tmp[r, 2]
+
+
+# --------------------------------------------------------------------------- #
+# The contact law and the joint limits: legbench.contact and joint_limits, the same operations in order
+
+
+@_njit
+def _jacobian(lc: np.ndarray, q1: float, q2: float, q3: float) -> tuple[float, ...]:
+    """(y, Jx1..3, Jy1..3, Jz1..3) of the point of contact in W; y <= 0: no contact (the rest not computed)."""
+    L_12, L_23, L_3E, H, R = lc[0], lc[1], lc[2], lc[3], lc[4]
+    s1, c1 = math.sin(q1), math.cos(q1)
+    s2, c2 = math.sin(q2), math.cos(q2)
+    s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
+    reach = L_23 * s2 + L_3E * s23
+    y = R - (L_12 * s1 + c1 * reach + H)
+    if y <= 0.0:
+        return y, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    dr2 = L_23 * c2 + L_3E * c23
+    dr3 = L_3E * c23
+    Jx1, Jx2, Jx3 = -(L_12 * s1 + c1 * reach), -(s1 * dr2), -(s1 * dr3)
+    Jy1, Jy2, Jy3 = -0.0, -reach, -(L_3E * s23)
+    Jz1, Jz2, Jz3 = L_12 * c1 - s1 * reach, c1 * dr2, c1 * dr3
+    if lc[13] != 0.0:  # true point of contact
+        Jx1 = Jx1 + R
+        Jy2 = Jy2 + R * c1
+        Jy3 = Jy3 + R * c1
+    return y, Jx1, Jx2, Jx3, Jy1, Jy2, Jy3, Jz1, Jz2, Jz3
+
+
+@_njit
+def wrench(lc: np.ndarray, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
+    """:meth:`legbench.contact.ReferenceContact.wrench`: (tau_c [N m], F in W [N]), six floats."""
+    y, Jx1, Jx2, Jx3, Jy1, Jy2, Jy3, Jz1, Jz2, Jz3 = _jacobian(lc, q1, q2, q3)
+    if y <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    vx = Jx1 * qd1 + Jx2 * qd2 + Jx3 * qd3
+    vy = Jy1 * qd1 + Jy2 * qd2 + Jy3 * qd3
+    vz = Jz1 * qd1 + Jz2 * qd2 + Jz3 * qd3
+    Kp, Kd, mu_s, mu_k, v_th, v_slip, dmu, half_v_th = lc[5], lc[6], lc[7], lc[8], lc[9], lc[10], lc[11], lc[12]
+    ydot = -vz
+    fz = Kp * y + (Kd * ydot if ydot > 0.0 else 0.0)
+    v = math.hypot(vx, vy)
+    if v == 0.0:
+        fx = 0.0
+        fy = 0.0
+    else:
+        if v < v_th:
+            mu = v * mu_s / v_th
+        elif v < v_slip:
+            mu = mu_s - (v - v_th) * dmu / half_v_th
+        else:
+            mu = mu_k
+        ff = mu * fz / v
+        fx, fy = -ff * vx, -ff * vy
+    return (Jx1 * fx + Jy1 * fy + Jz1 * fz, Jx2 * fx + Jy2 * fy + Jz2 * fz, Jx3 * fx + Jy3 * fy + Jz3 * fz,
+            fx, fy, fz)  # fmt: skip
+
+
+@_njit
+def wrench_slope(
+    lc: np.ndarray, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float
+) -> tuple[float, ...]:
+    """:meth:`legbench.contact.ReferenceContact.wrench_slope`: tau_c, F and K (K11, K12, K13, K22, K23, K33)."""
+    y, Jx1, Jx2, Jx3, Jy1, Jy2, Jy3, Jz1, Jz2, Jz3 = _jacobian(lc, q1, q2, q3)
+    if y <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    vx = Jx1 * qd1 + Jx2 * qd2 + Jx3 * qd3
+    vy = Jy1 * qd1 + Jy2 * qd2 + Jy3 * qd3
+    vz = Jz1 * qd1 + Jz2 * qd2 + Jz3 * qd3
+    Kp, Kd, mu_s, mu_k, v_th, v_slip, dmu, half_v_th = lc[5], lc[6], lc[7], lc[8], lc[9], lc[10], lc[11], lc[12]
+    ydot = -vz
+    fz = Kp * y + (Kd * ydot if ydot > 0.0 else 0.0)
+    v = math.hypot(vx, vy)
+    if v < v_th:
+        c_perp = fz * mu_s / v_th
+        ff = c_perp
+        dxx = c_perp
+        dyy = c_perp
+        dxy = 0.0
+    else:
+        if v < v_slip:
+            mu = mu_s - (v - v_th) * dmu / half_v_th
+        else:
+            mu = mu_k
+        ff = mu * fz / v
+        c_perp, c_par = ff, 0.0
+        ux, uy = vx / v, vy / v
+        dc = c_par - c_perp
+        dxx, dxy, dyy = c_perp + dc * ux * ux, dc * ux * uy, c_perp + dc * uy * uy
+    fx, fy = -ff * vx, -ff * vy
+    ax1, ax2, ax3 = dxx * Jx1 + dxy * Jy1, dxx * Jx2 + dxy * Jy2, dxx * Jx3 + dxy * Jy3
+    ay1, ay2, ay3 = dxy * Jx1 + dyy * Jy1, dxy * Jx2 + dyy * Jy2, dxy * Jx3 + dyy * Jy3
+    return (Jx1 * fx + Jy1 * fy + Jz1 * fz, Jx2 * fx + Jy2 * fy + Jz2 * fz, Jx3 * fx + Jy3 * fy + Jz3 * fz,
+            fx, fy, fz,
+            Jx1 * ax1 + Jy1 * ay1, Jx1 * ax2 + Jy1 * ay2, Jx1 * ax3 + Jy1 * ay3,
+            Jx2 * ax2 + Jy2 * ay2, Jx2 * ax3 + Jy2 * ay3, Jx3 * ax3 + Jy3 * ay3)  # fmt: skip
+
+
+@_njit
+def limit_torques(
+    lim: np.ndarray, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float
+) -> tuple[float, float, float]:
+    """:class:`legbench.backends.joint_limits.JointLimitLaw`: lim = (lo1, lo2, lo3, hi1, hi2, hi3, k, b)."""
+    lo1, lo2, lo3, hi1, hi2, hi3, k, b = lim[0], lim[1], lim[2], lim[3], lim[4], lim[5], lim[6], lim[7]
+    t1 = 0.0
+    t2 = 0.0
+    t3 = 0.0
+    if q1 > hi1:
+        t1 = -k * (q1 - hi1) - (b * qd1 if qd1 > 0.0 else 0.0)
+    elif q1 < lo1:
+        t1 = -k * (q1 - lo1) - (b * qd1 if qd1 < 0.0 else 0.0)
+    if q2 > hi2:
+        t2 = -k * (q2 - hi2) - (b * qd2 if qd2 > 0.0 else 0.0)
+    elif q2 < lo2:
+        t2 = -k * (q2 - lo2) - (b * qd2 if qd2 < 0.0 else 0.0)
+    if q3 > hi3:
+        t3 = -k * (q3 - hi3) - (b * qd3 if qd3 > 0.0 else 0.0)
+    elif q3 < lo3:
+        t3 = -k * (q3 - lo3) - (b * qd3 if qd3 < 0.0 else 0.0)
+    return t1, t2, t3
+
+
+@_njit
+def implicit_velocity_step(h: float, m11: float, m12: float, m13: float, m22: float, m23: float, m33: float,
+                           K11: float, K12: float, K13: float, K22: float, K23: float, K33: float,
+                           a1: float, a2: float, a3: float) -> tuple[float, float, float]:  # fmt: skip
+    """:func:`legbench.contact.implicit_velocity_step`: dqd of (I + h M^-1 K) dqd = h a."""
+    x1, x2, x3 = h * a1, h * a2, h * a3
+    c11 = 1.0 + h * (m11 * K11 + m12 * K12 + m13 * K13)
+    c12 = h * (m11 * K12 + m12 * K22 + m13 * K23)
+    c13 = h * (m11 * K13 + m12 * K23 + m13 * K33)
+    c21 = h * (m12 * K11 + m22 * K12 + m23 * K13)
+    c22 = 1.0 + h * (m12 * K12 + m22 * K22 + m23 * K23)
+    c23 = h * (m12 * K13 + m22 * K23 + m23 * K33)
+    c31 = h * (m13 * K11 + m23 * K12 + m33 * K13)
+    c32 = h * (m13 * K12 + m23 * K22 + m33 * K23)
+    c33 = 1.0 + h * (m13 * K13 + m23 * K23 + m33 * K33)
+    d1 = c22 * c33 - c23 * c32
+    d2 = c21 * c33 - c23 * c31
+    d3 = c21 * c32 - c22 * c31
+    det = c11 * d1 - c12 * d2 + c13 * d3
+    y1 = (x1 * d1 - c12 * (x2 * c33 - c23 * x3) + c13 * (x2 * c32 - c22 * x3)) / det
+    y2 = (c11 * (x2 * c33 - c23 * x3) - x1 * d2 + c13 * (c21 * x3 - x2 * c31)) / det
+    y3 = (c11 * (c22 * x3 - x2 * c32) - c12 * (c21 * x3 - x2 * c31) + x1 * d3) / det
+    return y1, y2, y3
+
+
+# --------------------------------------------------------------------------- #
+# One control period
+
+
+@_njit
+def minverse(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, q: np.ndarray, out: np.ndarray,
+             work: np.ndarray, tmp: np.ndarray, buf: np.ndarray) -> None:  # fmt: skip
+    """M(q)^-1 [1/(kg m^2)]: column j is ABA(q, qd = 0, tau = e_j) without gravity; out (3, 3)."""
+    zero6 = buf[0:6]
+    zero3 = buf[6:9]
+    e = buf[9:12]
+    col = buf[12:15]
+    for r in range(6):
+        zero6[r] = 0.0
+    for j in range(3):
+        zero3[j] = 0.0
+    for j in range(3):
+        for r in range(3):
+            e[r] = 1.0 if r == j else 0.0
+        aba(R, p, inertia, zero6, q, zero3, e, col, work, tmp)
+        for r in range(3):
+            out[r, j] = col[r]
+
+
+@_njit
+def period(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: np.ndarray, lim: np.ndarray,
+           h: float, n_sub: int, implicit: bool, u: np.ndarray, x: np.ndarray, work: np.ndarray,
+           tmp: np.ndarray, buf: np.ndarray) -> None:  # fmt: skip
+    """``n_sub`` semi-implicit Euler sub-steps of ``h`` [s] under the held torque u [N m].
+
+    ``x`` = (q1, q2, q3, qd1, qd2, qd3, fx, fy, fz) in and out: the state, then the law's F in W [N] at the
+    end state (the backend's force read-out). ``implicit``: the friction slope linearly implicit with M^-1
+    at the period's first sub-step in contact (:meth:`PinocchioBackend._euler_implicit`), else explicit
+    (``_euler``). ``buf``: scratch of 64 floats.
+    """
+    q = buf[16:19]
+    qd = buf[19:22]
+    t = buf[22:25]
+    a = buf[25:28]
+    mi = buf[28:37].reshape((3, 3))
+    u1, u2, u3 = u[0], u[1], u[2]
+    q1, q2, q3, qd1, qd2, qd3 = x[0], x[1], x[2], x[3], x[4], x[5]
+    have_minv = False
+    m11 = m12 = m13 = m22 = m23 = m33 = 0.0
+    for _ in range(n_sub):
+        if implicit:
+            tc1, tc2, tc3, _f1, _f2, _f3, K11, K12, K13, K22, K23, K33 = wrench_slope(lc, q1, q2, q3, qd1, qd2, qd3)
+        else:
+            tc1, tc2, tc3, _f1, _f2, _f3 = wrench(lc, q1, q2, q3, qd1, qd2, qd3)
+            K11 = K12 = K13 = K22 = K23 = K33 = 0.0
+        tl1, tl2, tl3 = limit_torques(lim, q1, q2, q3, qd1, qd2, qd3)
+        t[0], t[1], t[2] = u1 + tc1 + tl1, u2 + tc2 + tl2, u3 + tc3 + tl3
+        q[0], q[1], q[2] = q1, q2, q3
+        qd[0], qd[1], qd[2] = qd1, qd2, qd3
+        aba(R, p, inertia, a0, q, qd, t, a, work, tmp)
+        a1, a2, a3 = a[0], a[1], a[2]
+        if K11 == 0.0 and K22 == 0.0 and K33 == 0.0:
+            x1, x2, x3 = h * a1, h * a2, h * a3
+        else:
+            if not have_minv:  # first sub-step in contact of this period
+                minverse(R, p, inertia, q, mi, work, tmp, buf)
+                m11, m12, m13, m22, m23, m33 = mi[0, 0], mi[0, 1], mi[0, 2], mi[1, 1], mi[1, 2], mi[2, 2]
+                have_minv = True
+            x1, x2, x3 = implicit_velocity_step(h, m11, m12, m13, m22, m23, m33, K11, K12, K13, K22, K23, K33,
+                                                a1, a2, a3)  # fmt: skip
+        qd1 = qd1 + x1
+        qd2 = qd2 + x2
+        qd3 = qd3 + x3
+        q1 = q1 + h * qd1
+        q2 = q2 + h * qd2
+        q3 = q3 + h * qd3
+    _t1, _t2, _t3, fx, fy, fz = wrench(lc, q1, q2, q3, qd1, qd2, qd3)
+    x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8] = q1, q2, q3, qd1, qd2, qd3, fx, fy, fz
+
+
+@_njit
+def floor(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: np.ndarray, lim: np.ndarray,
+          n_sub: int, implicit: bool, Q: np.ndarray, QD: np.ndarray, TAU: np.ndarray, work: np.ndarray,
+          tmp: np.ndarray, buf: np.ndarray) -> float:  # fmt: skip
+    """The bench's compiled floor: for every row (q, qd, tau) of a log, ``n_sub`` x (the law, the limits and
+    ABA at that state), in one compiled loop: the calls a run's sub-steps make, without the integration.
+    Returns a sum of the accelerations (so that nothing is optimised away)."""
+    q = buf[16:19]
+    qd = buf[19:22]
+    t = buf[22:25]
+    a = buf[25:28]
+    total = 0.0
+    for row in range(Q.shape[0]):
+        q1, q2, q3 = Q[row, 0], Q[row, 1], Q[row, 2]
+        qd1, qd2, qd3 = QD[row, 0], QD[row, 1], QD[row, 2]
+        q[0], q[1], q[2] = q1, q2, q3
+        qd[0], qd[1], qd[2] = qd1, qd2, qd3
+        for _ in range(n_sub):
+            if implicit:
+                r = wrench_slope(lc, q1, q2, q3, qd1, qd2, qd3)
+                tc1, tc2, tc3 = r[0], r[1], r[2]
+            else:
+                w = wrench(lc, q1, q2, q3, qd1, qd2, qd3)
+                tc1, tc2, tc3 = w[0], w[1], w[2]
+            tl1, tl2, tl3 = limit_torques(lim, q1, q2, q3, qd1, qd2, qd3)
+            t[0], t[1], t[2] = TAU[row, 0] + tc1 + tl1, TAU[row, 1] + tc2 + tl2, TAU[row, 2] + tc3 + tl3
+            aba(R, p, inertia, a0, q, qd, t, a, work, tmp)
+            total += a[0] + a[1] + a[2]
+    return total
