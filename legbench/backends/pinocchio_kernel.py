@@ -394,12 +394,13 @@ def minverse(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, q: np.ndarray, o
 
 
 @_njit
-def period(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: np.ndarray, lim: np.ndarray,
+def _period_arrays(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: np.ndarray, lim: np.ndarray,
            h: float, n_sub: int, implicit: bool, u: np.ndarray, x: np.ndarray, work: np.ndarray,
            tmp: np.ndarray, buf: np.ndarray) -> None:  # fmt: skip
     """``n_sub`` semi-implicit Euler sub-steps of ``h`` [s] under the held torque u [N m].
 
-    ``x`` = (q1, q2, q3, qd1, qd2, qd3, fx, fy, fz) in and out: the state, then the law's F in W [N] at the
+    ``u``: the torque row as the run loop hands it (read, never written). ``x`` = (q1, q2, q3, qd1, qd2, qd3,
+    fx, fy, fz) in and out: the state, then the law's F in W [N] at the
     end state (the backend's force read-out). ``implicit``: the friction slope linearly implicit with M^-1
     at the period's first sub-step in contact (:meth:`PinocchioBackend._euler_implicit`), else explicit
     (``_euler``). ``buf``: scratch of 64 floats.
@@ -473,3 +474,38 @@ def floor(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc:
             aba(R, p, inertia, a0, q, qd, t, a, work, tmp)
             total += a[0] + a[1] + a[2]
     return total
+
+
+def pack(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: np.ndarray,
+         lim: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The model and law constants in one array, and the scratch space in another, for :func:`period`: a call
+    from Python then passes four arrays, not fourteen arguments (numba's dispatch costs per argument).
+
+    model = (n, R (n*9), p (n*3), inertia (n*36), a0 (6), lc (14), lim (8)); scratch = work (n*96), tmp (96),
+    buf (64).
+    """
+    n = R.shape[0]
+    model = np.concatenate([[float(n)], R.ravel(), p.ravel(), inertia.ravel(), a0, lc, lim]).astype(float)
+    scratch = np.zeros(n * 96 + 96 + 64)
+    return model, scratch
+
+
+@_njit
+def period(model: np.ndarray, scratch: np.ndarray, u: np.ndarray, x: np.ndarray, h: float, n_sub: int,
+           implicit: bool) -> None:  # fmt: skip
+    """One control period on :func:`pack`'s arrays (see :func:`_period_arrays`): what the backend calls."""
+    n = int(model[0])
+    o = 1
+    R = model[o : o + 9 * n].reshape((n, 3, 3))
+    o += 9 * n
+    p = model[o : o + 3 * n].reshape((n, 3))
+    o += 3 * n
+    inertia = model[o : o + 36 * n].reshape((n, 6, 6))
+    o += 36 * n
+    a0 = model[o : o + 6]
+    lc = model[o + 6 : o + 20]
+    lim = model[o + 20 : o + 28]
+    work = scratch[: 96 * n].reshape((n, 6, 16))
+    tmp = scratch[96 * n : 96 * n + 96].reshape((6, 16))
+    buf = scratch[96 * n + 96 :]
+    _period_arrays(R, p, inertia, a0, lc, lim, h, n_sub, implicit, u, x, work, tmp, buf)
