@@ -48,12 +48,13 @@ def simulate(
     """Run one scenario on one loaded-and-ready backend; a divergence ends the log early, marked failed.
 
     The loop is the benchmark's "full run" (``legbench bench``); per tick it
-    does only what a tick needs, on plain floats: read the state, check it,
-    fire due events, compute and saturate the torque, write one row of each
-    preallocated log array, step. The torque handed to :meth:`Backend.step` is
-    a read-only view of the logged row, so what is logged is what the backend
-    received. Nothing is allocated per tick beyond the backend's own state
-    arrays and the controller's three floats; memory is the log itself.
+    does only what a tick needs, on plain floats: read the state and force
+    (:meth:`Backend.read`, nine floats), check it, fire due events, compute and
+    saturate the torque, write one row of the preallocated (n, 12) log (q, qd,
+    f, tau: the four logs are column views of it), step. The torque handed to
+    :meth:`Backend.step` is a read-only view of the logged row, so what is
+    logged is what the backend received. Nothing is allocated per tick beyond
+    the floats read and the controller's three; memory is the log itself.
 
     Args:
         scenario: the task (duration, control rate, events, gains, initial state).
@@ -73,17 +74,17 @@ def simulate(
     z_min = g.R_foot - MAX_PENETRATION  # lowest foot-centre height before we call it diverged [m]
     v_max = MAX_JOINT_SPEED
     t = np.arange(n) * Ts
-    q_log = np.full((n, 3), np.nan)
-    qd_log = np.full((n, 3), np.nan)
-    tau_log = np.full((n, 3), np.nan)
-    f_log = np.full((n, 3), np.nan)
+    # one (n, 12) block, row k = (q, qd, f, tau) of tick k, written with one row assignment per tick; the
+    # four logs are column views of it (no copy)
+    log = np.full((n, 12), np.nan)
+    q_log, qd_log, f_log, tau_log = log[:, 0:3], log[:, 3:6], log[:, 6:9], log[:, 9:12]
     tau_out = tau_log.view()
     tau_out.flags.writeable = False  # the backend gets read-only rows of the log
     ticks = [int(round(e.t_switch / Ts)) for e in scenario.events]  # a delayed event switches late
     names = [e.controller for e in scenario.events]
     controllers: list[Controller] = [make_controller(e, scenario.gains, Ts, n) for e in scenario.events]
     backend.reset(np.array(scenario.q0), np.array(scenario.qd0))
-    state, ground_force, step = backend.state, backend.ground_force, backend.step
+    read, step = backend.read, backend.step
     sin, cos, isfinite = math.sin, math.cos, math.isfinite
     torque = controllers[0].torque
     next_event, n_events = 0, len(ticks)
@@ -94,11 +95,7 @@ def simulate(
     start = time.perf_counter()
     try:
         for k in range(n):
-            q, qd = state()
-            f = ground_force()
-            q1, q2, q3 = q.tolist()
-            qd1, qd2, qd3 = qd.tolist()
-            f1, f2, f3 = f.tolist()
+            q1, q2, q3, qd1, qd2, qd3, f1, f2, f3 = read()
             if not isfinite(q1 + q2 + q3 + qd1 + qd2 + qd3 + f1 + f2 + f3):
                 raise SimulationDiverged(backend.name, k * Ts, "state is not finite")
             if abs(qd1) > v_max or abs(qd2) > v_max or abs(qd3) > v_max:
@@ -106,6 +103,7 @@ def simulate(
             if L_12 * sin(q1) + cos(q1) * (L_23 * sin(q2) + L_3E * sin(q2 + q3)) + H < z_min:  # foot-centre height z_W
                 raise SimulationDiverged(backend.name, k * Ts, f"foot more than {MAX_PENETRATION} m into the ground")
             if k >= next_tick:
+                q, qd = np.array((q1, q2, q3)), np.array((qd1, qd2, qd3))
                 while next_event < n_events and ticks[next_event] <= k:
                     active = controllers[next_event]
                     active.start(k * Ts, q, qd)
@@ -117,10 +115,7 @@ def simulate(
             u1 = -lim1 if u1 < -lim1 else (lim1 if u1 > lim1 else u1)
             u2 = -lim2 if u2 < -lim2 else (lim2 if u2 > lim2 else u2)
             u3 = -lim3 if u3 < -lim3 else (lim3 if u3 > lim3 else u3)
-            q_log[k] = q
-            qd_log[k] = qd
-            f_log[k] = f
-            tau_log[k] = (u1, u2, u3)
+            log[k] = (q1, q2, q3, qd1, qd2, qd3, f1, f2, f3, u1, u2, u3)
             if k < last:
                 step(tau_out[k])
             if progress is not None and k % every == 0:

@@ -226,3 +226,24 @@ def test_signals_are_held_while_results_are_written() -> None:
             finished.append(got[:])
     assert finished == [[signal.SIGINT]]
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+
+
+def test_backend_read_is_state_and_ground_force_as_floats() -> None:
+    """``Backend.read()`` (the run loop's one read per tick, overridden by backends for speed) returns exactly
+    the numbers of ``state()`` and ``ground_force()``, bit for bit, after steps in and out of contact."""
+    from legbench import resources
+    from legbench.scenario import physics_of
+
+    sc = scenario.shorten(scenario.load(resources.scenarios_dir() / "combined.yaml"), 2.5)
+    for name in [b for b in ("pinocchio", "mujoco", "pybullet") if b in backends.available()]:
+        for mode in ("native", "reference"):
+            physics = physics_of(sc, mode)
+            be = backends.load(name, physics, sc.backends.get(name, {}), sc.profile)
+            try:
+                tr = run.simulate(sc, be, physics)  # ends in contact (the push starts at 2 s)
+                q, qd = be.state()
+                f = be.ground_force()
+                assert be.read() == (*q.tolist(), *qd.tolist(), *f.tolist())
+                assert f[2] > 0.0 and tr.f[-1][2] == f[2]
+            finally:
+                be.close()

@@ -171,6 +171,14 @@ class Backend(ABC):
     def ground_force(self) -> np.ndarray:
         """Force of the ground on the foot in W [N] (fx, fy, fz), at the end of the last step."""
 
+    def read(self) -> tuple[float, ...]:
+        """(q1, q2, q3, qd1, qd2, qd3, fx, fy, fz): :meth:`state` and :meth:`ground_force` as nine floats, what
+        the run loop reads every tick [rad, rad/s, N in W]. A backend may override it with a read that builds
+        no arrays; it must return the same numbers."""
+        q, qd = self.state()
+        f = self.ground_force()
+        return (*q.tolist(), *qd.tolist(), *f.tolist())
+
     @abstractmethod
     def info(self) -> dict[str, Any]:
         """Engine name and version and every physics setting actually used (JSON-serialisable)."""

@@ -459,6 +459,11 @@ class MujocoBackend(Backend):
         at the current state."""
         return self._force.copy()
 
+    def read(self) -> tuple[float, ...]:
+        """:meth:`state` and :meth:`ground_force` as nine floats, without the copies."""
+        d = self.data
+        return (*d.qpos.tolist(), *d.qvel.tolist(), *self._force.tolist())
+
     def info(self) -> dict[str, Any]:
         """Engine, version, sub-stepping and every contact and limit setting actually used."""
         m, c = self.model, self.physics.contact

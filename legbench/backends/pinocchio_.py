@@ -326,6 +326,12 @@ class PinocchioBackend(Backend):
             return self._x[6:9].copy()
         return self.force.copy()
 
+    def read(self) -> tuple[float, ...]:
+        if self._compiled is not None:
+            return tuple(self._x.tolist())
+        f = self.force
+        return (*self.q, *self.qd, float(f[0]), float(f[1]), float(f[2]))
+
     def info(self) -> dict[str, Any]:
         c = self.physics.contact
         return {

@@ -363,6 +363,10 @@ class PybulletBackend(Backend):
         """
         return self._force.copy()
 
+    def read(self) -> tuple[float, ...]:
+        """:meth:`state` and :meth:`ground_force` as nine floats, without the copies."""
+        return (*self._q.tolist(), *self._qd.tolist(), *self._force.tolist())
+
     def info(self) -> dict[str, Any]:
         """Engine, version and every physics setting actually used, read back where Bullet allows."""
         cid, c = self.cid, self.physics.contact
