@@ -26,6 +26,7 @@ from scipy import integrate
 
 from legbench import resources
 from legbench.exceptions import ModelError
+from legbench.yamlfile import check_magnitude
 
 #: The source checkout's root (only meaningful when running from one; data paths come from
 #: :mod:`legbench.resources`).
@@ -246,7 +247,7 @@ def cad_estimate(raw: dict[str, Any]) -> dict[str, Inertial]:
 def load_raw(path: Path | str | None = None) -> dict[str, Any]:
     """The parameter file (default: the active one, :func:`legbench.resources.model_file`) as a dict,
     read through the guarded YAML reader (size, nesting, duplicate keys)."""
-    from legbench.yamlfile import read_yaml  # noqa: PLC0415 - yamlfile imports nothing of the model
+    from legbench.yamlfile import read_yaml
 
     path = Path(path) if path is not None else resources.model_file()
     if path.is_dir():
@@ -277,6 +278,7 @@ def check_physical(raw: dict[str, Any], path: Path | str = "leg parameters") -> 
     def num(key: str, v: Any) -> float:
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise bad(key, v, "is not a finite number")
+        check_magnitude(float(v), lambda why: ModelError(f"{path}: {key}: {why}"))
         return float(v)
 
     try:

@@ -52,7 +52,13 @@ LIMITS: dict[str, int] = {
     "sub_steps": 100_000,  # engine sub-steps per control tick (control period / dt)
     "sweep_points": 10_000,  # points of one sweep (product of its grid sizes)
     "integer": 2**31 - 1,  # largest integer setting (iterations, points): the engines' C int
+    # largest magnitude of a number [its unit]: far beyond any physical value of this leg (gains ~1e3, contact
+    # stiffness ~1e5 N/m), far below where a product of two overflows a double or an engine's float
+    "float_abs": 10**12,
 }
+#: Smallest magnitude of a non-zero number: below it a value is a subnormal or round-off (write 0), and a
+#: product of two underflows to 0.
+FLOAT_TINY = 1e-30
 
 
 def limit(name: str) -> int:
@@ -170,11 +176,23 @@ def number(ctx: YamlContext, path: list[str | int], v: Any, *, positive: bool = 
         raise ctx.error(path, f"number too large: {v!r}") from None
     if not math.isfinite(x):
         raise ctx.error(path, f"must be finite, got {v!r}")
+    check_magnitude(x, lambda why: ctx.error(path, why))
     if positive and x <= 0:
         raise ctx.error(path, f"must be > 0, got {v!r}")
     if nonneg and x < 0:
         raise ctx.error(path, f"must be >= 0, got {v!r}")
     return x
+
+
+def check_magnitude(x: float, error: Any) -> None:
+    """Raise ``error(why)`` for a number beyond +-``limit("float_abs")`` or non-zero below :data:`FLOAT_TINY`."""
+    big = limit("float_abs")
+    if abs(x) > big:
+        raise error(f"{x:g} is beyond +-{big:g}, more than any physical value here (limit float_abs)")
+    if x != 0.0 and abs(x) < FLOAT_TINY:
+        raise error(
+            f"{x:g} is below {FLOAT_TINY:g} in magnitude (round-off or a subnormal): write 0 or a physical value"
+        )
 
 
 def vector(ctx: YamlContext, path: list[str | int], v: Any, n: int = 3) -> tuple[float, ...]:

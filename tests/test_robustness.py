@@ -661,3 +661,39 @@ def test_external_logs_with_implausible_values_or_units(tmp_path: Path, caplog: 
     caplog.clear()
     logs.load_log(csv("fine.csv", t, -1.0))
     assert caplog.text == ""
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "problem"),
+    [
+        ("gains.Kp", "[1.0e+308, 1, 1]", "beyond +-1e+12"),  # a product with an error overflows to inf
+        ("gains.Kd", "1.0e+13", "beyond +-1e+12"),
+        ("backends.pinocchio.rtol", "1.0e-320", "below 1e-30"),  # a subnormal
+        ("backends.mujoco.dt", "5.0e-310", "below 1e-30"),
+        ("physics.gravity", "1.0e+200", "beyond +-1e+12"),
+    ],
+)
+def test_absurd_magnitudes_are_refused_before_any_engine_loads(
+    key: str, value: str, problem: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A finite number no engine can use (beyond +-1e12, or a non-zero below 1e-30: it overflows or underflows
+    in the first product) is one line naming the key, exit 2, nothing written."""
+    out = tmp_path / "out"
+    code = cli.main(["run", str(EFFORT), "--backends", "pinocchio", "--set", f"{key}={value}", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert key in err and problem in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_absurd_leg_parameters_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A leg parameter file with a density of 1e300 kg/m^3 (its inertias overflow) is refused, naming the key."""
+    text = (ROOT / "models" / "leg.yaml").read_text()
+    raw = yaml.safe_load(text)
+    first = next(iter(raw["materials"]))
+    raw["materials"][first] = 1.0e300
+    bad = tmp_path / "leg.yaml"
+    bad.write_text(yaml.safe_dump(raw))
+    assert cli.main(["--model", str(bad), "model", "check"]) == 2
+    err = capsys.readouterr().err
+    assert f"materials.{first}" in err and "beyond +-1e+12" in err
