@@ -204,6 +204,7 @@ class TrajectoryController(Controller):
         self._last = 0  # last tick offset from k0 with its own desired state
         self._x: list[float] = [0.0, 1.0]  # knot times after activation [s]
         self._coef = np.zeros((1, 12))  # per interval: (c3, c2, c1, c0) of joints 1, 2, 3 (highest power first)
+        self._seg: tuple[float, ...] = (0.0, 0.0, *([0.0] * 12))  # the current interval (see _interval)
         self._i = (0.0, 0.0, 0.0)
         self.knots_q = np.zeros((1, 3))
         self.knots_t = np.zeros(1)
@@ -224,23 +225,32 @@ class TrajectoryController(Controller):
         self._x = times.tolist()
         c = spline.c  # (4, intervals, 3), highest power first
         self._coef = np.ascontiguousarray(c.transpose(1, 2, 0).reshape(c.shape[1], 12))
+        self._seg = self._interval(0.0)
         self.knots_q, self.knots_t = Q, times
         self._i = (0.0, 0.0, 0.0)
+
+    def _interval(self, xt: float) -> tuple[float, ...]:
+        """(t_j, t_j+1, the interval's 12 coefficients) of the interval holding xt, as ``PPoly`` picks it: the
+        last knot's interval extends to +inf (``t_end`` belongs to it)."""
+        knots = self._x
+        j = bisect_right(knots, xt) - 1
+        if j > len(knots) - 2:
+            j = len(knots) - 2
+        hi = knots[j + 1] if j < len(knots) - 2 else math.inf
+        return (knots[j], hi, *self._coef[j].tolist())
 
     def desired_scalar(self, k: int) -> tuple[float, float, float, float, float, float]:
         """Desired (q_d [rad], qd_d [rad/s]) at tick k, as six floats."""
         i = k - self.k0
         x = (i if i < self._last else self._last) * self.Ts  # time since activation [s]
-        knots = self._x
-        t_end = knots[-1]
+        t_end = self._x[-1]
         xt = t_end if x > t_end else x
-        j = bisect_right(knots, xt) - 1
-        if j > len(knots) - 2:
-            j = len(knots) - 2
-        s = xt - knots[j]
+        lo, hi, a0, a1, a2, a3, b0, b1, b2, b3, c0, c1, c2, c3 = self._seg
+        if not lo <= xt < hi:  # another interval (ticks move forward: once per knot)
+            lo, hi, a0, a1, a2, a3, b0, b1, b2, b3, c0, c1, c2, c3 = self._seg = self._interval(xt)
+        s = xt - lo
         s2 = s * s
         s3 = s2 * s
-        a0, a1, a2, a3, b0, b1, b2, b3, c0, c1, c2, c3 = self._coef[j].tolist()
         r1 = 0.0 + a3 + a2 * s + a1 * s2 + a0 * s3
         r2 = 0.0 + b3 + b2 * s + b1 * s2 + b0 * s3
         r3 = 0.0 + c3 + c2 * s + c1 * s2 + c0 * s3
