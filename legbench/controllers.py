@@ -290,7 +290,8 @@ class EffortController(Controller):
     def __init__(self, event: Event, Ts: float = 1e-3) -> None:
         self.h_d = np.array(event.force, dtype=float)
         self._h = _floats(self.h_d)
-        self._geometry = load_params().geometry
+        self._geometry = g = load_params().geometry
+        self._lengths = (g.L_12, g.L_23, g.L_3E)
         self._gravity = kinematics.GravityTorque()
         self.n_force_delay = int(round(event.force_delay / Ts))  # control periods with h_d = 0
         self.Ts = Ts
@@ -301,7 +302,18 @@ class EffortController(Controller):
 
     def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
         hx, hy, hz = self._h if k >= self.k_force else _NO_FORCE
-        j11, j12, j13, j21, j22, j23, j31, j32, j33 = kinematics.jacobian_scalar(q1, q2, q3, self._geometry)
+        # kinematics.jacobian_scalar inlined on the lengths bound at construction (the same operations)
+        L_12, L_23, L_3E = self._lengths
+        sin, cos = math.sin, math.cos
+        s1, c1 = sin(q1), cos(q1)
+        s23 = sin(q2 + q3)
+        c23 = cos(q2 + q3)
+        reach = L_23 * sin(q2) + L_3E * s23
+        dreach2 = L_23 * cos(q2) + L_3E * c23
+        dreach3 = L_3E * c23
+        j11, j12, j13 = -(L_12 * s1 + c1 * reach), -(s1 * dreach2), -(s1 * dreach3)
+        j21, j22, j23 = 0.0, -reach, -(L_3E * s23)
+        j31, j32, j33 = L_12 * c1 - s1 * reach, c1 * dreach2, c1 * dreach3
         g1, g2, g3 = self._gravity(q1, q2, q3)
         return (
             j11 * hx + j21 * hy + j31 * hz + g1,
