@@ -247,3 +247,39 @@ def test_backend_read_is_state_and_ground_force_as_floats() -> None:
                 assert f[2] > 0.0 and tr.f[-1][2] == f[2]
             finally:
                 be.close()
+
+
+_WRITER_MEMORY = """
+import sys, tracemalloc, numpy as np
+from pathlib import Path
+import pyarrow as pa
+from legbench import results
+n = 64001  # a 64 s run at 1 kHz
+rng = np.random.default_rng(0)
+log = rng.normal(size=(n, 12))
+tr = results.RunResult("fake", np.arange(n) * 1e-3, log[:, 0:3], log[:, 3:6], log[:, 9:12], log[:, 6:9],
+                       np.full(n, "effort", dtype=object), foot=rng.normal(size=(n, 3)))
+series = sum(a.nbytes for a in (tr.t, log, tr.controller))
+pool0 = pa.default_memory_pool().max_memory()
+tracemalloc.start()
+results.write_log(tr, Path(sys.argv[1]))
+numpy_peak = tracemalloc.get_traced_memory()[1]
+arrow_peak = pa.default_memory_pool().max_memory() - pool0
+print((numpy_peak + arrow_peak) / series)
+"""
+
+
+def test_writing_a_log_holds_a_row_group_not_copies_of_the_log(tmp_path: Path) -> None:
+    """Writing a 64 s log (7.2 MB) allocates at most 0.8x the log on top of it (numpy's allocations traced by
+    tracemalloc plus Arrow's memory pool peak; measured 0.30 + 0.31: one 16,384-row group of the 64,001 rows
+    is 0.26x, Arrow's copy and encoding of it about as much): the writer builds and encodes one row group at a
+    time. The old way (stack the columns, a DataFrame, Arrow's conversion of it) measures 2.7 + 1.0 the same
+    way. In a fresh process so that Arrow's pool peak is this write's. The file reads back whole."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "log.parquet"
+    r = subprocess.run([sys.executable, "-c", _WRITER_MEMORY, str(out)], capture_output=True, text=True, check=True)
+    assert float(r.stdout) <= 0.8
+    back = results.read_log(out)
+    assert len(back) == 64001 and list(back.columns) == list(signals.RUN_COLUMNS)
