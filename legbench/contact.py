@@ -8,6 +8,7 @@ law is the same code everywhere.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -106,6 +107,131 @@ def implicit_velocity_step(h: float, m: tuple[float, ...], K: tuple[float, ...],
     return y1, y2, y3
 
 
+# The law on plain floats, one implementation: ReferenceContact calls these functions in Python, and the
+# Pinocchio backend's compiled period compiles these same functions with numba (nothing but floats, tuples
+# and math: both run the same IEEE operations in the same order, so they agree bit for bit).
+#: The order of the law's constants ``c`` (:attr:`ReferenceContact.constants`).
+LAW_CONSTANTS = ("L_12", "L_23", "L_3E", "H", "R_foot", "Kp", "Kd", "mu_s", "mu_k", "v_th", "v_slip", "mu_s - mu_k",
+                 "v_th / 2", "true_poc")  # fmt: skip
+
+
+def law_wrench(
+    c: Sequence[float], q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float
+) -> tuple[float, ...]:
+    """(tau_c1, tau_c2, tau_c3, fx, fy, fz): J_poc^T F [N m] and F in W [N] for q [rad], qd [rad/s].
+
+    Plain floats in and out; out of contact, six zeros.
+    """
+    L_12, L_23, L_3E, H, R = c[0], c[1], c[2], c[3], c[4]
+    s1, c1 = math.sin(q1), math.cos(q1)
+    s2, c2 = math.sin(q2), math.cos(q2)
+    s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
+    reach = L_23 * s2 + L_3E * s23
+    # foot centre height in W: z_W = x0 + H
+    y = R - (L_12 * s1 + c1 * reach + H)
+    if y <= 0.0:
+        return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    dr2 = L_23 * c2 + L_3E * c23
+    dr3 = L_3E * c23
+    # Jacobian of E in frame 0 (rows x0, y0, z0); W = (-y0, -z0, x0). Rows of J in W:
+    # Jx = -jy0 = -(L_12 s1 + c1 reach, s1 dr2, s1 dr3), Jy = -jz0 = -(0, reach, L_3E s23),
+    # Jz = jx0 = (L_12 c1 - s1 reach, c1 dr2, c1 dr3)
+    Jx1, Jx2, Jx3 = -(L_12 * s1 + c1 * reach), -(s1 * dr2), -(s1 * dr3)
+    Jy1, Jy2, Jy3 = -0.0, -reach, -(L_3E * s23)
+    Jz1, Jz2, Jz3 = L_12 * c1 - s1 * reach, c1 * dr2, c1 * dr3
+    if c[13] != 0.0:
+        # v_poc = v_E + omega x r with r = (0, 0, -R): adds (-R w_y, R w_x, 0).
+        # Joint axes in W: joint 1 (0, -1, 0); joints 2, 3 (c1, 0, s1); so
+        # w_x = c1 (qd2 + qd3), w_y = -qd1.
+        Jx1 = Jx1 + R
+        Jy2 = Jy2 + R * c1
+        Jy3 = Jy3 + R * c1
+    vx = Jx1 * qd1 + Jx2 * qd2 + Jx3 * qd3
+    vy = Jy1 * qd1 + Jy2 * qd2 + Jy3 * qd3
+    vz = Jz1 * qd1 + Jz2 * qd2 + Jz3 * qd3
+    # ground_force(y, -vz, vx, vy, p), inlined
+    Kp, Kd, mu_s, mu_k, v_th, v_slip, dmu, half_v_th = c[5], c[6], c[7], c[8], c[9], c[10], c[11], c[12]
+    ydot = -vz
+    fz = Kp * y + (Kd * ydot if ydot > 0.0 else 0.0)
+    v = math.hypot(vx, vy)
+    if v == 0.0:
+        fx = fy = 0.0
+    else:
+        if v < v_th:
+            mu = v * mu_s / v_th
+        elif v < v_slip:
+            mu = mu_s - (v - v_th) * dmu / half_v_th
+        else:
+            mu = mu_k
+        ff = mu * fz / v
+        fx, fy = -ff * vx, -ff * vy
+    return (Jx1 * fx + Jy1 * fy + Jz1 * fz, Jx2 * fx + Jy2 * fy + Jz2 * fz, Jx3 * fx + Jy3 * fy + Jz3 * fz,
+            fx, fy, fz)  # fmt: skip
+
+
+def law_wrench_slope(
+    c: Sequence[float], q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float
+) -> tuple[float, ...]:
+    """:meth:`wrench` and the friction's damping in joint space, for a linearly implicit step.
+
+    Returns (tau_c1, tau_c2, tau_c3, fx, fy, fz, K11, K12, K13, K22, K23, K33): the first six as
+    :meth:`wrench`; K = -J_t^T (dF_t/dv_t) J_t [N m s/rad] (symmetric, positive semi-definite),
+    the slope of the friction force F_t in W [N] with respect to the poc's horizontal velocity
+    v_t [m/s], with Fn held, mapped through the poc's horizontal Jacobian rows J_t. With
+    c_perp = Fn mu(v)/v across the slip and c_par = Fn max(mu'(v), 0) along it,
+    -dF_t/dv_t = c_perp I + (c_par - c_perp) v v^T / v^2; below v_th both are Fn mu_s / v_th
+    (the law is viscous there). The falling branch of mu (v_th..1.5 v_th) is left out of K
+    (c_par >= 0): K only moves the implicit step's damping, never its fixed points.
+    """
+    L_12, L_23, L_3E, H, R = c[0], c[1], c[2], c[3], c[4]
+    s1, c1 = math.sin(q1), math.cos(q1)
+    s2, c2 = math.sin(q2), math.cos(q2)
+    s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
+    reach = L_23 * s2 + L_3E * s23
+    y = R - (L_12 * s1 + c1 * reach + H)
+    if y <= 0.0:
+        return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    dr2 = L_23 * c2 + L_3E * c23
+    dr3 = L_3E * c23
+    Jx1, Jx2, Jx3 = -(L_12 * s1 + c1 * reach), -(s1 * dr2), -(s1 * dr3)
+    Jy1, Jy2, Jy3 = -0.0, -reach, -(L_3E * s23)
+    Jz1, Jz2, Jz3 = L_12 * c1 - s1 * reach, c1 * dr2, c1 * dr3
+    if c[13] != 0.0:
+        Jx1 = Jx1 + R
+        Jy2 = Jy2 + R * c1
+        Jy3 = Jy3 + R * c1
+    vx = Jx1 * qd1 + Jx2 * qd2 + Jx3 * qd3
+    vy = Jy1 * qd1 + Jy2 * qd2 + Jy3 * qd3
+    vz = Jz1 * qd1 + Jz2 * qd2 + Jz3 * qd3
+    Kp, Kd, mu_s, mu_k, v_th, v_slip, dmu, half_v_th = c[5], c[6], c[7], c[8], c[9], c[10], c[11], c[12]
+    ydot = -vz
+    fz = Kp * y + (Kd * ydot if ydot > 0.0 else 0.0)
+    v = math.hypot(vx, vy)
+    if v < v_th:
+        c_perp = c_par = fz * mu_s / v_th
+        ff = c_perp  # mu(v) fz / v
+        dxx = dyy = c_perp
+        dxy = 0.0
+    else:
+        if v < v_slip:
+            mu = mu_s - (v - v_th) * dmu / half_v_th
+        else:
+            mu = mu_k
+        ff = mu * fz / v
+        c_perp, c_par = ff, 0.0
+        ux, uy = vx / v, vy / v
+        dc = c_par - c_perp
+        dxx, dxy, dyy = c_perp + dc * ux * ux, dc * ux * uy, c_perp + dc * uy * uy
+    fx, fy = -ff * vx, -ff * vy
+    # K = J_t^T D J_t with D = [[dxx, dxy], [dxy, dyy]]
+    ax1, ax2, ax3 = dxx * Jx1 + dxy * Jy1, dxx * Jx2 + dxy * Jy2, dxx * Jx3 + dxy * Jy3
+    ay1, ay2, ay3 = dxy * Jx1 + dyy * Jy1, dxy * Jx2 + dyy * Jy2, dxy * Jx3 + dyy * Jy3
+    return (Jx1 * fx + Jy1 * fy + Jz1 * fz, Jx2 * fx + Jy2 * fy + Jz2 * fz, Jx3 * fx + Jy3 * fy + Jz3 * fz,
+            fx, fy, fz,
+            Jx1 * ax1 + Jy1 * ay1, Jx1 * ax2 + Jy1 * ay2, Jx1 * ax3 + Jy1 * ay3,
+            Jx2 * ax2 + Jy2 * ay2, Jx2 * ax3 + Jy2 * ay3, Jx3 * ax3 + Jy3 * ay3)  # fmt: skip
+
+
 class ReferenceContact:
     """The analytic law as a generalized force, from joint state through the closed-form kinematics.
 
@@ -124,11 +250,13 @@ class ReferenceContact:
         self.true_poc = params.poc == "true"
         self.force = np.zeros(3)
         self._tau = np.zeros(3)
-        self._geometry = (float(L_12), float(L_23), float(L_3E), float(H), float(R_foot))
-        # the terms friction_coefficient() and ground_force() compute from p at each call
+        # the geometry, the law's constants and the terms friction_coefficient() and ground_force() compute
+        # from p at each call, as one tuple of floats: LAW_CONSTANTS, what law_wrench() and law_wrench_slope() take
         v_th = float(params.v_th)
-        self._law = (float(params.Kp), float(params.Kd), float(params.mu_s), float(params.mu_k), v_th,
-                     1.5 * v_th, float(params.mu_s) - float(params.mu_k), 0.5 * v_th)  # fmt: skip
+        self.constants = (float(L_12), float(L_23), float(L_3E), float(H), float(R_foot),
+                          float(params.Kp), float(params.Kd), float(params.mu_s), float(params.mu_k), v_th,
+                          1.5 * v_th, float(params.mu_s) - float(params.mu_k), 0.5 * v_th,
+                          1.0 if self.true_poc else 0.0)  # fmt: skip
 
     @classmethod
     def from_leg(cls, params: ContactParams, implicit_friction_gravity: float | None = None) -> ReferenceContact:
@@ -141,115 +269,13 @@ class ReferenceContact:
         return law
 
     def wrench(self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
-        """(tau_c1, tau_c2, tau_c3, fx, fy, fz): J_poc^T F [N m] and F in W [N] for q [rad], qd [rad/s].
-
-        Plain floats in and out; out of contact, six zeros.
-        """
-        L_12, L_23, L_3E, H, R = self._geometry
-        s1, c1 = math.sin(q1), math.cos(q1)
-        s2, c2 = math.sin(q2), math.cos(q2)
-        s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
-        reach = L_23 * s2 + L_3E * s23
-        # foot centre height in W: z_W = x0 + H
-        y = R - (L_12 * s1 + c1 * reach + H)
-        if y <= 0.0:
-            return _NO_CONTACT
-        dr2 = L_23 * c2 + L_3E * c23
-        dr3 = L_3E * c23
-        # Jacobian of E in frame 0 (rows x0, y0, z0); W = (-y0, -z0, x0). Rows of J in W:
-        # Jx = -jy0 = -(L_12 s1 + c1 reach, s1 dr2, s1 dr3), Jy = -jz0 = -(0, reach, L_3E s23),
-        # Jz = jx0 = (L_12 c1 - s1 reach, c1 dr2, c1 dr3)
-        Jx1, Jx2, Jx3 = -(L_12 * s1 + c1 * reach), -(s1 * dr2), -(s1 * dr3)
-        Jy1, Jy2, Jy3 = -0.0, -reach, -(L_3E * s23)
-        Jz1, Jz2, Jz3 = L_12 * c1 - s1 * reach, c1 * dr2, c1 * dr3
-        if self.true_poc:
-            # v_poc = v_E + omega x r with r = (0, 0, -R): adds (-R w_y, R w_x, 0).
-            # Joint axes in W: joint 1 (0, -1, 0); joints 2, 3 (c1, 0, s1); so
-            # w_x = c1 (qd2 + qd3), w_y = -qd1.
-            Jx1 = Jx1 + R
-            Jy2 = Jy2 + R * c1
-            Jy3 = Jy3 + R * c1
-        vx = Jx1 * qd1 + Jx2 * qd2 + Jx3 * qd3
-        vy = Jy1 * qd1 + Jy2 * qd2 + Jy3 * qd3
-        vz = Jz1 * qd1 + Jz2 * qd2 + Jz3 * qd3
-        # ground_force(y, -vz, vx, vy, p), inlined
-        Kp, Kd, mu_s, mu_k, v_th, v_slip, dmu, half_v_th = self._law
-        ydot = -vz
-        fz = Kp * y + (Kd * ydot if ydot > 0.0 else 0.0)
-        v = math.hypot(vx, vy)
-        if v == 0.0:
-            fx = fy = 0.0
-        else:
-            if v < v_th:
-                mu = v * mu_s / v_th
-            elif v < v_slip:
-                mu = mu_s - (v - v_th) * dmu / half_v_th
-            else:
-                mu = mu_k
-            ff = mu * fz / v
-            fx, fy = -ff * vx, -ff * vy
-        return (Jx1 * fx + Jy1 * fy + Jz1 * fz, Jx2 * fx + Jy2 * fy + Jz2 * fz, Jx3 * fx + Jy3 * fy + Jz3 * fz,
-                fx, fy, fz)  # fmt: skip
+        """(tau_c1, tau_c2, tau_c3, fx, fy, fz): J_poc^T F [N m] and F in W [N] for q [rad], qd [rad/s]
+        (:func:`law_wrench` on this law's :attr:`constants`); out of contact, six zeros."""
+        return law_wrench(self.constants, q1, q2, q3, qd1, qd2, qd3)
 
     def wrench_slope(self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
-        """:meth:`wrench` and the friction's damping in joint space, for a linearly implicit step.
-
-        Returns (tau_c1, tau_c2, tau_c3, fx, fy, fz, K11, K12, K13, K22, K23, K33): the first six as
-        :meth:`wrench`; K = -J_t^T (dF_t/dv_t) J_t [N m s/rad] (symmetric, positive semi-definite),
-        the slope of the friction force F_t in W [N] with respect to the poc's horizontal velocity
-        v_t [m/s], with Fn held, mapped through the poc's horizontal Jacobian rows J_t. With
-        c_perp = Fn mu(v)/v across the slip and c_par = Fn max(mu'(v), 0) along it,
-        -dF_t/dv_t = c_perp I + (c_par - c_perp) v v^T / v^2; below v_th both are Fn mu_s / v_th
-        (the law is viscous there). The falling branch of mu (v_th..1.5 v_th) is left out of K
-        (c_par >= 0): K only moves the implicit step's damping, never its fixed points.
-        """
-        L_12, L_23, L_3E, H, R = self._geometry
-        s1, c1 = math.sin(q1), math.cos(q1)
-        s2, c2 = math.sin(q2), math.cos(q2)
-        s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
-        reach = L_23 * s2 + L_3E * s23
-        y = R - (L_12 * s1 + c1 * reach + H)
-        if y <= 0.0:
-            return _NO_CONTACT_SLOPE
-        dr2 = L_23 * c2 + L_3E * c23
-        dr3 = L_3E * c23
-        Jx1, Jx2, Jx3 = -(L_12 * s1 + c1 * reach), -(s1 * dr2), -(s1 * dr3)
-        Jy1, Jy2, Jy3 = -0.0, -reach, -(L_3E * s23)
-        Jz1, Jz2, Jz3 = L_12 * c1 - s1 * reach, c1 * dr2, c1 * dr3
-        if self.true_poc:
-            Jx1 = Jx1 + R
-            Jy2 = Jy2 + R * c1
-            Jy3 = Jy3 + R * c1
-        vx = Jx1 * qd1 + Jx2 * qd2 + Jx3 * qd3
-        vy = Jy1 * qd1 + Jy2 * qd2 + Jy3 * qd3
-        vz = Jz1 * qd1 + Jz2 * qd2 + Jz3 * qd3
-        Kp, Kd, mu_s, mu_k, v_th, v_slip, dmu, half_v_th = self._law
-        ydot = -vz
-        fz = Kp * y + (Kd * ydot if ydot > 0.0 else 0.0)
-        v = math.hypot(vx, vy)
-        if v < v_th:
-            c_perp = c_par = fz * mu_s / v_th
-            ff = c_perp  # mu(v) fz / v
-            dxx = dyy = c_perp
-            dxy = 0.0
-        else:
-            if v < v_slip:
-                mu = mu_s - (v - v_th) * dmu / half_v_th
-            else:
-                mu = mu_k
-            ff = mu * fz / v
-            c_perp, c_par = ff, 0.0
-            ux, uy = vx / v, vy / v
-            dc = c_par - c_perp
-            dxx, dxy, dyy = c_perp + dc * ux * ux, dc * ux * uy, c_perp + dc * uy * uy
-        fx, fy = -ff * vx, -ff * vy
-        # K = J_t^T D J_t with D = [[dxx, dxy], [dxy, dyy]]
-        ax1, ax2, ax3 = dxx * Jx1 + dxy * Jy1, dxx * Jx2 + dxy * Jy2, dxx * Jx3 + dxy * Jy3
-        ay1, ay2, ay3 = dxy * Jx1 + dyy * Jy1, dxy * Jx2 + dyy * Jy2, dxy * Jx3 + dyy * Jy3
-        return (Jx1 * fx + Jy1 * fy + Jz1 * fz, Jx2 * fx + Jy2 * fy + Jz2 * fz, Jx3 * fx + Jy3 * fy + Jz3 * fz,
-                fx, fy, fz,
-                Jx1 * ax1 + Jy1 * ay1, Jx1 * ax2 + Jy1 * ay2, Jx1 * ax3 + Jy1 * ay3,
-                Jx2 * ax2 + Jy2 * ay2, Jx2 * ax3 + Jy2 * ay3, Jx3 * ax3 + Jy3 * ay3)  # fmt: skip
+        """:meth:`wrench` and the friction's slope K in joint space (:func:`law_wrench_slope`)."""
+        return law_wrench_slope(self.constants, q1, q2, q3, qd1, qd2, qd3)
 
     def use_implicit_friction(self, gravity: float) -> None:
         """Prepare :meth:`implicit_generalized`: the leg's Pinocchio model under gravity [m/s^2] along -z_W."""
@@ -302,10 +328,6 @@ class ReferenceContact:
         f[0], f[1], f[2] = fx, fy, fz
         tau[0], tau[1], tau[2] = t1, t2, t3
         return tau
-
-
-_NO_CONTACT = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-_NO_CONTACT_SLOPE = (0.0,) * 12
 
 
 def tangential_mass(q: tuple[float, float, float] | list[float] | np.ndarray, true_poc: bool = True) -> float:

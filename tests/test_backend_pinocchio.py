@@ -240,7 +240,7 @@ def test_compiled_law_and_limits_are_the_python_law_bit_for_bit() -> None:
     and sliding (states around the effort pose with speeds from 1e-5 to 1 rad/s)."""
     be = _backend({}, gravity=9.81, contact=ContactParams())
     c = be.contact
-    lc = np.array([*c._geometry, *c._law, 1.0 if c.true_poc else 0.0])
+    lc = np.array(c.constants)
     lim = np.array([*be.lower, *be.upper, be.limit_law.k, be.limit_law.b])
     sc = scenario.shorten(scenario.load(SCENARIOS / "effort.yaml"), 1.0)
     q_star = run.simulate(sc, be, scenario.physics_of(sc)).q[-1]  # the foot pressed into the ground

@@ -16,6 +16,29 @@ STIFFNESS = 1.0e4
 DAMPING = 20.0
 
 
+def limit_torques(
+    args: Sequence[float], q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float
+) -> tuple[float, float, float]:
+    """Limit torques [N m] for q [rad], qd [rad/s], zero inside the limits; ``args`` = (lo1, lo2, lo3, hi1, hi2,
+    hi3, k, b). Plain floats and indexing only: the Pinocchio backend's compiled period compiles this very
+    function (numba), :class:`JointLimitLaw` calls it in Python."""
+    lo1, lo2, lo3, hi1, hi2, hi3, k, b = args[0], args[1], args[2], args[3], args[4], args[5], args[6], args[7]
+    t1 = t2 = t3 = 0.0
+    if q1 > hi1:
+        t1 = -k * (q1 - hi1) - (b * qd1 if qd1 > 0.0 else 0.0)
+    elif q1 < lo1:
+        t1 = -k * (q1 - lo1) - (b * qd1 if qd1 < 0.0 else 0.0)
+    if q2 > hi2:
+        t2 = -k * (q2 - hi2) - (b * qd2 if qd2 > 0.0 else 0.0)
+    elif q2 < lo2:
+        t2 = -k * (q2 - lo2) - (b * qd2 if qd2 < 0.0 else 0.0)
+    if q3 > hi3:
+        t3 = -k * (q3 - hi3) - (b * qd3 if qd3 > 0.0 else 0.0)
+    elif q3 < lo3:
+        t3 = -k * (q3 - lo3) - (b * qd3 if qd3 < 0.0 else 0.0)
+    return t1, t2, t3
+
+
 class JointLimitLaw:
     """tau_lim for the three joints, on plain floats (it runs at every sub-step or integrator stage).
 
@@ -34,21 +57,7 @@ class JointLimitLaw:
         self, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float
     ) -> tuple[float, float, float]:
         """Limit torques [N m] for q [rad], qd [rad/s]: zero inside the limits."""
-        lo1, lo2, lo3, hi1, hi2, hi3, k, b = self._args
-        t1 = t2 = t3 = 0.0
-        if q1 > hi1:
-            t1 = -k * (q1 - hi1) - (b * qd1 if qd1 > 0.0 else 0.0)
-        elif q1 < lo1:
-            t1 = -k * (q1 - lo1) - (b * qd1 if qd1 < 0.0 else 0.0)
-        if q2 > hi2:
-            t2 = -k * (q2 - hi2) - (b * qd2 if qd2 > 0.0 else 0.0)
-        elif q2 < lo2:
-            t2 = -k * (q2 - lo2) - (b * qd2 if qd2 < 0.0 else 0.0)
-        if q3 > hi3:
-            t3 = -k * (q3 - hi3) - (b * qd3 if qd3 > 0.0 else 0.0)
-        elif q3 < lo3:
-            t3 = -k * (q3 - lo3) - (b * qd3 if qd3 < 0.0 else 0.0)
-        return t1, t2, t3
+        return limit_torques(self._args, q1, q2, q3, qd1, qd2, qd3)
 
     def describe(self) -> str:
         """One sentence for :attr:`Limits.enforcement`."""

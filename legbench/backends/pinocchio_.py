@@ -137,7 +137,7 @@ class PinocchioBackend(Backend):
             self._kernel_note = f"pinocchio: {exc}: the Python sub-steps run"
             return None
         c = self.contact
-        lc = np.array([*c._geometry, *c._law, 1.0 if c.true_poc else 0.0])
+        lc = np.array(c.constants)
         lim = np.array([*self.lower, *self.upper, self.limit_law.k, self.limit_law.b], dtype=float)
         #: state and read-out (q1..3, qd1..3, fx, fy, fz) and the kernel's arrays: all reused every period
         self._x = np.zeros(9)

@@ -12,9 +12,11 @@ cos/sin), and refuses a model with any other (:class:`KernelUnavailable`).
   and bias terms, backward pass for the articulated inertias, forward pass for the accelerations.
   It agrees with ``pin.aba`` to round-off (tests/test_backend_pinocchio.py), not bit for bit: the
   operations are the same algorithm, not the same order.
-* :func:`law` and :func:`limit_torques` are :meth:`legbench.contact.ReferenceContact.wrench_slope`
-  and :class:`legbench.backends.joint_limits.JointLimitLaw`, the same IEEE operations in the same
-  order (numba without ``fastmath``; ``math.sin``/``cos``/``hypot`` are the C library's, as in Python).
+* :func:`wrench`, :func:`wrench_slope`, :func:`implicit_velocity_step` and :func:`limit_torques` are
+  :func:`legbench.contact.law_wrench`, :func:`~legbench.contact.law_wrench_slope`,
+  :func:`~legbench.contact.implicit_velocity_step` and :func:`legbench.backends.joint_limits.limit_torques`
+  themselves, compiled: one implementation, so the same IEEE operations in the same order (numba without
+  ``fastmath``; ``math.sin``/``cos``/``hypot`` are the C library's, as in Python).
 * :func:`period` is :meth:`PinocchioBackend._euler_implicit` (``implicit``: the friction's slope
   linearly implicit, M^-1 frozen over the period at its first sub-step in contact) or ``_euler``.
 
@@ -27,6 +29,9 @@ import math
 from typing import Any
 
 import numpy as np
+
+from legbench import contact
+from legbench.backends import joint_limits
 
 try:
     import numba
@@ -225,148 +230,13 @@ def aba(
 
 
 # --------------------------------------------------------------------------- #
-# The contact law and the joint limits: legbench.contact and joint_limits, the same operations in order
+# The contact law, its slope, the implicit friction step and the joint limits: the Python functions of
+# legbench.contact and joint_limits themselves, compiled (one implementation, run two ways)
 
-
-@_njit
-def _jacobian(lc: np.ndarray, q1: float, q2: float, q3: float) -> tuple[float, ...]:
-    """(y, Jx1..3, Jy1..3, Jz1..3) of the point of contact in W; y <= 0: no contact (the rest not computed)."""
-    L_12, L_23, L_3E, H, R = lc[0], lc[1], lc[2], lc[3], lc[4]
-    s1, c1 = math.sin(q1), math.cos(q1)
-    s2, c2 = math.sin(q2), math.cos(q2)
-    s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
-    reach = L_23 * s2 + L_3E * s23
-    y = R - (L_12 * s1 + c1 * reach + H)
-    if y <= 0.0:
-        return y, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    dr2 = L_23 * c2 + L_3E * c23
-    dr3 = L_3E * c23
-    Jx1, Jx2, Jx3 = -(L_12 * s1 + c1 * reach), -(s1 * dr2), -(s1 * dr3)
-    Jy1, Jy2, Jy3 = -0.0, -reach, -(L_3E * s23)
-    Jz1, Jz2, Jz3 = L_12 * c1 - s1 * reach, c1 * dr2, c1 * dr3
-    if lc[13] != 0.0:  # true point of contact
-        Jx1 = Jx1 + R
-        Jy2 = Jy2 + R * c1
-        Jy3 = Jy3 + R * c1
-    return y, Jx1, Jx2, Jx3, Jy1, Jy2, Jy3, Jz1, Jz2, Jz3
-
-
-@_njit
-def wrench(lc: np.ndarray, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
-    """:meth:`legbench.contact.ReferenceContact.wrench`: (tau_c [N m], F in W [N]), six floats."""
-    y, Jx1, Jx2, Jx3, Jy1, Jy2, Jy3, Jz1, Jz2, Jz3 = _jacobian(lc, q1, q2, q3)
-    if y <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    vx = Jx1 * qd1 + Jx2 * qd2 + Jx3 * qd3
-    vy = Jy1 * qd1 + Jy2 * qd2 + Jy3 * qd3
-    vz = Jz1 * qd1 + Jz2 * qd2 + Jz3 * qd3
-    Kp, Kd, mu_s, mu_k, v_th, v_slip, dmu, half_v_th = lc[5], lc[6], lc[7], lc[8], lc[9], lc[10], lc[11], lc[12]
-    ydot = -vz
-    fz = Kp * y + (Kd * ydot if ydot > 0.0 else 0.0)
-    v = math.hypot(vx, vy)
-    if v == 0.0:
-        fx = 0.0
-        fy = 0.0
-    else:
-        if v < v_th:
-            mu = v * mu_s / v_th
-        elif v < v_slip:
-            mu = mu_s - (v - v_th) * dmu / half_v_th
-        else:
-            mu = mu_k
-        ff = mu * fz / v
-        fx, fy = -ff * vx, -ff * vy
-    return (Jx1 * fx + Jy1 * fy + Jz1 * fz, Jx2 * fx + Jy2 * fy + Jz2 * fz, Jx3 * fx + Jy3 * fy + Jz3 * fz,
-            fx, fy, fz)  # fmt: skip
-
-
-@_njit
-def wrench_slope(
-    lc: np.ndarray, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float
-) -> tuple[float, ...]:
-    """:meth:`legbench.contact.ReferenceContact.wrench_slope`: tau_c, F and K (K11, K12, K13, K22, K23, K33)."""
-    y, Jx1, Jx2, Jx3, Jy1, Jy2, Jy3, Jz1, Jz2, Jz3 = _jacobian(lc, q1, q2, q3)
-    if y <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    vx = Jx1 * qd1 + Jx2 * qd2 + Jx3 * qd3
-    vy = Jy1 * qd1 + Jy2 * qd2 + Jy3 * qd3
-    vz = Jz1 * qd1 + Jz2 * qd2 + Jz3 * qd3
-    Kp, Kd, mu_s, mu_k, v_th, v_slip, dmu, half_v_th = lc[5], lc[6], lc[7], lc[8], lc[9], lc[10], lc[11], lc[12]
-    ydot = -vz
-    fz = Kp * y + (Kd * ydot if ydot > 0.0 else 0.0)
-    v = math.hypot(vx, vy)
-    if v < v_th:
-        c_perp = fz * mu_s / v_th
-        ff = c_perp
-        dxx = c_perp
-        dyy = c_perp
-        dxy = 0.0
-    else:
-        if v < v_slip:
-            mu = mu_s - (v - v_th) * dmu / half_v_th
-        else:
-            mu = mu_k
-        ff = mu * fz / v
-        c_perp, c_par = ff, 0.0
-        ux, uy = vx / v, vy / v
-        dc = c_par - c_perp
-        dxx, dxy, dyy = c_perp + dc * ux * ux, dc * ux * uy, c_perp + dc * uy * uy
-    fx, fy = -ff * vx, -ff * vy
-    ax1, ax2, ax3 = dxx * Jx1 + dxy * Jy1, dxx * Jx2 + dxy * Jy2, dxx * Jx3 + dxy * Jy3
-    ay1, ay2, ay3 = dxy * Jx1 + dyy * Jy1, dxy * Jx2 + dyy * Jy2, dxy * Jx3 + dyy * Jy3
-    return (Jx1 * fx + Jy1 * fy + Jz1 * fz, Jx2 * fx + Jy2 * fy + Jz2 * fz, Jx3 * fx + Jy3 * fy + Jz3 * fz,
-            fx, fy, fz,
-            Jx1 * ax1 + Jy1 * ay1, Jx1 * ax2 + Jy1 * ay2, Jx1 * ax3 + Jy1 * ay3,
-            Jx2 * ax2 + Jy2 * ay2, Jx2 * ax3 + Jy2 * ay3, Jx3 * ax3 + Jy3 * ay3)  # fmt: skip
-
-
-@_njit
-def limit_torques(
-    lim: np.ndarray, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float
-) -> tuple[float, float, float]:
-    """:class:`legbench.backends.joint_limits.JointLimitLaw`: lim = (lo1, lo2, lo3, hi1, hi2, hi3, k, b)."""
-    lo1, lo2, lo3, hi1, hi2, hi3, k, b = lim[0], lim[1], lim[2], lim[3], lim[4], lim[5], lim[6], lim[7]
-    t1 = 0.0
-    t2 = 0.0
-    t3 = 0.0
-    if q1 > hi1:
-        t1 = -k * (q1 - hi1) - (b * qd1 if qd1 > 0.0 else 0.0)
-    elif q1 < lo1:
-        t1 = -k * (q1 - lo1) - (b * qd1 if qd1 < 0.0 else 0.0)
-    if q2 > hi2:
-        t2 = -k * (q2 - hi2) - (b * qd2 if qd2 > 0.0 else 0.0)
-    elif q2 < lo2:
-        t2 = -k * (q2 - lo2) - (b * qd2 if qd2 < 0.0 else 0.0)
-    if q3 > hi3:
-        t3 = -k * (q3 - hi3) - (b * qd3 if qd3 > 0.0 else 0.0)
-    elif q3 < lo3:
-        t3 = -k * (q3 - lo3) - (b * qd3 if qd3 < 0.0 else 0.0)
-    return t1, t2, t3
-
-
-@_njit
-def implicit_velocity_step(h: float, m11: float, m12: float, m13: float, m22: float, m23: float, m33: float,
-                           K11: float, K12: float, K13: float, K22: float, K23: float, K33: float,
-                           a1: float, a2: float, a3: float) -> tuple[float, float, float]:  # fmt: skip
-    """:func:`legbench.contact.implicit_velocity_step`: dqd of (I + h M^-1 K) dqd = h a."""
-    x1, x2, x3 = h * a1, h * a2, h * a3
-    c11 = 1.0 + h * (m11 * K11 + m12 * K12 + m13 * K13)
-    c12 = h * (m11 * K12 + m12 * K22 + m13 * K23)
-    c13 = h * (m11 * K13 + m12 * K23 + m13 * K33)
-    c21 = h * (m12 * K11 + m22 * K12 + m23 * K13)
-    c22 = 1.0 + h * (m12 * K12 + m22 * K22 + m23 * K23)
-    c23 = h * (m12 * K13 + m22 * K23 + m23 * K33)
-    c31 = h * (m13 * K11 + m23 * K12 + m33 * K13)
-    c32 = h * (m13 * K12 + m23 * K22 + m33 * K23)
-    c33 = 1.0 + h * (m13 * K13 + m23 * K23 + m33 * K33)
-    d1 = c22 * c33 - c23 * c32
-    d2 = c21 * c33 - c23 * c31
-    d3 = c21 * c32 - c22 * c31
-    det = c11 * d1 - c12 * d2 + c13 * d3
-    y1 = (x1 * d1 - c12 * (x2 * c33 - c23 * x3) + c13 * (x2 * c32 - c22 * x3)) / det
-    y2 = (c11 * (x2 * c33 - c23 * x3) - x1 * d2 + c13 * (c21 * x3 - x2 * c31)) / det
-    y3 = (c11 * (c22 * x3 - x2 * c32) - c12 * (c21 * x3 - x2 * c31) + x1 * d3) / det
-    return y1, y2, y3
+wrench = _njit(contact.law_wrench)
+wrench_slope = _njit(contact.law_wrench_slope)
+implicit_velocity_step = _njit(contact.implicit_velocity_step)
+limit_torques = _njit(joint_limits.limit_torques)
 
 
 # --------------------------------------------------------------------------- #
@@ -433,7 +303,7 @@ def _period_arrays(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.nda
                 minverse(R, p, inertia, q, mi, work, tmp, buf)
                 m11, m12, m13, m22, m23, m33 = mi[0, 0], mi[0, 1], mi[0, 2], mi[1, 1], mi[1, 2], mi[2, 2]
                 have_minv = True
-            x1, x2, x3 = implicit_velocity_step(h, m11, m12, m13, m22, m23, m33, K11, K12, K13, K22, K23, K33,
+            x1, x2, x3 = implicit_velocity_step(h, (m11, m12, m13, m22, m23, m33), (K11, K12, K13, K22, K23, K33),
                                                 a1, a2, a3)  # fmt: skip
         qd1 = qd1 + x1
         qd2 = qd2 + x2
