@@ -244,23 +244,64 @@ limit_torques = _njit(joint_limits.limit_torques)
 
 
 @_njit
+def minverse_factored(work: np.ndarray, tmp: np.ndarray, out: np.ndarray) -> None:
+    """M(q)^-1 [1/(kg m^2)] into ``out`` (n, n) from the factorization the last :func:`aba` call left in
+    ``work`` (its transforms X_i, articulated inertias and U_i = IA_i S depend on q only): column j is ABA's
+    second and third pass for the torque e_j with no velocity and no gravity, which is what a whole ABA
+    call would compute, without the first pass and the articulated inertias again (as Pinocchio's
+    ``computeMinverse`` reuses them). ``tmp`` rows 0-5 and columns 0-3 are scratch."""
+    n = work.shape[0]
+    for j in range(n):
+        # backward: the bias forces of the children, per joint in work column 14 (pA is not needed again)
+        for i in range(n):
+            for r in range(6):
+                work[i, r, 14] = 0.0
+        for i in range(n - 1, -1, -1):
+            D = work[i, 5, 15]
+            u = (1.0 if i == j else 0.0) - work[i, 5, 14]
+            out[i, j] = u  # kept for the forward pass
+            if i == 0:
+                continue
+            for r in range(6):
+                tmp[r, 1] = work[i, r, 14] + work[i, r, 15] * u / D
+            for r in range(6):
+                acc = 0.0
+                for m in range(6):
+                    acc += work[i, m, r] * tmp[m, 1]
+                work[i - 1, r, 14] += acc
+        for r in range(6):  # forward: accelerations from rest, no gravity
+            tmp[r, 3] = 0.0
+        for i in range(n):
+            for r in range(6):
+                acc = 0.0
+                for k in range(6):
+                    acc += work[i, r, k] * tmp[k, 3]
+                tmp[r, 2] = acc
+            ua = 0.0
+            for r in range(6):
+                ua += work[i, r, 15] * tmp[r, 2]
+            qdd_i = (out[i, j] - ua) / work[i, 5, 15]
+            out[i, j] = qdd_i
+            tmp[5, 2] += qdd_i
+            for r in range(6):
+                tmp[r, 3] = tmp[r, 2]
+
+
+@_njit
 def minverse(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, q: np.ndarray, out: np.ndarray,
              work: np.ndarray, tmp: np.ndarray, buf: np.ndarray) -> None:  # fmt: skip
-    """M(q)^-1 [1/(kg m^2)]: column j is ABA(q, qd = 0, tau = e_j) without gravity; out (3, 3)."""
+    """M(q)^-1 [1/(kg m^2)] at q into ``out`` (n, n): one :func:`aba` at q (for its factorization), then
+    :func:`minverse_factored`."""
+    n = q.shape[0]
     zero6 = buf[0:6]
-    zero3 = buf[6:9]
-    e = buf[9:12]
-    col = buf[12:15]
+    zeros = buf[6 : 6 + n]
+    col = buf[6 + n : 6 + 2 * n]
     for r in range(6):
         zero6[r] = 0.0
-    for j in range(3):
-        zero3[j] = 0.0
-    for j in range(3):
-        for r in range(3):
-            e[r] = 1.0 if r == j else 0.0
-        aba(R, p, inertia, zero6, q, zero3, e, col, work, tmp)
-        for r in range(3):
-            out[r, j] = col[r]
+    for j in range(n):
+        zeros[j] = 0.0
+    aba(R, p, inertia, zero6, q, zeros, zeros, col, work, tmp)
+    minverse_factored(work, tmp, out)
 
 
 @_njit
@@ -300,7 +341,7 @@ def _period_arrays(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.nda
             x1, x2, x3 = h * a1, h * a2, h * a3
         else:
             if not have_minv:  # first sub-step in contact of this period
-                minverse(R, p, inertia, q, mi, work, tmp, buf)
+                minverse_factored(work, tmp, mi)  # the aba just above was at this q
                 m11, m12, m13, m22, m23, m33 = mi[0, 0], mi[0, 1], mi[0, 2], mi[1, 1], mi[1, 2], mi[2, 2]
                 have_minv = True
             x1, x2, x3 = implicit_velocity_step(h, (m11, m12, m13, m22, m23, m33), (K11, K12, K13, K22, K23, K33),
