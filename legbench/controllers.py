@@ -5,20 +5,26 @@ Every controller is discrete at the control rate and returns joint torques
 (:func:`saturate`). A controller is started with the measured state when its
 event fires (:meth:`Controller.start`), then called once per tick.
 
-The run loop calls :meth:`Controller.torque`, which works on plain floats:
-one control tick costs a few microseconds instead of the tens a chain of
-small numpy operations costs, and the loop's overhead must stay well below
-an engine's step. The array form ``controller(k, q, qd)`` gives the same
-numbers bit for bit (every operation is the same IEEE operation in the same
-order; :mod:`legbench.kinematics` documents its scalar paths).
+Each control law is a plain function on floats and two float arrays
+(:func:`control_law` and the laws it dispatches to): the controller's
+parameters (``params``, filled by :meth:`Controller.start`: gains, target,
+spline coefficients, force) and its state (``state``: the error integral, the
+previous error, the spline interval). The classes only set those arrays up.
+The run loop calls the laws compiled inside its tick (:mod:`legbench.tick`:
+numba, the same IEEE operations in the same order, so the same bits);
+:meth:`Controller.torque` and the array form ``controller(k, q, qd)`` call the
+very same functions as Python, the reference. One implementation of each law.
+
+The only part of a law that is not plain arithmetic is the effort
+controller's gravity torque G(q), a Pinocchio call: the controller hands it
+over as :attr:`Controller.gravity` and the caller passes its three floats in.
 """
 
 from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from bisect import bisect_right
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from scipy.interpolate import CubicHermiteSpline
@@ -27,6 +33,15 @@ from legbench import kinematics
 from legbench.kinematics import angdist_scalar
 from legbench.model import LegParams, load_params
 from legbench.scenario import Event, Gains
+
+# Controller kinds (params[P_KIND]).
+POSITION, TRAJECTORY, EFFORT, TORQUE = 0, 1, 2, 3
+
+# params: a header every kind shares, then the kind's own numbers from P_BODY on.
+P_KIND, P_TS, P_KP, P_KD, P_KI, P_WRAP, P_BODY = 0, 1, 2, 5, 8, 11, 14
+# state: the error integral sum(e Ts) [rad s], the previous error [rad], whether there is one, the
+# spline interval in use.
+S_I, S_E, S_HAS_PREV, S_SEG, S_SIZE = 0, 3, 6, 7, 8
 
 
 def saturate(tau: np.ndarray, limit: np.ndarray) -> np.ndarray:
@@ -40,44 +55,208 @@ def _floats(x: np.ndarray | Sequence[float]) -> tuple[float, float, float]:
     return a, b, c
 
 
+def _header(kind: int, Ts: float, gains: Gains | None, params: LegParams, body: int) -> np.ndarray:
+    """A params array: kind, Ts [s], Kp, Kd, Ki (3 each), the continuous-joint flags, ``body`` more zeros."""
+    p = np.zeros(P_BODY + body)
+    p[P_KIND], p[P_TS] = kind, Ts
+    if gains is not None:
+        p[P_KP : P_KP + 3], p[P_KD : P_KD + 3], p[P_KI : P_KI + 3] = gains.Kp, gains.Kd, gains.Ki
+    p[P_WRAP : P_WRAP + 3] = [1.0 if c else 0.0 for c in params.continuous]
+    return p
+
+
+# ----------------------------------------------------------------------------- the laws (plain functions)
+
+
+def error_integral(
+    q1: float, q2: float, q3: float, r1: float, r2: float, r3: float, p: np.ndarray, s: np.ndarray
+) -> tuple[float, float, float, float, float, float]:
+    """Joint errors r - q [rad] (angular distance on continuous joints) and the forward-Euler integral
+    sum(e Ts) [rad s], updated in ``s``."""
+    e1 = angdist_scalar(q1, r1) if p[P_WRAP] != 0.0 else r1 - q1
+    e2 = angdist_scalar(q2, r2) if p[P_WRAP + 1] != 0.0 else r2 - q2
+    e3 = angdist_scalar(q3, r3) if p[P_WRAP + 2] != 0.0 else r3 - q3
+    Ts = p[P_TS]
+    i1 = s[S_I] + e1 * Ts
+    i2 = s[S_I + 1] + e2 * Ts
+    i3 = s[S_I + 2] + e3 * Ts
+    s[S_I], s[S_I + 1], s[S_I + 2] = i1, i2, i3
+    return e1, e2, e3, i1, i2, i3
+
+
+def pid_law(
+    q1: float, q2: float, q3: float, r1: float, r2: float, r3: float, p: np.ndarray, s: np.ndarray
+) -> tuple[float, float, float]:
+    """u = Kp e + Kd (e - e_prev) / Ts + Ki I [N m] for the angles q [rad] and the target r [rad]."""
+    e1, e2, e3, i1, i2, i3 = error_integral(q1, q2, q3, r1, r2, r3, p, s)
+    if s[S_HAS_PREV] != 0.0:
+        p1, p2, p3 = s[S_E], s[S_E + 1], s[S_E + 2]
+    else:
+        p1, p2, p3 = e1, e2, e3
+    s[S_E], s[S_E + 1], s[S_E + 2], s[S_HAS_PREV] = e1, e2, e3, 1.0
+    Ts = p[P_TS]
+    return (
+        p[P_KP] * e1 + p[P_KD] * ((e1 - p1) / Ts) + p[P_KI] * i1,
+        p[P_KP + 1] * e2 + p[P_KD + 1] * ((e2 - p2) / Ts) + p[P_KI + 1] * i2,
+        p[P_KP + 2] * e3 + p[P_KD + 2] * ((e3 - p3) / Ts) + p[P_KI + 2] * i3,
+    )
+
+
+def position_law(q1: float, q2: float, q3: float, p: np.ndarray, s: np.ndarray) -> tuple[float, float, float]:
+    """:func:`pid_law` to the joint target held in ``p[P_BODY:P_BODY+3]`` [rad]."""
+    return pid_law(q1, q2, q3, p[P_BODY], p[P_BODY + 1], p[P_BODY + 2], p, s)
+
+
+# trajectory params after the header: k0, last tick offset, m knots, the m knot times [s], then per interval
+# the 12 coefficients (c3, c2, c1, c0) of joints 1, 2, 3, highest power first
+T_K0, T_LAST, T_M, T_KNOTS = P_BODY, P_BODY + 1, P_BODY + 2, P_BODY + 3
+
+
+def trajectory_desired(k: int, p: np.ndarray, s: np.ndarray) -> tuple[float, float, float, float, float, float]:
+    """Desired (q_d [rad], qd_d [rad/s]) at tick k, as ``PPoly`` evaluates the spline: the interval
+    ``t_j <= t < t_j+1`` (the last one closed at the last knot and beyond), power sum from the constant
+    term up in ``s = t - t_j``; held at the last knot (velocity 0) after it."""
+    Ts = p[P_TS]
+    m = int(p[T_M])
+    last = int(p[T_LAST])
+    i = k - int(p[T_K0])
+    x = (i if i < last else last) * Ts  # time since activation [s]
+    t_end = p[T_KNOTS + m - 1]
+    xt = t_end if x > t_end else x
+    j = int(s[S_SEG])
+    lo = p[T_KNOTS + j]
+    hi = p[T_KNOTS + j + 1] if j < m - 2 else math.inf
+    if not lo <= xt < hi:  # another interval (ticks move forward: once per knot)
+        j = 0
+        while j < m - 2 and p[T_KNOTS + j + 1] <= xt:
+            j += 1
+        s[S_SEG] = j
+        lo = p[T_KNOTS + j]
+    o = T_KNOTS + m + 12 * j
+    a0, a1, a2, a3 = p[o], p[o + 1], p[o + 2], p[o + 3]
+    b0, b1, b2, b3 = p[o + 4], p[o + 5], p[o + 6], p[o + 7]
+    c0, c1, c2, c3 = p[o + 8], p[o + 9], p[o + 10], p[o + 11]
+    u = xt - lo
+    u2 = u * u
+    u3 = u2 * u
+    r1 = 0.0 + a3 + a2 * u + a1 * u2 + a0 * u3
+    r2 = 0.0 + b3 + b2 * u + b1 * u2 + b0 * u3
+    r3 = 0.0 + c3 + c2 * u + c1 * u2 + c0 * u3
+    if x < t_end:
+        return (r1, r2, r3, 0.0 + a2 + a1 * u * 2.0 + a0 * u2 * 3.0, 0.0 + b2 + b1 * u * 2.0 + b0 * u2 * 3.0,
+                0.0 + c2 + c1 * u * 2.0 + c0 * u2 * 3.0)  # fmt: skip
+    return r1, r2, r3, 0.0, 0.0, 0.0
+
+
+def trajectory_law(
+    k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float, p: np.ndarray, s: np.ndarray
+) -> tuple[float, float, float]:
+    """u = Kp d(q, q_d(t)) + Kd (qd_d(t) - qd) + Ki integral(d) [N m]."""
+    r1, r2, r3, v1, v2, v3 = trajectory_desired(k, p, s)
+    e1, e2, e3, i1, i2, i3 = error_integral(q1, q2, q3, r1, r2, r3, p, s)
+    return (
+        p[P_KP] * e1 + p[P_KD] * (v1 - qd1) + p[P_KI] * i1,
+        p[P_KP + 1] * e2 + p[P_KD + 1] * (v2 - qd2) + p[P_KI + 1] * i2,
+        p[P_KP + 2] * e3 + p[P_KD + 2] * (v3 - qd3) + p[P_KI + 2] * i3,
+    )
+
+
+# effort params after the header: h_d in W [N], the first tick with it, L_12, L_23, L_3E [m]
+E_H, E_K_FORCE, E_L = P_BODY, P_BODY + 3, P_BODY + 4
+
+
+def effort_law(
+    k: int, q1: float, q2: float, q3: float, g1: float, g2: float, g3: float, p: np.ndarray
+) -> tuple[float, float, float]:
+    """tau = Jv(q)^T h_d + G(q) [N m]; G(q) = (g1, g2, g3) [N m] comes from the caller
+    (:attr:`Controller.gravity`), Jv as :func:`legbench.kinematics.jacobian_scalar` (the same operations)."""
+    if k >= p[E_K_FORCE]:
+        hx, hy, hz = p[E_H], p[E_H + 1], p[E_H + 2]
+    else:
+        hx, hy, hz = 0.0, 0.0, 0.0
+    L_12, L_23, L_3E = p[E_L], p[E_L + 1], p[E_L + 2]
+    s1, c1 = math.sin(q1), math.cos(q1)
+    s23 = math.sin(q2 + q3)
+    c23 = math.cos(q2 + q3)
+    reach = L_23 * math.sin(q2) + L_3E * s23
+    dreach2 = L_23 * math.cos(q2) + L_3E * c23
+    dreach3 = L_3E * c23
+    j11, j12, j13 = -(L_12 * s1 + c1 * reach), -(s1 * dreach2), -(s1 * dreach3)
+    j21, j22, j23 = 0.0, -reach, -(L_3E * s23)
+    j31, j32, j33 = L_12 * c1 - s1 * reach, c1 * dreach2, c1 * dreach3
+    return (
+        j11 * hx + j21 * hy + j31 * hz + g1,
+        j12 * hx + j22 * hy + j32 * hz + g2,
+        j13 * hx + j23 * hy + j33 * hz + g3,
+    )
+
+
+# torque params after the header: amplitude A [N m], frequency [rad per tick], phase [rad], the first tick
+O_A, O_W, O_PHI, O_K0 = P_BODY, P_BODY + 3, P_BODY + 6, P_BODY + 9
+
+
+def torque_law(k: int, p: np.ndarray) -> tuple[float, float, float]:
+    """tau_i = A_i sin(w_i (k - k0) + phi_i) [N m], w_i in rad per tick."""
+    n = k - int(p[O_K0])
+    return (
+        p[O_A] * math.sin(p[O_W] * n + p[O_PHI]),
+        p[O_A + 1] * math.sin(p[O_W + 1] * n + p[O_PHI + 1]),
+        p[O_A + 2] * math.sin(p[O_W + 2] * n + p[O_PHI + 2]),
+    )
+
+
+def control_law(
+    k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float,
+    g1: float, g2: float, g3: float, p: np.ndarray, s: np.ndarray,
+) -> tuple[float, float, float]:  # fmt: skip
+    """The torque [N m] of the controller whose arrays ``p``, ``s`` are given, at tick k, for the measured
+    q [rad], qd [rad/s] (and G(q) [N m] for the effort controller; ignored by the others)."""
+    kind = p[P_KIND]
+    if kind == POSITION:
+        return position_law(q1, q2, q3, p, s)
+    if kind == TRAJECTORY:
+        return trajectory_law(k, q1, q2, q3, qd1, qd2, qd3, p, s)
+    if kind == EFFORT:
+        return effort_law(k, q1, q2, q3, g1, g2, g3, p)
+    return torque_law(k, p)
+
+
+#: Every plain function the compiled tick calls (:mod:`legbench.tick` registers them with numba).
+LAWS = (error_integral, pid_law, position_law, trajectory_desired, trajectory_law, effort_law, torque_law,
+        control_law)  # fmt: skip
+
+_NO_FORCE = (0.0, 0.0, 0.0)
+
+
+# ----------------------------------------------------------------------------- the controllers
+
+
 class Controller(ABC):
-    """A torque controller for the leg."""
+    """A torque controller for the leg: sets up its law's ``params`` and ``state`` arrays."""
 
     name: str = ""
+    #: the law's parameters (kind, Ts, gains, ...; see the ``P_*`` layout) and its state (``S_*``)
+    params: np.ndarray
+    state: np.ndarray
+    #: G(q) [N m] of (q1, q2, q3) [rad] as three floats, for a law that needs it (else None)
+    gravity: Callable[[float, float, float], tuple[float, float, float]] | None = None
 
     @abstractmethod
     def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
         """Activate at time t [s] from the measured q [rad], qd [rad/s]."""
 
-    @abstractmethod
     def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
         """Torque (tau1, tau2, tau3) [N m] at control tick k (t = k Ts) for the measured q [rad], qd [rad/s]."""
+        g1, g2, g3 = self.gravity(q1, q2, q3) if self.gravity is not None else _NO_FORCE
+        return control_law(k, q1, q2, q3, qd1, qd2, qd3, g1, g2, g3, self.params, self.state)
 
     def __call__(self, k: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """:meth:`torque` on arrays: torque [N m] at tick k for the measured q [rad], qd [rad/s]."""
         return np.array(self.torque(k, *_floats(q), *_floats(qd)))
 
 
-def _error_integral(
-    c: PID | TrajectoryController, q1: float, q2: float, q3: float, r1: float, r2: float, r3: float
-) -> tuple[float, float, float, float, float, float]:
-    """Joint errors r - q [rad] (angular distance on continuous joints) and the updated forward-Euler
-    integral sum(e Ts) [rad s] of a controller with ``_wrap``, ``Ts`` and ``_i``, on floats."""
-    w1, w2, w3 = c._wrap
-    e1 = angdist_scalar(q1, r1) if w1 else r1 - q1
-    e2 = angdist_scalar(q2, r2) if w2 else r2 - q2
-    e3 = angdist_scalar(q3, r3) if w3 else r3 - q3
-    Ts = c.Ts
-    i1, i2, i3 = c._i
-    i1 += e1 * Ts
-    i2 += e2 * Ts
-    i3 += e3 * Ts
-    c._i = (i1, i2, i3)
-    return e1, e2, e3, i1, i2, i3
-
-
 class PID:
-    """Discrete PID per joint (ros_control / Simulink form), unfiltered derivative.
+    """Discrete PID per joint (ros_control / Simulink form), unfiltered derivative (:func:`pid_law`).
 
     e = d(q, q_des) (angular distance on the continuous hip), edot = (e - e_prev) / Ts,
     I += e Ts (forward Euler), u = Kp e + Kd edot + Ki I. On activation e_prev is set
@@ -89,33 +268,20 @@ class PID:
         self.Kd = np.array(gains.Kd)
         self.Ki = np.array(gains.Ki)
         self.Ts = Ts
-        self.params = params or load_params()
-        self._gains = (*gains.Kp, *gains.Kd, *gains.Ki)
-        self._wrap = tuple(bool(c) for c in self.params.continuous)
-        self.e_prev: tuple[float, float, float] | None = None
-        self._i = (0.0, 0.0, 0.0)
+        self.params = _header(POSITION, Ts, gains, params or load_params(), 3)
+        self.state = np.zeros(S_SIZE)
 
     @property
     def integral(self) -> np.ndarray:
         """Integral of the error, sum(e Ts) [rad s]."""
-        return np.array(self._i)
+        return self.state[S_I : S_I + 3].copy()
 
     def reset(self) -> None:
-        self.e_prev = None
-        self._i = (0.0, 0.0, 0.0)
+        self.state[:] = 0.0
 
     def update(self, q1: float, q2: float, q3: float, r1: float, r2: float, r3: float) -> tuple[float, float, float]:
         """Torque [N m] for the joint angles q [rad] and the target r [rad], on floats."""
-        e1, e2, e3, i1, i2, i3 = _error_integral(self, q1, q2, q3, r1, r2, r3)
-        p1, p2, p3 = self.e_prev if self.e_prev is not None else (e1, e2, e3)
-        Ts = self.Ts
-        self.e_prev = (e1, e2, e3)
-        kp1, kp2, kp3, kd1, kd2, kd3, ki1, ki2, ki3 = self._gains
-        return (
-            kp1 * e1 + kd1 * ((e1 - p1) / Ts) + ki1 * i1,
-            kp2 * e2 + kd2 * ((e2 - p2) / Ts) + ki2 * i2,
-            kp3 * e3 + kd3 * ((e3 - p3) / Ts) + ki3 * i3,
-        )
+        return pid_law(q1, q2, q3, r1, r2, r3, self.params, self.state)
 
     def __call__(self, q: np.ndarray, q_des: np.ndarray) -> np.ndarray:
         """Torque [N m] for the joint angles q [rad] and the target q_des [rad]."""
@@ -129,21 +295,17 @@ class PositionController(Controller):
 
     def __init__(self, event: Event, gains: Gains, Ts: float) -> None:
         self.event = event
-        self.pid = PID(gains, Ts)
         self.q_des = np.zeros(3)
-        self._r = (0.0, 0.0, 0.0)
+        self.params = _header(POSITION, Ts, gains, load_params(), 3)
+        self.state = np.zeros(S_SIZE)
 
     def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
         if self.event.joint is not None:
-            self.q_des = np.array(self.event.joint)
+            self.q_des = np.array(self.event.joint, dtype=float)
         else:
             self.q_des = kinematics.ik_nearest(np.array(self.event.cartesian), q)
-        self._r = _floats(self.q_des)
-        self.pid.reset()
-
-    def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
-        r1, r2, r3 = self._r
-        return self.pid.update(q1, q2, q3, r1, r2, r3)
+        self.params[P_BODY : P_BODY + 3] = self.q_des
+        self.state[:] = 0.0
 
 
 def waypoint_velocities(Q: np.ndarray, times: np.ndarray, v_start: np.ndarray) -> np.ndarray:
@@ -174,156 +336,95 @@ def joint_waypoints(waypoints: np.ndarray, q_start: np.ndarray, params: LegParam
 class TrajectoryController(Controller):
     """Cubic joint trajectory through Cartesian waypoints, tracked with PD(+I) and velocity feed-forward.
 
-    u = Kp d(q, q_d(t)) + Kd (qd_d(t) - qd) + Ki integral(d). The trajectory starts
-    from the measured state at activation; segments are cubic in position and
-    velocity at both ends (as ros_control's joint_trajectory_controller). The
-    desired state is the spline at the control instants after activation,
-    held at the last waypoint (velocity 0) after the last waypoint time.
+    u = Kp d(q, q_d(t)) + Kd (qd_d(t) - qd) + Ki integral(d) (:func:`trajectory_law`). The trajectory
+    starts from the measured state at activation; segments are cubic in position and velocity at both
+    ends (as ros_control's joint_trajectory_controller). The desired state is the spline at the control
+    instants after activation, held at the last waypoint (velocity 0) after the last waypoint time.
 
-    Only the spline's coefficients are kept (memory per waypoint, not per
-    tick); :meth:`desired_scalar` evaluates them at each tick with the same
-    floating-point operations, in the same order, as scipy's ``PPoly`` (power
-    sum from the constant term up, ``s = t - t_i`` in the interval
-    ``t_i <= t < t_i+1``, closed at the last knot), so the values equal
-    ``spline(t)`` and ``spline(t, 1)`` on the control grid bit for bit.
+    Only the spline's knots and coefficients are kept (memory per waypoint, not per tick);
+    :func:`trajectory_desired` evaluates them at each tick with the same floating-point operations, in
+    the same order, as scipy's ``PPoly``, so the values equal ``spline(t)`` and ``spline(t, 1)`` on the
+    control grid bit for bit.
     """
 
     name = "trajectory"
 
     def __init__(self, event: Event, gains: Gains, Ts: float, n_ticks: int) -> None:
         self.event = event
-        self.Kp = np.array(gains.Kp)
-        self.Kd = np.array(gains.Kd)
-        self.Ki = np.array(gains.Ki)
+        self.gains = gains
         self.Ts = Ts
         self.n_ticks = n_ticks
-        self.params = load_params()
-        self._gains = (*gains.Kp, *gains.Kd, *gains.Ki)
-        self._wrap = tuple(bool(c) for c in self.params.continuous)
+        self.leg = load_params()
         self.k0 = 0
-        self._last = 0  # last tick offset from k0 with its own desired state
-        self._x: list[float] = [0.0, 1.0]  # knot times after activation [s]
-        self._coef = np.zeros((1, 12))  # per interval: (c3, c2, c1, c0) of joints 1, 2, 3 (highest power first)
-        self._seg: tuple[float, ...] = (0.0, 0.0, *([0.0] * 12))  # the current interval (see _interval)
-        self._i = (0.0, 0.0, 0.0)
+        self.params = _header(TRAJECTORY, Ts, gains, self.leg, T_KNOTS - P_BODY + 2 + 12)
+        self.params[T_M], self.params[T_KNOTS + 1] = 2.0, 1.0
+        self.state = np.zeros(S_SIZE)
         self.knots_q = np.zeros((1, 3))
         self.knots_t = np.zeros(1)
 
     @property
     def integral(self) -> np.ndarray:
         """Integral of the tracking error [rad s]."""
-        return np.array(self._i)
+        return self.state[S_I : S_I + 3].copy()
 
     def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
-        Qw = joint_waypoints(np.array(self.event.waypoints), q, self.params)
+        Qw = joint_waypoints(np.array(self.event.waypoints), q, self.leg)
         Q = np.vstack([q, Qw])
         times = np.concatenate([[0.0], self.event.times])
         V = waypoint_velocities(Q, times, np.asarray(qd, float))
         spline = CubicHermiteSpline(times, Q, V, axis=0)
         self.k0 = int(round(t / self.Ts))
-        self._last = max(self.n_ticks - self.k0, 1) - 1
-        self._x = times.tolist()
         c = spline.c  # (4, intervals, 3), highest power first
-        self._coef = np.ascontiguousarray(c.transpose(1, 2, 0).reshape(c.shape[1], 12))
-        self._seg = self._interval(0.0)
+        m = len(times)
+        p = _header(TRAJECTORY, self.Ts, self.gains, self.leg, T_KNOTS - P_BODY + m + 12 * (m - 1))
+        p[T_K0], p[T_LAST], p[T_M] = self.k0, max(self.n_ticks - self.k0, 1) - 1, m
+        p[T_KNOTS : T_KNOTS + m] = times
+        p[T_KNOTS + m :] = c.transpose(1, 2, 0).reshape(-1)
+        self.params = p
+        self.state = np.zeros(S_SIZE)
         self.knots_q, self.knots_t = Q, times
-        self._i = (0.0, 0.0, 0.0)
-
-    def _interval(self, xt: float) -> tuple[float, ...]:
-        """(t_j, t_j+1, the interval's 12 coefficients) of the interval holding xt, as ``PPoly`` picks it: the
-        last knot's interval extends to +inf (``t_end`` belongs to it)."""
-        knots = self._x
-        j = bisect_right(knots, xt) - 1
-        if j > len(knots) - 2:
-            j = len(knots) - 2
-        hi = knots[j + 1] if j < len(knots) - 2 else math.inf
-        return (knots[j], hi, *self._coef[j].tolist())
 
     def desired_scalar(self, k: int) -> tuple[float, float, float, float, float, float]:
         """Desired (q_d [rad], qd_d [rad/s]) at tick k, as six floats."""
-        i = k - self.k0
-        x = (i if i < self._last else self._last) * self.Ts  # time since activation [s]
-        t_end = self._x[-1]
-        xt = t_end if x > t_end else x
-        lo, hi, a0, a1, a2, a3, b0, b1, b2, b3, c0, c1, c2, c3 = self._seg
-        if not lo <= xt < hi:  # another interval (ticks move forward: once per knot)
-            lo, hi, a0, a1, a2, a3, b0, b1, b2, b3, c0, c1, c2, c3 = self._seg = self._interval(xt)
-        s = xt - lo
-        s2 = s * s
-        s3 = s2 * s
-        r1 = 0.0 + a3 + a2 * s + a1 * s2 + a0 * s3
-        r2 = 0.0 + b3 + b2 * s + b1 * s2 + b0 * s3
-        r3 = 0.0 + c3 + c2 * s + c1 * s2 + c0 * s3
-        if x < t_end:
-            return (r1, r2, r3, 0.0 + a2 + a1 * s * 2.0 + a0 * s2 * 3.0, 0.0 + b2 + b1 * s * 2.0 + b0 * s2 * 3.0,
-                    0.0 + c2 + c1 * s * 2.0 + c0 * s2 * 3.0)  # fmt: skip
-        return r1, r2, r3, 0.0, 0.0, 0.0
+        return trajectory_desired(k, self.params, self.state)
 
     def desired(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Desired q_d [rad] and qd_d [rad/s] at tick k."""
         d = self.desired_scalar(k)
         return np.array(d[:3]), np.array(d[3:])
 
-    def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
-        r1, r2, r3, v1, v2, v3 = self.desired_scalar(k)
-        e1, e2, e3, i1, i2, i3 = _error_integral(self, q1, q2, q3, r1, r2, r3)
-        kp1, kp2, kp3, kd1, kd2, kd3, ki1, ki2, ki3 = self._gains
-        return (
-            kp1 * e1 + kd1 * (v1 - qd1) + ki1 * i1,
-            kp2 * e2 + kd2 * (v2 - qd2) + ki2 * i2,
-            kp3 * e3 + kd3 * (v3 - qd3) + ki3 * i3,
-        )
-
-
-_NO_FORCE = (0.0, 0.0, 0.0)
-
 
 class EffortController(Controller):
-    """tau = Jv(q)^T h_d + G(q): the foot pushes on the environment with h_d in W [N].
+    """tau = Jv(q)^T h_d + G(q): the foot pushes on the environment with h_d in W [N] (:func:`effort_law`).
 
     With the event's ``force_delay`` [s], h_d is zero for that many control periods
     after the switch (tau = G(q): gravity compensation only), then the event's force.
+    G(q) is Pinocchio's (:class:`legbench.kinematics.GravityTorque`), handed to the
+    caller as :attr:`gravity`.
     """
 
     name = "effort"
 
     def __init__(self, event: Event, Ts: float = 1e-3) -> None:
         self.h_d = np.array(event.force, dtype=float)
-        self._h = _floats(self.h_d)
-        self._geometry = g = load_params().geometry
-        self._lengths = (g.L_12, g.L_23, g.L_3E)
-        self._gravity = kinematics.GravityTorque()
+        leg = load_params()
+        g = leg.geometry
+        self.gravity = kinematics.GravityTorque()
         self.n_force_delay = int(round(event.force_delay / Ts))  # control periods with h_d = 0
         self.Ts = Ts
         self.k_force = 0  # first tick with the event's force
+        self.params = _header(EFFORT, Ts, None, leg, 7)
+        self.params[E_H : E_H + 3] = self.h_d
+        self.params[E_L : E_L + 3] = g.L_12, g.L_23, g.L_3E
+        self.state = np.zeros(S_SIZE)
 
     def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
         self.k_force = int(round(t / self.Ts)) + self.n_force_delay
-
-    def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
-        hx, hy, hz = self._h if k >= self.k_force else _NO_FORCE
-        # kinematics.jacobian_scalar inlined on the lengths bound at construction (the same operations)
-        L_12, L_23, L_3E = self._lengths
-        sin, cos = math.sin, math.cos
-        s1, c1 = sin(q1), cos(q1)
-        s23 = sin(q2 + q3)
-        c23 = cos(q2 + q3)
-        reach = L_23 * sin(q2) + L_3E * s23
-        dreach2 = L_23 * cos(q2) + L_3E * c23
-        dreach3 = L_3E * c23
-        j11, j12, j13 = -(L_12 * s1 + c1 * reach), -(s1 * dreach2), -(s1 * dreach3)
-        j21, j22, j23 = 0.0, -reach, -(L_3E * s23)
-        j31, j32, j33 = L_12 * c1 - s1 * reach, c1 * dreach2, c1 * dreach3
-        g1, g2, g3 = self._gravity(q1, q2, q3)
-        return (
-            j11 * hx + j21 * hy + j31 * hz + g1,
-            j12 * hx + j22 * hy + j32 * hz + g2,
-            j13 * hx + j23 * hy + j33 * hz + g3,
-        )
+        self.params[E_K_FORCE] = self.k_force
 
 
 class TorqueController(Controller):
-    """Open loop: tau_i = A_i sin(2 pi f_i (t - t_event) + phi_i) [N m], whatever the state.
+    """Open loop: tau_i = A_i sin(2 pi f_i (t - t_event) + phi_i) [N m], whatever the state (:func:`torque_law`).
 
     The torque of tick k is the value at t = k Ts (held over the period by the backend).
     """
@@ -334,21 +435,15 @@ class TorqueController(Controller):
         if event.amplitude is None or event.frequency is None:
             raise ValueError("a torque event needs amplitude and frequency")
         self.Ts = Ts
-        self._a = _floats(event.amplitude)
-        self._w = _floats(2.0 * math.pi * np.asarray(event.frequency, dtype=float) * Ts)  # [rad per tick]
-        self._phi = _floats(event.phase if event.phase is not None else (0.0, 0.0, 0.0))
-        self.k0 = int(round(event.t / Ts))
+        p = self.params = _header(TORQUE, Ts, None, load_params(), 10)
+        p[O_A : O_A + 3] = event.amplitude
+        p[O_W : O_W + 3] = _floats(2.0 * math.pi * np.asarray(event.frequency, dtype=float) * Ts)  # [rad per tick]
+        p[O_PHI : O_PHI + 3] = event.phase if event.phase is not None else (0.0, 0.0, 0.0)
+        p[O_K0] = int(round(event.t / Ts))
+        self.state = np.zeros(S_SIZE)
 
     def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
-        self.k0 = int(round(t / self.Ts))
-
-    def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
-        a1, a2, a3 = self._a
-        w1, w2, w3 = self._w
-        p1, p2, p3 = self._phi
-        n = k - self.k0
-        sin = math.sin
-        return a1 * sin(w1 * n + p1), a2 * sin(w2 * n + p2), a3 * sin(w3 * n + p3)
+        self.params[O_K0] = int(round(t / self.Ts))
 
 
 def make_controller(event: Event, gains: Gains, Ts: float, n_ticks: int) -> Controller:

@@ -10,7 +10,6 @@ state and ground force at t_k and the torque applied over [t_k, t_k + Ts).
 
 from __future__ import annotations
 
-import math
 import signal
 import sys
 import threading
@@ -32,11 +31,21 @@ from legbench.model import load_params
 from legbench.results import RunResult, check_out_dir, read_meta, resumable, write_run
 from legbench.scenario import Scenario, physics_of
 from legbench.studies.executors import LocalExecutor
+from legbench.tick import NOT_FINITE, TOO_DEEP, TOO_FAST
+from legbench.tick import constants as tick_constants
+from legbench.tick import tick as control_tick
 
 #: Divergence bounds no physical run of this leg reaches: joint speed [rad/s] (20x the hip's
 #: speed limit) and foot penetration [m] (5 cm is 500 N at Kp = 1e4 N/m; the leg pushes <= 100 N).
 MAX_JOINT_SPEED = 1.0e3
 MAX_PENETRATION = 0.05
+
+#: why the run stopped, per :func:`legbench.tick.control_tick` code
+_DIVERGED = {
+    NOT_FINITE: "state is not finite",
+    TOO_FAST: f"joint speed above {MAX_JOINT_SPEED} rad/s",
+    TOO_DEEP: f"foot more than {MAX_PENETRATION} m into the ground",
+}
 
 
 def simulate(
@@ -48,13 +57,14 @@ def simulate(
     """Run one scenario on one loaded-and-ready backend; a divergence ends the log early, marked failed.
 
     The loop is the benchmark's "full run" (``legbench bench``); per tick it
-    does only what a tick needs, on plain floats: read the state and force
-    (:meth:`Backend.read`, nine floats), check it, fire due events, compute and
-    saturate the torque, write one row of the preallocated (n, 12) log (q, qd,
-    f, tau: the four logs are column views of it), step. The torque handed to
+    reads the state and force (:meth:`Backend.read`, nine floats), fires due
+    events, and makes one compiled call (:func:`legbench.tick.tick`) that checks
+    the state, evaluates the active controller's law, saturates the torque and
+    writes the tick's row of the preallocated (n, 12) log (q, qd, f, tau: the
+    four logs are column views of it); then it steps. The torque handed to
     :meth:`Backend.step` is a read-only view of the logged row, so what is
     logged is what the backend received. Nothing is allocated per tick beyond
-    the floats read and the controller's three; memory is the log itself.
+    the floats read; memory is the log itself.
 
     Args:
         scenario: the task (duration, control rate, events, gains, initial state).
@@ -68,14 +78,12 @@ def simulate(
     """
     n = scenario.n_ticks
     Ts = scenario.control_dt
-    lim1, lim2, lim3 = (float(x) for x in physics.torque_limit)
     g = load_params().geometry
-    L_12, L_23, L_3E, H = g.L_12, g.L_23, g.L_3E, g.H
-    z_min = g.R_foot - MAX_PENETRATION  # lowest foot-centre height before we call it diverged [m]
-    v_max = MAX_JOINT_SPEED
+    # lowest foot-centre height before we call it diverged [m]
+    consts = tick_constants(physics.torque_limit, g, g.R_foot - MAX_PENETRATION, MAX_JOINT_SPEED)
     t = np.arange(n) * Ts
-    # one (n, 12) block, row k = (q, qd, f, tau) of tick k, written with one row assignment per tick; the
-    # four logs are column views of it (no copy)
+    # one (n, 12) block, row k = (q, qd, f, tau) of tick k, written by the compiled tick; the four logs are
+    # column views of it (no copy)
     log = np.full((n, 12), np.nan)
     q_log, qd_log, f_log, tau_log = log[:, 0:3], log[:, 3:6], log[:, 6:9], log[:, 9:12]
     tau_out = tau_log.view()
@@ -84,9 +92,10 @@ def simulate(
     names = [e.controller for e in scenario.events]
     controllers: list[Controller] = [make_controller(e, scenario.gains, Ts, n) for e in scenario.events]
     backend.reset(np.array(scenario.q0), np.array(scenario.qd0))
-    read, step = backend.read, backend.step
-    sin, cos, isfinite = math.sin, math.cos, math.isfinite
-    torque = controllers[0].torque
+    read, step, control = backend.read, backend.step, control_tick
+    active = controllers[0]
+    p, s, gravity = active.params, active.state, active.gravity
+    g1 = g2 = g3 = 0.0
     next_event, n_events = 0, len(ticks)
     next_tick = ticks[0]
     status, reason, k = "ok", None, 0
@@ -96,26 +105,19 @@ def simulate(
     try:
         for k in range(n):
             q1, q2, q3, qd1, qd2, qd3, f1, f2, f3 = read()
-            if not isfinite(q1 + q2 + q3 + qd1 + qd2 + qd3 + f1 + f2 + f3):
-                raise SimulationDiverged(backend.name, k * Ts, "state is not finite")
-            if abs(qd1) > v_max or abs(qd2) > v_max or abs(qd3) > v_max:
-                raise SimulationDiverged(backend.name, k * Ts, f"joint speed above {MAX_JOINT_SPEED} rad/s")
-            if L_12 * sin(q1) + cos(q1) * (L_23 * sin(q2) + L_3E * sin(q2 + q3)) + H < z_min:  # foot-centre height z_W
-                raise SimulationDiverged(backend.name, k * Ts, f"foot more than {MAX_PENETRATION} m into the ground")
             if k >= next_tick:
                 q, qd = np.array((q1, q2, q3)), np.array((qd1, qd2, qd3))
                 while next_event < n_events and ticks[next_event] <= k:
                     active = controllers[next_event]
                     active.start(k * Ts, q, qd)
-                    torque = active.torque
                     next_event += 1
+                p, s, gravity = active.params, active.state, active.gravity
                 next_tick = ticks[next_event] if next_event < n_events else n
-            u1, u2, u3 = torque(k, q1, q2, q3, qd1, qd2, qd3)
-            # saturate at +-limit (as np.clip: NaN passes through)
-            u1 = -lim1 if u1 < -lim1 else (lim1 if u1 > lim1 else u1)
-            u2 = -lim2 if u2 < -lim2 else (lim2 if u2 > lim2 else u2)
-            u3 = -lim3 if u3 < -lim3 else (lim3 if u3 > lim3 else u3)
-            log[k] = (q1, q2, q3, qd1, qd2, qd3, f1, f2, f3, u1, u2, u3)
+            if gravity is not None:
+                g1, g2, g3 = gravity(q1, q2, q3)
+            code = control(k, q1, q2, q3, qd1, qd2, qd3, f1, f2, f3, g1, g2, g3, p, s, consts, log)
+            if code:
+                raise SimulationDiverged(backend.name, k * Ts, _DIVERGED[code])
             if k < last:
                 step(tau_out[k])
             if progress is not None and k % every == 0:

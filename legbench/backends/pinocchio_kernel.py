@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from legbench import contact
+from legbench import contact, jit
 from legbench.backends import joint_limits
 
 try:
@@ -92,7 +92,8 @@ def model_arrays(model: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
 
 
 def _njit(fn: Any) -> Any:
-    return numba.njit(cache=True, nogil=True)(fn) if numba is not None else fn
+    """Compiled, its cache stamped with the law modules compiled in (:func:`legbench.jit.njit`)."""
+    return jit.njit(fn, depends_on=(contact, joint_limits))
 
 
 # --------------------------------------------------------------------------- #

@@ -1,0 +1,96 @@
+"""The run loop's compiled tick against the same function run as Python, and its checks one by one."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+
+from legbench import backends as registry
+from legbench import jit, resources, scenario
+from legbench import run as run_mod
+from legbench import tick as T
+from legbench.controllers import PositionController
+from legbench.model import load_params
+from legbench.run import MAX_JOINT_SPEED, MAX_PENETRATION, simulate
+from legbench.scenario import Event, Gains, physics_of
+
+pytestmark = pytest.mark.skipif(not jit.available(), reason="numba is not installed: the tick runs as Python")
+
+TICK: Any = T.tick  # called with star-unpacked readings
+TASKS = ("position", "ellipse", "effort", "combined")
+LIMITS = (3.0, 4.0, 5.0)
+
+
+def _log(task: str, tick_fn: object, monkeypatch: pytest.MonkeyPatch) -> np.ndarray:
+    sc = scenario.load(resources.scenario(task))
+    physics = physics_of(sc, "reference")
+    backend = registry.load("pinocchio", physics, sc.backends.get("pinocchio", {}), sc.profile)
+    with monkeypatch.context() as m:
+        m.setattr(run_mod, "control_tick", tick_fn)
+        tr = simulate(sc, backend, physics)
+    assert tr.status == "ok"
+    return np.hstack([tr.q, tr.qd, tr.f, tr.tau])
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_compiled_tick_gives_the_python_ticks_log_bit_for_bit(task: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each task's whole log (q, qd, f, tau) with the compiled tick equals the log with the same function run
+    as Python, bit for bit: one implementation of every controller law, the same IEEE operations."""
+    assert T.tick is not T.control_tick  # numba compiled it
+    compiled = _log(task, T.tick, monkeypatch)
+    python = _log(task, T.control_tick, monkeypatch)
+    np.testing.assert_array_equal(compiled.view(np.int64), python.view(np.int64))
+
+
+def _arrays() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    g = load_params().geometry
+    c = T.constants(LIMITS, g, g.R_foot - MAX_PENETRATION, MAX_JOINT_SPEED)
+    ctrl = PositionController(Event(0.0, "position", joint=(0.0, -1.0, -1.2)), Gains(Kp=(1e3,) * 3), 1e-3)
+    ctrl.start(0.0, np.zeros(3), np.zeros(3))
+    return ctrl.params, ctrl.state, c, np.full((3, 12), np.nan)
+
+
+HOLD = (0.0, -0.5, -0.5)  # foot centre 9 cm above the ground
+
+
+@pytest.mark.parametrize(
+    ("state", "code"),
+    [
+        ((math.nan, -0.5, -0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), T.NOT_FINITE),
+        ((*HOLD, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf), T.NOT_FINITE),
+        ((*HOLD, 0.0, -1.001 * MAX_JOINT_SPEED, 0.0, 0.0, 0.0, 0.0), T.TOO_FAST),
+        ((0.0, -math.pi / 2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), T.TOO_DEEP),  # leg straight down: z_W = -7.6 cm
+    ],
+)
+def test_a_diverged_state_returns_its_code_and_writes_nothing(state: tuple[float, ...], code: int) -> None:
+    p, s, c, log = _arrays()
+    assert TICK(1, *state, 0.0, 0.0, 0.0, p, s, c, log) == code
+    assert np.isnan(log).all()
+    assert not s.any()  # the controller did not run: its integral is untouched
+
+
+def test_a_good_state_logs_the_reading_and_the_saturated_law_torque() -> None:
+    """Row k = (q, qd, f, clip(u, +-limit)); the law's torque from the same state through the Python path."""
+    p, s, c, log = _arrays()
+    q = (0.2, -0.9, -1.0)
+    state = (*q, 0.1, -0.2, 0.3, 4.0, 5.0, 6.0)
+    assert TICK(1, *state, 0.0, 0.0, 0.0, p, s, c, log) == T.OK
+    ref = PositionController(Event(0.0, "position", joint=(0.0, -1.0, -1.2)), Gains(Kp=(1e3,) * 3), 1e-3)
+    ref.start(0.0, np.zeros(3), np.zeros(3))
+    u = np.array(ref.torque(1, *state[:6]))
+    assert np.abs(u).max() > max(LIMITS)  # so the clip is exercised
+    np.testing.assert_array_equal(log[1, :9], state)
+    np.testing.assert_array_equal(log[1, 9:], np.clip(u, -np.array(LIMITS), LIMITS))
+    assert np.isnan(log[[0, 2]]).all()
+    np.testing.assert_array_equal(s, ref.state)  # the same controller state after the tick
+
+
+def test_a_nan_torque_passes_the_saturation_as_nan() -> None:
+    """As np.clip: a NaN torque (a NaN gain) is logged as NaN, not clipped to a limit."""
+    p, s, c, log = _arrays()
+    p[2] = math.nan  # Kp of joint 1
+    assert TICK(0, 0.2, -0.9, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, p, s, c, log) == T.OK
+    assert math.isnan(log[0, 9]) and np.isfinite(log[0, 10:]).all()
