@@ -286,6 +286,7 @@ class MujocoBackend(Backend):
         self._fn_peak, self._q_peak = 0.0, [0.0, 0.0, 0.0]
         # live views into d, taken once: the hot loop looks nothing up and allocates nothing
         self._ctrl = self.data.ctrl
+        self._qpos, self._qvel = self.data.qpos, self.data.qvel
         self._bad_qacc = self.data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
         self._integrate = _INTEGRATE[cfg["integrator"]]
         mujoco.mj_forward(m, self.data)  # every step may reuse the position and velocity stages of d
@@ -461,8 +462,7 @@ class MujocoBackend(Backend):
 
     def read(self) -> tuple[float, ...]:
         """:meth:`state` and :meth:`ground_force` as nine floats, without the copies."""
-        d = self.data
-        return (*d.qpos.tolist(), *d.qvel.tolist(), *self._force.tolist())
+        return (*self._qpos.tolist(), *self._qvel.tolist(), *self._force.tolist())
 
     def info(self) -> dict[str, Any]:
         """Engine, version, sub-stepping and every contact and limit setting actually used."""

@@ -228,8 +228,8 @@ class PybulletBackend(Backend):
 
         implicit = self.reference and cfg["reference_friction"] == "implicit"
         self.contact = ReferenceContact.from_leg(c, physics.gravity if implicit else None)
-        self._hi = np.asarray(physics.torque_limit, float)
-        self._lo = -self._hi
+        self._limit = tuple(float(x) for x in physics.torque_limit)  # [N m]
+        self._dt = physics.control_dt
         if self.reference:
             self._step = self._step_reference
         else:
@@ -238,10 +238,13 @@ class PybulletBackend(Backend):
         #: (fixedTimeStep): with Bullet's sub-stepping that is n_sub times the internal step
         self._force_scale = float(n_sub) if self.engine_sub else 1.0
         self._tau = np.zeros(3)
+        self._tau_list = [0.0, 0.0, 0.0]  # the clamped torque [N m], as the command takes it
         self._cmd = np.zeros(3)
         self._force = np.zeros(3)
         self._q = np.zeros(3)
         self._qd = np.zeros(3)
+        #: q [rad], qd [rad/s], F in W [N] after the last step, as nine floats (what read() returns)
+        self._reading: tuple[float, ...] = (0.0,) * 9
         self.t = 0.0
         self._fn_peak, self._q_peak = 0.0, [0.0, 0.0, 0.0]
 
@@ -257,14 +260,22 @@ class PybulletBackend(Backend):
             self._reference_force()
         else:
             self._force[:] = 0.0
+        self._reading = (*self._q.tolist(), *self._qd.tolist(), *self._force.tolist())
 
     # ----------------------------------------------------------------- step
     def step(self, tau: np.ndarray) -> None:
         """Advance one control period with tau [N m], clamped to the torque limits, held."""
-        np.clip(tau, self._lo, self._hi, out=self._tau)
+        t1, t2, t3 = tau.tolist()
+        l1, l2, l3 = self._limit
+        # as np.clip (a NaN passes)
+        u = self._tau_list
+        u[0] = -l1 if t1 < -l1 else (l1 if t1 > l1 else t1)
+        u[1] = -l2 if t2 < -l2 else (l2 if t2 > l2 else t2)
+        u[2] = -l3 if t3 < -l3 else (l3 if t3 > l3 else t3)
         self._step()
-        self.t += self.physics.control_dt
-        check_finite(self.name, self.t, self._q, self._qd)
+        self.t += self._dt
+        r = self._reading
+        check_finite(self.name, self.t, r[0:3], r[3:6])
 
     def _step_native_engine(self) -> None:
         """Native contact, Bullet's own sub-stepping: one torque command (a list: cheaper across the
@@ -274,21 +285,19 @@ class PybulletBackend(Backend):
         last, so this is bit-identical to ``n_sub`` x (command + ``stepSimulation``) of
         :meth:`_step_native` (tests/test_backend_pybullet.py compares the logs).
         """
-        p.setJointMotorControlArray(self.body, self.joints, p.TORQUE_CONTROL, forces=self._tau.tolist(),
+        p.setJointMotorControlArray(self.body, self.joints, p.TORQUE_CONTROL, forces=self._tau_list,
                                     physicsClientId=self.cid)  # fmt: skip
         p.stepSimulation(physicsClientId=self.cid)
-        self._read()
-        self._native_force()
+        self._read_native()
 
     def _step_native(self) -> None:
         """Native contact, ``sub_stepping: python``: ``n_sub`` x (command + ``stepSimulation``)."""
         body, cid, joints, n_sub = self.body, self.cid, self.joints, self.n_sub
-        tau, control, step, torque = self._tau.tolist(), p.setJointMotorControlArray, p.stepSimulation, p.TORQUE_CONTROL
+        tau, control, step, torque = self._tau_list, p.setJointMotorControlArray, p.stepSimulation, p.TORQUE_CONTROL
         for _ in range(n_sub):
             control(body, joints, torque, forces=tau, physicsClientId=cid)
             step(physicsClientId=cid)
-        self._read()
-        self._native_force()
+        self._read_native()
 
     def _step_reference(self) -> None:
         """Reference mode: the law's J_poc^T F at each sub-step's start state added to the torque.
@@ -298,6 +307,7 @@ class PybulletBackend(Backend):
         ``explicit`` applies the law as it is (stable only below m v_th / (mu_s Fn)).
         """
         body, cid, joints, tau, cmd = self.body, self.cid, self.joints, self._tau, self._cmd
+        tau[:] = self._tau_list
         q, qd = self._q, self._qd
         implicit = self.cfg["reference_friction"] == "implicit"
         law, law_i, h = (
@@ -315,12 +325,20 @@ class PybulletBackend(Backend):
             p.stepSimulation(physicsClientId=cid)
             self._read()
         self._reference_force()
+        self._reading = (*q.tolist(), *qd.tolist(), *self._force.tolist())
 
     def _read(self) -> None:
+        """Joint states into the ``_q``, ``_qd`` arrays (the reference path's sub-steps read them)."""
         states = p.getJointStates(self.body, self.joints, physicsClientId=self.cid)
         for i, s in enumerate(states):
             self._q[i] = s[0]
             self._qd[i] = s[1]
+
+    def _read_native(self) -> None:
+        """Native contact, end of a period: joint states and :meth:`_native_force` into ``_reading``, as floats."""
+        s1, s2, s3 = p.getJointStates(self.body, self.joints, physicsClientId=self.cid)
+        fx, fy, fz = self._native_force()
+        self._reading = (s1[0], s2[0], s3[0], s1[1], s2[1], s3[1], fx, fy, fz)
 
     def _reference_force(self) -> None:
         q, qd = self._q, self._qd
@@ -329,7 +347,7 @@ class PybulletBackend(Backend):
         if self._force[2] > self._fn_peak:
             self._fn_peak, self._q_peak = float(self._force[2]), q.tolist()
 
-    def _native_force(self) -> None:
+    def _native_force(self) -> tuple[float, float, float]:
         """Sum of the foot's contact forces over the last sub-step (impulse / sub-step), on the foot, in W [N].
 
         Bullet divides the impulse by ``fixedTimeStep``, the whole period with its own sub-stepping:
@@ -346,13 +364,13 @@ class PybulletBackend(Backend):
             fy += fn * n[1] + f1 * d1[1] + f2 * d2[1]
             fz += fn * n[2] + f1 * d1[2] + f2 * d2[2]
         s = self._force_scale
-        force = self._force
-        force[0], force[1], force[2] = fx * s, fy * s, fz * s
+        return fx * s, fy * s, fz * s
 
     # ----------------------------------------------------------------- read
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """Joint positions q [rad] (Bullet's raw, unwrapped hip angle) and velocities qd [rad/s]."""
-        return self._q.copy(), self._qd.copy()
+        r = self._reading
+        return np.array(r[0:3]), np.array(r[3:6])
 
     def ground_force(self) -> np.ndarray:
         """Force of the ground on the foot in W [N].
@@ -361,11 +379,11 @@ class PybulletBackend(Backend):
         (the force over the final 0.1 ms, not at the end instant). Reference:
         the law at the current state.
         """
-        return self._force.copy()
+        return np.array(self._reading[6:9])
 
     def read(self) -> tuple[float, ...]:
         """:meth:`state` and :meth:`ground_force` as nine floats, without the copies."""
-        return (*self._q.tolist(), *self._qd.tolist(), *self._force.tolist())
+        return self._reading
 
     def info(self) -> dict[str, Any]:
         """Engine, version and every physics setting actually used, read back where Bullet allows."""
