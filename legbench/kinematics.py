@@ -219,7 +219,8 @@ def ik(p_w: np.ndarray | Sequence[float], params: LegParams | None = None, tol: 
     """
     p = _params(params)
     g = p.geometry
-    x, y, z = world_to_frame0(np.asarray(p_w, float), p)
+    xw, yw, zw = np.asarray(p_w, float).tolist()
+    x, y, z = zw - g.H, g.L_B0 - xw, -yw  # world_to_frame0 on floats
     rxy = math.hypot(x, y)
     if rxy < g.L_12 - tol:
         return IKResult(np.empty((0, 3)), f"point is {rxy:.4f} m from the ab/ad axis, closer than L_12 = {g.L_12} m")
@@ -230,34 +231,41 @@ def ik(p_w: np.ndarray | Sequence[float], params: LegParams | None = None, tol: 
     r2_min = g.L_23**2 + g.L_3E**2 + 2 * g.L_23 * g.L_3E * math.cos(hi[2])
     r2_max = (g.L_23 + g.L_3E) ** 2
     sols: list[list[float]] = []
-    reasons: list[str] = []
+    reasons: list[tuple[str, float]] = []  # (kind, value), put into words only when there is no solution
     for q1 in sorted(q1_candidates):
         if not lo[0] - tol <= q1 <= hi[0] + tol:
-            reasons.append(f"ab/ad angle {q1:.4f} rad outside [{lo[0]:.4f}, {hi[0]:.4f}]")
+            reasons.append(("abad", q1))
             continue
         s1, c1 = math.sin(q1), math.cos(q1)
         K1 = x * c1 + y * s1
         K2 = -z - g.L_01
         r2 = K1 * K1 + K2 * K2
         if r2 > r2_max * (1 + tol) or r2 < r2_min * (1 - tol):
-            reasons.append(
-                f"distance {math.sqrt(r2):.4f} m from the hip axis outside the workspace "
-                f"[{math.sqrt(max(r2_min, 0)):.4f}, {math.sqrt(r2_max):.4f}] m"
-            )
+            reasons.append(("distance", r2))
             continue
         c3 = min(1.0, max(-1.0, (r2 - g.L_23**2 - g.L_3E**2) / (2 * g.L_23 * g.L_3E)))
         s3_abs = math.sqrt(max(0.0, 1.0 - c3 * c3))
         for s3 in {s3_abs, -s3_abs}:
             q3 = math.atan2(s3, c3)
             if not lo[2] - tol <= q3 <= hi[2] + tol:
-                reasons.append(f"knee angle {q3:.4f} rad outside [{lo[2]:.4f}, {hi[2]:.4f}]")
+                reasons.append(("knee", q3))
                 continue
-            A = np.array([[g.L_3E * s3, g.L_3E * c3 + g.L_23], [g.L_3E * c3 + g.L_23, -g.L_3E * s3]])
-            c2, s2 = np.linalg.solve(A, [K1, K2])
-            q2 = math.atan2(s2, c2)
+            # [[a, b], [b, -a]] (cos q2, sin q2) = (K1, K2), a = L_3E sin q3, b = L_23 + L_3E cos q3: the
+            # solution is (a K1 + b K2, b K1 - a K2) / (a^2 + b^2), and atan2 needs no division
+            a_, b_ = g.L_3E * s3, g.L_3E * c3 + g.L_23
+            q2 = math.atan2(b_ * K1 - a_ * K2, a_ * K1 + b_ * K2)
             sols.append([min(max(q1, lo[0]), hi[0]), q2, min(max(q3, lo[2]), hi[2])])
     if not sols:
-        return IKResult(np.empty((0, 3)), "; ".join(dict.fromkeys(reasons)) or "no solution")
+        words = {
+            "abad": lambda v: f"ab/ad angle {v:.4f} rad outside [{lo[0]:.4f}, {hi[0]:.4f}]",
+            "distance": lambda v: (
+                f"distance {math.sqrt(v):.4f} m from the hip axis outside the workspace "
+                f"[{math.sqrt(max(r2_min, 0)):.4f}, {math.sqrt(r2_max):.4f}] m"
+            ),
+            "knee": lambda v: f"knee angle {v:.4f} rad outside [{lo[2]:.4f}, {hi[2]:.4f}]",
+        }
+        text = [words[kind](v) for kind, v in reasons]
+        return IKResult(np.empty((0, 3)), "; ".join(dict.fromkeys(text)) or "no solution")
     return IKResult(np.array(sols))
 
 
@@ -269,9 +277,19 @@ def nearest(solutions: np.ndarray, q_ref: np.ndarray, params: LegParams | None =
     """The solution nearest ``q_ref`` by joint error norm, unwrapped so it is continuous with ``q_ref``."""
     if len(solutions) == 0:
         raise Unreachable("no inverse-kinematics solution to choose from")
-    err = joint_error(np.asarray(q_ref)[None, :], solutions, params)
-    best = int(np.argmin(np.linalg.norm(err, axis=1)))
-    return np.asarray(q_ref, float) + err[best]
+    wrap = _params(params).continuous
+    r1, r2, r3 = np.asarray(q_ref, float).tolist()
+    best, best_e = math.inf, (0.0, 0.0, 0.0)
+    for s1, s2, s3 in solutions.tolist():  # at most four: floats, not a chain of small array operations
+        e = (
+            angdist_scalar(r1, s1) if wrap[0] else s1 - r1,
+            angdist_scalar(r2, s2) if wrap[1] else s2 - r2,
+            angdist_scalar(r3, s3) if wrap[2] else s3 - r3,
+        )
+        d = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
+        if d < best:
+            best, best_e = d, e
+    return np.array([r1 + best_e[0], r2 + best_e[1], r3 + best_e[2]])
 
 
 def ik_nearest(p_w: np.ndarray, q_ref: np.ndarray, params: LegParams | None = None) -> np.ndarray:

@@ -62,8 +62,8 @@ def simulate(
     the state, evaluates the active controller's law, saturates the torque and
     writes the tick's row of the preallocated (n, 12) log (q, qd, f, tau: the
     four logs are column views of it); then it steps. The torque handed to
-    :meth:`Backend.step` is a read-only view of the logged row, so what is
-    logged is what the backend received. Nothing is allocated per tick beyond
+    :meth:`Backend.step` is a read-only array the tick fills with the logged
+    row's torque, so what is logged is what the backend received. Nothing is allocated per tick beyond
     the floats read; memory is the log itself.
 
     Args:
@@ -86,8 +86,11 @@ def simulate(
     # column views of it (no copy)
     log = np.full((n, 12), np.nan)
     q_log, qd_log, f_log, tau_log = log[:, 0:3], log[:, 3:6], log[:, 6:9], log[:, 9:12]
-    tau_out = tau_log.view()
-    tau_out.flags.writeable = False  # the backend gets read-only rows of the log
+    # the tick writes each torque into the log row and into u; the backend gets a read-only view of u,
+    # made once (a per-tick view of the log row would cost more than the tick's own arithmetic)
+    u = np.zeros(3)
+    tau_out = u.view()
+    tau_out.flags.writeable = False
     ticks = [int(round(e.t_switch / Ts)) for e in scenario.events]  # a delayed event switches late
     names = [e.controller for e in scenario.events]
     controllers: list[Controller] = [make_controller(e, scenario.gains, Ts, n) for e in scenario.events]
@@ -115,11 +118,11 @@ def simulate(
                 next_tick = ticks[next_event] if next_event < n_events else n
             if gravity is not None:
                 g1, g2, g3 = gravity(q1, q2, q3)
-            code = control(k, q1, q2, q3, qd1, qd2, qd3, f1, f2, f3, g1, g2, g3, p, s, consts, log)
+            code = control(k, q1, q2, q3, qd1, qd2, qd3, f1, f2, f3, g1, g2, g3, p, s, consts, log, u)
             if code:
                 raise SimulationDiverged(backend.name, k * Ts, _DIVERGED[code])
             if k < last:
-                step(tau_out[k])
+                step(tau_out)
             if progress is not None and k % every == 0:
                 progress(k / n)
     except SimulationDiverged as exc:

@@ -3,7 +3,8 @@
 :func:`control_tick` is what :func:`legbench.run.simulate` does between reading a backend and stepping
 it, on plain floats and arrays: check the state (finite, joint speeds, foot height), evaluate the active
 controller's law (:func:`legbench.controllers.control_law`, the one implementation, compiled in),
-saturate the torque at the joint limits and write the tick's row of the (n, 12) log (q, qd, f, tau).
+saturate the torque at the joint limits and write the tick's row of the (n, 12) log (q, qd, f, tau)
+and the torque buffer the backend is stepped with.
 numba compiles it (:mod:`legbench.jit`; without numba it runs as Python, the same numbers): one call of
 well under a microsecond where the same work in Python bytecode costs several, so the harness stays a
 small fraction of an engine's step.
@@ -43,7 +44,7 @@ def constants(torque_limit: tuple[float, ...], g: Geometry, z_min: float, v_max:
 
 def control_tick(
     k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float, f1: float, f2: float, f3: float,
-    g1: float, g2: float, g3: float, p: np.ndarray, s: np.ndarray, c: np.ndarray, log: np.ndarray,
+    g1: float, g2: float, g3: float, p: np.ndarray, s: np.ndarray, c: np.ndarray, log: np.ndarray, u: np.ndarray,
 ) -> int:  # fmt: skip
     """One control tick k: check the measured state, compute and saturate the torque, write log row k.
 
@@ -55,6 +56,7 @@ def control_tick(
         p, s: the active controller's ``params`` and ``state`` (``state`` is updated).
         c: :func:`constants`.
         log: the (n, 12) log; row k gets (q, qd, f, tau) with tau saturated at +-limit (NaN passes).
+        u: (3,): gets the same saturated tau [N m], the buffer the loop hands the backend.
 
     Returns:
         :data:`OK`, or the first check the state fails (:data:`NOT_FINITE`, :data:`TOO_FAST`,
@@ -73,9 +75,9 @@ def control_tick(
     log[k, 0], log[k, 1], log[k, 2] = q1, q2, q3
     log[k, 3], log[k, 4], log[k, 5] = qd1, qd2, qd3
     log[k, 6], log[k, 7], log[k, 8] = f1, f2, f3
-    log[k, 9] = -lim1 if u1 < -lim1 else (lim1 if u1 > lim1 else u1)
-    log[k, 10] = -lim2 if u2 < -lim2 else (lim2 if u2 > lim2 else u2)
-    log[k, 11] = -lim3 if u3 < -lim3 else (lim3 if u3 > lim3 else u3)
+    u[0] = log[k, 9] = -lim1 if u1 < -lim1 else (lim1 if u1 > lim1 else u1)
+    u[1] = log[k, 10] = -lim2 if u2 < -lim2 else (lim2 if u2 > lim2 else u2)
+    u[2] = log[k, 11] = -lim3 if u3 < -lim3 else (lim3 if u3 > lim3 else u3)
     return OK
 
 

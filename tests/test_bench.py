@@ -95,6 +95,8 @@ def test_ratios_come_from_the_same_samples_and_never_show_a_negative_overhead(
             assert x["best"] == pytest.approx(min(num["cpu_samples"]) / min(den["cpu_samples"]), rel=1e-12)
             if x["verdict"] == "overhead":
                 assert x["cpu"]["min"] >= 1.0 and x["overhead_us"] >= 0.0
+            elif x["verdict"] == "faster":
+                assert x["cpu"]["max"] < 1.0 and x["overhead_us"] is None and len(num["cpu_samples"]) >= 2
             else:
                 assert x["verdict"] == "within noise" and x["overhead_us"] is None and x["cpu"]["min"] < 1.0
         assert r["floor"] == (min(floors, key=lambda f: t[f]["cpu"]["median"]) if floors else "replay")
@@ -238,7 +240,7 @@ def test_repeats_are_interleaved_across_backends_with_the_order_rotated(fake_reg
     assert pass_first[0] != pass_first[1] and pass_first[0] == pass_first[2] and pass_first[1] == pass_first[3]
 
 
-def test_ratio_is_an_overhead_only_when_every_repeat_is_at_least_one() -> None:
+def test_ratio_is_an_overhead_only_when_every_repeat_is_at_least_one_and_faster_only_when_all_below() -> None:
     def timing(xs: list[float]) -> bench.Timing:
         return bench.Timing("full", "x", list(xs), list(xs))
 
@@ -248,7 +250,10 @@ def test_ratio_is_an_overhead_only_when_every_repeat_is_at_least_one() -> None:
     noise = bench.ratio("a", "b", timing([1.0, 1.2]), timing([1.1, 1.0]))
     assert noise.verdict == "within noise" and noise.overhead_us is None
     below = bench.ratio("a", "b", timing([0.9]), timing([1.0]))
-    assert below.verdict == "within noise" and below.overhead_us is None
+    assert below.verdict == "within noise" and below.overhead_us is None  # one repeat: cannot tell
+    faster = bench.ratio("a", "b", timing([0.9, 0.8, 0.95]), timing([1.0, 1.0, 1.0]))
+    assert faster.verdict == "faster" and faster.overhead_us is None and faster.cpu.median == 0.9
+    assert "(faster)" in bench._ratio_cell(faster) and "noise" not in bench._ratio_cell(faster)
 
 
 def test_memory_of_a_run_against_its_log(fake_registry: None) -> None:

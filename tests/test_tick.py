@@ -45,12 +45,12 @@ def test_compiled_tick_gives_the_python_ticks_log_bit_for_bit(task: str, monkeyp
     np.testing.assert_array_equal(compiled.view(np.int64), python.view(np.int64))
 
 
-def _arrays() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _arrays() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     g = load_params().geometry
     c = T.constants(LIMITS, g, g.R_foot - MAX_PENETRATION, MAX_JOINT_SPEED)
     ctrl = PositionController(Event(0.0, "position", joint=(0.0, -1.0, -1.2)), Gains(Kp=(1e3,) * 3), 1e-3)
     ctrl.start(0.0, np.zeros(3), np.zeros(3))
-    return ctrl.params, ctrl.state, c, np.full((3, 12), np.nan)
+    return ctrl.params, ctrl.state, c, np.full((3, 12), np.nan), np.full(3, np.nan)
 
 
 HOLD = (0.0, -0.5, -0.5)  # foot centre 9 cm above the ground
@@ -66,31 +66,32 @@ HOLD = (0.0, -0.5, -0.5)  # foot centre 9 cm above the ground
     ],
 )
 def test_a_diverged_state_returns_its_code_and_writes_nothing(state: tuple[float, ...], code: int) -> None:
-    p, s, c, log = _arrays()
-    assert TICK(1, *state, 0.0, 0.0, 0.0, p, s, c, log) == code
-    assert np.isnan(log).all()
+    p, s, c, log, u = _arrays()
+    assert TICK(1, *state, 0.0, 0.0, 0.0, p, s, c, log, u) == code
+    assert np.isnan(log).all() and np.isnan(u).all()
     assert not s.any()  # the controller did not run: its integral is untouched
 
 
 def test_a_good_state_logs_the_reading_and_the_saturated_law_torque() -> None:
     """Row k = (q, qd, f, clip(u, +-limit)); the law's torque from the same state through the Python path."""
-    p, s, c, log = _arrays()
+    p, s, c, log, u = _arrays()
     q = (0.2, -0.9, -1.0)
     state = (*q, 0.1, -0.2, 0.3, 4.0, 5.0, 6.0)
-    assert TICK(1, *state, 0.0, 0.0, 0.0, p, s, c, log) == T.OK
+    assert TICK(1, *state, 0.0, 0.0, 0.0, p, s, c, log, u) == T.OK
     ref = PositionController(Event(0.0, "position", joint=(0.0, -1.0, -1.2)), Gains(Kp=(1e3,) * 3), 1e-3)
     ref.start(0.0, np.zeros(3), np.zeros(3))
-    u = np.array(ref.torque(1, *state[:6]))
-    assert np.abs(u).max() > max(LIMITS)  # so the clip is exercised
+    law = np.array(ref.torque(1, *state[:6]))
+    assert np.abs(law).max() > max(LIMITS)  # so the clip is exercised
     np.testing.assert_array_equal(log[1, :9], state)
-    np.testing.assert_array_equal(log[1, 9:], np.clip(u, -np.array(LIMITS), LIMITS))
+    np.testing.assert_array_equal(log[1, 9:], np.clip(law, -np.array(LIMITS), LIMITS))
+    np.testing.assert_array_equal(u, log[1, 9:])  # the buffer the backend is stepped with
     assert np.isnan(log[[0, 2]]).all()
     np.testing.assert_array_equal(s, ref.state)  # the same controller state after the tick
 
 
 def test_a_nan_torque_passes_the_saturation_as_nan() -> None:
     """As np.clip: a NaN torque (a NaN gain) is logged as NaN, not clipped to a limit."""
-    p, s, c, log = _arrays()
+    p, s, c, log, u = _arrays()
     p[2] = math.nan  # Kp of joint 1
-    assert TICK(0, 0.2, -0.9, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, p, s, c, log) == T.OK
+    assert TICK(0, 0.2, -0.9, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, p, s, c, log, u) == T.OK
     assert math.isnan(log[0, 9]) and np.isfinite(log[0, 10:]).all()

@@ -21,8 +21,9 @@ Every variant is timed in CPU time (:func:`time.process_time`, what the engines'
 uses, insensitive to other processes' load) and wall time, per control period [us/tick], with
 min / median / max over the repeats. Ratios are formed per repeat from the same interleaved
 samples (full / replay, full / each floor, replay / each floor) and summarised the same way. An
-overhead is a ratio >= 1 over all repeats (reported with its spread, and its cost per tick);
-where the repeats straddle 1 it is "within noise": never a negative overhead.
+overhead is a ratio >= 1 over all repeats (reported with its spread, and its cost per tick); a
+ratio below 1 in every one of two or more repeats is "faster"; where the repeats straddle 1 it is
+"within noise": never a negative overhead.
 
 Memory (``--no-memory`` skips it): the peak RSS of one full run, measured in a fresh worker
 process per (task, backend): RSS after loading the engine and a 10 ms warm-up run is the base
@@ -160,8 +161,9 @@ class Ratio:
     Attributes:
         num, den: variant names.
         cpu, wall: the per-repeat ratios summarised [1].
-        verdict: ``overhead`` (every repeat's CPU ratio >= 1) or ``within noise`` (the repeats
-            straddle 1, or a single repeat below 1): never a negative overhead.
+        verdict: ``overhead`` (every repeat's CPU ratio >= 1), ``faster`` (two or more repeats, every
+            one below 1: ``num`` is the cheaper of the two) or ``within noise`` (the repeats straddle 1,
+            or a single repeat below 1): never a negative overhead.
         overhead_us: median of the per-repeat CPU differences num - den [us/tick] for an
             ``overhead`` (>= 0 then), None when within noise.
         best: min(num) / min(den) in CPU time, the two variants' fastest repeats (load on a shared
@@ -189,6 +191,8 @@ def ratio(num: str, den: str, a: Timing, b: Timing) -> Ratio:
     if min(cpu) >= 1.0:
         diff = [x - y for x, y in zip(a.cpu_samples, b.cpu_samples, strict=True)]
         return Ratio(num, den, Spread.of(cpu), Spread.of(wall), "overhead", max(float(np.median(diff)), 0.0), best)
+    if len(cpu) >= 2 and max(cpu) < 1.0:
+        return Ratio(num, den, Spread.of(cpu), Spread.of(wall), "faster", None, best)
     return Ratio(num, den, Spread.of(cpu), Spread.of(wall), "within noise", None, best)
 
 
@@ -602,6 +606,8 @@ def _ratio_cell(r: Ratio | None, bold: bool = True) -> str:
     if r.verdict == "overhead":
         star = "**" if bold else ""
         return f"{star}{r.cpu.median:.3f}{star} [{r.cpu.min:.3f}-{r.cpu.max:.3f}]"
+    if r.verdict == "faster":
+        return f"{r.cpu.median:.3f} [{r.cpu.min:.3f}-{r.cpu.max:.3f}] (faster)"
     return f"within noise ({r.cpu.min:.3f}-{r.cpu.max:.3f})"
 
 
@@ -646,7 +652,8 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
         "## Ratios [CPU time]",
         "",
         "Per repeat from the same interleaved samples, then median [min-max]; an overhead is a ratio >= 1 in "
-        "every repeat, with its cost per tick; where the repeats straddle 1 it is within noise. `floor` is the "
+        "every repeat, with its cost per tick; below 1 in every repeat it is marked faster; where the repeats "
+        "straddle 1 it is within noise. `floor` is the "
         "backend's tightest floor; `best` is the ratio of the two variants' fastest repeats.",
         "",
         "| task | backend | full / replay | harness [us/tick] | tightest floor | full / floor | full / floor, best "
