@@ -15,22 +15,22 @@ numba, the same IEEE operations in the same order, so the same bits);
 :meth:`Controller.torque` and the array form ``controller(k, q, qd)`` call the
 very same functions as Python, the reference. One implementation of each law.
 
-The only part of a law that is not plain arithmetic is the effort
-controller's gravity torque G(q), a Pinocchio call: the controller hands it
-over as :attr:`Controller.gravity` and the caller passes its three floats in.
+The effort controller's gravity torque G(q) is Pinocchio's algorithm on the
+model's numbers, on floats (:func:`legbench.kinematics.gravity_scalar`), so
+that law too is plain arithmetic.
 """
 
 from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.interpolate import CubicHermiteSpline
 
 from legbench import kinematics
-from legbench.kinematics import angdist_scalar
+from legbench.kinematics import GRAVITY_SIZE, angdist_scalar, gravity_arrays, gravity_scalar
 from legbench.model import LegParams, load_params
 from legbench.scenario import Event, Gains
 
@@ -161,15 +161,15 @@ def trajectory_law(
     )
 
 
-# effort params after the header: h_d in W [N], the first tick with it, L_12, L_23, L_3E [m]
-E_H, E_K_FORCE, E_L = P_BODY, P_BODY + 3, P_BODY + 4
+# effort params after the header: h_d in W [N], the first tick with it, L_12, L_23, L_3E [m], then the
+# model's numbers for G(q) (kinematics.gravity_arrays)
+E_H, E_K_FORCE, E_L, E_G = P_BODY, P_BODY + 3, P_BODY + 4, P_BODY + 7
 
 
-def effort_law(
-    k: int, q1: float, q2: float, q3: float, g1: float, g2: float, g3: float, p: np.ndarray
-) -> tuple[float, float, float]:
-    """tau = Jv(q)^T h_d + G(q) [N m]; G(q) = (g1, g2, g3) [N m] comes from the caller
-    (:attr:`Controller.gravity`), Jv as :func:`legbench.kinematics.jacobian_scalar` (the same operations)."""
+def effort_law(k: int, q1: float, q2: float, q3: float, p: np.ndarray) -> tuple[float, float, float]:
+    """tau = Jv(q)^T h_d + G(q) [N m]: Jv as :func:`legbench.kinematics.jacobian_scalar` (the same
+    operations), G(q) by :func:`legbench.kinematics.gravity_scalar`."""
+    g1, g2, g3 = gravity_scalar(q1, q2, q3, p[E_G : E_G + GRAVITY_SIZE])
     if k >= p[E_K_FORCE]:
         hx, hy, hz = p[E_H], p[E_H + 1], p[E_H + 2]
     else:
@@ -206,27 +206,23 @@ def torque_law(k: int, p: np.ndarray) -> tuple[float, float, float]:
 
 
 def control_law(
-    k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float,
-    g1: float, g2: float, g3: float, p: np.ndarray, s: np.ndarray,
-) -> tuple[float, float, float]:  # fmt: skip
+    k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float, p: np.ndarray, s: np.ndarray
+) -> tuple[float, float, float]:
     """The torque [N m] of the controller whose arrays ``p``, ``s`` are given, at tick k, for the measured
-    q [rad], qd [rad/s] (and G(q) [N m] for the effort controller; ignored by the others)."""
+    q [rad], qd [rad/s]."""
     kind = p[P_KIND]
     if kind == POSITION:
         return position_law(q1, q2, q3, p, s)
     if kind == TRAJECTORY:
         return trajectory_law(k, q1, q2, q3, qd1, qd2, qd3, p, s)
     if kind == EFFORT:
-        return effort_law(k, q1, q2, q3, g1, g2, g3, p)
+        return effort_law(k, q1, q2, q3, p)
     return torque_law(k, p)
 
 
 #: Every plain function the compiled tick calls (:mod:`legbench.tick` registers them with numba).
 LAWS = (error_integral, pid_law, position_law, trajectory_desired, trajectory_law, effort_law, torque_law,
         control_law)  # fmt: skip
-
-_NO_FORCE = (0.0, 0.0, 0.0)
-
 
 # ----------------------------------------------------------------------------- the controllers
 
@@ -238,8 +234,6 @@ class Controller(ABC):
     #: the law's parameters (kind, Ts, gains, ...; see the ``P_*`` layout) and its state (``S_*``)
     params: np.ndarray
     state: np.ndarray
-    #: G(q) [N m] of (q1, q2, q3) [rad] as three floats, for a law that needs it (else None)
-    gravity: Callable[[float, float, float], tuple[float, float, float]] | None = None
 
     @abstractmethod
     def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
@@ -247,8 +241,7 @@ class Controller(ABC):
 
     def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
         """Torque (tau1, tau2, tau3) [N m] at control tick k (t = k Ts) for the measured q [rad], qd [rad/s]."""
-        g1, g2, g3 = self.gravity(q1, q2, q3) if self.gravity is not None else _NO_FORCE
-        return control_law(k, q1, q2, q3, qd1, qd2, qd3, g1, g2, g3, self.params, self.state)
+        return control_law(k, q1, q2, q3, qd1, qd2, qd3, self.params, self.state)
 
     def __call__(self, k: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """:meth:`torque` on arrays: torque [N m] at tick k for the measured q [rad], qd [rad/s]."""
@@ -399,8 +392,7 @@ class EffortController(Controller):
 
     With the event's ``force_delay`` [s], h_d is zero for that many control periods
     after the switch (tau = G(q): gravity compensation only), then the event's force.
-    G(q) is Pinocchio's (:class:`legbench.kinematics.GravityTorque`), handed to the
-    caller as :attr:`gravity`.
+    G(q) is Pinocchio's algorithm on floats (:func:`legbench.kinematics.gravity_scalar`).
     """
 
     name = "effort"
@@ -409,11 +401,11 @@ class EffortController(Controller):
         self.h_d = np.array(event.force, dtype=float)
         leg = load_params()
         g = leg.geometry
-        self.gravity = kinematics.GravityTorque()
         self.n_force_delay = int(round(event.force_delay / Ts))  # control periods with h_d = 0
         self.Ts = Ts
         self.k_force = 0  # first tick with the event's force
-        self.params = _header(EFFORT, Ts, None, leg, 7)
+        self.params = _header(EFFORT, Ts, None, leg, 7 + GRAVITY_SIZE)
+        self.params[E_G : E_G + GRAVITY_SIZE] = gravity_arrays()
         self.params[E_H : E_H + 3] = self.h_d
         self.params[E_L : E_L + 3] = g.L_12, g.L_23, g.L_3E
         self.state = np.zeros(S_SIZE)

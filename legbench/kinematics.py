@@ -6,9 +6,11 @@ of the foot centre E, in W [m], unless stated otherwise. The equations are the
 spec's; tests check them against Pinocchio on the generated URDF.
 
 The run loop's controllers use the scalar paths (:func:`angdist_scalar`,
-:func:`jacobian_scalar`, :class:`GravityTorque`): the same arithmetic on plain
-floats, in the same order, so they give the same numbers bit for bit without
-allocating small arrays at every control tick.
+:func:`jacobian_scalar`: the same arithmetic on plain floats, in the same
+order, so the same numbers bit for bit; :func:`gravity_scalar`: Pinocchio's
+Newton-Euler recursion at rest on the model's numbers, equal to
+:func:`gravity` to round-off). They allocate nothing, and the compiled tick
+(:mod:`legbench.tick`) calls them (:data:`SCALAR`).
 """
 
 from __future__ import annotations
@@ -18,9 +20,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 
-from legbench.exceptions import Unreachable
+from legbench.exceptions import ModelError, Unreachable
 from legbench.model import Geometry, LegParams, gravity_torque, load_params, pinocchio_model
 
 #: Rotation W_R_0 of the base frame (frame 0 x is up, y0 = -x_W, z0 = -y_W).
@@ -305,25 +306,92 @@ def gravity(q: np.ndarray) -> np.ndarray:
     return gravity_torque(np.asarray(q, float))
 
 
-class GravityTorque:
-    """:func:`gravity` on floats for repeated calls: one Pinocchio model, data and buffer, bound once.
+#: Offsets in :func:`gravity_arrays`: per joint (16 numbers) its placement R (row-major) and p, its body's
+#: mass and first moment m c, then -g in the root frame.
+_G_JOINT, _G_R, _G_P, _G_M, _G_MC, _G_A0, GRAVITY_SIZE = 16, 0, 9, 12, 13, 48, 51
 
-    ``G(q1, q2, q3)`` returns G(q) [N m] as three floats, the same numbers as
-    :func:`gravity` (the same Pinocchio call on the same model).
+
+def gravity_arrays(urdf: str | None = None) -> np.ndarray:
+    """The numbers :func:`gravity_scalar` needs, read from the Pinocchio model of the leg (51 floats).
+
+    Per joint i = 1..3: its placement in the parent joint's frame at q = 0 (R row-major [1], p [m]), its
+    body's mass m [kg] and first moment m c [kg m] (c: the centre of mass in the joint frame); then the
+    root's acceleration standing for gravity, -g in W [m/s^2] (the model's gravity, as :func:`gravity`).
+
+    Raises:
+        ModelError: the model is not a chain of three joints turning about their own z axis.
     """
+    model = pinocchio_model(urdf)
+    kinds = [model.joints[i].shortname() for i in range(1, model.njoints)]
+    if kinds not in (["JointModelRZ", "JointModelRUBZ", "JointModelRZ"],) or list(model.parents)[1:] != [0, 1, 2]:
+        raise ModelError(f"G(q) on floats needs a chain of three z-revolute joints, not {kinds}")
+    out = np.empty(GRAVITY_SIZE)
+    for i in range(3):
+        placement, inertia, o = model.jointPlacements[i + 1], model.inertias[i + 1], _G_JOINT * i
+        out[o + _G_R : o + _G_R + 9] = np.asarray(placement.rotation).reshape(9)
+        out[o + _G_P : o + _G_P + 3] = placement.translation
+        out[o + _G_M] = inertia.mass
+        out[o + _G_MC : o + _G_MC + 3] = inertia.mass * np.asarray(inertia.lever)
+    out[_G_A0 : _G_A0 + 3] = -np.asarray(model.gravity.linear)
+    return out
 
-    def __init__(self, urdf: str | None = None) -> None:
-        self._model = pinocchio_model(urdf)
-        self._data = self._model.createData()
-        self._qp = np.zeros(self._model.nq)
-        self._rnea_g = pin.computeGeneralizedGravity
 
-    def __call__(self, q1: float, q2: float, q3: float) -> tuple[float, float, float]:
-        """G(q) [N m] for joint angles q [rad]."""
-        qp = self._qp
-        qp[0] = q1
-        qp[1] = math.cos(q2)
-        qp[2] = math.sin(q2)
-        qp[3] = q3
-        g1, g2, g3 = self._rnea_g(self._model, self._data, qp).tolist()
-        return g1, g2, g3
+def _to_child(a: np.ndarray, o: int, q: float, x: float, y: float, z: float) -> tuple[float, float, float]:
+    """A vector in joint i's parent frame -> joint i's frame (``o``: joint i's block): (R Rz(q))^T v."""
+    u0 = a[o] * x + a[o + 3] * y + a[o + 6] * z
+    u1 = a[o + 1] * x + a[o + 4] * y + a[o + 7] * z
+    u2 = a[o + 2] * x + a[o + 5] * y + a[o + 8] * z
+    c, s = math.cos(q), math.sin(q)
+    return c * u0 + s * u1, c * u1 - s * u0, u2
+
+
+def _to_parent(a: np.ndarray, o: int, q: float, x: float, y: float, z: float) -> tuple[float, float, float]:
+    """A vector in joint i's frame -> its parent's frame: R Rz(q) v."""
+    c, s = math.cos(q), math.sin(q)
+    w0, w1 = c * x - s * y, s * x + c * y
+    return (
+        a[o] * w0 + a[o + 1] * w1 + a[o + 2] * z,
+        a[o + 3] * w0 + a[o + 4] * w1 + a[o + 5] * z,
+        a[o + 6] * w0 + a[o + 7] * w1 + a[o + 8] * z,
+    )
+
+
+def _body_wrench(a: np.ndarray, o: int, ax: float, ay: float, az: float) -> tuple[float, ...]:
+    """Body i's wrench at its joint origin for the acceleration (ax, ay, az) [m/s^2], no rotation:
+    (m a [N], m c x a [N m])."""
+    m, cx, cy, cz = a[o + _G_M], a[o + _G_MC], a[o + _G_MC + 1], a[o + _G_MC + 2]
+    return m * ax, m * ay, m * az, cy * az - cz * ay, cz * ax - cx * az, cx * ay - cy * ax
+
+
+def _wrench_to_parent(a: np.ndarray, o: int, q: float, w: tuple[float, ...]) -> tuple[float, ...]:
+    """A wrench at joint i's origin in its frame -> at the parent's joint origin in the parent's frame."""
+    fx, fy, fz = _to_parent(a, o, q, w[0], w[1], w[2])
+    nx, ny, nz = _to_parent(a, o, q, w[3], w[4], w[5])
+    px, py, pz = a[o + _G_P], a[o + _G_P + 1], a[o + _G_P + 2]
+    return fx, fy, fz, nx + py * fz - pz * fy, ny + pz * fx - px * fz, nz + px * fy - py * fx
+
+
+def gravity_scalar(q1: float, q2: float, q3: float, a: np.ndarray) -> tuple[float, float, float]:
+    """G(q) [N m] on floats: the recursive Newton-Euler algorithm at rest (qd = qdd = 0) on
+    :func:`gravity_arrays`' numbers, the algorithm of Pinocchio's ``computeGeneralizedGravity``.
+
+    Forward, gravity as the root's upward acceleration -g carried into each joint frame; backward, each
+    body's wrench m (-g), m c x (-g) plus its child's, moved to the joint origin; G_i is the z moment.
+    Plain arithmetic, so the run loop's compiled tick can call it (the effort controller's G(q));
+    it agrees with :func:`gravity` (Pinocchio) to round-off, not bit for bit.
+    """
+    o1, o2, o3 = 0, _G_JOINT, 2 * _G_JOINT
+    a1x, a1y, a1z = _to_child(a, o1, q1, a[_G_A0], a[_G_A0 + 1], a[_G_A0 + 2])
+    a2x, a2y, a2z = _to_child(a, o2, q2, a1x, a1y, a1z)
+    a3x, a3y, a3z = _to_child(a, o3, q3, a2x, a2y, a2z)
+    w3 = _body_wrench(a, o3, a3x, a3y, a3z)
+    b2 = _body_wrench(a, o2, a2x, a2y, a2z)
+    c2 = _wrench_to_parent(a, o3, q3, w3)
+    w2 = (b2[0] + c2[0], b2[1] + c2[1], b2[2] + c2[2], b2[3] + c2[3], b2[4] + c2[4], b2[5] + c2[5])
+    b1 = _body_wrench(a, o1, a1x, a1y, a1z)
+    c1 = _wrench_to_parent(a, o2, q2, w2)
+    return b1[5] + c1[5], w2[5], w3[5]
+
+
+#: The plain functions of this module that compiled code calls (:mod:`legbench.tick` registers them).
+SCALAR = (angdist_scalar, gravity_scalar, _to_child, _to_parent, _body_wrench, _wrench_to_parent)

@@ -97,8 +97,7 @@ def simulate(
     backend.reset(np.array(scenario.q0), np.array(scenario.qd0))
     read, step, control = backend.read, backend.step, control_tick
     active = controllers[0]
-    p, s, gravity = active.params, active.state, active.gravity
-    g1 = g2 = g3 = 0.0
+    p, s = active.params, active.state
     next_event, n_events = 0, len(ticks)
     next_tick = ticks[0]
     status, reason, k = "ok", None, 0
@@ -114,11 +113,9 @@ def simulate(
                     active = controllers[next_event]
                     active.start(k * Ts, q, qd)
                     next_event += 1
-                p, s, gravity = active.params, active.state, active.gravity
+                p, s = active.params, active.state
                 next_tick = ticks[next_event] if next_event < n_events else n
-            if gravity is not None:
-                g1, g2, g3 = gravity(q1, q2, q3)
-            code = control(k, q1, q2, q3, qd1, qd2, qd3, f1, f2, f3, g1, g2, g3, p, s, consts, log, u)
+            code = control(k, q1, q2, q3, qd1, qd2, qd3, f1, f2, f3, p, s, consts, log, u)
             if code:
                 raise SimulationDiverged(backend.name, k * Ts, _DIVERGED[code])
             if k < last:

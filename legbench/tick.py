@@ -9,7 +9,7 @@ numba compiles it (:mod:`legbench.jit`; without numba it runs as Python, the sam
 well under a microsecond where the same work in Python bytecode costs several, so the harness stays a
 small fraction of an engine's step.
 
-Units: q [rad], qd [rad/s], f in W [N], tau and G(q) [N m], lengths [m].
+Units: q [rad], qd [rad/s], f in W [N], tau [N m], lengths [m].
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ def constants(torque_limit: tuple[float, ...], g: Geometry, z_min: float, v_max:
 
 def control_tick(
     k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float, f1: float, f2: float, f3: float,
-    g1: float, g2: float, g3: float, p: np.ndarray, s: np.ndarray, c: np.ndarray, log: np.ndarray, u: np.ndarray,
+    p: np.ndarray, s: np.ndarray, c: np.ndarray, log: np.ndarray, u: np.ndarray,
 ) -> int:  # fmt: skip
     """One control tick k: check the measured state, compute and saturate the torque, write log row k.
 
@@ -52,7 +52,6 @@ def control_tick(
         k: the tick (t = k Ts).
         q1..q3, qd1..qd3, f1..f3: the backend's reading: q [rad], qd [rad/s], the ground force on the
             foot in W [N].
-        g1..g3: G(q) [N m] for a controller that asks for it (:attr:`Controller.gravity`), else 0.
         p, s: the active controller's ``params`` and ``state`` (``state`` is updated).
         c: :func:`constants`.
         log: the (n, 12) log; row k gets (q, qd, f, tau) with tau saturated at +-limit (NaN passes).
@@ -70,7 +69,7 @@ def control_tick(
     z = c[C_L12] * math.sin(q1) + math.cos(q1) * (c[C_L23] * math.sin(q2) + c[C_L3E] * math.sin(q2 + q3)) + c[C_H]
     if z < c[C_ZMIN]:
         return TOO_DEEP
-    u1, u2, u3 = control_law(k, q1, q2, q3, qd1, qd2, qd3, g1, g2, g3, p, s)
+    u1, u2, u3 = control_law(k, q1, q2, q3, qd1, qd2, qd3, p, s)
     lim1, lim2, lim3 = c[C_LIM], c[C_LIM + 1], c[C_LIM + 2]
     log[k, 0], log[k, 1], log[k, 2] = q1, q2, q3
     log[k, 3], log[k, 4], log[k, 5] = qd1, qd2, qd3
@@ -81,6 +80,6 @@ def control_tick(
     return OK
 
 
-jit.jitable(kinematics.angdist_scalar, *controllers.LAWS)
+jit.jitable(*kinematics.SCALAR, *controllers.LAWS)
 #: :func:`control_tick` compiled (or itself without numba): what the run loop calls
 tick = jit.njit(control_tick, depends_on=(controllers, kinematics))

@@ -67,7 +67,7 @@ HOLD = (0.0, -0.5, -0.5)  # foot centre 9 cm above the ground
 )
 def test_a_diverged_state_returns_its_code_and_writes_nothing(state: tuple[float, ...], code: int) -> None:
     p, s, c, log, u = _arrays()
-    assert TICK(1, *state, 0.0, 0.0, 0.0, p, s, c, log, u) == code
+    assert TICK(1, *state, p, s, c, log, u) == code
     assert np.isnan(log).all() and np.isnan(u).all()
     assert not s.any()  # the controller did not run: its integral is untouched
 
@@ -77,7 +77,7 @@ def test_a_good_state_logs_the_reading_and_the_saturated_law_torque() -> None:
     p, s, c, log, u = _arrays()
     q = (0.2, -0.9, -1.0)
     state = (*q, 0.1, -0.2, 0.3, 4.0, 5.0, 6.0)
-    assert TICK(1, *state, 0.0, 0.0, 0.0, p, s, c, log, u) == T.OK
+    assert TICK(1, *state, p, s, c, log, u) == T.OK
     ref = PositionController(Event(0.0, "position", joint=(0.0, -1.0, -1.2)), Gains(Kp=(1e3,) * 3), 1e-3)
     ref.start(0.0, np.zeros(3), np.zeros(3))
     law = np.array(ref.torque(1, *state[:6]))
@@ -93,5 +93,5 @@ def test_a_nan_torque_passes_the_saturation_as_nan() -> None:
     """As np.clip: a NaN torque (a NaN gain) is logged as NaN, not clipped to a limit."""
     p, s, c, log, u = _arrays()
     p[2] = math.nan  # Kp of joint 1
-    assert TICK(0, 0.2, -0.9, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, p, s, c, log, u) == T.OK
+    assert TICK(0, 0.2, -0.9, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, p, s, c, log, u) == T.OK
     assert math.isnan(log[0, 9]) and np.isfinite(log[0, 10:]).all()
