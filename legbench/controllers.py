@@ -27,7 +27,6 @@ from abc import ABC, abstractmethod
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.interpolate import CubicHermiteSpline
 
 from legbench import kinematics
 from legbench.kinematics import GRAVITY_SIZE, angdist_scalar, gravity_arrays, gravity_scalar
@@ -361,6 +360,8 @@ class TrajectoryController(Controller):
         return self.state[S_I : S_I + 3].copy()
 
     def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
+        from scipy.interpolate import CubicHermiteSpline  # 0.9 s of imports: only where a trajectory starts
+
         Qw = joint_waypoints(np.array(self.event.waypoints), q, self.leg)
         Q = np.vstack([q, Qw])
         times = np.concatenate([[0.0], self.event.times])

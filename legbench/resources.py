@@ -18,6 +18,7 @@ hash of its content, so an installed package never writes into site-packages.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import tempfile
@@ -47,8 +48,9 @@ MODEL_ENV = "LEGBENCH_MODEL"
 CACHE_ENV = "LEGBENCH_CACHE_DIR"
 
 
+@functools.cache
 def data_dir() -> Path:
-    """The package's data directory (``legbench/data``) on disk."""
+    """The package's data directory (``legbench/data``) on disk [cached: the package does not move]."""
     return Path(str(resources.files("legbench") / "data"))
 
 

@@ -31,21 +31,22 @@ from legbench.model import load_params
 from legbench.results import RunResult, check_out_dir, read_meta, resumable, write_run
 from legbench.scenario import Scenario, physics_of
 from legbench.studies.executors import LocalExecutor
-from legbench.tick import NOT_FINITE, TOO_DEEP, TOO_FAST
-from legbench.tick import constants as tick_constants
-from legbench.tick import tick as control_tick
 
 #: Divergence bounds no physical run of this leg reaches: joint speed [rad/s] (20x the hip's
 #: speed limit) and foot penetration [m] (5 cm is 500 N at Kp = 1e4 N/m; the leg pushes <= 100 N).
 MAX_JOINT_SPEED = 1.0e3
 MAX_PENETRATION = 0.05
 
-#: why the run stopped, per :func:`legbench.tick.control_tick` code
-_DIVERGED = {
-    NOT_FINITE: "state is not finite",
-    TOO_FAST: f"joint speed above {MAX_JOINT_SPEED} rad/s",
-    TOO_DEEP: f"foot more than {MAX_PENETRATION} m into the ground",
-}
+
+def _diverged(code: int) -> str:
+    """Why the run stopped, for a :func:`legbench.tick.control_tick` code."""
+    from legbench import tick
+
+    return {
+        tick.NOT_FINITE: "state is not finite",
+        tick.TOO_FAST: f"joint speed above {MAX_JOINT_SPEED} rad/s",
+        tick.TOO_DEEP: f"foot more than {MAX_PENETRATION} m into the ground",
+    }[code]
 
 
 def simulate(
@@ -76,11 +77,13 @@ def simulate(
         The log; ``status`` ``failed`` (divergence or an engine error) or
         ``interrupted`` (Ctrl-C) with the rows up to that tick.
     """
+    from legbench import tick  # numba: imported by the process that runs, not by every command
+
     n = scenario.n_ticks
     Ts = scenario.control_dt
     g = load_params().geometry
     # lowest foot-centre height before we call it diverged [m]
-    consts = tick_constants(physics.torque_limit, g, g.R_foot - MAX_PENETRATION, MAX_JOINT_SPEED)
+    consts = tick.constants(physics.torque_limit, g, g.R_foot - MAX_PENETRATION, MAX_JOINT_SPEED)
     t = np.arange(n) * Ts
     # one (n, 12) block, row k = (q, qd, f, tau) of tick k, written by the compiled tick; the four logs are
     # column views of it (no copy)
@@ -95,7 +98,7 @@ def simulate(
     names = [e.controller for e in scenario.events]
     controllers: list[Controller] = [make_controller(e, scenario.gains, Ts, n) for e in scenario.events]
     backend.reset(np.array(scenario.q0), np.array(scenario.qd0))
-    read, step, control = backend.read, backend.step, control_tick
+    read, step, control = backend.read, backend.step, tick.tick
     active = controllers[0]
     p, s = active.params, active.state
     next_event, n_events = 0, len(ticks)
@@ -117,7 +120,7 @@ def simulate(
                 next_tick = ticks[next_event] if next_event < n_events else n
             code = control(k, q1, q2, q3, qd1, qd2, qd3, f1, f2, f3, p, s, consts, log, u)
             if code:
-                raise SimulationDiverged(backend.name, k * Ts, _DIVERGED[code])
+                raise SimulationDiverged(backend.name, k * Ts, _diverged(code))
             if k < last:
                 step(tau_out)
             if progress is not None and k % every == 0:
@@ -135,8 +138,8 @@ def simulate(
     # active controller per logged tick: each event's from its tick on (ticks are sorted), filled
     # slice by slice so no per-tick index array is allocated next to the log
     controller = np.empty(n, dtype=object)
-    for tick, name in zip(ticks, names, strict=True):
-        controller[min(tick, n) :] = name
+    for first, name in zip(ticks, names, strict=True):
+        controller[min(first, n) :] = name
     return RunResult(
         backend=backend.name,
         t=t[:n] if status != "ok" else t,

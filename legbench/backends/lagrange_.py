@@ -38,7 +38,6 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from legbench.backends import joint_limits
 from legbench.backends.base import Backend, Limits, Physics
@@ -262,6 +261,8 @@ class LagrangeBackend(Backend):
             self.x[:] = y
             self._update_force()
             return
+        from scipy.integrate import solve_ivp  # 0.7 s of imports: only when an adaptive solver runs
+
         sol = solve_ivp(self.rhs, self._span, self.x, **self._solve)
         if not sol.success:
             raise LegbenchError(f"lagrange: {self.cfg['integrator']} failed: {sol.message}")

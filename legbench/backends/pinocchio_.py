@@ -47,7 +47,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 import pinocchio as pin
-from scipy.integrate import solve_ivp
 
 from legbench.backends import joint_limits, pinocchio_kernel
 from legbench.backends.base import Backend, Limits, Physics, sub_step_count
@@ -275,6 +274,8 @@ class PinocchioBackend(Backend):
         def f(_t: float, x: np.ndarray) -> np.ndarray:
             q, qd = x[:3].tolist(), x[3:].tolist()
             return np.concatenate([x[3:], self._qdd(q, qd, u)])
+
+        from scipy.integrate import solve_ivp  # 0.7 s of imports: only when an adaptive solver runs
 
         sol = solve_ivp(
             f,

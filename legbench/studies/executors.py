@@ -174,7 +174,7 @@ def _mp_context() -> multiprocessing.context.BaseContext:
     ctx = multiprocessing.get_context(method)
     if method == "forkserver":
         # the numerical stack imported once in the fork server and shared by every worker forked from it
-        ctx.set_forkserver_preload(["numpy", "scipy.integrate", "pandas", "legbench.run"])  # type: ignore[attr-defined]
+        ctx.set_forkserver_preload(["numpy", "pandas", "legbench.run"])  # type: ignore[attr-defined]
     return ctx
 
 

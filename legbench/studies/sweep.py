@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import itertools
 import json
 import math
@@ -58,8 +59,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from legbench import backends as registry
 from legbench import progress
@@ -673,16 +672,38 @@ def fit_slopes(table: pd.DataFrame, metric: str, fit: Fit) -> pd.DataFrame:
 
 
 def _figure(width: float = 7.0, height: float = 5.0) -> Any:
+    # matplotlib is imported where figures are drawn (the pool's workers), not by every sweep's main process
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(width, height))
     FigureCanvasAgg(fig)
     return fig
+
+
+def _minor_label(v: float, _: Any) -> str:
+    return f"{v:g}" if f"{v:.0e}"[0] in "25" else ""
+
+
+def _no_label(v: float, _: Any) -> str:
+    return ""
 
 
 def _save(fig: Any, ax: Any, path: Path) -> Path:
     """Grid, legend, fixed margins; the figure written to ``path`` (PNG, 120 dpi).
 
     Fixed margins instead of ``tight_layout``: it measured every tick label's extent, 0.7 s of the 1.2 s a
-    figure took, serial after the parallel runs; the labels here are short and fit the margins."""
+    figure took, serial after the parallel runs; the labels here are short and fit the margins. Log axes
+    get plain labels ("1e-05", "0.001"): mathtext typesetting of "10^-5" was a third of a figure's time."""
+    from matplotlib.ticker import FuncFormatter
+
+    for axis in (ax.xaxis, ax.yaxis):
+        if axis.get_scale() == "log":  # plain "1e-05" labels: the default's mathtext was a third of the figure
+            plain = FuncFormatter(lambda v, _: f"{v:g}")
+            axis.set_major_formatter(plain)
+            lo, hi = sorted(axis.get_view_interval())
+            short = lo > 0 and hi / lo < 30.0  # within about a decade and a half: label 2 and 5 as well
+            axis.set_minor_formatter(FuncFormatter(_minor_label if short else _no_label))
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.subplots_adjust(left=0.13, right=0.97, bottom=0.1, top=0.93)
@@ -699,9 +720,15 @@ def _series(table: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
 MARKERS = ("o", "s", "^", "D", "v", "P", "X")
 
 
+@functools.cache
+def _backend_order() -> tuple[str, ...]:
+    # the registry scans the installed distributions' entry points: once per process, not once per line drawn
+    return tuple(registry.available())
+
+
 def _style(g: pd.DataFrame) -> dict[str, Any]:
     """Marker by backend (its place among the available backends), open symbols."""
-    names = [*registry.available(), str(g["backend"].iloc[0])]
+    names = [*_backend_order(), str(g["backend"].iloc[0])]
     marker = MARKERS[names.index(str(g["backend"].iloc[0])) % len(MARKERS)]
     return {"marker": marker, "mfc": "none", "ls": "-", "ms": 7}
 
@@ -925,8 +952,8 @@ def run_sweep(
             ``complete: false``, the others ``interrupted`` in the table) and a line on stderr says so.
     """
     own = not isinstance(executor, Executor)
-    # the workers also import this module (matplotlib) while they start: they draw the figures at the end
-    preload = (*DEFAULT_PRELOAD, "legbench.studies.sweep")
+    # the workers also import this module and matplotlib while they start: they draw the figures at the end
+    preload = (*DEFAULT_PRELOAD, "legbench.studies.sweep", "matplotlib.figure", "matplotlib.backends.backend_agg")
     ex = make_executor(executor, jobs, scheduler, preload) if isinstance(executor, str) else executor
     try:
         ex.start()  # the workers start (imports, engines) while the sweep is read and planned here
