@@ -228,7 +228,7 @@ def test_kernels_per_sub_step_add_up_to_one_floor_and_per_tick_ones_stand_alone(
 def test_repeats_are_interleaved_across_backends_with_the_order_rotated(fake_registry: None) -> None:
     """Three repeats after one warm-up through two backends: each pass times full, replay and the floors of one
     backend, then the other; the first backend alternates from pass to pass. Warm-up samples are dropped."""
-    res = bench.run_bench([_fake_scenario()], ["fake", "fake2"], repeats=3, warmup=1, memory=False)
+    res = bench.run_bench([_fake_scenario()], ["fake", "fake2"], repeats=3, warmup=1, memory=False, min_sample=0.0)
     assert [r.backend for r in res] == ["fake", "fake2"]
     for r in res:
         assert r.status == "ok" and r.replay_identical
@@ -238,6 +238,42 @@ def test_repeats_are_interleaved_across_backends_with_the_order_rotated(fake_reg
     assert len(firsts) == 2 * 4 and len(set(firsts)) == 2
     pass_first = firsts[0::2]
     assert pass_first[0] != pass_first[1] and pass_first[0] == pass_first[2] and pass_first[1] == pass_first[3]
+
+
+def test_a_short_variant_is_sampled_as_the_fastest_of_back_to_back_executions(
+    fake_registry: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A 50-period fake run lasts microseconds: with min_sample 1 s every variant is executed MAX_INNER times
+    per sample (sized from the warm-up's single execution) and the sample is the fastest of them; without
+    a warm-up, or with min_sample 0, one execution per sample."""
+    rng = np.random.default_rng(5)
+    seen: list[float] = []
+    real = bench._timed
+
+    def timed(fn: Any) -> tuple[float, float, Any]:
+        _, _, out = real(fn)
+        cpu = float(rng.uniform(1e-4, 1e-3))  # a made-up CPU time [s], so the kept one is known
+        seen.append(cpu)
+        return cpu, 2 * cpu, out
+
+    monkeypatch.setattr(bench, "_timed", timed)
+    (r,) = bench.run_bench([_fake_scenario()], ["fake"], repeats=2, warmup=1, memory=False, min_sample=1.0)
+    names = list(r.timings)
+    k = bench.MAX_INNER
+    assert all(t.inner == k for t in r.timings.values())
+    assert len(seen) == len(names) * (1 + 2 * k)
+    timed_calls = seen[len(names) :]  # after the warm-up pass: per repeat, k calls of each variant in turn
+    ticks = {"full": 50.0, "replay": 50.0, "aba+law": 12.5, "engine": 50.0}  # periods a pass covers
+    for rep in range(2):
+        for i, name in enumerate(names):
+            chunk = timed_calls[(rep * len(names) + i) * k : (rep * len(names) + i + 1) * k]
+            assert r.timings[name].cpu_samples[rep] == pytest.approx(1e6 * min(chunk) / ticks[name], rel=1e-12)
+            assert r.timings[name].wall_samples[rep] == pytest.approx(2e6 * min(chunk) / ticks[name], rel=1e-12)
+    for kwargs in ({"warmup": 0, "min_sample": 1.0}, {"warmup": 1, "min_sample": 0.0}):
+        seen.clear()
+        (r,) = bench.run_bench([_fake_scenario()], ["fake"], repeats=2, memory=False, **kwargs)  # type: ignore[arg-type]
+        assert all(t.inner == 1 for t in r.timings.values())
+        assert len(seen) == len(names) * (kwargs["warmup"] + 2)
 
 
 def test_ratio_is_an_overhead_only_when_every_repeat_is_at_least_one_and_faster_only_when_all_below() -> None:
