@@ -90,9 +90,11 @@ TASKS = tuple(ROOT / "scenarios" / f"{name}.yaml" for name in ("position", "elli
 DEFAULT_REPEATS = 5
 DEFAULT_WARMUP = 1
 #: A sample is the fastest of k back-to-back executions of its variant, k (<= :data:`MAX_INNER`) chosen from
-#: the warm-up so a sample lasts about this long [s CPU]: a short run (50 ms) is otherwise one burst of the
-#: shared machine's noise; load only ever adds time, so the fastest of k is the least disturbed.
-MIN_SAMPLE = 0.25
+#: the warm-up so that the full run's sample lasts about this long [s CPU], the same k for every variant of
+#: a backend on a task (so no ratio compares a fastest-of-3 with a fastest-of-1): a short run (50 ms) is
+#: otherwise one burst of the shared machine's noise; load only ever adds time, so the fastest of k is the
+#: least disturbed.
+MIN_SAMPLE = 0.5
 MAX_INNER = 5
 DEFAULT_OUT = Path("results") / "bench"
 #: ``--quick`` durations per task [s]: each still reaches every controller of its task
@@ -533,7 +535,8 @@ def run_bench(
         memory: also measure the peak memory of a run (fresh worker process; tracemalloc here).
         progress: called with each finished result.
         min_sample: each sample the fastest of as many back-to-back executions (at most :data:`MAX_INNER`)
-            as make it last this long [s CPU], counted from the warm-up; 0 (or no warm-up): one execution.
+            as make the full run's sample last this long [s CPU], counted from the warm-up, the same number
+            for every variant of a backend on a task; 0 (or no warm-up): one execution.
     """
     if repeats < 1:
         raise LegbenchError(f"bench: --repeats must be at least 1, got {repeats}")
@@ -557,11 +560,13 @@ def run_bench(
                         b.res.status, b.res.reason = "failed", f"{type(exc).__name__}: {exc}"
                 if rep == warmup - 1:  # warm-up samples are dropped, after sizing the samples from them
                     for b in live:
-                        for vname, (_, ticks) in b.variants.items():
-                            tm = b.res.timings[vname]
-                            if min_sample > 0 and tm.cpu_samples:
-                                seconds = 1e-6 * tm.cpu_samples[-1] * ticks  # one execution [s CPU]
-                                tm.inner = max(1, min(MAX_INNER, math.ceil(min_sample / max(seconds, 1e-9))))
+                        full = b.res.timings["full"]
+                        if min_sample > 0 and full.cpu_samples:
+                            seconds = 1e-6 * full.cpu_samples[-1] * b.variants["full"][1]  # one full run [s CPU]
+                            k = max(1, min(MAX_INNER, math.ceil(min_sample / max(seconds, 1e-9))))
+                            for tm in b.res.timings.values():
+                                tm.inner = k
+                        for tm in b.res.timings.values():
                             tm.cpu_samples.clear()
                             tm.wall_samples.clear()
             for b in live:
@@ -649,8 +654,9 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
         f"{''.join(f', {k} = {val}' for k, val in (s.get('overrides') or {}).items())}. "
         "CPU time (process_time) per control period; figures are medians, brackets min-max over the repeats"
         + (
-            f"; each sample the fastest of up to {MAX_INNER} back-to-back executions, as many as make it last "
-            f"{s['min_sample_s']:g} s (sized from the warm-up)."
+            f"; each sample the fastest of up to {MAX_INNER} back-to-back executions, as many as make the full "
+            f"run's sample last {s['min_sample_s']:g} s (sized from the warm-up, the same for every variant of a "
+            "backend on a task)."
             if s.get("min_sample_s") and s["warmup"]
             else "."
         ),
