@@ -29,7 +29,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from legbench import kinematics
-from legbench.kinematics import GRAVITY_SIZE, angdist_scalar, gravity_arrays, gravity_scalar
+from legbench.kinematics import GRAVITY_SIZE, angdist_scalar, gravity_arrays, gravity_scalar, jacobian_scalar
 from legbench.model import LegParams, load_params
 from legbench.scenario import Event, Gains
 
@@ -166,23 +166,14 @@ E_H, E_K_FORCE, E_L, E_G = P_BODY, P_BODY + 3, P_BODY + 4, P_BODY + 7
 
 
 def effort_law(k: int, q1: float, q2: float, q3: float, p: np.ndarray) -> tuple[float, float, float]:
-    """tau = Jv(q)^T h_d + G(q) [N m]: Jv as :func:`legbench.kinematics.jacobian_scalar` (the same
-    operations), G(q) by :func:`legbench.kinematics.gravity_scalar`."""
+    """tau = Jv(q)^T h_d + G(q) [N m]: Jv by :func:`legbench.kinematics.jacobian_scalar`, G(q) by
+    :func:`legbench.kinematics.gravity_scalar`."""
     g1, g2, g3 = gravity_scalar(q1, q2, q3, p[E_G : E_G + GRAVITY_SIZE])
     if k >= p[E_K_FORCE]:
         hx, hy, hz = p[E_H], p[E_H + 1], p[E_H + 2]
     else:
         hx, hy, hz = 0.0, 0.0, 0.0
-    L_12, L_23, L_3E = p[E_L], p[E_L + 1], p[E_L + 2]
-    s1, c1 = math.sin(q1), math.cos(q1)
-    s23 = math.sin(q2 + q3)
-    c23 = math.cos(q2 + q3)
-    reach = L_23 * math.sin(q2) + L_3E * s23
-    dreach2 = L_23 * math.cos(q2) + L_3E * c23
-    dreach3 = L_3E * c23
-    j11, j12, j13 = -(L_12 * s1 + c1 * reach), -(s1 * dreach2), -(s1 * dreach3)
-    j21, j22, j23 = 0.0, -reach, -(L_3E * s23)
-    j31, j32, j33 = L_12 * c1 - s1 * reach, c1 * dreach2, c1 * dreach3
+    j11, j12, j13, j21, j22, j23, j31, j32, j33 = jacobian_scalar(q1, q2, q3, p[E_L], p[E_L + 1], p[E_L + 2])
     return (
         j11 * hx + j21 * hy + j31 * hz + g1,
         j12 * hx + j22 * hy + j32 * hz + g2,

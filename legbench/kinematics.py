@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from legbench.exceptions import ModelError, Unreachable
-from legbench.model import Geometry, LegParams, gravity_torque, load_params, pinocchio_model
+from legbench.model import LegParams, gravity_torque, load_params, pinocchio_model
 
 #: Rotation W_R_0 of the base frame (frame 0 x is up, y0 = -x_W, z0 = -y_W).
 W_R_0 = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
@@ -134,7 +134,9 @@ def jacobian(q: np.ndarray, params: LegParams | None = None) -> np.ndarray:
     return W_R_0 @ jacobian0(q, params)
 
 
-def jacobian_scalar(q1: float, q2: float, q3: float, g: Geometry) -> tuple[float, ...]:
+def jacobian_scalar(
+    q1: float, q2: float, q3: float, L_12: float, L_23: float, L_3E: float
+) -> tuple[float, float, float, float, float, float, float, float, float]:
     """:func:`jacobian` for one configuration, on floats: Jv(q) in W, row-major (9 floats) [m/rad].
 
     W_R_0 only permutes and negates rows (W x = -y0, W y = -z0, W z = x0), which
@@ -142,18 +144,18 @@ def jacobian_scalar(q1: float, q2: float, q3: float, g: Geometry) -> tuple[float
 
     Args:
         q1, q2, q3: joint angles [rad].
-        g: the leg's geometry (``load_params().geometry``) [m].
+        L_12, L_23, L_3E: the leg's lengths (``load_params().geometry``) [m].
     """
     s1, c1 = math.sin(q1), math.cos(q1)
     s23 = math.sin(q2 + q3)
     c23 = math.cos(q2 + q3)
-    reach = g.L_23 * math.sin(q2) + g.L_3E * s23
-    dreach2 = g.L_23 * math.cos(q2) + g.L_3E * c23
-    dreach3 = g.L_3E * c23
+    reach = L_23 * math.sin(q2) + L_3E * s23
+    dreach2 = L_23 * math.cos(q2) + L_3E * c23
+    dreach3 = L_3E * c23
     return (
-        -(g.L_12 * s1 + c1 * reach), -(s1 * dreach2), -(s1 * dreach3),
-        0.0, -reach, -(g.L_3E * s23),
-        g.L_12 * c1 - s1 * reach, c1 * dreach2, c1 * dreach3,
+        -(L_12 * s1 + c1 * reach), -(s1 * dreach2), -(s1 * dreach3),
+        0.0, -reach, -(L_3E * s23),
+        L_12 * c1 - s1 * reach, c1 * dreach2, c1 * dreach3,
     )  # fmt: skip
 
 
@@ -394,4 +396,4 @@ def gravity_scalar(q1: float, q2: float, q3: float, a: np.ndarray) -> tuple[floa
 
 
 #: The plain functions of this module that compiled code calls (:mod:`legbench.tick` registers them).
-SCALAR = (angdist_scalar, gravity_scalar, _to_child, _to_parent, _body_wrench, _wrench_to_parent)
+SCALAR = (angdist_scalar, jacobian_scalar, gravity_scalar, _to_child, _to_parent, _body_wrench, _wrench_to_parent)
