@@ -69,10 +69,18 @@ def njit(fn: F, depends_on: Iterable[ModuleType | Callable[..., Any]] = ()) -> F
     files = {inspect.getfile(m) for m in depends_on} - {here}
     if files:
         _DEPENDS[here] = tuple(sorted(set(_DEPENDS.get(here, ())) | files))
-    return numba.njit(cache=True, nogil=True)(fn)  # type: ignore[return-value]
+    # without the stamp (a numba whose cache internals moved) a kernel with dependencies is not cached
+    # at all: compiled afresh in every process rather than stale after an edit
+    cache = _STAMPED or not files
+    return numba.njit(cache=cache, nogil=True)(fn)  # type: ignore[return-value]
 
 
-if numba is not None:
+#: the dependency stamp is in place (numba's cache locators found where numba 0.68-0.69 keeps them)
+_STAMPED = False
+
+if numba is not None and all(
+    hasattr(caching, n) for n in ("CacheImpl", "UserProvidedCacheLocator", "InTreeCacheLocator", "UserWideCacheLocator")
+):
 
     class _DependencyStamp:
         """Mixin for numba's cache locators: the source stamp of a registered kernel module also holds
@@ -100,4 +108,7 @@ if numba is not None:
         pass
 
     # numba tries its locators in order: ours first, in numba's own order of preference
-    caching.CacheImpl._locator_classes[0:0] = [_UserProvided, _InTree, _UserWide]
+    _locators = getattr(caching.CacheImpl, "_locator_classes", None)
+    if isinstance(_locators, list):
+        _locators[0:0] = [_UserProvided, _InTree, _UserWide]
+        _STAMPED = True

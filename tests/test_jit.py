@@ -80,7 +80,9 @@ def test_an_edit_of_a_law_in_another_module_recompiles_the_cached_kernel(tmp_pat
 
 
 def test_the_run_loops_tick_and_the_pinocchio_period_declare_their_sources() -> None:
-    """Both compiled kernels are stamped with the modules whose plain functions they compile in."""
+    """Both compiled kernels are stamped with the modules whose plain functions they compile in (and the stamp
+    is in place with the pinned numba: without it such kernels would be compiled uncached in every process)."""
+    assert jit._STAMPED
     from legbench import contact, controllers, kinematics, tick
     from legbench.backends import joint_limits, pinocchio_kernel
 
