@@ -247,11 +247,7 @@ class PID:
     """
 
     def __init__(self, gains: Gains, Ts: float, params: LegParams | None = None) -> None:
-        self.Kp = np.array(gains.Kp)
-        self.Kd = np.array(gains.Kd)
-        self.Ki = np.array(gains.Ki)
-        self.Ts = Ts
-        self.params = _header(POSITION, Ts, gains, params or load_params(), 3)
+        self.params = _header(POSITION, Ts, gains, params or load_params(), 3)  # gains and Ts live here
         self.state = np.zeros(S_SIZE)
 
     @property
