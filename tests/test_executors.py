@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 import pandas as pd
@@ -187,3 +188,31 @@ def test_dask_imap_unordered_yields_every_item_once() -> None:
         got = sorted(ex.imap_unordered(math.sqrt, items, [2, 1, 0]))
         assert ex.map(math.sqrt, items) == [1.0, 2.0, 3.0]
     assert got == [(0, 1.0), (1, 2.0), (2, 3.0)]
+
+
+def test_preloading_the_engines_survives_a_backend_that_fails_to_import(tmp_path: Path) -> None:
+    """``legbench.backends.installed`` (imported by the pool's fork server before it forks the workers) imports
+    every backend that can run here and lets none that fails stop the import: a built-in whose module is
+    missing is left out and the others are there; one that raises something else than ImportError does not
+    escape either (the fork server would die with it)."""
+    import subprocess
+    import sys
+
+    (tmp_path / "raising_engine_.py").write_text("raise RuntimeError('engine broken at import')\n")
+
+    def names(module: str) -> list[str]:
+        code = (
+            "from legbench import backends\n"
+            f"backends.BUILTIN['broken'] = ({module!r}, 'X', 'nothing')\n"
+            "import legbench.backends.installed as inst\n"
+            "print(','.join(inst.NAMES))\n"
+        )
+        env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+        assert out.returncode == 0, out.stderr
+        return out.stdout.strip().split(",")
+
+    missing = names("legbench.backends.no_such_engine_")
+    assert "broken" not in missing
+    assert set(backends.available()) <= set(missing) and "pinocchio" in missing
+    assert names("raising_engine_") == [""]  # nothing preloaded, nothing raised

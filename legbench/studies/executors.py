@@ -128,8 +128,9 @@ class Executor(ABC):
 
 
 #: What a worker imports once when it starts (``module`` or ``module:function`` to call): the run loop, the
-#: study tasks and every installed engine (the registry's ``available`` imports them), so no task pays for it.
-DEFAULT_PRELOAD = ("legbench.run", "legbench.studies.tasks", "legbench.backends:available")
+#: study tasks and every installed engine (importing ``legbench.backends.installed`` imports them), so no task
+#: pays for it. The fork server imports the modules before it forks the workers (:func:`_mp_context`).
+DEFAULT_PRELOAD = ("legbench.run", "legbench.studies.tasks", "legbench.backends.installed")
 
 
 def _worker_init(preload: Sequence[str]) -> None:
@@ -168,13 +169,19 @@ def _call(fn: Callable[[T], R], x: T) -> R | None:
         return None
 
 
-def _mp_context() -> multiprocessing.context.BaseContext:
-    """Fork server where the platform has one (no fork of a threaded parent), else spawn."""
+def _mp_context(preload: Sequence[str]) -> multiprocessing.context.BaseContext:
+    """Fork server where the platform has one (no fork of a threaded parent), else spawn.
+
+    The fork server imports the numerical stack and the modules ``preload`` names once, before it forks
+    the workers: they start with them loaded (shared copy-on-write) instead of each importing them, which
+    on two cores competed with the parent's own loading and planning. The server is one per process and
+    keeps the preload of the first pool that started it; a worker's initializer imports what is missing.
+    """
     method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
     ctx = multiprocessing.get_context(method)
     if method == "forkserver":
-        # the numerical stack imported once in the fork server and shared by every worker forked from it
-        ctx.set_forkserver_preload(["numpy", "pandas", "legbench.run"])  # type: ignore[attr-defined]
+        modules = dict.fromkeys(["numpy", "pandas", *(name.partition(":")[0] for name in preload)])
+        ctx.set_forkserver_preload(list(modules))  # type: ignore[attr-defined]
     return ctx
 
 
@@ -205,7 +212,10 @@ class LocalExecutor(Executor):
     def _get_pool(self) -> ProcessPoolExecutor:
         if self._pool is None:
             self._pool = ProcessPoolExecutor(
-                max_workers=self.jobs, mp_context=_mp_context(), initializer=_worker_init, initargs=(self.preload,)
+                max_workers=self.jobs,
+                mp_context=_mp_context(self.preload),
+                initializer=_worker_init,
+                initargs=(self.preload,),
             )
         return self._pool
 
