@@ -127,9 +127,9 @@ class Executor(ABC):
             self.terminate()
 
 
-#: What a worker imports once when it starts (``module`` or ``module:function`` to call): the run loop, the
-#: study tasks and every installed engine (importing ``legbench.backends.installed`` imports them), so no task
-#: pays for it. The fork server imports the modules before it forks the workers (:func:`_mp_context`).
+#: The modules a worker has imported when it starts: the run loop, the study tasks and every installed engine
+#: (importing ``legbench.backends.installed`` imports them), so no task pays for it. The fork server imports
+#: them before it forks the workers (:func:`_mp_context`).
 DEFAULT_PRELOAD = ("legbench.run", "legbench.studies.tasks", "legbench.backends.installed")
 
 
@@ -140,13 +140,10 @@ def _worker_init(preload: Sequence[str]) -> None:
 
 
 def _preload(preload: Sequence[str]) -> None:
-    """Import each ``module`` (and call ``module:function``) of ``preload``; failures are left to the tasks."""
+    """Import each module ``preload`` names; failures are left to the tasks."""
     for name in preload:
-        module, _, func = name.partition(":")
         try:
-            mod = importlib.import_module(module)
-            if func:
-                getattr(mod, func)()
+            importlib.import_module(name)
         except Exception as exc:  # a task that needs it reports the problem itself
             log.debug("worker preload %s failed: %s", name, exc)
 
@@ -180,8 +177,7 @@ def _mp_context(preload: Sequence[str]) -> multiprocessing.context.BaseContext:
     method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
     ctx = multiprocessing.get_context(method)
     if method == "forkserver":
-        modules = dict.fromkeys(["numpy", "pandas", *(name.partition(":")[0] for name in preload)])
-        ctx.set_forkserver_preload(list(modules))  # type: ignore[attr-defined]
+        ctx.set_forkserver_preload(list(dict.fromkeys(["numpy", "pandas", *preload])))  # type: ignore[attr-defined]
     return ctx
 
 
