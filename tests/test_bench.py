@@ -382,3 +382,12 @@ def test_spread_summarises_samples() -> None:
     assert s.q1 == pytest.approx(1.75) and s.q3 == pytest.approx(3.25)
     assert s.scaled(2.0).median == 5.0
     assert np.isfinite(bench.Spread.of([1.0]).q1)
+
+
+def test_quick_keeps_a_duration_set_by_name() -> None:
+    """``--quick --set duration=64`` runs 64 s once (the memory target's run), not the quick 0.5 s."""
+    effort = str(Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml")
+    (long,) = bench.load_tasks([effort], quick=True, overrides={"duration": 64.0})
+    (short,) = bench.load_tasks([effort], quick=True)
+    assert long.duration == 64.0 and long.n_ticks == 64001
+    assert short.duration == bench.QUICK_DURATIONS["effort"]

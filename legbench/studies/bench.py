@@ -284,7 +284,8 @@ def load_tasks(
 
     Args:
         paths: scenario files.
-        quick: shorten each to its :data:`QUICK_DURATIONS` entry (see :func:`shorten`).
+        quick: shorten each to its :data:`QUICK_DURATIONS` entry (see :func:`shorten`), unless
+            ``overrides`` sets ``duration``: a duration asked for by name is kept.
         duration: shorten each to this [s] instead.
         overrides: dotted scenario keys set before validation, as ``legbench run --set``.
     """
@@ -293,7 +294,7 @@ def load_tasks(
         sc = scenario.load(path, overrides)
         if duration is not None:
             sc = shorten(sc, duration)
-        elif quick:
+        elif quick and "duration" not in (overrides or {}):
             sc = shorten(sc, QUICK_DURATIONS.get(sc.name, QUICK_DEFAULT_DURATION))
         out.append(sc)
     return out
@@ -780,7 +781,8 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
     p.add_argument("--warmup", type=int, default=DEFAULT_WARMUP,
                    help=f"untimed warm-up passes before them (default {DEFAULT_WARMUP})")  # fmt: skip
     p.add_argument("--quick", action="store_true",
-                   help="short durations (later events dropped), one repeat: a smoke test, not figures")  # fmt: skip
+                   help="short durations (later events dropped; a --set duration is kept), one repeat: "
+                   "a smoke test, not figures")  # fmt: skip
     p.add_argument("--duration", type=float, default=None, help="cut every scenario to this many seconds")
     p.add_argument("--contact-mode", choices=("native", "reference"), default=None,
                    help="override the scenarios' contact mode")  # fmt: skip
