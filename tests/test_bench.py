@@ -386,8 +386,8 @@ def test_spread_summarises_samples() -> None:
 
 def test_quick_keeps_a_duration_set_by_name() -> None:
     """``--quick --set duration=64`` runs 64 s once (the memory target's run), not the quick 0.5 s."""
-    effort = str(Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml")
-    (long,) = bench.load_tasks([effort], quick=True, overrides={"duration": 64.0})
-    (short,) = bench.load_tasks([effort], quick=True)
+    effort = bench.TASKS[2:3]
+    (long,) = bench.load_tasks(effort, quick=True, overrides={"duration": 64.0})
+    (short,) = bench.load_tasks(effort, quick=True)
     assert long.duration == 64.0 and long.n_ticks == 64001
     assert short.duration == bench.QUICK_DURATIONS["effort"]
