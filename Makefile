@@ -52,8 +52,8 @@ compare: runs
 ## the four tasks x all backends x both contact modes (matched) and engine-defaults (native) -> results/latest
 runs: $(STAMP)
 	rm -rf results/latest
-	$(LEGBENCH) run $(TASKS) --backends all --contact-mode both --out results/latest --jobs $(JOBS) --quiet --no-compare
-	$(LEGBENCH) run $(TASKS) --backends all --profile engine-defaults --contact-mode native --out results/latest --jobs $(JOBS) --quiet --no-compare --no-preflight
+	$(LEGBENCH) run $(TASKS) --backends all --out results/latest --jobs $(JOBS) --quiet --no-compare \
+	    --variant matched:native --variant matched:reference --variant engine-defaults:native
 
 ## regression check of a fresh run of the four tasks against the committed baseline (CI). The baseline holds
 ## the tasks' metrics only; verification and calibration are asserted by the test suite, so CI does not run them

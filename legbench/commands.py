@@ -18,6 +18,7 @@ import numpy as np
 
 from legbench import backends, kinematics, model, results, scenario, yamlfile
 from legbench.backends.base import PROFILES
+from legbench.contact import CONTACT_MODES
 from legbench.exceptions import LegbenchError
 from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK, EXIT_USER_ERROR
 
@@ -139,23 +140,27 @@ def _run(args: argparse.Namespace) -> int:
     from legbench.studies import doctor
 
     overrides = yamlfile.parse_overrides(args.set)
-    scenarios = []  # all validated before any runs
+    if args.variant and (args.profile or args.contact_mode):
+        raise LegbenchError("--variant: give the profile and contact mode of each run there, not also "
+                            "--profile or --contact-mode")  # fmt: skip
+    modes: list[str | None] = ["native", "reference"] if args.contact_mode == "both" else [args.contact_mode]
+    runs: list[tuple[scenario.Scenario, str | None]] = []  # all validated before any runs
     for path in args.scenarios:
         sc = scenario.load(path, overrides)
         profiles = list(PROFILES) if args.profile == "both" else [args.profile or sc.profile]
-        for prof in profiles:  # a profile other than the file's is an override, so it is in the scenario's hash
-            scenarios.append(sc if prof == sc.profile else scenario.load(path, {**overrides, "profile": prof}))
+        variants = args.variant or [(prof, mode) for prof in profiles for mode in modes]
+        loaded = {sc.profile: sc}
+        for prof, mode in variants:  # a profile other than the file's is an override, so it is in the scenario's hash
+            if prof not in loaded:
+                loaded[prof] = scenario.load(path, {**overrides, "profile": prof})
+            runs.append((loaded[prof], mode))
+    scenarios = list({id(sc): sc for sc, _ in runs}.values())
     if not [n for n in str(args.backends).split(",") if n.strip()]:
         raise LegbenchError(f"--backends {args.backends!r}: names no backend (give names, or 'all')")
     names = backends.resolve(args.backends)
-    modes: list[str | None] = ["native", "reference"] if args.contact_mode == "both" else [args.contact_mode]
-    single = len(scenarios) == 1 and len(modes) == 1
+    single = len(runs) == 1
     root = Path(args.out) if args.out else Path("results") / "latest"
-    plan = [
-        (sc, mode, root if (single and args.out) else results.out_dir_for(root, sc, mode))
-        for sc in scenarios
-        for mode in modes
-    ]
+    plan = [(sc, mode, root if (single and args.out) else results.out_dir_for(root, sc, mode)) for sc, mode in runs]
     _check_plan(plan, args)
     if not args.no_preflight:
         available = set(backends.available())
@@ -194,6 +199,17 @@ def _run(args: argparse.Namespace) -> int:
             report.write_all(root, jobs=args.jobs)
             print(f"report: {root / 'report.html'}")
     return EXIT_BACKEND_FAILED if failed else EXIT_OK
+
+
+def _variant(text: str) -> tuple[str, str]:
+    """``--variant PROFILE:MODE`` -> (profile, contact mode); argparse reports a bad one (exit status 2)."""
+    prof, sep, mode = text.partition(":")
+    if not sep or prof not in PROFILES or mode not in CONTACT_MODES:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected PROFILE:MODE with PROFILE one of {', '.join(PROFILES)} "
+            f"and MODE one of {', '.join(CONTACT_MODES)}"
+        )
+    return prof, mode
 
 
 def _check_plan(plan: list[tuple[scenario.Scenario, str | None, Path]], args: argparse.Namespace) -> None:
@@ -279,6 +295,9 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                         "'matched' maps the spec's physics as faithfully as each engine allows, "
                         "'engine-defaults' is each engine's documented defaults with only Kp, Kd and mu set; "
                         "'both' runs each scenario in both (<name>/ and <name>__engine-defaults/)")  # fmt: skip
+    p.add_argument("--variant", action="append", type=_variant, default=[], metavar="PROFILE:MODE",
+                   help="run each scenario in this profile and contact mode, e.g. engine-defaults:native; "
+                        "repeat for several, all in one pool (instead of --profile and --contact-mode)")  # fmt: skip
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, e.g. --set backends.<name>.dt=5e-5")  # fmt: skip
     p.add_argument("--no-compare", action="store_true", help="do not write the comparison report")
