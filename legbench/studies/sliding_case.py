@@ -24,12 +24,15 @@ the 1 kHz log. :func:`sliding_case` returns one row per quantity.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from legbench import kinematics
+from legbench.backends.base import Physics
 from legbench.model import Dynamics, load_params
+from legbench.results import RunResult
 
 #: Normal push [N] and the drag as a fraction of it (above mu_s = 0.7).
 FN = 15.0
@@ -48,7 +51,7 @@ FN_MIN = 0.5
 ROW_KEYS = ("case", "backend", "quantity", "unit", "measured", "expected", "error", "tolerance", "passed", "note")
 
 
-def _scenario() -> Any:
+def _scenario(duration: float = WINDOW[1] + 0.01, overrides: Mapping[str, Any] | None = None) -> Any:
     from legbench import resources
     from legbench import scenario as scenario_mod
 
@@ -56,8 +59,8 @@ def _scenario() -> Any:
         {"t": 0.0, "effort": {"force": [0.0, 0.0, -FN]}},
         {"t": T_DRAG, "effort": {"force": [0.0, DRAG * FN, -FN]}},
     ]
-    overrides = {"events": events, "duration": WINDOW[1] + 0.01, "comparison.steady_window": 0.01, "name": "sliding"}
-    return scenario_mod.load(resources.scenario("effort"), overrides)
+    base = {"events": events, "duration": duration, "comparison.steady_window": 0.01, "name": "sliding"}
+    return scenario_mod.load(resources.scenario("effort"), {**base, **(overrides or {})})
 
 
 def predicted_acceleration(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force: np.ndarray,
@@ -86,6 +89,33 @@ def predicted_acceleration(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force
     return out
 
 
+def drag(
+    backend: str,
+    profile: str = "matched",
+    settings: Mapping[str, Any] | None = None,
+    duration: float = WINDOW[1] + 0.01,
+    overrides: Mapping[str, Any] | None = None,
+) -> tuple[RunResult, Physics]:
+    """Run the drag on ``backend`` (native contact, ``profile`` and backend ``settings``) for ``duration`` [s].
+
+    ``overrides``: scenario keys set on top (e.g. ``{"physics.contact.Kd": 50.0}``). A backend that cannot
+    load gives a failed :class:`~legbench.results.RunResult` saying why.
+    """
+    from legbench import backends as registry
+    from legbench.run import physics_of, simulate
+
+    sc = _scenario(duration, overrides)
+    physics = physics_of(sc, "native")
+    try:
+        b = registry.load(backend, physics, dict(settings or {}), profile)
+    except Exception as exc:
+        return RunResult.empty(backend, "failed", f"{type(exc).__name__}: {exc}"), physics
+    try:
+        return simulate(sc, b, physics), physics
+    finally:
+        b.close()
+
+
 def sliding_case(backend: str, profile: str = "matched") -> list[dict[str, Any]]:
     """Run the drag on ``backend`` (native contact, ``profile``) and score it against the closed form.
 
@@ -93,31 +123,25 @@ def sliding_case(backend: str, profile: str = "matched") -> list[dict[str, Any]]
         Rows with :data:`ROW_KEYS`: friction coefficient, friction angle to the slip, slip
         acceleration along the slip; a backend that cannot run gives one failed row saying why.
     """
-    from legbench import backends as registry
-    from legbench.run import physics_of, simulate
+    tr, physics = drag(backend, profile)
+    return score(tr, physics, WINDOW)
 
-    case = "sliding"
-    sc = _scenario()
-    physics = physics_of(sc, "native")
-    try:
-        cls = registry.get(backend)
-        b = registry.load(backend, physics, {}, profile)
-    except Exception as exc:
-        return [dict(zip(ROW_KEYS, (case, backend, "run", "", math.nan, math.nan, math.nan, 0.0, False,
-                                    f"{type(exc).__name__}: {exc}"), strict=True))]  # fmt: skip
-    try:
-        tr = simulate(sc, b, physics)
-    finally:
-        b.close()
+
+def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW) -> list[dict[str, Any]]:
+    """Score a drag run (:func:`drag`) over ``window`` [s] against the closed form: the rows of :func:`sliding_case`."""
+    from legbench import backends as registry
+
+    case, backend = "sliding", tr.backend
     if tr.status != "ok":
         return [dict(zip(ROW_KEYS, (case, backend, "run", "", math.nan, math.nan, math.nan, 0.0, False,
                                     f"{tr.status}: {tr.reason}"), strict=True))]  # fmt: skip
+    cls = registry.get(backend)
     p = physics.contact
     mu = float(getattr(p, cls.sliding_coefficient))
-    Ts = sc.control_dt
+    Ts = physics.control_dt
     J = kinematics.jacobian_poc(tr.q, true_poc=p.poc == "true")
     v = np.einsum("nij,nj->ni", J, tr.qd)[:, :2]
-    k = np.flatnonzero((tr.t >= WINDOW[0] - 1e-9) & (tr.t <= WINDOW[1] + 1e-9))
+    k = np.flatnonzero((tr.t >= window[0] - 1e-9) & (tr.t <= window[1] + 1e-9))
     k = k[(k > 0) & (k < len(tr.t) - 1)]
     n_window = len(k)
     # samples in contact only (an engine's foot may hop: the closed form is for sliding contact)
@@ -145,9 +169,9 @@ def sliding_case(backend: str, profile: str = "matched") -> list[dict[str, Any]]
         (case, backend, "angle between friction and -slip (max)", "deg", angle, 0.0, angle, TOL_ANGLE,
          angle <= TOL_ANGLE, slip),
         (case, backend, "slip acceleration along the slip (mean)", "m/s^2", am, ap, abs(am / ap - 1.0), TOL_ACC,
-         abs(am / ap - 1.0) <= TOL_ACC, "closed form M^-1 (tau - nle + J_poc^T F) with F = mu Fn against the slip"),
+         abs(am / ap - 1.0) <= TOL_ACC, f"closed form M^-1 (tau - nle + J_poc^T F), F = mu Fn vs the slip; {slip}"),
     ]  # fmt: skip
     return [dict(zip(ROW_KEYS, r, strict=True)) for r in rows]
 
 
-__all__ = ["ROW_KEYS", "predicted_acceleration", "sliding_case"]
+__all__ = ["ROW_KEYS", "drag", "predicted_acceleration", "score", "sliding_case"]
