@@ -295,9 +295,10 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                         "'matched' maps the spec's physics as faithfully as each engine allows, "
                         "'engine-defaults' is each engine's documented defaults with only Kp, Kd and mu set; "
                         "'both' runs each scenario in both (<name>/ and <name>__engine-defaults/)")  # fmt: skip
-    p.add_argument("--variant", action="append", type=_variant, default=[], metavar="PROFILE:MODE",
+    variant = p.add_argument("--variant", action="append", type=_variant, default=[], metavar="PROFILE:MODE",
                    help="run each scenario in this profile and contact mode, e.g. engine-defaults:native; "
                         "repeat for several, all in one pool (instead of --profile and --contact-mode)")  # fmt: skip
+    variant.completer = lambda **_: [f"{prof}:{mode}" for prof in PROFILES for mode in CONTACT_MODES]  # type: ignore[attr-defined]
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario key, e.g. --set backends.<name>.dt=5e-5")  # fmt: skip
     p.add_argument("--no-compare", action="store_true", help="do not write the comparison report")

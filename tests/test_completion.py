@@ -32,6 +32,7 @@ def test_subcommands_and_options_complete() -> None:
     """A subcommand, a choice of a subcommand's option (only that subcommand's module imported), a global option."""
     assert _complete("legbench re") == ["reproduce"]
     assert _complete("legbench run --contact-mode b") == ["both"]
+    assert _complete("legbench run --variant engine") == ["engine-defaults:native", "engine-defaults:reference"]
     assert _complete("legbench --mo") == ["--model"]
 
 
