@@ -143,6 +143,9 @@ def _run(args: argparse.Namespace) -> int:
     if args.variant and (args.profile or args.contact_mode):
         raise LegbenchError("--variant: give the profile and contact mode of each run there, not also "
                             "--profile or --contact-mode")  # fmt: skip
+    twice = sorted({v for v in args.variant if args.variant.count(v) > 1})
+    if twice:
+        raise LegbenchError(f"--variant {':'.join(twice[0])}: given twice (each pair runs once)")
     modes: list[str | None] = ["native", "reference"] if args.contact_mode == "both" else [args.contact_mode]
     runs: list[tuple[scenario.Scenario, str | None]] = []  # all validated before any runs
     for path in args.scenarios:

@@ -112,6 +112,7 @@ def test_variants_run_exactly_the_listed_profile_and_contact_pairs(tmp_path: Pat
         (["--variant", "fast:native"], "argument --variant: 'fast:native': expected PROFILE:MODE"),
         (["--variant", "matched"], "argument --variant: 'matched': expected PROFILE:MODE"),
         (["--variant", "matched:native", "--contact-mode", "both"], "--variant: give the profile and contact mode"),
+        (["--variant", "matched:native", "--variant", "matched:native"], "--variant matched:native: given twice"),
     ],
 )
 def test_a_bad_variant_is_a_one_line_error_before_anything_runs(
