@@ -139,6 +139,13 @@ class Backend(ABC):
     profile: str = "matched"
 
     @classmethod
+    def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any]) -> str | None:
+        """Why this backend, run as ``info`` says (its :meth:`info`), misses the verification ``quantity`` of
+        ``case``, where that has been measured and explained; None otherwise. Shown beside the row, which still
+        fails: an explanation, not a pass."""
+        return None
+
+    @classmethod
     def resolve_settings(cls, given: Mapping[str, Any], profile: str = "matched") -> dict[str, Any]:
         """Defaults, overlaid with the profile's settings, overlaid with the scenario's ``given``.
 
