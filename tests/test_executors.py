@@ -181,6 +181,45 @@ def _alive(pid: int) -> bool:
     return True
 
 
+def test_terminate_during_a_half_sent_result_lets_the_interpreter_exit(tmp_path: Path) -> None:
+    """A worker stopped in the middle of sending its result (Ctrl-C at that instant) leaves half a message in
+    the result pipe. After terminate() the command still exits, at once and with status 0: before the fix it
+    hung at exit, the pool's thread waiting for the rest of the message (seen in a sweep interrupted under load).
+    The workers here write that half message themselves, then block, so the state is certain, not a race."""
+    import subprocess
+    import sys
+
+    (tmp_path / "half_sent.py").write_text("""
+import gc, os, struct, threading
+from multiprocessing.queues import SimpleQueue
+
+def half_send(marker: str) -> int:
+    q = next(o for o in gc.get_objects() if isinstance(o, SimpleQueue))  # the pool's result queue
+    os.write(q._writer.fileno(), struct.pack("!i", 1 << 20) + b"half")  # a 1 MiB message, 4 bytes of it
+    open(marker + str(os.getpid()), "w").close()
+    threading.Event().wait()
+    return 0
+""")
+    (tmp_path / "main.py").write_text(f"""
+import os, select, sys, threading
+sys.path.insert(0, {str(tmp_path)!r})
+from half_sent import half_send
+from legbench.studies.executors import LocalExecutor
+
+if __name__ == "__main__":
+    marker = {str(tmp_path / "sent-")!r}
+    ex = LocalExecutor(2, preload=())
+    threading.Thread(target=lambda: list(ex.imap_unordered(half_send, [marker, marker])), daemon=True).start()
+    d = os.path.dirname(marker)
+    while len([f for f in os.listdir(d) if f.startswith("sent-")]) < 2:  # both workers wrote their half message
+        select.select([], [], [], 0.01)
+    ex.terminate()
+    print("terminated", flush=True)
+""")
+    done = subprocess.run([sys.executable, str(tmp_path / "main.py")], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and "terminated" in done.stdout, done.stderr
+
+
 def test_dask_imap_unordered_yields_every_item_once() -> None:
     pytest.importorskip("distributed")
     items = [1.0, 4.0, 9.0]

@@ -133,13 +133,50 @@ def _start_group_and_wait_for(cmd: list[str], pattern: bytes, at_least: int) -> 
     raise AssertionError(f"count never reached {at_least} (exit {proc.poll()}): {seen[-500:]!r}")
 
 
+#: ``python -m legbench.cli`` with every thread's stack dumped to stderr on SIGUSR1 (faulthandler), so that a
+#: command that does not exit after an interrupt can say where it is (:func:`_interrupt_group`).
+LEGBENCH_CLI = [sys.executable, "-c", "import faulthandler, signal, sys; "
+                "faulthandler.register(signal.SIGUSR1, all_threads=True); "
+                "from legbench.cli import main; sys.exit(main())"]  # fmt: skip
+
+
 def _interrupt_group(proc: subprocess.Popen[bytes], master: int, sig: int) -> str:
-    """``sig`` to the whole process group (as Ctrl-C at a terminal does); the command's stderr after it."""
+    """``sig`` to the whole process group (as Ctrl-C at a terminal does); the command's stderr after it.
+
+    The stderr pseudo-terminal is read while waiting, so the command never blocks on a full terminal. A command
+    still running 120 s later fails the test with its threads' stacks (SIGUSR1, :data:`LEGBENCH_CLI`).
+    """
     os.killpg(proc.pid, sig)
-    proc.wait(timeout=120)
-    err = _drain(master).decode(errors="replace")
+    err, deadline, reading = b"", time.monotonic() + 120.0, True
+    while proc.poll() is None and time.monotonic() < deadline:
+        if not reading:  # every writer has closed the terminal: wait for the exit itself
+            try:
+                proc.wait(timeout=max(deadline - time.monotonic(), 0.0))
+            except subprocess.TimeoutExpired:
+                break
+        elif select.select([master], [], [], 0.5)[0]:
+            try:
+                err += os.read(master, 65536)
+            except OSError:
+                reading = False
+    if proc.poll() is None:
+        os.kill(proc.pid, signal.SIGUSR1)  # faulthandler writes every thread's stack to the terminal
+        until = time.monotonic() + 20.0
+        while reading and time.monotonic() < until:
+            if select.select([master], [], [], 0.5)[0]:
+                try:
+                    err += os.read(master, 65536)
+                except OSError:
+                    break
+            elif b"Current thread" in err:  # the dump is complete: nothing more came for 0.5 s
+                break
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        os.close(master)
+        raise AssertionError(f"still running 120 s after the signal; stderr:\n{err.decode(errors='replace')}")
+    err += _drain(master)
     os.close(master)
-    return err
+    return err.decode(errors="replace")
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
@@ -148,7 +185,7 @@ def test_interrupt_with_jobs_keeps_every_finished_backend_and_says_so(tmp_path: 
     included) once the first run is counted done. Every run that finished is written as a complete backend,
     the others are marked not run, stderr names what was kept, no worker prints a traceback, exit 130."""
     tree = tmp_path / "tree"
-    cmd = [sys.executable, "-m", "legbench.cli", "run", str(SCENARIOS / "ellipse.yaml"), "--backends",
+    cmd = [*LEGBENCH_CLI, "run", str(SCENARIOS / "ellipse.yaml"), "--backends",
            "pinocchio,mujoco", "--contact-mode", "both", "--jobs", "2", "--out", str(tree), "--no-compare",
            "--no-preflight", "--set", "duration=10", "--set", "backends.pinocchio.integrator=rk4"]  # fmt: skip
     proc, master = _start_group_and_wait_for(cmd, rb"runs: (\d+)/4", 1)
@@ -191,7 +228,7 @@ studies:
 """)
     # runs start longest first: the 1e-6 s reference (2e6 steps) is still running when the others finish
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "legbench.cli", "sweep", str(sw), "--out", str(out), "--jobs", "2"]
+    cmd = [*LEGBENCH_CLI, "sweep", str(sw), "--out", str(out), "--jobs", "2"]
     proc, master = _start_group_and_wait_for(cmd, rb"sweep s: (\d+)/6", 1)
     err = _interrupt_group(proc, master, signal.SIGINT)
     assert proc.returncode == 130, err
@@ -208,7 +245,7 @@ studies:
     # one job: the run in this process is stopped at once (the longest, started first); nothing finished,
     # nothing is written, and it says so
     out1 = tmp_path / "out1"
-    cmd = [sys.executable, "-m", "legbench.cli", "sweep", str(sw), "--out", str(out1), "--jobs", "1"]
+    cmd = [*LEGBENCH_CLI, "sweep", str(sw), "--out", str(out1), "--jobs", "1"]
     proc, master = _start_group_and_wait_for(cmd, rb"sweep s: (\d+)/6", 0)
     err = _interrupt_group(proc, master, signal.SIGINT)
     assert proc.returncode == 130, err

@@ -276,12 +276,20 @@ class LocalExecutor(Executor):
             self._pool = None
 
     def terminate(self) -> None:
-        """Stop the workers now (SIGTERM, then SIGKILL after ``2 s``); results already returned are kept."""
+        """Stop the workers now (SIGTERM, then SIGKILL after ``2 s``); results already returned are kept.
+
+        A worker stopped while it was sending a result leaves half a message in the result pipe, and the
+        pool's manager thread, reading it, would wait for the rest forever (this process holds the pipe's
+        write end too, so no end-of-file comes), and with it the interpreter's exit, which joins that thread.
+        Once the workers are gone this process closes its write end: the read ends with EOFError, which
+        the pool takes as a broken pool, and its thread ends.
+        """
         self._started()
         pool, self._pool = self._pool, None
         if pool is None:
             return
         procs = list((getattr(pool, "_processes", None) or {}).values())
+        results = getattr(pool, "_result_queue", None)  # shutdown() forgets it
         pool.shutdown(wait=False, cancel_futures=True)
         for p in procs:
             if p.is_alive():
@@ -291,6 +299,9 @@ class LocalExecutor(Executor):
             if p.is_alive():
                 p.kill()
                 p.join()
+        writer = getattr(results, "_writer", None)
+        if writer is not None:
+            writer.close()
 
     def describe(self) -> dict[str, Any]:
         return {"executor": self.name, "jobs": self.jobs}
