@@ -17,7 +17,6 @@ without a network.
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 from collections.abc import Callable, Mapping, Sequence
@@ -31,7 +30,15 @@ from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import ResultsError
 from legbench.report_figures import ASSETS, NAMES, PLOTLY_JS, Arrays, run_figures, write_assets
 from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num, relpath, to_html, to_markdown
-from legbench.results import atomic_write_text, read_meta, read_metrics, run_dirs, tolerances_of, write_metrics
+from legbench.results import (
+    atomic_write_text,
+    read_meta,
+    read_metrics,
+    read_study,
+    run_dirs,
+    tolerances_of,
+    write_metrics,
+)
 from legbench.signals import LABELS, SIGNAL_OF, UNITS
 from legbench.signals import label as column_label
 from legbench.studies.executors import make_executor
@@ -764,43 +771,52 @@ def _cell(v: Any) -> str:
     return str(v)
 
 
+def _status(r: Mapping[str, Any]) -> str:
+    """A check's status: ``pass``, ``fail`` or ``not-applicable`` (files without ``status``: from ``pass``)."""
+    status = r.get("status")
+    if status in ("pass", "fail", "not-applicable"):
+        return str(status)
+    return "pass" if r.get("pass") is True else "fail"
+
+
 def _study_blocks(root: Path) -> list[Block]:
     """The verification and calibration studies found under ``root``: a count, the table on demand
-    (failing checks shown open)."""
+    (failing checks, and checks whose closed form does not apply to an engine, shown open with their notes)."""
     blocks: list[Block] = []
     for rel, heading, key, cols, caption in STUDIES:
         path = root / rel
         if not path.is_file():
             continue
-        try:
-            records = json.loads(path.read_text())[key]
-        except (ValueError, KeyError, TypeError) as exc:
-            raise ResultsError(str(path), f"malformed study output: {exc}") from None
-        rows = tuple(tuple(_cell(r.get(c, "")) for c in cols) for r in records)
-        classes = {
-            (i, len(cols) - 1): ("pass" if r.get("pass") else "fail")
-            for i, r in enumerate(records)
-            if "pass" in cols and isinstance(r.get("pass"), bool)
-        }
-        table = Table(cols, rows, caption, classes=classes)
+        _, records = read_study(path, key)
         link = f"{rel.rsplit('/', 1)[0]}/"
-        if "pass" in cols:
-            failed = [i for i, r in enumerate(records) if r.get("pass") is False]
-            summary = f"{heading}: {len(records) - len(failed)} of {len(records)} checks pass"
-            blocks.append(Heading(2, summary))
-            if failed:
-                blocks.append(
-                    Table(
-                        cols,
-                        tuple(rows[i] for i in failed),
-                        "Failing checks",
-                        classes={(k, len(cols) - 1): "fail" for k in range(len(failed))},
-                    )
-                )
-            blocks.append(Details(f"all {len(records)} checks", (table,), "fail" if failed else ""))
-        else:
+        if "pass" not in cols:
+            rows = tuple(tuple(_cell(r.get(c, "")) for c in cols) for r in records)
             blocks.append(Heading(2, f"{heading}: {len(records)} backends measured"))
-            blocks.append(Details(f"the {len(records)} rows", (table,)))
+            blocks.append(Details(f"the {len(records)} rows", (Table(cols, rows, caption),)))
+            blocks.append(Nav(((f"files in {link}", link),)))
+            continue
+        status = [_status(r) for r in records]
+        shown = {"pass": "yes", "fail": "NO", "not-applicable": "n/a"}
+        rows = tuple(
+            (*(_cell(r.get(c, "")) for c in cols[:-1]), shown[st]) for r, st in zip(records, status, strict=True)
+        )
+        last = len(cols) - 1
+        classes = {(i, last): st for i, st in enumerate(status) if st in ("pass", "fail")}
+        failed = [i for i, st in enumerate(status) if st == "fail"]
+        na = [i for i, st in enumerate(status) if st == "not-applicable"]
+        summary = f"{heading}: {len(records) - len(failed) - len(na)} of {len(records)} checks pass"
+        summary += f", {len(failed)} fail" if failed else ""
+        summary += f", {len(na)} not applicable" if na else ""
+        blocks.append(Heading(2, summary))
+        for which, title, cls in ((failed, "Failing checks", "fail"), (na, "Not applicable: no closed form for this "
+                                  "engine's integrator or friction model (the note says which)", "")):  # fmt: skip
+            if which:
+                noted = tuple(rows[i] + (str(records[i].get("note", "")),) for i in which)
+                marks = {(k, last): cls for k in range(len(which))} if cls else {}
+                marks.update({(k, last + 1): "text" for k in range(len(which))})
+                blocks.append(Table((*cols, "note"), noted, title, classes=marks))
+        table = Table(cols, rows, caption, classes=classes)
+        blocks.append(Details(f"all {len(records)} checks", (table,), "fail" if failed else ""))
         blocks.append(Nav(((f"files in {link}", link),)))
     return blocks
 
@@ -810,10 +826,10 @@ def _bench_blocks(root: Path) -> list[Block]:
     path = next((p for p in (root / "bench" / "bench.json", root.parent / "bench" / "bench.json") if p.is_file()), None)
     if path is None:
         return []
+    doc, results = read_study(path, "results")
     try:
-        doc = json.loads(path.read_text())
         rows = []
-        for r in doc["results"]:
+        for r in results:
             if r.get("status") != "ok":
                 rows.append((r["task"], r["backend"], r.get("status", "?"), "", "", "", "", "", ""))
                 continue

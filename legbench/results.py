@@ -68,6 +68,7 @@ __all__ = [
     "read_log",
     "read_meta",
     "read_metrics",
+    "read_study",
     "result_from_frame",
     "resumable",
     "run_dirs",
@@ -791,6 +792,26 @@ def load_run(run_dir: str | Path) -> Run:
         traces=traces,
         partial=partial,
     )
+
+
+def read_study(path: str | Path, key: str) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """A study's JSON document (verification.json, calibration.json, bench.json): (header, rows).
+
+    Args:
+        path: the study's JSON file.
+        key: the key of its rows (``checks``, ``rows``, ``results``).
+
+    Raises:
+        ResultsError: missing or unreadable file, or ``key`` is not a list of objects.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ResultsError(str(path), "no such study output")
+    doc = _read_json(path)
+    rows = doc.pop(key, None)
+    if not isinstance(rows, list) or any(not isinstance(r, dict) for r in rows):
+        raise ResultsError(str(path), f"'{key}' must be a list of objects")
+    return doc, rows
 
 
 def read_metrics(path: str | Path) -> tuple[dict[str, Any], pd.DataFrame]:

@@ -361,6 +361,42 @@ def test_index_collapses_verification_and_calibration_to_counts_with_the_tables_
     )
 
 
+def test_index_counts_not_applicable_checks_apart_from_failures_and_shows_their_notes(tmp_path: Path) -> None:
+    """A check with status not-applicable (no closed form for that engine) is neither a pass nor a failure:
+    the count says so, it is absent from "Failing checks", its cell reads n/a, and both the failing and the
+    not-applicable rows carry their note (why) in the open tables."""
+    root = tmp_path / "results"
+    write_run(root / "fake", {"ref": None, "a": scale(1.02)})
+    (root / "verification").mkdir()
+    checks = [
+        {**_check("energy", True), "status": "pass", "note": ""},
+        {**_check("sliding", False), "status": "fail", "note": "known: the solver lifts the foot"},
+        {**_check("pyramid", False), "status": "not-applicable", "note": "native friction is a pyramid"},
+    ]
+    (root / "verification" / "verification.json").write_text(json.dumps({"checks": checks}))
+    R.write_all(root)
+    md = (root / "report.md").read_text()
+    assert "## Verification against closed-form answers: 1 of 3 checks pass, 1 fail, 1 not applicable" in md
+    failing, na = md.index("*Failing checks*"), md.index("*Not applicable:")
+    assert "| sliding | a | euler |" in md[failing:na] and "known: the solver lifts the foot" in md[failing:na]
+    assert "pyramid" not in md[failing:na]
+    assert "| pyramid | a | euler | dE | J | 1e-4 | 1e-4 | 1e-9 | 1e-6 | n/a | native friction is a pyramid |" in md
+    page = (root / "report.html").read_text()
+    assert page.count('<td class="text short fail">NO</td>') == 2  # the failing table and the full one
+    assert page.count('<td class="text short fail">n/a</td>') == 0 and page.count(">n/a</td>") == 2
+
+
+def test_index_names_a_malformed_study_file(tmp_path: Path) -> None:
+    """A verification.json whose rows are not a list of objects is one ResultsError naming the file and key."""
+    root = tmp_path / "results"
+    write_run(root / "fake", {"ref": None, "a": scale(1.02)})
+    (root / "verification").mkdir()
+    (root / "verification" / "verification.json").write_text(json.dumps({"checks": {"energy": 1}}))
+    with pytest.raises(ResultsError, match=r"verification\.json: 'checks' must be a list of objects"):
+        R.write_index(root)
+    assert not (root / "report.html").exists()
+
+
 def test_index_shows_the_benchmark_beside_the_results_root(tmp_path: Path) -> None:
     """results/bench/bench.json (written by legbench bench) becomes the index's Performance table."""
     root = tmp_path / "results" / "latest"
