@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
-from legbench import backends
+from legbench import backends, kinematics
+from legbench import scenario as scenario_mod
+from legbench.results import RunResult
 from legbench.studies import calibrate_contact
 
 
@@ -38,14 +42,36 @@ def test_normal_stiffness_and_damping_match_the_spec(table: pd.DataFrame) -> Non
 def test_creep_under_a_tangential_load_below_the_limit(table: pd.DataFrame) -> None:
     """The stick-slip law creeps at v_th Ft / (mu_s Fn) (0.1 %: steady creep, 1 kHz log); the Coulomb
     cones hold the foot: Bullet's, and MuJoCo's in the matched profile (noslip with deadbeat friction
-    rows; its regularised cone of the engine defaults crept at about Ft / Kd), both < 1e-5 m/s, 1/10
-    of the law's creep at v_th = 1e-3 m/s."""
+    rows; its regularised cone of the engine defaults crept at about Ft / Kd), both below 1/10 of the
+    law's creep at v_th = 1e-3 m/s (4.7e-4 m/s; measured MuJoCo 3e-16, Bullet 1.3e-5 m/s)."""
     rows = table.set_index("backend")
     p = rows.loc["pinocchio"]
     assert p.creep == pytest.approx(p.creep_law, rel=1e-3)
+    assert p.c_tangential == pytest.approx(p.Ft / p.creep, rel=1e-12)
     for engine in ("mujoco", "pybullet"):
         if engine in rows.index:
             assert rows.loc[engine].creep < 0.1 * p.creep_law, engine
+
+
+def test_a_foot_that_sticks_to_round_off_has_infinite_tangential_damping() -> None:
+    """Creep below STICK_SPEED (1e-9 m/s) is a stuck foot: Ft/creep is inf, not Ft over round-off
+    (MuJoCo's matched foot read 3.4e-16 m/s, which gave 3.9e16 N s/m); just above it the ratio is kept."""
+    program = calibrate_contact.Program()
+    sc = scenario_mod.load(calibrate_contact.SCENARIO)
+    n = int(round(program.duration / sc.control_dt)) + 1
+    t = np.arange(n) * sc.control_dt
+    q = np.tile(np.asarray(sc.q0, float), (n, 1))
+    f = np.tile([5.0, 0.0, 40.0], (n, 1))
+    J = kinematics.jacobian_poc(q[:1], true_poc=sc.contact.poc == "true")[0]
+    rows = {}
+    for speed in (3.4e-16, 2 * calibrate_contact.STICK_SPEED):
+        qd = np.tile(np.linalg.lstsq(J[:2], [speed, 0.0], rcond=None)[0], (n, 1))  # the poc moves along x at speed
+        log = RunResult("fake", t, q, qd, np.zeros((n, 3)), f, np.full(n, "effort", dtype=object))
+        rows[speed] = calibrate_contact.estimate(log, program, sc.contact)
+    stuck, moving = rows[3.4e-16], rows[2 * calibrate_contact.STICK_SPEED]
+    assert stuck.creep < calibrate_contact.STICK_SPEED and math.isinf(stuck.c_tangential)
+    assert moving.creep == pytest.approx(2e-9, rel=1e-6)
+    assert moving.c_tangential == pytest.approx(5.0 / 2e-9, rel=1e-6)
 
 
 def test_files_written(table: pd.DataFrame, tmp_path: Path) -> None:

@@ -45,9 +45,13 @@ from legbench.results import RunResult, atomic_write_text, platform_info, versio
 from legbench.run import backend_info
 from legbench.scenario import Event, physics_of
 
-__all__ = ["Calibration", "Program", "add_cli", "calibrate", "estimate", "push", "write_calibration"]
+__all__ = ["STICK_SPEED", "Calibration", "Program", "add_cli", "calibrate", "estimate", "push", "write_calibration"]
 
 SCENARIO = resources.scenario("effort")
+#: Below this creep [m/s] the foot is taken to stick (``c_tangential`` = inf): 1 um in 1000 s, six orders
+#: below the spec's law's creep here (4.7e-4 m/s) and well above round-off in J_poc qd (a Coulomb engine
+#: that holds the foot reads 1e-16-1e-12 m/s); a ratio against round-off would print 1e16 N s/m.
+STICK_SPEED = 1e-9
 
 
 @dataclass(frozen=True)
@@ -141,7 +145,7 @@ class Calibration:
         Ft: tangential force at the end of the hold [N].
         creep: horizontal speed of the point of contact at the end of the hold [m/s].
         creep_law: the spec's law's creep for the same Fn and Ft, v_th Ft / (mu_s Fn) [m/s].
-        c_tangential: Ft / creep [N s/m] (inf when the foot sticks).
+        c_tangential: Ft / creep [N s/m] (inf when the foot sticks: creep below :data:`STICK_SPEED`).
         compliant: the backend's native contact declares a stiffness (``info()["contact"]["Kp"]`` is
             not None); a rigid one (e.g. an LCP engine) has no Kp or Kd to match, and its k_eff only
             says how rigid it is.
@@ -206,7 +210,7 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     return Calibration(
         backend=log.backend, Kp=contact.Kp, Kd=contact.Kd, mu_s=contact.mu_s, v_th=contact.v_th, k_eff=k_eff,
         c_eff=c_eff, Fn=Fn, Ft=Ft, creep=creep, creep_law=contact.v_th * Ft / (contact.mu_s * Fn),
-        c_tangential=Ft / creep if creep > 0 else math.inf, compliant=compliant, note="; ".join(notes),
+        c_tangential=Ft / creep if creep > STICK_SPEED else math.inf, compliant=compliant, note="; ".join(notes),
     )  # fmt: skip
 
 
@@ -235,7 +239,7 @@ def calibrate(
 _HEADERS = {
     "backend": "backend", "Kp": "Kp spec [N/m]", "k_eff": "k eff [N/m]", "Kd": "Kd spec [N s/m]",
     "c_eff": "c eff [N s/m]", "mu_s": "mu_s", "Fn": "Fn [N]", "Ft": "Ft [N]", "creep": "creep [m/s]",
-    "creep_law": "law creep [m/s]", "c_tangential": "Ft/creep [N s/m]",
+    "creep_law": "law creep [m/s]", "c_tangential": "Ft/creep [N s/m] (inf: sticks)",
 }  # fmt: skip
 
 
