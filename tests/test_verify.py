@@ -102,8 +102,11 @@ def test_files_written(results: tuple[pd.DataFrame, Path]) -> None:
     assert meta["total"] == len(df) and meta["passed"] == int(df["pass"].sum())
     md = (out / "verification.md").read_text()
     n_pass, n_na = int(df["pass"].sum()), int((df["status"] == "not-applicable").sum())
+    n_fail = int((df["status"] == "fail").sum())
+    assert n_pass + n_fail + n_na == len(df)
     assert md.startswith(f"# Verification: {n_pass} of {len(df)} checks pass")
-    assert (f"({n_na} not applicable)" in md.splitlines()[0]) == (n_na > 0)
+    assert (f", {n_na} not applicable" in md.splitlines()[0]) == (n_na > 0)
+    assert (f", {n_fail} fail" in md.splitlines()[0]) == (n_fail > 0)
     assert "| case | backend |" in md
 
 
@@ -155,7 +158,7 @@ def test_a_family_without_prediction_gets_not_applicable_rows(monkeypatch: pytes
     assert df["note"].str.contains("integrator family 'other': no closed-form prediction").all()
     assert "unknown integrator family" not in " ".join(df["note"])
     md = (tmp_path / "verification.md").read_text()
-    assert md.startswith("# Verification: 0 of 2 checks pass (2 not applicable)") and "| n/a |" in md
+    assert md.startswith("# Verification: 0 of 2 checks pass, 2 not applicable\n") and "| n/a |" in md
 
 
 def test_verify_runs_the_sliding_case_with_three_closed_form_rows_per_backend() -> None:

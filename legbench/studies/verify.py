@@ -93,6 +93,7 @@ __all__ = [
     "check_small_oscillation",
     "discrete_loop",
     "matrix_pencil",
+    "summary",
     "verify",
     "write_verification",
 ]
@@ -618,6 +619,13 @@ def markdown(df: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
+def summary(df: pd.DataFrame) -> str:
+    """``"110 of 117 checks pass, 1 fail, 6 not applicable"`` (the parts that are not zero)."""
+    failed, na = int((df["status"] == "fail").sum()), int((df["status"] == "not-applicable").sum())
+    text = f"{int(df['pass'].sum())} of {len(df)} checks pass"
+    return text + (f", {failed} fail" if failed else "") + (f", {na} not applicable" if na else "")
+
+
 def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
     """Write ``verification.json`` (records, versions, platform) and ``verification.md`` into ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -626,8 +634,7 @@ def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
     meta = {"schema": "legbench.verification/1", "passed": passed, "total": len(df), "not_applicable": na,
             "checks": df.to_dict(orient="records"), "versions": versions(), "platform": platform_info()}  # fmt: skip
     write_json(meta, out_dir / "verification.json")
-    also = f" ({na} not applicable)" if na else ""
-    md = [f"# Verification: {passed} of {len(df)} checks pass{also}\n", "Cases and tolerances: `legbench/verify.py`.\n",
+    md = [f"# Verification: {summary(df)}\n", "Cases and tolerances: `legbench/verify.py`.\n",
           markdown(df), "\n## Notes\n"]  # fmt: skip
     md += [f"- {r['case']} / {r['backend']} / {r['variant']} / {r['quantity']}: {r['note']}"
            for r in df.to_dict(orient="records") if r["note"]]  # fmt: skip
@@ -641,7 +648,7 @@ def _cli(args: argparse.Namespace) -> int:
     df = verify(args.out, names, cases)
     with pd.option_context("display.width", 200, "display.max_columns", 20, "display.max_colwidth", 40):
         print(df.drop(columns=["note"]).to_string(index=False))
-    print(f"{int(df['pass'].sum())} of {len(df)} checks pass; wrote {args.out}")
+    print(f"{summary(df)}; wrote {args.out}")
     return 0 if not bool((df["status"] == "fail").any()) else 1
 
 
