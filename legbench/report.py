@@ -376,7 +376,7 @@ def _scenario_table(result: ComparisonResult) -> Table:
         ("steady window [s]", num(run.steady_window)),
         ("events", ", ".join(f"{e.controller} @ {num(e.t)} s" for e in run.events)),
         ("legbench version", str(run.meta.get("legbench_version", ""))),
-        *((f"platform {k}", v) for k, v in _flat(run.meta.get("platform") or {}).items()),
+        *((f"platform {k}", v) for k, v in _flat(run.meta.get("platform") or {}).items() if v not in ("", None)),
     ]
     return Table(("item", "value"), tuple(rows), "Scenario")
 
