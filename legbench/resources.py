@@ -37,6 +37,7 @@ __all__ = [
     "scenario",
     "scenarios_dir",
     "select_model",
+    "shown",
     "source_tree",
     "urdf_file",
     "urdf_target",
@@ -52,6 +53,21 @@ CACHE_ENV = "LEGBENCH_CACHE_DIR"
 def data_dir() -> Path:
     """The package's data directory (``legbench/data``) on disk [cached: the package does not move]."""
     return Path(str(resources.files("legbench") / "data"))
+
+
+def shown(path: str | Path) -> str:
+    """How outputs name a file: relative to the working directory when it lies inside it, a bundled file
+    as ``legbench/data/...``, anything else as given; so no output carries this machine's checkout path.
+    """
+    p = Path(path)
+    try:
+        cwd, real, plain = Path.cwd().resolve(), p.resolve(), p.absolute()
+    except OSError:
+        return str(path)
+    for file, base, prefix in ((real, cwd, ""), (plain, data_dir(), "legbench/data/")):
+        if file.is_relative_to(base):
+            return prefix + str(file.relative_to(base))
+    return str(path)
 
 
 def models_dir() -> Path:

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from legbench import backends, kinematics
+from legbench import backends, kinematics, resources
 from legbench.backends.base import PROFILES, Physics
 from legbench.contact import CONTACT_MODES, ContactParams
 from legbench.exceptions import BackendNotFound, ScenarioError
@@ -180,7 +180,7 @@ class Scenario:
         """JSON-ready summary for run.json."""
         return {
             "name": self.name,
-            "file": self.file,
+            "file": resources.shown(self.file) if self.file != "<memory>" else self.file,
             "sha256": self.sha256,
             "description": self.description,
             "duration": self.duration,

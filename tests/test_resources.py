@@ -71,3 +71,24 @@ def test_bad_model_file_is_one_line_exit_2(tmp_path: Path, capsys: pytest.Captur
     assert cli.main(["--model", str(tmp_path / "none.yaml"), "model", "check"]) == 2
     assert "no such parameter file" in capsys.readouterr().err
     assert resources.MODEL_ENV not in __import__("os").environ
+
+
+def test_outputs_name_files_without_this_machines_paths(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """resources.shown: a file under the working directory by its relative path, a bundled file as
+    legbench/data/... from anywhere else (the bundled effort task: scenarios/effort.yaml from the checkout),
+    anything else as given; run.json's scenario file goes through it."""
+    from legbench import scenario
+
+    effort = resources.scenario("effort")
+    monkeypatch.chdir(tmp_path)
+    assert resources.shown(effort) == "legbench/data/scenarios/effort.yaml"
+    (tmp_path / "mine").mkdir()
+    mine = tmp_path / "mine" / "task.yaml"
+    mine.write_text(effort.read_text())
+    assert resources.shown(mine) == "mine/task.yaml"
+    assert resources.shown("/elsewhere/x.yaml") == "/elsewhere/x.yaml"
+    assert scenario.load(mine).to_dict()["file"] == "mine/task.yaml"
+    assert scenario.load(effort).to_dict()["file"] == "legbench/data/scenarios/effort.yaml"
+    monkeypatch.chdir(resources.source_tree() or tmp_path)
+    if resources.source_tree() is not None:  # a checkout: the bundled scenarios are links to scenarios/
+        assert resources.shown(effort) == "scenarios/effort.yaml"

@@ -148,7 +148,7 @@ def load_plan(path: str | Path = FRAMEWORKS_FILE) -> Plan:
             if r not in ROLES:
                 raise ctx.error(["tasks", i, "tables", j], f"expected one of {', '.join(ROLES)}, got {r!r}")
         tasks.append(Task(file, tuple(roles)))
-    return Plan(str(path), tuple(frameworks), str(others), tuple(tasks))
+    return Plan(resources.shown(path), tuple(frameworks), str(others), tuple(tasks))
 
 
 def scenarios_of(

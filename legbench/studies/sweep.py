@@ -61,7 +61,7 @@ import numpy as np
 import pandas as pd
 
 from legbench import backends as registry
-from legbench import progress
+from legbench import progress, resources
 from legbench import scenario as scenario_mod
 from legbench.contact import CONTACT_MODES
 from legbench.exceptions import LegbenchError, ScenarioError
@@ -907,7 +907,7 @@ def write_sweep(
         "complete": result.complete,
         "description": sw.description,
         "file": sw.file,
-        "scenario": str(sw.scenario),
+        "scenario": resources.shown(sw.scenario),
         "sweep": dict(sw.raw),
         "metric": sw.metric,
         "runs": int((result.table["role"] == "run").sum()),
