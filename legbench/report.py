@@ -801,7 +801,8 @@ def _study_blocks(root: Path) -> list[Block]:
             (*(_cell(r.get(c, "")) for c in cols[:-1]), shown[st]) for r, st in zip(records, status, strict=True)
         )
         last = len(cols) - 1
-        classes = {(i, last): st for i, st in enumerate(status) if st in ("pass", "fail")}
+        css = {"pass": "pass", "fail": "fail", "not-applicable": "na"}
+        classes = {(i, last): css[st] for i, st in enumerate(status)}
         failed = [i for i, st in enumerate(status) if st == "fail"]
         na = [i for i, st in enumerate(status) if st == "not-applicable"]
         summary = f"{heading}: {len(records) - len(failed) - len(na)} of {len(records)} checks pass"
@@ -809,10 +810,10 @@ def _study_blocks(root: Path) -> list[Block]:
         summary += f", {len(na)} not applicable" if na else ""
         blocks.append(Heading(2, summary))
         for which, title, cls in ((failed, "Failing checks", "fail"), (na, "Not applicable: no closed form for this "
-                                  "engine's integrator or friction model (the note says which)", "")):  # fmt: skip
+                                  "engine's integrator or friction model (the note says which)", "na")):  # fmt: skip
             if which:
                 noted = tuple(rows[i] + (str(records[i].get("note", "")),) for i in which)
-                marks = {(k, last): cls for k in range(len(which))} if cls else {}
+                marks = {(k, last): cls for k in range(len(which))}
                 marks.update({(k, last + 1): "text" for k in range(len(which))})
                 blocks.append(Table((*cols, "note"), noted, title, classes=marks))
         table = Table(cols, rows, caption, classes=classes)

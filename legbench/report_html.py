@@ -151,6 +151,7 @@ details.fail > summary { color: #a00; }
 td.agree { background: #d9f2d9; } td.close { background: #eef7d6; } td.differ { background: #fde9c8; }
 td.far { background: #f9cccc; } td.within { background: #d9f2d9; } td.over { background: #f4a7a7; font-weight: 600; }
 td.pass { background: #d9f2d9; } td.fail { background: #f4a7a7; font-weight: 600; }
+td.na { background: #eeeeee; color: #555; }
 .legend span { display: inline-block; padding: 1px 6px; margin-right: 6px; border: 1px solid #ccc; font-size: 0.85em; }
 .sentence { margin: 0.2em 0 0.6em; }
 """

@@ -383,7 +383,7 @@ def test_index_counts_not_applicable_checks_apart_from_failures_and_shows_their_
     assert "| pyramid | a | euler | dE | J | 1e-4 | 1e-4 | 1e-9 | 1e-6 | n/a | native friction is a pyramid |" in md
     page = (root / "report.html").read_text()
     assert page.count('<td class="text short fail">NO</td>') == 2  # the failing table and the full one
-    assert page.count('<td class="text short fail">n/a</td>') == 0 and page.count(">n/a</td>") == 2
+    assert page.count('<td class="text short na">n/a</td>') == 2 and page.count(">n/a</td>") == 2
 
 
 def test_index_names_a_malformed_study_file(tmp_path: Path) -> None:
