@@ -9,7 +9,7 @@ commands in :mod:`legbench.commands`, each study in its own module of
 
 Start-up is kept light: the signal handlers are installed before anything
 slow is imported, and only the module of the subcommand asked for is imported
-(``legbench --help`` imports them all to list them).
+(``legbench --help`` lists them from :data:`SUMMARY`, importing none).
 
 Global options: ``--version``; ``--model PATH``, another leg parameter file for this command
 (also ``LEGBENCH_MODEL``, see :mod:`legbench.resources`). Shell completion comes from argcomplete:
@@ -46,6 +46,23 @@ COMMANDS: dict[str, str] = {
     "bench": "legbench.studies.bench:add_cli",
     "reproduce": "legbench.studies.reproduce:add_cli",
     "completion": "legbench.cli:add_completion",
+}
+#: subcommand -> its one-line help, for ``legbench --help`` without importing every subcommand's module
+#: (the same text as each registrar's ``help=``; tests/test_cli.py keeps them equal).
+SUMMARY: dict[str, str] = {
+    "model": "the leg model: kinematics, gravity, URDF generation",
+    "run": "run scenarios on one or more backends, then compare them",
+    "validate": "check scenario, sweep and tolerance files without running them",
+    "schema": "print the JSON Schema of the scenario format (for editors)",
+    "compare": "compare the backends of a run directory (or a tree of them) and report",
+    "check": "regression check of new results against a committed baseline",
+    "doctor": "parity pre-flight: what each engine holds, read back, side by side",
+    "sweep": "run a parameter sweep (grid over scenario and backend settings)",
+    "verify": "verification cases with closed-form answers, on every backend",
+    "calibrate-contact": "effective contact stiffness, damping and creep per backend",
+    "bench": "time the full run against the engine alone (CPU time), per backend and task",
+    "reproduce": "the lab report's comparison in one command: its tables from the framework analogues",
+    "completion": 'print shell code for tab completion: eval "$(legbench completion bash)"',
 }
 #: Global options that take a value (skipped when looking for the subcommand's name).
 _VALUED = ("--model",)
@@ -99,10 +116,12 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     first = _first_command(argv or ())
     if first in COMMANDS:
         wanted = [first]
-    elif "--version" in (argv or ()):  # argparse prints the version and exits before any subcommand
-        wanted = []
-    else:
+    elif argv is None:  # the whole tree (introspection, tests)
         wanted = list(COMMANDS)
+    else:  # no subcommand named (`legbench --help`, a typo): list them from SUMMARY, import none
+        for name in COMMANDS:
+            sub.add_parser(name, help=SUMMARY[name], add_help=False)
+        wanted = []
     for name in wanted:
         module, func = COMMANDS[name].split(":")
         getattr(importlib.import_module(module), func)(sub)
