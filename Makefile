@@ -45,8 +45,8 @@ lint: $(STAMP)
 ## (native contact), verification and contact
 ## calibration -> results/latest/report.html
 compare: runs
-	$(LEGBENCH) verify --out results/latest/verification || echo 'verify: some checks fail; the report lists them'
-	$(LEGBENCH) calibrate-contact --out results/latest/calibration
+	$(LEGBENCH) verify --out results/latest/verification --jobs $(JOBS) || echo 'verify: some checks fail; the report lists them'
+	$(LEGBENCH) calibrate-contact --out results/latest/calibration --jobs $(JOBS)
 	$(LEGBENCH) compare results/latest --jobs $(JOBS)
 
 ## the four tasks x all backends x both contact modes (matched) and engine-defaults (native) -> results/latest
@@ -84,8 +84,8 @@ sweep: $(STAMP)
 
 ## verification cases and contact calibration on their own
 verify: $(STAMP)
-	$(LEGBENCH) verify --out results/latest/verification
-	$(LEGBENCH) calibrate-contact --out results/latest/calibration
+	$(LEGBENCH) verify --out results/latest/verification --jobs $(JOBS)
+	$(LEGBENCH) calibrate-contact --out results/latest/calibration --jobs $(JOBS)
 
 urdf: $(STAMP)
 	$(LEGBENCH) model urdf

@@ -28,7 +28,7 @@ from legbench.backends.base import Backend, Physics
 from legbench.controllers import Controller, make_controller
 from legbench.exceptions import BackendNotFound, LegbenchError, SimulationDiverged
 from legbench.model import load_params
-from legbench.results import RunResult, check_out_dir, read_meta, resumable, write_run
+from legbench.results import RunResult, check_out_dir, read_meta, resumable, run_dirs, write_run
 from legbench.scenario import Scenario, physics_of
 from legbench.studies.executors import LocalExecutor
 
@@ -235,6 +235,20 @@ def cost_hints(
             except (LegbenchError, KeyError, TypeError, ValueError, AttributeError):
                 continue
     return hints
+
+
+def backend_rates(root: Path = BASELINE_ROOT) -> dict[str, float]:
+    """Each backend's median measured wall time per simulated second [s/s] over the run directories under
+    ``root`` (the committed baseline): a cost hint for studies that order their own runs longest first.
+    Empty where nothing is readable; results never depend on it."""
+    try:
+        dirs: list[Path | None] = list(run_dirs(root).values())
+    except LegbenchError:
+        return {}
+    by_backend: dict[str, list[float]] = {}
+    for (_, name), v in cost_hints(dirs, ()).items():
+        by_backend.setdefault(name, []).append(v)
+    return {k: float(np.median(v)) for k, v in by_backend.items()}
 
 
 def _estimates(

@@ -79,3 +79,10 @@ def test_files_written(table: pd.DataFrame, tmp_path: Path) -> None:
     md = (tmp_path / "calibration.md").read_text()
     assert "k eff [N/m]" in md and all(n in md for n in table["backend"])
     assert (tmp_path / "calibration.json").stat().st_size > 0
+
+
+def test_rows_do_not_depend_on_the_number_of_workers(table: pd.DataFrame) -> None:
+    """calibrate(jobs=2) (one backend per pool task, the slowest first) gives the rows of jobs=1, in order."""
+    names = [n for n in ("pinocchio", "mujoco") if n in set(table["backend"])]
+    two = calibrate_contact.calibrate(None, names, jobs=2)
+    pd.testing.assert_frame_equal(table.set_index("backend").loc[names].reset_index(), two)

@@ -212,6 +212,17 @@ def test_runs_are_ordered_longest_first_by_earlier_measured_wall_times(tmp_path:
     assert run.cost_hints([tmp_path / "missing"], roots=[]) == {}  # nothing there: no hint, no error
 
 
+def test_backend_rates_are_each_backends_median_cost_over_a_results_tree(tmp_path: Path) -> None:
+    """run.backend_rates: the median wall time per simulated second of each backend over every run directory
+    under a root (the baseline), for studies that start their slowest runs first; nothing readable: empty."""
+    base = tmp_path / "baseline"
+    _run_json(base / "a", "a", 2.0, {"slow": 8.0, "fast": 0.5})  # 4 and 0.25 s/s
+    _run_json(base / "b", "b", 1.0, {"slow": 2.0, "fast": 0.25})  # 2 and 0.25 s/s
+    _run_json(base / "c", "c", 4.0, {"slow": 12.0})  # 3 s/s
+    assert run.backend_rates(base) == {"slow": pytest.approx(3.0), "fast": pytest.approx(0.25)}
+    assert run.backend_rates(tmp_path / "missing") == {}
+
+
 def test_signals_are_held_while_results_are_written() -> None:
     """A SIGINT inside deferred_interrupts() lets the block finish, then raises KeyboardInterrupt once."""
     import os

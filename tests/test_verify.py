@@ -169,3 +169,13 @@ def test_verify_runs_the_sliding_case_with_three_closed_form_rows_per_backend() 
     df = V.verify(backends=["pinocchio", "mujoco"], cases=["sliding"])
     assert sorted(df["backend"].value_counts().to_dict().items()) == [("mujoco", 3), ("pinocchio", 3)]
     assert (df["status"] == "pass").all(), df[["backend", "quantity", "measured", "expected", "note"]]
+
+
+def test_the_table_does_not_depend_on_the_number_of_workers(tmp_path: Path) -> None:
+    """verify(jobs=2) (a pool, one case group and backend per task, the slowest started first) gives the
+    same rows as jobs=1, in the same order, to the last bit."""
+    names, cases = ["pinocchio", "mujoco"], ["energy", "small_oscillation", "rest_penetration"]
+    one = verify.verify(None, names, cases, jobs=1)
+    two = verify.verify(None, names, cases, jobs=2)
+    assert len(one) > 10 and set(one["case"]) == set(cases)
+    pd.testing.assert_frame_equal(one, two)

@@ -42,8 +42,9 @@ from legbench import scenario as scenario_mod
 from legbench.controllers import EffortController, saturate
 from legbench.exceptions import LegbenchError
 from legbench.results import RunResult, atomic_write_text, platform_info, versions, write_json
-from legbench.run import backend_info
+from legbench.run import backend_info, backend_rates
 from legbench.scenario import Event, physics_of
+from legbench.studies.executors import DEFAULT_PRELOAD, make_executor
 
 __all__ = ["STICK_SPEED", "Calibration", "Program", "add_cli", "calibrate", "estimate", "push", "write_calibration"]
 
@@ -214,22 +215,33 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     )  # fmt: skip
 
 
+def _calibrate_one(task: tuple[str, Program, Path, str | None]) -> dict[str, Any]:
+    """One backend's row, ``(name, program, scenario_file, contact_mode)``: a task for the pool."""
+    name, program, scenario_file, contact_mode = task
+    log, saturated = push(name, program, scenario_file, contact_mode)
+    return dataclasses.asdict(estimate(log, program, scenario_mod.load(scenario_file).contact, saturated))
+
+
 def calibrate(
     out_dir: str | Path | None = None,
     backends: Sequence[str] | None = None,
     program: Program = Program(),
     scenario_file: Path = SCENARIO,
     contact_mode: str | None = None,
+    jobs: int = 1,
 ) -> pd.DataFrame:
-    """Calibrate every backend (default: all available); one row per backend, optionally written to ``out_dir``."""
+    """Calibrate every backend (default: all available); one row per backend, optionally written to ``out_dir``.
+
+    ``jobs``: worker processes (1: in this process); the rows are the same whatever the number.
+    """
     if not 0 < program.ratio < 1:
         raise LegbenchError(f"tangential ratio {program.ratio} must lie in (0, 1): below the friction limit")
-    contact = scenario_mod.load(scenario_file).contact
     names = list(backends) if backends is not None else registry.available()
-    rows = []
-    for n in names:
-        log, saturated = push(n, program, scenario_file, contact_mode)
-        rows.append(dataclasses.asdict(estimate(log, program, contact, saturated)))
+    tasks = [(n, program, Path(scenario_file), contact_mode) for n in names]
+    rates = backend_rates() if jobs > 1 else {}
+    first = sorted(range(len(tasks)), key=lambda i: -rates.get(names[i], 1.0))  # the slowest backend first
+    with make_executor("local", jobs, preload=(*DEFAULT_PRELOAD, __name__)) as ex:
+        rows = list(ex.imap(_calibrate_one, tasks, first))
     df = pd.DataFrame(rows)
     if out_dir is not None:
         write_calibration(df, Path(out_dir), program)
@@ -266,7 +278,7 @@ def write_calibration(df: pd.DataFrame, out_dir: Path, program: Program = Progra
 
 
 def _cli(args: argparse.Namespace) -> int:
-    df = calibrate(args.out, registry.resolve(args.backends), contact_mode=args.contact_mode)
+    df = calibrate(args.out, registry.resolve(args.backends), contact_mode=args.contact_mode, jobs=args.jobs)
     print(markdown(df))
     for r in df.to_dict(orient="records"):
         if r["note"]:
@@ -276,10 +288,12 @@ def _cli(args: argparse.Namespace) -> int:
 
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Register ``legbench calibrate-contact [--out DIR] [--backends all] [--contact-mode native|reference]``."""
+    """Register ``legbench calibrate-contact [--out DIR] [--backends all] [--contact-mode native|reference]
+    [--jobs N]``."""
     p = subparsers.add_parser("calibrate-contact", help="effective contact stiffness, damping and creep per backend")
     p.add_argument("--out", default="results/calibration", help="output directory (default results/calibration)")
     p.add_argument("--backends", default="all", help="comma-separated backend names, or 'all' (default)")
     p.add_argument("--contact-mode", choices=("native", "reference"), default=None,
                    help="override the scenario's contact mode (default: native)")  # fmt: skip
+    p.add_argument("--jobs", type=int, default=1, help="worker processes, one backend each (default 1)")
     p.set_defaults(func=_cli)

@@ -62,7 +62,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -78,8 +78,9 @@ from legbench import scenario as scenario_mod
 from legbench.backends.base import Physics
 from legbench.exceptions import LegbenchError
 from legbench.results import atomic_write_text, platform_info, versions, write_json
-from legbench.run import simulate
+from legbench.run import backend_rates, simulate
 from legbench.scenario import physics_of
+from legbench.studies.executors import DEFAULT_PRELOAD, make_executor
 from legbench.studies.sliding_case import sliding_case
 
 __all__ = [
@@ -559,10 +560,27 @@ def _ratio_check(r: Mapping[str, Any], name: str) -> Check:
                  note=str(r["note"]))  # fmt: skip
 
 
+#: Each group of cases, the cases it checks and its function (rest_penetration and static_balance share
+#: one run); a pool task names its group, so it is plain data.
+_GROUPS: dict[str, tuple[tuple[str, ...], Callable[[Sequence[str]], list[Check]]]] = {
+    "energy": (("energy",), check_energy),
+    "rest": (("rest_penetration", "static_balance"), check_rest),
+    "small_oscillation": (("small_oscillation",), check_small_oscillation),
+    "sliding": (("sliding",), check_sliding),
+}
+
+
+def _group_checks(task: tuple[str, str]) -> list[Check]:
+    """One group of cases on one backend, ``(group, backend)``: a task for the pool (a top-level function)."""
+    group, name = task
+    return _GROUPS[group][1]([name])
+
+
 def verify(
     out_dir: str | Path | None = None,
     backends: Sequence[str] | None = None,
     cases: Sequence[str] = CASES,
+    jobs: int = 1,
 ) -> pd.DataFrame:
     """Run the verification cases on the backends (default: all available) and tabulate them.
 
@@ -570,6 +588,8 @@ def verify(
         out_dir: where to write ``verification.json`` and ``verification.md`` (None: nowhere).
         backends: backend names (default: every available backend).
         cases: subset of :data:`CASES`.
+        jobs: worker processes (:mod:`legbench.studies.executors`; 1: in this process); the table is the
+            same whatever the number (each case and backend is one deterministic task, results in order).
 
     Returns:
         One row per checked quantity, columns :data:`COLUMNS`.
@@ -583,15 +603,17 @@ def verify(
     names = list(backends) if backends is not None else registry.available()
     for n in names:
         registry.get(n)
-    checks: list[Check] = []
-    if "energy" in cases:
-        checks += check_energy(names)
-    if "rest_penetration" in cases or "static_balance" in cases:
-        checks += [c for c in check_rest(names) if c.case in cases]
-    if "small_oscillation" in cases:
-        checks += check_small_oscillation(names)
-    if "sliding" in cases:
-        checks += check_sliding(names)
+    tasks = [(g, n) for g, (members, _) in _GROUPS.items() if set(members) & set(cases) for n in names]
+    # the longest first (simulated seconds x the backend's measured cost in the baseline), so that no long
+    # task is left alone at the end; the order of the table does not depend on it
+    seconds = {"energy": VERIFICATION_DIR / "energy.yaml", "rest": VERIFICATION_DIR / "effort_rest.yaml",
+               "small_oscillation": VERIFICATION_DIR / "small_oscillation.yaml"}  # fmt: skip
+    rates = backend_rates() if jobs > 1 else {}
+    cost = [(scenario_mod.load(seconds[g]).duration if g in seconds else 0.5) * rates.get(n, 1.0) for g, n in tasks]
+    first = sorted(range(len(tasks)), key=lambda i: -cost[i])
+    with make_executor("local", jobs, preload=(*DEFAULT_PRELOAD, __name__)) as ex:
+        parts = list(ex.imap(_group_checks, tasks, first))
+    checks = [c for part in parts for c in part if c.case in cases]
     df = pd.DataFrame([dataclasses.asdict(c) for c in checks]).rename(columns={"passed": "pass"})
     df = df.reindex(columns=list(COLUMNS))
     if out_dir is not None:
@@ -645,7 +667,7 @@ def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
 def _cli(args: argparse.Namespace) -> int:
     names = registry.resolve(args.backends)
     cases = [c.strip() for c in args.cases.split(",")] if args.cases else list(CASES)
-    df = verify(args.out, names, cases)
+    df = verify(args.out, names, cases, args.jobs)
     with pd.option_context("display.width", 200, "display.max_columns", 20, "display.max_colwidth", 40):
         print(df.drop(columns=["note"]).to_string(index=False))
     print(f"{summary(df)}; wrote {args.out}")
@@ -653,9 +675,10 @@ def _cli(args: argparse.Namespace) -> int:
 
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Register ``legbench verify [--out DIR] [--backends all] [--cases a,b]``."""
+    """Register ``legbench verify [--out DIR] [--backends all] [--cases a,b] [--jobs N]``."""
     p = subparsers.add_parser("verify", help="verification cases with closed-form answers, on every backend")
     p.add_argument("--out", default="results/verification", help="output directory (default results/verification)")
     p.add_argument("--backends", default="all", help="comma-separated backend names, or 'all' (default)")
     p.add_argument("--cases", default=None, help=f"comma-separated subset of {', '.join(CASES)}")
+    p.add_argument("--jobs", type=int, default=1, help="worker processes, one case and backend each (default 1)")
     p.set_defaults(func=_cli)
