@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from legbench import backends, kinematics
+from legbench import backends, cli, kinematics
 from legbench import scenario as scenario_mod
 from legbench.results import RunResult
 from legbench.studies import calibrate_contact
@@ -86,3 +86,26 @@ def test_rows_do_not_depend_on_the_number_of_workers(table: pd.DataFrame) -> Non
     names = [n for n in ("pinocchio", "mujoco") if n in set(table["backend"])]
     two = calibrate_contact.calibrate(None, names, jobs=2)
     pd.testing.assert_frame_equal(table.set_index("backend").loc[names].reset_index(), two)
+
+
+def test_a_failing_engine_gets_a_row_saying_why_and_the_others_are_calibrated(monkeypatch: pytest.MonkeyPatch,
+                                                                              tmp_path: Path) -> None:  # fmt: skip
+    """An engine that raises while stepping gives a row of NaN whose note names the error; the other backend's
+    row is the one it gets alone; the command exits 1."""
+    from fakes import FakeBackend
+
+    class Exploding(FakeBackend):
+        name = "exploding"
+
+        def step(self, tau: np.ndarray) -> None:
+            raise RuntimeError("solver blew up")
+
+    registry = backends._registry
+    monkeypatch.setattr(backends, "_registry", lambda: {**registry(), "exploding": Exploding})
+    df = calibrate_contact.calibrate(tmp_path, ["exploding", "pinocchio"])
+    bad, good = df.iloc[0], df.iloc[1]
+    assert bad.backend == "exploding" and bad.note == "failed: RuntimeError: solver blew up"
+    assert math.isnan(bad.k_eff) and math.isnan(bad.creep)
+    assert good.backend == "pinocchio" and good.k_eff == pytest.approx(good.Kp, rel=1e-3) and not good.note
+    assert "failed: RuntimeError: solver blew up" in (tmp_path / "calibration.md").read_text()
+    assert cli.main(["calibrate-contact", "--out", str(tmp_path / "cli"), "--backends", "exploding,pinocchio"]) == 1

@@ -216,10 +216,20 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
 
 
 def _calibrate_one(task: tuple[str, Program, Path, str | None]) -> dict[str, Any]:
-    """One backend's row, ``(name, program, scenario_file, contact_mode)``: a task for the pool."""
+    """One backend's row, ``(name, program, scenario_file, contact_mode)``: a task for the pool. An engine that
+    fails (the errors the run loop treats as a failed run) gives a row of NaN whose note says why, and the other
+    backends are still calibrated."""
     name, program, scenario_file, contact_mode = task
-    log, saturated = push(name, program, scenario_file, contact_mode)
-    return dataclasses.asdict(estimate(log, program, scenario_mod.load(scenario_file).contact, saturated))
+    contact = scenario_mod.load(scenario_file).contact
+    try:
+        log, saturated = push(name, program, scenario_file, contact_mode)
+    except (LegbenchError, FloatingPointError, RuntimeError, ValueError) as exc:
+        nan = math.nan
+        return dataclasses.asdict(Calibration(
+            backend=name, Kp=contact.Kp, Kd=contact.Kd, mu_s=contact.mu_s, v_th=contact.v_th, k_eff=nan, c_eff=nan,
+            Fn=nan, Ft=nan, creep=nan, creep_law=nan, c_tangential=nan, note=f"failed: {type(exc).__name__}: {exc}",
+        ))  # fmt: skip
+    return dataclasses.asdict(estimate(log, program, contact, saturated))
 
 
 def calibrate(
@@ -284,7 +294,7 @@ def _cli(args: argparse.Namespace) -> int:
         if r["note"]:
             print(f"note: {r['backend']}: {r['note']}")
     print(f"wrote {args.out}")
-    return 0
+    return 1 if df["note"].str.startswith("failed:").any() else 0
 
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
