@@ -139,6 +139,16 @@ def _select_model(path: str) -> None:
     resources.select_model(file)
 
 
+_KEPT = "what finished is kept (lines above), rerun the same command to finish"
+#: What an interrupt leaves, by subcommand: the runs keep what finished; the studies write only at the end.
+_INTERRUPTED: dict[str, str] = {
+    "run": _KEPT,
+    "sweep": _KEPT,
+    "reproduce": _KEPT,
+    **dict.fromkeys(("verify", "calibrate-contact", "bench"), "nothing was written (it writes when all is done)"),
+}
+
+
 #: Subcommands whose ``--out`` is a directory (``model urdf --out`` is a file).
 _OUT_DIRS = ("run", "sweep", "bench", "verify", "calibrate-contact", "reproduce")
 
@@ -200,7 +210,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("legbench: error: input nested too deep", file=sys.stderr)
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
-        print("legbench: interrupted; what finished is kept (lines above), rerun the same command to finish",
+        print(f"legbench: interrupted; {_INTERRUPTED.get(_first_command(argv or ()) or '', 'stopped')}",
               file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPTED
     finally:

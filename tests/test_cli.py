@@ -150,3 +150,20 @@ def test_top_level_help_lists_every_subcommand_with_its_own_help_without_importi
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[] True", done.stdout + done.stderr
+
+
+def test_an_interrupted_study_says_nothing_was_written(monkeypatch: pytest.MonkeyPatch, tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    """Ctrl-C during `legbench verify` (which writes only when every case is done): exit 130, one stderr line
+    saying nothing was written, and no output directory; a run keeps what finished, and says so."""
+    from legbench.studies import verify
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(verify, "verify", interrupted)
+    assert cli.main(["verify", "--out", str(tmp_path / "v"), "--backends", "pinocchio"]) == 130
+    err = capsys.readouterr().err
+    assert err == "legbench: interrupted; nothing was written (it writes when all is done)\n"
+    assert not (tmp_path / "v").exists()
+    assert "what finished is kept" in cli._INTERRUPTED["run"] and "what finished is kept" in cli._INTERRUPTED["sweep"]
