@@ -85,7 +85,7 @@ def test_solver_choices_load_and_hold_the_statics(settings: dict[str, str]) -> N
 
 
 def test_period_mean_force_keeps_the_impact_that_the_end_sample_misses() -> None:
-    """force_readout: period_mean reports the period's contact impulse / Ts. It changes no state (q, qd
+    """force_readout: mean reports the period's contact impulse / Ts. It changes no state (q, qd
     identical to the last bit), equals the end sample in sustained contact (the combined task's last 0.5 s:
     measured 3e-11 of Fn, bound 1e-9), and keeps the graze at t = 0.136 s that the end sample reads as 0 N:
     the impulse over the graze's 30 ms is 0.52 N s against 0.026 N s in the end samples (bounds: > 10x)."""
@@ -93,10 +93,10 @@ def test_period_mean_force_keeps_the_impact_that_the_end_sample_misses() -> None
     from legbench.run import run_backend
 
     runs = {}
-    for readout in ("end", "period_mean"):
+    for readout in ("last", "mean"):
         sc = scenario.load(resources.scenario("combined"), {"backends.dart.force_readout": readout})
         runs[readout] = run_backend(sc, "dart")
-    end, mean = runs["end"], runs["period_mean"]
+    end, mean = runs["last"], runs["mean"]
     assert np.array_equal(end.q, mean.q) and np.array_equal(end.qd, mean.qd)
     k = int(np.argmax(mean.f[:500, 2] > 0))  # the first period with contact
     assert abs(mean.t[k] - 0.136) < 1e-9 and end.f[k, 2] == 0.0 and mean.f[k, 2] > 100.0

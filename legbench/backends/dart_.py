@@ -30,7 +30,7 @@ the sub-step's start state is added to the joint forces.
 
 The contact force is read from the last collision result: DART stores on each
 contact the force of its constraint impulse over the step (impulse / dt), in W;
-``force_readout: period_mean`` averages it over the period's sub-steps (the
+``force_readout: mean`` averages it over the period's sub-steps (the
 period's impulse / the period), which keeps an impact resolved inside a period.
 """
 
@@ -75,16 +75,16 @@ class DartBackend(Backend):
         "enforce_limits": True,  # joint position limits as constraints (DART's URDF loader leaves them off)
         "split_impulse": False,  # DART's split-impulse position correction (off by default)
         "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
-        # native force read-out: "end", the last sub-step's impulse / dt (a sample at the period's end, as every
-        # backend reports), or "period_mean", the period's total contact impulse / the control period, which
-        # keeps an impact that a rigid contact resolves inside a period (docs/backends/dart.md)
-        "force_readout": "end",
+        # native force read-out (MuJoCo's names): "last", the last sub-step's impulse / dt (a sample at the
+        # period's end, as every backend reports), or "mean", the period's contact impulse / the control period,
+        # which keeps an impact that a rigid contact resolves inside a period (docs/backends/dart.md)
+        "force_readout": "last",
     }
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "lcp_solver": _LCP,
         "collision_detector": tuple(_DETECTORS),
         "reference_friction": ("implicit", "explicit"),
-        "force_readout": ("end", "period_mean"),
+        "force_readout": ("last", "mean"),
     }
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "matched": {},
@@ -177,8 +177,8 @@ class DartBackend(Backend):
         self._tau = np.zeros(3)
         self._cmd = np.zeros(3)
         self._force = np.zeros(3)
-        self._impulse = np.zeros(3)  # period_mean: the sub-steps' forces summed
-        self._period_mean = cfg["force_readout"] == "period_mean" and not self.reference
+        self._impulse = np.zeros(3)  # force_readout mean: the sub-steps' forces summed
+        self._period_mean = cfg["force_readout"] == "mean" and not self.reference
         self._q = np.zeros(3)
         self._qd = np.zeros(3)
         self.t = 0.0
@@ -250,8 +250,8 @@ class DartBackend(Backend):
         self._force[:] = self.contact.force
 
     def _native_force(self) -> None:
-        """Sum of the contact forces on the foot over the last sub-step, in W [N] (``force_readout: end``; with
-        ``period_mean`` the step averages these over the period's sub-steps).
+        """Sum of the contact forces on the foot over the last sub-step, in W [N] (``force_readout: last``; with
+        ``mean`` the step averages these over the period's sub-steps).
 
         DART stores on each contact the force its constraint applied on the
         first collision object (impulse / dt, along the normal that points from
