@@ -308,8 +308,10 @@ class DartBackend(Backend):
                 "Kp_Kd_note": "rigid contact: DART has no contact stiffness or damping; Kp, Kd do not apply",
                 "reference_law": "J_poc^T F added to the joint forces per sub-step" if self.reference else None,
                 "force_readout": (
-                    "the law at the end state" if self.reference
-                    else "contact impulse over the control period / the period" if self._period_mean
+                    "the law at the end state"
+                    if self.reference
+                    else "contact impulse over the control period / the period"
+                    if self._period_mean
                     else "last sub-step's contact impulse / dt"
                 ),
             },
