@@ -245,8 +245,13 @@ def backend_rates(root: Path = BASELINE_ROOT) -> dict[str, float]:
         dirs: list[Path | None] = list(run_dirs(root).values())
     except LegbenchError:
         return {}
+    return _medians(cost_hints(dirs, ()))
+
+
+def _medians(hints: Mapping[tuple[str, str], float]) -> dict[str, float]:
+    """Each backend's median over the directories of ``hints`` (from :func:`cost_hints`) [s/s]."""
     by_backend: dict[str, list[float]] = {}
-    for (_, name), v in cost_hints(dirs, ()).items():
+    for (_, name), v in hints.items():
         by_backend.setdefault(name, []).append(v)
     return {k: float(np.median(v)) for k, v in by_backend.items()}
 
@@ -258,10 +263,7 @@ def _estimates(
 ) -> list[float]:
     """Expected wall time [s] of each planned run: duration x the measured s/s of that run, else of that backend
     in any other directory (median), else 1 s/s (then only the durations order the runs)."""
-    by_backend: dict[str, list[float]] = {}
-    for (_, name), v in hints.items():
-        by_backend.setdefault(name, []).append(v)
-    median = {k: float(np.median(v)) for k, v in by_backend.items()}
+    median = _medians(hints)
     out = []
     for i, sc, name, _ in plan:
         d = outs[i]
