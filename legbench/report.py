@@ -32,6 +32,7 @@ from legbench.report_figures import ASSETS, NAMES, PLOTLY_JS, Arrays, run_figure
 from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num, relpath, to_html, to_markdown
 from legbench.results import (
     atomic_write_text,
+    checks_summary,
     read_meta,
     read_metrics,
     read_study,
@@ -805,10 +806,7 @@ def _study_blocks(root: Path) -> list[Block]:
         classes = {(i, last): css[st] for i, st in enumerate(status)}
         failed = [i for i, st in enumerate(status) if st == "fail"]
         na = [i for i, st in enumerate(status) if st == "not-applicable"]
-        summary = f"{heading}: {len(records) - len(failed) - len(na)} of {len(records)} checks pass"
-        summary += f", {len(failed)} fail" if failed else ""
-        summary += f", {len(na)} not applicable" if na else ""
-        blocks.append(Heading(2, summary))
+        blocks.append(Heading(2, f"{heading}: {checks_summary(status)}"))
         for which, title, cls in ((failed, "Failing checks", "fail"), (na, "Not applicable: no closed form for this "
                                   "engine's integrator or friction model (the note says which)", "na")):  # fmt: skip
             if which:

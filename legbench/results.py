@@ -59,6 +59,7 @@ __all__ = [
     "check_out_dir",
     "check_out_file",
     "check_out_path",
+    "checks_summary",
     "clean_stale",
     "json_default",
     "load_run",
@@ -812,6 +813,14 @@ def read_study(path: str | Path, key: str) -> tuple[dict[str, Any], list[dict[st
     if not isinstance(rows, list) or any(not isinstance(r, dict) for r in rows):
         raise ResultsError(str(path), f"'{key}' must be a list of objects")
     return doc, rows
+
+
+def checks_summary(statuses: Sequence[str]) -> str:
+    """``"110 of 117 checks pass, 1 fail, 6 not applicable"`` from each check's status (``pass``, ``fail``,
+    ``not-applicable``; a verification study's rows), the parts that are zero left out."""
+    failed, na = sum(s == "fail" for s in statuses), sum(s == "not-applicable" for s in statuses)
+    text = f"{sum(s == 'pass' for s in statuses)} of {len(statuses)} checks pass"
+    return text + (f", {failed} fail" if failed else "") + (f", {na} not applicable" if na else "")
 
 
 def read_metrics(path: str | Path) -> tuple[dict[str, Any], pd.DataFrame]:

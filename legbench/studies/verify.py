@@ -77,7 +77,7 @@ from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
 from legbench.backends.base import Physics
 from legbench.exceptions import LegbenchError
-from legbench.results import atomic_write_text, platform_info, versions, write_json
+from legbench.results import atomic_write_text, checks_summary, platform_info, versions, write_json
 from legbench.run import backend_rates, simulate
 from legbench.scenario import physics_of
 from legbench.studies.executors import DEFAULT_PRELOAD, make_executor
@@ -94,7 +94,6 @@ __all__ = [
     "check_small_oscillation",
     "discrete_loop",
     "matrix_pencil",
-    "summary",
     "verify",
     "write_verification",
 ]
@@ -641,13 +640,6 @@ def markdown(df: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def summary(df: pd.DataFrame) -> str:
-    """``"110 of 117 checks pass, 1 fail, 6 not applicable"`` (the parts that are not zero)."""
-    failed, na = int((df["status"] == "fail").sum()), int((df["status"] == "not-applicable").sum())
-    text = f"{int(df['pass'].sum())} of {len(df)} checks pass"
-    return text + (f", {failed} fail" if failed else "") + (f", {na} not applicable" if na else "")
-
-
 def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
     """Write ``verification.json`` (records, versions, platform) and ``verification.md`` into ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -656,7 +648,7 @@ def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
     meta = {"schema": "legbench.verification/1", "passed": passed, "total": len(df), "not_applicable": na,
             "checks": df.to_dict(orient="records"), "versions": versions(), "platform": platform_info()}  # fmt: skip
     write_json(meta, out_dir / "verification.json")
-    md = [f"# Verification: {summary(df)}\n", "Cases and tolerances: `legbench/verify.py`.\n",
+    md = [f"# Verification: {checks_summary(list(df['status']))}\n", "Cases and tolerances: `legbench/verify.py`.\n",
           markdown(df), "\n## Notes\n"]  # fmt: skip
     md += [f"- {r['case']} / {r['backend']} / {r['variant']} / {r['quantity']}: {r['note']}"
            for r in df.to_dict(orient="records") if r["note"]]  # fmt: skip
@@ -670,7 +662,7 @@ def _cli(args: argparse.Namespace) -> int:
     df = verify(args.out, names, cases, args.jobs)
     with pd.option_context("display.width", 200, "display.max_columns", 20, "display.max_colwidth", 40):
         print(df.drop(columns=["note"]).to_string(index=False))
-    print(f"{summary(df)}; wrote {args.out}")
+    print(f"{checks_summary(list(df['status']))}; wrote {args.out}")
     return 0 if not bool((df["status"] == "fail").any()) else 1
 
 
