@@ -81,7 +81,7 @@ from legbench.results import atomic_write_text, checks_summary, platform_info, v
 from legbench.run import backend_rates, simulate
 from legbench.scenario import physics_of
 from legbench.studies.executors import DEFAULT_PRELOAD, make_executor
-from legbench.studies.sliding_case import sliding_case
+from legbench.studies.sliding_case import WINDOW, sliding_case
 
 __all__ = [
     "CASES",
@@ -99,6 +99,10 @@ __all__ = [
 ]
 
 VERIFICATION_DIR = resources.scenarios_dir() / "verification"
+#: The scenarios of the energy, rest (penetration and balance) and small-oscillation cases.
+ENERGY_SCENARIO = VERIFICATION_DIR / "energy.yaml"
+REST_SCENARIO = VERIFICATION_DIR / "effort_rest.yaml"
+OSCILLATION_SCENARIO = VERIFICATION_DIR / "small_oscillation.yaml"
 CASES = ("energy", "rest_penetration", "static_balance", "small_oscillation", "sliding")
 COLUMNS = ("case", "backend", "variant", "quantity", "unit", "measured", "expected", "error", "tolerance", "pass",
            "status", "note")  # fmt: skip
@@ -243,7 +247,7 @@ class _Energy(model.Dynamics):
 
 
 def check_energy(
-    backends: Sequence[str], scenario_file: Path = VERIFICATION_DIR / "energy.yaml",
+    backends: Sequence[str], scenario_file: Path = ENERGY_SCENARIO,
     integrators: Sequence[str] | None = None,
 ) -> list[Check]:  # fmt: skip
     """Energy with no torque, contact or damping, per backend and integrator (module docstring)."""
@@ -320,7 +324,7 @@ def _energy_gradient(energy: _Energy, q: np.ndarray, qd: np.ndarray, eps: float 
 # Rest penetration and static balance
 
 
-def check_rest(backends: Sequence[str], scenario_file: Path = VERIFICATION_DIR / "effort_rest.yaml") -> list[Check]:
+def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO) -> list[Check]:
     """Rest penetration y = Fn/Kp and static balance F = -(J_poc^T)^-1 (tau - G), each backend's own contact."""
     sc = scenario_mod.load(scenario_file)
     physics = physics_of(sc)
@@ -459,7 +463,7 @@ def _modes(s: np.ndarray) -> list[np.ndarray]:
     return [x for x in s if x.imag >= -1e-9 * max(abs(x), 1.0)]
 
 
-def check_small_oscillation(backends: Sequence[str], scenario_file: Path = VERIFICATION_DIR / "small_oscillation.yaml",
+def check_small_oscillation(backends: Sequence[str], scenario_file: Path = OSCILLATION_SCENARIO,
                             integrators: Sequence[str] | None = ("default", "rk4")) -> list[Check]:  # fmt: skip
     """Closed-loop poles of the PD hold: fitted to each backend's response vs the linearised discrete loop."""
     sc = scenario_mod.load(scenario_file)
@@ -559,13 +563,14 @@ def _ratio_check(r: Mapping[str, Any], name: str) -> Check:
                  note=str(r["note"]))  # fmt: skip
 
 
-#: Each group of cases, the cases it checks and its function (rest_penetration and static_balance share
-#: one run); a pool task names its group, so it is plain data.
-_GROUPS: dict[str, tuple[tuple[str, ...], Callable[[Sequence[str]], list[Check]]]] = {
-    "energy": (("energy",), check_energy),
-    "rest": (("rest_penetration", "static_balance"), check_rest),
-    "small_oscillation": (("small_oscillation",), check_small_oscillation),
-    "sliding": (("sliding",), check_sliding),
+#: Each group of cases: the cases it checks, its function (rest_penetration and static_balance share one
+#: run) and its scenario (None: the sliding drag, :mod:`legbench.studies.sliding_case`); a pool task names its
+#: group, so it is plain data.
+_GROUPS: dict[str, tuple[tuple[str, ...], Callable[[Sequence[str]], list[Check]], Path | None]] = {
+    "energy": (("energy",), check_energy, ENERGY_SCENARIO),
+    "rest": (("rest_penetration", "static_balance"), check_rest, REST_SCENARIO),
+    "small_oscillation": (("small_oscillation",), check_small_oscillation, OSCILLATION_SCENARIO),
+    "sliding": (("sliding",), check_sliding, None),
 }
 
 
@@ -602,14 +607,13 @@ def verify(
     names = list(backends) if backends is not None else registry.available()
     for n in names:
         registry.get(n)
-    tasks = [(g, n) for g, (members, _) in _GROUPS.items() if set(members) & set(cases) for n in names]
+    groups = {g: file for g, (members, _, file) in _GROUPS.items() if set(members) & set(cases)}
+    tasks = [(g, n) for g in groups for n in names]
     # the longest first (simulated seconds x the backend's measured cost in the baseline), so that no long
     # task is left alone at the end; the order of the table does not depend on it
-    seconds = {"energy": VERIFICATION_DIR / "energy.yaml", "rest": VERIFICATION_DIR / "effort_rest.yaml",
-               "small_oscillation": VERIFICATION_DIR / "small_oscillation.yaml"}  # fmt: skip
+    seconds = {g: scenario_mod.load(file).duration if file is not None else WINDOW[1] for g, file in groups.items()}
     rates = backend_rates() if jobs > 1 else {}
-    cost = [(scenario_mod.load(seconds[g]).duration if g in seconds else 0.5) * rates.get(n, 1.0) for g, n in tasks]
-    first = sorted(range(len(tasks)), key=lambda i: -cost[i])
+    first = sorted(range(len(tasks)), key=lambda i: -seconds[tasks[i][0]] * rates.get(tasks[i][1], 1.0))
     with make_executor("local", jobs, preload=(*DEFAULT_PRELOAD, __name__)) as ex:
         parts = list(ex.imap(_group_checks, tasks, first))
     checks = [c for part in parts for c in part if c.case in cases]
