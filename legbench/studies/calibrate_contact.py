@@ -39,6 +39,7 @@ import pandas as pd
 from legbench import backends as registry
 from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
+from legbench.contact import ContactParams
 from legbench.controllers import EffortController, saturate
 from legbench.exceptions import LegbenchError
 from legbench.results import RunResult, atomic_write_text, platform_info, versions, write_json
@@ -215,12 +216,11 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     )  # fmt: skip
 
 
-def _calibrate_one(task: tuple[str, Program, Path, str | None]) -> dict[str, Any]:
-    """One backend's row, ``(name, program, scenario_file, contact_mode)``: a task for the pool. An engine that
-    fails (the errors the run loop treats as a failed run) gives a row of NaN whose note says why, and the other
-    backends are still calibrated."""
-    name, program, scenario_file, contact_mode = task
-    contact = scenario_mod.load(scenario_file).contact
+def _calibrate_one(task: tuple[str, Program, Path, str | None, ContactParams]) -> dict[str, Any]:
+    """One backend's row, ``(name, program, scenario_file, contact_mode, contact)``: a task for the pool. An
+    engine that fails (the errors the run loop treats as a failed run) gives a row of NaN whose note says why,
+    and the other backends are still calibrated."""
+    name, program, scenario_file, contact_mode, contact = task
     try:
         log, saturated = push(name, program, scenario_file, contact_mode)
     except (LegbenchError, FloatingPointError, RuntimeError, ValueError) as exc:
@@ -246,8 +246,9 @@ def calibrate(
     """
     if not 0 < program.ratio < 1:
         raise LegbenchError(f"tangential ratio {program.ratio} must lie in (0, 1): below the friction limit")
+    contact = scenario_mod.load(scenario_file).contact
     names = list(backends) if backends is not None else registry.available()
-    tasks = [(n, program, Path(scenario_file), contact_mode) for n in names]
+    tasks = [(n, program, Path(scenario_file), contact_mode, contact) for n in names]
     rates = backend_rates() if jobs > 1 else {}
     first = sorted(range(len(tasks)), key=lambda i: -rates.get(names[i], 1.0))  # the slowest backend first
     with make_executor("local", jobs, preload=(*DEFAULT_PRELOAD, __name__)) as ex:
