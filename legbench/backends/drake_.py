@@ -68,10 +68,11 @@ Profiles: ``matched`` is :attr:`DrakeBackend.defaults` (SAP at 0.1 ms, the
 mapping above). ``engine-defaults`` is what a Drake user gets from
 ``MultibodyPlantConfig()`` (1 ms ``lagged``, stiction tolerance 1e-4 m/s)
 with Kp, Kd and mu set the usual way: ``point_contact_stiffness = Kp``,
-``hunt_crossley_dissipation = Kd / Kp`` and ``relaxation_time = Kd / Kp`` on
-the foot, the ground registered with friction only (so Drake's default
-stiffness from ``penetration_allowance`` acts in series with Kp, and its
-default relaxation time of 0.1 s adds to the foot's).
+``hunt_crossley_dissipation = Kd / (Kp x_ref)`` [s/m] (Kd at the reference depth,
+as above) and ``relaxation_time = Kd / Kp`` [s] (read only by SAP) on the foot,
+the ground registered with friction only (so Drake's default stiffness from
+``penetration_allowance`` acts in series with Kp, and the ground's default
+dissipation adds about 0.5 s/m to the pair's d).
 """
 
 from __future__ import annotations
@@ -309,7 +310,8 @@ class DrakeBackend(Backend):
         R = load_params().geometry.R_foot
         x_ref = float(self.cfg["hc_reference_depth"])
         if usual:
-            d, tau_d = c.Kd / c.Kp, c.Kd / c.Kp
+            # Hunt-Crossley d [s/m]: k d x xdot = Kd xdot at x = x_ref; relaxation time [s] (SAP only)
+            d, tau_d = c.Kd / (c.Kp * x_ref), c.Kd / c.Kp
             AddContactMaterial(
                 dissipation=d, point_stiffness=c.Kp, friction=CoulombFriction(c.mu_s, c.mu_k), properties=props
             )
