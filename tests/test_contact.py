@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from legbench import kinematics as K
-from legbench.contact import ContactParams, ReferenceContact, ground_force
+from legbench.contact import ContactParams, ReferenceContact, friction_coefficient, ground_force
 from legbench.model import load_params
 
 RNG_SEED = 20261121
@@ -58,3 +58,30 @@ def test_out_of_contact_everything_is_zero() -> None:
     assert law.wrench(0.0, 0.0, 0.0, 1.0, 1.0, 1.0) == (0.0,) * 6  # horizontal leg, far above the ground
     np.testing.assert_array_equal(law.generalized(0.0, 0.0, 0.0, 1.0, 1.0, 1.0), np.zeros(3))
     np.testing.assert_array_equal(law.force, np.zeros(3))
+
+
+def test_friction_coefficient_is_the_spec_stick_slip_curve() -> None:
+    """mu(v) with the defaults (mu_s 0.7, mu_k 0.6, v_th 1 mm/s), by hand from the spec's curve: linear from 0 to
+    mu_s at v_th, falling linearly to mu_k at 1.5 v_th, then mu_k; continuous at both corners. 1e-12: a few
+    float operations."""
+    p = ContactParams()
+    by_hand = {0.0: 0.0, 0.5e-3: 0.35, 1e-3: 0.7, 1.25e-3: 0.65, 1.5e-3: 0.6, 1e-2: 0.6, 1.0: 0.6}
+    for v, mu in by_hand.items():
+        assert friction_coefficient(v, p) == pytest.approx(mu, rel=1e-12, abs=1e-15), v
+    for corner in (p.v_th, 1.5 * p.v_th):
+        below, above = friction_coefficient(corner * (1 - 1e-12), p), friction_coefficient(corner * (1 + 1e-12), p)
+        assert below == pytest.approx(above, abs=1e-9)
+
+
+def test_ground_force_spring_damper_and_friction_against_the_motion() -> None:
+    """At 1 mm penetration: Fn = Kp y + Kd ydot while pressing in (10 + 1 = 11 N), Kp y while releasing (no pull,
+    10 N), 0 out of contact; friction mu(v) Fn exactly opposite the poc's horizontal velocity, here on the
+    falling ramp (v = 1.25 mm/s: mu = 0.65)."""
+    p = ContactParams()
+    assert ground_force(1e-3, 0.01, 0.0, 0.0, p) == pytest.approx((0.0, 0.0, 11.0), rel=1e-12)
+    assert ground_force(1e-3, -0.01, 0.0, 0.0, p) == pytest.approx((0.0, 0.0, 10.0), rel=1e-12)
+    assert ground_force(-1e-3, 0.01, 1.0, 0.0, p) == (0.0, 0.0, 0.0)
+    vx, vy = 0.6 * 1.25e-3, 0.8 * 1.25e-3
+    fx, fy, fz = ground_force(1e-3, 0.0, vx, vy, p)
+    assert fz == pytest.approx(10.0, rel=1e-12)
+    assert (fx, fy) == pytest.approx((-0.65 * 10.0 * 0.6, -0.65 * 10.0 * 0.8), rel=1e-12)

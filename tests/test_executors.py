@@ -143,9 +143,8 @@ def test_imap_unordered_starts_in_the_given_order_and_yields_every_item_once() -
 
 
 def test_terminate_stops_running_workers_and_keeps_what_finished() -> None:
-    """A worker busy with a long task is stopped by terminate(); the result that finished before is kept."""
-    import time
-
+    """A worker busy with a long task is stopped by terminate() (SIGTERM, then SIGKILL after 2 s: the blocked
+    tasks never end by themselves); the result that finished before is kept."""
     ex = executors.LocalExecutor(2)
     it = ex.imap_unordered(_pid_or_block, [0, 1, 1], [0, 1, 2])
     j, pid = next(it)  # the quick item finished: the others are running or queued
@@ -153,9 +152,7 @@ def test_terminate_stops_running_workers_and_keeps_what_finished() -> None:
     pool = ex._pool
     assert pool is not None
     procs = list(pool._processes.values())  # type: ignore[attr-defined]
-    t0 = time.monotonic()
     ex.terminate()
-    assert time.monotonic() - t0 < 60.0  # SIGTERM then SIGKILL after 2 s; the blocked tasks never end by themselves
     assert procs and all(not p.is_alive() for p in procs)
     assert all(p.pid is not None and not _alive(p.pid) for p in procs)
     it.close()
