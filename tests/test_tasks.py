@@ -66,15 +66,23 @@ def _sim_error(x: np.ndarray, ref: np.ndarray) -> np.ndarray:
     return np.abs(x - ref).max(axis=0) / np.abs(ref).max(axis=0) * 100
 
 
+#: Free space, simulation error % of q and tau against Pinocchio at the engine's own sub-step. Engines in joint
+#: coordinates run the same semi-implicit Euler (or lagrange the same RK45): round-off, measured <= 5e-10 %.
+#: ODE's joints are constraints between free bodies, held by its solver: measured 1.0e-3 % (ellipse's tau).
+FREE_SPACE_PCT = {"ode": 5e-3}
+FREE_SPACE_PCT_DEFAULT = 1e-8
+
+
 @pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("task", ["position", "ellipse"])
-def test_free_space_tasks_agree_within_0p1_percent(task: str, engine: str) -> None:
-    """No contact: rigid-body dynamics are the same physics, so the joint trajectories agree to
-    better than 0.1 % of amplitude (measured ~1e-9 %: same integrator family and step; Pinocchio
-    runs at the engine's declared sub-step, e.g. Drake's 0.1 ms; lagrange against RK4: 1e-10 %)."""
+def test_free_space_tasks_agree_to_round_off(task: str, engine: str) -> None:
+    """No contact: rigid-body dynamics are the same physics and the same integrator at the same step, so the
+    joint trajectories and torques agree to round-off (:data:`FREE_SPACE_PCT`); the 0.1 % this test allowed
+    before let a 2e-6 kg m^2 rotor inertia added to one engine pass."""
     ref, tr = _reference(task, engine), _run(task, engine)
-    assert np.all(_sim_error(tr.q, ref.q) < 0.1)
-    assert np.all(_sim_error(tr.tau, ref.tau) < 0.1)
+    limit = FREE_SPACE_PCT.get(engine, FREE_SPACE_PCT_DEFAULT)
+    assert np.all(_sim_error(tr.q, ref.q) < limit), _sim_error(tr.q, ref.q)
+    assert np.all(_sim_error(tr.tau, ref.tau) < limit), _sim_error(tr.tau, ref.tau)
 
 
 @pytest.mark.parametrize("engine", ENGINES)
@@ -92,13 +100,15 @@ def test_validation_run_agrees_within_0p01_percent(engine: str) -> None:
 
 @pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("task", ["effort", "combined"])
-def test_reference_contact_mode_agrees_within_0p5_percent(task: str, engine: str) -> None:
+def test_reference_contact_mode_agrees_within_1e_3_percent(task: str, engine: str) -> None:
     """Reference mode (the one analytic law inside every backend), same family (semi-implicit
-    Euler) and step (50 us): joint positions and ground force agree to better than 0.5 %. An adaptive
-    backend against Pinocchio's same adaptive method (lagrange: RK45, rtol 1e-8, atol 1e-6)."""
+    Euler) and step (50 us), or an adaptive backend against Pinocchio's same adaptive method (lagrange:
+    RK45, rtol 1e-8, atol 1e-6): joint positions within 1e-3 % (measured <= 2.1e-4 %; ODE, whose joints are
+    solver-held constraints, 0.05 %: measured 0.011 %), ground force within 0.2 % (measured <= 0.098 %,
+    lagrange's adaptive steps across the touchdown)."""
     ref, tr = _reference(task, engine, "reference"), _run(task, engine, "reference")
-    assert np.all(_sim_error(tr.q, ref.q) < 0.5)
-    assert np.all(_sim_error(tr.f, ref.f) < 0.5)
+    assert np.all(_sim_error(tr.q, ref.q) < (0.05 if engine == "ode" else 1e-3)), _sim_error(tr.q, ref.q)
+    assert np.all(_sim_error(tr.f, ref.f) < 0.2), _sim_error(tr.f, ref.f)
 
 
 @pytest.mark.parametrize("name", backends.available())
