@@ -64,7 +64,7 @@ def ground_force(y: float, ydot: float, vx: float, vy: float, p: ContactParams) 
     if y <= 0.0:
         return 0.0, 0.0, 0.0
     fn = p.Kp * y + (p.Kd * ydot if ydot > 0.0 else 0.0)
-    v = math.hypot(vx, vy)
+    v = math.sqrt(vx * vx + vy * vy)  # not hypot: CPython's and the C library's differ in the last bit
     if v == 0.0:
         return 0.0, 0.0, fn
     ff = friction_coefficient(v, p) * fn / v
@@ -153,7 +153,7 @@ def law_wrench(
     Kp, Kd, mu_s, mu_k, v_th, v_slip, dmu, half_v_th = c[5], c[6], c[7], c[8], c[9], c[10], c[11], c[12]
     ydot = -vz
     fz = Kp * y + (Kd * ydot if ydot > 0.0 else 0.0)
-    v = math.hypot(vx, vy)
+    v = math.sqrt(vx * vx + vy * vy)  # not hypot: CPython's and the C library's differ in the last bit
     if v == 0.0:
         fx = fy = 0.0
     else:
@@ -206,7 +206,7 @@ def law_wrench_slope(
     Kp, Kd, mu_s, mu_k, v_th, v_slip, dmu, half_v_th = c[5], c[6], c[7], c[8], c[9], c[10], c[11], c[12]
     ydot = -vz
     fz = Kp * y + (Kd * ydot if ydot > 0.0 else 0.0)
-    v = math.hypot(vx, vy)
+    v = math.sqrt(vx * vx + vy * vy)  # not hypot: CPython's and the C library's differ in the last bit
     if v < v_th:
         c_perp = c_par = fz * mu_s / v_th
         ff = c_perp  # mu(v) fz / v

@@ -237,7 +237,8 @@ def test_compiled_aba_and_minverse_match_pinocchio() -> None:
 def test_compiled_law_and_limits_are_the_python_law_bit_for_bit() -> None:
     """The contact law, its friction slope and the joint-limit torques are the same IEEE operations in the
     same order as legbench.contact and joint_limits: equal to the last bit, in and out of contact, sticking
-    and sliding (states around the effort pose with speeds from 1e-5 to 1 rad/s)."""
+    and sliding (4000 states around the effort pose with speeds from 1e-5 to 1 rad/s: math.hypot, whose CPython
+    and C-library versions differ in the last bit for 0.6 % of arguments, failed this on 8 of 12 seeds)."""
     be = _backend({}, gravity=9.81, contact=ContactParams())
     c = be.contact
     lc = np.array(c.constants)
@@ -246,7 +247,7 @@ def test_compiled_law_and_limits_are_the_python_law_bit_for_bit() -> None:
     q_star = run.simulate(sc, be, scenario.physics_of(sc)).q[-1]  # the foot pressed into the ground
     rng = np.random.default_rng(3)
     contacts = 0
-    for _ in range(400):
+    for _ in range(4000):
         q = q_star + rng.normal(0.0, 0.003, 3)
         if rng.uniform() < 0.2:
             q[2] = rng.uniform(2.2, 2.3)  # about the knee's 2.229 rad limit
@@ -256,7 +257,7 @@ def test_compiled_law_and_limits_are_the_python_law_bit_for_bit() -> None:
         assert pinocchio_kernel.wrench_slope(lc, *args) == c.wrench_slope(*args)
         assert pinocchio_kernel.limit_torques(lim, *args) == be.limit_law(*args)
         contacts += c.wrench(*args)[5] > 0.0
-    assert 50 < contacts < 350  # both branches were exercised
+    assert 500 < contacts < 3500  # both branches were exercised
 
 
 @numba_needed

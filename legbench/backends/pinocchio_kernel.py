@@ -16,7 +16,9 @@ cos/sin), and refuses a model with any other (:class:`KernelUnavailable`).
   :func:`legbench.contact.law_wrench`, :func:`~legbench.contact.law_wrench_slope`,
   :func:`~legbench.contact.implicit_velocity_step` and :func:`legbench.backends.joint_limits.limit_torques`
   themselves, compiled: one implementation, so the same IEEE operations in the same order (numba without
-  ``fastmath``; ``math.sin``/``cos``/``hypot`` are the C library's, as in Python).
+  ``fastmath``; ``math.sin``/``cos``/``sqrt`` are the C library's, as in Python; the law takes a slip speed
+  as ``sqrt(vx * vx + vy * vy)``, not ``math.hypot``, whose CPython and C library versions differ in the
+  last bit for about 0.6 % of arguments).
 * :func:`period` is :meth:`PinocchioBackend._euler_implicit` (``implicit``: the friction's slope
   linearly implicit, M^-1 frozen over the period at its first sub-step in contact) or ``_euler``.
 
