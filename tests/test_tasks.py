@@ -114,13 +114,14 @@ def test_reference_contact_mode_agrees_within_1e_3_percent(task: str, engine: st
 @pytest.mark.parametrize("name", backends.available())
 @pytest.mark.parametrize("mode", ["native", "reference"])
 def test_effort_task_force_satisfies_each_backends_own_static_balance(name: str, mode: str) -> None:
-    """Mean over the last 0.5 s: F = -(J_poc^T)^-1 (tau - G) from the backend's own state, within 2 %
-    (MuJoCo's foot still creeps at ~F_t/Kd, which the 2 % absorbs: measured < 0.6 %)."""
+    """Mean over the last 0.5 s: F = -(J_poc^T)^-1 (tau - G) from the backend's own state, within 0.5 %, the
+    accuracy required of a read-out in steady contact (measured 26 Nov: <= 1.6e-4 of |F| except MuJoCo native,
+    2.1e-3: its contact frame sits y/2 above the true poc)."""
     tr = _run("effort", name, mode)
     w = tr.t >= tr.t[-1] - 0.5
     q, tau, F = tr.q[w].mean(0), tr.tau[w].mean(0), tr.f[w].mean(0)
     h = np.linalg.solve(K.jacobian_poc(q).T, tau - K.gravity(q))
-    assert np.linalg.norm(F + h) / np.linalg.norm(F) < 0.02
+    assert np.linalg.norm(F + h) / np.linalg.norm(F) < 5e-3
     assert np.hypot(F[0], F[1]) <= 0.7 * F[2] * (1 + 1e-6)  # inside the friction cone
 
 
@@ -148,4 +149,4 @@ def test_foot_lowered_onto_the_ground_carries_the_supported_weight(name: str) ->
     assert fz.mean() > 1.0 and np.ptp(fz) < 0.01 * fz.mean()
     q, tau, F = tr.q[w].mean(0), tr.tau[w].mean(0), tr.f[w].mean(0)
     h = np.linalg.solve(K.jacobian_poc(q).T, tau - K.gravity(q))
-    assert np.linalg.norm(F + h) / np.linalg.norm(F) < 0.02
+    assert np.linalg.norm(F + h) / np.linalg.norm(F) < 5e-3
