@@ -1,12 +1,38 @@
-"""Errors legbench raises on purpose. Only :mod:`legbench.cli` catches them."""
+"""Errors legbench raises on purpose. Only :mod:`legbench.cli` catches them.
+
+Every error pickles and unpickles to an equal one (same type, message and attributes): an error raised in a
+worker process (``legbench compare TREE --jobs 2``, ``legbench run --jobs 2``) reaches the parent whole, so
+the command prints its one line instead of a broken process pool. The default pickling of an exception
+calls ``type(exc)(*exc.args)`` with the *message* as the only argument, which fails for a subclass whose
+``__init__`` takes other arguments; :class:`LegbenchError` therefore remembers the arguments it was built
+with and rebuilds from them, for every subclass, including those defined outside this module.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import Any
+
+
+def _rebuild(cls: type[LegbenchError], args: tuple[Any, ...], kwargs: dict[str, Any]) -> LegbenchError:
+    """Unpickle a :class:`LegbenchError`: call its constructor again with the arguments it was built with."""
+    return cls(*args, **kwargs)
 
 
 class LegbenchError(Exception):
-    """Base of every error legbench raises for the user to read."""
+    """Base of every error legbench raises for the user to read (picklable, whatever its ``__init__`` takes)."""
+
+    _init_args: tuple[Any, ...]
+    _init_kwargs: dict[str, Any]
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> LegbenchError:
+        self = super().__new__(cls, *args)
+        self._init_args, self._init_kwargs = args, kwargs
+        return self
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        state = {k: v for k, v in self.__dict__.items() if k not in ("_init_args", "_init_kwargs")}
+        return _rebuild, (type(self), self._init_args, self._init_kwargs), state or None
 
 
 class ModelError(LegbenchError):
@@ -41,6 +67,8 @@ class BackendNotFound(LegbenchError):
     def __init__(self, name: str, available: Iterable[str], hint: str = "") -> None:
         self.name = name
         self.available = sorted(available)
+        self.hint = hint
+        self._init_args, self._init_kwargs = (name, self.available, hint), {}  # an iterator would not pickle
         msg = f"backend '{name}' is not available. Available backends: {self.available}"
         if hint:
             msg += f" ({hint})"

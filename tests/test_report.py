@@ -481,3 +481,22 @@ def test_compare_command_renders_a_tree_with_jobs_and_prints_each_page(
     lines = capsys.readouterr().out.splitlines()
     assert lines == [f"wrote {root / 'one' / 'report.html'}", f"wrote {root / 'two' / 'report.html'}",
                      f"wrote {root / 'report.html'}"]  # fmt: skip
+
+
+def test_compare_with_jobs_names_a_worker_s_corrupt_parquet_in_the_same_one_line_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A ResultsError raised in a report worker reaches the parent whole (legbench's errors pickle): --jobs 2
+    gives the one line and exit 2 of --jobs 1, not a broken process pool and a traceback."""
+    root = tmp_path / "latest"
+    for name in ("one", "two"):
+        write_run(root / name, {"ref": None, "a": scale(1.1)}, name=name, duration=0.5)
+    log = root / "two" / "a.parquet"
+    log.write_bytes(log.read_bytes()[: log.stat().st_size // 2])  # cut short, as by a full disk
+    errors = []
+    for jobs in ("1", "2"):
+        assert cli.main(["compare", str(root), "--jobs", jobs]) == 2
+        errors.append(capsys.readouterr().err)
+    assert errors[0] == errors[1]
+    assert errors[0].count("\n") == 1 and "Traceback" not in errors[0]
+    assert errors[0].startswith(f"legbench: error: {log}: not a readable parquet file")
