@@ -26,6 +26,7 @@ import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import NoReturn
 
 from legbench import __version__, resources
 from legbench.exceptions import LegbenchError, ModelError
@@ -100,9 +101,17 @@ def add_completion(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     p.set_defaults(func=_completion)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser with its errors on one line (argparse prints the usage block first), exit status 2.
+    Subcommand parsers are of the same class (``add_subparsers`` makes them so)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USER_ERROR, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     """The parser; with ``argv`` naming a subcommand, only that subcommand's module is imported."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="legbench", description="Compare physics engines on the 3-DOF leg: run, compare, check, study."
     )
     parser.add_argument("--version", action="version", version=f"legbench {__version__}")
@@ -174,7 +183,9 @@ def _check_outputs(args: argparse.Namespace) -> None:
     scheduler = getattr(args, "scheduler", None)
     if scheduler is not None:
         scheme, sep, rest = str(scheduler).rpartition("://")
-        if (sep and scheme not in _SCHEMES) or not rest:
+        host, colon, port = rest.rpartition(":")
+        needs_port = scheme != "inproc"  # distributed's in-process transport has no port
+        if (sep and scheme not in _SCHEMES) or not rest or (needs_port and not (host and colon and port.isdigit())):
             raise LegbenchError(f"--scheduler {scheduler}: expected an address such as tcp://host:8786 "
                                 f"(schemes: {', '.join(_SCHEMES)})")  # fmt: skip
     for opt in ("summary", "junit"):

@@ -158,8 +158,6 @@ def _run(args: argparse.Namespace) -> int:
                 loaded[prof] = scenario.load(path, {**overrides, "profile": prof})
             runs.append((loaded[prof], mode))
     scenarios = list({id(sc): sc for sc, _ in runs}.values())
-    if not [n for n in str(args.backends).split(",") if n.strip()]:
-        raise LegbenchError(f"--backends {args.backends!r}: names no backend (give names, or 'all')")
     names = backends.resolve(args.backends)
     single = len(runs) == 1
     root = Path(args.out) if args.out else Path("results") / "latest"

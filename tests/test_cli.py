@@ -167,3 +167,36 @@ def test_an_interrupted_study_says_nothing_was_written(monkeypatch: pytest.Monke
     assert err == "legbench: interrupted; nothing was written (it writes when all is done)\n"
     assert not (tmp_path / "v").exists()
     assert "what finished is kept" in cli._INTERRUPTED["run"] and "what finished is kept" in cli._INTERRUPTED["sweep"]
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["run", "x.yaml", "--jobs", "x"], "legbench run: error: argument --jobs: invalid int value: 'x'"),
+        (["model", "fk", "a", "0", "0"], "legbench model fk: error: argument Q: invalid float value: 'a'"),
+        (["verify", "--cases", ""], "--cases '': names no case"),
+        (["verify", "--backends", " , "], "--backends ' , ': names no backend"),
+        (["doctor", "x.yaml", "--backends", ""], "--backends '': names no backend"),
+        (["sweep", "x.yaml", "--executor", "dask", "--scheduler", "bogus"], "--scheduler bogus: expected an address"),
+        (["sweep", "x.yaml", "--executor", "dask", "--scheduler", "tcp://host"], "--scheduler tcp://host: expected"),
+    ],
+)
+def test_bad_options_are_one_line_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], message: str
+) -> None:
+    """argparse's own errors (a usage block, then the error) and empty lists (which never mean 'all') are one
+    line on stderr, exit status 2, before anything runs."""
+    try:
+        rc = cli.main([*argv, "--out", str(tmp_path / "o")] if argv[0] in ("verify", "sweep") else argv)
+    except SystemExit as exc:  # argparse exits from parse_args
+        rc = int(exc.code or 0)
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and message in err, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_python_dash_m_runs_the_command() -> None:
+    """``python -m legbench`` is the ``legbench`` command."""
+    out = subprocess.run([sys.executable, "-m", "legbench", "--version"], capture_output=True, text=True, check=True)
+    assert out.stdout.startswith("legbench ")

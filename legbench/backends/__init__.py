@@ -15,7 +15,7 @@ from typing import Any
 
 from legbench import resources
 from legbench.backends.base import INTEGRATOR_FAMILIES, PROFILES, Backend, Limits, Physics, sub_step_count
-from legbench.exceptions import BackendNotFound
+from legbench.exceptions import BackendNotFound, LegbenchError
 
 __all__ = [
     "INTEGRATOR_FAMILIES",
@@ -126,9 +126,18 @@ def load(name: str, physics: Physics, settings: Mapping[str, Any], profile: str 
 
 
 def resolve(names: str | list[str]) -> list[str]:
-    """Expand ``"all"`` or a comma-separated list into backend names (checked)."""
+    """Expand ``"all"`` or a comma-separated list into backend names (checked).
+
+    Raises:
+        LegbenchError: the list names no backend (``""``: an empty list never means all).
+        BackendNotFound: an unknown name.
+    """
+    given = names
     if isinstance(names, str):
-        names = [n.strip() for n in names.split(",") if n.strip()]
+        names = names.split(",")
+    names = [n.strip() for n in names if n.strip()]
+    if not names:
+        raise LegbenchError(f"--backends {given!r}: names no backend (give names, or 'all')")
     if names == ["all"]:
         return available()
     for n in names:

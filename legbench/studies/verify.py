@@ -662,7 +662,9 @@ def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
 
 def _cli(args: argparse.Namespace) -> int:
     names = registry.resolve(args.backends)
-    cases = [c.strip() for c in args.cases.split(",")] if args.cases else list(CASES)
+    cases = list(CASES) if args.cases is None else [c.strip() for c in args.cases.split(",") if c.strip()]
+    if not cases:
+        raise LegbenchError(f"--cases {args.cases!r}: names no case (give some of {', '.join(CASES)})")
     df = verify(args.out, names, cases, args.jobs)
     with pd.option_context("display.width", 200, "display.max_columns", 20, "display.max_colwidth", 40):
         print(df.drop(columns=["note"]).to_string(index=False))

@@ -1,0 +1,7 @@
+"""``python -m legbench``: the same as the ``legbench`` command."""
+
+import sys
+
+from legbench.cli import main
+
+sys.exit(main())
