@@ -360,6 +360,10 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Sc
     if events[0].delay != 0.0:
         raise ctx.error(["events", 0, "delay"], "the first event cannot be delayed (nothing would control the leg)")
     for i, e in enumerate(events):
+        for key, value in (("t", e.t), ("delay", e.delay), ("force_delay", e.force_delay)):
+            if abs(value * rate - round(value * rate)) > 1e-6:  # the tolerance of the duration's check
+                raise ctx.error(["events", i, key], f"{value:g} s is not a whole number of control periods at "
+                                                    f"{rate:g} Hz: a controller switches only on a tick")  # fmt: skip
         if e.t >= duration:
             raise ctx.error(["events", i, "t"], f"event at {e.t} s is past the end ({duration} s)")
         if e.t_switch >= duration:

@@ -76,6 +76,15 @@ BASE = {"name": "t", "duration": 1.0, "events": [{"t": 0.0, "position": {"joint"
         ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}},
                      {"t": 0.5, "effort": {"force": [0, 0, -1]}, "delay": 0.2},
                      {"t": 0.6, "position": {"joint": [0, 0, 0]}}]}, "events[2].t", "before the previous one"),
+        # a controller switches on the 1 kHz grid only: an event off it would silently move to the tick before
+        ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}},
+                     {"t": 0.1005, "effort": {"force": [0, 0, -1]}}]}, "events[1].t", "not a whole number"),
+        ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}},
+                     {"t": 0.1, "effort": {"force": [0, 0, -1]}, "delay": 0.0004}]}, "events[1].delay",
+         "not a whole number"),
+        ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}},
+                     {"t": 0.1, "effort": {"force": [0, 0, -1]}, "force_delay": 0.0071}]}, "events[1].force_delay",
+         "not a whole number"),
     ],
 )  # fmt: skip
 def test_bad_input_names_file_key_and_problem(tmp_path: Path, patch: dict, key: str, words: str) -> None:  # type: ignore[type-arg]
