@@ -175,6 +175,8 @@ def _check_outputs(args: argparse.Namespace) -> None:
     if jobs is not None and jobs < 1:
         raise LegbenchError(f"--jobs {jobs}: must be at least 1")
     out = getattr(args, "out", None)
+    if out == "":
+        raise LegbenchError("--out '': an empty path (give a directory, or leave --out out for the default)")
     if out is not None:
         if args.cmd in _OUT_DIRS:
             results.check_out_path(out)

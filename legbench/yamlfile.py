@@ -324,6 +324,9 @@ def _parse_text(text: str, file: str) -> tuple[Any, yaml.Node | None]:
         line = mark.line + 1 if mark is not None else None
         problem = getattr(exc, "problem", None) or str(exc)
         raise ScenarioError(file, "", f"malformed YAML: {_one_line(problem)}", line) from None
+    except ValueError as exc:  # a scalar YAML cannot convert: an integer of more than 4300 digits, a bad date
+        problem = str(exc).split("; use sys.")[0]  # not Python's own advice
+        raise ScenarioError(file, "", f"a value YAML cannot convert: {_one_line(problem)}") from None
     except RecursionError:
         raise ScenarioError(
             file, "", f"nested more than {limit('yaml_depth')} levels deep (limit yaml_depth)"

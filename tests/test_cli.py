@@ -179,6 +179,7 @@ def test_an_interrupted_study_says_nothing_was_written(monkeypatch: pytest.Monke
         (["doctor", "x.yaml", "--backends", ""], "--backends '': names no backend"),
         (["sweep", "x.yaml", "--executor", "dask", "--scheduler", "bogus"], "--scheduler bogus: expected an address"),
         (["sweep", "x.yaml", "--executor", "dask", "--scheduler", "tcp://host"], "--scheduler tcp://host: expected"),
+        (["run", "x.yaml", "--out", ""], "--out '': an empty path"),  # it skipped the overwrite guard
     ],
 )
 def test_bad_options_are_one_line_errors(

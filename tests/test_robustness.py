@@ -259,8 +259,10 @@ def test_alias_bomb_is_refused_before_expansion(tmp_path: Path, capsys: pytest.C
         ("x: &a [*a]\n", "recursive alias"),
         ("a: {b: 1}\nc: *nope\n", "malformed YAML"),
         ("".join(f"k{i}: &a{i} 1\nv{i}: *a{i}\n" for i in range(1001)), "limit yaml_aliases"),
+        ("name: t\nduration: " + "1" * 5000 + "\n", "cannot convert: Exceeds the limit (4300 digits)"),
+        ("name: t\nwhen: 2001-13-01\n", "cannot convert: month must be in 1..12"),
     ],
-    ids=["duplicate", "deep", "nul", "recursive", "undefined-alias", "many-aliases"],
+    ids=["duplicate", "deep", "nul", "recursive", "undefined-alias", "many-aliases", "huge-int", "bad-date"],
 )
 def test_hostile_yaml_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, words: str) -> None:
     f = tmp_path / "x.yaml"
