@@ -225,3 +225,20 @@ def test_rows_carry_their_study_label(timestep: sweep.SweepResult) -> None:
     assert "pinocchio euler" in set(runs["label"]) and not runs["label"].str.contains("reference").any()
     refs = timestep.table[timestep.table["role"] == "reference"]
     assert refs["label"].str.contains("reference").all()
+
+
+def test_a_sweep_without_out_does_not_replace_a_finished_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """As ``legbench run``: without --out, a finished sweep in the default directory is replaced only with
+    --force (the refusal is one line, exit 2, before anything runs; the old sweep.json is untouched)."""
+    from legbench import cli
+
+    monkeypatch.chdir(tmp_path)
+    done = tmp_path / "results" / "sweeps" / sweep.load_sweep(TIMESTEP).name
+    done.mkdir(parents=True)
+    (done / "sweep.json").write_text('{"name": "kept"}')
+    assert cli.main(["sweep", str(TIMESTEP), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "holds a finished sweep" in err and "--force" in err
+    assert (done / "sweep.json").read_text() == '{"name": "kept"}'

@@ -1007,7 +1007,9 @@ def run_sweep(
 
 
 def _cli(args: argparse.Namespace) -> int:
-    out = Path(args.out) if args.out else Path("results") / "sweeps" / load_sweep(args.sweep).name
+    out = Path(args.out) if args.out is not None else Path("results") / "sweeps" / load_sweep(args.sweep).name
+    if args.out is None and (out / "sweep.json").exists() and not args.force:
+        raise LegbenchError(f"{out} holds a finished sweep; pass --out DIR for a new one, or --force to replace it")
     res = run_sweep(args.sweep, out, args.executor, args.jobs, args.scheduler, quiet=args.quiet)
     t = res.table
     if not len(t):
@@ -1034,6 +1036,8 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
     p = subparsers.add_parser("sweep", help="run a parameter sweep (grid over scenario and backend settings)")
     p.add_argument("sweep", help="sweep YAML file (format: docs/studies.md)")
     p.add_argument("--out", default=None, help="output directory (default results/sweeps/<sweep name>)")
+    p.add_argument("--force", action="store_true",
+                   help="without --out: replace the finished sweep in the default directory")  # fmt: skip
     p.add_argument("--jobs", type=int, default=None, help="parallel runs (default: CPU count)")
     p.add_argument("--executor", choices=EXECUTORS, default="local", help="local process pool or Dask")
     p.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://host:8786 "
