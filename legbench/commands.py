@@ -162,6 +162,9 @@ def _run(args: argparse.Namespace) -> int:
     single = len(runs) == 1
     root = Path(args.out) if args.out else Path("results") / "latest"
     plan = [(sc, mode, root if (single and args.out) else results.out_dir_for(root, sc, mode)) for sc, mode in runs]
+    if not single and (root / "run.json").is_file():  # a tree inside a run: the run's pages would be rewritten
+        raise LegbenchError(f"--out {root}: holds one run, and {len(runs)} runs make a tree of run directories; "
+                            "choose another --out")  # fmt: skip
     _check_plan(plan, args)
     if not args.no_preflight:
         available = set(backends.available())

@@ -201,3 +201,19 @@ def test_python_dash_m_runs_the_command() -> None:
     """``python -m legbench`` is the ``legbench`` command."""
     out = subprocess.run([sys.executable, "-m", "legbench", "--version"], capture_output=True, text=True, check=True)
     assert out.stdout.startswith("legbench ")
+
+
+def test_several_scenarios_are_not_written_into_a_single_runs_directory(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two scenarios make a tree of run directories; --out naming one run's directory would nest the tree in it
+    and rewrite that run's pages: refused in one line, exit 2, the run untouched."""
+    run_dir = write_run(tmp_path / "one", {"ref": None, "a": scale(1.01)})
+    before = {p.name: p.read_bytes() for p in run_dir.iterdir()}
+    scenarios = Path(__file__).resolve().parents[1] / "scenarios"
+    argv = ["run", str(scenarios / "position.yaml"), str(scenarios / "ellipse.yaml"), "--backends", "pinocchio",
+            "--out", str(run_dir), "-q"]  # fmt: skip
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "holds one run" in err
+    assert {p.name: p.read_bytes() for p in run_dir.iterdir()} == before
