@@ -16,7 +16,7 @@ import functools
 import math
 import os
 import tempfile
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -281,6 +281,17 @@ def check_physical(raw: dict[str, Any], path: Path | str = "leg parameters") -> 
         return float(v)
 
     try:
+        lengths = [f.name for f in fields(Geometry)]
+        for k in raw["geometry"]:
+            if k not in lengths:
+                raise bad(f"geometry.{k}", raw["geometry"][k], f"is not a length of the leg ({', '.join(lengths)})")
+        joints = raw["joints"]
+        if not isinstance(joints, list) or len(joints) != 3:
+            n = len(joints) if isinstance(joints, list) else type(joints).__name__
+            raise bad("joints", n, "joints: the leg has three (ab/ad, hip, knee)")
+        for i, j in enumerate(joints):
+            if j.get("type") not in ("revolute", "continuous"):
+                raise bad(f"joints[{i}].type", j.get("type"), "is not a rotary joint (revolute or continuous)")
         for k in ("L_12", "L_23", "L_3E", "R_foot"):
             if num(f"geometry.{k}", raw["geometry"][k]) <= 0:
                 raise bad(f"geometry.{k}", raw["geometry"][k], "must be > 0 (a length)")

@@ -350,6 +350,24 @@ def test_meaningless_leg_parameters_are_refused(section: str, key: str, value: f
         model.params_from_raw(raw, "p.yaml")
 
 
+@pytest.mark.parametrize(
+    ("edit", "words"),
+    [
+        (lambda raw: raw["joints"].pop(), "joints: 2 joints: the leg has three"),
+        (lambda raw: raw["joints"][0].update(type="prismatic"), "joints[0].type: 'prismatic' is not a rotary joint"),
+        (lambda raw: raw["geometry"].update(bogus=0.1), "geometry.bogus: 0.1 is not a length of the leg (H, "),
+    ],
+    ids=["two-joints", "prismatic", "unknown-length"],
+)
+def test_a_leg_that_is_not_the_3_dof_leg_is_refused(edit: Any, words: str) -> None:
+    """The model, URDF and every backend assume three rotary joints: anything else is one line naming the key
+    (a leg file with two joints ended in zip()'s ValueError, a prismatic joint ran)."""
+    raw = copy.deepcopy(model.load_raw())
+    edit(raw)
+    with pytest.raises(ModelError, match=words.replace("(", r"\(").replace("[", r"\[")):
+        model.params_from_raw(raw, "p.yaml")
+
+
 def test_validate_reports_every_error_of_a_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     f = tmp_path / "bad.yaml"
     f.write_text(
