@@ -102,14 +102,14 @@ def add_model(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg
 
     def joint_cmd(name: str, fn: Callable[[argparse.Namespace], int], help_: str) -> None:
         p = msub.add_parser(name, help=help_)
-        p.add_argument("q", nargs=3, type=float, metavar="Q", help="joint angles q1 q2 q3 [rad]")
+        p.add_argument("q", nargs=3, type=yamlfile.finite_float, metavar="Q", help="joint angles q1 q2 q3 [rad]")
         p.add_argument("--json", action="store_true", help="print one JSON object")
         p.set_defaults(func=fn)
 
     joint_cmd("fk", _model_fk, "foot centre in W for joint angles")
     joint_cmd("gravity", _model_gravity, "gravity torque G(q)")
     p = msub.add_parser("ik", help="every joint solution for a foot-centre point in W")
-    p.add_argument("p", nargs=3, type=float, metavar="P", help="foot centre x y z in W [m]")
+    p.add_argument("p", nargs=3, type=yamlfile.finite_float, metavar="P", help="foot centre x y z in W [m]")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_model_ik)
     p = msub.add_parser("urdf", help="regenerate models/leg.urdf from the parameter file")
@@ -373,7 +373,7 @@ def add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     )
     p.add_argument(
         "--log-time-scale",
-        type=float,
+        type=yamlfile.positive_float,
         default=1.0,
         help="factor taking the log's time unit to seconds (e.g. 1e-3 for ms)",
     )

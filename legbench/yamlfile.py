@@ -10,6 +10,7 @@ path, the line and the problem.
 
 from __future__ import annotations
 
+import argparse
 import copy
 import difflib
 import math
@@ -28,6 +29,8 @@ __all__ = [
     "Loader",
     "YamlContext",
     "check_keys",
+    "finite_float",
+    "positive_float",
     "integer",
     "keypath",
     "limit",
@@ -404,3 +407,22 @@ def set_key(doc: dict[str, Any], dotted: str, value: Any) -> None:
                 d = d.setdefault(k, {})
         else:
             raise ScenarioError("--set", dotted, f"'{'.'.join(parts[:i])}' is {d!r}, not a mapping")
+
+
+def finite_float(text: str) -> float:
+    """A command-line number (argparse ``type``): finite, or argparse's one-line error (exit status 2)."""
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(x):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+    return x
+
+
+def positive_float(text: str) -> float:
+    """A command-line number that must be finite and > 0 (durations, scale factors)."""
+    x = finite_float(text)
+    if x <= 0.0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be > 0")
+    return x

@@ -173,13 +173,17 @@ def test_an_interrupted_study_says_nothing_was_written(monkeypatch: pytest.Monke
     ("argv", "message"),
     [
         (["run", "x.yaml", "--jobs", "x"], "legbench run: error: argument --jobs: invalid int value: 'x'"),
-        (["model", "fk", "a", "0", "0"], "legbench model fk: error: argument Q: invalid float value: 'a'"),
+        (["model", "fk", "a", "0", "0"], "legbench model fk: error: argument Q: 'a' is not a number"),
         (["verify", "--cases", ""], "--cases '': names no case"),
         (["verify", "--backends", " , "], "--backends ' , ': names no backend"),
         (["doctor", "x.yaml", "--backends", ""], "--backends '': names no backend"),
         (["sweep", "x.yaml", "--executor", "dask", "--scheduler", "bogus"], "--scheduler bogus: expected an address"),
         (["sweep", "x.yaml", "--executor", "dask", "--scheduler", "tcp://host"], "--scheduler tcp://host: expected"),
         (["run", "x.yaml", "--out", ""], "--out '': an empty path"),  # it skipped the overwrite guard
+        (["model", "fk", "nan", "0", "0"], "argument Q: 'nan' is not a finite number"),  # printed x = nan
+        (["model", "ik", "0.1", "inf", "0"], "argument P: 'inf' is not a finite number"),
+        (["bench", "x.yaml", "--duration", "inf"], "argument --duration: 'inf' is not a finite number"),
+        (["compare", "d", "--log-time-scale", "-1"], "argument --log-time-scale: '-1' must be > 0"),
     ],
 )
 def test_bad_options_are_one_line_errors(

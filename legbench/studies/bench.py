@@ -783,7 +783,8 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
     p.add_argument("--quick", action="store_true",
                    help="short durations (later events dropped; a --set duration is kept), one repeat: "
                    "a smoke test, not figures")  # fmt: skip
-    p.add_argument("--duration", type=float, default=None, help="cut every scenario to this many seconds")
+    p.add_argument("--duration", type=yamlfile.positive_float, default=None,
+                   help="cut every scenario to this many seconds")  # fmt: skip
     p.add_argument("--contact-mode", choices=("native", "reference"), default=None,
                    help="override the scenarios' contact mode")  # fmt: skip
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",

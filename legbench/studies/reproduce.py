@@ -410,7 +410,7 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
                         "'none', or comma-separated names")  # fmt: skip
     p.add_argument("--out", default=str(DEFAULT_OUT), help=f"results tree (default {DEFAULT_OUT})")
     p.add_argument("--jobs", type=int, default=1, help="parallel runs (default 1)")
-    p.add_argument("--duration", type=float, default=None,
+    p.add_argument("--duration", type=yamlfile.positive_float, default=None,
                    help="cut every task to this many seconds (a smoke test; later events dropped)")  # fmt: skip
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key of every task, e.g. --set physics.contact.v_th=0.01")  # fmt: skip
