@@ -91,9 +91,11 @@ class ResultsError(LegbenchError):
     Attributes:
         file: the file or directory the problem is in.
         problem: what is wrong, one sentence.
+        key: dotted key path of the offending value in a JSON file (``scenario.duration``), or "".
     """
 
-    def __init__(self, file: str, problem: str) -> None:
+    def __init__(self, file: str, problem: str, key: str = "") -> None:
         self.file = str(file)
         self.problem = problem
-        super().__init__(f"{self.file}: {problem}")
+        self.key = key
+        super().__init__(f"{self.file}: {key}: {problem}" if key else f"{self.file}: {problem}")

@@ -28,7 +28,7 @@ import platform
 import re
 import shutil
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import cached_property
 from importlib import metadata
 from pathlib import Path
@@ -41,6 +41,7 @@ import pyarrow.parquet as pq
 
 from legbench import backends as registry
 from legbench import kinematics
+from legbench.contact import ContactParams
 from legbench.exceptions import LegbenchError, ResultsError
 from legbench.model import URDF_FILE
 from legbench.scenario import DEFAULT_REFERENCE, Scenario
@@ -49,6 +50,7 @@ from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS, SLICE
 __all__ = [
     "FRAME_COLUMNS",
     "METRICS_SCHEMA",
+    "STATUSES",
     "BackendStatus",
     "EventMark",
     "Run",
@@ -509,7 +511,7 @@ class BackendStatus:
 
     Attributes:
         name: backend name.
-        status: ``"ok"``, ``"failed"`` or ``"missing"``.
+        status: one of :data:`STATUSES`: ``"ok"``, ``"failed"``, ``"missing"`` or ``"interrupted"``.
         reason: why it failed or is missing (None when ok).
         info: engine, version and settings as the backend reported them.
         wall_time: wall-clock time of the run [s] (NaN if unknown).
@@ -620,8 +622,129 @@ def _float_or_nan(v: Any) -> float:
         return math.nan
 
 
+#: Statuses a backend can have in run.json and metrics.json (:class:`RunResult`).
+STATUSES = ("ok", "failed", "missing", "interrupted")
+_CONTACT_KEYS = tuple(f.name for f in fields(ContactParams))
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+def _number_at(doc: Mapping[str, Any], key: str, path: str, file: Path, default: float, *,
+               positive: bool = False, below: float = math.inf, below_what: str = "") -> float:  # fmt: skip
+    """``doc[key]`` (``default`` when absent or null): a finite number >= 0 (> 0 with ``positive``), and
+    below ``below`` if given; anything else is a :class:`ResultsError` naming ``path``."""
+    v = doc.get(key)
+    if v is None:
+        return default
+    if not _is_number(v) or not math.isfinite(v) or v < 0 or (positive and v == 0):
+        raise ResultsError(str(file), f"must be a finite number {'>' if positive else '>='} 0, not {v!r}", path)
+    if v >= below:
+        raise ResultsError(str(file), f"{v!r} s is not shorter than {below_what} ({below:g} s)", path)
+    return float(v)
+
+
+def _mapping_at(doc: Mapping[str, Any], key: str, path: str, file: Path) -> Mapping[str, Any]:
+    """``doc[key]`` as an object (empty when absent or null); anything else is a :class:`ResultsError`."""
+    v = doc.get(key)
+    if v is None:
+        return {}
+    if not isinstance(v, Mapping):
+        raise ResultsError(str(file), f"must be an object, not {type(v).__name__} {v!r:.40}", path)
+    return v
+
+
+def _string_at(doc: Mapping[str, Any], key: str, path: str, file: Path, choices: Sequence[str] = ()) -> None:
+    v = doc.get(key)
+    if v is not None and (not isinstance(v, str) or (choices and v not in choices)):
+        want = f"one of {list(choices)}" if choices else "a string"
+        raise ResultsError(str(file), f"must be {want}, not {v!r:.40}", path)
+
+
+def _check_backends(doc: Mapping[str, Any], file: Path) -> None:
+    """``backends``: an object of name -> object with a known ``status``, a text or null ``reason``."""
+    if doc.get("backends") is None:
+        raise ResultsError(str(file), "missing key 'backends'" if "backends" not in doc else "must be an object, "
+                           "not null", "" if "backends" not in doc else "backends")  # fmt: skip
+    bdoc = _mapping_at(doc, "backends", "backends", file)
+    for name, b in bdoc.items():
+        key = f"backends.{name}"
+        if not isinstance(b, Mapping):
+            raise ResultsError(str(file), f"must be an object, not {type(b).__name__} {b!r:.40}", key)
+        if "status" not in b:
+            raise ResultsError(str(file), "missing key 'status'", key)
+        if b["status"] not in STATUSES:
+            raise ResultsError(str(file), f"must be one of {list(STATUSES)}, not {b['status']!r:.40}", f"{key}.status")
+        _string_at(b, "reason", f"{key}.reason", file)
+        _string_at(b, "file", f"{key}.file", file)
+        _string_at(b, "source", f"{key}.source", file, ("run", "log"))
+        _mapping_at(b, "info", f"{key}.info", file)
+
+
+def _check_run_json(meta: Mapping[str, Any], rj: Path) -> None:
+    """Check every run.json field a reader uses (load_run, check, the report, the run's resume), once.
+
+    Raises:
+        ResultsError: naming run.json, the dotted key and the problem (wrong type, not finite, out of range,
+            an unknown backend status or contact mode).
+    """
+    if "scenario" not in meta:
+        raise ResultsError(str(rj), "missing key 'scenario'")
+    sc = _mapping_at(meta, "scenario", "scenario", rj)
+    if "name" not in sc:
+        raise ResultsError(str(rj), "missing key 'scenario.name'")
+    if not isinstance(sc["name"], str) or not sc["name"]:
+        raise ResultsError(str(rj), f"must be a non-empty string, not {sc['name']!r:.40}", "scenario.name")
+    _string_at(sc, "profile", "scenario.profile", rj)
+    _string_at(sc, "contact_mode", "scenario.contact_mode", rj, ("native", "reference"))
+    duration = _number_at(sc, "duration", "scenario.duration", rj, math.inf, positive=True)
+    _number_at(sc, "control_rate", "scenario.control_rate", rj, 1.0, positive=True)
+    events = sc.get("events")
+    if events is not None and not isinstance(events, list):
+        raise ResultsError(str(rj), f"must be a list of events, not {type(events).__name__} {events!r:.40}",
+                           "scenario.events")  # fmt: skip
+    for i, e in enumerate(events or ()):
+        key = f"scenario.events[{i}]"
+        if not isinstance(e, Mapping):
+            raise ResultsError(str(rj), f"must be an object, not {type(e).__name__} {e!r:.40}", key)
+        _number_at(e, "t", f"{key}.t", rj, 0.0)
+        _number_at(e, "delay", f"{key}.delay", rj, 0.0)
+        _string_at(e, "controller", f"{key}.controller", rj)
+    contact = _mapping_at(sc, "contact", "scenario.contact", rj)
+    for k in contact:
+        if k not in _CONTACT_KEYS:
+            raise ResultsError(str(rj), f"unknown contact parameter; valid: {list(_CONTACT_KEYS)}",
+                               f"scenario.contact.{k}")  # fmt: skip
+        if k == "poc":
+            _string_at(contact, k, "scenario.contact.poc", rj, ("true", "centre"))
+        else:
+            _number_at(contact, k, f"scenario.contact.{k}", rj, 0.0)
+    cmp_ = _mapping_at(sc, "comparison", "scenario.comparison", rj)
+    _string_at(cmp_, "reference", "scenario.comparison.reference", rj)
+    _number_at(cmp_, "skip", "scenario.comparison.skip", rj, 0.0, below=duration, below_what="the run")
+    window = _number_at(cmp_, "steady_window", "scenario.comparison.steady_window", rj, 0.5, positive=True)
+    if window > duration:
+        raise ResultsError(str(rj), f"{window!r} s is longer than the run ({duration:g} s)",
+                           "scenario.comparison.steady_window")  # fmt: skip
+    _mapping_at(cmp_, "tolerances", "scenario.comparison.tolerances", rj)
+    published = cmp_.get("published")
+    if published is not None and not isinstance(published, list):
+        raise ResultsError(str(rj), "must be a list of objects", "scenario.comparison.published")
+    for i, row in enumerate(published or ()):
+        key = f"scenario.comparison.published[{i}]"
+        if not isinstance(row, Mapping) or "source" not in row:
+            raise ResultsError(str(rj), "must be an object with a 'source'", key)
+        for k in ("qd_abs", "force"):
+            v = row.get(k)
+            if v is not None and (not isinstance(v, list) or len(v) != 3 or not all(_is_number(x) for x in v)):
+                raise ResultsError(str(rj), f"must be a list of 3 numbers, not {v!r:.40}", f"{key}.{k}")
+    _check_backends(meta, rj)
+
+
 def read_meta(run_dir: str | Path) -> dict[str, Any]:
-    """A run directory's run.json, checked: an object with ``scenario.name`` and a ``backends`` object.
+    """A run directory's run.json, checked (:func:`_check_run_json`): every field a reader uses has its type
+    and range, so a hand-edited or corrupt file is one :class:`ResultsError` line naming the key.
 
     Raises:
         ResultsError: the directory or run.json is missing, or run.json is malformed or foreign.
@@ -633,9 +756,7 @@ def read_meta(run_dir: str | Path) -> dict[str, Any]:
     if not rj.is_file():
         raise ResultsError(str(path), "no run.json here: not a legbench run directory")
     meta = _read_json(rj)
-    _get(_get(meta, "scenario", rj), "name", rj)
-    if not isinstance(_get(meta, "backends", rj), Mapping):
-        raise ResultsError(str(rj), "'backends' is not an object")
+    _check_run_json(meta, rj)
     return meta
 
 
@@ -742,20 +863,16 @@ def load_run(run_dir: str | Path) -> Run:
     rj = path / "run.json"
     sc = _get(meta, "scenario", rj)
     name = str(_get(sc, "name", rj))
-    mode = str(_get(sc, "contact_mode", rj, "native"))
-    if mode not in ("native", "reference"):
-        raise ResultsError(str(rj), f"scenario.contact_mode is '{mode}', not 'native' or 'reference'")
-    cmp_ = _get(sc, "comparison", rj, {}) or {}
+    mode = str(sc.get("contact_mode") or "native")
+    cmp_ = sc.get("comparison") or {}
     events = tuple(  # at the switch: t plus the event's delay, if any
-        EventMark(float(e.get("t", 0.0)) + float(e.get("delay", 0.0)), str(e.get("controller", "")))
+        EventMark(float(e.get("t") or 0.0) + float(e.get("delay") or 0.0), str(e.get("controller") or ""))
         for e in (sc.get("events") or [])
     )
     backends: dict[str, BackendStatus] = {}
     traces: dict[str, RunResult] = {}
     partial: dict[str, RunResult] = {}
     for bname, b in meta["backends"].items():
-        if not isinstance(b, Mapping) or "status" not in b:
-            raise ResultsError(str(rj), f"backends.{bname} has no 'status'")
         status, reason = str(b["status"]), b.get("reason")
         fname = str(b.get("file") or f"{bname}.parquet")
         fpath = path / fname
@@ -783,11 +900,11 @@ def load_run(run_dir: str | Path) -> Run:
         name=name,
         label=name if mode == "native" else f"{name}__reference",
         contact_mode=mode,
-        poc=str((sc.get("contact") or {}).get("poc", "true")),
-        reference=str(cmp_.get("reference", DEFAULT_REFERENCE)),
-        skip=float(cmp_.get("skip", 0.0) or 0.0),
-        steady_window=float(cmp_.get("steady_window", 0.5) or 0.5),
-        duration=float(sc.get("duration", math.nan)),
+        poc=str((sc.get("contact") or {}).get("poc") or "true"),
+        reference=str(cmp_.get("reference") or DEFAULT_REFERENCE),
+        skip=float(cmp_.get("skip") or 0.0),
+        steady_window=float(cmp_.get("steady_window") or 0.5),
+        duration=float(sc.get("duration") or math.nan),
         events=events,
         backends=backends,
         traces=traces,
@@ -826,8 +943,12 @@ def checks_summary(statuses: Sequence[str]) -> str:
 def read_metrics(path: str | Path) -> tuple[dict[str, Any], pd.DataFrame]:
     """Read a metrics.json: (header without the rows, long table with NaN for null).
 
+    The header fields its readers use are checked like run.json's: ``scenario``, ``name``, ``reference``
+    text, ``contact_mode`` native or reference, ``backends`` an object of name -> {status (one of
+    :data:`STATUSES`), reason, source}.
+
     Raises:
-        ResultsError: missing file, wrong schema or malformed rows.
+        ResultsError: missing file, wrong schema, a malformed header field (naming its key) or malformed rows.
     """
     path = Path(path)
     if not path.is_file():
@@ -835,6 +956,10 @@ def read_metrics(path: str | Path) -> tuple[dict[str, Any], pd.DataFrame]:
     doc = _read_json(path)
     if doc.get("schema") != METRICS_SCHEMA:
         raise ResultsError(str(path), f"schema is {doc.get('schema')!r}, expected {METRICS_SCHEMA!r}")
+    for key in ("scenario", "name", "reference"):
+        _string_at(doc, key, key, path)
+    _string_at(doc, "contact_mode", "contact_mode", path, ("native", "reference"))
+    _check_backends(doc, path)
     rows = doc.pop("metrics", None)
     if not isinstance(rows, list) or any(not isinstance(r, dict) or set(r) != set(FRAME_COLUMNS) for r in rows):
         raise ResultsError(str(path), f"'metrics' must be a list of objects with keys {list(FRAME_COLUMNS)}")

@@ -13,8 +13,8 @@ import pytest
 from fakerun import Transform, add_to, offset, scale, write_run
 
 from legbench import check as K
+from legbench import cli, results
 from legbench import compare as C
-from legbench import results
 from legbench.exceptions import ResultsError, ScenarioError
 
 BUMP = add_to("tau2", lambda t: 0.5 * np.exp(-(((t - 1.2) / 0.05) ** 2)))  # 0.5 N m pulse at t = 1.2 s
@@ -207,3 +207,38 @@ def test_missing_directories_raise(tmp_path: Path) -> None:
     (tmp_path / "empty").mkdir()
     with pytest.raises(ResultsError, match="no run directories"):
         K.check(tmp_path / "empty", tmp_path / "empty")
+
+
+def _edit_metrics(d: Path, key: str, value: object) -> Path:
+    mfile = d / "metrics.json"
+    doc = json.loads(mfile.read_text())
+    doc[key] = value
+    mfile.write_text(json.dumps(doc))  # newer than the logs: check reads it as it is
+    return mfile
+
+
+@pytest.mark.parametrize("side", ["new", "baseline"])
+@pytest.mark.parametrize(
+    ("key", "value", "problem"),
+    [
+        ("backends", "x", "backends: must be an object, not str 'x'"),
+        ("backends", {"a": "ok"}, "backends.a: must be an object, not str 'ok'"),
+        ("backends", {"a": {"status": "fine"}}, "backends.a.status: must be one of ['ok', 'failed', 'missing'"),
+        ("scenario", 7, "scenario: must be a string, not 7"),
+    ],
+)
+def test_a_hand_edited_metrics_json_is_one_line_naming_file_and_key_on_either_side(
+    baseline: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], side: str, key: str, value: object,
+    problem: str,
+) -> None:  # fmt: skip
+    """metrics.json is checked where it is read (results.read_metrics), for the new results and the baseline
+    alike: a field check uses is the wrong type, or a status legbench never writes, is exit 2 with one line,
+    not an AttributeError traceback from the status rows."""
+    new, base = tmp_path / "new", tmp_path / "base"
+    shutil.copytree(baseline, new)
+    shutil.copytree(baseline, base)
+    mfile = _edit_metrics((new if side == "new" else base) / "fake", key, value)
+    assert cli.main(["check", str(new), "--baseline", str(base)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"legbench: error: {mfile}: {problem}"), err
+    assert not (new / "check.md").exists() and not (new / "check-junit.xml").exists()

@@ -22,7 +22,10 @@ SAMPLES: dict[type[E.LegbenchError], list[tuple[tuple[Any, ...], dict[str, Any]]
     # a dict's keys view does not pickle: the error must keep the sorted list it shows
     E.BackendNotFound: [(("drake", {"mujoco": 1, "ode": 2}.keys()), {"hint": "pip install drake"})],
     E.SimulationDiverged: [(("ode", 0.1234, "q2 is NaN"), {})],
-    E.ResultsError: [(("results/x/run.json", "scenario.duration: must be a finite number > 0"), {})],
+    E.ResultsError: [
+        (("results/x/a.parquet", "not a readable parquet file"), {}),
+        (("results/x/run.json", "must be a finite number > 0, not 'abc'"), {"key": "scenario.duration"}),
+    ],
 }
 
 

@@ -1,0 +1,91 @@
+"""The one validated reader of run directories (legbench.results): a hand-edited or corrupt run.json or
+metrics.json is one line naming the file, the key and the problem, exit 2, and nothing is written."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fakerun import scale, write_run
+
+from legbench import cli, results
+from legbench.exceptions import ResultsError
+
+
+def _set(path: Path, key: str, value: Any) -> None:
+    """Set a dotted key of a JSON file (``scenario.comparison.skip``), as a hand edit would."""
+    doc = json.loads(path.read_text())
+    *head, last = key.split(".")
+    cur = doc
+    for k in head:
+        cur = cur[k]
+    cur[last] = value
+    path.write_text(json.dumps(doc))  # NaN and Infinity as Python's json writes (and reads) them
+
+
+BAD_RUN_JSON = [
+    # (key edited, value, key named in the error, the problem named): each used to be a traceback of float(),
+    # iteration or numpy indexing, or a metrics.json that could not be written (NaN)
+    ("scenario.duration", "abc", "scenario.duration", "must be a finite number > 0, not 'abc'"),
+    ("scenario.duration", math.nan, "scenario.duration", "must be a finite number > 0, not nan"),
+    ("scenario.duration", -1.0, "scenario.duration", "must be a finite number > 0"),
+    ("scenario.duration", True, "scenario.duration", "must be a finite number > 0, not True"),
+    ("scenario.events", 5, "scenario.events", "must be a list of events, not int 5"),
+    ("scenario.events", [5], "scenario.events[0]", "must be an object, not int 5"),
+    ("scenario.comparison.steady_window", -5, "scenario.comparison.steady_window", "must be a finite number > 0"),
+    ("scenario.comparison.steady_window", 9.0, "scenario.comparison.steady_window", "longer than the run (2 s)"),
+    ("scenario.comparison.skip", math.inf, "scenario.comparison.skip", "must be a finite number >= 0, not inf"),
+    ("scenario.comparison.skip", 2.0, "scenario.comparison.skip", "is not shorter than the run (2 s)"),
+    ("scenario.comparison", "x", "scenario.comparison", "must be an object, not str 'x'"),
+    ("scenario.contact_mode", "sideways", "scenario.contact_mode", "must be one of ['native', 'reference']"),
+    ("scenario.contact", {"Kp": "stiff"}, "scenario.contact.Kp", "must be a finite number >= 0, not 'stiff'"),
+    ("scenario.contact", {"gravity": 9.81}, "scenario.contact.gravity", "unknown contact parameter"),
+    ("scenario.name", 3, "scenario.name", "must be a non-empty string, not 3"),
+    ("backends", "x", "backends", "must be an object, not str 'x'"),
+    ("backends.a", 5, "backends.a", "must be an object, not int 5"),
+    ("backends.a.status", "done", "backends.a.status", "must be one of ['ok', 'failed', 'missing', 'interrupted']"),
+]
+
+
+@pytest.mark.parametrize(("key", "value", "shown", "problem"), BAD_RUN_JSON,
+                         ids=[f"{k}={v!r}" for k, v, _, _ in BAD_RUN_JSON])  # fmt: skip
+def test_compare_names_a_hand_edited_run_json_field_in_one_line_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], key: str, value: Any, shown: str, problem: str
+) -> None:
+    """Each field compare, check and the report use is checked once, where run.json is read: its type, that it
+    is finite and in range (skip inside the run, a positive steady window no longer than the run), and a
+    backend status legbench writes. The error names run.json and the dotted key; no report is half-written."""
+    run = write_run(tmp_path / "one", {"ref": None, "a": scale(1.1)}, name="one")
+    rj = run / "run.json"
+    _set(rj, key, value)
+    before = sorted(p.name for p in run.iterdir())
+    assert cli.main(["compare", str(run)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(f"legbench: error: {rj}: {shown}: "), err
+    assert problem in err
+    assert sorted(p.name for p in run.iterdir()) == before  # no metrics.json, report or assets/
+
+
+def test_read_meta_keeps_the_documented_defaults_of_absent_fields(tmp_path: Path) -> None:
+    """Checking is not requiring: a run.json without the optional comparison fields and events still reads,
+    with skip 0, steady window 0.5 s, the default reference and no events (older run directories)."""
+    run = write_run(tmp_path / "one", {"pinocchio": None}, name="one")
+    rj = run / "run.json"
+    doc = json.loads(rj.read_text())
+    del doc["scenario"]["comparison"], doc["scenario"]["events"], doc["scenario"]["contact"]
+    rj.write_text(json.dumps(doc))
+    loaded = results.load_run(run)
+    assert (loaded.skip, loaded.steady_window, loaded.reference, loaded.events) == (0.0, 0.5, "pinocchio", ())
+    assert loaded.poc == "true"
+
+
+def test_a_results_error_names_the_key_between_file_and_problem() -> None:
+    """The same shape as a ScenarioError: file, dotted key, problem, on one line."""
+    exc = ResultsError("r/run.json", "must be a finite number > 0, not 'abc'", "scenario.duration")
+    assert str(exc) == "r/run.json: scenario.duration: must be a finite number > 0, not 'abc'"
+    assert (exc.file, exc.key) == ("r/run.json", "scenario.duration")
+    assert str(ResultsError("r/a.parquet", "no such file")) == "r/a.parquet: no such file"
