@@ -242,3 +242,15 @@ def test_a_sweep_without_out_does_not_replace_a_finished_one(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "holds a finished sweep" in err and "--force" in err
     assert (done / "sweep.json").read_text() == '{"name": "kept"}'
+
+
+def test_a_broken_scenario_is_named_not_blamed_on_a_study(tmp_path: Path) -> None:
+    """The sweep's scenario is read on its own first: its malformed YAML is reported with its own file and line,
+    under the sweep's ``scenario`` key (it was reported as a problem of studies[0].set)."""
+    (tmp_path / "broken.yaml").write_text("name: t\nduration: [1\n")
+    text = TIMESTEP.read_text().replace("scenario: ../verification/free_space.yaml", "scenario: broken.yaml")
+    (tmp_path / "sw.yaml").write_text(text)
+    with pytest.raises(ScenarioError) as exc:
+        sweep.load_sweep(tmp_path / "sw.yaml")
+    assert exc.value.key == "scenario"
+    assert f"{tmp_path / 'broken.yaml'}:3: malformed YAML" in str(exc.value)

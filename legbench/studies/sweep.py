@@ -205,6 +205,10 @@ def load_sweep(path: str | Path) -> Sweep:
     scenario = (path.parent / raw["scenario"]).resolve()
     if not scenario.is_file():
         raise doc.error(["scenario"], f"no such scenario file: {scenario}")
+    try:  # the scenario on its own first, so its own problems name its file, not a study's override
+        scenario_mod.load(scenario)
+    except ScenarioError as exc:
+        raise doc.error(["scenario"], str(exc)) from None
     common = _dotted(doc, ["set"], raw.get("set"))
     mode = raw.get("contact_mode")
     if mode is not None and mode not in CONTACT_MODES:
