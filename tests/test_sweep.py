@@ -254,3 +254,29 @@ def test_a_broken_scenario_is_named_not_blamed_on_a_study(tmp_path: Path) -> Non
         sweep.load_sweep(tmp_path / "sw.yaml")
     assert exc.value.key == "scenario"
     assert f"{tmp_path / 'broken.yaml'}:3: malformed YAML" in str(exc.value)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key", "words"),
+    [
+        ("reference: {set: {backends.*.dt: 5.0e-6}}", "reference: {set: {backends.*.dt: -1}}",
+         "studies[0].reference.set", "must be > 0"),
+        ("fit: {x: dt, floor: 1.0e-12}", "fit: {x: dt, floor: 1.0e-12}\nshort_horizon: {window: 0.0105}",
+         "short_horizon.window", "not a whole number of control periods"),
+        ("fit: {x: dt, floor: 1.0e-12}", "fit: {x: dt, floor: 1.0e-12}\nshort_horizon: {window: 100}",
+         "short_horizon.window", "longer than the runs"),
+    ],
+)  # fmt: skip
+def test_what_the_sweep_would_refuse_is_refused_when_it_is_read(
+    tmp_path: Path, old: str, new: str, key: str, words: str
+) -> None:
+    """A reference's overrides and the short-horizon window are checked when the sweep file is read (so by
+    ``legbench validate``), naming the key: they passed validation and failed mid-sweep (the window's message
+    named neither file nor key), or a window longer than the run ran silently."""
+    text = TIMESTEP.read_text()
+    assert old in text
+    f = tmp_path / "sw.yaml"
+    f.write_text(text.replace(old, new, 1).replace("../verification/", str(ROOT / "scenarios/verification") + "/"))
+    with pytest.raises(ScenarioError) as exc:
+        sweep.load_sweep(f)
+    assert exc.value.key == key and words in str(exc.value), str(exc.value)

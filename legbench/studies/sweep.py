@@ -206,7 +206,7 @@ def load_sweep(path: str | Path) -> Sweep:
     if not scenario.is_file():
         raise doc.error(["scenario"], f"no such scenario file: {scenario}")
     try:  # the scenario on its own first, so its own problems name its file, not a study's override
-        scenario_mod.load(scenario)
+        base_scenario = scenario_mod.load(scenario)
     except ScenarioError as exc:
         raise doc.error(["scenario"], str(exc)) from None
     common = _dotted(doc, ["set"], raw.get("set"))
@@ -243,6 +243,15 @@ def load_sweep(path: str | Path) -> Sweep:
     if fit is not None and not any(_column(k) == fit.x for st in studies for k in st.grid):
         raise doc.error(["fit", "x"], f"no study sweeps a column named {fit.x!r}")
     _check_values(doc, scenario, common, studies)
+    if window is not None:  # against the runs' control period and length (the sweep's own set may change them)
+        duration = float(common.get("duration", base_scenario.duration))
+        control_dt = 1.0 / float(common.get("control_rate", base_scenario.control_rate))
+        try:
+            horizon.window_ticks(window, control_dt)
+        except LegbenchError as exc:
+            raise doc.error(["short_horizon", "window"], str(exc)) from None
+        if window > duration:
+            raise doc.error(["short_horizon", "window"], f"{window:g} s is longer than the runs ({duration:g} s)")
     return Sweep(name, description, str(path), scenario, common, mode, tuple(signals), skip, metric, fit, window,
                  studies, raw)  # fmt: skip
 
@@ -261,6 +270,10 @@ def _check_values(doc: YamlContext, scenario: Path, common: Mapping[str, Any], s
                 if _applies(_fill(key, backend), backend)
             ]
             checks.append((["studies", i, "set"], base))
+            ref_set = {_fill(k, backend): v for k, v in st.reference_set.items()}
+            ref_set = {k: v for k, v in ref_set.items() if _applies(k, backend)}
+            if ref_set:
+                checks.append((["studies", i, "reference", "set"], {**base, **ref_set}))
             for key, values in st.grid.items():
                 for v in values:
                     if _applies(_fill(key, backend), backend):
