@@ -21,6 +21,12 @@ Tolerances come from the defaults, overridden by a tolerance file (YAML or
 JSON), overridden by the scenario's own ``comparison.tolerances`` in the new
 run.json. When both sides still hold their parquet logs, each backend's time
 series is also compared bit for bit ("identical" or "changed").
+
+The check never passes on results it cannot read: both sides' run.json and
+metrics.json are read through :mod:`legbench.results`' checked readers, and a
+directory's logs are read (and checked) even when its metrics.json is newer, so
+an empty, cut-short or column-less log is a ResultsError (exit 2), and a log
+run.json calls ok that is gone makes the backend ``missing`` (a FAILED row).
 """
 
 from __future__ import annotations
@@ -40,8 +46,10 @@ from legbench import yamlfile
 from legbench.compare import compare
 from legbench.exceptions import ResultsError, ScenarioError
 from legbench.results import (
+    Run,
     atomic_write_bytes,
     atomic_write_text,
+    load_run,
     read_log,
     read_meta,
     read_metrics,
@@ -292,22 +300,54 @@ def _lookup(spec: Any, signal: str, joint: str, default: float) -> float:
 # Reading both sides
 
 
-def _metrics(d: Path) -> tuple[dict[str, Any], pd.DataFrame]:
-    """metrics.json of a run directory; recomputed from the logs when absent or older than any log.
+def _metrics(d: Path) -> tuple[dict[str, Any], pd.DataFrame, Run | None]:
+    """metrics.json of a run directory; recomputed from the logs when absent or older than any log; and the
+    run read back from run.json and its logs, when it has both (None otherwise).
 
-    A committed baseline usually holds only run.json and metrics.json: its
-    metrics.json is used as is.
+    A committed baseline usually holds only run.json and metrics.json: its metrics.json is used as is, and
+    its run.json is still read (checked, :func:`legbench.results.read_meta`). A directory that holds logs
+    has them read through :func:`legbench.results.load_run` even when its metrics.json is newer: a
+    metrics.json is only as good as the logs beside it, so a log that is empty, cut short, lacks a
+    column or holds non-finite values is a :class:`ResultsError` (exit 2), and a log run.json calls ok
+    but which is gone makes that backend ``missing`` (see :func:`_with_run_statuses`).
     """
     mfile = d / "metrics.json"
     logs = list(d.glob("*.parquet"))
     if mfile.is_file() and all(p.stat().st_mtime <= mfile.stat().st_mtime for p in logs):
-        return read_metrics(mfile)
+        doc, df = read_metrics(mfile)
+        run = None
+        if (d / "run.json").is_file():
+            run = load_run(d) if logs else None
+            if run is None:
+                read_meta(d)
+        return doc, df, run
     if not logs:
         raise ResultsError(str(d), "neither metrics.json nor backend logs (*.parquet) to measure")
     res = compare(d)
     doc = res.to_json()
     doc.pop("metrics")
-    return doc, res.frame()
+    return doc, res.frame(), res.run
+
+
+def _with_run_statuses(doc: dict[str, Any], run: Run | None) -> dict[str, Any]:
+    """metrics.json's header with each run backend's status as run.json and the logs on disk say now.
+
+    A metrics.json newer than the logs says what the backends did when it was written; a backend whose log
+    has since gone (run.json says ok, the file is not there) is ``missing`` now, and a backend run.json no
+    longer lists is ``absent``: :func:`_status_rows` fails either if it was ok in the baseline.
+    """
+    if run is None:
+        return doc
+    backends = {}
+    for name, b in (doc.get("backends") or {}).items():
+        if b.get("source", "run") == "run":
+            st = run.backends.get(name)
+            if st is None:
+                b = {**b, "status": "absent", "reason": f"not in {run.path / 'run.json'}"}
+            elif st.status != b.get("status"):
+                b = {**b, "status": st.status, "reason": st.reason}
+        backends[name] = b
+    return {**doc, "backends": backends}
 
 
 def _tolerances(
@@ -472,8 +512,9 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
             rows.append(CheckRow(key, "-", "", "-", "-", "status", nan, nan, nan, "MISSING", msg))
             continue
         ndir = nd[key]
-        bmeta, bdf = _metrics(bdir)
-        nmeta, ndf = _metrics(ndir)
+        bmeta, bdf, _ = _metrics(bdir)
+        nmeta, ndf, nrun = _metrics(ndir)
+        nmeta = _with_run_statuses(nmeta, nrun)
         bname, nname = str(bmeta.get("scenario", key)), str(nmeta.get("scenario", key))
         if bname != nname:  # another scenario's baseline: name the mismatch instead of 66 "regressions"
             raise ResultsError(str(ndir), f"holds scenario {nname!r} but the baseline {bdir} holds {bname!r}: "

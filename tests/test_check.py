@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import shutil
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from fakerun import Transform, add_to, offset, scale, write_run
 
@@ -242,3 +244,88 @@ def test_a_hand_edited_metrics_json_is_one_line_naming_file_and_key_on_either_si
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith(f"legbench: error: {mfile}: {problem}"), err
     assert not (new / "check.md").exists() and not (new / "check-junit.xml").exists()
+
+
+def _broken_copy(baseline: Path, tmp_path: Path, how: str, metrics_newer: bool) -> tuple[Path, Path]:
+    """A copy of the baseline whose fake/a log (or run.json) is damaged after metrics.json was written.
+
+    ``metrics_newer``: the damaged log keeps an mtime older than metrics.json (a copy or restore that keeps
+    times), so check would take metrics.json as is; else the log is newer and the metrics are recomputed.
+    """
+    new = tmp_path / "new"
+    shutil.copytree(baseline, new)
+    log = new / "fake" / "a.parquet"
+    df = pd.read_parquet(log)
+    if how == "empty":
+        df.iloc[:0].to_parquet(log, index=False)
+    elif how == "no column":
+        df.drop(columns=["q2"]).to_parquet(log, index=False)
+    elif how == "deleted":
+        log.unlink()
+    elif how == "status":
+        _set_json(new / "fake" / "run.json", ["backends", "a", "status"], "succeeded")
+    if metrics_newer and log.exists():
+        old = (new / "fake" / "metrics.json").stat().st_mtime - 60
+        os.utime(log, (old, old))
+    return new, log
+
+
+def _set_json(path: Path, keys: list[str], value: object) -> None:
+    doc = json.loads(path.read_text())
+    cur = doc
+    for k in keys[:-1]:
+        cur = cur[k]
+    cur[keys[-1]] = value
+    path.write_text(json.dumps(doc))
+
+
+@pytest.mark.parametrize("metrics_newer", [True, False], ids=["metrics newer", "log newer"])
+@pytest.mark.parametrize(
+    ("how", "problem"),
+    [
+        ("empty", "a.parquet: has 0 row(s); at least 2 are needed"),
+        ("no column", "a.parquet: missing column(s) ['q2']"),
+        ("status", "run.json: backends.a.status: must be one of ['ok', 'failed', 'missing', 'interrupted']"),
+    ],
+)
+def test_a_new_run_whose_logs_or_run_json_cannot_be_read_is_an_error_not_a_pass(
+    baseline: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], how: str, problem: str, metrics_newer: bool
+) -> None:
+    """A regression check must not pass on results it cannot read. A metrics.json newer than the logs used to
+    be taken as is, so an emptied log or one missing a column passed (exit 0); now the logs beside it are
+    read as compare reads them, and an unreadable one is the same one-line error (exit 2) whichever is newer.
+    No check.md or JUnit file is written for a check that did not happen."""
+    new, log = _broken_copy(baseline, tmp_path, how, metrics_newer)
+    assert cli.main(["check", str(new), "--baseline", str(baseline)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"legbench: error: {new / 'fake'}/{problem}"), err
+    assert not (new / "check.md").exists() and not (new / "check-junit.xml").exists()
+
+
+def test_a_new_run_whose_log_was_deleted_fails_as_missing(baseline: Path, tmp_path: Path) -> None:
+    """run.json says a is ok but a.parquet is gone: the backend is missing now, a FAILED row naming the file
+    (exit 1), as when compare itself finds the log gone; the stale metrics.json does not vouch for it."""
+    new, log = _broken_copy(baseline, tmp_path, "deleted", metrics_newer=True)
+    out = io.StringIO()
+    assert K.run_check(new, baseline, stream=out) == 1
+    failed = [r for r in K.check(new, baseline).regressions if r.status == "FAILED"]
+    assert [(r.scenario, r.backend) for r in failed] == [("fake", "a")]
+    assert f"now missing: run.json says ok but a.parquet is not in {new / 'fake'}" in failed[0].message
+    assert "FAIL" in out.getvalue().splitlines()[-1]
+
+
+def test_a_malformed_baseline_run_json_is_the_same_error_as_on_the_new_side(
+    baseline: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The baseline's run.json is read and checked like the new one's (it used to be ignored when the
+    baseline's metrics.json was present, so a corrupt baseline passed)."""
+    for side in ("new", "base"):
+        new, base = tmp_path / side / "new", tmp_path / side / "base"
+        shutil.copytree(baseline, new)
+        shutil.copytree(baseline, base)
+        bad = (new if side == "new" else base) / "other" / "run.json"
+        bad.write_text("{not json")
+        assert cli.main(["check", str(new), "--baseline", str(base)]) == 2
+        err = capsys.readouterr().err
+        assert err == f"legbench: error: {bad}: invalid JSON at line 1: Expecting property name enclosed in double " \
+                      "quotes\n"  # fmt: skip
