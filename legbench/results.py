@@ -795,14 +795,19 @@ def read_log(path: str | Path) -> pd.DataFrame:
 
 
 def result_from_frame(df: pd.DataFrame, name: str, source: str = "<frame>",
-                      required: Sequence[str] = ("t",)) -> RunResult:  # fmt: skip
+                      required: Sequence[str] = ("t",), allow_nan: bool = True) -> RunResult:  # fmt: skip
     """A :class:`RunResult` from a DataFrame with (some of) :data:`~legbench.signals.RUN_COLUMNS`.
 
-    Signals absent from the frame are NaN; the foot centre is taken as logged (NaN if absent).
+    Signals absent from the frame are NaN; the foot centre is taken as logged (NaN if absent). An infinite
+    value is refused in every column (no leg logs one, and the metrics would turn it into numpy warnings and
+    NaN). A column that is NaN throughout is a signal not logged (as if absent: no figure, metrics n/a); NaN
+    in some rows only is refused unless ``allow_nan`` (an imported log's missing sample, such as a ROS bag's
+    ground force outside the wrench topic's span; the run loop never logs one, so in a run's log it is damage).
 
     Raises:
-        ResultsError: a ``required`` column missing, a value not numeric, ``t`` not finite or not
-            strictly increasing, or fewer than 2 rows.
+        ResultsError: a ``required`` column missing, a value not numeric, an infinite value, NaN in ``t`` or
+            (without ``allow_nan``) in some rows of a column, ``t`` not strictly increasing, or fewer than 2
+            rows; naming the column, the row and its time.
     """
     missing = [c for c in required if c not in df.columns]
     if missing:
@@ -811,7 +816,7 @@ def result_from_frame(df: pd.DataFrame, name: str, source: str = "<frame>",
     if n < 2:
         raise ResultsError(source, f"has {n} row(s); at least 2 are needed")
 
-    def block(cols: Sequence[str]) -> np.ndarray:
+    def block(cols: Sequence[str], t: np.ndarray | None = None, nan_ok: bool = allow_nan) -> np.ndarray:
         out = np.full((n, len(cols)), np.nan)
         for i, c in enumerate(cols):
             if c in df.columns:
@@ -819,10 +824,18 @@ def result_from_frame(df: pd.DataFrame, name: str, source: str = "<frame>",
                     out[:, i] = pd.to_numeric(df[c], errors="raise").to_numpy(dtype=float, na_value=np.nan)
                 except (ValueError, TypeError) as exc:
                     raise ResultsError(source, f"column '{c}' is not numeric ({exc})") from exc
+                nan = np.isnan(out[:, i])
+                bad = np.isinf(out[:, i]) if nan_ok or nan.all() else ~np.isfinite(out[:, i])
+                if bad.any():
+                    k = int(np.argmax(bad))
+                    when = f" (t = {float(t[k]):g} s)" if t is not None else ""
+                    what = f"column '{c}' holds {float(out[k, i])} at row {k}{when}"
+                    raise ResultsError(source, f"{what} ({int(bad.sum())} such value(s)): a log must hold finite "
+                                               "numbers")  # fmt: skip
         return out
 
-    t = block(["t"])[:, 0]
-    if not np.isfinite(t).all():
+    t = block(["t"], nan_ok=False)[:, 0]
+    if np.isnan(t).any():
         raise ResultsError(source, "column 't' has non-finite values")
     steps = np.diff(t)
     if (steps <= 0).any():
@@ -833,30 +846,49 @@ def result_from_frame(df: pd.DataFrame, name: str, source: str = "<frame>",
         if "controller" in df.columns
         else np.full(n, "", dtype=object)
     )
-    data = block(LABELS)
+    data = block(LABELS, t)
     return RunResult(name, t, data[:, 0:3], data[:, 3:6], data[:, 6:9], data[:, 9:12], ctrl, source=source,
-                     foot=block(EE_COLUMNS))  # fmt: skip
+                     foot=block(EE_COLUMNS, t))  # fmt: skip
 
 
-def load_trace(path: str | Path, name: str | None = None) -> RunResult:
-    """Read one backend's parquet log (every column of :data:`~legbench.signals.RUN_COLUMNS` required).
+def load_trace(path: str | Path, name: str | None = None, allow_nan: bool = False) -> RunResult:
+    """Read one backend's parquet log (every column of :data:`~legbench.signals.RUN_COLUMNS` required,
+    every value finite or a column NaN throughout, a signal not logged: the run loop logs only checked,
+    finite states; ``allow_nan`` for a failed backend's partial log, which is only plotted).
 
     Raises:
-        ResultsError: the file is missing, unreadable or lacks a column.
+        ResultsError: the file is missing, unreadable, lacks a column or holds a non-finite value.
     """
     path = Path(path)
     df = read_log(path)
-    return result_from_frame(df, name or path.stem, str(path), [c for c in RUN_COLUMNS if c != "controller"])
+    return result_from_frame(df, name or path.stem, str(path), [c for c in RUN_COLUMNS if c != "controller"],
+                             allow_nan)  # fmt: skip
+
+
+def _check_span(tr: RunResult, duration: float, rate: float, file: Path, rj: Path) -> None:
+    """An ok backend's log covers the scenario, t = 0 .. duration (half a control period either way)."""
+    if not math.isfinite(duration):
+        return  # a run.json without scenario.duration (older or foreign): nothing to hold the log to
+    tol = 0.5 / rate if math.isfinite(rate) and rate > 0 else 1e-9 * max(duration, 1.0)
+    if tr.t[0] > tol or tr.t[-1] < duration - tol:
+        raise ResultsError(str(file), f"column 't' spans {tr.t[0]:g} .. {tr.t[-1]:g} s ({len(tr.t)} rows), not the "
+                                      f"scenario's 0 .. {duration:g} s, though {rj} says {tr.backend} is ok: the log "
+                                      "is cut short")  # fmt: skip
 
 
 def load_run(run_dir: str | Path) -> Run:
     """Read a run directory (run.json and one parquet per backend whose status is ok).
 
-    A backend listed as ok whose file is absent is reported as ``missing``;
-    a failed backend's file, if present, is kept in :attr:`Run.partial`.
+    A backend listed as ok whose file is absent is reported as ``missing`` (compare notes it, check fails it);
+    a failed backend's file, if present, is kept in :attr:`Run.partial`. A log that *is* there for a backend
+    listed as ok must be whole: every column, finite values, and t spanning the scenario's 0 .. duration
+    (to half a control period). One that is not (cut short by a full disk or a copy, a NaN or inf written into
+    it) is not a failed backend run.json could report, but a damaged file: a :class:`ResultsError` naming the
+    file and the column, rather than metrics computed silently over what is left of it.
 
     Raises:
-        ResultsError: the directory or run.json is missing or malformed, or a parquet file is malformed.
+        ResultsError: the directory or run.json is missing or malformed, or an ok backend's parquet file is
+            unreadable, lacks a column, holds a non-finite value or is shorter than the scenario.
     """
     path = Path(run_dir)
     meta = read_meta(path)
@@ -865,6 +897,7 @@ def load_run(run_dir: str | Path) -> Run:
     name = str(_get(sc, "name", rj))
     mode = str(sc.get("contact_mode") or "native")
     cmp_ = sc.get("comparison") or {}
+    duration, rate = float(sc.get("duration") or math.nan), float(sc.get("control_rate") or math.nan)
     events = tuple(  # at the switch: t plus the event's delay, if any
         EventMark(float(e.get("t") or 0.0) + float(e.get("delay") or 0.0), str(e.get("controller") or ""))
         for e in (sc.get("events") or [])
@@ -880,9 +913,10 @@ def load_run(run_dir: str | Path) -> Run:
             status, reason = "missing", f"run.json says ok but {fname} is not in {path}"
         if status == "ok":
             traces[bname] = load_trace(fpath, bname)
+            _check_span(traces[bname], duration, rate, fpath, rj)
         elif fpath.is_file():
             try:
-                partial[bname] = load_trace(fpath, bname)
+                partial[bname] = load_trace(fpath, bname, allow_nan=True)
             except ResultsError as exc:
                 logger.info("partial log of %s not readable: %s", bname, exc)
         backends[bname] = BackendStatus(
@@ -904,7 +938,7 @@ def load_run(run_dir: str | Path) -> Run:
         reference=str(cmp_.get("reference") or DEFAULT_REFERENCE),
         skip=float(cmp_.get("skip") or 0.0),
         steady_window=float(cmp_.get("steady_window") or 0.5),
-        duration=float(sc.get("duration") or math.nan),
+        duration=duration,
         events=events,
         backends=backends,
         traces=traces,

@@ -258,6 +258,8 @@ def _broken_copy(baseline: Path, tmp_path: Path, how: str, metrics_newer: bool) 
     df = pd.read_parquet(log)
     if how == "empty":
         df.iloc[:0].to_parquet(log, index=False)
+    elif how == "cut short":
+        df.iloc[:10].to_parquet(log, index=False)
     elif how == "no column":
         df.drop(columns=["q2"]).to_parquet(log, index=False)
     elif how == "deleted":
@@ -285,6 +287,7 @@ def _set_json(path: Path, keys: list[str], value: object) -> None:
     [
         ("empty", "a.parquet: has 0 row(s); at least 2 are needed"),
         ("no column", "a.parquet: missing column(s) ['q2']"),
+        ("cut short", "a.parquet: column 't' spans 0 .. 0.009 s (10 rows), not the scenario's 0 .. 2 s"),
         ("status", "run.json: backends.a.status: must be one of ['ok', 'failed', 'missing', 'interrupted']"),
     ],
 )

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -285,6 +286,85 @@ def test_parquet_without_a_contract_column_raises(tmp_path: Path) -> None:
     pd.read_parquet(d / "ref.parquet").drop(columns=["fz"]).to_parquet(d / "ref.parquet")
     with pytest.raises(ResultsError, match=r"ref.parquet: missing column\(s\) \['fz'\]"):
         results.load_run(d)
+
+
+def _damage(d: Path, backend: str, how: str) -> Path:
+    log = d / f"{backend}.parquet"
+    df = pd.read_parquet(log)
+    if how == "cut to 10 rows":
+        df = df.iloc[:10]
+    elif how == "first rows gone":
+        df = df.iloc[100:]
+    elif how == "NaN in one row":
+        df.loc[5, "q2"] = np.nan
+    elif how == "inf in one row":
+        df.loc[7, "fz"] = -np.inf
+    df.to_parquet(log, index=False)
+    return log
+
+
+@pytest.mark.parametrize(
+    ("how", "fragment"),
+    [
+        ("cut to 10 rows", "column 't' spans 0 .. 0.009 s (10 rows), not the scenario's 0 .. 2 s"),
+        ("first rows gone", "column 't' spans 0.1 .. 2 s (1901 rows), not the scenario's 0 .. 2 s"),
+        ("NaN in one row", "column 'q2' holds nan at row 5 (t = 0.005 s) (1 such value(s))"),
+        ("inf in one row", "column 'fz' holds -inf at row 7 (t = 0.007 s) (1 such value(s))"),
+    ],
+)
+def test_a_damaged_log_of_an_ok_backend_is_refused_naming_file_and_column(
+    tmp_path: Path, how: str, fragment: str
+) -> None:
+    """run.json says a is ok, so its log must be whole: the run loop logs every tick from 0 to the duration and
+    only finite, checked states. A log cut short (a full disk, an interrupted copy) used to be measured over
+    the 9 ms left, and a NaN passed silently; neither is a backend failure run.json could report (those are
+    notes), so it is a ResultsError naming the file and the column, and no metric is computed from it."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.1)})
+    log = _damage(d, "a", how)
+    with pytest.raises(ResultsError) as err:
+        C.compare(d)
+    assert str(err.value).startswith(f"{log}: {fragment}"), str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_a_failed_backend_s_partial_log_may_be_short(tmp_path: Path) -> None:
+    """The length rule is for ok backends: a failed backend's log stops where it failed and is still kept
+    (plotted, not measured)."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": None})
+    _damage(d, "a", "cut to 10 rows")
+    doc = json.loads((d / "run.json").read_text())
+    doc["backends"]["a"] |= {"status": "failed", "reason": "diverged at t = 0.009 s"}
+    (d / "run.json").write_text(json.dumps(doc))
+    run = results.load_run(d)
+    assert list(run.partial) == ["a"] and len(run.partial["a"].t) == 10 and list(run.traces) == ["ref"]
+
+
+def test_a_signal_nan_throughout_is_not_logged_not_damaged(tmp_path: Path) -> None:
+    """A column NaN in every row is a signal the log does not hold (like an absent column): accepted, n/a."""
+
+    def no_force(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        x[:, 9:12] = np.nan
+        return x
+
+    d = write_run(tmp_path / "s", {"ref": no_force, "a": no_force})
+    assert not C.compare(d).traces["a"].has("force")
+
+
+def test_inf_in_an_imported_log_is_refused_without_numpy_warnings(tmp_path: Path) -> None:
+    """An infinite value in a CSV reference log used to reach the metrics and print numpy RuntimeWarnings
+    (invalid value in remainder, sin, cos) before a report of inf/NaN; now load_log refuses it, naming the
+    file and the column, and no warning is emitted on the way."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.1)})
+    df = pd.read_parquet(d / "ref.parquet")
+    df.loc[5, "q2"] = np.inf
+    log = tmp_path / "robot.csv"
+    df.to_csv(log, index=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # any RuntimeWarning fails the test
+        with pytest.raises(ResultsError) as err:
+            C.compare(d, log=log, log_is_reference=True)
+    assert str(err.value) == (f"{log}: column 'q2' holds inf at row 5 (t = 0.005 s) (1 such value(s)): a log must "
+                              "hold finite numbers")  # fmt: skip
 
 
 def test_failed_and_missing_backends_are_reported_not_measured(tmp_path: Path) -> None:
