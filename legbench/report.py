@@ -7,7 +7,10 @@
 with its profiles and contact modes, one sentence per run on what differs and
 why, simulation error % coloured against the tolerances, the studies collapsed
 to counts. :func:`write_all` does both for a tree, one page per worker process
-(``jobs``), with an optional callback per page written.
+(``jobs``), with an optional callback per page written. Both read and render
+everything first and put files in place after (staged ``.<name>.out.tmp-<pid>``
+files renamed over the old ones): a malformed run directory anywhere in the
+tree leaves every report, the index and the assets as they were.
 
 plotly.js and the figures' loader are written once per results tree into
 ``<tree>/assets/`` (:func:`legbench.report_figures.write_assets`); every page
@@ -17,8 +20,10 @@ without a network.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
+import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,12 +38,12 @@ from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num,
 from legbench.results import (
     atomic_write_text,
     checks_summary,
+    metrics_text,
     read_meta,
     read_metrics,
     read_study,
     run_dirs,
     tolerances_of,
-    write_metrics,
 )
 from legbench.signals import LABELS, SIGNAL_OF, UNITS
 from legbench.signals import label as column_label
@@ -475,6 +480,9 @@ def write_report(
 ) -> ReportFiles:
     """Write metrics.json, report.md and report.html into a run directory.
 
+    Everything is read and rendered first; only then are the assets, metrics.json and the two pages put in
+    place, so a malformed run directory leaves nothing behind (no assets/, no half-written report).
+
     Args:
         run_dir: the run directory.
         result: a comparison already computed for it (else :func:`legbench.compare.compare`
@@ -490,25 +498,98 @@ def write_report(
     Raises:
         ResultsError: the run directory is missing or malformed.
     """
-    path = Path(run_dir)
+    tag = _tag()
+    try:
+        staged = _stage_report(Path(run_dir), result, assets, index, tag, compare_kwargs)
+    except BaseException:
+        _discard([Path(run_dir)], tag)
+        raise
+    _commit([staged])
+    return staged.files
+
+
+@dataclass(frozen=True)
+class _Staged:
+    """A run report rendered into staged files beside their final names, not yet in place.
+
+    Attributes:
+        files: the files as they will be once committed.
+        moves: (staged file, final file) pairs, metrics.json first, report.html last.
+    """
+
+    files: ReportFiles
+    moves: tuple[tuple[Path, Path], ...]
+
+
+#: The files a run report writes into its run directory (and the index into the tree's root).
+_PAGE_FILES = ("metrics.json", "report.md", "report.html")
+
+
+def _tag() -> str:
+    """The suffix of this command's staged files (the parent's PID, also when workers render)."""
+    return str(os.getpid())
+
+
+def _staged(final: Path, tag: str) -> Path:
+    """Where ``final`` is rendered before it is put in place: ``.<name>.out.tmp-<pid>`` beside it (the name
+    :func:`legbench.results.clean_stale` removes once that PID is dead)."""
+    return final.with_name(f".{final.name}.out.tmp-{tag}")
+
+
+def _stage_text(final: Path, text: str, tag: str) -> tuple[Path, Path]:
+    staged = _staged(final, tag)
+    with open(staged, "wb") as fh:
+        fh.write(text.encode("utf-8"))
+        fh.flush()
+        os.fsync(fh.fileno())
+    return staged, final
+
+
+def _discard(dirs: Sequence[Path], tag: str) -> None:
+    """Remove the staged files of an aborted report (those rendered by workers that finished, too)."""
+    for d in dirs:
+        for name in _PAGE_FILES:
+            with contextlib.suppress(OSError):
+                _staged(d / name, tag).unlink()
+
+
+def _stage_report(
+    path: Path, result: ComparisonResult | None, assets: str | Path | None, index: str | None, tag: str,
+    compare_kwargs: Mapping[str, Any],
+) -> _Staged:  # fmt: skip
+    """Read and measure a run directory and render its report into staged files (nothing in place yet)."""
     res = result if result is not None else compare(path, **compare_kwargs)
-    metrics = write_metrics(res.to_json(), path / "metrics.json")
-    adir = write_assets(Path(assets) if assets is not None else _assets_for(path))
+    metrics_doc = metrics_text(res.to_json())
+    adir = Path(assets) if assets is not None else _assets_for(path)
     if index is None and (path.parent / "report.html").is_file() and path.parent != path:
         index = "../report.html"
-    for old in (path / "figures").glob("*.png") if (path / "figures").is_dir() else ():
-        old.unlink()  # the static figures of earlier versions
-    if (path / "figures").is_dir() and not any((path / "figures").iterdir()):
-        (path / "figures").rmdir()
     arrays = Arrays()
     figures = run_figures(res, arrays)
     blocks = _blocks(res, figures, index)
-    md = path / "report.md"
-    atomic_write_text(md, to_markdown(blocks))
-    page = path / "report.html"
-    atomic_write_text(page, to_html(blocks, f"legbench: {res.run.label}", relpath(adir, path), arrays))
-    logger.info("wrote %s and %s (%d figures)", md, page, len(figures))
-    return ReportFiles(metrics, md, page, tuple(f.key for f in figures), adir)
+    markdown = to_markdown(blocks)
+    html = to_html(blocks, f"legbench: {res.run.label}", relpath(adir, path), arrays)
+    md, page, metrics = path / "report.md", path / "report.html", path / "metrics.json"
+    moves = (_stage_text(metrics, metrics_doc, tag), _stage_text(md, markdown, tag), _stage_text(page, html, tag))
+    logger.info("rendered %s and %s (%d figures)", md, page, len(figures))
+    return _Staged(ReportFiles(metrics, md, page, tuple(f.key for f in figures), adir), moves)
+
+
+def _commit(staged: Sequence[_Staged], progress: Progress | None = None) -> None:
+    """Put rendered reports in place: the assets they load, then each page's files (one rename each), the
+    static figures of earlier versions removed; ``progress`` is called with each page once it is in place."""
+    for adir in dict.fromkeys(st.files.assets for st in staged):
+        write_assets(adir)
+    for st in staged:
+        path = st.files.html.parent
+        figs = path / "figures"
+        for old in figs.glob("*.png") if figs.is_dir() else ():
+            old.unlink()  # the static figures of earlier versions
+        if figs.is_dir() and not any(figs.iterdir()):
+            figs.rmdir()
+        for tmp, final in st.moves:
+            os.replace(tmp, final)
+        if progress is not None:
+            progress(st.files.html)
 
 
 #: One piece of a page for :func:`write_page`: a heading (``"## text"``), a paragraph (any
@@ -561,12 +642,17 @@ class _Entry:
     meta: Mapping[str, Any]  # metrics.json without its rows
     tolerances: Mapping[str, Any]
     df: pd.DataFrame
+    has_page: bool  # the run has a report.html to link to
 
 
-def _entries(dirs: Sequence[Path]) -> list[_Entry]:
+def _entries(dirs: Sequence[Path], metrics_files: Mapping[Path, Path] | None = None,
+             pages: Sequence[Path] = ()) -> list[_Entry]:  # fmt: skip
+    """The index's view of each run directory. ``metrics_files``: a metrics.json to read instead of the
+    directory's own (the staged one of a report not yet in place); ``pages``: directories whose report.html
+    is about to be put in place."""
     out = []
     for d in dirs:
-        mfile = d / "metrics.json"
+        mfile = (metrics_files or {}).get(d, d / "metrics.json")
         if mfile.is_file():
             meta, df = read_metrics(mfile)
         else:
@@ -584,6 +670,7 @@ def _entries(dirs: Sequence[Path]) -> list[_Entry]:
                 meta,
                 tolerances_of(run_meta),
                 df,
+                d in pages or (d / "report.html").is_file(),
             )
         )
     return out
@@ -605,7 +692,7 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
         titles: dict[tuple[int, int], str] = {}
         groups: dict[int, str] = {}
         for e in runs:
-            href = f"{e.dir.name}/report.html" if (e.dir / "report.html").is_file() else ""
+            href = f"{e.dir.name}/report.html" if e.has_page else ""
             blocks.append(Para(f"{e.label} ({e.profile} profile, {e.mode} contact): {sentence(e.meta, e.df)}"))
             groups[len(rows)] = f"{e.profile} profile, {e.mode} contact"
             sim = e.df[e.df["metric"] == "sim_error_pct"]
@@ -660,8 +747,20 @@ def write_index(root: str | Path) -> IndexFiles:
         ResultsError: ROOT is missing or holds no run directory.
     """
     root = Path(root)
+    blocks, dirs = _index_blocks(root)
+    md = root / "report.md"
+    atomic_write_text(md, to_markdown(blocks))
+    page = root / "report.html"
+    atomic_write_text(page, to_html(blocks, "legbench: comparison summary"))
+    return IndexFiles(page, md, tuple(dirs))
+
+
+def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
+                  pages: Sequence[Path] = ()) -> tuple[list[Block], list[Path]]:  # fmt: skip
+    """The blocks of the index of ``root`` and the run directories in it (reads everything, writes nothing;
+    ``metrics_files`` and ``pages`` as for :func:`_entries`)."""
     dirs = list(run_dirs(root).values())
-    entries = _entries(dirs)
+    entries = _entries(dirs, metrics_files, pages)
     problems: list[tuple[str, ...]] = []
     for e in entries:
         for bname, b in (e.meta.get("backends") or {}).items():
@@ -687,11 +786,7 @@ def write_index(root: str | Path) -> IndexFiles:
     blocks += _task_blocks(entries)
     blocks += _profile_blocks(entries)
     blocks += _bench_blocks(root)
-    md = root / "report.md"
-    atomic_write_text(md, to_markdown(blocks))
-    page = root / "report.html"
-    atomic_write_text(page, to_html(blocks, "legbench: comparison summary"))
-    return IndexFiles(page, md, tuple(dirs))
+    return blocks, dirs
 
 
 def _profile_blocks(entries: Sequence[_Entry]) -> list[Block]:
@@ -871,10 +966,11 @@ def _bench_blocks(root: Path) -> list[Block]:
     return [Heading(2, "Performance"), Details(f"{len(rows)} rows", (Table(cols, tuple(rows), caption),))]
 
 
-def _report_page(task: tuple[str, str, dict[str, Any]]) -> ReportFiles:
-    """One run directory's report (a top-level function, so a process pool can map it)."""
-    run_dir, assets, compare_kwargs = task
-    return write_report(run_dir, assets=assets, index="../report.html", **compare_kwargs)
+def _report_page(task: tuple[str, str, dict[str, Any], str]) -> _Staged:
+    """One run directory's report rendered into staged files (a top-level function, so a process pool can
+    map it)."""
+    run_dir, assets, compare_kwargs, tag = task
+    return _stage_report(Path(run_dir), None, assets, "../report.html", tag, compare_kwargs)
 
 
 #: What a report worker imports once when it starts: the page renderer and what it reads with (no engine).
@@ -886,10 +982,15 @@ def write_all(
 ) -> list[ReportFiles | IndexFiles]:
     """Report a run directory, or every run directory under ``root`` and then the index.
 
+    Read everything first, write after: every run directory is read, measured and rendered (into staged
+    files beside the final ones) and the index built before anything is put in place, so one malformed run
+    directory (a corrupt log, a hand-edited run.json) leaves every report of the tree, the index and the
+    assets as they were, and no staged file behind.
+
     Args:
         root: a run directory (has run.json) or a tree of them (results/latest).
         jobs: worker processes rendering the run reports (one page per task; 1: this process).
-        progress: called with each page's path once it is written (run reports in order, then the index).
+        progress: called with each page's path once it is in place (run reports in order, then the index).
         **compare_kwargs: passed to :func:`legbench.compare.compare`.
 
     Returns:
@@ -906,17 +1007,26 @@ def write_all(
     if compare_kwargs.get("log") is not None:
         raise ResultsError(str(root), "an imported log belongs to one scenario: pass that scenario's run directory")
     dirs = list(run_dirs(root).values())
-    assets = write_assets(root / ASSETS)
-    tasks = [(str(d), str(assets), dict(compare_kwargs)) for d in dirs]
-    out: list[ReportFiles | IndexFiles] = []
-    # the workers render pages only: they import the report's modules, not the engines
-    with make_executor("local", jobs, preload=REPORT_PRELOAD) as ex:
-        for files in ex.imap(_report_page, tasks):
-            out.append(files)
-            if progress is not None:
-                progress(files.html)
-    index = write_index(root)
+    tag = _tag()
+    tasks = [(str(d), str(root / ASSETS), dict(compare_kwargs), tag) for d in dirs]
+    staged: list[_Staged] = []
+    try:
+        # the workers render pages only: they import the report's modules, not the engines
+        with make_executor("local", jobs, preload=REPORT_PRELOAD) as ex:
+            staged += ex.imap(_report_page, tasks)
+        metrics_files = {st.files.html.parent: tmp for st in staged for tmp, final in st.moves
+                         if final.name == "metrics.json"}  # fmt: skip
+        blocks, _ = _index_blocks(root, metrics_files, [st.files.html.parent for st in staged])
+        html = to_html(blocks, "legbench: comparison summary")
+        index_moves = (_stage_text(root / "report.md", to_markdown(blocks), tag),
+                       _stage_text(root / "report.html", html, tag))  # fmt: skip
+    except BaseException:
+        _discard([*dirs, root], tag)
+        raise
+    _commit(staged, progress)
+    for tmp, final in index_moves:
+        os.replace(tmp, final)
+    index = IndexFiles(root / "report.html", root / "report.md", tuple(dirs))
     if progress is not None:
         progress(index.html)
-    out.append(index)
-    return out
+    return [*(st.files for st in staged), index]

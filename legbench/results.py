@@ -66,6 +66,7 @@ __all__ = [
     "json_default",
     "load_run",
     "load_trace",
+    "metrics_text",
     "out_dir_for",
     "platform_info",
     "read_log",
@@ -491,14 +492,20 @@ def write_metrics(doc: Mapping[str, Any], path: str | Path) -> Path:
     The header keys are indented, one metrics row per line (diff-friendly); the
     document is plain JSON (NaN written as null).
     """
-    out = Path(path)
+    return atomic_write_text(Path(path), metrics_text(doc))
+
+
+def metrics_text(doc: Mapping[str, Any]) -> str:
+    """The text :func:`write_metrics` writes for a metrics.json document.
+
+    Raises:
+        ValueError: a non-finite number in the document (NaN belongs in the rows, as null).
+    """
     doc = dict(doc)
     rows = doc.pop("metrics")
     head = json.dumps(doc, indent=1, allow_nan=False)
     body = ",\n  ".join(json.dumps(r, allow_nan=False) for r in rows)
-    return atomic_write_text(
-        out, f'{head[:-2]},\n "metrics": [\n  {body}\n ]\n}}\n' if rows else f'{head[:-2]},\n "metrics": []\n}}\n'
-    )
+    return f'{head[:-2]},\n "metrics": [\n  {body}\n ]\n}}\n' if rows else f'{head[:-2]},\n "metrics": []\n}}\n'
 
 
 # --------------------------------------------------------------------------- #

@@ -500,3 +500,85 @@ def test_compare_with_jobs_names_a_worker_s_corrupt_parquet_in_the_same_one_line
     assert errors[0] == errors[1]
     assert errors[0].count("\n") == 1 and "Traceback" not in errors[0]
     assert errors[0].startswith(f"legbench: error: {log}: not a readable parquet file")
+
+
+def _snapshot(root: Path) -> dict[str, tuple[bytes, int]]:
+    """Every file under ``root`` (hidden ones too) with its bytes and mtime [ns]."""
+    return {str(p.relative_to(root)): (p.read_bytes(), p.stat().st_mtime_ns) for p in root.rglob("*") if p.is_file()}
+
+
+def test_compare_on_a_directory_without_run_json_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A directory holding metrics.json and logs but no run.json is taken for a run directory and refused
+    (exit 2); the assets (plotly.min.js, legbench.js) used to be written into it before the refusal."""
+    d = write_run(tmp_path / "one", {"ref": None, "a": scale(1.1)}, name="one")
+    R.write_report(d)
+    for p in (d / "run.json", d / "report.md", d / "report.html"):
+        p.unlink()
+    for p in (d / "assets").iterdir():
+        p.unlink()
+    (d / "assets").rmdir()
+    before = _snapshot(d)
+    assert cli.main(["compare", str(d)]) == 2
+    assert capsys.readouterr().err == f"legbench: error: {d}: no run.json here: not a legbench run directory\n"
+    assert _snapshot(d) == before and not (d / "assets").exists()
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_compare_on_a_tree_with_one_corrupt_run_leaves_every_report_as_it_was(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], jobs: str
+) -> None:
+    """Read everything first, write after: with 'two' corrupt, 'one' (rendered first) used to get its
+    metrics.json and reports rewritten before the error. Now every file of the tree keeps its bytes and
+    mtime, no page is announced, and no staged file is left, with one worker or two."""
+    root = tmp_path / "latest"
+    for name in ("one", "two", "three"):
+        write_run(root / name, {"ref": None, "a": scale(1.1)}, name=name, duration=0.5)
+    assert cli.main(["compare", str(root)]) == 0
+    capsys.readouterr()
+    (root / "one" / "a.parquet").touch()  # newer than its metrics: a rerun would rewrite one's report
+    log = root / "two" / "a.parquet"
+    log.write_bytes(log.read_bytes()[:-100])
+    before = _snapshot(root)
+    assert cli.main(["compare", str(root), "--jobs", jobs]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith(f"legbench: error: {log}: not a readable parquet file")
+    assert _snapshot(root) == before
+
+
+def test_an_unreadable_index_input_leaves_the_run_reports_as_they_were(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The index is built (its study files read) before any page is put in place: a malformed
+    verification.json is the one-line error and the run reports are not rewritten either."""
+    root = tmp_path / "latest"
+    write_run(root / "one", {"ref": None, "a": scale(1.1)}, name="one", duration=0.5)
+    (root / "verification").mkdir()
+    (root / "verification" / "verification.json").write_text('{"checks": 5}')
+    before = _snapshot(root)
+    assert cli.main(["compare", str(root)]) == 2
+    assert "verification.json: 'checks' must be a list of objects" in capsys.readouterr().err
+    assert _snapshot(root) == before
+
+
+def test_a_failure_while_rendering_removes_the_pages_already_rendered(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Pages rendered before a later one fails are staged beside their final names, never put in place,
+    and removed: the directory holds what it held before, nothing more."""
+    root = tmp_path / "latest"
+    for name in ("one", "two"):
+        write_run(root / name, {"ref": None, "a": scale(1.1)}, name=name, duration=0.5)
+    before = _snapshot(root)
+    real = R.run_figures
+
+    def fail_on_two(res: Any, arrays: Arrays) -> Any:
+        if res.run.name == "two":
+            raise ResultsError(str(res.run.path), "cannot draw")
+        return real(res, arrays)
+
+    monkeypatch.setattr(R, "run_figures", fail_on_two)
+    with pytest.raises(ResultsError, match="cannot draw"):
+        R.write_all(root)
+    assert _snapshot(root) == before
