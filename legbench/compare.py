@@ -132,7 +132,7 @@ class ComparisonResult:
             "reference": self.reference,
             "skip": run.skip,
             "steady_window": run.steady_window,
-            "duration": run.duration,
+            "duration": _json_value(run.duration),  # null for a run.json without scenario.duration
             "split_with": None if self.split_run is None else self.split_run.label,
             "backends": backends,
             "notes": list(self.notes),

@@ -89,3 +89,16 @@ def test_a_results_error_names_the_key_between_file_and_problem() -> None:
     assert str(exc) == "r/run.json: scenario.duration: must be a finite number > 0, not 'abc'"
     assert (exc.file, exc.key) == ("r/run.json", "scenario.duration")
     assert str(ResultsError("r/a.parquet", "no such file")) == "r/a.parquet: no such file"
+
+
+def test_a_run_json_without_duration_is_compared_with_duration_null(tmp_path: Path) -> None:
+    """scenario.duration is checked when present, not required (run.json written outside legbench, or older):
+    compare measures the logs as they are, and metrics.json says duration null (it used to fail writing NaN,
+    which JSON does not allow)."""
+    run = write_run(tmp_path / "one", {"ref": None, "a": scale(1.1)}, name="one")
+    doc = json.loads((run / "run.json").read_text())
+    del doc["scenario"]["duration"]
+    (run / "run.json").write_text(json.dumps(doc))
+    assert cli.main(["compare", str(run)]) == 0
+    head, _ = results.read_metrics(run / "metrics.json")
+    assert head["duration"] is None
