@@ -341,7 +341,7 @@ def _compare(args: argparse.Namespace) -> int:
         lag=args.lag,
         all_pairs=args.all_pairs,
         jobs=args.jobs,
-        progress=lambda page: print(f"wrote {page}", flush=True),  # each page as it is put in place, once all are rendered
+        progress=lambda page: print(f"wrote {page}", flush=True),  # each page as it is put in place (after all render)
     )
     return EXIT_OK
 
