@@ -462,12 +462,13 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
 
 
 def _assets_for(run_dir: Path) -> Path:
-    """The tree's assets directory when the run directory sits in a tree that has one, else its own."""
+    """The tree's assets directory when the run directory sits in a results tree (its parent holds the tree's
+    index, report.html, and the assets), else its own: a run never loads, or writes, files outside itself
+    because of what happens to lie beside it (other runs in a plain folder, another tool's /tmp/assets)."""
     shared = run_dir.parent / ASSETS
-    if (shared / PLOTLY_JS).is_file():
+    if (run_dir.parent / "report.html").is_file() and (shared / PLOTLY_JS).is_file():
         return shared
-    in_tree = any((p / "run.json").is_file() for p in run_dir.parent.iterdir() if p.is_dir() and p != run_dir)
-    return shared if in_tree else run_dir / ASSETS
+    return run_dir / ASSETS
 
 
 def write_report(

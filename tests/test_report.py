@@ -253,6 +253,25 @@ def test_index_groups_by_task_links_both_ways_and_tabulates_every_sim_error(tmp_
     assert [p.relative_to(root).as_posix() for p in root.rglob("plotly.min.js")] == ["assets/plotly.min.js"]
 
 
+def test_a_run_shares_assets_only_with_the_results_tree_it_is_in(tmp_path: Path) -> None:
+    """A run directory beside other runs in a plain folder (or beside another tool's assets/, as in /tmp) keeps
+    its own assets/; one inside a results tree (the tree's index and assets/ in its parent) shares the tree's."""
+    folder = tmp_path / "runs"
+    write_run(folder / "first", {"ref": None, "a": scale(1.01)})
+    (folder / "assets").mkdir()
+    (folder / "assets" / "plotly.min.js").write_text("someone else's")
+    alone = R.write_report(write_run(folder / "second", {"ref": None, "a": scale(1.01)}))
+    assert alone.assets == folder / "second" / "assets"
+    assert '<script src="assets/plotly.min.js"></script>' in alone.html.read_text()
+    assert (folder / "assets" / "plotly.min.js").read_text() == "someone else's"
+    tree = tmp_path / "tree"
+    write_run(tree / "one", {"ref": None, "a": scale(1.01)})
+    R.write_all(tree)
+    shared = R.write_report(write_run(tree / "two", {"ref": None, "a": scale(1.02)}))
+    assert shared.assets == tree / "assets"
+    assert '<script src="../assets/plotly.min.js"></script>' in shared.html.read_text()
+
+
 def test_index_colours_each_sim_error_against_the_scenario_ceiling(tmp_path: Path) -> None:
     """A scenario's max_sim_error_pct ceiling colours each cell over/within, with the reason on hover."""
     root = tmp_path / "latest"
