@@ -216,8 +216,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"legbench: error: {exc}", file=sys.stderr)
         return EXIT_USER_ERROR
     except OSError as exc:  # full disk, read-only or vanished output: one line, the previous result is intact
-        where = f" {exc.filename}" if exc.filename else ""
-        print(f"legbench: I/O error:{where}: {exc.strerror or exc}; nothing was replaced", file=sys.stderr)
+        where = f" {exc.filename}:" if exc.filename else ""
+        print(f"legbench: I/O error:{where} {exc.strerror or exc}; nothing was replaced", file=sys.stderr)
         return EXIT_IO_ERROR
     except RecursionError:
         print("legbench: error: input nested too deep", file=sys.stderr)

@@ -140,7 +140,10 @@ def load_log(
     targets = list(rename.values())
     dupes = sorted({c for c in targets if targets.count(c) > 1})
     if dupes:
-        raise ResultsError(str(path), f"several header columns map to {dupes}; pass column_map to choose")
+        raise ResultsError(
+            str(path),
+            f"several header columns map to {dupes}; choose one with --log-columns (column_map in the Python API)",
+        )
     df = raw[list(rename)].rename(columns=rename)
     required = ["t", "q1", "q2", "q3"]
     trace = result_from_frame(df, path.stem, str(path), required)  # validates

@@ -65,9 +65,15 @@ FLOAT_TINY = 1e-30
 
 
 def limit(name: str) -> int:
-    """The limit ``name`` of :data:`LIMITS`, raised by ``LEGBENCH_LIMITS=name=value,...`` if set."""
+    """The limit ``name`` of :data:`LIMITS`, raised by ``LEGBENCH_LIMITS=name=value,...`` if set.
+
+    Raises:
+        ScenarioError: ``LEGBENCH_LIMITS`` names a limit that does not exist, or its value is not a number.
+    """
     for item in os.environ.get("LEGBENCH_LIMITS", "").split(","):
         key, sep, value = item.partition("=")
+        if item.strip() and (not sep or key.strip() not in LIMITS):  # a typo would leave the limit as it was
+            raise ScenarioError("LEGBENCH_LIMITS", item.strip(), f"unknown limit; known: {', '.join(LIMITS)}")
         if sep and key.strip() == name:
             try:
                 return int(float(value))

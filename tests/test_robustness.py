@@ -292,6 +292,9 @@ def test_tick_limit_can_be_raised(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
         scenario.parse(doc, "x.yaml")
     monkeypatch.setenv("LEGBENCH_LIMITS", "ticks=3e7")
     assert scenario.parse(doc, "x.yaml").n_ticks > 10_000_000
+    monkeypatch.setenv("LEGBENCH_LIMITS", "tick=3e7")  # a typo would silently leave the limit as it was
+    with pytest.raises(ScenarioError, match="LEGBENCH_LIMITS: tick=3e7: unknown limit; known: file_bytes"):
+        scenario.parse(doc, "x.yaml")
 
 
 @pytest.mark.parametrize(
