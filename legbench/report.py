@@ -644,6 +644,7 @@ class _Entry:
     tolerances: Mapping[str, Any]
     df: pd.DataFrame
     has_page: bool  # the run has a report.html to link to
+    infos: Mapping[str, Mapping[str, Any]]  # backend -> its info in run.json (settings as used)
 
 
 def _entries(dirs: Sequence[Path], metrics_files: Mapping[Path, Path] | None = None,
@@ -672,6 +673,7 @@ def _entries(dirs: Sequence[Path], metrics_files: Mapping[Path, Path] | None = N
                 tolerances_of(run_meta),
                 df,
                 d in pages or (d / "report.html").is_file(),
+                {str(b): dict(v.get("info") or {}) for b, v in (run_meta.get("backends") or {}).items()},
             )
         )
     return out
@@ -785,9 +787,55 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
         blocks.append(Heading(2, "Backends that did not run"))
         blocks.append(Table(("scenario", "backend", "status", "reason"), tuple(problems)))
     blocks += _task_blocks(entries)
+    blocks += _step_blocks(entries)
     blocks += _profile_blocks(entries)
     blocks += _bench_blocks(root)
     return blocks, dirs
+
+
+def _step_text(info: Mapping[str, Any]) -> tuple[str, str]:
+    """(step, integrator) of a backend's run.json info: ``50 us x 20`` per control period, or ``adaptive``;
+    the integrator's name with its solver where the backend names one (Drake's contact approximation)."""
+    dt, n = info.get("dt"), info.get("sub_steps")
+    if isinstance(dt, int | float) and dt > 0:
+        step = f"{num(dt * 1e6, 3)} us" if dt < 1e-3 else f"{num(dt * 1e3, 3)} ms"
+        step += f" x {n}" if isinstance(n, int) and n > 1 else ""
+    else:
+        step = "adaptive"
+    name = str(info.get("integrator") or info.get("integrator_family") or "-")
+    solver = info.get("solver")
+    return step, f"{name}, {solver}" if isinstance(solver, str) else name
+
+
+def _step_blocks(entries: Sequence[_Entry]) -> list[Block]:
+    """How each backend integrated, per profile (native contact): the step, the sub-steps per control period
+    and the integrator, from each run's run.json, so a difference can be read against the steps that made it
+    (the reference carries its own step error too)."""
+    cells: dict[str, dict[str, tuple[str, str]]] = {}
+    for e in entries:
+        if e.mode != "native":
+            continue
+        for backend, info in e.infos.items():
+            if info:
+                mine, seen = _step_text(info), cells.setdefault(backend, {})
+                if seen.setdefault(e.profile, mine) != mine:  # tasks set it differently
+                    seen[e.profile] = tuple(
+                        x if x == y else "varies by task" for x, y in zip(seen[e.profile], mine, strict=True)
+                    )  # type: ignore[assignment]
+    if not cells:
+        return []
+    profiles = sorted({p for c in cells.values() for p in c}, key=lambda p: _PROFILE_ORDER.get(p, 9))
+    header = ("backend", *(f"{h} ({p})" for p in profiles for h in ("step per control tick", "integrator")))
+    rows = tuple((b, *(x for p in profiles for x in c.get(p, ("-", "-")))) for b, c in cells.items())
+    return [
+        Heading(2, "How each backend integrates"),
+        Para(
+            "Native contact, from each run's run.json: the engine's step (x the sub-steps per control period) "
+            "and its integrator. Differences between backends in free space are their integrators' and steps' "
+            "errors as much as the engines'; the reference's own step error is one of them."
+        ),
+        Table(header, rows, "step and integrator per backend and profile"),
+    ]
 
 
 def _profile_blocks(entries: Sequence[_Entry]) -> list[Block]:

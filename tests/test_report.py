@@ -601,3 +601,23 @@ def test_a_failure_while_rendering_removes_the_pages_already_rendered(
     with pytest.raises(ResultsError, match="cannot draw"):
         R.write_all(root)
     assert _snapshot(root) == before
+
+
+def test_index_shows_each_backends_step_and_integrator_per_profile(tmp_path: Path) -> None:
+    """From each native run's run.json: the step with its sub-steps per control period (or 'adaptive') and the
+    integrator, with the solver where the backend names one, one column pair per profile."""
+    root = tmp_path / "tree"
+    d = write_run(root / "one", {"ref": None, "a": scale(1.01)})
+    meta = json.loads((d / "run.json").read_text())
+    meta["backends"]["ref"]["info"] |= {"dt": 5e-5, "sub_steps": 20, "integrator": "euler"}
+    meta["backends"]["a"]["info"] |= {"dt": 1e-4, "sub_steps": 10, "integrator": "euler", "solver": "sap"}
+    (d / "run.json").write_text(json.dumps(meta))
+    e = write_run(root / "two", {"ref": None, "a": scale(1.02)})
+    meta = json.loads((e / "run.json").read_text())
+    meta["backends"]["ref"]["info"] |= {"dt": 5e-5, "sub_steps": 20, "integrator": "euler"}
+    meta["backends"]["a"]["info"] |= {"dt": None, "sub_steps": 1, "integrator": "rk45"}
+    (e / "run.json").write_text(json.dumps(meta))
+    md = R.write_index(root).markdown.read_text()
+    assert "| backend | step per control tick (matched) | integrator (matched) |" in md
+    assert "| ref | 50 us x 20 | euler |" in md
+    assert "| a | varies by task | varies by task |" in md  # 100 us x 10 (euler, sap) in one, rk45 in two
