@@ -200,3 +200,18 @@ def test_engine_defaults_hunt_crossley_damping_is_kd_at_the_reference_depth() ->
     d_eff = (fn[pressing] / (k * y[pressing]) - 1.0) / ydot[pressing]
     np.testing.assert_allclose(d_eff, 2.0, rtol=0.25)
     assert fn.max() < 1.001 * fn[-1]
+
+
+def test_info_lists_only_the_settings_the_solver_reads() -> None:
+    """The report's settings table shows what acted: SAP regularises friction itself (Drake: "users have no
+    control"), so no stiction tolerance; lagged reads it and not SAP's near-rigid threshold."""
+    sap, lagged = load("drake", Physics(), {}), load("drake", Physics(), {}, "engine-defaults")
+    try:
+        a, b = sap.info(), lagged.info()
+    finally:
+        sap.close()
+        lagged.close()
+    assert "stiction_tolerance" not in a and a["contact"]["stiction_tolerance"] is None
+    assert "hc_reference_depth" not in a and "sap_near_rigid_threshold" in a
+    assert b["contact"]["stiction_tolerance"] == 1e-4 and "sap_near_rigid_threshold" not in b
+    assert not {"accuracy", "resolution_hint", "reference_friction"} & (set(a) | set(b))

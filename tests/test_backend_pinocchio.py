@@ -176,6 +176,8 @@ def test_ode45_profile_is_the_reports_simscape_solver() -> None:
         assert be.integrator_family() == "adaptive"
         info = be.info()
         assert (info["integrator"], info["rtol"], info["atol"], info["max_step"]) == ("rk45", 1e-6, 1e-8, 2e-4)
+        assert not {"dt", "friction", "kernel"} & set(info)  # one solve per period: no sub-step, no Euler options
+        assert not {"rtol", "atol", "max_step"} & set(_backend({}).info())  # and Euler reads no tolerances
         assert info["contact"]["poc"] == "true"
         assert be.limits().timestep is None  # adaptive: no fixed step to report
     finally:

@@ -429,10 +429,11 @@ class DrakeBackend(Backend):
     def info(self) -> dict[str, Any]:
         """Engine, version and every setting actually used, read back from the plant where Drake allows."""
         plant, c = self.plant, self.physics.contact
+        unused = self._unused_settings()
         out: dict[str, Any] = {
             "engine": "drake",
             "version": metadata.version("drake"),
-            **{k: self.cfg[k] for k in self.defaults},
+            **{k: self.cfg[k] for k in self.defaults if k not in unused},
             "sub_steps": self.n_sub,
             "timestep": plant.time_step() if not self.continuous else None,
             "integrator": "runge_kutta3" if self.continuous else "euler",  # the family verification predicts by
@@ -445,7 +446,7 @@ class DrakeBackend(Backend):
                 "discrete_contact_approximation": (
                     str(plant.get_discrete_contact_approximation()) if not self.continuous else None
                 ),
-                "stiction_tolerance": self.v_s,
+                "stiction_tolerance": self.v_s if "stiction_tolerance" not in unused else None,
                 "Kp": c.Kp,
                 "Kd": c.Kd,
                 "mu_s": c.mu_s,
@@ -463,6 +464,24 @@ class DrakeBackend(Backend):
             integ = self.simulator.get_integrator()
             out["target_accuracy"] = integ.get_target_accuracy()
         return out
+
+    def _unused_settings(self) -> set[str]:
+        """Settings the configured solver and contact model do not read, left out of :meth:`info` so the
+        report's settings table lists only what acted: SAP regularises friction itself (no stiction
+        tolerance) and reads the relaxation time, not the Hunt-Crossley d of ``hc_reference_depth`` (point
+        contact); the near-rigid threshold is SAP's; ``accuracy`` the continuous plant's; ``resolution_hint``
+        the hydroelastic mesh's."""
+        solver, model = self.cfg["solver"], self.cfg["contact_model"]
+        unused = {"stiction_tolerance"} if solver == "sap" else {"sap_near_rigid_threshold"}
+        if solver == "sap" and model == "point":
+            unused.add("hc_reference_depth")
+        if solver != "continuous":
+            unused.add("accuracy")
+        if model != "hydroelastic":
+            unused.add("resolution_hint")
+        if not self.reference:
+            unused.add("reference_friction")
+        return unused
 
     def _integrator_name(self) -> str:
         if self.continuous:

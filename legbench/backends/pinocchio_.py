@@ -335,10 +335,16 @@ class PinocchioBackend(Backend):
 
     def info(self) -> dict[str, Any]:
         c = self.physics.contact
+        # only the settings the integrator reads: the tolerances are the adaptive solvers', the sub-step the
+        # fixed-step ones', the implicit friction and the compiled kernel semi-implicit Euler's
+        adaptive = self.integrator_family() == "adaptive"
+        unused = {"dt"} if adaptive else {"rtol", "atol", "max_step"}
+        if self.cfg["integrator"] != "euler":
+            unused |= {"friction", "kernel"}
         return {
             "engine": "pinocchio",
             "version": pin.__version__,
-            **{k: self.cfg[k] for k in self.defaults},
+            **{k: self.cfg[k] for k in self.defaults if k not in unused},
             "sub_steps": self.n_sub,
             "kernel_used": "compiled (numba)" if self._compiled is not None else "python",
             "gravity": self.physics.gravity,
