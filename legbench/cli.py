@@ -193,6 +193,9 @@ def _check_outputs(args: argparse.Namespace) -> None:
     for opt in ("summary", "junit"):
         if getattr(args, opt, None) is not None:
             results.check_out_file(getattr(args, opt), f"--{opt}")
+    summary, junit = getattr(args, "summary", None), getattr(args, "junit", None)
+    if summary is not None and junit is not None and Path(summary).resolve() == Path(junit).resolve():
+        raise LegbenchError(f"--summary and --junit name the same file {summary}: the second would replace the first")
 
 
 def _sigterm(signum: int, frame: object) -> None:

@@ -318,6 +318,11 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 def _compare(args: argparse.Namespace) -> int:
     from legbench import logs, report
 
+    if args.reference_log is None:  # these only shape the reference log: without one they would be ignored
+        given = [f for f, on in (("--log-columns", args.log_columns), ("--log-is-reference", args.log_is_reference),
+                                 ("--log-time-scale", args.log_time_scale != 1.0)) if on]  # fmt: skip
+        if given:
+            raise LegbenchError(f"{', '.join(given)}: need --reference-log (they describe that log)")
     column_map: dict[str, str] = {}
     for item in args.log_columns.split(",") if args.log_columns else []:
         src, sep, dst = item.partition("=")

@@ -184,6 +184,8 @@ def test_an_interrupted_study_says_nothing_was_written(monkeypatch: pytest.Monke
         (["model", "ik", "0.1", "inf", "0"], "argument P: 'inf' is not a finite number"),
         (["bench", "x.yaml", "--duration", "inf"], "argument --duration: 'inf' is not a finite number"),
         (["compare", "d", "--log-time-scale", "-1"], "argument --log-time-scale: '-1' must be > 0"),
+        (["compare", "d", "--log-columns", "a=q1"], "--log-columns: need --reference-log"),  # was ignored
+        (["check", "d", "--baseline", "b", "--summary", "s.md", "--junit", "s.md"], "name the same file"),
     ],
 )
 def test_bad_options_are_one_line_errors(
