@@ -37,7 +37,7 @@ import copy
 import hashlib
 import json
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -305,9 +305,10 @@ TOP_KEYS = ["name", "description", "duration", "control_rate", "gains", "initial
             "profile", "backends", "comparison"]  # fmt: skip
 
 
-def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None) -> Scenario:
-    """Validate a scenario document (already parsed YAML) into a :class:`Scenario`."""
-    ctx = YamlContext(file, root)
+def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None, overridden: Sequence[str] = ()) -> Scenario:
+    """Validate a scenario document (already parsed YAML) into a :class:`Scenario`; ``overridden``: the dotted
+    keys ``--set`` replaced (their errors name the override, not the file's line)."""
+    ctx = YamlContext(file, root, overridden)
     check_keys(ctx, [], doc, TOP_KEYS, ["name", "duration", "events"])
     name = doc["name"]
     if not isinstance(name, str) or not NAME_RE.fullmatch(name) or set(name) == {"."}:
@@ -566,7 +567,7 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
     doc, root = read_yaml(path)
     for key, value in (overrides or {}).items():
         set_key(doc, key, value)
-    return parse(doc, str(path), root)
+    return parse(doc, str(path), root, tuple(overrides or ()))
 
 
 def json_schema() -> dict[str, Any]:

@@ -120,9 +120,10 @@ def yaml_compose(text: str) -> yaml.Node | None:
 class YamlContext:
     """File name and YAML node marks, to name lines in errors (scenario, sweep and tolerance files)."""
 
-    def __init__(self, file: str, root: yaml.Node | None) -> None:
+    def __init__(self, file: str, root: yaml.Node | None, overridden: Sequence[str] = ()) -> None:
         self.file = file
         self.root = root
+        self.overridden = tuple(overridden)  # dotted keys set by --set: their values are not the file's
 
     def line(self, path: Sequence[str | int]) -> int | None:
         """Line of the key at ``path`` in the file (1-based), or None if unknown."""
@@ -146,7 +147,12 @@ class YamlContext:
         return line
 
     def error(self, path: Sequence[str | int], problem: str) -> ScenarioError:
-        """The error naming the file, the key path, its line and the problem."""
+        """The error naming the file, the key path, its line and the problem; for a value that ``--set``
+        replaced, the override instead of the file's line (which holds the old value)."""
+        dotted = ".".join(str(p) for p in path)
+        for key in self.overridden:
+            if dotted == key or dotted.startswith(key + "."):
+                return ScenarioError(self.file, keypath(path), f"{problem} (from --set {key})")
         return ScenarioError(self.file, keypath(path), problem, self.line(path))
 
 

@@ -179,3 +179,15 @@ def test_combined_ros_is_the_combined_task_with_the_reports_ros_delays() -> None
     ]
     assert [(e.delay, e.force_delay) for e in ros.events] == [(0.0, 0.0), (0.0, 0.0), (0.013, 0.007)]
     assert (ros.duration, ros.gains, ros.q0, ros.contact) == (plain.duration, plain.gains, plain.q0, plain.contact)
+
+
+def test_an_overridden_value_is_blamed_on_the_override_not_the_files_line(tmp_path: Path) -> None:
+    """--set replaces a value: its error names the override, and no line (the file's line holds the old value)."""
+    path = _write(tmp_path, BASE)
+    with pytest.raises(ScenarioError) as err:
+        scenario.load(path, {"duration": 0})
+    assert err.value.key == "duration" and err.value.line is None
+    assert "(from --set duration)" in str(err.value)
+    with pytest.raises(ScenarioError) as err:
+        scenario.load(path, {"gains.Kp": [1.0, -2.0, 3.0]})
+    assert err.value.key == "gains.Kp[1]" and "(from --set gains.Kp)" in str(err.value)
