@@ -818,10 +818,10 @@ def _step_blocks(entries: Sequence[_Entry]) -> list[Block]:
         for backend, info in e.infos.items():
             if info:
                 mine, seen = _step_text(info), cells.setdefault(backend, {})
-                if seen.setdefault(e.profile, mine) != mine:  # tasks set it differently
-                    seen[e.profile] = tuple(
-                        x if x == y else "varies by task" for x, y in zip(seen[e.profile], mine, strict=True)
-                    )  # type: ignore[assignment]
+                old = seen.setdefault(e.profile, mine)
+                if old != mine:  # tasks set it differently
+                    seen[e.profile] = (old[0] if old[0] == mine[0] else "varies by task",
+                                       old[1] if old[1] == mine[1] else "varies by task")  # fmt: skip
     if not cells:
         return []
     profiles = sorted({p for c in cells.values() for p in c}, key=lambda p: _PROFILE_ORDER.get(p, 9))
