@@ -20,7 +20,6 @@ without a network.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import os
@@ -38,11 +37,14 @@ from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num,
 from legbench.results import (
     atomic_write_text,
     checks_summary,
+    commit_staged,
+    discard_staged,
     metrics_text,
     read_meta,
     read_metrics,
     read_study,
     run_dirs,
+    stage_text,
     tolerances_of,
 )
 from legbench.signals import LABELS, SIGNAL_OF, UNITS
@@ -531,27 +533,9 @@ def _tag() -> str:
     return str(os.getpid())
 
 
-def _staged(final: Path, tag: str) -> Path:
-    """Where ``final`` is rendered before it is put in place: ``.<name>.out.tmp-<pid>`` beside it (the name
-    :func:`legbench.results.clean_stale` removes once that PID is dead)."""
-    return final.with_name(f".{final.name}.out.tmp-{tag}")
-
-
-def _stage_text(final: Path, text: str, tag: str) -> tuple[Path, Path]:
-    staged = _staged(final, tag)
-    with open(staged, "wb") as fh:
-        fh.write(text.encode("utf-8"))
-        fh.flush()
-        os.fsync(fh.fileno())
-    return staged, final
-
-
 def _discard(dirs: Sequence[Path], tag: str) -> None:
     """Remove the staged files of an aborted report (those rendered by workers that finished, too)."""
-    for d in dirs:
-        for name in _PAGE_FILES:
-            with contextlib.suppress(OSError):
-                _staged(d / name, tag).unlink()
+    discard_staged([d / name for d in dirs for name in _PAGE_FILES], tag)
 
 
 def _stage_report(
@@ -570,7 +554,7 @@ def _stage_report(
     markdown = to_markdown(blocks)
     html = to_html(blocks, f"legbench: {res.run.label}", relpath(adir, path), arrays)
     md, page, metrics = path / "report.md", path / "report.html", path / "metrics.json"
-    moves = (_stage_text(metrics, metrics_doc, tag), _stage_text(md, markdown, tag), _stage_text(page, html, tag))
+    moves = (stage_text(metrics, metrics_doc, tag), stage_text(md, markdown, tag), stage_text(page, html, tag))
     logger.info("rendered %s and %s (%d figures)", md, page, len(figures))
     return _Staged(ReportFiles(metrics, md, page, tuple(f.key for f in figures), adir), moves)
 
@@ -587,8 +571,7 @@ def _commit(staged: Sequence[_Staged], progress: Progress | None = None) -> None
             old.unlink()  # the static figures of earlier versions
         if figs.is_dir() and not any(figs.iterdir()):
             figs.rmdir()
-        for tmp, final in st.moves:
-            os.replace(tmp, final)
+        commit_staged(st.moves)
         if progress is not None:
             progress(st.files.html)
 
@@ -1067,14 +1050,13 @@ def write_all(
                          if final.name == "metrics.json"}  # fmt: skip
         blocks, _ = _index_blocks(root, metrics_files, [st.files.html.parent for st in staged])
         html = to_html(blocks, "legbench: comparison summary")
-        index_moves = (_stage_text(root / "report.md", to_markdown(blocks), tag),
-                       _stage_text(root / "report.html", html, tag))  # fmt: skip
+        index_moves = (stage_text(root / "report.md", to_markdown(blocks), tag),
+                       stage_text(root / "report.html", html, tag))  # fmt: skip
     except BaseException:
         _discard([*dirs, root], tag)
         raise
     _commit(staged, progress)
-    for tmp, final in index_moves:
-        os.replace(tmp, final)
+    commit_staged(index_moves)
     index = IndexFiles(root / "report.html", root / "report.md", tuple(dirs))
     if progress is not None:
         progress(index.html)

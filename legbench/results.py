@@ -63,6 +63,8 @@ __all__ = [
     "check_out_path",
     "checks_summary",
     "clean_stale",
+    "commit_staged",
+    "discard_staged",
     "json_default",
     "load_run",
     "load_trace",
@@ -76,6 +78,8 @@ __all__ = [
     "result_from_frame",
     "resumable",
     "run_dirs",
+    "stage_text",
+    "staged_name",
     "versions",
     "write_json",
     "write_metrics",
@@ -297,6 +301,38 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
 def atomic_write_text(path: str | Path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically (:func:`atomic_write_bytes`)."""
     return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def staged_name(final: Path, tag: str) -> Path:
+    """Where ``final`` is written before it is put in place by :func:`commit_staged`:
+    ``.<name>.out.tmp-<tag>`` beside it (``tag`` the writing command's PID, so :func:`clean_stale` removes
+    what a killed command left)."""
+    return final.with_name(f".{final.name}.out.tmp-{tag}")
+
+
+def stage_text(final: Path, text: str, tag: str) -> tuple[Path, Path]:
+    """Write ``text`` (UTF-8, synced) under ``final``'s staged name; ``final`` is untouched until
+    :func:`commit_staged`. Several files staged first and committed together put a set of files in place
+    only once every one of them could be made. Returns (staged, final)."""
+    staged = staged_name(final, tag)
+    with open(staged, "wb") as fh:
+        fh.write(text.encode("utf-8"))
+        fh.flush()
+        os.fsync(fh.fileno())
+    return staged, final
+
+
+def commit_staged(moves: Sequence[tuple[Path, Path]]) -> None:
+    """Put staged files in place, one rename each, in the order given."""
+    for staged, final in moves:
+        os.replace(staged, final)
+
+
+def discard_staged(finals: Sequence[Path], tag: str) -> None:
+    """Remove the staged files of ``finals`` that exist (an aborted set: nothing of it is put in place)."""
+    for final in finals:
+        with contextlib.suppress(OSError):
+            staged_name(final, tag).unlink()
 
 
 @contextlib.contextmanager
