@@ -14,6 +14,7 @@ import signal
 import sys
 import tempfile
 import traceback
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +31,17 @@ ROOT = Path(__file__).resolve().parents[2]
 EFFORT = str(ROOT / "scenarios" / "effort.yaml")
 GOOD = {"name": "t", "duration": 0.6, "events": [{"t": 0.0, "position": {"joint": [0.0, -1.0, -1.0]}}]}
 _reg = registry._registry
-registry._registry = lambda: {**_reg(), "fake": FakeBackend}  # type: ignore[assignment]
+
+
+@contextlib.contextmanager
+def fake_backend() -> Iterator[None]:
+    """The registry with the engine-free ``fake`` backend beside the real ones, for the cases that run one;
+    the registry as it was afterwards (the pytest wrapper shares its process with other tests)."""
+    registry._registry = lambda: {**_reg(), "fake": FakeBackend}  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        registry._registry = _reg  # type: ignore[assignment]
 
 
 class Hang(Exception):
@@ -267,24 +278,24 @@ def clean(cid: str, argv: list[str], ok: set[int], status: int | None, err: str)
 
 def main() -> int:
     verbose = "-v" in sys.argv
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, fake_backend():
         cwd = os.getcwd()
         os.chdir(tmp)
         try:
             cases = build(Path(tmp))
-            clean, bad = 0, []
+            n_clean, bad = 0, []
             for cid, argv, ok in cases:
                 status, err, extra = run_case(argv)
                 good = clean(cid, argv, ok, status, err)
                 if good:
-                    clean += 1
+                    n_clean += 1
                 else:
                     bad.append((cid, status, (err or extra).strip().splitlines()[-3:]))
                 if verbose:
                     print(f"{'ok ' if good else 'BAD'} {status!s:>4} {cid}: {err.strip().splitlines()[-1:] or ''}")
         finally:
             os.chdir(cwd)
-    print(f"{len(cases)} cases, {clean} handled cleanly, {len(bad)} not")
+    print(f"{len(cases)} cases, {n_clean} handled cleanly, {len(bad)} not")
     for cid, status, tail in bad:
         print(f"  NOT CLEAN {cid}: status {status}: {tail}")
     return 0 if not bad else 1
