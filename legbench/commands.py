@@ -237,7 +237,8 @@ def _check_plan(plan: list[tuple[scenario.Scenario, str | None, Path]], args: ar
 
 
 def _validate(args: argparse.Namespace) -> int:
-    """Scenario, sweep (has ``studies``) and tolerance files, told apart by content.
+    """Scenario, sweep (has ``studies``), framework (``legbench reproduce``'s: has ``frameworks``) and tolerance
+    files, told apart by content.
 
     Every file is checked and every independent problem of a file is one line on stderr
     (:func:`legbench.scenario.errors`, :func:`legbench.check.tolerance_errors`); exit 2 if any.
@@ -269,6 +270,11 @@ def _validate_one(path: str) -> tuple[str, list[LegbenchError]]:
 
         sw = sweep.load_sweep(path)
         return f"{path}: ok (sweep {sw.name}: {len(sw.studies)} studies)", []
+    if isinstance(doc, dict) and "frameworks" in doc:
+        from legbench.studies import reproduce
+
+        plan = reproduce.load_plan(path)
+        return f"{path}: ok (frameworks: {len(plan.frameworks)}, tasks: {len(plan.tasks)})", []
     from legbench import check
 
     tol_keys = {*check.DEFAULT_TOLERANCES, "scenarios"}
@@ -423,6 +429,6 @@ def add_schema(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def add_validate(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("validate", help="check scenario, sweep and tolerance files without running them")
+    p = sub.add_parser("validate", help="check scenario, sweep, tolerance and framework files without running them")
     p.add_argument("files", nargs="+", help="YAML files")
     p.set_defaults(func=_validate)

@@ -223,3 +223,16 @@ def test_several_scenarios_are_not_written_into_a_single_runs_directory(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "holds one run" in err
     assert {p.name: p.read_bytes() for p in run_dir.iterdir()} == before
+
+
+def test_validate_knows_the_reproduce_framework_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`legbench validate scenarios/*.yaml` checks the bundled framework file as one (it was read as a scenario
+    and refused); a bad framework file is one line naming the key, exit 2."""
+    frameworks = Path(__file__).resolve().parents[1] / "scenarios" / "reproduce.yaml"
+    assert cli.main(["validate", str(frameworks)]) == 0
+    assert "ok (frameworks: 3, tasks: 5)" in capsys.readouterr().out
+    bad = tmp_path / "fw.yaml"
+    bad.write_text(frameworks.read_text() + "\nbogus: 1\n")
+    assert cli.main(["validate", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "bogus" in err and str(bad) in err
