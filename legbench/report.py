@@ -882,7 +882,8 @@ STUDIES: tuple[tuple[str, str, str, tuple[str, ...], str], ...] = (
         "Verification against closed-form answers",
         "checks",
         ("case", "backend", "variant", "quantity", "unit", "measured", "expected", "error", "tolerance", "pass"),
-        "legbench verify: each case, backend and integrator against its closed-form answer (legbench/verify.py)",
+        "legbench verify: each case, backend and integrator against its closed-form answer "
+        "(legbench/studies/verify.py)",
     ),
     (
         "calibration/calibration.json",

@@ -652,8 +652,8 @@ def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
     meta = {"schema": "legbench.verification/1", "passed": passed, "total": len(df), "not_applicable": na,
             "checks": df.to_dict(orient="records"), "versions": versions(), "platform": platform_info()}  # fmt: skip
     write_json(meta, out_dir / "verification.json")
-    md = [f"# Verification: {checks_summary(list(df['status']))}\n", "Cases and tolerances: `legbench/verify.py`.\n",
-          markdown(df), "\n## Notes\n"]  # fmt: skip
+    md = [f"# Verification: {checks_summary(list(df['status']))}\n",
+          "Cases and tolerances: `legbench/studies/verify.py`.\n", markdown(df), "\n## Notes\n"]  # fmt: skip
     md += [f"- {r['case']} / {r['backend']} / {r['variant']} / {r['quantity']}: {r['note']}"
            for r in df.to_dict(orient="records") if r["note"]]  # fmt: skip
     atomic_write_text(out_dir / "verification.md", "\n".join(md) + "\n")
