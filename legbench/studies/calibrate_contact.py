@@ -282,8 +282,9 @@ def write_calibration(df: pd.DataFrame, out_dir: Path, program: Program = Progra
             "rows": df.to_dict(orient="records"), "versions": versions(), "platform": platform_info()}  # fmt: skip
     write_json(meta, out_dir / "calibration.json")
     notes = [f"- {r['backend']}: {r['note']}" for r in df.to_dict(orient="records") if r["note"]]
-    text = ["# Contact calibration\n", f"Program: {dataclasses.asdict(program)} (legbench/calibrate_contact.py).\n",
-            markdown(df), *notes]  # fmt: skip
+    text = ["# Contact calibration\n",
+            f"Program: {dataclasses.asdict(program)} (legbench/studies/calibrate_contact.py).\n", markdown(df),
+            *notes]  # fmt: skip
     atomic_write_text(out_dir / "calibration.md", "\n".join(text) + "\n")
     return out_dir
 
