@@ -41,8 +41,8 @@ def _failures(df: pd.DataFrame) -> str:
 #: Verified quantities a backend is known to miss, each investigated and reported, not hidden: the test
 #: asserts they still fail (so a fix is noticed) and that everything else passes.
 #: Drake (SAP, matched): the sliding foot leaves the ground at 0.372 s (slip 0.245 m/s, where mu_s Kd v is
-#: about Fn: SAP's convex approximation), so the window's mean slip acceleration (4.3 m/s^2) is not the closed
-#: form's (-0.05); up to the lift-off it agrees to 0.12 % (docs/backends/drake.md, tests/test_backend_drake.py).
+#: about Fn: SAP's convex approximation), so the window's mean slip acceleration (4.22 m/s^2) is not the closed
+#: form's (1.16); up to the lift-off it agrees to 0.13 % (docs/backends/drake.md, tests/test_backend_drake.py).
 KNOWN_DISCREPANCIES = {("sliding", "drake", "slip acceleration along the slip (mean)")}
 
 

@@ -64,7 +64,7 @@ every discrete update (sub-step) ``J_poc^T F`` of
 generalized force port. The continuous plant holds it over the control
 period (first order in the contact force).
 
-Profiles: ``matched`` is :attr:`DrakeBackend.defaults` (SAP at 0.1 ms, the
+Profiles: ``matched`` is :attr:`DrakeBackend.defaults` (SAP at 50 us, the
 mapping above). ``engine-defaults`` is what a Drake user gets from
 ``MultibodyPlantConfig()`` (1 ms ``lagged``, stiction tolerance 1e-4 m/s)
 with Kp, Kd and mu set the usual way: ``point_contact_stiffness = Kp``,
@@ -141,7 +141,7 @@ class DrakeBackend(Backend):
     sliding_coefficient: ClassVar[str] = "mu_s"
     defaults: ClassVar[Mapping[str, Any]] = {
         "solver": "sap",  # one of SOLVERS
-        "dt": 1.0e-4,  # discrete time step [s] (ignored by "continuous", which takes one solve per period)
+        "dt": 5.0e-5,  # discrete time step [s], the others' sub-step (ignored by "continuous": one solve per period)
         "contact_model": "point",  # "point" or "hydroelastic"
         "contact_params": "mapped",  # "mapped" (module docstring) or "usual" (engine-defaults)
         "hc_reference_depth": 5.0e-3,  # x_ref [m] at which Hunt-Crossley (and hydroelastic) damping equals Kd
