@@ -25,7 +25,7 @@ import pinocchio as pin
 
 from legbench import resources
 from legbench.exceptions import ModelError
-from legbench.yamlfile import check_magnitude
+from legbench.yamlfile import check_magnitude, read_yaml
 
 #: The source checkout's root (only meaningful when running from one; data paths come from
 #: :mod:`legbench.resources`).
@@ -246,8 +246,6 @@ def cad_estimate(raw: dict[str, Any]) -> dict[str, Inertial]:
 def load_raw(path: Path | str | None = None) -> dict[str, Any]:
     """The parameter file (default: the active one, :func:`legbench.resources.model_file`) as a dict,
     read through the guarded YAML reader (size, nesting, duplicate keys)."""
-    from legbench.yamlfile import read_yaml
-
     path = Path(path) if path is not None else resources.model_file()
     if path.is_dir():
         raise ModelError(f"{path}: is a directory, not a parameter file")

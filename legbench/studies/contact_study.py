@@ -22,8 +22,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
+from legbench import backends as registry
 from legbench import kinematics
+from legbench import scenario as scenario_mod
+from legbench.run import physics_of, simulate
 
 #: Motion of the foot centre counted from this time on [s] (the first 50 ms settle the contact).
 SETTLE = 0.05
@@ -106,10 +110,6 @@ def run_case(scenario: str | Path, backend: str, profile: str = "matched", setti
         overrides: dotted scenario keys (e.g. ``physics.contact.v_th``).
         window: final window [s]; default the scenario's ``comparison.steady_window``.
     """
-    from legbench import backends as registry
-    from legbench import scenario as scenario_mod
-    from legbench.run import physics_of, simulate
-
     sc = scenario_mod.load(scenario, overrides)
     physics = physics_of(sc)
     b = registry.load(backend, physics, dict(settings or {}), profile)
@@ -139,8 +139,6 @@ def table(rows: Sequence[tuple[str, SteadyContact]]) -> str:
 
 def _value(text: str) -> Any:
     """A grid value: a number where it parses as one (YAML 1.1 reads ``1e-4`` as text), else YAML."""
-    import yaml
-
     try:
         return int(text)
     except ValueError:

@@ -29,10 +29,13 @@ from typing import Any
 
 import numpy as np
 
-from legbench import kinematics
+from legbench import backends as registry
+from legbench import kinematics, resources
+from legbench import scenario as scenario_mod
 from legbench.backends.base import Physics
 from legbench.model import Dynamics, load_params
 from legbench.results import RunResult
+from legbench.run import physics_of, simulate
 
 #: Normal push [N] and the drag as a fraction of it (above mu_s = 0.7).
 FN = 15.0
@@ -52,9 +55,6 @@ ROW_KEYS = ("case", "backend", "quantity", "unit", "measured", "expected", "erro
 
 
 def _scenario(duration: float = WINDOW[1] + 0.01, overrides: Mapping[str, Any] | None = None) -> Any:
-    from legbench import resources
-    from legbench import scenario as scenario_mod
-
     events = [
         {"t": 0.0, "effort": {"force": [0.0, 0.0, -FN]}},
         {"t": T_DRAG, "effort": {"force": [0.0, DRAG * FN, -FN]}},
@@ -101,9 +101,6 @@ def drag(
     ``overrides``: scenario keys set on top (e.g. ``{"physics.contact.Kd": 50.0}``). A backend that cannot
     load gives a failed :class:`~legbench.results.RunResult` saying why.
     """
-    from legbench import backends as registry
-    from legbench.run import physics_of, simulate
-
     sc = _scenario(duration, overrides)
     physics = physics_of(sc, "native")
     try:
@@ -129,8 +126,6 @@ def sliding_case(backend: str, profile: str = "matched") -> list[dict[str, Any]]
 
 def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW) -> list[dict[str, Any]]:
     """Score a drag run (:func:`drag`) over ``window`` [s] against the closed form: the rows of :func:`sliding_case`."""
-    from legbench import backends as registry
-
     case, backend = "sliding", tr.backend
     if tr.status != "ok":
         return [dict(zip(ROW_KEYS, (case, backend, "run", "", math.nan, math.nan, math.nan, 0.0, False,
