@@ -69,7 +69,7 @@ class PinocchioBackend(Backend):
         "limit_stiffness": joint_limits.STIFFNESS,  # [N m/rad]
         "limit_damping": joint_limits.DAMPING,  # [N m s/rad], about critical for the knee (I ~ 0.01 kg m^2)
         "friction": "implicit",  # euler only: friction slope linearly implicit (docs/pinocchio.md)
-        "kernel": "compiled",  # euler only: one compiled call per control period (pinocchio_kernel), or python
+        "kernel": "compiled",  # euler and rk4: one compiled call per control period (pinocchio_kernel), or python
     }
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "integrator": ("euler", "rk4", "rk45", "dop853"),
@@ -118,9 +118,9 @@ class PinocchioBackend(Backend):
         self._step = {"euler": euler, "rk4": self._rk4}.get(self.cfg["integrator"], self._adaptive)
         self._fn_peak, self._q_peak = 0.0, [0.0, 0.0, 0.0]
         self._kernel_note = ""
-        self._compiled = self._load_kernel() if self.cfg["integrator"] == "euler" else None
+        self._compiled = self._load_kernel() if self.cfg["integrator"] in ("euler", "rk4") else None
         if self._compiled is not None:
-            self._step = self._euler_compiled
+            self._step = self._period_compiled
 
     def _load_kernel(self) -> tuple[Any, ...] | None:
         """The compiled period's arguments (:mod:`legbench.backends.pinocchio_kernel`), or None: the Python
@@ -142,7 +142,11 @@ class PinocchioBackend(Backend):
         self._x = np.zeros(9)
         self._floor_args = (R, p, inertia, a0, lc, lim)
         model, scratch = pinocchio_kernel.pack(R, p, inertia, a0, lc, lim)
-        return (model, scratch, self._x, self.h, self.n_sub, self.implicit)
+        if self.cfg["integrator"] == "rk4":
+            method = pinocchio_kernel.RK4
+        else:
+            method = pinocchio_kernel.EULER_IMPLICIT if self.implicit else pinocchio_kernel.EULER
+        return (model, scratch, self._x, self.h, self.n_sub, method)
 
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
@@ -291,12 +295,12 @@ class PinocchioBackend(Backend):
         x = sol.y[:, -1]
         self.q, self.qd = x[:3].tolist(), x[3:].tolist()
 
-    def _euler_compiled(self, tau: np.ndarray) -> None:
-        """:meth:`_euler_implicit` (or :meth:`_euler`) and the force read-out in one compiled call."""
-        model, scratch, x, h, n_sub, implicit = self._compiled  # type: ignore[misc]
+    def _period_compiled(self, tau: np.ndarray) -> None:
+        """:meth:`_euler_implicit` (or :meth:`_euler`, :meth:`_rk4`) and the force read-out in one compiled call."""
+        model, scratch, x, h, n_sub, method = self._compiled  # type: ignore[misc]
         if type(tau) is not np.ndarray or tau.dtype != np.float64 or tau.shape != (3,):  # a list, ints, a column
             tau = np.array(tau, dtype=float).reshape(3)
-        self._period(model, scratch, tau, x, h, n_sub, implicit)
+        self._period(model, scratch, tau, x, h, n_sub, method)
         if x[8] > self._fn_peak:
             self._fn_peak, self._q_peak = float(x[8]), x[0:3].tolist()
 
@@ -304,7 +308,7 @@ class PinocchioBackend(Backend):
 
     def step(self, tau: np.ndarray) -> None:
         if self._compiled is not None:
-            self._euler_compiled(tau)
+            self._period_compiled(tau)
             return
         self._step(tau)
         self._update_force()
@@ -336,11 +340,11 @@ class PinocchioBackend(Backend):
     def info(self) -> dict[str, Any]:
         c = self.physics.contact
         # only the settings the integrator reads: the tolerances are the adaptive solvers', the sub-step the
-        # fixed-step ones', the implicit friction and the compiled kernel semi-implicit Euler's
+        # fixed-step ones', the implicit friction semi-implicit Euler's, the compiled kernel the fixed steps'
         adaptive = self.integrator_family() == "adaptive"
-        unused = {"dt"} if adaptive else {"rtol", "atol", "max_step"}
+        unused = {"dt", "kernel"} if adaptive else {"rtol", "atol", "max_step"}
         if self.cfg["integrator"] != "euler":
-            unused |= {"friction", "kernel"}
+            unused |= {"friction"}
         return {
             "engine": "pinocchio",
             "version": pin.__version__,
@@ -394,7 +398,8 @@ class PinocchioBackend(Backend):
     def kernels(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> dict[str, Any]:
         """``pin.aba`` on this backend's model and data and the contact law, called from Python per sub-step;
         with the compiled kernel also ``aba_law_tick``: per control period, ``n_sub`` x (law, limits, ABA) at
-        each logged state inside one compiled loop over all rows (no Python per tick)."""
+        each logged state inside one compiled loop over all rows (no Python per tick); for RK4 four of those
+        per sub-step, one per stage."""
         aba, model, data, law = self._aba, self.model, self.data, self.law
         pin_in = [
             (np.array([a[0], math.cos(a[1]), math.sin(a[1]), a[2]]), np.array(v), np.array(t))
@@ -413,7 +418,7 @@ class PinocchioBackend(Backend):
         out: dict[str, Any] = {"aba": aba_loop, "law": law_loop}
         if self._compiled is not None:
             R, p, inertia, a0, lc, lim = self._floor_args
-            n_sub, implicit = self.n_sub, self.implicit
+            n_sub, implicit = self.n_sub * (4 if self.cfg["integrator"] == "rk4" else 1), self.implicit
             work, tmp, buf = np.zeros((3, 6, 16)), np.zeros((6, 16)), np.zeros(64)
             Q, QD = np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(qd, dtype=float)
             TAU = np.ascontiguousarray(tau, dtype=float)

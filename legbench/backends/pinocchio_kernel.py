@@ -19,8 +19,9 @@ cos/sin), and refuses a model with any other (:class:`KernelUnavailable`).
   ``fastmath``; ``math.sin``/``cos``/``sqrt`` are the C library's, as in Python; the law takes a slip speed
   as ``sqrt(vx * vx + vy * vy)``, not ``math.hypot``, whose CPython and C library versions differ in the
   last bit for about 0.6 % of arguments).
-* :func:`period` is :meth:`PinocchioBackend._euler_implicit` (``implicit``: the friction's slope
-  linearly implicit, M^-1 frozen over the period at its first sub-step in contact) or ``_euler``.
+* :func:`period` is :meth:`PinocchioBackend._euler_implicit` (:data:`EULER_IMPLICIT`: the friction's slope
+  linearly implicit, M^-1 frozen over the period at its first sub-step in contact), ``_euler``
+  (:data:`EULER`) or ``_rk4`` (:data:`RK4`).
 
 Units: q [rad], qd [rad/s], tau [N m], F in W [N], h [s].
 """
@@ -41,6 +42,9 @@ except ImportError:  # the backend runs its Python path and says so
     numba = None  # type: ignore[assignment]
 
 __all__ = [
+    "EULER",
+    "EULER_IMPLICIT",
+    "RK4",
     "KernelUnavailable",
     "aba",
     "available",
@@ -52,6 +56,9 @@ __all__ = [
     "wrench_slope",
 ]
 
+#: :func:`period`'s integrators: semi-implicit Euler (friction explicit), the same with the friction slope
+#: linearly implicit, classical Runge-Kutta 4.
+EULER, EULER_IMPLICIT, RK4 = 0, 1, 2
 #: The joint types the kernel integrates (all: revolute about the joint frame's z axis).
 JOINT_TYPES = ("JointModelRZ", "JointModelRUBZ")
 
@@ -360,6 +367,61 @@ def _period_arrays(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.nda
 
 
 @_njit
+def _accel(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: np.ndarray, lim: np.ndarray,
+           u1: float, u2: float, u3: float, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float,
+           work: np.ndarray, tmp: np.ndarray, buf: np.ndarray) -> tuple[float, float, float]:  # fmt: skip
+    """Joint accelerations [rad/s^2] at (q, qd) under the held torque u [N m] plus the law's J_poc^T F and the
+    limits' torque: :meth:`PinocchioBackend._qdd`, compiled (the same sums in the same order)."""
+    q = buf[16:19]
+    qd = buf[19:22]
+    t = buf[22:25]
+    a = buf[25:28]
+    tc1, tc2, tc3, _f1, _f2, _f3 = wrench(lc, q1, q2, q3, qd1, qd2, qd3)
+    tl1, tl2, tl3 = limit_torques(lim, q1, q2, q3, qd1, qd2, qd3)
+    t[0], t[1], t[2] = u1 + tc1 + tl1, u2 + tc2 + tl2, u3 + tc3 + tl3
+    q[0], q[1], q[2] = q1, q2, q3
+    qd[0], qd[1], qd[2] = qd1, qd2, qd3
+    aba(R, p, inertia, a0, q, qd, t, a, work, tmp)
+    return a[0], a[1], a[2]
+
+
+@_njit
+def _rk4_arrays(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: np.ndarray, lim: np.ndarray,
+                h: float, n_sub: int, u: np.ndarray, x: np.ndarray, work: np.ndarray, tmp: np.ndarray,
+                buf: np.ndarray) -> None:  # fmt: skip
+    """``n_sub`` classical Runge-Kutta 4 steps of ``h`` [s] under the held torque u [N m]:
+    :meth:`PinocchioBackend._rk4`, compiled (the same stages in the same order). ``x`` as in
+    :func:`_period_arrays`: the state in, the state and the law's F in W [N] at the end state out."""
+    u1, u2, u3 = u[0], u[1], u[2]
+    q1, q2, q3, qd1, qd2, qd3 = x[0], x[1], x[2], x[3], x[4], x[5]
+    hh = 0.5 * h
+    h6 = h / 6.0
+    for _ in range(n_sub):
+        # stage 1 at (q, qd); v1 = qd
+        a11, a12, a13 = _accel(R, p, inertia, a0, lc, lim, u1, u2, u3, q1, q2, q3, qd1, qd2, qd3, work, tmp, buf)
+        # stage 2 at (q + h/2 v1, qd + h/2 a1)
+        v21, v22, v23 = qd1 + hh * a11, qd2 + hh * a12, qd3 + hh * a13
+        a21, a22, a23 = _accel(R, p, inertia, a0, lc, lim, u1, u2, u3, q1 + hh * qd1, q2 + hh * qd2, q3 + hh * qd3,
+                               v21, v22, v23, work, tmp, buf)  # fmt: skip
+        # stage 3 at (q + h/2 v2, qd + h/2 a2)
+        v31, v32, v33 = qd1 + hh * a21, qd2 + hh * a22, qd3 + hh * a23
+        a31, a32, a33 = _accel(R, p, inertia, a0, lc, lim, u1, u2, u3, q1 + hh * v21, q2 + hh * v22, q3 + hh * v23,
+                               v31, v32, v33, work, tmp, buf)  # fmt: skip
+        # stage 4 at (q + h v3, qd + h a3)
+        v41, v42, v43 = qd1 + h * a31, qd2 + h * a32, qd3 + h * a33
+        a41, a42, a43 = _accel(R, p, inertia, a0, lc, lim, u1, u2, u3, q1 + h * v31, q2 + h * v32, q3 + h * v33,
+                               v41, v42, v43, work, tmp, buf)  # fmt: skip
+        q1 = q1 + h6 * (qd1 + 2 * v21 + 2 * v31 + v41)
+        q2 = q2 + h6 * (qd2 + 2 * v22 + 2 * v32 + v42)
+        q3 = q3 + h6 * (qd3 + 2 * v23 + 2 * v33 + v43)
+        qd1 = qd1 + h6 * (a11 + 2 * a21 + 2 * a31 + a41)
+        qd2 = qd2 + h6 * (a12 + 2 * a22 + 2 * a32 + a42)
+        qd3 = qd3 + h6 * (a13 + 2 * a23 + 2 * a33 + a43)
+    _t1, _t2, _t3, fx, fy, fz = wrench(lc, q1, q2, q3, qd1, qd2, qd3)
+    x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8] = q1, q2, q3, qd1, qd2, qd3, fx, fy, fz
+
+
+@_njit
 def floor(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: np.ndarray, lim: np.ndarray,
           n_sub: int, implicit: bool, Q: np.ndarray, QD: np.ndarray, TAU: np.ndarray, work: np.ndarray,
           tmp: np.ndarray, buf: np.ndarray) -> float:  # fmt: skip
@@ -406,8 +468,9 @@ def pack(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: 
 
 @_njit
 def period(model: np.ndarray, scratch: np.ndarray, u: np.ndarray, x: np.ndarray, h: float, n_sub: int,
-           implicit: bool) -> None:  # fmt: skip
-    """One control period on :func:`pack`'s arrays (see :func:`_period_arrays`): what the backend calls."""
+           method: int) -> None:  # fmt: skip
+    """One control period on :func:`pack`'s arrays: what the backend calls. ``method``: :data:`EULER`,
+    :data:`EULER_IMPLICIT` (:func:`_period_arrays`) or :data:`RK4` (:func:`_rk4_arrays`)."""
     n = int(model[0])
     o = 1
     R = model[o : o + 9 * n].reshape((n, 3, 3))
@@ -422,4 +485,7 @@ def period(model: np.ndarray, scratch: np.ndarray, u: np.ndarray, x: np.ndarray,
     work = scratch[: 96 * n].reshape((n, 6, 16))
     tmp = scratch[96 * n : 96 * n + 96].reshape((6, 16))
     buf = scratch[96 * n + 96 :]
-    _period_arrays(R, p, inertia, a0, lc, lim, h, n_sub, implicit, u, x, work, tmp, buf)
+    if method == RK4:
+        _rk4_arrays(R, p, inertia, a0, lc, lim, h, n_sub, u, x, work, tmp, buf)
+    else:
+        _period_arrays(R, p, inertia, a0, lc, lim, h, n_sub, method == EULER_IMPLICIT, u, x, work, tmp, buf)
