@@ -274,8 +274,9 @@ class DrakeBackend(Backend):
         self._results_port = plant.get_contact_results_output_port()
         #: Drake's discrete period [s] (0: continuous); targets are integer multiples of it
         self._h = 0.0 if self.continuous else float(plant.time_step())
-        self._q_idx = [j.position_start() for j in self.joints]
-        self._v_idx = [j.velocity_start() for j in self.joints]
+        #: where each joint's q and qd sit in the plant's [q; v] state vector, as index arrays made once
+        self._q_idx = np.array([j.position_start() for j in self.joints])
+        self._qd_idx = plant.num_positions() + np.array([j.velocity_start() for j in self.joints])
 
     def _ground(self, plant: Any, usual: bool) -> Any:
         """Register the ground half-space on the world body: rigid, the foot's friction (or friction only)."""
@@ -346,7 +347,7 @@ class DrakeBackend(Backend):
         self.root.SetTimeStateAndParametersFrom(self._default)
         x = np.zeros(6)
         x[self._q_idx] = q
-        x[[3 + i for i in self._v_idx]] = qd
+        x[self._qd_idx] = qd
         self.plant.SetPositionsAndVelocities(self.ctx, x)
         _set(self._act, np.zeros(3))
         _set(self._gen, np.zeros(3))
@@ -387,7 +388,7 @@ class DrakeBackend(Backend):
     def _read(self) -> None:
         x = self.plant.GetPositionsAndVelocities(self.ctx)
         self._q[:] = x[self._q_idx]
-        self._qd[:] = x[[3 + i for i in self._v_idx]]
+        self._qd[:] = x[self._qd_idx]
 
     def _reference_force(self) -> None:
         q, qd = self._q, self._qd
