@@ -675,7 +675,12 @@ def run_check(
 
     Returns:
         0 if nothing regressed, 1 otherwise.
+
+    Raises:
+        ResultsError: as :func:`check`, and where ``baseline`` is ``new`` itself.
     """
+    if Path(new).exists() and Path(new).resolve() == Path(baseline).resolve():  # would pass, and write into it
+        raise ResultsError(str(baseline), "the baseline is the new results directory itself: nothing to check")
     report = check(new, baseline, tolerance_file)
     out = stream if stream is not None else sys.stdout
     print(format_table(report, all_rows), file=out)

@@ -63,6 +63,16 @@ def test_a_run_passes_against_itself_with_identical_time_series(baseline: Path, 
     assert "PASS" in (new / "check.md").read_text()
 
 
+def test_checking_a_directory_against_itself_is_refused(baseline: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`check X --baseline X` would pass by construction and write check.md into the baseline: exit 2, one line
+    naming the directory, nothing written."""
+    before = sorted(p.name for p in baseline.rglob("*"))
+    assert cli.main(["check", str(baseline), "--baseline", str(baseline) + "/"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and str(baseline) in err and "itself" in err
+    assert sorted(p.name for p in baseline.rglob("*")) == before
+
+
 def test_a_perturbed_backend_fails_naming_backend_and_signal(baseline: Path, tmp_path: Path) -> None:
     """A 0.5 N m pulse in backend a's tau2: exit status 1; the failures are exactly a's tau2 metrics."""
     new = tree(tmp_path / "new", a=then(scale(1.02), BUMP))
