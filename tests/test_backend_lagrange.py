@@ -447,3 +447,34 @@ def test_kernel_falls_back_to_python_and_says_why(make: Any, monkeypatch: pytest
     be = make()
     assert be.info()["kernel_used"] == "python"
     assert any("numba is not installed" in w and "pip install numba" in w for w in be.warnings())
+
+
+@numba_needed
+def test_each_model_has_its_own_compiled_period(make: Any, tmp_path: Path) -> None:
+    """The period is compiled per model (its key): a leg with link 2 1 % heavier gets another period, whose
+    end state is its own Python stepper's (within 1e-12), not the first model's (which differs by far more)."""
+    backend = make()
+    chain = E.leg_chain(PARAMS)
+    heavier = dataclasses.replace(chain.links[1], mass=chain.links[1].mass * 1.01)
+    other = E.load_eom(dataclasses.replace(chain, links=(chain.links[0], heavier, chain.links[2])), tmp_path).module
+    assert other.KEY != backend.eom.module.KEY
+    first, second = (
+        lagrange_kernel.period(backend.eom.module.KEY, backend._qdd),
+        lagrange_kernel.period(other.KEY, other.qdd),
+    )
+    assert first is not second and first is lagrange_kernel.period(backend.eom.module.KEY, backend._qdd)
+    x0 = np.array([0.1, -0.6, 1.2, 0.5, -0.3, 0.8])  # free swing: the masses alone set the motion
+    u, g, rtol, atol, max_step = np.zeros(3), backend.g, *backend._tols
+    ends = []
+    for period, qdd in ((first, backend._qdd), (second, other.qdd)):
+        x = x0.copy()
+        period(x, u, g, backend._lc, backend._lim, CONTROL_DT, rtol, atol, max_step, backend._k)
+
+        def f(y: Any, qdd: Any = qdd) -> tuple[float, ...]:
+            a = qdd(*y, 0.0, 0.0, 0.0, g)
+            return (y[3], y[4], y[5], *a)
+
+        y, _ = dopri5_period(f, x0.tolist(), CONTROL_DT, rtol, atol, max_step)
+        np.testing.assert_allclose(x, y, rtol=0, atol=1e-12)
+        ends.append(x)
+    assert np.abs(ends[0] - ends[1]).max() > 1e-6

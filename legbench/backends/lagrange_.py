@@ -15,7 +15,7 @@ atol 1e-6, max step 1e-4 s). ``rk45`` is :func:`dopri5_period`, scipy's
 selection, error norm and step-size control) written on plain floats for the six
 states, 2-2.5 times cheaper per tick than solve_ivp with its per-call set-up
 and numpy arithmetic on 6-vectors, and by default compiled (:mod:`legbench.backends.lagrange_kernel`,
-the same steps, 17-22 times cheaper again); ``dop853`` goes through solve_ivp.
+the same steps, 20-25 times cheaper again); ``dop853`` goes through solve_ivp.
 tau_c = J_poc^T F is the analytic ground contact law of
 :mod:`legbench.contact` evaluated at every right-hand-side call; tau_lim the
 one-sided spring-damper of :mod:`legbench.backends.joint_limits` at the revolute
@@ -257,7 +257,7 @@ class LagrangeBackend(Backend):
         self._lim = np.array([*self.lower, *self.upper, self.limit_law.k, self.limit_law.b], dtype=float)
         self._ua = np.zeros(3)
         self._k = np.zeros((9, 6))
-        return lagrange_kernel.compile_period(self.eom.module.KEY, self._qdd)
+        return lagrange_kernel.period(self.eom.module.KEY, self._qdd)
 
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
