@@ -128,7 +128,8 @@ def test_every_subcommand_from_another_directory(installed: dict[str, object]) -
     out = _legbench(inst, "run", str(s / "effort.yaml"), "--backends", "pinocchio,mujoco", *short, "--out", "r", "-q")
     assert "pinocchio  ok" in out and (Path(str(inst["work"])) / "r" / "report.html").is_file()
     _legbench(inst, "compare", "r")
-    _legbench(inst, "check", "r", "--baseline", "r")
+    shutil.copytree(Path(str(inst["work"])) / "r", Path(str(inst["work"])) / "r_baseline")
+    assert "PASS" in _legbench(inst, "check", "r", "--baseline", "r_baseline")
     _legbench(inst, "doctor", str(s / "effort.yaml"), "--backends", "pinocchio,mujoco")
     sweep = Path(str(inst["work"])) / "tiny_sweep.yaml"
     sweep.write_text(
