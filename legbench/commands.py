@@ -167,16 +167,23 @@ def _run(args: argparse.Namespace) -> int:
         raise LegbenchError(f"--out {root}: holds one run, and {len(runs)} runs make a tree of run directories; "
                             "choose another --out")  # fmt: skip
     _check_plan(plan, args)
-    if not args.no_preflight:
-        available = set(backends.available())
-        installed = [n for n in names if n in available]
-        checked: set[str] = set()
-        for sc in scenarios:  # every engine must hold the spec's leg before anything runs
-            key = json.dumps([sc.gravity, {k: dict(v) for k, v in sc.backends.items()}], sort_keys=True)
-            if key not in checked:  # the pre-flight depends only on gravity and backend settings
-                doctor.preflight(sc, installed)
-                checked.add(key)
-    outcome = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet)
+    # the workers import the engines while the pre-flight runs here (a single run needs no pool)
+    pool = run.start_pool(args.jobs) if len(plan) * len(names) > 1 else None
+    try:
+        if not args.no_preflight:
+            available = set(backends.available())
+            installed = [n for n in names if n in available]
+            checked: set[str] = set()
+            for sc in scenarios:  # every engine must hold the spec's leg before anything runs
+                key = json.dumps([sc.gravity, {k: dict(v) for k, v in sc.backends.items()}], sort_keys=True)
+                if key not in checked:  # the pre-flight depends only on gravity and backend settings
+                    doctor.preflight(sc, installed)
+                    checked.add(key)
+    except BaseException:
+        if pool is not None:
+            pool.terminate()
+        raise
+    outcome = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet, pool=pool)
     failed = 0
     for (sc, mode, out), res in zip(plan, outcome, strict=True):
         print(

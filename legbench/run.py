@@ -294,12 +294,23 @@ def deferred_interrupts() -> Iterator[list[int]]:
         raise KeyboardInterrupt
 
 
+def start_pool(jobs: int) -> LocalExecutor | None:
+    """A pool of ``jobs`` workers started now, for :func:`run_many`: they import the engines while the caller
+    reads scenarios and runs its pre-flight. None for ``jobs <= 1`` (the runs go in this process)."""
+    if jobs <= 1:
+        return None
+    pool = LocalExecutor(jobs)
+    pool.start()
+    return pool
+
+
 def run_many(
     jobs_list: Sequence[tuple[Scenario, str | None, Path | None]],
     backend_names: Sequence[str],
     jobs: int = 1,
     csv: bool = False,
     progress: bool = True,
+    pool: LocalExecutor | None = None,
 ) -> list[list[RunResult]]:
     """Run several (scenario, contact mode, output dir) on every backend, in ``jobs`` processes.
 
@@ -318,16 +329,24 @@ def run_many(
     directory incomplete), a line on stderr says what was kept, and the
     interrupt is re-raised. A rerun into the same directories runs only the
     backends that did not finish.
+
+    ``pool``: workers started earlier (:func:`start_pool`, ``jobs`` of them), used instead of a new pool;
+    like a new one it is closed when the runs end, or stopped on an error.
     """
     plan: list[tuple[int, Scenario, str, str | None]] = []
     kept: list[dict[str, Any]] = []
-    for i, (sc, mode, out) in enumerate(jobs_list):
-        done: dict[str, Any] = {}
-        if out is not None:
-            check_out_dir(sc, out)
-            done = {k: v for k, v in resumable(sc, out, mode).items() if k in backend_names}
-        kept.append(done)
-        plan += [(i, sc, name, mode) for name in backend_names if name not in done]
+    try:
+        for i, (sc, mode, out) in enumerate(jobs_list):
+            done: dict[str, Any] = {}
+            if out is not None:
+                check_out_dir(sc, out)
+                done = {k: v for k, v in resumable(sc, out, mode).items() if k in backend_names}
+            kept.append(done)
+            plan += [(i, sc, name, mode) for name in backend_names if name not in done]
+    except BaseException:
+        if pool is not None:
+            pool.terminate()
+        raise
     outs = [out for _, _, out in jobs_list]
     cost = _estimates(plan, outs, cost_hints(outs) if jobs > 1 and len(plan) > jobs else {})
     first = sorted(range(len(plan)), key=lambda j: (-cost[j], j))
@@ -335,7 +354,7 @@ def run_many(
     tasks = [(sc, name, mode, per_run_bar) for _, sc, name, mode in plan]
     got: dict[int, RunResult] = {}
     interrupted = False
-    pool = LocalExecutor(max(jobs, 1))
+    pool = pool if pool is not None else LocalExecutor(max(jobs, 1))
     with progress_mod.bar(len(plan), "runs", quiet=not progress or jobs <= 1) as bar:
         try:
             for j, tr in pool.imap_unordered(_task, tasks, first):

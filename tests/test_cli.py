@@ -7,6 +7,7 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 import pytest
@@ -105,6 +106,37 @@ def test_variants_run_exactly_the_listed_profile_and_contact_pairs(tmp_path: Pat
     assert cli.main(["run", str(scenario), *common, "--out", str(tmp_path / "one")]) == 0
     one = (tmp_path / "one" / "pinocchio.parquet").read_bytes()
     assert one == (tree / "position" / "pinocchio.parquet").read_bytes()
+
+
+def test_the_pool_starts_before_the_preflight_and_stops_when_it_fails(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """With --jobs 2 the workers start while the pre-flight runs; a pre-flight that refuses the run (exit 2, its
+    one line) leaves no worker running and nothing written."""
+    from legbench import run
+    from legbench.studies import doctor
+
+    pools: list[Any] = []
+
+    def start(jobs: int) -> Any:
+        pool = real_start(jobs)
+        pools.append(pool)
+        return pool
+
+    def refuse(*_: Any) -> None:
+        assert pools and pools[0] is not None  # started before the pre-flight
+        raise doctor.ParityError("mujoco", "link2.mass", 0.5, 0.322, "kg")
+
+    real_start = run.start_pool
+    monkeypatch.setattr(run, "start_pool", start)
+    monkeypatch.setattr(doctor, "preflight", refuse)
+    scenario = Path(__file__).resolve().parents[1] / "scenarios" / "position.yaml"
+    argv = ["run", str(scenario), "--backends", "pinocchio,mujoco", "--jobs", "2", "--out", str(tmp_path / "r"), "-q"]
+    assert cli.main(argv) == 2
+    assert "mujoco holds link2.mass = 0.5 kg" in capsys.readouterr().err
+    procs = list((getattr(pools[0]._pool, "_processes", None) or {}).values()) if pools[0]._pool else []
+    assert pools[0]._pool is None and not any(p.is_alive() for p in procs)
+    assert not (tmp_path / "r").exists()
 
 
 @pytest.mark.parametrize(
