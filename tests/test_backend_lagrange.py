@@ -19,7 +19,7 @@ from legbench import kinematics, model, run, scenario  # noqa: E402
 from legbench.backends import lagrange_eom as E  # noqa: E402
 from legbench.backends import lagrange_kernel  # noqa: E402
 from legbench.backends.base import Physics  # noqa: E402
-from legbench.backends.lagrange_ import LagrangeBackend, dopri5_period  # noqa: E402
+from legbench.backends.lagrange_ import LagrangeBackend  # noqa: E402
 
 PARAMS = model.load_params()
 CONTROL_DT = 1e-3  # [s]
@@ -342,75 +342,77 @@ def test_a_corrupt_cache_file_is_derived_again(tmp_path: Path) -> None:
 
 
 # --------------------------------------------------------------------------- #
-# The Dormand-Prince stepper on plain floats
+# The Dormand-Prince period (legbench/backends/lagrange_kernel.py): scipy's RK45, run as Python and compiled
+
+numba_needed = pytest.mark.skipif(not lagrange_kernel.available(), reason="needs numba")
 
 
-def test_dopri5_period_takes_scipy_rk45s_steps_in_stick_slip_contact(make: Any) -> None:
-    """One control period from 200 states of the foot pressed 1 mm into the ground (random joint speeds
-    and torques, so stick, slip and the stiff stick-slip ramp all occur), with the backend's tolerances:
-    :func:`dopri5_period` makes exactly solve_ivp(RK45)'s right-hand-side evaluations (same initial step,
-    same accepted and rejected steps) and ends within 1e-12 of it (measured 5e-14: the two differ only in
-    the rounding of the stage sums; a wrong tableau entry or step control moves the end state by 1e-8
-    or the evaluation count)."""
-    backend = make()
+def _pressed_states(n: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """``n`` states of the foot pressed 1 mm into the ground with random joint speeds, and random torques [N m]:
+    stick, slip and the stiff stick-slip ramp all occur."""
     rng = np.random.default_rng(7)
     start = kinematics.ik_nearest(np.array([0.1667, 0.0, PARAMS.geometry.R_foot - 0.001]), np.array(PARAMS.q_star))
+    for _ in range(n):
+        yield np.concatenate([start + rng.normal(0.0, 0.01, 3), rng.normal(0.0, 0.3, 3)]), rng.normal(0.0, 2.0, 3)
+
+
+def _one_period(backend: LagrangeBackend, compiled: bool, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, int]:
+    """The backend's period, compiled or as Python, from x under u: (end state, right-hand-side evaluations)."""
+    fn = lagrange_kernel.period(backend.eom.module.KEY, backend._qdd, compiled)
+    y = x.copy()
+    rtol, atol, max_step = backend._tols
+    n = fn(y, u, backend.g, backend._lc, backend._lim, CONTROL_DT, rtol, atol, max_step, backend._k)
+    return y, n
+
+
+def test_the_period_takes_scipy_rk45s_steps_in_stick_slip_contact(make: Any) -> None:
+    """One control period from 200 pressed-foot states, with the backend's tolerances: the period (as Python)
+    makes exactly solve_ivp(RK45)'s right-hand-side evaluations (same initial step, same accepted and rejected
+    steps) and ends within 1e-12 of it (measured 5e-14: the two differ only in the rounding of the stage sums;
+    a wrong tableau entry or step control moves the end state by 1e-8 or the evaluation count)."""
+    backend = make(kernel="python")
     s = backend._solve
     nfev = []
-    for _ in range(200):
-        x = np.concatenate([start + rng.normal(0.0, 0.01, 3), rng.normal(0.0, 0.3, 3)])
-        backend._u[:] = rng.normal(0.0, 2.0, 3).tolist()
+    for x, u in _pressed_states(200):
+        backend._u[:] = u.tolist()
         ref = solve_ivp(backend.rhs, (0.0, CONTROL_DT), x, method="RK45", rtol=s["rtol"], atol=s["atol"],
                         max_step=s["max_step"])  # fmt: skip
-        y, n = dopri5_period(backend.f, x.tolist(), CONTROL_DT, s["rtol"], s["atol"], s["max_step"])
+        y, n = _one_period(backend, False, x, u)
         assert n == ref.nfev
         np.testing.assert_allclose(y, ref.y[:, -1], rtol=0, atol=1e-12)
         nfev.append(n)
     assert max(nfev) > 62  # some periods needed more than the ten 0.1 ms steps (error control at work)
 
 
-def test_dopri5_period_rejects_steps_like_scipy_on_a_stiff_problem() -> None:
-    """Van der Pol with mu = 1000 over 1 ms from its fast transient, no step cap: the error control
-    rejects and shrinks steps (1-2 rejections from each start); evaluation count equal to solve_ivp(RK45)'s
-    and the end state within 1e-12 relative (rounding of the stage sums)."""
+def test_the_stepper_rejects_steps_like_scipy_on_a_stiff_problem() -> None:
+    """The same stepper on Van der Pol with mu = 1000 over 1 ms from its fast transient, no step cap: the error
+    control rejects and shrinks steps (1-2 rejections from each start); evaluation count equal to
+    solve_ivp(RK45)'s and the end state within 1e-12 relative (rounding of the stage sums)."""
     mu = 1000.0
 
-    def f(y: Any) -> tuple[float, float]:
-        return (y[1], mu * (1.0 - y[0] ** 2) * y[1] - y[0])
+    def rhs(_lc: Any, _lim: Any, _u: Any, _g: float, y: Any, out: Any) -> None:
+        out[0], out[1] = y[1], mu * (1.0 - y[0] ** 2) * y[1] - y[0]
 
+    period = lagrange_kernel.stepper(rhs)
     for y0 in ([2.0, 0.0], [0.5, 3.0], [1.9, -50.0]):
-        ref = solve_ivp(lambda _t, y: np.array(f(y)), (0.0, 1e-3), y0, method="RK45", rtol=1e-6, atol=1e-9)
-        y, n = dopri5_period(f, y0, 1e-3, 1e-6, 1e-9, math.inf)
+        ref = solve_ivp(lambda _t, y: np.array([y[1], mu * (1.0 - y[0] ** 2) * y[1] - y[0]]), (0.0, 1e-3), y0,
+                        method="RK45", rtol=1e-6, atol=1e-9)  # fmt: skip
+        y = np.array(y0)
+        n = period(y, None, 0.0, None, None, 1e-3, 1e-6, 1e-9, math.inf, np.zeros((9, 2)))
         assert n == ref.nfev and (n - 2) // 6 > len(ref.t) - 1  # 6 per attempt: some attempts were rejected
         np.testing.assert_allclose(y, ref.y[:, -1], rtol=1e-12, atol=1e-15)
 
 
-# --------------------------------------------------------------------------- #
-# The compiled control period (legbench/backends/lagrange_kernel.py) against the Python stepper
-
-numba_needed = pytest.mark.skipif(not lagrange_kernel.available(), reason="needs numba")
-
-
 @numba_needed
-def test_compiled_period_takes_the_python_steppers_steps(make: Any) -> None:
-    """From the 200 pressed-foot states of the test above: the compiled period makes the same number of
-    right-hand-side evaluations as :func:`dopri5_period` on the Python right-hand side and ends within 1e-12
-    of it (measured: equal to the last bit; the law, the limits and the generated qdd are compiled as they
-    are, the stage sums and the error norm written in the same order)."""
+def test_the_compiled_period_is_the_python_period(make: Any) -> None:
+    """From the 200 pressed-foot states: the compiled period makes the same right-hand-side evaluations as the
+    same code run as Python and ends within 1e-12 of it (measured: equal to the last bit)."""
     backend = make()
     assert backend.info()["kernel_used"] == "compiled (numba)"
-    rng = np.random.default_rng(7)
-    start = kinematics.ik_nearest(np.array([0.1667, 0.0, PARAMS.geometry.R_foot - 0.001]), np.array(PARAMS.q_star))
-    rtol, atol, max_step = backend._tols
-    for _ in range(200):
-        x = np.concatenate([start + rng.normal(0.0, 0.01, 3), rng.normal(0.0, 0.3, 3)])
-        u = rng.normal(0.0, 2.0, 3)
-        backend._u[:] = u.tolist()
-        y, n = dopri5_period(backend.f, x.tolist(), CONTROL_DT, rtol, atol, max_step)
-        xc = x.copy()
-        nc = backend._period(xc, u, backend.g, backend._lc, backend._lim, CONTROL_DT, rtol, atol, max_step, backend._k)
-        assert nc == n
-        np.testing.assert_allclose(xc, y, rtol=0, atol=1e-12)
+    for x, u in _pressed_states(200):
+        (yp, n_py), (yc, n_c) = _one_period(backend, False, x, u), _one_period(backend, True, x, u)
+        assert n_c == n_py
+        np.testing.assert_allclose(yc, yp, rtol=0, atol=1e-12)
 
 
 @numba_needed
@@ -452,7 +454,7 @@ def test_kernel_falls_back_to_python_and_says_why(make: Any, monkeypatch: pytest
 @numba_needed
 def test_each_model_has_its_own_compiled_period(make: Any, tmp_path: Path) -> None:
     """The period is compiled per model (its key): a leg with link 2 1 % heavier gets another period, whose
-    end state is its own Python stepper's (within 1e-12), not the first model's (which differs by far more)."""
+    end state is its own Python period's (within 1e-12), not the first model's (which differs by far more)."""
     backend = make()
     chain = E.leg_chain(PARAMS)
     heavier = dataclasses.replace(chain.links[1], mass=chain.links[1].mass * 1.01)
@@ -466,15 +468,11 @@ def test_each_model_has_its_own_compiled_period(make: Any, tmp_path: Path) -> No
     x0 = np.array([0.1, -0.6, 1.2, 0.5, -0.3, 0.8])  # free swing: the masses alone set the motion
     u, g, rtol, atol, max_step = np.zeros(3), backend.g, *backend._tols
     ends = []
-    for period, qdd in ((first, backend._qdd), (second, other.qdd)):
-        x = x0.copy()
+    for key, qdd, period in ((backend.eom.module.KEY, backend._qdd, first), (other.KEY, other.qdd, second)):
+        x, y = x0.copy(), x0.copy()
         period(x, u, g, backend._lc, backend._lim, CONTROL_DT, rtol, atol, max_step, backend._k)
-
-        def f(y: Any, qdd: Any = qdd) -> tuple[float, ...]:
-            a = qdd(*y, 0.0, 0.0, 0.0, g)
-            return (y[3], y[4], y[5], *a)
-
-        y, _ = dopri5_period(f, x0.tolist(), CONTROL_DT, rtol, atol, max_step)
+        python = lagrange_kernel.period(key, qdd, compiled=False)
+        python(y, u, g, backend._lc, backend._lim, CONTROL_DT, rtol, atol, max_step, backend._k)
         np.testing.assert_allclose(x, y, rtol=0, atol=1e-12)
         ends.append(x)
     assert np.abs(ends[0] - ends[1]).max() > 1e-6

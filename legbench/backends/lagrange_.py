@@ -10,12 +10,11 @@ the joint-limit law that every custom integrator uses.
 
 Per control period the torque is held and one adaptive solve covers the period
 (the report's custom simulation: ode45, i.e. Dormand-Prince 5(4), rtol 1e-8,
-atol 1e-6, max step 1e-4 s). ``rk45`` is :func:`dopri5_period`, scipy's
-``solve_ivp(method="RK45")`` algorithm step for step (same tableau, initial step
-selection, error norm and step-size control) written on plain floats for the six
-states, 2-2.5 times cheaper per tick than solve_ivp with its per-call set-up
-and numpy arithmetic on 6-vectors, and by default compiled (:mod:`legbench.backends.lagrange_kernel`,
-the same steps, 20-25 times cheaper again); ``dop853`` goes through solve_ivp.
+atol 1e-6, max step 1e-4 s). ``rk45`` is :mod:`legbench.backends.lagrange_kernel`'s period,
+scipy's ``solve_ivp(method="RK45")`` algorithm step for step (same tableau, initial step selection,
+error norm and step-size control) on preallocated arrays, compiled into one numba call per control
+period (setting ``kernel: compiled``, the default; 0.013-0.07 ms per period) or run as Python (``kernel:
+python``, the reference: the same code); ``dop853`` goes through solve_ivp.
 tau_c = J_poc^T F is the analytic ground contact law of
 :mod:`legbench.contact` evaluated at every right-hand-side call; tau_lim the
 one-sided spring-damper of :mod:`legbench.backends.joint_limits` at the revolute
@@ -32,8 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
-import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from importlib import metadata
 from pathlib import Path
 from typing import Any, ClassVar
@@ -44,39 +42,6 @@ from legbench.backends import joint_limits, lagrange_kernel
 from legbench.backends.base import Backend, Limits, Physics
 from legbench.backends.joint_limits import JointLimitLaw
 from legbench.backends.lagrange_eom import GENERATOR_VERSION, Loaded, leg_chain, load_eom
-from legbench.backends.lagrange_kernel import (
-    A21,
-    A31,
-    A32,
-    A41,
-    A42,
-    A43,
-    A51,
-    A52,
-    A53,
-    A54,
-    A61,
-    A62,
-    A63,
-    A64,
-    A65,
-    B1,
-    B3,
-    B4,
-    B5,
-    B6,
-    E1,
-    E3,
-    E4,
-    E5,
-    E6,
-    E7,
-    EXPONENT,
-    MAX_FACTOR,
-    MIN_FACTOR,
-    SAFETY,
-    rms,
-)
 from legbench.contact import ReferenceContact
 from legbench.exceptions import LegbenchError
 from legbench.model import LINK_NAMES, load_params
@@ -89,86 +54,6 @@ if importlib.util.find_spec("sympy") is None:
 #: Setting ``integrator`` -> scipy solve_ivp method (the Pinocchio backend's names for the same solvers).
 _METHODS = {"rk45": "RK45", "dop853": "DOP853"}
 _POC = ("physics", "true", "centre")
-
-Vec = Sequence[float]
-
-
-def dopri5_period(
-    f: Callable[[Vec], Vec], y: Vec, t_bound: float, rtol: float, atol: float, max_step: float
-) -> tuple[Vec, int]:
-    """Integrate the autonomous y' = f(y) from t = 0 to ``t_bound`` [s] with Dormand-Prince 5(4).
-
-    Step for step the algorithm of ``scipy.integrate.solve_ivp(f, (0, t_bound), y, method="RK45",
-    rtol=rtol, atol=atol, max_step=max_step)``: the same tableau, the same initial step selection
-    (Hairer, Norsett, Wanner II.4), local extrapolation, the RMS error norm scaled by
-    atol + rtol max(|y|, |y_new|), the same safety factor and step-size bounds, the last step cut
-    to end on ``t_bound``. Plain floats instead of numpy arrays (for a handful of states the
-    numpy calls cost more than the arithmetic); results agree with solve_ivp to rounding.
-
-    Returns:
-        y at t_bound and the number of f evaluations.
-
-    Raises:
-        LegbenchError: the step size fell below 10 ulp of t (scipy's "Required step size is less
-            than spacing between numbers").
-    """
-    f0 = f(y)
-    # initial step (scipy.integrate._ivp.common.select_initial_step, order 4)
-    scale = [atol + abs(v) * rtol for v in y]
-    d0 = rms([v / s for v, s in zip(y, scale, strict=True)])
-    d1 = rms([v / s for v, s in zip(f0, scale, strict=True)])
-    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
-    h0 = min(h0, t_bound)
-    f1 = f([v + h0 * k for v, k in zip(y, f0, strict=True)])
-    d2 = rms([(b - a) / s for a, b, s in zip(f0, f1, scale, strict=True)]) / h0
-    if d1 <= 1e-15 and d2 <= 1e-15:
-        h1 = max(1e-6, h0 * 1e-3)
-    else:
-        h1 = (0.01 / max(d1, d2)) ** (1 / 5)
-    h_abs = min(100 * h0, h1, t_bound, max_step)
-    nfev = 2
-    t = 0.0
-    while t < t_bound:
-        min_step = 10 * abs(math.nextafter(t, math.inf) - t)
-        if h_abs > max_step:
-            h_abs = max_step
-        elif h_abs < min_step:
-            h_abs = min_step
-        rejected = False
-        while True:
-            if h_abs < min_step:
-                raise LegbenchError("lagrange: rk45 failed: Required step size is less than spacing between numbers.")
-            t_new = t + h_abs
-            if t_new > t_bound:
-                t_new = t_bound
-            h = t_new - t
-            h_abs = abs(h)
-            k1 = f0
-            k2 = f([v + (A21 * a) * h for v, a in zip(y, k1, strict=True)])
-            k3 = f([v + (A31 * a + A32 * b) * h for v, a, b in zip(y, k1, k2, strict=True)])
-            k4 = f([v + (A41 * a + A42 * b + A43 * c) * h for v, a, b, c in zip(y, k1, k2, k3, strict=True)])
-            k5 = f([v + (A51 * a + A52 * b + A53 * c + A54 * d) * h
-                         for v, a, b, c, d in zip(y, k1, k2, k3, k4, strict=True)])  # fmt: skip
-            k6 = f([v + (A61 * a + A62 * b + A63 * c + A64 * d + A65 * e) * h
-                         for v, a, b, c, d, e in zip(y, k1, k2, k3, k4, k5, strict=True)])  # fmt: skip
-            y_new = [v + h * (B1 * a + B3 * c + B4 * d + B5 * e + B6 * g)
-                          for v, a, c, d, e, g in zip(y, k1, k3, k4, k5, k6, strict=True)]  # fmt: skip
-            k7 = f(y_new)
-            nfev += 6
-            error_norm = rms([
-                (E1 * a + E3 * c + E4 * d + E5 * e + E6 * g + E7 * k) * h / (atol + max(abs(v), abs(w)) * rtol)
-                for v, w, a, c, d, e, g, k in zip(y, y_new, k1, k3, k4, k5, k6, k7, strict=True)
-            ])  # fmt: skip
-            if error_norm < 1:
-                factor = MAX_FACTOR if error_norm == 0 else min(MAX_FACTOR, SAFETY * error_norm**EXPONENT)
-                if rejected:
-                    factor = min(1.0, factor)
-                h_abs *= factor
-                break
-            h_abs *= max(MIN_FACTOR, SAFETY * error_norm**EXPONENT)
-            rejected = True
-        t, y, f0 = t_new, y_new, k7
-    return y, nfev
 
 
 class LagrangeBackend(Backend):
@@ -236,28 +121,30 @@ class LagrangeBackend(Backend):
         #: (rtol, atol, max_step [s]) of the rk45 solve.
         self._tols = (float(cfg["rtol"]), float(cfg["atol"]), float(cfg["max_step"]))
         self._u = [0.0, 0.0, 0.0]  # the held torque [N m], updated in place
-        self.f = self._make_f()
         self.x = np.zeros(6)
         self.force = np.zeros(3)
         #: Right-hand-side evaluations in the last step (cost accounting).
         self.nfev = 0
         self._kernel_note = ""
-        self._period = self._load_kernel() if self._solve["method"] == "RK45" else None
+        self._compiled = False
+        self._period = self._load_kernel()
 
     def _load_kernel(self) -> Callable[..., int] | None:
-        """The compiled period (:mod:`legbench.backends.lagrange_kernel`) and its arrays, or None: the Python
-        path then runs (setting ``kernel: python``, or numba missing)."""
-        if self.cfg["kernel"] != "compiled":
+        """The rk45 period (:mod:`legbench.backends.lagrange_kernel`), compiled unless ``kernel: python`` or numba
+        is missing (then the same code as Python), and the arrays it takes; None for dop853 (solve_ivp)."""
+        if self._solve["method"] != "RK45":
             return None
-        if not lagrange_kernel.available():
+        compiled = self.cfg["kernel"] == "compiled"
+        if compiled and not lagrange_kernel.available():
             self._kernel_note = "lagrange: numba is not installed: the Python solve runs (pip install numba)"
-            return None
-        #: the law's constants, the limit law's, the held torque and the stages' scratch, as the kernel takes them
+            compiled = False
+        self._compiled = compiled
+        #: the law's constants, the limit law's, the held torque and the stages' scratch, as the period takes them
         self._lc = np.array(self.contact.constants)
         self._lim = np.array([*self.lower, *self.upper, self.limit_law.k, self.limit_law.b], dtype=float)
         self._ua = np.zeros(3)
         self._k = np.zeros((9, 6))
-        return lagrange_kernel.period(self.eom.module.KEY, self._qdd)
+        return lagrange_kernel.period(self.eom.module.KEY, self._qdd, compiled)
 
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
@@ -274,23 +161,6 @@ class LagrangeBackend(Backend):
         a1, a2, a3 = self._qdd(q1, q2, q3, qd1, qd2, qd3, u1 + tc1 + tl1, u2 + tc2 + tl2, u3 + tc3 + tl3, self.g)
         return np.array((qd1, qd2, qd3, a1, a2, a3))
 
-    def _make_f(self) -> Callable[[Vec], Vec]:
-        """:meth:`rhs` on plain floats, x = (q [rad], qd [rad/s]) -> (qd, qdd [rad/s^2]), for :func:`dopri5_period`.
-
-        A closure over the law, the limit law, the generated qdd, g and the held torque ``self._u``
-        (a list updated in place each period): no attribute look-up per evaluation.
-        """
-        law, limit_law, qdd, g, u = self.law, self.limit_law, self._qdd, self.g, self._u
-
-        def f(x: Vec) -> Vec:
-            q1, q2, q3, qd1, qd2, qd3 = x
-            tc1, tc2, tc3, _, _, _ = law(q1, q2, q3, qd1, qd2, qd3)
-            tl1, tl2, tl3 = limit_law(q1, q2, q3, qd1, qd2, qd3)
-            a1, a2, a3 = qdd(q1, q2, q3, qd1, qd2, qd3, u[0] + tc1 + tl1, u[1] + tc2 + tl2, u[2] + tc3 + tl3, g)
-            return (qd1, qd2, qd3, a1, a2, a3)
-
-        return f
-
     def step(self, tau: np.ndarray) -> None:
         """One control period with tau [N m] (clamped to the torque limits) held, one adaptive solve."""
         t1, t2, t3 = np.asarray(tau, dtype=float).tolist()
@@ -304,11 +174,6 @@ class LagrangeBackend(Backend):
             if nfev < 0:
                 raise LegbenchError("lagrange: rk45 failed: Required step size is less than spacing between numbers.")
             self.nfev = nfev
-            self._update_force()
-            return
-        if self._solve["method"] == "RK45":
-            y, self.nfev = dopri5_period(self.f, self.x.tolist(), self._span[1], *self._tols)
-            self.x[:] = y
             self._update_force()
             return
         from scipy.integrate import solve_ivp  # 0.7 s of imports: only when an adaptive solver runs
@@ -339,7 +204,7 @@ class LagrangeBackend(Backend):
             "version": f"sympy {metadata.version('sympy')}, generator {GENERATOR_VERSION}",
             **{k: self.cfg[k] for k in self.defaults if k != "kernel" or self._solve["method"] == "RK45"},
             "sub_steps": 1,
-            "kernel_used": "compiled (numba)" if self._period is not None else "python",
+            "kernel_used": "compiled (numba)" if self._compiled else "python",
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
             "eom_key": self.eom.module.KEY[:16],

@@ -1,17 +1,17 @@
-"""The lagrange backend's control period in one compiled call (numba): Dormand-Prince 5(4) over the generated
-equations of motion, the contact law and the joint limits.
+"""The lagrange backend's control period: Dormand-Prince 5(4) over the generated equations of motion, the
+contact law and the joint limits, compiled into one call (numba) or run as Python (the reference).
 
-Part of the lagrange backend (:mod:`legbench.backends.lagrange_`), which keeps its Python path
-(:func:`legbench.backends.lagrange_.dopri5_period` over the plain generated ``qdd``) as the reference.
-
-* :func:`period` compiles, for one model's generated ``qdd`` (:mod:`legbench.backends.lagrange_eom`),
-  the right-hand side :func:`_rhs` (the law of :func:`legbench.contact.law_wrench` and the limits of
-  :func:`legbench.backends.joint_limits.limit_torques`, compiled as they are: one implementation) and the
-  period :func:`_period`: the Python ``dopri5_period``'s steps in the same order (scipy's RK45: tableau,
-  initial step, error norm, step-size control), on arrays instead of lists.
-* Both are compiled with numba's disk cache, per model: ``qdd`` beside the generated module, the period
-  as a copy named for the model's key (first compile about 2 s, a later process loads it in about 0.2 s).
-* The RMS norm is sqrt(sum x_i^2) / sqrt(n) summed in index order on both paths (scipy's ``norm``).
+* :func:`_period` is scipy's ``solve_ivp(method="RK45")`` algorithm step for step (the same tableau, initial
+  step selection (Hairer, Norsett, Wanner II.4), local extrapolation, the RMS error norm scaled by
+  atol + rtol max(|y|, |y_new|), the same safety factor and step-size bounds, the last step cut to end on
+  the period), on preallocated arrays; :func:`_rhs` is the right-hand side: the law of
+  :func:`legbench.contact.law_wrench`, the limits of :func:`legbench.backends.joint_limits.limit_torques` and
+  the model's generated ``qdd`` (:mod:`legbench.backends.lagrange_eom`).
+* :func:`period` binds the two to one model's ``qdd`` and either compiles them (numba's disk cache, per
+  model: ``qdd`` beside the generated module, the period as a copy named for the model's key; first compile
+  about 2 s, a later process loads it in about 0.2 s) or returns them as Python. One implementation: the
+  compiled and the Python periods are the same code, and agree to the last bit (tests).
+* The RMS norm is sqrt(sum x_i^2) / sqrt(n) summed in index order (scipy's ``norm``).
 
 Units: q [rad], qd [rad/s], tau [N m], g [m/s^2], t [s].
 """
@@ -33,7 +33,7 @@ try:
 except ImportError:  # the backend runs its Python path and says so
     numba = None  # type: ignore[assignment]
 
-__all__ = ["available", "period", "rms"]
+__all__ = ["available", "period", "rms", "stepper"]
 
 # Dormand-Prince 5(4), the tableau of scipy.integrate.RK45 (and of MATLAB's ode45); b2 = e2 = 0.
 A21 = 1 / 5
@@ -65,8 +65,8 @@ qdd: Any = None
 
 
 def _rhs(lc: Any, lim: Any, u: Any, g: float, y: Any, out: Any) -> None:
-    """d/dt (q, qd) = (qd, qdd) into ``out``: the Python path's right-hand side (``LagrangeBackend._make_f``);
-    ``qdd`` is the model's, bound by :func:`period`."""
+    """d/dt (q, qd) = (qd, qdd) into ``out`` under the held torque u [N m], the law and the limits; ``qdd`` is
+    the model's, bound by :func:`period`."""
     q1, q2, q3, qd1, qd2, qd3 = y[0], y[1], y[2], y[3], y[4], y[5]
     tc1, tc2, tc3, _f1, _f2, _f3 = contact.law_wrench(lc, q1, q2, q3, qd1, qd2, qd3)
     tl1, tl2, tl3 = joint_limits.limit_torques(lim, q1, q2, q3, qd1, qd2, qd3)
@@ -76,7 +76,7 @@ def _rhs(lc: Any, lim: Any, u: Any, g: float, y: Any, out: Any) -> None:
 
 def _period(x: np.ndarray, u: np.ndarray, g: float, lc: np.ndarray, lim: np.ndarray, t_bound: float, rtol: float,
             atol: float, max_step: float, k: np.ndarray) -> int:  # fmt: skip
-    """One control period: ``dopri5_period``'s steps on arrays (see :func:`period`)."""
+    """One control period (see :func:`period`); the model's ``_rhs`` is bound by :func:`period`."""
     k1, k2, k3, k4, k5, k6, k7, ys, w = k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8]
     n = x.shape[0]
     _rhs(lc, lim, u, g, x, k1)
@@ -155,8 +155,8 @@ def _period(x: np.ndarray, u: np.ndarray, g: float, lc: np.ndarray, lim: np.ndar
     return nfev
 
 
-#: model key -> its compiled period, in this process
-_COMPILED: dict[str, Any] = {}
+#: (model key, compiled) -> its period, in this process
+_PERIODS: dict[tuple[str, bool], Any] = {}
 
 
 def _bound(fn: Any, name: str, namespace: dict[str, Any]) -> Any:
@@ -166,8 +166,8 @@ def _bound(fn: Any, name: str, namespace: dict[str, Any]) -> Any:
     return copy
 
 
-def period(key: str, qdd: Callable[..., tuple[float, float, float]]) -> Callable[..., int]:
-    """The compiled control period of the model whose generated ``qdd`` this is (``key``: its chain key).
+def period(key: str, qdd: Callable[..., tuple[float, float, float]], compiled: bool = True) -> Callable[..., int]:
+    """The control period of the model whose generated ``qdd`` this is (``key``: its chain key).
 
     ``period(key, qdd)(x, u, g, lc, lim, t_bound, rtol, atol, max_step, k)`` integrates x = (q [rad],
     qd [rad/s]) in place from 0 to ``t_bound`` [s] under the held torque u [N m], gravity g [m/s^2], the law
@@ -175,18 +175,32 @@ def period(key: str, qdd: Callable[..., tuple[float, float, float]]) -> Callable
     right-hand-side evaluations, or -1 where the step size fell below 10 ulp of t (scipy's "Required step
     size is less than spacing between numbers").
 
-    How it is compiled and cached: the model enters only through ``qdd``, which numba compiles (cached
-    beside the generated module) and inlines. :func:`_period` and :func:`_rhs` are bound to it as copies
-    whose globals hold this ``qdd`` and whose names carry the key (``_period_<key>``): numba's disk cache
-    is indexed by the function's name and stamped with this file's source (and the law's and the limits',
+    ``compiled``: :func:`_period` and :func:`_rhs` compiled with numba (the default), else the same two
+    functions run as Python (the reference, and the path without numba). Both are bound to this ``qdd`` as
+    copies whose globals hold it. Compiled, numba inlines ``qdd`` (itself compiled and cached beside the
+    generated module), and the copies' names carry the key (``_period_<key>``): numba's disk cache is indexed
+    by the function's name and stamped with this file's source (and the law's and the limits',
     :func:`legbench.jit.njit`), so each model has its own cached period and an edit recompiles it.
     """
-    if key not in _COMPILED:
+    if (key, compiled) not in _PERIODS:
         tag = key[:16]
-        namespace = dict(globals(), qdd=jit.njit(qdd))
-        namespace["_rhs"] = jit.njit(_bound(_rhs, f"_rhs_{tag}", namespace), depends_on=(contact, joint_limits))
-        _COMPILED[key] = jit.njit(_bound(_period, f"_period_{tag}", namespace), depends_on=(contact, joint_limits))
-    return _COMPILED[key]  # type: ignore[no-any-return]
+        if compiled:
+            namespace = dict(globals(), qdd=jit.njit(qdd))
+            namespace["_rhs"] = jit.njit(_bound(_rhs, f"_rhs_{tag}", namespace), depends_on=(contact, joint_limits))
+            fn = jit.njit(_bound(_period, f"_period_{tag}", namespace), depends_on=(contact, joint_limits))
+        else:
+            namespace = dict(globals(), qdd=qdd)
+            namespace["_rhs"] = _bound(_rhs, f"_rhs_{tag}", namespace)
+            fn = _bound(_period, f"_period_{tag}", namespace)
+        _PERIODS[key, compiled] = fn
+    return _PERIODS[key, compiled]  # type: ignore[no-any-return]
+
+
+def stepper(rhs: Callable[..., None]) -> Callable[..., int]:
+    """:func:`_period` run as Python over another right-hand side ``rhs(lc, lim, u, g, y, out)`` writing dy/dt
+    into ``out`` (any number of states): the same stepper, for checking it against scipy on other problems."""
+    namespace = dict(globals(), _rhs=rhs)
+    return _bound(_period, "_period_custom", namespace)  # type: ignore[no-any-return]
 
 
 # compiled into the period as they are: the law and the limits the Python path calls, the norm it uses
