@@ -16,8 +16,8 @@ sp = pytest.importorskip("sympy")
 
 from legbench import backends as registry  # noqa: E402
 from legbench import kinematics, model, run, scenario  # noqa: E402
+from legbench.backends import dopri, lagrange_kernel  # noqa: E402
 from legbench.backends import lagrange_eom as E  # noqa: E402
-from legbench.backends import lagrange_kernel  # noqa: E402
 from legbench.backends.base import Physics  # noqa: E402
 from legbench.backends.lagrange_ import LagrangeBackend  # noqa: E402
 
@@ -361,7 +361,7 @@ def _one_period(backend: LagrangeBackend, compiled: bool, x: np.ndarray, u: np.n
     fn = lagrange_kernel.period(backend.eom.module.KEY, backend._qdd, compiled)
     y = x.copy()
     rtol, atol, max_step = backend._tols
-    n = fn(y, u, backend.g, backend._lc, backend._lim, CONTROL_DT, rtol, atol, max_step, backend._k)
+    n = fn(y, u, backend.g, backend._lc, backend._lim, CONTROL_DT, rtol, atol, max_step, backend._k, ())
     return y, n
 
 
@@ -390,15 +390,15 @@ def test_the_stepper_rejects_steps_like_scipy_on_a_stiff_problem() -> None:
     solve_ivp(RK45)'s and the end state within 1e-12 relative (rounding of the stage sums)."""
     mu = 1000.0
 
-    def rhs(_lc: Any, _lim: Any, _u: Any, _g: float, y: Any, out: Any) -> None:
+    def rhs(_lc: Any, _lim: Any, _u: Any, _g: float, y: Any, out: Any, _data: Any) -> None:
         out[0], out[1] = y[1], mu * (1.0 - y[0] ** 2) * y[1] - y[0]
 
-    period = lagrange_kernel.stepper(rhs)
+    period = dopri.stepper(rhs)
     for y0 in ([2.0, 0.0], [0.5, 3.0], [1.9, -50.0]):
         ref = solve_ivp(lambda _t, y: np.array([y[1], mu * (1.0 - y[0] ** 2) * y[1] - y[0]]), (0.0, 1e-3), y0,
                         method="RK45", rtol=1e-6, atol=1e-9)  # fmt: skip
         y = np.array(y0)
-        n = period(y, None, 0.0, None, None, 1e-3, 1e-6, 1e-9, math.inf, np.zeros((9, 2)))
+        n = period(y, None, 0.0, None, None, 1e-3, 1e-6, 1e-9, math.inf, np.zeros((9, 2)), ())
         assert n == ref.nfev and (n - 2) // 6 > len(ref.t) - 1  # 6 per attempt: some attempts were rejected
         np.testing.assert_allclose(y, ref.y[:, -1], rtol=1e-12, atol=1e-15)
 
@@ -470,9 +470,9 @@ def test_each_model_has_its_own_compiled_period(make: Any, tmp_path: Path) -> No
     ends = []
     for key, qdd, period in ((backend.eom.module.KEY, backend._qdd, first), (other.KEY, other.qdd, second)):
         x, y = x0.copy(), x0.copy()
-        period(x, u, g, backend._lc, backend._lim, CONTROL_DT, rtol, atol, max_step, backend._k)
+        period(x, u, g, backend._lc, backend._lim, CONTROL_DT, rtol, atol, max_step, backend._k, ())
         python = lagrange_kernel.period(key, qdd, compiled=False)
-        python(y, u, g, backend._lc, backend._lim, CONTROL_DT, rtol, atol, max_step, backend._k)
+        python(y, u, g, backend._lc, backend._lim, CONTROL_DT, rtol, atol, max_step, backend._k, ())
         np.testing.assert_allclose(x, y, rtol=0, atol=1e-12)
         ends.append(x)
     assert np.abs(ends[0] - ends[1]).max() > 1e-6

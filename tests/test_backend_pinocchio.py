@@ -168,7 +168,7 @@ def test_combined_task_touches_down_and_settles() -> None:
 def test_ode45_profile_is_the_reports_simscape_solver() -> None:
     """Profile ``ode45``: adaptive RK45 at rtol 1e-6, atol 1e-8, max step 2e-4 s; it runs the effort task.
 
-    Over the effort task's first 0.4 s (shortened: the adaptive solve costs ~15 ms per tick in
+    Over the effort task's first 0.4 s (shortened: the adaptive solve as Python costs ~3 ms per tick in
     contact) the leg settles onto the ground; its ground force agrees with the default fixed-step
     run's to 1 % (two convergent integrators of the same law: the default's step error is 0.002 %
     of Fn in docs/pinocchio.md, the transient's remaining motion dominates) and satisfies the
@@ -181,7 +181,8 @@ def test_ode45_profile_is_the_reports_simscape_solver() -> None:
         assert be.integrator_family() == "adaptive"
         info = be.info()
         assert (info["integrator"], info["rtol"], info["atol"], info["max_step"]) == ("rk45", 1e-6, 1e-8, 2e-4)
-        assert not {"dt", "friction", "kernel"} & set(info)  # one solve per period: no sub-step, no Euler options
+        assert not {"dt", "friction"} & set(info)  # one solve per period: no sub-step, no Euler options
+        assert info["kernel"] == "compiled" and "kernel" not in _backend({"integrator": "dop853"}).info()
         assert not {"rtol", "atol", "max_step"} & set(_backend({}).info())  # and Euler reads no tolerances
         assert info["contact"]["poc"] == "true"
         assert be.limits().timestep is None  # adaptive: no fixed step to report
@@ -313,16 +314,74 @@ def test_compiled_rk4_agrees_with_the_python_rk4(task: str, duration: float | No
         assert a.f[:, 2].max() > 50.0  # the touch-down and push were in it
 
 
+@numba_needed
+def test_compiled_rk45_takes_solve_ivps_steps_in_stick_slip_contact() -> None:
+    """The ``rk45`` period compiled (legbench/backends/dopri.py over the compiled law, limits and ABA) from 100
+    states of the foot pressed 1 mm into the ground, random speeds and torques, the ode45 profile's
+    tolerances: the same right-hand-side evaluations as scipy's solve_ivp(RK45) on the Python ABA (same initial
+    step, same accepted and rejected steps) and the end state within 1e-12 (round-off of the two ABAs)."""
+    be = _backend({"integrator": "rk45", "rtol": 1e-6, "atol": 1e-8, "max_step": 2e-4}, 9.81, ContactParams())
+    assert be.info()["kernel_used"] == "compiled (numba)"
+    period, x, u, lc, lim, k, data = be._dopri
+    rng = np.random.default_rng(5)
+    start = K.ik_nearest(np.array([0.1667, 0.0, model.load_params().geometry.R_foot - 0.001]),
+                         np.array(model.load_params().q_star))  # fmt: skip
+    nfev = []
+    for _ in range(100):
+        x0 = np.concatenate([start + rng.normal(0.0, 0.01, 3), rng.normal(0.0, 0.3, 3)])
+        tau = rng.normal(0.0, 2.0, 3)
+
+        def f(_t: float, y: np.ndarray, tau: np.ndarray = tau) -> np.ndarray:
+            return np.concatenate([y[3:], be._qdd(y[:3].tolist(), y[3:].tolist(), tau.tolist())])
+
+        ref = solve_ivp(f, (0.0, T_CTRL), x0, method="RK45", rtol=1e-6, atol=1e-8, max_step=2e-4)
+        x[:] = x0
+        u[:] = tau
+        n = period(x, u, 0.0, lc, lim, T_CTRL, 1e-6, 1e-8, 2e-4, k, data)
+        assert n == ref.nfev
+        np.testing.assert_allclose(x, ref.y[:, -1], rtol=0, atol=1e-12)
+        nfev.append(n)
+    assert max(nfev) > min(nfev)  # the error control chose different steps for different states
+
+
+@numba_needed
+@pytest.mark.parametrize(("task", "duration"), [("position", None), ("effort", 1.0)])
+def test_compiled_rk45_agrees_with_solve_ivp_over_a_task(task: str, duration: float | None) -> None:
+    """The ode45 profile (the lab's Simscape solver) through the compiled period and through solve_ivp: joint
+    angles within 1e-10 rad, speeds within 1e-7 rad/s, the ground force within 1e-3 N at every tick (measured
+    over the whole tasks: 1.2e-13 rad, 1.4e-9 rad/s, 1.6e-5 N; the two ABAs differ at round-off, which moves
+    an adaptive step now and then, by far less than the solver's atol of 1e-8)."""
+    sc = scenario.load(SCENARIOS / f"{task}.yaml")
+    sc = sc if duration is None else scenario.shorten(sc, duration)
+    physics = scenario.physics_of(sc)
+    runs = []
+    for kernel in ("python", "compiled"):
+        be = registry_load("pinocchio", physics, {"kernel": kernel}, "ode45")
+        assert be.info()["kernel_used"].startswith(kernel) and be.info()["integrator"] == "rk45"
+        runs.append(run.simulate(sc, be, physics))
+    a, b = runs
+    assert a.status == b.status == "ok" and len(a.t) == len(b.t) == sc.n_ticks
+    assert np.abs(a.q - b.q).max() <= 1e-10
+    assert np.abs(a.qd - b.qd).max() <= 1e-7
+    assert np.abs(a.f - b.f).max() <= 1e-3
+    if task == "effort":
+        assert a.f[:, 2].max() > 50.0  # the touch-down and push were in it
+
+
 def test_kernel_falls_back_to_python_and_says_why(monkeypatch: pytest.MonkeyPatch) -> None:
     """``kernel: python`` runs the Python path silently; a missing numba runs it with a warning naming the
-    fix; the adaptive integrators never use the kernel."""
+    fix; dop853 never uses the kernel (solve_ivp), rk45 only unless ``kernel: python``."""
     assert _backend({"kernel": "python"}).info()["kernel_used"] == "python"
     assert _backend({"kernel": "python"}).warnings() == []
-    assert _backend({"integrator": "rk45"}).info()["kernel_used"] == "python"
+    assert _backend({"integrator": "dop853"}).info()["kernel_used"] == "python"
+    assert _backend({"integrator": "rk45", "kernel": "python"}).info()["kernel_used"] == "python"
     monkeypatch.setattr(pinocchio_kernel, "available", lambda: False)
     be = _backend({})
     assert be.info()["kernel_used"] == "python"
     assert any("numba is not installed" in w and "pip install numba" in w for w in be.warnings())
+    be = _backend({"integrator": "rk45"})
+    assert be.info()["kernel_used"] == "python"
+    assert any("numba is not installed" in w and "solve_ivp" in w for w in be.warnings())
 
 
 def test_kernel_refuses_joints_it_does_not_integrate() -> None:

@@ -170,7 +170,9 @@ class LagrangeBackend(Backend):
             u = self._ua
             u[0], u[1], u[2] = self._u
             rtol, atol, max_step = self._tols
-            nfev = self._period(self.x, u, self.g, self._lc, self._lim, self._span[1], rtol, atol, max_step, self._k)
+            nfev = self._period(
+                self.x, u, self.g, self._lc, self._lim, self._span[1], rtol, atol, max_step, self._k, ()
+            )
             if nfev < 0:
                 raise LegbenchError("lagrange: rk45 failed: Required step size is less than spacing between numbers.")
             self.nfev = nfev

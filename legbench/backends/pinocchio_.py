@@ -69,7 +69,7 @@ class PinocchioBackend(Backend):
         "limit_stiffness": joint_limits.STIFFNESS,  # [N m/rad]
         "limit_damping": joint_limits.DAMPING,  # [N m s/rad], about critical for the knee (I ~ 0.01 kg m^2)
         "friction": "implicit",  # euler only: friction slope linearly implicit (docs/pinocchio.md)
-        "kernel": "compiled",  # euler and rk4: one compiled call per control period (pinocchio_kernel), or python
+        "kernel": "compiled",  # euler, rk4, rk45: one compiled call per control period (pinocchio_kernel), or python
     }
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "integrator": ("euler", "rk4", "rk45", "dop853"),
@@ -121,32 +121,55 @@ class PinocchioBackend(Backend):
         self._compiled = self._load_kernel() if self.cfg["integrator"] in ("euler", "rk4") else None
         if self._compiled is not None:
             self._step = self._period_compiled
+        self._dopri = self._load_dopri() if self.cfg["integrator"] == "rk45" else None
+        if self._dopri is not None:
+            self._step = self._rk45_compiled
 
-    def _load_kernel(self) -> tuple[Any, ...] | None:
-        """The compiled period's arguments (:mod:`legbench.backends.pinocchio_kernel`), or None: the Python
-        path then runs (setting ``kernel: python``, numba missing, or a model the kernel cannot integrate)."""
+    def _kernel_inputs(self, fallback: str) -> tuple[Any, ...] | None:
+        """The model's arrays (:func:`pinocchio_kernel.model_arrays`), the law's constants and the limits', for a
+        compiled period; or None, and why in :meth:`warnings` where the compiled period was asked for: numba
+        missing, or a model the kernel cannot integrate (``fallback``: what runs instead)."""
         if self.cfg["kernel"] != "compiled":
             return None
         if not pinocchio_kernel.available():
-            self._kernel_note = "pinocchio: numba is not installed: the Python sub-steps run (pip install numba)"
+            self._kernel_note = f"pinocchio: numba is not installed: {fallback} runs (pip install numba)"
             return None
         try:
             R, p, inertia, a0 = pinocchio_kernel.model_arrays(self.model)
         except pinocchio_kernel.KernelUnavailable as exc:
-            self._kernel_note = f"pinocchio: {exc}: the Python sub-steps run"
+            self._kernel_note = f"pinocchio: {exc}: {fallback} runs"
             return None
-        c = self.contact
-        lc = np.array(c.constants)
+        lc = np.array(self.contact.constants)
         lim = np.array([*self.lower, *self.upper, self.limit_law.k, self.limit_law.b], dtype=float)
+        return R, p, inertia, a0, lc, lim
+
+    def _load_kernel(self) -> tuple[Any, ...] | None:
+        """The compiled period's arguments (:mod:`legbench.backends.pinocchio_kernel`), or None: the Python
+        path then runs (setting ``kernel: python``, numba missing, or a model the kernel cannot integrate)."""
+        inputs = self._kernel_inputs("the Python sub-steps")
+        if inputs is None:
+            return None
+        R, p, inertia, a0, lc, lim = inputs
         #: state and read-out (q1..3, qd1..3, fx, fy, fz) and the kernel's arrays: all reused every period
         self._x = np.zeros(9)
-        self._floor_args = (R, p, inertia, a0, lc, lim)
+        self._floor_args = inputs
         model, scratch = pinocchio_kernel.pack(R, p, inertia, a0, lc, lim)
         if self.cfg["integrator"] == "rk4":
             method = pinocchio_kernel.RK4
         else:
             method = pinocchio_kernel.EULER_IMPLICIT if self.implicit else pinocchio_kernel.EULER
         return (model, scratch, self._x, self.h, self.n_sub, method)
+
+    def _load_dopri(self) -> tuple[Any, ...] | None:
+        """The compiled ``rk45`` period (:func:`pinocchio_kernel.dopri_period`) and its arrays, or None: solve_ivp
+        then runs (setting ``kernel: python``, numba missing, or a model the kernel cannot integrate)."""
+        inputs = self._kernel_inputs("scipy's solve_ivp")
+        if inputs is None:
+            return None
+        R, p, inertia, a0, lc, lim = inputs
+        #: (period, x, u, law constants, limits, stages' scratch, model and ABA scratch), all reused every period
+        return (pinocchio_kernel.dopri_period(), np.zeros(6), np.zeros(3), lc, lim, np.zeros((9, 6)),
+                pinocchio_kernel.dopri_data(R, p, inertia, a0))  # fmt: skip
 
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
@@ -295,6 +318,19 @@ class PinocchioBackend(Backend):
         x = sol.y[:, -1]
         self.q, self.qd = x[:3].tolist(), x[3:].tolist()
 
+    def _rk45_compiled(self, tau: np.ndarray) -> None:
+        """:meth:`_adaptive`'s RK45 solve in one compiled call: scipy's algorithm step for step
+        (:mod:`legbench.backends.dopri`) over the compiled law, limits and ABA."""
+        period, x, u, lc, lim, k, data = self._dopri  # type: ignore[misc]
+        q, qd = self.q, self.qd
+        x[0], x[1], x[2], x[3], x[4], x[5] = q[0], q[1], q[2], qd[0], qd[1], qd[2]
+        u[0], u[1], u[2] = float(tau[0]), float(tau[1]), float(tau[2])
+        cfg = self.cfg
+        n = period(x, u, 0.0, lc, lim, self.physics.control_dt, cfg["rtol"], cfg["atol"], cfg["max_step"], k, data)
+        if n < 0:
+            raise LegbenchError("pinocchio: rk45 failed: Required step size is less than spacing between numbers.")
+        self.q, self.qd = x[0:3].tolist(), x[3:6].tolist()
+
     def _period_compiled(self, tau: np.ndarray) -> None:
         """:meth:`_euler_implicit` (or :meth:`_euler`, :meth:`_rk4`) and the force read-out in one compiled call."""
         model, scratch, x, h, n_sub, method = self._compiled  # type: ignore[misc]
@@ -342,7 +378,9 @@ class PinocchioBackend(Backend):
         # only the settings the integrator reads: the tolerances are the adaptive solvers', the sub-step the
         # fixed-step ones', the implicit friction semi-implicit Euler's, the compiled kernel the fixed steps'
         adaptive = self.integrator_family() == "adaptive"
-        unused = {"dt", "kernel"} if adaptive else {"rtol", "atol", "max_step"}
+        unused = {"dt"} if adaptive else {"rtol", "atol", "max_step"}
+        if self.cfg["integrator"] == "dop853":
+            unused |= {"kernel"}
         if self.cfg["integrator"] != "euler":
             unused |= {"friction"}
         return {
@@ -350,7 +388,7 @@ class PinocchioBackend(Backend):
             "version": pin.__version__,
             **{k: self.cfg[k] for k in self.defaults if k not in unused},
             "sub_steps": self.n_sub,
-            "kernel_used": "compiled (numba)" if self._compiled is not None else "python",
+            "kernel_used": "compiled (numba)" if self._compiled is not None or self._dopri is not None else "python",
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
             "contact": {
