@@ -376,7 +376,7 @@ class PinocchioBackend(Backend):
     def info(self) -> dict[str, Any]:
         c = self.physics.contact
         # only the settings the integrator reads: the tolerances are the adaptive solvers', the sub-step the
-        # fixed-step ones', the implicit friction semi-implicit Euler's, the compiled kernel the fixed steps'
+        # fixed-step ones', the implicit friction semi-implicit Euler's, the compiled kernel all but dop853's
         adaptive = self.integrator_family() == "adaptive"
         unused = {"dt"} if adaptive else {"rtol", "atol", "max_step"}
         if self.cfg["integrator"] == "dop853":
