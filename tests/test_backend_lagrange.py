@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -476,3 +479,25 @@ def test_each_model_has_its_own_compiled_period(make: Any, tmp_path: Path) -> No
         np.testing.assert_allclose(x, y, rtol=0, atol=1e-12)
         ends.append(x)
     assert np.abs(ends[0] - ends[1]).max() > 1e-6
+
+
+@numba_needed
+def test_the_compiled_period_is_loaded_from_numbas_cache_in_a_later_process(tmp_path: Path) -> None:
+    """The period is compiled once per model and machine: a second process finds it in numba's disk cache (a
+    hit, no compile), where a closure or a cache key that changed per process would compile it every time."""
+    script = (
+        "import numpy as np\n"
+        "from legbench import model\n"
+        "from legbench.backends.base import Physics\n"
+        "from legbench.backends.lagrange_ import LagrangeBackend as L\n"
+        "be = L(); be.load(model.URDF_FILE, Physics(), L.resolve_settings({}, 'matched'))\n"
+        "be.reset(np.zeros(3), np.zeros(3)); be.step(np.zeros(3))\n"
+        "s = be._period.stats\n"
+        "print(sum(s.cache_hits.values()), sum(s.cache_misses.values()))\n"
+    )
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "LEGBENCH_CACHE_DIR": str(tmp_path / "eom")}
+    counts = []
+    for _ in range(2):
+        out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
+        counts.append(tuple(int(v) for v in out.stdout.split()))
+    assert counts == [(0, 1), (1, 0)]  # (cache hits, misses): compiled in the first process, loaded in the second
