@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -391,3 +394,25 @@ def test_kernel_refuses_joints_it_does_not_integrate() -> None:
     m.addJoint(1, pin.JointModelPX(), pin.SE3.Identity(), "slider")
     with pytest.raises(pinocchio_kernel.KernelUnavailable, match="slider .JointModelPX."):
         pinocchio_kernel.model_arrays(m)
+
+
+@numba_needed
+def test_the_compiled_rk45_period_is_loaded_from_numbas_cache_in_a_later_process(tmp_path: Path) -> None:
+    """The compiled rk45 period (a named copy of the shared stepper) is compiled once: a second process finds
+    it in numba's disk cache (a hit, no compile)."""
+    script = (
+        "import numpy as np\n"
+        "from legbench import model\n"
+        "from legbench.backends.base import Physics\n"
+        "from legbench.backends.pinocchio_ import PinocchioBackend as P\n"
+        "be = P(); be.load(model.URDF_FILE, Physics(), P.resolve_settings({'integrator': 'rk45'}, 'matched'))\n"
+        "be.reset(np.zeros(3), np.zeros(3)); be.step(np.zeros(3))\n"
+        "s = be._dopri[0].stats\n"
+        "print(sum(s.cache_hits.values()), sum(s.cache_misses.values()))\n"
+    )
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    counts = []
+    for _ in range(2):
+        out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
+        counts.append(tuple(int(v) for v in out.stdout.split()))
+    assert counts == [(0, 1), (1, 0)]  # (cache hits, misses): compiled in the first process, loaded in the second
