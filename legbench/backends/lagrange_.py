@@ -1,4 +1,4 @@
-"""The lab report's own analytic model: symbolic Euler-Lagrange equations of the leg, integrated by scipy.
+"""The lab report's own analytic model: symbolic Euler-Lagrange equations of the leg, integrated by RK45.
 
 The equations of motion B(q) qdd + C(q, qd) qd + G(q) = tau + tau_c + tau_lim are
 derived with sympy from the leg model (:mod:`legbench.backends.lagrange_eom`: link
@@ -57,11 +57,12 @@ _POC = ("physics", "true", "centre")
 
 
 class LagrangeBackend(Backend):
-    """Symbolic Euler-Lagrange model of the leg + the analytic contact law, integrated by solve_ivp."""
+    """Symbolic Euler-Lagrange model of the leg + the analytic contact law, integrated by scipy's RK45 algorithm
+    (compiled; solve_ivp for dop853)."""
 
     name: ClassVar[str] = "lagrange"
     defaults: ClassVar[Mapping[str, Any]] = {
-        "integrator": "rk45",  # scipy solve_ivp RK45 (or "dop853"), one solve per control period
+        "integrator": "rk45",  # scipy's RK45 algorithm, compiled (or "dop853": solve_ivp), one solve per period
         "rtol": 1.0e-8,  # the report's custom simulation
         "atol": 1.0e-6,
         "max_step": 1.0e-4,  # [s]

@@ -11,8 +11,10 @@ after overshooting to 2.252, PyBullet's hard limit peaks at 2.2293.
 
 Integrators (setting ``integrator``): ``euler`` (semi-implicit: qd += dt qdd,
 then q += dt qd, as MuJoCo's Euler and Bullet), ``rk4`` (classic, fixed step),
-``rk45`` / ``dop853`` (scipy adaptive, one solve per control period so control
-updates stay on the grid). The sub-step ``dt`` must divide the control period.
+``rk45`` / ``dop853`` (adaptive, one solve per control period so control updates
+stay on the grid: rk45 scipy's RK45 algorithm compiled, :mod:`legbench.backends.dopri`,
+or scipy's solve_ivp with ``kernel: python``; dop853 solve_ivp). The sub-step ``dt``
+must divide the control period.
 
 Friction (setting ``friction``, ``euler`` only): ``implicit`` (default) solves
 (I + h M0^-1 K) dqd = h ABA(q, qd, tau + J_poc^T F + tau_lim) per sub-step, with
