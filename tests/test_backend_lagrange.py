@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import shutil
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -23,6 +24,7 @@ from legbench.backends import dopri, lagrange_kernel  # noqa: E402
 from legbench.backends import lagrange_eom as E  # noqa: E402
 from legbench.backends.base import Physics  # noqa: E402
 from legbench.backends.lagrange_ import LagrangeBackend  # noqa: E402
+from legbench.exceptions import LegbenchError  # noqa: E402
 
 PARAMS = model.load_params()
 CONTROL_DT = 1e-3  # [s]
@@ -501,3 +503,91 @@ def test_the_compiled_period_is_loaded_from_numbas_cache_in_a_later_process(tmp_
         out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
         counts.append(tuple(int(v) for v in out.stdout.split()))
     assert counts == [(0, 1), (1, 0)]  # (cache hits, misses): compiled in the first process, loaded in the second
+
+
+_BLOW_UP = """
+import numpy as np
+from scipy.integrate import solve_ivp
+from legbench.backends import dopri
+
+def rhs(_lc, _lim, _u, _g, y, out, _data):
+    out[0] = y[0] * y[0]
+
+ref = solve_ivp(lambda _t, y: y * y, (0.0, 2.0), [1.0], method="RK45", rtol=1e-6, atol=1e-9)
+y = np.array([1.0])
+n = dopri.stepper(rhs)(y, None, 0.0, None, None, 2.0, 1e-6, 1e-9, np.inf, np.zeros((9, 1)), ())
+print(ref.status, n, float(ref.y[0, -1]) == float(y[0]), ref.t[-1])
+"""
+
+
+def test_the_stepper_gives_up_where_scipy_does_when_the_step_underflows() -> None:
+    """y' = y^2, y(0) = 1 blows up at t = 1: scipy's RK45 stops there ("Required step size is less than spacing
+    between numbers", status -1, at t just above 1); the stepper returns -1 with y exactly scipy's last y. (In a
+    subprocess with a generous time-out: a stepper that kept creeping by one ulp would not come back.)"""
+    out = subprocess.run([sys.executable, "-c", _BLOW_UP], capture_output=True, text=True, check=True, timeout=120)
+    status, n, same, t_end = out.stdout.split()
+    assert (status, n, same) == ("-1", "-1", "True") and 1.0 < float(t_end) < 1.0 + 1e-3
+
+
+def test_kernel_python_runs_the_python_period(make: Any) -> None:
+    """``kernel: python`` really runs the period as Python (not the compiled one under another label)."""
+    be = make(kernel="python")
+    assert be._period is lagrange_kernel.period(be.eom.module.KEY, be._qdd, compiled=False)
+    assert not hasattr(be._period, "stats")  # a plain function, not a numba dispatcher
+
+
+@pytest.mark.parametrize("kernel", ["compiled", "python"])
+def test_the_period_drives_a_joint_past_its_limit_as_solve_ivp_does(make: Any, kernel: str) -> None:
+    """The limit law inside the period: the foot in the air, the knee 0.02 rad past its upper limit and moving out
+    at 0.5 rad/s (tau_lim = -k 0.02 - b 0.5 = -210 N m; with k and b swapped it would be ~-5000 N m): one period
+    makes solve_ivp(RK45)'s evaluations over the backend's rhs (the limit law object) and ends within 1e-12."""
+    be = make(kernel=kernel)
+    x0 = np.array([0.0, -0.3, be.upper[2] + 0.02, 0.0, 0.0, 0.5])
+    assert be.law(*x0)[5] == 0.0  # the foot is off the ground: only the limit acts besides gravity
+    be._u[:] = [0.0, 0.0, 0.0]
+    rtol, atol, max_step = be._tols
+    ref = solve_ivp(be.rhs, (0.0, CONTROL_DT), x0, method="RK45", rtol=rtol, atol=atol, max_step=max_step)
+    y, n = _one_period(be, kernel == "compiled", x0, np.zeros(3))
+    assert n == ref.nfev
+    np.testing.assert_allclose(y, ref.y[:, -1], rtol=0, atol=1e-12)
+    assert y[5] < 0.0  # the limit turned the knee back within the period
+
+
+def test_a_step_size_underflow_is_a_clear_error(make: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The period's -1 (step size below 10 ulp of t) becomes the backend's one-line error, as solve_ivp's failure."""
+    be = make()
+    be.reset(np.zeros(3), np.zeros(3))
+    monkeypatch.setattr(be, "_period", lambda *_: -1)
+    with pytest.raises(LegbenchError, match="rk45 failed: Required step size"):
+        be.step(np.zeros(3))
+
+
+@numba_needed
+def test_an_edited_law_recompiles_the_cached_period(tmp_path: Path) -> None:
+    """The cached period holds the contact law inlined: after an edit of legbench/contact.py (a comment appended,
+    in a copy of the package) the next process misses numba's cache and compiles again (a hit would run the old
+    law)."""
+    pkg = tmp_path / "src"
+    shutil.copytree(Path(lagrange_kernel.__file__).parents[1], pkg / "legbench",
+                    ignore=shutil.ignore_patterns("__pycache__"))  # fmt: skip
+    script = (
+        "import numpy as np\n"
+        "from legbench import model\n"
+        "from legbench.backends.base import Physics\n"
+        "from legbench.backends.lagrange_ import LagrangeBackend as L\n"
+        "be = L(); be.load(model.URDF_FILE, Physics(), L.resolve_settings({}, 'matched'))\n"
+        "be.reset(np.zeros(3), np.zeros(3)); be.step(np.zeros(3))\n"
+        "s = be._period.stats\n"
+        "print(sum(s.cache_hits.values()), sum(s.cache_misses.values()))\n"
+    )
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "LEGBENCH_CACHE_DIR": str(tmp_path / "eom"),
+           "PYTHONPATH": str(pkg)}  # fmt: skip
+    counts = []
+    for edit in (False, False, True):
+        if edit:
+            with (pkg / "legbench" / "contact.py").open("a") as f:
+                f.write("\n# edited\n")
+        out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True,
+                             cwd=tmp_path)  # fmt: skip
+        counts.append(tuple(int(v) for v in out.stdout.split()))
+    assert counts == [(0, 1), (1, 0), (0, 1)]  # compiled, loaded, compiled again after the edit

@@ -20,6 +20,7 @@ from legbench.backends import pinocchio_kernel
 from legbench.backends.base import Physics
 from legbench.backends.pinocchio_ import PinocchioBackend
 from legbench.contact import ContactParams
+from legbench.exceptions import LegbenchError
 from legbench.results import RunResult
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
@@ -416,3 +417,34 @@ def test_the_compiled_rk45_period_is_loaded_from_numbas_cache_in_a_later_process
         out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
         counts.append(tuple(int(v) for v in out.stdout.split()))
     assert counts == [(0, 1), (1, 0)]  # (cache hits, misses): compiled in the first process, loaded in the second
+
+
+@numba_needed
+def test_compiled_rk45_drives_a_joint_past_its_limit_as_solve_ivp_does() -> None:
+    """The limit law inside the compiled rk45 period: the foot in the air, the knee 0.02 rad past its upper
+    limit moving out at 0.5 rad/s (tau_lim = -k 0.02 - b 0.5 = -210 N m; k and b swapped would give ~-5000 N m):
+    solve_ivp(RK45)'s evaluations on the Python ABA and limit law, and its end state within 1e-12."""
+    be = _backend({"integrator": "rk45", "rtol": 1e-6, "atol": 1e-8, "max_step": 2e-4}, 9.81, ContactParams())
+    period, x, u, lc, lim, k, data = be._dopri
+    x0 = np.array([0.0, -0.3, be.upper[2] + 0.02, 0.0, 0.0, 0.5])
+    assert be.law(*x0)[5] == 0.0  # off the ground
+
+    def f(_t: float, y: np.ndarray) -> np.ndarray:
+        return np.concatenate([y[3:], be._qdd(y[:3].tolist(), y[3:].tolist(), [0.0, 0.0, 0.0])])
+
+    ref = solve_ivp(f, (0.0, T_CTRL), x0, method="RK45", rtol=1e-6, atol=1e-8, max_step=2e-4)
+    x[:] = x0
+    u[:] = 0.0
+    assert period(x, u, 0.0, lc, lim, T_CTRL, 1e-6, 1e-8, 2e-4, k, data) == ref.nfev
+    np.testing.assert_allclose(x, ref.y[:, -1], rtol=0, atol=1e-12)
+    assert x[5] < 0.0  # turned back within the period
+
+
+@numba_needed
+def test_a_step_size_underflow_in_the_compiled_rk45_is_a_clear_error() -> None:
+    """The compiled period's -1 (step size below 10 ulp of t) becomes the backend's one-line error."""
+    be = _backend({"integrator": "rk45"})
+    be.reset(np.zeros(3), np.zeros(3))
+    be._dopri = (lambda *_: -1, *be._dopri[1:])
+    with pytest.raises(LegbenchError, match="rk45 failed: Required step size"):
+        be.step(np.zeros(3))

@@ -63,13 +63,18 @@ def test_a_run_passes_against_itself_with_identical_time_series(baseline: Path, 
     assert "PASS" in (new / "check.md").read_text()
 
 
-def test_checking_a_directory_against_itself_is_refused(baseline: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_checking_a_directory_against_itself_is_refused(
+    baseline: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """`check X --baseline X` would pass by construction and write check.md into the baseline: exit 2, one line
     naming the directory, nothing written."""
     before = sorted(p.name for p in baseline.rglob("*"))
     assert cli.main(["check", str(baseline), "--baseline", str(baseline) + "/"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and str(baseline) in err and "itself" in err
+    monkeypatch.chdir(baseline.parent)  # the same directory named relatively on one side
+    assert cli.main(["check", baseline.name, "--baseline", str(baseline)]) == 2
+    assert "itself" in capsys.readouterr().err
     assert sorted(p.name for p in baseline.rglob("*")) == before
 
 

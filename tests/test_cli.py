@@ -139,6 +139,19 @@ def test_the_pool_starts_before_the_preflight_and_stops_when_it_fails(
     assert not (tmp_path / "r").exists()
 
 
+def test_a_single_run_starts_no_pool(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """One scenario on one backend runs in this process even with --jobs 2: no worker pool is started."""
+    from legbench import run
+
+    started: list[int] = []
+    monkeypatch.setattr(run, "start_pool", lambda jobs: started.append(jobs))
+    scenario = Path(__file__).resolve().parents[1] / "scenarios" / "position.yaml"
+    argv = ["run", str(scenario), "--backends", "pinocchio", "--jobs", "2", "--set", "duration=0.05", "--set",
+            "comparison.steady_window=0.01", "--out", str(tmp_path / "r"), "-q", "--no-compare"]  # fmt: skip
+    assert cli.main(argv) == 0
+    assert started == [] and (tmp_path / "r" / "pinocchio.parquet").is_file()
+
+
 @pytest.mark.parametrize(
     ("extra", "message"),
     [

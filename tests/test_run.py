@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -263,6 +264,7 @@ def test_backend_read_is_state_and_ground_force_as_floats() -> None:
 _WRITER_MEMORY = """
 import sys, tracemalloc, numpy as np
 from pathlib import Path
+from typing import Any
 import pyarrow as pa
 from legbench import results
 n = 64001  # a 64 s run at 1 kHz
@@ -294,3 +296,44 @@ def test_writing_a_log_holds_a_row_group_not_copies_of_the_log(tmp_path: Path) -
     assert float(r.stdout) <= 0.8
     back = results.read_log(out)
     assert len(back) == 64001 and list(back.columns) == list(signals.RUN_COLUMNS)
+
+
+def _alive(pool: Any) -> list[Any]:
+    """The live worker processes of a LocalExecutor (none once it is closed or terminated)."""
+    procs = (getattr(pool._pool, "_processes", None) or {}).values() if pool._pool is not None else ()
+    return [p for p in procs if p.is_alive()]
+
+
+def test_a_given_pool_is_the_one_used_and_closed_afterwards(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``run_many(pool=start_pool(2))`` runs on that pool (no second pool is made) and closes it when the runs
+    end; ``start_pool(1)`` makes none (the runs go in this process)."""
+    assert run.start_pool(1) is None
+    made: list[Any] = []
+    real = run.LocalExecutor
+
+    def count(*args: Any, **kw: Any) -> Any:
+        made.append(real(*args, **kw))
+        return made[-1]
+
+    monkeypatch.setattr(run, "LocalExecutor", count)
+    root = Path(__file__).resolve().parent.parent / "scenarios"
+    sc = scenario.load(root / "position.yaml", {"duration": 0.05, "comparison.steady_window": 0.01})
+    pool = run.start_pool(2)
+    assert pool is not None and len(made) == 1
+    names = [n for n in ("pinocchio", "mujoco") if n in backends.available()]
+    out = run.run_many([(sc, None, tmp_path / "r")], names, jobs=2, progress=False, pool=pool)
+    assert [tr.status for tr in out[0]] == ["ok"] * len(names)
+    assert len(made) == 1 and pool._pool is None and not _alive(pool)
+
+
+def test_a_given_pool_is_stopped_when_the_plan_is_refused(tmp_path: Path) -> None:
+    """An output directory holding another scenario's run is refused before anything runs, and the pool handed
+    in (already starting its workers) is stopped, not left running."""
+    sc = scenario.parse(DOC)
+    tr, _ = _simulate(DOC)
+    results.write_run(scenario.parse({**DOC, "name": "other"}), [tr], tmp_path / "x")
+    pool = run.start_pool(2)
+    assert pool is not None
+    with pytest.raises(LegbenchError, match="holds results of scenario 'other'"):
+        run.run_many([(sc, None, tmp_path / "x")], ["pinocchio", "mujoco"], jobs=2, progress=False, pool=pool)
+    assert pool._pool is None and not _alive(pool)
