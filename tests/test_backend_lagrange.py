@@ -483,24 +483,27 @@ def test_each_model_has_its_own_compiled_period(make: Any, tmp_path: Path) -> No
     assert np.abs(ends[0] - ends[1]).max() > 1e-6
 
 
+#: A process that loads the lagrange backend, runs one period and prints numba's (cache hits, misses) for it.
+_CACHE_PROBE = """
+import numpy as np
+from legbench import model
+from legbench.backends.base import Physics
+from legbench.backends.lagrange_ import LagrangeBackend as L
+be = L(); be.load(model.URDF_FILE, Physics(), L.resolve_settings({}, 'matched'))
+be.reset(np.zeros(3), np.zeros(3)); be.step(np.zeros(3))
+s = be._period.stats
+print(sum(s.cache_hits.values()), sum(s.cache_misses.values()))
+"""
+
+
 @numba_needed
 def test_the_compiled_period_is_loaded_from_numbas_cache_in_a_later_process(tmp_path: Path) -> None:
     """The period is compiled once per model and machine: a second process finds it in numba's disk cache (a
     hit, no compile), where a closure or a cache key that changed per process would compile it every time."""
-    script = (
-        "import numpy as np\n"
-        "from legbench import model\n"
-        "from legbench.backends.base import Physics\n"
-        "from legbench.backends.lagrange_ import LagrangeBackend as L\n"
-        "be = L(); be.load(model.URDF_FILE, Physics(), L.resolve_settings({}, 'matched'))\n"
-        "be.reset(np.zeros(3), np.zeros(3)); be.step(np.zeros(3))\n"
-        "s = be._period.stats\n"
-        "print(sum(s.cache_hits.values()), sum(s.cache_misses.values()))\n"
-    )
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "LEGBENCH_CACHE_DIR": str(tmp_path / "eom")}
     counts = []
     for _ in range(2):
-        out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
+        out = subprocess.run([sys.executable, "-c", _CACHE_PROBE], env=env, capture_output=True, text=True, check=True)
         counts.append(tuple(int(v) for v in out.stdout.split()))
     assert counts == [(0, 1), (1, 0)]  # (cache hits, misses): compiled in the first process, loaded in the second
 
@@ -570,16 +573,6 @@ def test_an_edited_law_recompiles_the_cached_period(tmp_path: Path) -> None:
     pkg = tmp_path / "src"
     shutil.copytree(Path(lagrange_kernel.__file__).parents[1], pkg / "legbench",
                     ignore=shutil.ignore_patterns("__pycache__"))  # fmt: skip
-    script = (
-        "import numpy as np\n"
-        "from legbench import model\n"
-        "from legbench.backends.base import Physics\n"
-        "from legbench.backends.lagrange_ import LagrangeBackend as L\n"
-        "be = L(); be.load(model.URDF_FILE, Physics(), L.resolve_settings({}, 'matched'))\n"
-        "be.reset(np.zeros(3), np.zeros(3)); be.step(np.zeros(3))\n"
-        "s = be._period.stats\n"
-        "print(sum(s.cache_hits.values()), sum(s.cache_misses.values()))\n"
-    )
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "LEGBENCH_CACHE_DIR": str(tmp_path / "eom"),
            "PYTHONPATH": str(pkg)}  # fmt: skip
     counts = []
@@ -587,7 +580,7 @@ def test_an_edited_law_recompiles_the_cached_period(tmp_path: Path) -> None:
         if edit:
             with (pkg / "legbench" / "contact.py").open("a") as f:
                 f.write("\n# edited\n")
-        out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True,
+        out = subprocess.run([sys.executable, "-c", _CACHE_PROBE], env=env, capture_output=True, text=True, check=True,
                              cwd=tmp_path)  # fmt: skip
         counts.append(tuple(int(v) for v in out.stdout.split()))
     assert counts == [(0, 1), (1, 0), (0, 1)]  # compiled, loaded, compiled again after the edit
