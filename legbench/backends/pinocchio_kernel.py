@@ -31,6 +31,7 @@ Units: q [rad], qd [rad/s], tau [N m], F in W [N], h [s].
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
@@ -498,36 +499,23 @@ def period(model: np.ndarray, scratch: np.ndarray, u: np.ndarray, x: np.ndarray,
 
 def _dopri_rhs(lc: np.ndarray, lim: np.ndarray, u: np.ndarray, g: float, y: np.ndarray, out: np.ndarray,
                data: Any) -> None:  # fmt: skip
-    """d/dt (q, qd) = (qd, qdd) into ``out``: :meth:`PinocchioBackend._qdd` (the held torque u [N m] plus the law's
-    J_poc^T F and the limits' torque, then ABA) on the model and scratch arrays of :func:`dopri_data` (``g``:
-    unused, gravity is in the model's a0)."""
-    R, p, inertia, a0, q, qd, t, a, work, tmp = data
+    """d/dt (q, qd) = (qd, qdd) into ``out``: :func:`_accel` (the held torque u [N m] plus the law's J_poc^T F and
+    the limits' torque, then ABA) on the model and scratch arrays of :func:`dopri_data` (``g``: unused, gravity
+    is in the model's a0)."""
+    R, p, inertia, a0, work, tmp, buf = data
     q1, q2, q3, qd1, qd2, qd3 = y[0], y[1], y[2], y[3], y[4], y[5]
-    tc1, tc2, tc3, _f1, _f2, _f3 = wrench(lc, q1, q2, q3, qd1, qd2, qd3)
-    tl1, tl2, tl3 = limit_torques(lim, q1, q2, q3, qd1, qd2, qd3)
-    t[0], t[1], t[2] = u[0] + tc1 + tl1, u[1] + tc2 + tl2, u[2] + tc3 + tl3
-    q[0], q[1], q[2] = q1, q2, q3
-    qd[0], qd[1], qd[2] = qd1, qd2, qd3
-    aba(R, p, inertia, a0, q, qd, t, a, work, tmp)
-    out[0], out[1], out[2], out[3], out[4], out[5] = qd1, qd2, qd3, a[0], a[1], a[2]
+    a1, a2, a3 = _accel(R, p, inertia, a0, lc, lim, u[0], u[1], u[2], q1, q2, q3, qd1, qd2, qd3, work, tmp, buf)
+    out[0], out[1], out[2], out[3], out[4], out[5] = qd1, qd2, qd3, a1, a2, a3
 
 
 def dopri_data(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The model arrays (:func:`model_arrays`) and the scratch :func:`_dopri_rhs` takes, as one tuple."""
-    n = R.shape[0]
-    return (R, p, inertia, a0, np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros((n, 6, 16)),
-            np.zeros((6, 16)))  # fmt: skip
+    """The model arrays (:func:`model_arrays`) and the scratch :func:`_accel` takes, as one tuple."""
+    return (R, p, inertia, a0, np.zeros((R.shape[0], 6, 16)), np.zeros((6, 16)), np.zeros(64))
 
 
-#: the compiled adaptive period, made on first use
-_DOPRI: list[Any] = []
-
-
+@functools.cache
 def dopri_period() -> Any:
-    """The ``rk45`` control period, compiled (disk-cached): ``dopri_period()(x, u, g, lc, lim, t_bound, rtol, atol,
-    max_step, k, dopri_data(...))`` integrates x = (q [rad], qd [rad/s]) in place over ``t_bound`` [s] and
-    returns the number of right-hand-side evaluations, or -1 (:func:`legbench.backends.dopri.bind`)."""
-    if not _DOPRI:
-        rhs = _njit(_dopri_rhs)
-        _DOPRI.append(dopri.bind(rhs, "_period_pinocchio", True, (contact, joint_limits, dopri, _dopri_rhs)))
-    return _DOPRI[0]
+    """The ``rk45`` control period, compiled (disk-cached) on first use: ``dopri_period()(x, u, g, lc, lim, t_bound,
+    rtol, atol, max_step, k, dopri_data(...))`` integrates x = (q [rad], qd [rad/s]) in place over ``t_bound`` [s]
+    and returns the number of right-hand-side evaluations, or -1 (:func:`legbench.backends.dopri.bind`)."""
+    return dopri.bind(_njit(_dopri_rhs), "_period_pinocchio", True, (contact, joint_limits, dopri, _dopri_rhs))
