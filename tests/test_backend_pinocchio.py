@@ -272,12 +272,15 @@ def test_compiled_law_and_limits_are_the_python_law_bit_for_bit() -> None:
     assert 500 < contacts < 3500  # both branches were exercised
 
 
-def _python_and_compiled(sc: scenario.Scenario, settings: dict[str, Any]) -> tuple[RunResult, RunResult]:
+def _python_and_compiled(
+    sc: scenario.Scenario, settings: dict[str, Any], profile: str | None = None
+) -> tuple[RunResult, RunResult]:
+    """The scenario run with ``kernel: python`` and ``kernel: compiled`` (in ``profile``, default the scenario's)."""
     physics = scenario.physics_of(sc)
     runs = []
     for kernel in ("python", "compiled"):
         be = registry_load("pinocchio", physics, {**sc.backends.get("pinocchio", {}), **settings, "kernel": kernel},
-                           sc.profile)  # fmt: skip
+                           profile or sc.profile)  # fmt: skip
         assert be.info()["kernel_used"].startswith(kernel)
         runs.append(run.simulate(sc, be, physics))
     a, b = runs
@@ -356,15 +359,8 @@ def test_compiled_rk45_agrees_with_solve_ivp_over_a_task(task: str, duration: fl
     over the whole tasks: 1.2e-13 rad, 1.4e-9 rad/s, 1.6e-5 N; the two ABAs differ at round-off, which moves
     an adaptive step now and then, by far less than the solver's atol of 1e-8)."""
     sc = scenario.load(SCENARIOS / f"{task}.yaml")
-    sc = sc if duration is None else scenario.shorten(sc, duration)
-    physics = scenario.physics_of(sc)
-    runs = []
-    for kernel in ("python", "compiled"):
-        be = registry_load("pinocchio", physics, {"kernel": kernel}, "ode45")
-        assert be.info()["kernel_used"].startswith(kernel) and be.info()["integrator"] == "rk45"
-        runs.append(run.simulate(sc, be, physics))
-    a, b = runs
-    assert a.status == b.status == "ok" and len(a.t) == len(b.t) == sc.n_ticks
+    a, b = _python_and_compiled(sc if duration is None else scenario.shorten(sc, duration), {}, "ode45")
+    assert a.info["integrator"] == b.info["integrator"] == "rk45"
     assert np.abs(a.q - b.q).max() <= 1e-10
     assert np.abs(a.qd - b.qd).max() <= 1e-7
     assert np.abs(a.f - b.f).max() <= 1e-3
