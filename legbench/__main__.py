@@ -2,6 +2,6 @@
 
 import sys
 
-from legbench.cli import main
+from legbench.cli import entry
 
-sys.exit(main())
+sys.exit(entry())

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import gc
+import importlib.metadata
 import json
 import subprocess
 import sys
@@ -252,6 +254,30 @@ def test_python_dash_m_runs_the_command() -> None:
     """``python -m legbench`` is the ``legbench`` command."""
     out = subprocess.run([sys.executable, "-m", "legbench", "--version"], capture_output=True, text=True, check=True)
     assert out.stdout.startswith("legbench ")
+
+
+def test_the_command_freezes_the_heap_before_the_interpreter_exits(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The console script and ``python -m legbench`` run :func:`cli.entry`: main's exit status, then the
+    heap frozen, so the interpreter's final garbage collections skip what the command leaves (0.5 s of the
+    exit after a sweep). main alone, as tests and scripts call it in their own processes, freezes nothing."""
+    scripts = [e.value for e in importlib.metadata.entry_points(group="console_scripts") if e.name == "legbench"]
+    assert scripts == ["legbench.cli:entry"]
+    effort = str(Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml")
+    before = gc.get_freeze_count()
+    assert cli.main(["validate", effort]) == 0
+    assert gc.get_freeze_count() == before
+    monkeypatch.setattr(sys, "argv", ["legbench", "validate", effort])
+    try:
+        assert cli.entry() == 0
+        assert gc.get_freeze_count() > before
+    finally:
+        gc.unfreeze()
+    probe = ("import gc, runpy, sys\n"
+             f"sys.argv = ['legbench', 'validate', {effort!r}]\n"
+             "try:\n    runpy.run_module('legbench', run_name='__main__')\n"
+             "except SystemExit as e:\n    print(e.code, gc.get_freeze_count() > 0)\n")  # fmt: skip
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    assert out.stdout.split()[-2:] == ["0", "True"], out.stdout
 
 
 def test_several_scenarios_are_not_written_into_a_single_runs_directory(
