@@ -18,9 +18,12 @@ in docs/metrics.md):
   whatever the baseline.
 
 Tolerances come from the defaults, overridden by a tolerance file (YAML or
-JSON), overridden by the scenario's own ``comparison.tolerances`` in the new
-run.json. When both sides still hold their parquet logs, each backend's time
-series is also compared bit for bit ("identical" or "changed").
+JSON) and its section for the scenario, overridden by the scenario's own
+``comparison.tolerances`` in the new run.json: for each component, the most
+specific source that gives a value wins whole (a file's ``{default: x}`` beats a
+default keyed by signal; :func:`legbench.signals.keyed`). When both sides
+still hold their parquet logs, each backend's time series is also compared bit
+for bit ("identical" or "changed").
 
 The check never passes on results it cannot read: both sides' run.json and
 metrics.json are read through :mod:`legbench.results`' checked readers, and a
@@ -34,7 +37,7 @@ from __future__ import annotations
 import math
 import sys
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -56,6 +59,7 @@ from legbench.results import (
     run_dirs,
     tolerances_of,
 )
+from legbench.signals import keyed
 from legbench.signals import label as column_label
 
 __all__ = [
@@ -193,16 +197,6 @@ class CheckReport:
 # Tolerances
 
 
-def _merge(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
-    out = {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in base.items()}
-    for k, v in over.items():
-        if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
-            out[k] = _merge(out[k], v)
-        else:
-            out[k] = v
-    return out
-
-
 def _validate(tol: Any, file: str, prefix: str) -> dict[str, Any]:
     if not isinstance(tol, Mapping):
         raise ScenarioError(file, prefix, "tolerances must be a mapping")
@@ -237,8 +231,10 @@ def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[st
     """Read a tolerance file (YAML or JSON).
 
     Format: the keys of :data:`DEFAULT_TOLERANCES` at the top level (applied to
-    every scenario), and optionally ``scenarios: {<scenario>: {...}}`` with
-    per-scenario overrides.
+    every scenario), and optionally ``scenarios: {<key>: {...}}`` with overrides
+    for one scenario, keyed by its name (``effort``: every run of it) or its run
+    label (``effort__reference``); :func:`check` refuses a key that matches no
+    scenario it checks.
 
     Returns:
         (tolerances for every scenario, per-scenario overrides).
@@ -285,15 +281,6 @@ def tolerance_errors(path: str | Path) -> list[ScenarioError]:
         except ScenarioError as exc:
             errors.append(exc)
     return errors
-
-
-def _lookup(spec: Any, signal: str, joint: str, default: float) -> float:
-    if not isinstance(spec, Mapping):
-        return float(spec)
-    for key in (column_label(signal, joint), signal, "default"):
-        if key in spec:
-            return float(spec[key])
-    return default
 
 
 # --------------------------------------------------------------------------- #
@@ -351,21 +338,25 @@ def _with_run_statuses(doc: dict[str, Any], run: Run | None) -> dict[str, Any]:
 
 
 def _tolerances(
-    new_dir: Path, name: str, common: Mapping[str, Any], per: Mapping[str, Mapping[str, Any]], tfile: str
-) -> tuple[dict[str, Any], str]:
-    tol = dict(DEFAULT_TOLERANCES)
+    new_dir: Path, keys: Sequence[str], common: Mapping[str, Any], per: Mapping[str, Mapping[str, Any]], tfile: str
+) -> tuple[tuple[Mapping[str, Any], ...], str]:
+    """The tolerance layers of one scenario, the most specific first (its own ``comparison.tolerances`` in
+    NEW's run.json, the file's ``scenarios.<key>`` sections for its run label then its name, the file's
+    common part, the defaults), and where they came from, least specific first."""
+    layers: list[Mapping[str, Any]] = [DEFAULT_TOLERANCES]
     sources = ["defaults"]
     if common:
-        tol, sources = _merge(tol, common), [*sources, tfile]
-    if name in per:
-        tol, sources = _merge(tol, per[name]), [*sources, f"{tfile} scenarios.{name}"]
+        layers, sources = [common, *layers], [*sources, tfile]
+    for key in dict.fromkeys(keys):  # the name, then the label (more specific): each goes in front
+        if key in per:
+            layers, sources = [per[key], *layers], [*sources, f"{tfile} scenarios.{key}"]
     rj = new_dir / "run.json"
     if rj.is_file():
         own = tolerances_of(read_meta(new_dir))
         if own:
-            tol = _merge(tol, _validate(own, str(rj), "scenario.comparison.tolerances"))
+            layers = [_validate(own, str(rj), "scenario.comparison.tolerances"), *layers]
             sources.append(f"{rj} scenario.comparison.tolerances")
-    return tol, " < ".join(sources)
+    return tuple(layers), " < ".join(sources)
 
 
 # --------------------------------------------------------------------------- #
@@ -376,28 +367,29 @@ def _fmt(v: float) -> str:
     return "n/a" if not math.isfinite(v) else f"{v:.4g}"
 
 
-def _allowed(spec: Mapping[str, Any], signal: str, joint: str, baseline: float) -> float:
-    """max(abs, rel * |baseline|) for one component (NaN if the baseline is undefined)."""
+def _allowed(layers: Sequence[Mapping[str, Any]], metric: str, signal: str, joint: str, baseline: float) -> float:
+    """max(abs, rel * |baseline|) for one component, each from the first layer that gives it
+    (NaN if the baseline is undefined)."""
     if not math.isfinite(baseline):
         return math.nan
-    a = _lookup(spec.get("abs", 0.0), signal, joint, 0.0)
-    r = _lookup(spec.get("rel", 0.0), signal, joint, 0.0)
+    a = keyed([(t.get(metric) or {}).get("abs") for t in layers], signal, joint, 0.0)
+    r = keyed([(t.get(metric) or {}).get("rel") for t in layers], signal, joint, 0.0)
     return max(a, r * abs(baseline))
 
 
-def _check_rows(sc: str, base: pd.DataFrame, new: pd.DataFrame, tol: Mapping[str, Any]) -> list[CheckRow]:
-    checked = [m for m in tol if m != "max_sim_error_pct"]
+def _check_rows(sc: str, base: pd.DataFrame, new: pd.DataFrame, layers: Sequence[Mapping[str, Any]]) -> list[CheckRow]:
+    checked = [m for m in DEFAULT_TOLERANCES if m != "max_sim_error_pct"]
     b = base[base["metric"].isin(checked)]
     n = new[new["metric"].isin(checked)]
     merged = b.merge(n, on=_KEYS, how="outer", suffixes=("_base", "_new"), indicator="side", sort=False)
     rows: list[CheckRow] = []
-    ceilings = tol.get("max_sim_error_pct") or {}
+    ceilings = [t.get("max_sim_error_pct") for t in layers]
     for rec in merged.itertuples(index=False):
         signal, joint, metric = str(rec.signal), str(rec.joint), str(rec.metric)
         bv, nv = float(rec.value_base), float(rec.value_new)
         lab = column_label(signal, joint)
         who = f"{sc}/{rec.backend} {lab} {metric}"
-        allowed = _allowed(tol[metric], signal, joint, bv)
+        allowed = _allowed(layers, metric, signal, joint, bv)
         if rec.side == "left_only":
             status, msg = "MISSING", f"{who}: in the baseline ({_fmt(bv)}) but not in the new results"
         elif rec.side == "right_only":
@@ -423,7 +415,7 @@ def _check_rows(sc: str, base: pd.DataFrame, new: pd.DataFrame, tol: Mapping[str
             sign = "+" if metric in ONE_SIDED else "+-"
             msg = f"{who} {verb} {_fmt(bv)} -> {_fmt(nv)} ({delta:+.3g}; allowed {sign}{allowed:.3g})"
         if metric == "sim_error_pct" and math.isfinite(nv) and status not in FAILING:
-            ceiling = _lookup(ceilings, signal, joint, math.inf) if ceilings else math.inf
+            ceiling = keyed(ceilings, signal, joint, math.inf)
             if nv > ceiling:
                 status, msg = "OVER LIMIT", f"{who} = {_fmt(nv)} % exceeds its limit {ceiling:g} %"
         rows.append(
@@ -505,6 +497,7 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
     rows: list[CheckRow] = []
     traces: list[TraceCheck] = []
     sources: dict[str, str] = {}
+    used: set[str] = set()  # scenario names and run labels checked, for the file's scenarios sections
     nan = math.nan
     for key, bdir in bd.items():
         if key not in nd:
@@ -520,12 +513,18 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
             raise ResultsError(str(ndir), f"holds scenario {nname!r} but the baseline {bdir} holds {bname!r}: "
                                           "not the same scenario; choose the matching --baseline")  # fmt: skip
         sc = nname
-        tol, sources[sc] = _tolerances(ndir, str(nmeta.get("name", sc)), common, per, tfile)
+        keys = (str(nmeta.get("name", sc)), sc)
+        used.update(keys)
+        layers, sources[sc] = _tolerances(ndir, keys, common, per, tfile)
         rows += _status_rows(sc, bmeta, nmeta)
-        rows += _check_rows(sc, bdf, ndf, tol)
+        rows += _check_rows(sc, bdf, ndf, layers)
         traces += _trace_checks(sc, bdir, ndir, nmeta.get("backends") or {})
     for key in nd.keys() - bd.keys():
         rows.append(CheckRow(key, "-", "", "-", "-", "status", nan, nan, nan, "new", f"scenario {key}: no baseline"))
+    unused = sorted(set(per) - used)
+    if unused:  # a typo, or a section for results not checked here, would otherwise be silently not applied
+        raise ScenarioError(tfile, f"scenarios.{unused[0]}",
+                            f"matches no scenario checked here; valid: {sorted(used)}")  # fmt: skip
     return CheckReport(new, baseline, tuple(rows), tuple(traces), sources)
 
 

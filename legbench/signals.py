@@ -9,6 +9,9 @@ Fn). The 12 data columns of a run, in order, are :data:`LABELS`.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+from typing import Any
+
 __all__ = [
     "COLUMNS",
     "EE_COLUMNS",
@@ -20,6 +23,7 @@ __all__ = [
     "SIGNAL_OF",
     "SLICE",
     "UNITS",
+    "keyed",
     "label",
 ]
 
@@ -53,3 +57,24 @@ RUN_COLUMNS = ("t", *LABELS, *EE_COLUMNS, "controller")
 def label(signal: str, joint: str) -> str:
     """Short column label of a signal component: ``q2``, ``tau1``, ``fz``."""
     return f"f{joint}" if signal == "force" else f"{signal}{joint}"
+
+
+def keyed(layers: Sequence[Any], signal: str, joint: str, default: float) -> float:
+    """A per-component setting (a tolerance, a ceiling) from the first of ``layers`` that gives it.
+
+    ``layers`` run from the most specific (a scenario's own) to the least (legbench's defaults); a layer
+    is a number (every component), a mapping keyed by component label (``tau2``), signal (``tau``) or
+    ``default``, most specific key first, or None (it gives nothing). A layer that gives a value wins
+    over every layer after it, whatever keys those hold: a file's ``{default: 1e-6}`` overrides a
+    default of ``{force: 1e-2}``. ``default`` if no layer gives one.
+    """
+    lab = label(signal, joint)
+    for spec in layers:
+        if spec is None:
+            continue
+        if not isinstance(spec, Mapping):
+            return float(spec)
+        for key in (lab, signal, "default"):
+            if key in spec:
+                return float(spec[key])
+    return default

@@ -134,6 +134,52 @@ def test_per_signal_tolerance_lookup_prefers_the_component(baseline: Path, tmp_p
     assert "q1" not in labels and labels == {"q2", "q3", "qd1", "qd2", "qd3", "tau1", "tau2", "tau3", "fx", "fy", "fz"}
 
 
+def test_a_files_default_overrides_the_built_in_per_signal_tolerance(baseline: Path, tmp_path: Path) -> None:
+    """Backend b's Fn 0.005 N lower over the final window: within the built-in steady_mean tolerance for the
+    force (max(abs 0.01 N, 0.5 % of 22.2 N)), so it moves and passes; a file's {abs: {default: 1e-6}, rel: 0} is the user's
+    tolerance for every component and wins over the built-in ``force`` key: the same change fails."""
+    drop = add_to("fz", lambda t: np.where(t > 1.4, -0.005, 0.0))
+    new = tmp_path / "new"
+    write_run(new / "fake", {"ref": None, "a": scale(1.02), "b": then(offset(0.01), drop)})
+    write_run(new / "other", {"ref": None, "a": scale(1.01)}, name="other")
+    row = next(r for r in K.check(new, baseline).rows if (r.backend, r.label, r.metric) == ("b", "fz", "steady_mean"))
+    assert (
+        row.status == "moved"
+        and row.change == pytest.approx(-0.005, rel=1e-9)
+        and row.allowed == pytest.approx(0.005 * row.baseline)
+    )
+    tol = tmp_path / "tol.yaml"
+    tol.write_text("steady_mean: {abs: {default: 1.0e-6}, rel: 0}\n")
+    report = K.check(new, baseline, tol)
+    steady = [r for r in report.regressions if r.metric == "steady_mean"]
+    assert [(r.backend, r.label) for r in steady] == [("b", "fz")] and steady[0].allowed == 1e-6
+
+
+def test_scenario_sections_match_the_name_or_the_run_label_and_an_unknown_one_is_refused(tmp_path: Path) -> None:
+    """A reference-contact run is labelled fake__reference (scenario fake): a section ``fake__reference`` or
+    ``fake`` applies to it (the label's wins over the name's); a section that names nothing checked (a
+    typo) is a ScenarioError naming it, not silently unused."""
+    base, new = tmp_path / "base", tmp_path / "new"
+    write_run(base / "fake__reference", {"ref": None, "a": scale(1.02)}, contact_mode="reference")
+    write_run(new / "fake__reference", {"ref": None, "a": scale(1.025)}, contact_mode="reference")
+    assert K.check(new, base).passed is False  # 0.5-point growth > the default 0.01 point
+    tol = tmp_path / "tol.yaml"
+    tol.write_text("scenarios: {fake: {sim_error_pct: {abs: 1.0}}, fake__reference: {rms: {rel: 1.0}}}\n")
+    report = K.check(new, base, tol)
+    assert report.passed, [r.message for r in report.regressions]
+    assert (
+        report.tolerance_sources["fake__reference"]
+        == f"defaults < {tol} scenarios.fake < {tol} scenarios.fake__reference"
+    )
+    tol.write_text(
+        "rms: {rel: 1.0}\nscenarios: {fake: {sim_error_pct: {abs: 1.0}}, fake__reference: {sim_error_pct: {abs: 0.1}}}\n"
+    )
+    assert {r.metric for r in K.check(new, base, tol).regressions} == {"sim_error_pct"}
+    tol.write_text("scenarios: {fake: {sim_error_pct: {abs: 1.0}}, fake_reference: {sim_error_pct: {abs: 0.1}}}\n")
+    with pytest.raises(ScenarioError, match=r"scenarios\.fake_reference.*matches no scenario checked here"):
+        K.check(new, base, tol)
+
+
 def test_an_improvement_passes(baseline: Path, tmp_path: Path) -> None:
     """Backend a closer to the reference (1.019 x instead of 1.02 x): sim error and RMS fall; status 'improved',
     exit 0 (its steady means move 0.1 %, inside the 0.5 % allowed)."""
