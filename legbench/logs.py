@@ -26,8 +26,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from legbench import kinematics
 from legbench.exceptions import LegbenchError, ResultsError
-from legbench.results import result_from_frame
+from legbench.results import RunResult, result_from_frame
 from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS
 
 __all__ = ["JOINT_STATE", "WRENCH", "RosOptions", "is_ros_bag", "load_log", "load_ros_bag"]
@@ -76,6 +77,16 @@ def _check_plausible(t: np.ndarray, data: np.ndarray, source: str) -> None:
                        "legbench logs radians", source, qmax)  # fmt: skip
 
 
+def _foot(trace: RunResult) -> np.ndarray:
+    """Foot centre in W [m], shape (n, 3): each column as logged, or from q (:func:`legbench.kinematics.fk`,
+    as for a run) where the log holds no value of it (NaN throughout)."""
+    foot = trace.ee
+    logged = ~np.isnan(foot).all(axis=0)
+    if logged.all():
+        return foot
+    return np.where(logged, foot, kinematics.fk(trace.q))
+
+
 def load_log(
     path: str | Path,
     column_map: Mapping[str, str] | None = None,
@@ -92,8 +103,11 @@ def load_log(
     Header names are matched to :data:`RUN_COLUMNS` case-insensitively, with a
     trailing unit in brackets or parentheses ignored (``"q1 [rad]"`` is ``q1``;
     ``time`` is ``t``). ``column_map`` maps other names, ``{"their name": "q1"}``,
-    and wins over the automatic match. Only ``t`` and ``q1..q3`` are required;
-    other missing signals become NaN and are left out of the metrics.
+    and wins over the automatic match: a header column whose automatic match is a column the map
+    already targets is ignored. Only ``t`` and ``q1..q3`` are required;
+    other missing signals become NaN and are left out of the metrics. The foot centre
+    (``ee_x..ee_z`` [m]) is taken as logged, or computed from q (:func:`legbench.kinematics.fk`)
+    where the log has none.
 
     Args:
         path: the CSV file.
@@ -132,10 +146,11 @@ def load_log(
     absent = sorted(set(cmap) - set(map(str, raw.columns)))
     if absent:
         raise ResultsError(str(path), f"column_map names {absent} are not in the header {list(map(str, raw.columns))}")
+    claimed = set(cmap.values())  # an explicit mapping wins: automatic matches to these targets are ignored
     rename: dict[str, str] = {}
     for col in map(str, raw.columns):
         target = cmap.get(col) or _normalise_header(col)
-        if target in RUN_COLUMNS:
+        if target in RUN_COLUMNS and (col in cmap or target not in claimed):
             rename[col] = target
     targets = list(rename.values())
     dupes = sorted({c for c in targets if targets.count(c) > 1})
@@ -150,7 +165,7 @@ def load_log(
     _check_plausible(trace.t * time_scale, trace.data, str(path))
     out = {"t": trace.t * time_scale}
     out |= {c: trace.data[:, i] for i, c in enumerate(LABELS)}
-    out |= {c: trace.ee[:, i] for i, c in enumerate(EE_COLUMNS)}
+    out |= {c: v for c, v in zip(EE_COLUMNS, _foot(trace).T, strict=True)}
     out["controller"] = trace.controller.astype(str) if "controller" in df.columns else np.full(len(df), "")
     return pd.DataFrame(out, columns=list(RUN_COLUMNS))
 
@@ -327,6 +342,6 @@ def load_ros_bag(path: str | Path, options: RosOptions | None = None) -> pd.Data
     trace = result_from_frame(df, path.stem, str(path), ["t", "q1", "q2", "q3"])  # validates (t increasing)
     out = {"t": trace.t}
     out |= {c: trace.data[:, i] for i, c in enumerate(LABELS)}
-    out |= {c: trace.ee[:, i] for i, c in enumerate(EE_COLUMNS)}
+    out |= {c: v for c, v in zip(EE_COLUMNS, _foot(trace).T, strict=True)}
     out["controller"] = np.full(len(df), "")
     return pd.DataFrame(out, columns=list(RUN_COLUMNS))

@@ -50,6 +50,7 @@ __all__ = [
     "deviation",
     "estimate_lag",
     "max_abs",
+    "mean",
     "pair_metrics",
     "peak_pct",
     "rms",
@@ -96,8 +97,9 @@ class LagEstimate:
 class PairMetrics:
     """Deviation of one backend from a reference, per column of :data:`LABELS`.
 
-    Metric arrays have shape (12,) and are computed over ``t >= skip``; NaN where a
-    signal is missing or the window is empty.
+    Metric arrays have shape (12,) and are computed over ``t >= skip``, each component over
+    its samples that are not NaN (an imported log's missing ones); NaN where a signal is
+    missing (no such sample) or the window is empty.
 
     Attributes:
         backend: the backend compared.
@@ -144,7 +146,8 @@ class SteadyState:
             -(J_poc(q)^T)^-1 (tau - G(q)), J_poc the true point of contact's Jacobian [N].
         analytic_centre: the same with the foot centre's Jacobian J_E; only for runs
             whose contact law takes the poc at the sphere centre, else None [N].
-        cond: condition number of J_poc at the mean state (inf if singular).
+        cond: condition number of J_poc at the mean state (inf if singular; NaN if the window has
+            no finite q or tau, as in a log without torques: no check possible).
     """
 
     backend: str
@@ -364,18 +367,35 @@ def peak_pct(max_abs: np.ndarray, peak: np.ndarray) -> np.ndarray:
         return np.where(peak > PEAK_FLOOR, 100.0 * max_abs / np.where(peak > PEAK_FLOOR, peak, 1.0), np.nan)
 
 
+def mean(x: np.ndarray) -> np.ndarray:
+    """Mean of each column over its samples that are not NaN [signal units]; NaN for a column with none.
+
+    A NaN sample (an imported log's missing value: a ROS bag's force outside the wrench topic's
+    span) is left out of its column only, not spread to the whole column. Without NaN, equal to
+    the last bit to ``np.mean(x, axis=0)``.
+    """
+    x = np.asarray(x, float)
+    ok = ~np.isnan(x)
+    n = ok.sum(axis=0)
+    total = np.where(ok, x, 0.0).sum(axis=0)
+    return np.where(n > 0, total / np.maximum(n, 1), np.nan)
+
+
 def rms(d: np.ndarray) -> np.ndarray:
-    """Root mean square of each column over time [signal units]; NaN for no samples."""
+    """Root mean square of each column over its samples that are not NaN [signal units]; NaN for a column with none."""
     if len(d) == 0:
         return np.full(d.shape[1], np.nan)
-    return np.sqrt(np.mean(d * d, axis=0))
+    return np.sqrt(mean(d * d))
 
 
 def max_abs(d: np.ndarray) -> np.ndarray:
-    """Largest absolute value of each column over time [signal units]; NaN for no samples."""
+    """Largest absolute value of each column over its samples that are not NaN [signal units]; NaN for a column with
+    none."""
     if len(d) == 0:
         return np.full(d.shape[1], np.nan)
-    return np.max(np.abs(d), axis=0)
+    a = np.abs(d)
+    nan = np.isnan(a)
+    return np.where(nan.all(axis=0), np.nan, np.where(nan, -np.inf, a).max(axis=0))
 
 
 def signal_errors(a: RunResult, ref: RunResult, signal: str, skip: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -461,6 +481,9 @@ def pair_metrics(
 def steady_state(trace: RunResult, window: float, poc: str = "true") -> SteadyState:
     """Means over the final ``window`` [s] of ``trace``, and the analytic force check.
 
+    The window is the closed interval [t_end - window, t_end] (both ends included: 501 ticks for
+    0.5 s at 1 kHz); each column's mean is over its samples there that are not NaN (:func:`mean`).
+
     The check solves J_poc(q)^T h = tau - G(q) at the window's mean q and tau
     (valid when the leg is static: qd ~ 0 and no acceleration) and reports the
     ground force on the foot, -h. With ``poc == "centre"`` it also does so with
@@ -468,8 +491,8 @@ def steady_state(trace: RunResult, window: float, poc: str = "true") -> SteadySt
     at the sphere centre applies.
     """
     sel = trace.t >= trace.t[-1] - window - T_EPS
-    mean = trace.data[sel].mean(axis=0)
-    q, qd, tau, force = (mean[SLICE[s]] for s in SIGNALS)
+    avg = mean(trace.data[sel])
+    q, qd, tau, force = (avg[SLICE[s]] for s in SIGNALS)
 
     def ground_force(true_poc: bool) -> tuple[np.ndarray, float]:
         if not np.isfinite(q).all() or not np.isfinite(tau).all():

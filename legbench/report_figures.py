@@ -194,20 +194,22 @@ class Arrays:
 def envelope(t: np.ndarray, y: np.ndarray, bins: int = BINS) -> tuple[np.ndarray, np.ndarray]:
     """Min/max envelope of ``y`` (shape (n,) or (n, m)) over ``bins`` equal runs of samples.
 
-    Each bin becomes two points, at the times of its first and last sample,
-    holding the bin's minimum and maximum in the order they occur; a series of
-    at most ``2 * bins`` samples is returned as it is. NaN samples are ignored
-    (a bin of NaN stays NaN: a gap).
+    Each bin becomes two points, its minimum and its maximum, each at the time of
+    its own sample, in the order they occur (so a peak is drawn exactly where it
+    is); a series of at most ``2 * bins`` samples is returned as it is. NaN
+    samples are ignored (a bin of NaN stays NaN: a gap). The columns of a 2-D
+    ``y`` have their extremes at different samples, so each has its own times.
 
     Returns:
-        (times [s], values), of equal length.
+        (times [s], values), of equal shape: (2 bins,) for a 1-D ``y``, (2 bins, m) for a 2-D one
+        (column j's times are ``times[:, j]``).
     """
     t = np.asarray(t, float)
     y = np.asarray(y, float)
     n = len(t)
-    if n <= 2 * bins:
-        return t, y
     two_d = y.ndim == 2
+    if n <= 2 * bins:
+        return (np.broadcast_to(t[:, None], y.shape) if two_d else t), y
     y2 = y if two_d else y[:, None]
     k = math.ceil(n / bins)
     nb = math.ceil(n / k)
@@ -219,14 +221,15 @@ def envelope(t: np.ndarray, y: np.ndarray, bins: int = BINS) -> tuple[np.ndarray
     hi_i = np.argmax(np.where(nan, -np.inf, blocks), axis=1)
     lo = np.take_along_axis(blocks, lo_i[:, None, :], axis=1)[:, 0, :]
     hi = np.take_along_axis(blocks, hi_i[:, None, :], axis=1)[:, 0, :]
-    first = np.where(lo_i <= hi_i, lo, hi)
-    second = np.where(lo_i <= hi_i, hi, lo)
+    lo_first = lo_i <= hi_i
     out = np.empty((2 * nb, y2.shape[1]))
-    out[0::2], out[1::2] = first, second
-    starts = np.arange(nb) * k
-    tt = np.empty(2 * nb)
-    tt[0::2], tt[1::2] = t[starts], t[np.minimum(starts + k - 1, n - 1)]
-    return tt, (out if two_d else out[:, 0])
+    out[0::2], out[1::2] = np.where(lo_first, lo, hi), np.where(lo_first, hi, lo)
+    starts = (np.arange(nb) * k)[:, None]
+    idx = np.empty((2 * nb, y2.shape[1]), dtype=np.intp)  # sample index of each point (never a padding row)
+    idx[0::2] = np.minimum(starts + np.minimum(lo_i, hi_i), n - 1)
+    idx[1::2] = np.minimum(starts + np.maximum(lo_i, hi_i), n - 1)
+    tt = t[idx]
+    return (tt, out) if two_d else (tt[:, 0], out[:, 0])
 
 
 # --------------------------------------------------------------------------- #
@@ -386,7 +389,7 @@ def _overlay(result: ComparisonResult, signal: str, arrays: Arrays) -> Figure | 
             data.append(
                 _trace(
                     arrays,
-                    tt,
+                    tt[:, j],
                     yy[:, j],
                     j,
                     label,
@@ -428,7 +431,7 @@ def _deviation(result: ComparisonResult, signal: str, arrays: Arrays) -> Figure 
         lag = f", lag {p.lag_removed * 1e3:.3g} ms removed" if p.lag_removed else ""
         tt, yy = envelope(p.t, p.deviation[:, cols])
         for j in range(3):
-            data.append(_trace(arrays, tt, yy[:, j], j, f"{p.backend}{lag}", color, dash, 1.4, j == 0))
+            data.append(_trace(arrays, tt[:, j], yy[:, j], j, f"{p.backend}{lag}", color, dash, 1.4, j == 0))
     ylabels = [f"\u0394{column_label(signal, c)} [{unit}]" for c in JOINTS[signal]]
     lay = _layout(f"{run.label}: {NAMES[signal]}, deviation from {result.reference}", 3, ylabels)
     lay["xaxis"]["range"] = _xrange(run, result.traces)

@@ -13,7 +13,7 @@ from fakerun import scale, write_run
 
 from legbench import cli, logs
 from legbench.exceptions import ResultsError
-from legbench.signals import LABELS, RUN_COLUMNS
+from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS
 
 rosbags = pytest.importorskip("rosbags", reason="pip install 'legbench[ros]'")
 from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
@@ -137,6 +137,17 @@ def test_defaults_force_sign_and_ros2_file_path(tmp_path: Path) -> None:
     np.testing.assert_array_equal(df[["fx", "fy", "fz"]].to_numpy(), -np.ones((len(t), 3)))
     no_force = write_bag("ros1", tmp_path / "nf.bag", t, data, own, (0, 1, 2))
     assert logs.load_log(no_force)[["fx", "fy", "fz"]].isna().all().all()
+
+
+def test_bag_foot_position_is_the_run_s_own_from_q(tmp_path: Path) -> None:
+    """Backend a's log written as a bag (a JointState carries no foot position): ee_x..ee_z come back as a's own
+    foot centre, kinematics.fk of its q as the run logged it, to 1e-12 m, not NaN."""
+    run_dir = write_run(tmp_path / "fake", {"ref": None, "a": scale(1.02)})
+    run = pd.read_parquet(run_dir / "a.parquet")
+    t = run["t"].to_numpy()
+    bag = write_bag("ros1", tmp_path / "a.bag", t, run[list(LABELS[:9])].to_numpy(), logs.DEFAULT_JOINTS, (0, 1, 2))
+    ee = list(EE_COLUMNS)
+    np.testing.assert_allclose(logs.load_log(bag)[ee].to_numpy(), run[ee].to_numpy(), rtol=0, atol=1e-12)
 
 
 def test_bag_errors_name_the_problem(tmp_path: Path) -> None:

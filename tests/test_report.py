@@ -127,6 +127,32 @@ def test_envelope_keeps_a_one_sample_spike_and_the_order_of_extremes() -> None:
     assert yy2[:, 1].min() == -5.0 and np.isfinite(yy2[:, 1]).all()
 
 
+def test_envelope_draws_each_extreme_at_its_own_sample_time() -> None:
+    """100 000 samples into 700 bins of 143: a 1-sample spike of 5 in the middle of its bin is in the envelope as its
+    exact (t, value) pair (not at the bin's first or last time), and so is every point: each (t, y) is a sample of the
+    series, float64 equal. In a 2-D series each column has its own times (a spike of -7 at another sample in column
+    1), ordered within every column."""
+    n, k, k1 = 100_000, 61_234, 12_345
+    t = np.arange(n) * 1e-3
+    y = np.sin(t)
+    y[k] = 5.0
+    tt, yy = envelope(t, y, bins=700)
+    i = int(np.argmax(yy))
+    assert (tt[i], yy[i]) == (t[k], 5.0)
+    np.testing.assert_array_equal(yy, y[np.searchsorted(t, tt)])  # every point is a sample
+    y2 = np.column_stack([y, np.cos(t)])
+    y2[k1, 1] = -7.0
+    tt2, yy2 = envelope(t, y2, bins=700)
+    assert tt2.shape == yy2.shape == (len(tt), 2)
+    j = int(np.argmin(yy2[:, 1]))
+    assert (tt2[j, 1], yy2[j, 1]) == (t[k1], -7.0)
+    for c in range(2):
+        np.testing.assert_array_equal(yy2[:, c], y2[np.searchsorted(t, tt2[:, c]), c])
+    assert np.all(np.diff(tt2, axis=0) >= 0)
+    short_t, _ = envelope(t[:100], y2[:100], bins=700)
+    np.testing.assert_array_equal(short_t, np.column_stack([t[:100], t[:100]]))  # short: as it is, per column
+
+
 def test_deviation_figure_holds_the_largest_deviation_and_the_leg_view_is_the_kinematics(tmp_path: Path) -> None:
     """The deviation figure's data reach each pair's max |x - x_ref| (to float32 rounding, rel 1e-6); the 3D
     view's points are kinematics.chain of the logged q at the slider's times (to float32, 1e-6 m)."""
@@ -158,6 +184,22 @@ def test_report_includes_the_contact_mode_split_when_the_sibling_exists(tmp_path
     md = R.write_report(tmp_path / "fake").markdown.read_text()
     assert "Contact model vs integration (with fake__reference)" in md
     assert "| a | contact | 0.03 |" in md
+
+
+def test_residual_table_says_what_it_computes_and_the_doc_it_cites_defines_every_row(tmp_path: Path) -> None:
+    """The relative-penetration column holds median |y Kp / Fn_spring - 1| (Fn_spring = Fn - Kd max(ydot, 0)) and
+    its header says Fn_spring, not Fn; the caption cites docs/metrics.md, which defines every residual_* row compare
+    writes (one table row each) and the steady window as the closed interval [t_end - steady_window, t_end]."""
+    d = write_run(tmp_path / "s", {"ref": None})
+    md = R.write_report(d).markdown.read_text()
+    assert r" | median \|y Kp/Fn_spring - 1\| | " in md and "y Kp/Fn -" not in md
+    assert "docs/metrics.md, section Contact-law residuals" in md
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "metrics.md").read_text()
+    written = {m for m in compare(d).frame()["metric"] if m.startswith("residual_")}
+    assert len(written) == 12
+    section = doc[doc.index("### Contact-law residuals") :]
+    assert all(f"| `{m}` |" in section for m in written)
+    assert "[t_end - steady_window, t_end]" in doc and "501 ticks" in doc
 
 
 def test_report_with_an_imported_log_lists_it_as_a_backend(tmp_path: Path) -> None:
