@@ -53,6 +53,7 @@ from legbench.results import (
     atomic_write_bytes,
     atomic_write_text,
     load_run,
+    log_digests,
     read_log,
     read_meta,
     read_metrics,
@@ -288,8 +289,9 @@ def tolerance_errors(path: str | Path) -> list[ScenarioError]:
 
 
 def _metrics(d: Path) -> tuple[dict[str, Any], pd.DataFrame, Run | None]:
-    """metrics.json of a run directory; recomputed from the logs when absent or older than any log; and the
-    run read back from run.json and its logs, when it has both (None otherwise).
+    """metrics.json of a run directory; recomputed from the logs when absent or not computed from the logs
+    there now (its ``logs`` digests differ from theirs; a metrics.json without them: older than any log);
+    and the run read back from run.json and its logs, when it has both (None otherwise).
 
     A committed baseline usually holds only run.json and metrics.json: its metrics.json is used as is, and
     its run.json is still read (checked, :func:`legbench.results.read_meta`). A directory that holds logs
@@ -300,8 +302,10 @@ def _metrics(d: Path) -> tuple[dict[str, Any], pd.DataFrame, Run | None]:
     """
     mfile = d / "metrics.json"
     logs = list(d.glob("*.parquet"))
-    if mfile.is_file() and all(p.stat().st_mtime <= mfile.stat().st_mtime for p in logs):
-        doc, df = read_metrics(mfile)
+    doc, df = read_metrics(mfile) if mfile.is_file() else ({}, pd.DataFrame())
+    kept = doc.get("logs")  # the SHA-256 of the logs it was computed from (older metrics.json: none)
+    if doc and (not logs or (log_digests(d) == kept if kept is not None else
+                             all(p.stat().st_mtime <= mfile.stat().st_mtime for p in logs))):  # fmt: skip
         run = None
         if (d / "run.json").is_file():
             run = load_run(d) if logs else None

@@ -38,7 +38,7 @@ from legbench.metrics import (
     pair_metrics,
     steady_state,
 )
-from legbench.results import FRAME_COLUMNS, METRICS_SCHEMA, Run, RunResult, load_run, result_from_frame
+from legbench.results import FRAME_COLUMNS, METRICS_SCHEMA, Run, RunResult, load_run, log_digests, result_from_frame
 from legbench.signals import JOINT_OF, LABELS, SIGNAL_OF
 
 __all__ = ["ComparisonResult", "compare"]
@@ -135,6 +135,7 @@ class ComparisonResult:
             "duration": _json_value(run.duration),  # null for a run.json without scenario.duration
             "split_with": None if self.split_run is None else self.split_run.label,
             "backends": backends,
+            "logs": log_digests(run.path),
             "notes": list(self.notes),
             "columns": list(FRAME_COLUMNS),
             "metrics": [{k: _json_value(v) for k, v in r.items()} for r in self.records()],
@@ -237,7 +238,12 @@ def compare(
                     pairs.append(pair_metrics(traces[a], traces[b], run.skip, lag, max_lag, lag_signals))
     steady = tuple(steady_state(tr, run.steady_window, run.poc) for tr in traces.values())
     for s in steady:
-        if not s.cond < COND_MAX:
+        if math.isnan(s.cond):
+            notes.append(
+                f"{s.backend}: the analytic force check needs tau and q, and the log has no finite tau or q "
+                "over the steady window; analytic check undefined"
+            )
+        elif not s.cond < COND_MAX:
             notes.append(f"{s.backend}: J_poc is singular at the steady-state pose; analytic check undefined")
     split: tuple[ModeSplit, ...] = ()
     split_run = None

@@ -20,6 +20,7 @@ file and the problem on a missing, malformed or foreign directory.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import logging
 import math
@@ -67,6 +68,7 @@ __all__ = [
     "discard_staged",
     "json_default",
     "load_run",
+    "log_digests",
     "load_trace",
     "metrics_text",
     "out_dir_for",
@@ -529,6 +531,13 @@ def write_metrics(doc: Mapping[str, Any], path: str | Path) -> Path:
     document is plain JSON (NaN written as null).
     """
     return atomic_write_text(Path(path), metrics_text(doc))
+
+
+def log_digests(run_dir: str | Path) -> dict[str, str]:
+    """SHA-256 of each backend log (``*.parquet``) of a run directory, by file name: what its metrics.json
+    was computed from (``logs`` in metrics.json; :func:`legbench.check.check` measures the logs again when
+    they no longer match, whatever the files' times say). Hashing a run's logs takes about 1 ms per MB."""
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(Path(run_dir).glob("*.parquet"))}
 
 
 def metrics_text(doc: Mapping[str, Any]) -> str:
@@ -1037,6 +1046,14 @@ def read_metrics(path: str | Path) -> tuple[dict[str, Any], pd.DataFrame]:
         _string_at(doc, key, key, path)
     _string_at(doc, "contact_mode", "contact_mode", path, ("native", "reference"))
     _check_backends(doc, path)
+    logs = doc.get("logs")
+    if logs is not None and (
+        not isinstance(logs, dict)
+        or not all(
+            isinstance(k, str) and isinstance(v, str) and re.fullmatch(r"[0-9a-f]{64}", v) for k, v in logs.items()
+        )
+    ):
+        raise ResultsError(str(path), "must be an object of log file name -> SHA-256 (64 hex digits)", "logs")
     rows = doc.pop("metrics", None)
     if not isinstance(rows, list) or any(not isinstance(r, dict) or set(r) != set(FRAME_COLUMNS) for r in rows):
         raise ResultsError(str(path), f"'metrics' must be a list of objects with keys {list(FRAME_COLUMNS)}")

@@ -136,8 +136,9 @@ def test_per_signal_tolerance_lookup_prefers_the_component(baseline: Path, tmp_p
 
 def test_a_files_default_overrides_the_built_in_per_signal_tolerance(baseline: Path, tmp_path: Path) -> None:
     """Backend b's Fn 0.005 N lower over the final window: within the built-in steady_mean tolerance for the
-    force (max(abs 0.01 N, 0.5 % of 22.2 N)), so it moves and passes; a file's {abs: {default: 1e-6}, rel: 0} is the user's
-    tolerance for every component and wins over the built-in ``force`` key: the same change fails."""
+    force (max(abs 0.01 N, 0.5 % of 22.2 N)), so it moves and passes; a file's {abs: {default: 1e-6}, rel: 0}
+    is the user's tolerance for every component and wins over the built-in ``force`` key: the same change
+    fails."""
     drop = add_to("fz", lambda t: np.where(t > 1.4, -0.005, 0.0))
     new = tmp_path / "new"
     write_run(new / "fake", {"ref": None, "a": scale(1.02), "b": then(offset(0.01), drop)})
@@ -171,9 +172,8 @@ def test_scenario_sections_match_the_name_or_the_run_label_and_an_unknown_one_is
         report.tolerance_sources["fake__reference"]
         == f"defaults < {tol} scenarios.fake < {tol} scenarios.fake__reference"
     )
-    tol.write_text(
-        "rms: {rel: 1.0}\nscenarios: {fake: {sim_error_pct: {abs: 1.0}}, fake__reference: {sim_error_pct: {abs: 0.1}}}\n"
-    )
+    sections = "{fake: {sim_error_pct: {abs: 1.0}}, fake__reference: {sim_error_pct: {abs: 0.1}}}"
+    tol.write_text(f"rms: {{rel: 1.0}}\nscenarios: {sections}\n")
     assert {r.metric for r in K.check(new, base, tol).regressions} == {"sim_error_pct"}
     tol.write_text("scenarios: {fake: {sim_error_pct: {abs: 1.0}}, fake_reference: {sim_error_pct: {abs: 0.1}}}\n")
     with pytest.raises(ScenarioError, match=r"scenarios\.fake_reference.*matches no scenario checked here"):
@@ -327,6 +327,10 @@ def _broken_copy(baseline: Path, tmp_path: Path, how: str, metrics_newer: bool) 
         log.unlink()
     elif how == "status":
         _set_json(new / "fake" / "run.json", ["backends", "a", "status"], "succeeded")
+    elif how == "perturbed":  # a plausible log of another run: backend a 1.1 x the reference instead of 1.02 x
+        for c in ("q1", "q2", "q3", "fx", "fy", "fz"):
+            df[c] = df[c] * (1.1 / 1.02)
+        df.to_parquet(log, index=False)
     if metrics_newer and log.exists():
         old = (new / "fake" / "metrics.json").stat().st_mtime - 60
         os.utime(log, (old, old))
@@ -376,6 +380,28 @@ def test_a_new_run_whose_log_was_deleted_fails_as_missing(baseline: Path, tmp_pa
     assert [(r.scenario, r.backend) for r in failed] == [("fake", "a")]
     assert f"now missing: run.json says ok but a.parquet is not in {new / 'fake'}" in failed[0].message
     assert "FAIL" in out.getvalue().splitlines()[-1]
+
+
+def test_a_metrics_json_computed_from_other_logs_is_measured_again_whatever_the_file_times(
+    baseline: Path, tmp_path: Path
+) -> None:
+    """Backend a's log replaced by a valid log 8 % further from the reference, with a file time older than
+    metrics.json (a copy that keeps times): metrics.json's SHA-256 of the logs no longer matches, so the
+    check measures the logs again and fails (sim error q1 grows from 2 % to 10 %); a metrics.json written
+    before the digests existed falls back to the file times; a baseline without logs is read as is."""
+    new, _ = _broken_copy(baseline, tmp_path, "perturbed", metrics_newer=True)
+    report = K.check(new, baseline)
+    row = next(r for r in report.regressions if (r.backend, r.label, r.metric) == ("a", "q1", "sim_error_pct"))
+    assert row.baseline == pytest.approx(2.0, rel=1e-9) and row.new == pytest.approx(10.0, rel=1e-9)
+    _set_json(new / "fake" / "metrics.json", ["logs"], None)  # an older metrics.json: no digests
+    old = (new / "fake" / "metrics.json").stat().st_mtime - 60
+    os.utime(new / "fake" / "a.parquet", (old, old))
+    assert K.check(new, baseline).passed  # its time says it is newer than the logs: taken as is
+    committed = tmp_path / "committed"  # the committed layout: metrics.json (with digests) and no logs
+    shutil.copytree(baseline, committed, ignore=shutil.ignore_patterns("*.parquet"))
+    assert json.loads((committed / "fake" / "metrics.json").read_text())["logs"]
+    report = K.check(committed, baseline)
+    assert report.passed and {r.status for r in report.rows} == {"pass"}
 
 
 def test_a_malformed_baseline_run_json_is_the_same_error_as_on_the_new_side(

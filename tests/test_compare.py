@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import warnings
@@ -223,6 +224,65 @@ def test_load_log_time_scale_converts_milliseconds(tmp_path: Path) -> None:
     pd.DataFrame({"t_ms": [0.0, 1.0, 2.0], "q1": 0.0, "q2": 0.0, "q3": 0.0}).to_csv(log, index=False)
     df = logs.load_log(log, column_map={"t_ms": "t"}, time_scale=1e-3)
     np.testing.assert_allclose(df["t"], [0.0, 0.001, 0.002])
+
+
+def test_nan_samples_of_an_imported_log_leave_out_only_those_samples(tmp_path: Path) -> None:
+    """A log of backend a with fx NaN in 3 of 2001 rows (as a ROS bag's force where no wrench covers the time):
+    its fx max |d|, RMS and sim error % are a's over the other 1998 rows, and its steady fx mean is the mean of the
+    window's finite samples (each to 1e-12 relative), not null; every other column equals a's exactly."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.05)})
+    df = pd.read_parquet(d / "a.parquet")
+    gaps = [100, 700, 1500]  # the last one inside the steady window [1.5, 2.0] s
+    df.loc[gaps, "fx"] = np.nan
+    log = tmp_path / "gappy.csv"
+    df.to_csv(log, index=False)
+    res = C.compare(d, log=log)
+    p, pa = res.pair("log:gappy"), res.pair("a")
+    assert p is not None and pa is not None
+    keep = np.ones(len(pa.t), dtype=bool)
+    keep[gaps] = False
+    dx = pa.deviation[keep, 9]
+    np.testing.assert_allclose(p.max_abs[9], np.max(np.abs(dx)), rtol=1e-12)
+    np.testing.assert_allclose(p.rms[9], np.sqrt(np.mean(dx**2)), rtol=1e-12)
+    np.testing.assert_allclose(p.sim_error_pct[9], 100 * np.max(np.abs(dx)) / pa.ref_peak[9], rtol=1e-12)
+    others = np.arange(12) != 9
+    for metric in ("max_abs", "rms", "sim_error_pct", "ref_peak"):
+        np.testing.assert_array_equal(getattr(p, metric)[others], getattr(pa, metric)[others])
+    steady = {s.backend: s for s in res.steady}
+    fx = df["fx"].to_numpy()[df["t"].to_numpy() >= 1.5 - 1e-9]
+    np.testing.assert_allclose(steady["log:gappy"].force[0], np.mean(fx[np.isfinite(fx)]), rtol=1e-12)
+    rows = res.frame().query("backend == 'log:gappy' and signal == 'force' and joint == 'x'")
+    assert rows.query("metric in ['sim_error_pct', 'rms', 'max_abs', 'steady_mean']")["value"].notna().all()
+
+
+def test_column_map_wins_over_the_automatic_match_of_its_target(tmp_path: Path) -> None:
+    """A header with q2 and hip_filtered, column_map {hip_filtered: q2}: q2 is hip_filtered's column exactly and the
+    header's own q2 is ignored (not a clash); two explicit maps to one column still are one."""
+    log = tmp_path / "filtered.csv"
+    pd.DataFrame({"t": [0.0, 0.001, 0.002], "q1": 0.0, "q2": [0.1, 0.2, 0.3], "q3": 0.0,
+                  "hip_filtered": [0.15, 0.25, 0.35]}).to_csv(log, index=False)  # fmt: skip
+    df = logs.load_log(log, {"hip_filtered": "q2"})
+    np.testing.assert_array_equal(df["q2"], [0.15, 0.25, 0.35])
+    with pytest.raises(ResultsError, match=r"several header columns map to \['q2'\]"):
+        logs.load_log(log, {"hip_filtered": "q2", "q2": "q2"})
+
+
+def test_imported_log_without_foot_columns_gets_the_foot_from_q(tmp_path: Path) -> None:
+    """A log of backend a without ee_x..ee_z: its foot centre is a's own (kinematics.fk of q, as the run logs it)
+    to 1e-12 m, in load_log's frame and in the compared trace; a foot column the log has is kept as logged."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.05)})
+    run = pd.read_parquet(d / "a.parquet")
+    ee = list(signals.EE_COLUMNS)
+    log = tmp_path / "noee.csv"
+    run.drop(columns=ee).to_csv(log, index=False)
+    np.testing.assert_allclose(logs.load_log(log)[ee].to_numpy(), run[ee].to_numpy(), rtol=0, atol=1e-12)
+    res = C.compare(d, log=log)
+    np.testing.assert_allclose(res.traces["log:noee"].ee, res.traces["a"].ee, rtol=0, atol=1e-12)
+    partial = tmp_path / "eex.csv"
+    run.drop(columns=ee[1:]).assign(ee_x=run["ee_x"] + 1e-3).to_csv(partial, index=False)
+    got = logs.load_log(partial)[ee].to_numpy()
+    np.testing.assert_array_equal(got[:, 0], run["ee_x"].to_numpy() + 1e-3)  # as logged
+    np.testing.assert_allclose(got[:, 1:], run[ee[1:]].to_numpy(), rtol=0, atol=1e-12)  # from q
 
 
 @pytest.mark.parametrize(
@@ -454,6 +514,22 @@ def test_poc_compensation_vanishes_for_a_vertical_force_and_not_with_friction(tm
         assert {"analytic_poc", "analytic_centre", "poc_compensation", "analytic_residual"} <= set(rows["metric"])
 
 
+def test_a_log_without_torques_gets_a_note_that_the_check_needs_tau_and_q(tmp_path: Path) -> None:
+    """A CSV log with t, q and the force only, at the regular static pose q* (cond(J_poc) ~ 10, far below 1e8): its
+    analytic force is undefined (NaN) and the one note about it says the check needs tau and q, not that J_poc is
+    singular."""
+    d = write_run(tmp_path / "s", {"ref": None}, base=static_base(np.array([3.0, -2.0, -40.0])))
+    log = tmp_path / "notau.csv"
+    pd.read_parquet(d / "ref.parquet")[["t", "q1", "q2", "q3", "fx", "fy", "fz"]].to_csv(log, index=False)
+    res = C.compare(d, log=log)
+    (s,) = (s for s in res.steady if s.backend == "log:notau")
+    assert np.isnan(s.analytic_poc).all()
+    (note,) = (n for n in res.notes if n.startswith("log:notau"))
+    assert "needs tau and q" in note and "singular" not in note
+    (ref,) = (s for s in res.steady if s.backend == "ref")
+    assert ref.cond < 100  # the pose itself is regular
+
+
 def test_steady_state_means_are_over_the_final_window(tmp_path: Path) -> None:
     """qd1 = t: its mean over [1.5, 2.0] s is 1.75 rad/s (1e-12)."""
 
@@ -512,8 +588,9 @@ def test_metrics_json_round_trips_and_keeps_its_documented_keys(tmp_path: Path) 
     head, df = results.read_metrics(path)
     assert list(head) == [
         "schema", "scenario", "name", "contact_mode", "poc", "reference", "skip", "steady_window",
-        "duration", "split_with", "backends", "notes", "columns",
+        "duration", "split_with", "backends", "logs", "notes", "columns",
     ]  # fmt: skip
+    assert head["logs"] == {n: hashlib.sha256((d / n).read_bytes()).hexdigest() for n in ("a.parquet", "ref.parquet")}
     assert head["schema"] == results.METRICS_SCHEMA and head["columns"] == list(results.FRAME_COLUMNS)
     pd.testing.assert_frame_equal(df, res.frame().astype({"value": float}), check_dtype=False)
     metrics = set(df["metric"])
