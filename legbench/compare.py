@@ -236,7 +236,7 @@ def compare(
             for b in traces:
                 if a != b and b != reference:
                     pairs.append(pair_metrics(traces[a], traces[b], run.skip, lag, max_lag, lag_signals))
-    steady = tuple(steady_state(tr, run.steady_window, run.poc) for tr in traces.values())
+    steady = tuple(steady_state(tr, run.steady_window, run.poc, run.gravity) for tr in traces.values())
     for s in steady:
         if math.isnan(s.cond):
             notes.append(

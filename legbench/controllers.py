@@ -17,7 +17,10 @@ very same functions as Python, the reference. One implementation of each law.
 
 The effort controller's gravity torque G(q) is Pinocchio's algorithm on the
 model's numbers, on floats (:func:`legbench.kinematics.gravity_scalar`), so
-that law too is plain arithmetic.
+that law too is plain arithmetic. Its gravity is the one given to
+:func:`make_controller`, which the caller takes from the scenario
+(``physics.gravity``, the value the backends simulate); without one, the leg
+parameter file's 9.81 m/s^2.
 """
 
 from __future__ import annotations
@@ -161,8 +164,9 @@ def trajectory_law(
 
 
 # effort params after the header: h_d in W [N], the first tick with it, L_12, L_23, L_3E [m], then the
-# model's numbers for G(q) (kinematics.gravity_arrays)
+# model's numbers for G(q) (kinematics.gravity_arrays), whose last three are -g in W [m/s^2]
 E_H, E_K_FORCE, E_L, E_G = P_BODY, P_BODY + 3, P_BODY + 4, P_BODY + 7
+E_G_ACC = E_G + GRAVITY_SIZE - 3
 
 
 def effort_law(k: int, q1: float, q2: float, q3: float, p: np.ndarray) -> tuple[float, float, float]:
@@ -243,7 +247,9 @@ class PID:
 
     e = d(q, q_des) (angular distance on the continuous hip), edot = (e - e_prev) / Ts,
     I += e Ts (forward Euler), u = Kp e + Kd edot + Ki I. On activation e_prev is set
-    to the first error, so a new target does not give a one-tick derivative kick.
+    to the first error, so a new target does not give a one-tick derivative kick (one
+    ros_control PID carried across the target change would; docs/spec.md section 6 gives
+    the decision and its measured effect).
     """
 
     def __init__(self, gains: Gains, Ts: float, params: LegParams | None = None) -> None:
@@ -284,7 +290,7 @@ class PositionController(Controller):
         else:
             self.q_des = kinematics.ik_nearest(np.array(self.event.cartesian), q)
         self.params[P_BODY : P_BODY + 3] = self.q_des
-        self.state[:] = 0.0
+        self.state[:] = 0.0  # a fresh PID per event: no derivative kick at the new target (docs/spec.md section 6)
 
 
 def waypoint_velocities(Q: np.ndarray, times: np.ndarray, v_start: np.ndarray) -> np.ndarray:
@@ -380,12 +386,14 @@ class EffortController(Controller):
 
     With the event's ``force_delay`` [s], h_d is zero for that many control periods
     after the switch (tau = G(q): gravity compensation only), then the event's force.
-    G(q) is Pinocchio's algorithm on floats (:func:`legbench.kinematics.gravity_scalar`).
+    G(q) is Pinocchio's algorithm on floats (:func:`legbench.kinematics.gravity_scalar`) for the
+    gravity ``gravity`` [m/s^2] along -z_W: the scenario's ``physics.gravity``, the one the backend
+    simulates (None: the leg parameter file's, 9.81).
     """
 
     name = "effort"
 
-    def __init__(self, event: Event, Ts: float = 1e-3) -> None:
+    def __init__(self, event: Event, Ts: float = 1e-3, gravity: float | None = None) -> None:
         self.h_d = np.array(event.force, dtype=float)
         leg = load_params()
         g = leg.geometry
@@ -394,6 +402,8 @@ class EffortController(Controller):
         self.k_force = 0  # first tick with the event's force
         self.params = _header(EFFORT, Ts, None, leg, 7 + GRAVITY_SIZE)
         self.params[E_G : E_G + GRAVITY_SIZE] = gravity_arrays()
+        if gravity is not None:  # G(q) is linear in g: the root's upward acceleration -g in W is (0, 0, g)
+            self.params[E_G_ACC : E_G_ACC + 3] = 0.0, 0.0, float(gravity)
         self.params[E_H : E_H + 3] = self.h_d
         self.params[E_L : E_L + 3] = g.L_12, g.L_23, g.L_3E
         self.state = np.zeros(S_SIZE)
@@ -426,14 +436,15 @@ class TorqueController(Controller):
         self.params[O_K0] = int(round(t / self.Ts))
 
 
-def make_controller(event: Event, gains: Gains, Ts: float, n_ticks: int) -> Controller:
-    """The controller an event asks for."""
+def make_controller(event: Event, gains: Gains, Ts: float, n_ticks: int, gravity: float | None = None) -> Controller:
+    """The controller an event asks for; ``gravity`` [m/s^2] is the scenario's ``physics.gravity`` (the effort
+    controller's G(q); None: the leg parameter file's)."""
     if event.controller == "position":
         return PositionController(event, gains, Ts)
     if event.controller == "trajectory":
         return TrajectoryController(event, gains, Ts, n_ticks)
     if event.controller == "effort":
-        return EffortController(event, Ts)
+        return EffortController(event, Ts, gravity)
     if event.controller == "torque":
         return TorqueController(event, Ts)
     raise ValueError(f"unknown controller {event.controller!r}")

@@ -221,12 +221,19 @@ def _same_grid(t1: np.ndarray, t2: np.ndarray) -> bool:
     return len(t1) == len(t2) and bool(np.all(np.abs(t1 - t2) <= T_EPS))
 
 
-def _resample(t: np.ndarray, x: np.ndarray, grid: np.ndarray) -> np.ndarray:
-    """Linear interpolation of each column of x (N, k) onto ``grid`` (inside [t0, tN])."""
+def _resample(t: np.ndarray, x: np.ndarray, grid: np.ndarray, wrap: np.ndarray | None = None) -> np.ndarray:
+    """Linear interpolation of each column of x (N, k) onto ``grid`` (inside [t0, tN]).
+
+    The ``wrap`` columns (angles of continuous joints) are unwrapped first, so a log that wraps the
+    hip to [-pi, pi) is not interpolated straight across the jump; :func:`deviation` wraps their
+    differences again, so wrapped and unwrapped logs agree.
+    """
     if _same_grid(t, grid):
         return x
     g = np.clip(grid, t[0], t[-1])
-    return np.column_stack([np.interp(g, t, x[:, j]) for j in range(x.shape[1])])
+    w = np.zeros(x.shape[1], dtype=bool) if wrap is None else np.asarray(wrap, dtype=bool)
+    cols = [np.unwrap(x[:, j]) if w[j] and np.isfinite(x[:, j]).all() else x[:, j] for j in range(x.shape[1])]
+    return np.column_stack([np.interp(g, t, c) for c in cols])
 
 
 def _common_grid(ref_t: np.ndarray, *spans: np.ndarray, source: str = "") -> np.ndarray:
@@ -238,13 +245,16 @@ def _common_grid(ref_t: np.ndarray, *spans: np.ndarray, source: str = "") -> np.
     return grid
 
 
-def align(a: RunResult, ref: RunResult, shift: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def align(
+    a: RunResult, ref: RunResult, shift: float = 0.0, wrap: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Put two traces on one time grid.
 
     The grid is the reference's ticks inside the common span; ``a`` is linearly
     interpolated onto it (no interpolation when both share the grid, as engine
     runs do). A lag ``shift`` [s] is removed from ``a`` first (its time stamps
-    become t - shift).
+    become t - shift). ``wrap``: the columns that are angles on a circle, unwrapped
+    before interpolating (default: :func:`wrap_mask`).
 
     Returns:
         (t, x_a, x_ref): grid (M,) [s] and the two (M, 12) data blocks.
@@ -255,7 +265,7 @@ def align(a: RunResult, ref: RunResult, shift: float = 0.0) -> tuple[np.ndarray,
     ta = a.t - shift
     grid = _common_grid(ref.t, ta, source=a.source or a.backend)
     xr = ref.data if len(grid) == len(ref.t) else ref.data[np.searchsorted(ref.t, grid[0] - T_EPS) :][: len(grid)]
-    return grid, _resample(ta, a.data, grid), xr
+    return grid, _resample(ta, a.data, grid, wrap_mask() if wrap is None else wrap), xr
 
 
 def _uniform_pair(a: RunResult, ref: RunResult, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -267,7 +277,8 @@ def _uniform_pair(a: RunResult, ref: RunResult, cols: np.ndarray) -> tuple[np.nd
     if hi - lo < 2 * dt:
         raise ResultsError(a.source or a.backend, f"time spans of {a.backend} and {ref.backend} do not overlap")
     grid = lo + dt * np.arange(int(math.floor((hi - lo) / dt + 1e-9)) + 1)
-    return grid, _resample(a.t, a.data[:, cols], grid), _resample(ref.t, ref.data[:, cols], grid)
+    w = wrap_mask()[cols]
+    return grid, _resample(a.t, a.data[:, cols], grid, w), _resample(ref.t, ref.data[:, cols], grid, w)
 
 
 def estimate_lag(a: RunResult, ref: RunResult, max_lag: float = 0.1, signals: Sequence[str] = ("q",)) -> LagEstimate:
@@ -451,7 +462,7 @@ def pair_metrics(
     check_lag_mode(lag)
     est = estimate_lag(a, ref, max_lag, lag_signals) if lag != "off" else None
     shift = est.seconds if (est is not None and lag == "remove") else 0.0
-    t, xa, xr = align(a, ref, shift)
+    t, xa, xr = align(a, ref, shift, wrap)
     d = deviation(xa, xr, wrap)
     sel = t >= skip - T_EPS
     ds, rs, ts = d[sel], xr[sel], t[sel]
@@ -478,7 +489,7 @@ def pair_metrics(
     )
 
 
-def steady_state(trace: RunResult, window: float, poc: str = "true") -> SteadyState:
+def steady_state(trace: RunResult, window: float, poc: str = "true", gravity: float | None = None) -> SteadyState:
     """Means over the final ``window`` [s] of ``trace``, and the analytic force check.
 
     The window is the closed interval [t_end - window, t_end] (both ends included: 501 ticks for
@@ -488,8 +499,11 @@ def steady_state(trace: RunResult, window: float, poc: str = "true") -> SteadySt
     (valid when the leg is static: qd ~ 0 and no acceleration) and reports the
     ground force on the foot, -h. With ``poc == "centre"`` it also does so with
     J_E, the foot centre's Jacobian, which is what a contact law taking the poc
-    at the sphere centre applies.
+    at the sphere centre applies. G(q) is for the run's ``gravity`` [m/s^2] along
+    -z_W (None: the leg parameter file's; G is linear in it).
     """
+    g_file = load_params().gravity
+    g_scale = 1.0 if gravity is None or gravity == g_file else gravity / g_file
     sel = trace.t >= trace.t[-1] - window - T_EPS
     avg = mean(trace.data[sel])
     q, qd, tau, force = (avg[SLICE[s]] for s in SIGNALS)
@@ -501,7 +515,8 @@ def steady_state(trace: RunResult, window: float, poc: str = "true") -> SteadySt
         cond = float(np.linalg.cond(J))
         if not cond < COND_MAX:
             return np.full(3, np.nan), cond
-        h = np.linalg.solve(J.T, tau - kinematics.gravity(q))
+        G = kinematics.gravity(q) if g_scale == 1.0 else g_scale * kinematics.gravity(q)
+        h = np.linalg.solve(J.T, tau - G)
         return -h, cond
 
     f_poc, cond = ground_force(True)
@@ -533,8 +548,8 @@ def contact_split(native: Run, refmode: Run, reference: str | None = None) -> tu
             continue
         ar = refmode.traces[name]
         grid = _common_grid(rn.t, an.t, ar.t, rr.t, source=str(native.path))
-        xrn, xan = _resample(rn.t, rn.data, grid), _resample(an.t, an.data, grid)
-        xar, xrr = _resample(ar.t, ar.data, grid), _resample(rr.t, rr.data, grid)
+        xrn, xan = _resample(rn.t, rn.data, grid, wrap), _resample(an.t, an.data, grid, wrap)
+        xar, xrr = _resample(ar.t, ar.data, grid, wrap), _resample(rr.t, rr.data, grid, wrap)
         sel = grid >= native.skip - T_EPS
         parts = {
             "native": deviation(xan, xrn, wrap)[sel],

@@ -44,7 +44,7 @@ from legbench import backends as registry
 from legbench import kinematics
 from legbench.contact import ContactParams
 from legbench.exceptions import LegbenchError, ResultsError
-from legbench.model import URDF_FILE
+from legbench.model import URDF_FILE, load_params
 from legbench.scenario import DEFAULT_REFERENCE, Scenario
 from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS, SLICE
 
@@ -629,6 +629,13 @@ class Run:
     def tolerances(self) -> Mapping[str, Any]:
         """``scenario.comparison.tolerances`` of run.json (empty if absent)."""
         return tolerances_of(self.meta)
+
+    @property
+    def gravity(self) -> float:
+        """``scenario.gravity`` of run.json [m/s^2], the gravity the backends simulated along -z_W (the leg
+        parameter file's where run.json has none)."""
+        g = (self.meta.get("scenario") or {}).get("gravity")
+        return float(g) if isinstance(g, int | float) and not isinstance(g, bool) else load_params().gravity
 
 
 def tolerances_of(meta: Mapping[str, Any]) -> Mapping[str, Any]:

@@ -96,7 +96,9 @@ def simulate(
     tau_out.flags.writeable = False
     ticks = [int(round(e.t_switch / Ts)) for e in scenario.events]  # a delayed event switches late
     names = [e.controller for e in scenario.events]
-    controllers: list[Controller] = [make_controller(e, scenario.gains, Ts, n) for e in scenario.events]
+    controllers: list[Controller] = [
+        make_controller(e, scenario.gains, Ts, n, scenario.gravity) for e in scenario.events
+    ]
     backend.reset(np.array(scenario.q0), np.array(scenario.qd0))
     read, step, control = backend.read, backend.step, tick.tick
     active = controllers[0]

@@ -66,6 +66,7 @@ def write_run(
     failed: Mapping[str, str] | None = None,
     base: Base = base_signals,
     events: Sequence[Mapping[str, Any]] = EVENTS,
+    gravity: float | None = None,
 ) -> Path:
     """Write a fake run directory and return it.
 
@@ -109,6 +110,7 @@ def write_run(
                 "tolerances": dict(tolerances or {}),
             },
             "contact": {"Kp": 1e4, "Kd": 100.0, "mu_s": 0.7, "mu_k": 0.6, "v_th": 0.01, "poc": poc},
+            **({} if gravity is None else {"gravity": gravity}),
         },
         "backends": entries,
         "platform": {"python": "3.11", "machine": "test"},

@@ -468,10 +468,11 @@ def test_all_pairs_measures_every_ordered_pair(tmp_path: Path) -> None:
 Q_STAR = np.array([-0.0025, -1.1899, -1.2599])
 
 
-def static_base(h: np.ndarray, poc_true: bool = True) -> Base:
-    """The leg at rest at q*: tau = G(q*) + J^T h, ground force on the foot -h."""
+def static_base(h: np.ndarray, poc_true: bool = True, g_scale: float = 1.0) -> Base:
+    """The leg at rest at q*: tau = G(q*) + J^T h, ground force on the foot -h (G for g_scale x the leg
+    file's gravity: G is linear in g)."""
     J = kinematics.jacobian_poc(Q_STAR, true_poc=poc_true)
-    tau = kinematics.gravity(Q_STAR) + J.T @ h
+    tau = g_scale * kinematics.gravity(Q_STAR) + J.T @ h
 
     def base(t: np.ndarray) -> np.ndarray:
         row = np.concatenate([Q_STAR, np.zeros(3), tau, -h])
@@ -490,6 +491,18 @@ def test_analytic_check_recovers_the_ground_force_of_a_static_pose(tmp_path: Pat
     np.testing.assert_allclose(s.force, -h, rtol=1e-15)
     assert s.analytic_centre is None and s.poc_compensation is None  # the run's poc is the true one
     assert s.t0 == pytest.approx(1.5) and s.t1 == pytest.approx(2.0)
+
+
+def test_analytic_check_uses_the_runs_gravity(tmp_path: Path) -> None:
+    """The same static pose simulated under Mars gravity (3.71 m/s^2, run.json's scenario.gravity): the check
+    subtracts that G(q*), not the leg file's 9.81 one, and recovers -h within 1e-9 N (with 9.81 it would be
+    off by (J^T)^-1 (G_9.81 - G_3.71), newtons)."""
+    h = np.array([3.0, -2.0, -40.0])
+    d = write_run(tmp_path / "s", {"ref": None}, base=static_base(h, g_scale=3.71 / 9.81), gravity=3.71)
+    (s,) = C.compare(d).steady
+    np.testing.assert_allclose(s.analytic_poc, -h, atol=1e-9)
+    J = kinematics.jacobian_poc(Q_STAR, true_poc=True)
+    assert np.linalg.norm(np.linalg.solve(J.T, (1 - 3.71 / 9.81) * kinematics.gravity(Q_STAR))) > 1.0
 
 
 def test_poc_compensation_vanishes_for_a_vertical_force_and_not_with_friction(tmp_path: Path) -> None:
@@ -603,3 +616,23 @@ def test_read_metrics_rejects_a_wrong_schema(tmp_path: Path) -> None:
     f.write_text(json.dumps({"schema": "other/9", "metrics": []}))
     with pytest.raises(ResultsError, match="schema is 'other/9'"):
         results.read_metrics(f)
+
+
+def test_a_log_that_wraps_the_hip_is_not_interpolated_across_the_jump() -> None:
+    """The hip (q2, continuous) ramping 3.0 -> 3.3 rad through pi: the reference logs it unwrapped at 1 kHz,
+    an imported log wrapped to [-pi, pi) at 500 Hz on grid points offset by 1 ms... half a reference tick.
+    Linear interpolation of a ramp is exact, so the deviation is round-off (< 1e-9 rad), not the 1.57 rad
+    of interpolating straight across the -2 pi jump."""
+    t_ref = np.arange(0.0, 1.0 + 1e-12, 1e-3)
+    t_a = np.arange(0.0005, 1.0, 2e-3)
+
+    def frame_of(t: np.ndarray, wrap: bool) -> pd.DataFrame:
+        q2 = 3.0 + 0.3 * t
+        q2 = np.mod(q2 + np.pi, 2 * np.pi) - np.pi if wrap else q2
+        return pd.DataFrame({"t": t, "q1": 0.1 * t, "q2": q2, "q3": -1.0 + 0.2 * t})
+
+    ref = results.result_from_frame(frame_of(t_ref, False), "ref", required=["t", "q1", "q2", "q3"])
+    a = results.result_from_frame(frame_of(t_a, True), "a", required=["t", "q1", "q2", "q3"])
+    assert np.ptp(a.q[:, 1]) > 6.0  # the log really wraps
+    p = metrics.pair_metrics(a, ref)
+    assert np.nanmax(np.abs(p.deviation[:, signals.LABELS.index("q2")])) < 1e-9

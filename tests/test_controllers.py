@@ -3,16 +3,19 @@
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from scipy.interpolate import CubicHermiteSpline
 
 from legbench import kinematics as K
+from legbench import model, resources, scenario
 from legbench.controllers import (
     PID,
     EffortController,
     TorqueController,
     TrajectoryController,
     joint_waypoints,
+    make_controller,
     saturate,
     waypoint_velocities,
 )
@@ -99,6 +102,32 @@ def test_effort_controller_is_jt_h_plus_gravity() -> None:
     ctrl = EffortController(Event(0.0, "effort", force=(0.0, 0.0, -100.0)))
     tau = ctrl(0, q, np.zeros(3))
     np.testing.assert_allclose(tau, K.jacobian(q).T @ [0, 0, -100.0] + K.gravity(q), atol=1e-12)
+
+
+def test_effort_controller_compensates_the_scenarios_gravity() -> None:
+    """G(q) of tau = Jv^T h_d + G(q) is for the scenario's physics.gravity, the gravity the backends simulate.
+
+    A scenario (the effort task) with physics.gravity = 3.71 m/s^2: the torque at q* equals
+    Jv^T h_d + G(q) of a Pinocchio model at 3.71 m/s^2 to 1e-12 N m (G(q) from the leg file's 9.81 is off
+    by up to 0.65 N m there). The default scenario (9.81) and no gravity given keep the leg file's G(q),
+    bit for bit.
+    """
+    q = np.array([-0.0025, -1.1899, -1.2599])
+    h_d = np.array([0.0, 0.0, -100.0])
+    sc = scenario.load(resources.scenario("effort"), {"physics.gravity": 3.71})
+    gravity = scenario.physics_of(sc).gravity
+    assert gravity == 3.71
+    ctrl = make_controller(sc.events[0], sc.gains, sc.control_dt, sc.n_ticks, gravity)
+    ctrl.start(0.0, q, np.zeros(3))
+    mars = model.pinocchio_model(gravity=3.71)
+    G = pin.computeGeneralizedGravity(mars, mars.createData(), model.q_to_pin(q))
+    np.testing.assert_allclose(ctrl(0, q, np.zeros(3)), K.jacobian(q).T @ h_d + G, rtol=0, atol=1e-12)
+    default = scenario.load(resources.scenario("effort"))
+    earth = make_controller(default.events[0], default.gains, default.control_dt, default.n_ticks,
+                            scenario.physics_of(default).gravity)  # fmt: skip
+    unset = EffortController(Event(0.0, "effort", force=(0.0, 0.0, -100.0)))
+    np.testing.assert_array_equal(earth.params, unset.params)
+    np.testing.assert_allclose(unset(0, q, np.zeros(3)), K.jacobian(q).T @ h_d + K.gravity(q), rtol=0, atol=1e-12)
 
 
 def test_torque_controller_is_open_loop_sinusoids_from_its_activation() -> None:

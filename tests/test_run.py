@@ -167,6 +167,20 @@ def test_delayed_switch_and_force_delay_tau_is_gravity_compensation() -> None:
     assert np.abs(tr.tau[270] - kinematics.gravity(tr.q[270])).max() > 0.1  # the force is on
 
 
+def test_the_effort_controller_compensates_the_scenarios_gravity() -> None:
+    """physics.gravity 3.71 m/s^2 (Mars): the run loop gives the effort controller the scenario's gravity, so
+    from its first tick tau = J^T h_d + G(q) with G for 3.71, not the leg file's 9.81 (to 1e-12 N m; the
+    two differ by about 0.6 N m at this pose)."""
+    h_d = [0.0, 0.0, -5.0]
+    doc = {**DOC, "physics": {"gravity": 3.71}, "events": [DOC["events"][0], {"t": 0.25, "effort": {"force": h_d}}]}
+    tr, _ = _simulate(doc)
+    scale = 3.71 / load_params().gravity
+    for k in (250, 275, 300):
+        expect = kinematics.jacobian(tr.q[k]).T @ np.array(h_d) + scale * kinematics.gravity(tr.q[k])
+        np.testing.assert_allclose(tr.tau[k], np.clip(expect, -LIMIT, LIMIT), rtol=0, atol=1e-12)
+    assert np.abs((1 - scale) * kinematics.gravity(tr.q[250])).max() > 0.1
+
+
 def test_backend_warnings_reach_run_json_and_residuals_reach_metrics(tmp_path: Path) -> None:
     """Explicit stick-slip friction at 50 us is coarser than m v_th / (mu_s Fn) on the effort task: the backend
     says so and run.json keeps it; the implicit default gives no warning. The law's own backend follows the

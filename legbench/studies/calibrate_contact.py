@@ -120,7 +120,7 @@ def push(name: str, program: Program = Program(), scenario_file: Path = SCENARIO
             Q[k], QD[k], F[k] = q, qd, backend.ground_force()
             h = tuple(program.h_d(t[k], sc.contact.mu_s).tolist())
             if ctrl is None or h != h_prev:  # a new effort event whenever h_d changes (every tick of the ramp)
-                ctrl, h_prev = EffortController(Event(float(t[k]), "effort", force=h)), h
+                ctrl, h_prev = EffortController(Event(float(t[k]), "effort", force=h), gravity=sc.gravity), h
                 ctrl.start(float(t[k]), q, qd)
             raw = np.asarray(ctrl(k, q, qd), float)
             saturated += int(np.any(np.abs(raw) > limit))

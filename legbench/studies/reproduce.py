@@ -236,7 +236,7 @@ def backend_poc(run_: Run, name: str) -> str:
 
 def steady_of(run_: Run, name: str) -> SteadyState:
     """The steady state of one backend over the scenario's window, its check at its own poc."""
-    return steady_state(run_.traces[name], run_.steady_window, backend_poc(run_, name))
+    return steady_state(run_.traces[name], run_.steady_window, backend_poc(run_, name), run_.gravity)
 
 
 def table10(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
