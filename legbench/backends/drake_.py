@@ -41,12 +41,20 @@ penetration. Both get the same friction and Hunt-Crossley dissipation.
   (below) it; it also damps while releasing.
 - Friction: the discrete solvers use only Drake's dynamic coefficient, set to
   ``mu_s`` (the foot holds up to mu_s Fn, like the other Coulomb engines).
-  TAMSI and the continuous plant regularise friction over
-  ``stiction_tolerance``, set to the spec's v_th (the slope near zero is
-  2 mu / v_s against mu_s / v_th in the spec); the continuous plant's Stribeck
-  curve drops from mu_s at v_s to mu_k (``CoulombFriction(mu_s, mu_k)``) at
-  3 v_s, where the spec's drops at 1.5 v_th. SAP regularises friction with its
-  own regularisation: the foot sticks (measured creep 0.004 mm/s in the effort task).
+  All but SAP regularise friction over ``stiction_tolerance`` v_s, chosen by
+  :func:`stiction_tolerance` so that the slope near zero slip is the spec's
+  mu_s / v_th, and with it the creep under small tangential loads: TAMSI's
+  mu s (2 - s), s = v / v_s, rises as 2 mu v / v_s, so v_s = 2 v_th (with
+  v_s = v_th it crept at half the law's speed: measured 0.52 x the law, now
+  1.04 x, 40 N press with 0.13 of the friction limit); lagged and similar
+  (mu s / sqrt(1 + s^2)) take v_th (1.01 x). The continuous plant's point
+  contact follows mu_s step5(s), which starts cubic, with no slope to match:
+  v_th (2.1 x the law's creep at 0.13 of the friction limit, 1.03 x at 0.47);
+  it drops to mu_k (``CoulombFriction(mu_s, mu_k)``) from v_s to 3 v_s, where
+  the spec's drops at 1.5 v_th. Its hydroelastic contact follows
+  mu_k 2/pi atan(s): v_s = 2 mu_k v_th / (pi mu_s) (1.03 x; 1.89 x at v_th).
+  SAP regularises friction with its own regularisation: the foot sticks
+  (measured creep 0.004 mm/s in the effort task).
 
 Hydroelastic option (``contact_model = "hydroelastic"``): the foot is a compliant
 hydroelastic sphere (``hydroelastic_modulus`` E, mesh ``resolution_hint``) on a
@@ -54,9 +62,12 @@ rigid half-space. Its pressure field is E times the depth-fraction inside the
 sphere, so the force at penetration x is F(x) = 2 pi E / R (R a^2 / 2 - (R^3 - h^3) / 3),
 h = R - x, a^2 = R^2 - h^2 (about pi E x^2: stiffening, not a linear spring).
 E is chosen so that F(x_ref) = Kp x_ref, and the relaxation time (SAP) as
-Kd / F'(x_ref) so the linearised damping is Kd at x_ref; Hunt-Crossley d as for
-point contact. The tessellated sphere makes the force differ from the formula
-by the mesh resolution (measured in docs/backends/drake.md).
+Kd / F'(x_ref) so the linearised damping is Kd at x_ref. Hunt-Crossley scales
+the pressure, p = p_e (1 + d xdot), so the force F(x) (1 + d xdot) damps with
+F(x) d: d = Kd / F(x_ref), as for point contact (measured 99.7 N s/m at x_ref;
+the former Kd / (F'(x_ref) x_ref) gave 54.6). The tessellated sphere makes the
+force differ from the formula by the mesh resolution (measured in
+docs/backends/drake.md).
 
 Reference contact (``contact_mode = "reference"``): no ground geometry; before
 every discrete update (sub-step) ``J_poc^T F`` of
@@ -103,7 +114,7 @@ from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from legbench.backends.base import Backend, Limits, Physics, check_finite, sub_step_count
-from legbench.contact import ReferenceContact
+from legbench.contact import ContactParams, ReferenceContact
 from legbench.exceptions import LegbenchError
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine, load_params
 
@@ -133,6 +144,25 @@ def hydro_stiffness_per_modulus(x: float, R: float) -> float:
     return 2.0 * math.pi * h * x / R
 
 
+def stiction_tolerance(solver: str, contact_model: str, contact: ContactParams) -> float:
+    """Drake's ``stiction_tolerance`` v_s [m/s] that gives its regularised friction the spec's slope near
+    zero slip, mu_s / v_th (so the same creep under small tangential loads), from Drake 1.51's curves:
+
+    - TAMSI: mu s (2 - s), s = v / v_s (``tamsi_solver.h``), slope 2 mu / v_s: v_s = 2 v_th;
+    - lagged, similar: mu s / sqrt(1 + s^2) (``sap_hunt_crossley_constraint.h``), slope mu / v_s: v_th;
+    - continuous, hydroelastic: mu_k 2/pi atan(s) (``hydroelastic_traction_calculator.cc``, the dynamic
+      coefficient), slope 2 mu_k / (pi v_s): v_s = 2 mu_k v_th / (pi mu_s);
+    - continuous, point: mu_s step5(s) (``MultibodyPlant::StribeckModel``), a cubic start with no slope at
+      zero, so none matches; v_th (measured creep 1.03 x the law's at 0.47 of the friction limit, 2.1 x at 0.13);
+    - SAP: not read (it regularises friction itself); v_th.
+    """
+    if solver == "tamsi":
+        return 2.0 * contact.v_th
+    if solver == "continuous" and contact_model == "hydroelastic" and contact.mu_k > 0:
+        return 2.0 * contact.mu_k * contact.v_th / (math.pi * contact.mu_s)
+    return float(contact.v_th)
+
+
 class DrakeBackend(Backend):
     """Drake (MultibodyPlant; SAP, TAMSI or continuous) simulating the leg."""
 
@@ -145,7 +175,7 @@ class DrakeBackend(Backend):
         "contact_model": "point",  # "point" or "hydroelastic"
         "contact_params": "mapped",  # "mapped" (module docstring) or "usual" (engine-defaults)
         "hc_reference_depth": 5.0e-3,  # x_ref [m] at which Hunt-Crossley (and hydroelastic) damping equals Kd
-        "stiction_tolerance": None,  # regularisation speed v_s [m/s] (TAMSI, continuous); None: the spec's v_th
+        "stiction_tolerance": None,  # friction regularisation speed v_s [m/s]; None: stiction_tolerance()
         "accuracy": 1.0e-6,  # continuous: target accuracy of the error-controlled runge_kutta3
         "resolution_hint": 5.0e-3,  # hydroelastic: mesh edge length of the foot sphere [m]
         "sap_near_rigid_threshold": 1.0,  # SAP's near-rigid regime threshold (Drake's default)
@@ -196,7 +226,11 @@ class DrakeBackend(Backend):
         self.continuous = cfg["solver"] == "continuous"
         self.n_sub = 1 if self.continuous else sub_step_count(self.name, cfg["dt"], physics.control_dt)
         c = physics.contact
-        self.v_s = float(c.v_th if cfg["stiction_tolerance"] is None else cfg["stiction_tolerance"])
+        self.v_s = float(
+            stiction_tolerance(cfg["solver"], cfg["contact_model"], c)
+            if cfg["stiction_tolerance"] is None
+            else cfg["stiction_tolerance"]
+        )
         usual = cfg["contact_params"] == "usual"
 
         plant_cfg = MultibodyPlantConfig(
@@ -322,7 +356,9 @@ class DrakeBackend(Backend):
         elif self.cfg["contact_model"] == "hydroelastic":
             E = c.Kp * x_ref / hydro_force_per_modulus(x_ref, R)
             k_lin = E * hydro_stiffness_per_modulus(x_ref, R)
-            d = c.Kd / (k_lin * x_ref)
+            # Hunt-Crossley scales the elastic pressure, p = p_e (1 + d xdot), so the force F(x) (1 + d xdot)
+            # damps with F(x) d: Kd at x_ref for d = Kd / F(x_ref) (F(x_ref) = Kp x_ref, as for point contact)
+            d = c.Kd / (E * hydro_force_per_modulus(x_ref, R))
             tau_d = c.Kd / k_lin
             AddContactMaterial(dissipation=d, friction=self._friction(), properties=props)
             props.AddProperty("material", "relaxation_time", tau_d)
