@@ -56,7 +56,8 @@ _DETECTORS = {
     "ode": dart.collision.OdeCollisionDetector,
 }
 _LCP = ("dantzig", "pgs")
-#: Ground box: half-extent [m] in x and y, thickness [m]; its top face is z_W = 0.
+#: Ground box: full size [m] in x and y (BoxShape takes the full edge lengths), thickness [m]; its top face is
+#: z_W = 0.
 GROUND_SIZE = (20.0, 20.0, 1.0)
 
 

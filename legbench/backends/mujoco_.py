@@ -46,7 +46,8 @@ from sub-step to sub-step at the cone's edge, so any single read is wrong
 (13.2, 25.8, 52.9) N where the statics said (5.6, -8.7, 53.1) N): only ``mean`` is
 right then (0.18 % of Fn), and :meth:`warnings` says so. In the
 profiles the friction does not alternate and all three agree. Measured against
-the leg's statics h = -(J_poc^T)^-1 (tau - G(q)) over the effort task's last
+the leg's statics F = -(J_poc^T)^-1 (tau - G(q)) (the ground's force on the foot; the
+spec's h, the force the foot exerts, is -F) over the effort task's last
 0.5 s: 0.2 % of Fn (matched), 0.01 % (engine-defaults); the 0.2 % is MuJoCo's
 contact point, which sits in the middle of the penetration, y/2 above the true
 poc (``contact_point_lift``). With ``rk4`` the forces are those of a step's first stage.

@@ -105,8 +105,8 @@ class OdeBackend(Backend):
     """The Open Dynamics Engine (through the odepy ctypes binding) simulating the leg."""
 
     name: ClassVar[str] = "ode"
-    #: ODE's contact friction here is the pyramid mu = mu2 = mu_s (dContactApprox1 off): one coefficient,
-    #: each of the two friction directions limited on its own.
+    #: ODE's contact friction here is the pyramid mu = mu2 = mu_s (dContactApprox1 on: each bound is mu times
+    #: the normal force): one coefficient, each of the two friction directions limited on its own.
     sliding_coefficient: ClassVar[str] = "mu_s"
     friction_cone: ClassVar[str] = "pyramid"
     install: ClassVar[str] = INSTALL
