@@ -211,6 +211,11 @@ def _task(args: tuple[Scenario, str, str | None, bool]) -> RunResult:
 BASELINE_ROOT = Path("results") / "baseline"
 
 
+def _crashed(task: tuple[Scenario, str, str | None, bool], why: str) -> RunResult:
+    """The result of a run whose worker process died under it (the engine crashed): failed, with why."""
+    return RunResult.empty(task[1], "failed", f"the engine crashed: {why}")
+
+
 def cost_hints(
     out_dirs: Sequence[Path | None], roots: Sequence[Path] = (BASELINE_ROOT,)
 ) -> dict[tuple[str, str], float]:
@@ -321,7 +326,9 @@ def run_many(
     run of it, :func:`cost_hints`), so no long run is left alone at the end.
     Results are put back in input order, so the output is the same
     (bit-identical logs) for any ``jobs``. A failing backend is logged up to its
-    failure and the others still run. ``progress``: with ``jobs > 1`` an overall
+    failure and the others still run; one whose engine crashes its worker process
+    (a segmentation fault) is marked failed and the others run on
+    (:meth:`~legbench.studies.executors.LocalExecutor.imap_unordered`). ``progress``: with ``jobs > 1`` an overall
     count with the ETA, with ``jobs = 1`` each run's bar, both only on a terminal
     and outside CI (:mod:`legbench.progress`).
 
@@ -359,7 +366,7 @@ def run_many(
     pool = pool if pool is not None else LocalExecutor(max(jobs, 1))
     with progress_mod.bar(len(plan), "runs", quiet=not progress or jobs <= 1) as bar:
         try:
-            for j, tr in pool.imap_unordered(_task, tasks, first):
+            for j, tr in pool.imap_unordered(_task, tasks, first, _crashed):
                 got[j] = tr
                 bar.update(1, f"{plan[j][1].name}/{plan[j][2]}")
                 if tr.status == "interrupted":  # Ctrl-C reached the run in this process

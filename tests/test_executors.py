@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+from concurrent.futures import BrokenExecutor
 from pathlib import Path
 
 import pandas as pd
@@ -140,6 +141,32 @@ def test_imap_unordered_starts_in_the_given_order_and_yields_every_item_once() -
     assert sorted(pooled) == sorted(serial)
     with pytest.raises(ValueError, match="permutation"):
         list(executors.LocalExecutor(1).imap_unordered(math.sqrt, items, [0, 0, 1, 2, 3]))
+
+
+def _square_or_crash(x: int) -> int:
+    """In a worker: x * x; for x == 3 the process kills itself with SIGSEGV, as an engine's segmentation fault."""
+    import os
+    import signal
+
+    if x == 3:
+        os.kill(os.getpid(), signal.SIGSEGV)
+    return x * x
+
+
+def test_a_task_that_kills_its_worker_gets_on_crash_and_the_others_their_results() -> None:
+    """Item 3 of 8 kills its worker (SIGSEGV): the pool breaks with every item in it, and with ``on_crash``
+    those are run again one by one in a pool of their own: item 3 gets on_crash's result naming the signal,
+    every other item its own square, each exactly once. Without on_crash the map ends with BrokenExecutor."""
+    items = list(range(8))
+    with executors.LocalExecutor(2) as ex:
+        got = list(ex.imap_unordered(_square_or_crash, items, None, lambda x, why: f"crashed {x}: {why}"))
+        assert sorted(ex.imap_unordered(_square_or_crash, [4, 5])) == [(0, 16), (1, 25)]  # the new pool works on
+    assert sorted(j for j, _ in got) == items
+    res = dict(got)
+    assert str(res[3]).startswith("crashed 3: its worker process died (killed by SIGSEGV)"), res[3]
+    assert all(res[j] == j * j for j in items if j != 3)
+    with pytest.raises(BrokenExecutor), executors.LocalExecutor(2) as ex:
+        list(ex.imap_unordered(_square_or_crash, items))
 
 
 def test_terminate_stops_running_workers_and_keeps_what_finished() -> None:

@@ -126,6 +126,39 @@ def test_results_are_bit_identical_for_any_number_of_jobs(tmp_path: Path) -> Non
             ).read_bytes()
 
 
+def test_an_engine_that_crashes_its_worker_is_marked_failed_and_the_others_finish(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--jobs 2, Pinocchio, a plug-in engine whose first step kills its process with SIGSEGV (as a crash in
+    an engine's C code would), and MuJoCo: the crash is that backend's failure (run.json: failed, the signal
+    named), the other two finish whole (501 ticks of 0.5 s) and nothing is reported as interrupted."""
+    from legbench import backends
+
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "legbench_crashy.py").write_text(
+        "import os, signal\n"
+        "from legbench.backends.pinocchio_ import PinocchioBackend\n\n\n"
+        "class CrashyBackend(PinocchioBackend):\n"
+        "    name = 'crashy'\n\n"
+        "    def step(self, tau):\n"
+        "        os.kill(os.getpid(), signal.SIGSEGV)\n"
+    )
+    dist = site / "legbench_crashy-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: legbench-crashy\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("[legbench.backends]\ncrashy = legbench_crashy:CrashyBackend\n")
+    monkeypatch.syspath_prepend(str(site))
+    names = [n for n in ("pinocchio", "crashy", "mujoco") if n == "crashy" or n in backends.available()]
+    sc = scenario.load(Path(__file__).resolve().parent.parent / "scenarios" / "effort.yaml", {"duration": 0.5})
+    (res,) = run.run_many([(sc, None, tmp_path / "out")], names, jobs=2, progress=False)
+    by = {tr.backend: tr for tr in res}
+    assert by["crashy"].status == "failed" and "killed by SIGSEGV" in str(by["crashy"].reason)
+    assert all(by[n].status == "ok" and len(by[n].t) == 501 for n in names if n != "crashy")
+    meta = json.loads((tmp_path / "out" / "run.json").read_text())
+    assert meta["backends"]["crashy"]["status"] == "failed" and meta["complete"] is True
+
+
 def test_profile_selects_settings_and_names_the_run_directory(tmp_path: Path) -> None:
     """A scenario's profile reaches the backend (recorded in run.json) and its directory is <name>__<profile>;
     a per-backend profile wins over the scenario's."""

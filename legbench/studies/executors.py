@@ -30,7 +30,7 @@ import signal
 import threading
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, Future, ProcessPoolExecutor, wait
 from types import TracebackType
 from typing import Any, TypeVar
 
@@ -96,9 +96,18 @@ class Executor(ABC):
 
     @abstractmethod
     def imap_unordered(
-        self, fn: Callable[[T], R], items: Sequence[T], first: Sequence[int] | None = None
+        self,
+        fn: Callable[[T], R],
+        items: Sequence[T],
+        first: Sequence[int] | None = None,
+        on_crash: Callable[[T, str], R] | None = None,
     ) -> Iterator[tuple[int, R]]:
-        """``(i, fn(items[i]))`` for each item, as each finishes; started in the order of ``first``."""
+        """``(i, fn(items[i]))`` for each item, as each finishes; started in the order of ``first``.
+
+        ``on_crash(item, why)``: the result to give for an item whose worker process died under it (an
+        engine's segmentation fault, abort, the kernel's out-of-memory kill), so that one crashing task
+        does not take the others down; None: such a death ends the whole map (``BrokenExecutor``).
+        """
 
     def start(self) -> None:  # noqa: B027 - optional hook
         """Start the workers now, in the background, so their start-up overlaps the caller's own work (loading
@@ -166,6 +175,18 @@ def _call(fn: Callable[[T], R], x: T) -> R | None:
         return None
 
 
+def _died(code: int | None) -> str:
+    """How a worker process ended, in words: ``killed by SIGSEGV`` or ``exit status 1``."""
+    if code is None:
+        return "ended"
+    if code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit status {code}"
+
+
 def _mp_context(preload: Sequence[str]) -> multiprocessing.context.BaseContext:
     """Fork server where the platform has one (no fork of a threaded parent), else spawn.
 
@@ -216,13 +237,26 @@ class LocalExecutor(Executor):
         return self._pool
 
     def imap_unordered(
-        self, fn: Callable[[T], R], items: Sequence[T], first: Sequence[int] | None = None
+        self,
+        fn: Callable[[T], R],
+        items: Sequence[T],
+        first: Sequence[int] | None = None,
+        on_crash: Callable[[T, str], R] | None = None,
     ) -> Iterator[tuple[int, R]]:
         """As :meth:`Executor.imap_unordered`; ``jobs = 1`` runs each item in this process, in ``first`` order.
 
         Items are handed to the workers one at a time as workers free up, in the
         order of ``first``, so the longest can be started first. On an exception
         while waiting (Ctrl-C) the items not started are cancelled.
+
+        A worker that dies breaks the whole process pool, and every item then in
+        it with it. With ``on_crash`` the items that were in the pool are run
+        again one at a time, each alone in a one-worker pool: the one whose worker
+        dies again gets ``on_crash(item, why)``, the others their results; then
+        the remaining items go on in a new pool. (Ctrl-C and SIGTERM reach this
+        process as KeyboardInterrupt: workers ignore SIGINT, and a signal to the
+        process group interrupts this process's wait before the pool notices its
+        workers gone.)
         """
         order = list(first) if first is not None else list(range(len(items)))
         if sorted(order) != list(range(len(items))):
@@ -246,6 +280,22 @@ class LocalExecutor(Executor):
                 submit()
             while running:
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
+                if on_crash is not None and any(isinstance(f.exception(), BrokenExecutor) for f in done):
+                    suspects = []
+                    for fut, j in sorted(running.items(), key=lambda fj: fj[1]):
+                        ok = fut.done() and not fut.cancelled() and fut.exception() is None
+                        if ok:  # finished before the pool broke
+                            yield j, fut.result()
+                        else:
+                            suspects.append(j)
+                    running.clear()
+                    self.terminate()
+                    for j in suspects:
+                        yield j, self._alone(fn, items[j], on_crash)
+                    pool = self._get_pool()
+                    for _ in range(self.jobs):
+                        submit()
+                    continue
                 for fut in sorted(done, key=lambda f: running[f]):
                     j = running.pop(fut)
                     submit()
@@ -253,6 +303,35 @@ class LocalExecutor(Executor):
         finally:
             for fut in running:
                 fut.cancel()
+
+    def _alone(self, fn: Callable[[T], R], x: T, on_crash: Callable[[T, str], R]) -> R:
+        """``fn(x)`` alone in a one-worker pool; ``on_crash(x, why)`` if its worker dies (it is the culprit)."""
+        solo = ProcessPoolExecutor(
+            max_workers=1, mp_context=_mp_context(self.preload), initializer=_worker_init, initargs=(self.preload,)
+        )
+        fut: Future[Any] = solo.submit(_call, fn, x)
+        procs = list((getattr(solo, "_processes", None) or {}).values())
+        finished = False
+        try:
+            try:
+                out = fut.result()
+            except BrokenExecutor:
+                for p in procs:
+                    p.join(5.0)
+                why = _died(procs[0].exitcode if procs else None)
+                log.warning("a worker process died (%s) running %r", why, x)
+                out = on_crash(x, f"its worker process died ({why}); the other tasks ran on")
+            finished = True
+            return out
+        finally:
+            if finished:
+                solo.shutdown(wait=True)
+            else:  # interrupted while it ran: stop it now
+                solo.shutdown(wait=False, cancel_futures=True)
+                for p in procs:
+                    if p.is_alive():
+                        p.kill()
+                        p.join()
 
     def start(self) -> None:
         """Spawn the ``jobs`` workers now (one no-op task each, not waited for): they import ``preload`` while
@@ -351,12 +430,18 @@ class DaskExecutor(Executor):
             self.client.run(_preload, tuple(preload))
 
     def imap_unordered(
-        self, fn: Callable[[T], R], items: Sequence[T], first: Sequence[int] | None = None
+        self,
+        fn: Callable[[T], R],
+        items: Sequence[T],
+        first: Sequence[int] | None = None,
+        on_crash: Callable[[T, str], R] | None = None,
     ) -> Iterator[tuple[int, R]]:
         """As :meth:`Executor.imap_unordered`: one Dask task per item, with priority by ``first``.
 
         The workers are long-lived (a Dask worker keeps its imports between
-        tasks), so the engines are imported once per worker.
+        tasks), so the engines are imported once per worker. ``on_crash`` is not
+        used: Dask itself retries a task whose worker died and, after its
+        ``allowed-failures``, raises ``KilledWorker`` for it.
         """
         if not items:
             return

@@ -510,6 +510,11 @@ def _cost(task: RunTask, default: float) -> float:
     return 1.0 / min(steps) if steps else default
 
 
+def _crashed(task: RunTask, why: str) -> TaskResult:
+    """The row of a run whose worker process died under it (the engine crashed): failed, with why."""
+    return TaskResult(task.index, RunResult.empty(task.backend, "failed", f"the engine crashed: {why}"))
+
+
 def execute(sweep: Sweep, p: Plan, executor: Executor, bar: progress.Progress | None = None) -> dict[int, TaskResult]:
     """Run every task of the plan, the longest first.
 
@@ -533,7 +538,7 @@ def execute(sweep: Sweep, p: Plan, executor: Executor, bar: progress.Progress | 
 
     def run(batch: list[RunTask]) -> None:
         order = sorted(range(len(batch)), key=lambda j: (-_cost(batch[j], 1.0e3), j))
-        for _, r in executor.imap_unordered(run_task, batch, order):
+        for _, r in executor.imap_unordered(run_task, batch, order, _crashed):
             results[r.index] = r
             if r.run.status == "interrupted":  # Ctrl-C reached a run in this process (one job)
                 raise KeyboardInterrupt
