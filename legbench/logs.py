@@ -132,7 +132,7 @@ def load_log(
     if not (math.isfinite(time_scale) and time_scale > 0):
         raise LegbenchError(f"--log-time-scale {time_scale!r}: must be a finite number > 0 (1e-3 for ms)")
     if not path.is_file():
-        raise ResultsError(str(path), "no such log file")
+        raise ResultsError(str(path), "is a directory, not a log file" if path.is_dir() else "no such log file")
     try:
         raw = pd.read_csv(path)
     except Exception as exc:  # parser errors come in several types
@@ -161,6 +161,11 @@ def load_log(
         )
     df = raw[list(rename)].rename(columns=rename)
     required = ["t", "q1", "q2", "q3"]
+    unmatched = [c for c in required if c not in df.columns]
+    if unmatched:  # name the file's own header: the usual cause is a header of other names, to be mapped
+        header = list(map(str, raw.columns))
+        raise ResultsError(str(path), f"no column matches {unmatched} in the header {header}; map them with "
+                                      "--log-columns 'theirs=t, ...' (column_map in the Python API)")  # fmt: skip
     trace = result_from_frame(df, path.stem, str(path), required)  # validates
     _check_plausible(trace.t * time_scale, trace.data, str(path))
     out = {"t": trace.t * time_scale}

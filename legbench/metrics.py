@@ -241,7 +241,9 @@ def _common_grid(ref_t: np.ndarray, *spans: np.ndarray, source: str = "") -> np.
     hi = min([ref_t[-1], *(s[-1] for s in spans)])
     grid = ref_t[(ref_t >= lo - T_EPS) & (ref_t <= hi + T_EPS)]
     if len(grid) < 2:
-        raise ResultsError(source, f"time spans do not overlap (common span [{lo:.6g}, {hi:.6g}] s)")
+        spans_text = ", ".join(f"[{x[0]:.6g}, {x[-1]:.6g}] s" for x in spans)
+        raise ResultsError(source, f"time spans do not overlap by two ticks: the reference's [{ref_t[0]:.6g}, "
+                                   f"{ref_t[-1]:.6g}] s and {spans_text}")  # fmt: skip
     return grid
 
 

@@ -899,7 +899,8 @@ def result_from_frame(df: pd.DataFrame, name: str, source: str = "<frame>",
     steps = np.diff(t)
     if (steps <= 0).any():
         i = int(np.argmax(steps <= 0))
-        raise ResultsError(source, f"time is not strictly increasing at row {i + 1} (t = {t[i + 1]!r} s)")
+        raise ResultsError(source, f"time is not strictly increasing at row {i + 1} (t = {float(t[i + 1]):.9g} s "
+                                   f"after {float(t[i]):.9g} s)")  # fmt: skip
     ctrl = (
         df["controller"].astype(str).to_numpy(dtype=object)
         if "controller" in df.columns

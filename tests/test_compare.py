@@ -288,8 +288,9 @@ def test_imported_log_without_foot_columns_gets_the_foot_from_q(tmp_path: Path) 
 @pytest.mark.parametrize(
     ("content", "column_map", "fragment"),
     [
-        ("t,q1,q3\n0,0,0\n1,0,0\n", None, "missing column(s) ['q2']"),
-        ("t,q1,q2,q3\n0,0,0,0\n0,0,0,0\n", None, "not strictly increasing"),
+        ("t,q1,q3\n0,0,0\n1,0,0\n", None, "no column matches ['q2'] in the header ['t', 'q1', 'q3']"),
+        ("time_ms,hip\n0,0\n1,0\n", None, "no column matches ['t', 'q1', 'q2', 'q3'] in the header ['time_ms', 'hip']"),
+        ("t,q1,q2,q3\n0,0,0,0\n0,0,0,0\n", None, "not strictly increasing at row 1 (t = 0 s after 0 s)"),
         ("t,q1,q2,q3\n0,0,0,0\n1,x,0,0\n", None, "column 'q1' is not numeric"),
         ("t,q1,q2,q3\n0,0,0,0\n1,0,0,0\n", {"joint_1": "q1"}, "not in the header"),
         ("t,q1,q2,q3\n0,0,0,0\n1,0,0,0\n", {"q1": "angle"}, "not legbench columns"),
@@ -309,9 +310,23 @@ def test_malformed_log_raises_naming_the_file_and_problem(
 
 
 def test_missing_log_file_raises(tmp_path: Path) -> None:
-    """A log path that does not exist is a ResultsError naming it."""
+    """A log path that does not exist is a ResultsError naming it; a directory is named as one."""
     with pytest.raises(ResultsError, match="no such log file"):
         logs.load_log(tmp_path / "nope.csv")
+    with pytest.raises(ResultsError, match="is a directory, not a log file"):
+        logs.load_log(tmp_path)
+
+
+def test_a_log_that_does_not_overlap_the_run_names_both_spans(tmp_path: Path) -> None:
+    """A log of t = 100..101 s as the reference of a 2 s run: the error gives both spans (the reference's
+    first), not an inverted 'common' one."""
+    d = write_run(tmp_path / "s", {"ref": None})
+    log = tmp_path / "late.csv"
+    log.write_text("t,q1,q2,q3\n100,0,0,0\n101,0,0,0\n")
+    with pytest.raises(
+        ResultsError, match=r"do not overlap by two ticks: the reference's \[100, 101\] s and \[0, 2\] s"
+    ):
+        C.compare(d, log=log, log_is_reference=True)
 
 
 def test_log_name_clashing_with_a_backend_raises(tmp_path: Path) -> None:
