@@ -37,7 +37,7 @@ from legbench import resources, yamlfile
 from legbench import scenario as scenario_mod
 from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import LegbenchError, ResultsError
-from legbench.results import RunResult, load_run, out_dir_for
+from legbench.results import RunResult, check_out_path, load_run, out_dir_for
 from legbench.scenario import Scenario
 from legbench.signals import RUN_COLUMNS, SLICE
 
@@ -272,12 +272,15 @@ def run_scenario(
             ``"both"`` the result is the native run and :attr:`Result.reference_mode` the other.
         out: the run directory (with ``"both"``: the root of ``<name>/`` and ``<name>__reference/``); it
             must not hold another scenario's run. Default: a new temporary directory.
-        jobs: processes to run the backends in.
+        jobs: processes to run the backends in (at least 1). A script that passes ``jobs > 1`` runs its
+            call under ``if __name__ == "__main__":``: the worker processes (fork server or spawn) import
+            the main module again.
         progress: show a progress bar on stderr.
 
     Raises:
         ScenarioError: invalid scenario or override.
         BackendNotFound: an unknown backend name.
+        LegbenchError: ``jobs`` below 1; ``out`` a regular file or in a place that is not writable.
         ResultsError: ``out`` holds another scenario's run.
     """
     from legbench import backends as registry
@@ -292,6 +295,10 @@ def run_scenario(
     names = registry.resolve(list(backends) if not isinstance(backends, str) else backends)
     if contact_mode not in (None, "native", "reference", "both"):
         raise LegbenchError(f"contact_mode {contact_mode!r}: expected 'native', 'reference' or 'both'")
+    if jobs < 1:  # as the command line's --jobs: 0 would still run, in one process
+        raise LegbenchError(f"jobs {jobs}: must be at least 1")
+    if out is not None:  # as the command line's --out: a regular file is one error, not NotADirectoryError
+        check_out_path(out, "out")
     root = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix=f"legbench-{sc.name}-"))
     if contact_mode == "both":
         plan = [(sc, m, out_dir_for(root, sc, m)) for m in ("native", "reference")]

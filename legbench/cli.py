@@ -98,7 +98,8 @@ def add_completion(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
         description="Print the code that enables tab completion of legbench commands and options in SHELL "
         '(argcomplete). bash: add `eval "$(legbench completion bash)"` to ~/.bashrc.',
     )
-    p.add_argument("shell", nargs="?", default="bash", choices=("bash", "zsh", "fish", "tcsh"))
+    p.add_argument("shell", nargs="?", default="bash", choices=("bash", "zsh", "fish", "tcsh"),
+                   help="the shell to print the code for (default bash)")  # fmt: skip
     p.set_defaults(func=_completion)
 
 
@@ -169,7 +170,8 @@ _SCHEMES = ("tcp", "tls", "inproc", "ws", "wss", "ucx")
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Options every writing subcommand shares, checked before any work: ``--jobs`` >= 1, ``--out`` a usable
-    directory (or file for ``model urdf``), ``--summary``/``--junit`` files in an existing folder."""
+    directory (or file for ``model urdf``), ``--summary``/``--junit`` files in an existing folder that replace
+    an existing file only with ``--force`` (the defaults in the results directory are rewritten freely)."""
     from legbench import results  # the subcommand's module has imported it already
 
     jobs = getattr(args, "jobs", None)
@@ -193,7 +195,9 @@ def _check_outputs(args: argparse.Namespace) -> None:
                                 f"(schemes: {', '.join(_SCHEMES)})")  # fmt: skip
     for opt in ("summary", "junit"):
         if getattr(args, opt, None) is not None:
-            results.check_out_file(getattr(args, opt), f"--{opt}")
+            path = results.check_out_file(getattr(args, opt), f"--{opt}")
+            if path.exists() and not getattr(args, "force", False):
+                raise LegbenchError(f"--{opt} {path}: exists; choose another file, or pass --force to replace it")
     summary, junit = getattr(args, "summary", None), getattr(args, "junit", None)
     if summary is not None and junit is not None and Path(summary).resolve() == Path(junit).resolve():
         raise LegbenchError(f"--summary and --junit name the same file {summary}: the second would replace the first")

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from legbench import backends, kinematics, model, results, scenario, yamlfile
+from legbench import backends, kinematics, model, resources, results, scenario, yamlfile
 from legbench.backends.base import PROFILES
 from legbench.contact import CONTACT_MODES
 from legbench.exceptions import LegbenchError
@@ -113,22 +113,31 @@ def add_model(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg
     p.add_argument("p", nargs=3, type=yamlfile.finite_float, metavar="P", help="foot centre x y z in W [m]")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_model_ik)
-    p = msub.add_parser("urdf", help="regenerate models/leg.urdf from the parameter file")
-    p.add_argument("--params", default=None, help="parameter file (default models/leg.yaml)")
-    p.add_argument("--out", default=None, help="output URDF (default models/leg.urdf)")
+    p = msub.add_parser("urdf", help="regenerate the URDF of the parameter file (models/leg.urdf for the bundled leg)")
+    p.add_argument("--params", default=None,
+                   help="parameter file (default: the active model, models/leg.yaml unless --model)")  # fmt: skip
+    p.add_argument("--out", default=None,
+                   help="output URDF (default: where legbench reads that parameter file's URDF: models/leg.urdf "
+                        "for the bundled leg, else the cache's urdf/<stem>-<hash>.urdf, never the bundled "
+                        "model's)")  # fmt: skip
     p.set_defaults(func=lambda a: _model_urdf(_with_defaults(a)))
     p = msub.add_parser("calibrate", help="mass scale factors that reproduce the report's G(q*)")
-    p.add_argument("--params", default=None)
+    p.add_argument("--params", default=None,
+                   help="parameter file to calibrate (default: the active model, models/leg.yaml unless "
+                        "--model); nothing is written")  # fmt: skip
     p.set_defaults(func=lambda a: _model_calibrate(_with_defaults(a)))
     p = msub.add_parser("check", help="print FK(q*), G(q*) and masses against the spec")
     p.set_defaults(func=_model_check)
 
 
 def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
+    """``--params`` defaults to the active model; ``--out`` to where legbench reads the URDF of ``--params``
+    (:func:`legbench.resources.urdf_target`): models/leg.urdf only for the bundled leg, another parameter file's
+    URDF goes to the cache, so ``--params other.yaml`` never replaces the bundled model's URDF."""
     if getattr(args, "params", None) is None:
         args.params = model.PARAMS_FILE
     if hasattr(args, "out") and args.out is None:
-        args.out = model.URDF_FILE
+        args.out = resources.urdf_target(args.params)
     return args
 
 
@@ -226,7 +235,8 @@ def _variant(text: str) -> tuple[str, str]:
 
 def _check_plan(plan: list[tuple[scenario.Scenario, str | None, Path]], args: argparse.Namespace) -> None:
     """Before any work: no two runs of the plan into one directory, and no finished result replaced that the
-    user did not ask to replace (a run without ``--out`` into an existing finished run needs ``--force``)."""
+    user did not ask to replace: a run into a directory holding a finished run (``run.json``, not an interrupted
+    run of the same scenario, which is resumed) needs ``--force``, with or without ``--out``."""
     seen: dict[Path, str] = {}
     for sc, _, out in plan:
         if out in seen:
@@ -235,13 +245,28 @@ def _check_plan(plan: list[tuple[scenario.Scenario, str | None, Path]], args: ar
         seen[out] = sc.file
     for sc, mode, out in plan:
         results.check_out_dir(sc, out)
-        if (
-            args.out is None
-            and not args.force
-            and (out / "run.json").is_file()
-            and not results.resumable(sc, out, mode)
-        ):
-            raise LegbenchError(f"{out} holds a finished run; pass --out DIR for a new one, or --force to replace it")
+        held = None if args.force else _would_replace(sc, mode, out)
+        if held is not None:
+            new_place = "choose another --out" if args.out is not None else "pass --out DIR"
+            raise LegbenchError(f"{out} holds {held}; {new_place} for a new one, or --force to replace it")
+
+
+def _would_replace(sc: scenario.Scenario, mode: str | None, out: Path) -> str | None:
+    """What of ``out`` a run of ``sc`` in ``mode`` would replace rather than resume, or None: a finished run
+    (run.json without ``"complete": false``), or an interrupted run of other settings (another scenario hash or
+    contact mode). An interrupted run of the same settings is resumed, even with no backend finished yet."""
+    if not (out / "run.json").is_file():
+        return None
+    try:
+        meta = results.read_meta(out)
+    except LegbenchError:  # check_out_dir has refused an unreadable one; anything else is not ours to replace
+        return "a run"
+    if meta.get("complete", True) is not False:
+        return "a finished run"
+    prev = meta.get("scenario") or {}
+    if prev.get("sha256") != sc.sha256 or prev.get("contact_mode") != (mode or sc.contact_mode):
+        return "an interrupted run of other settings (it resumes only with the same scenario and options)"
+    return None
 
 
 def _validate(args: argparse.Namespace) -> int:
@@ -321,8 +346,9 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--no-preflight", action="store_true",
                    help="skip the parity pre-flight (legbench doctor) before running")  # fmt: skip
     p.add_argument("--force", action="store_true",
-                   help="without --out: replace a finished run in results/latest/<name> "
-                        "(refused otherwise)")  # fmt: skip
+                   help="replace a finished run (or an interrupted one of other settings) in the output "
+                        "directory, --out or results/latest/<name>; refused otherwise (an interrupted run of "
+                        "the same command is resumed)")  # fmt: skip
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
@@ -330,6 +356,8 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 def _compare(args: argparse.Namespace) -> int:
     from legbench import logs, report
 
+    if Path(args.dir).exists() and not Path(args.dir).is_dir():
+        raise LegbenchError(f"{args.dir}: is a file, not a results directory (give a run directory or a tree)")
     if args.reference_log is None:  # these only shape the reference log: without one they would be ignored
         given = [f for f, on in (("--log-columns", args.log_columns), ("--log-is-reference", args.log_is_reference),
                                  ("--log-time-scale", args.log_time_scale != 1.0)) if on]  # fmt: skip
@@ -392,7 +420,7 @@ def add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
         "--log-time-scale",
         type=yamlfile.positive_float,
         default=1.0,
-        help="factor taking the log's time unit to seconds (e.g. 1e-3 for ms)",
+        help="factor taking the log's time unit to seconds (e.g. 1e-3 for ms; default 1: seconds)",
     )
     p.add_argument(
         "--log-is-reference",
@@ -401,7 +429,7 @@ def add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     )
     p.add_argument("--lag", choices=("off", "report", "remove"), default="off",
                    help="estimate ('report') or estimate and remove ('remove') a constant time lag by "
-                        "cross-correlation")  # fmt: skip
+                        "cross-correlation (default off: the logs are compared as they are)")  # fmt: skip
     p.add_argument("--all-pairs", action="store_true", help="metrics for every pair of backends, not only vs reference")
     p.add_argument("--jobs", type=int, default=1, help="processes rendering the run reports of a tree (default 1)")
     p.set_defaults(func=_compare)
@@ -418,8 +446,13 @@ def add_check(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg
     p.add_argument("dir", help="new results (run directory or tree)")
     p.add_argument("--baseline", required=True, help="baseline results, same layout (e.g. results/baseline)")
     p.add_argument("--tolerances", default=None, help="tolerance file (YAML)")
-    p.add_argument("--summary", default=None, help="Markdown summary (default DIR/check.md)")
-    p.add_argument("--junit", default=None, help="JUnit XML (default DIR/check-junit.xml)")
+    p.add_argument("--summary", default=None,
+                   help="Markdown summary (default DIR/check.md, rewritten each time); an existing file is "
+                        "replaced only with --force")  # fmt: skip
+    p.add_argument("--junit", default=None,
+                   help="JUnit XML (default DIR/check-junit.xml, rewritten each time); an existing file is "
+                        "replaced only with --force")  # fmt: skip
+    p.add_argument("--force", action="store_true", help="replace an existing --summary or --junit file")
     p.add_argument("--all", action="store_true", help="print every checked row, not only what moved")
     p.set_defaults(func=_check)
 

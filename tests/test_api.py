@@ -13,7 +13,7 @@ import pytest
 import legbench
 from legbench import api, resources
 from legbench.compare import compare
-from legbench.exceptions import ResultsError, ScenarioError
+from legbench.exceptions import LegbenchError, ResultsError, ScenarioError
 from legbench.signals import RUN_COLUMNS
 
 pytest.importorskip("mujoco")
@@ -110,6 +110,19 @@ def test_bad_input_is_a_scenario_error(tmp_path: Path) -> None:
     with pytest.raises(ScenarioError, match="duration"):
         legbench.run_scenario("position", backends="pinocchio", overrides={"duration": "soon"}, out=tmp_path)
     assert not any(tmp_path.iterdir())  # nothing half-written
+
+
+def test_jobs_below_1_and_a_file_as_out_are_refused_before_anything_runs(tmp_path: Path) -> None:
+    """``jobs=0`` raises LegbenchError as the CLI's --jobs 0 is refused (it ran anyway); ``out`` naming a regular
+    file raises LegbenchError saying so (it was a raw NotADirectoryError); nothing is written."""
+    with pytest.raises(LegbenchError, match="jobs 0: must be at least 1"):
+        legbench.run_scenario("position", backends="pinocchio", overrides=SHORT, out=tmp_path / "r", jobs=0)
+    assert not (tmp_path / "r").exists()
+    f = tmp_path / "file"
+    f.write_text("keep me")
+    with pytest.raises(LegbenchError, match="is a regular file, not a directory"):
+        legbench.run_scenario("position", backends="pinocchio", overrides=SHORT, out=f)
+    assert f.read_text() == "keep me" and sorted(p.name for p in tmp_path.iterdir()) == ["file"]
 
 
 def test_bundled_scenarios_by_name() -> None:

@@ -307,3 +307,36 @@ def test_validate_knows_the_reproduce_framework_file(tmp_path: Path, capsys: pyt
     assert cli.main(["validate", str(bad)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "bogus" in err and str(bad) in err
+
+
+def test_compare_of_a_regular_file_says_it_is_a_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`legbench compare FILE` says FILE is a file, not a results directory (it said "no such results
+    directory"), in one line, exit 2."""
+    f = tmp_path / "afile"
+    f.write_text("x")
+    assert cli.main(["compare", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"legbench: error: {f}: is a file, not a results directory (give a run directory or a tree)\n"
+
+
+def _option(parser: argparse.ArgumentParser, path: list[str], dest: str) -> argparse.Action:
+    """The action of option ``dest`` of the subcommand at ``path`` (e.g. ["model", "calibrate"])."""
+    for name in path:
+        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        parser = sub.choices[name]
+    return next(a for a in parser._actions if a.dest == dest)
+
+
+def test_help_states_the_defaults_and_what_options_do() -> None:
+    """Every option named here says its default in its help (they said none), `model calibrate --params` has a
+    help text (it had none), `model urdf --out` no longer claims models/leg.urdf for every --params, and `check`
+    says an existing --summary/--junit file needs --force."""
+    parser = cli.build_parser()
+    for path, dest, default in ((["compare"], "lag", "default off"), (["compare"], "log_time_scale", "default 1"),
+                                (["completion"], "shell", "default bash"),
+                                (["model", "calibrate"], "params", "default: the active model"),
+                                (["model", "urdf"], "params", "default: the active model")):  # fmt: skip
+        assert default in (_option(parser, path, dest).help or ""), (path, dest)
+    assert "never the bundled model's" in (_option(parser, ["model", "urdf"], "out").help or "")
+    for dest in ("summary", "junit"):
+        assert "replaced only with --force" in (_option(parser, ["check"], dest).help or ""), dest

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pybullet
@@ -119,3 +120,25 @@ def test_cli_urdf_regenerates_identically(tmp_path) -> None:  # type: ignore[no-
     out = _cli("model", "urdf", "--out", str(dest))
     assert out.returncode == 0, out.stderr
     assert dest.read_text() == model.URDF_FILE.read_text()
+
+
+def test_cli_urdf_of_another_parameter_file_never_replaces_the_bundled_urdf(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`legbench model urdf --params other.yaml` without --out writes the URDF where legbench reads that file's
+    (the cache, urdf/other-<hash>.urdf), not the bundled model's models/leg.urdf (it did: the default was the
+    active model's URDF whatever --params named). The source tree is moved to tmp_path, so nothing real is
+    written either way."""
+    from legbench import cli, resources
+
+    tree = tmp_path / "tree"
+    monkeypatch.setattr(resources, "source_tree", lambda: tree)
+    monkeypatch.setenv(resources.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.delenv(resources.MODEL_ENV, raising=False)
+    other = tmp_path / "other.yaml"
+    other.write_text(resources.bundled_model().read_text())
+    assert cli.main(["model", "urdf", "--params", str(other)]) == 0
+    assert not (tree / "models" / "leg.urdf").exists()
+    (written,) = (tmp_path / "cache" / "urdf").glob("other-*.urdf")
+    assert written == resources.urdf_target(other)
+    assert written.read_text() == model.urdf_text(model.load_params(other))

@@ -193,16 +193,26 @@ def test_write_refuses_a_foreign_directory(tmp_path: Path) -> None:
     assert (out / "precious.txt").exists()
 
 
-def test_cli_runs_a_sweep_and_rewrites_its_own_directory(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_replaces_a_finished_sweep_in_its_out_directory_only_with_force(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A second sweep into the --out of a finished one is refused (one line naming --force) and leaves it as
+    it was; with --force it replaces it."""
     parser = argparse.ArgumentParser()
     sweep.add_cli(parser.add_subparsers())
     path = _write(tmp_path, GOOD)
     out = tmp_path / "res"
-    for _ in range(2):  # the second run replaces the first
-        args = parser.parse_args(["sweep", str(path), "--out", str(out), "--jobs", "1"])
-        assert args.func(args) == 0
+    args = parser.parse_args(["sweep", str(path), "--out", str(out), "--jobs", "1"])
+    assert args.func(args) == 0
+    first, inode = (out / "sweep.json").read_bytes(), (out / "sweep.json").stat().st_ino
+    with pytest.raises(LegbenchError, match="holds a finished sweep; choose another --out .* or --force"):
+        args.func(args)
+    assert (out / "sweep.json").read_bytes() == first and (out / "sweep.json").stat().st_ino == inode
+    args = parser.parse_args(["sweep", str(path), "--out", str(out), "--jobs", "1", "--force"])
+    assert args.func(args) == 0
     assert "2 runs + 1 references, 0 failed" in capsys.readouterr().out
     assert (out / "sweep.csv").exists() and (out / "sweep.png").exists()
+    assert (out / "sweep.json").stat().st_ino != inode  # a new file, moved into place
 
 
 def test_star_keys_configure_the_run_not_another_backends_reference(tmp_path: Path) -> None:

@@ -306,6 +306,7 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
     p.add_argument("--out", default="results/calibration", help="output directory (default results/calibration)")
     p.add_argument("--backends", default="all", help="comma-separated backend names, or 'all' (default)")
     p.add_argument("--contact-mode", choices=("native", "reference"), default=None,
-                   help="override the scenario's contact mode (default: native)")  # fmt: skip
+                   help="contact of the calibration pushes: each engine's own ('native', default) or the "
+                        "spec's law applied in every engine ('reference')")  # fmt: skip
     p.add_argument("--jobs", type=int, default=1, help="worker processes, one backend each (default 1)")
     p.set_defaults(func=_cli)

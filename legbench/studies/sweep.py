@@ -1030,8 +1030,9 @@ def run_sweep(
 
 def _cli(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out is not None else Path("results") / "sweeps" / load_sweep(args.sweep).name
-    if args.out is None and (out / "sweep.json").exists() and not args.force:
-        raise LegbenchError(f"{out} holds a finished sweep; pass --out DIR for a new one, or --force to replace it")
+    if (out / "sweep.json").exists() and not args.force:  # with or without --out, as for runs
+        raise LegbenchError(f"{out} holds a finished sweep; choose another --out for a new one, or --force to "
+                            "replace it")  # fmt: skip
     res = run_sweep(args.sweep, out, args.executor, args.jobs, args.scheduler, quiet=args.quiet)
     t = res.table
     if not len(t):
@@ -1059,9 +1060,10 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
     p.add_argument("sweep", help="sweep YAML file (format: docs/studies.md)")
     p.add_argument("--out", default=None, help="output directory (default results/sweeps/<sweep name>)")
     p.add_argument("--force", action="store_true",
-                   help="without --out: replace the finished sweep in the default directory")  # fmt: skip
+                   help="replace a finished sweep in the output directory")  # fmt: skip
     p.add_argument("--jobs", type=int, default=None, help="parallel runs (default: CPU count)")
-    p.add_argument("--executor", choices=EXECUTORS, default="local", help="local process pool or Dask")
+    p.add_argument("--executor", choices=EXECUTORS, default="local",
+                   help="local process pool or Dask (default local)")  # fmt: skip
     p.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://host:8786 "
                                                      "(default with --executor dask: a local cluster)")  # fmt: skip
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
