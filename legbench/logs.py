@@ -18,7 +18,7 @@ from __future__ import annotations
 import logging
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -251,12 +251,6 @@ def _pick_topic(path: Path, topics: Mapping[str, str], msgtype: str, asked: str 
     raise ResultsError(str(path), f"several {short} topics ({', '.join(have)}); name one with {option}")
 
 
-def _times(stamps: Sequence[int], recorded: Sequence[int]) -> np.ndarray:
-    """Header stamps [ns], or the recording times where every stamp is zero (int64)."""
-    st = np.asarray(stamps, np.int64)
-    return st if st.size and np.any(st != 0) else np.asarray(recorded, np.int64)
-
-
 def load_ros_bag(path: str | Path, options: RosOptions | None = None) -> pd.DataFrame:
     """Read a ROS 1 or ROS 2 bag into the run columns (see the module docstring and :class:`RosOptions`).
 
@@ -332,17 +326,25 @@ def load_ros_bag(path: str | Path, options: RosOptions | None = None) -> pd.Data
         reader.close()
     if not rows:
         raise ResultsError(str(path), f"topic '{jt}' has no messages")
-    ns = _times(j_stamp, j_rec)
+    # one clock for both topics: the header stamps when every topic has them, else the recording times (a
+    # topic with zero stamps next to one stamped in simulation time would share no time with it)
+    stamped = any(j_stamp) and (not forces or any(w_stamp))
+    ns = np.asarray(j_stamp if stamped else j_rec, np.int64)
     ns0 = int(ns[0]) if opts.t0 is None else round(opts.t0 * 1e9)
     t_abs = (ns - ns0) * 1e-9  # [s] from t0, exact to the ns
     data = np.vstack(rows)
     force = np.full((len(rows), 3), np.nan)
     if forces:
-        tw = (_times(w_stamp, w_rec) - ns0) * 1e-9
+        tw = (np.asarray(w_stamp if stamped else w_rec, np.int64) - ns0) * 1e-9
         order = np.argsort(tw, kind="stable")
         fw = opts.force_sign * np.asarray(forces, float)[order]
         for i in range(3):
             force[:, i] = np.interp(t_abs, tw[order], fw[:, i], left=np.nan, right=np.nan)
+        if np.isnan(force[:, 0]).all():
+            clock = "header stamps" if stamped else "recording times"
+            logger.warning("legbench: warning: %s: the wrench topic '%s' spans [%.6g, %.6g] s and the joint states "
+                           "[%.6g, %.6g] s (%s): no shared time, the ground force is left out", path, wt,
+                           tw.min(), tw.max(), t_abs[0], t_abs[-1], clock)  # fmt: skip
     df = pd.DataFrame(np.column_stack([t_abs, data, force]), columns=["t", *LABELS])
     trace = result_from_frame(df, path.stem, str(path), ["t", "q1", "q2", "q3"])  # validates (t increasing)
     out = {"t": trace.t}

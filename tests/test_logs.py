@@ -46,10 +46,14 @@ def write_bag(
     joint_topic: str = "/leg/joint_states",
     wrench_topic: str = "/leg/foot_force",
     extra_joint_topic: str | None = None,
+    joint_stamp0_ns: int = T_BAG0_NS,
+    wrench_stamped: bool = True,
 ) -> Path:
     """A bag of JointState messages at times t [s from T_BAG0_NS] carrying data[:, 0:9] (q, qd, tau of joints 1..3)
     under ``names`` (message slot i holds legbench joint order[i]; a slot with order -1 is another joint, 0.5 rad),
-    and WrenchStamped messages of ``force`` at ``force_t``."""
+    and WrenchStamped messages of ``force`` at ``force_t``. Header stamps count from ``joint_stamp0_ns`` for the
+    joint states (another clock, e.g. simulation time, when not T_BAG0_NS) and T_BAG0_NS for the wrench (zero
+    without ``wrench_stamped``); recording times from T_BAG0_NS, 3 ms after the time."""
     ts, writer, ser, _ = _writer(kind, path)
     JointState = ts.types["sensor_msgs/msg/JointState"]
     Wrench = ts.types["geometry_msgs/msg/WrenchStamped"]
@@ -58,8 +62,8 @@ def write_bag(
     Vector3 = ts.types["geometry_msgs/msg/Vector3"]
     WrenchBody = ts.types["geometry_msgs/msg/Wrench"]
 
-    def header(tt: float, k: int) -> object:
-        ns = T_BAG0_NS + round(tt * 1e9)
+    def header(tt: float, k: int, ns0: int | None = T_BAG0_NS) -> object:
+        ns = 0 if ns0 is None else ns0 + round(tt * 1e9)
         stamp = Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
         return Header(seq=k, stamp=stamp, frame_id="world") if kind == "ros1" else Header(stamp=stamp, frame_id="world")
 
@@ -74,15 +78,17 @@ def write_bag(
         wc = writer.add_connection(wrench_topic, Wrench.__msgtype__, typestore=ts) if force is not None else None
         events: list[tuple[float, int, object, object]] = []
         for k, (tt, row) in enumerate(zip(t, data, strict=True)):
-            msg = JointState(header=header(tt, k), name=list(names), position=pick(row, 0), velocity=pick(row, 1),
-                             effort=pick(row, 2))  # fmt: skip
+            msg = JointState(header=header(tt, k, joint_stamp0_ns), name=list(names), position=pick(row, 0),
+                             velocity=pick(row, 1), effort=pick(row, 2))  # fmt: skip
             events.append((tt, 0, jc, msg))
             if ec is not None:
                 events.append((tt, 1, ec, msg))
         if force is not None and force_t is not None:
             for k, (tt, f) in enumerate(zip(force_t, force, strict=True)):
                 w = WrenchBody(force=Vector3(x=f[0], y=f[1], z=f[2]), torque=Vector3(x=0.0, y=0.0, z=0.0))
-                events.append((tt, 2, wc, Wrench(header=header(tt, k), wrench=w)))
+                events.append(
+                    (tt, 2, wc, Wrench(header=header(tt, k, T_BAG0_NS if wrench_stamped else None), wrench=w))
+                )
         for tt, _, conn, msg in sorted(events, key=lambda e: (e[0], e[1])):
             rec = T_BAG0_NS + round((tt + 0.003) * 1e9)  # recorded 3 ms after the stamp: stamps must win
             writer.write(conn, rec, ser(msg, msg.__msgtype__))  # type: ignore[attr-defined]
@@ -122,6 +128,33 @@ def test_bag_round_trip(tmp_path: Path, kind: str) -> None:
     np.testing.assert_allclose(df[["fx", "fy", "fz"]].to_numpy()[inside], expected[inside], rtol=0, atol=1e-9)
     # t = 0 is before the first wrench (0.3 ms), t = 0.199 s after the last (0.1983 s)
     assert df.loc[~inside, ["fx", "fy", "fz"]].isna().all().all() and (~inside).sum() == 2
+
+
+def test_a_bag_whose_wrench_has_no_stamps_puts_both_topics_on_the_recording_clock(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Joint states stamped in simulation time (from 0) beside a wrench topic with zero stamps: each topic on
+    its own clock shared no time (0 of 200 force samples). One clock for both, the recording times: the
+    force, linear in t, comes back at the joint-state ticks to 1e-9 N. Joint states stamped in simulation
+    time beside a wrench stamped in wall time: no shared time, said in a warning, and the force is NaN."""
+    t = np.arange(0, 0.2, 1e-3)
+    data = _signals(t)
+    ft = np.arange(0.0003, 0.2, 2e-3)
+    force = np.column_stack([1.0 + 2.0 * ft, -3.0 * ft, 20.0 + 50.0 * ft])
+    names = ("q1_abad", "q2_hip", "q3_knee")  # legbench's own names: no mapping
+    bag = write_bag("ros1", tmp_path / "a.bag", t, data, names, (0, 1, 2), ft, force, joint_stamp0_ns=0,
+                    wrench_stamped=False)  # fmt: skip
+    df = logs.load_log(bag)
+    np.testing.assert_allclose(df["t"], t, rtol=0, atol=1e-12)  # recording times, from the first joint state
+    inside = (t >= ft[0]) & (t <= ft[-1])
+    assert inside.sum() == 198
+    expected = np.column_stack([1.0 + 2.0 * t, -3.0 * t, 20.0 + 50.0 * t])
+    np.testing.assert_allclose(df[["fx", "fy", "fz"]].to_numpy()[inside], expected[inside], rtol=0, atol=1e-9)
+    bag2 = write_bag("ros1", tmp_path / "b.bag", t, data, names, (0, 1, 2), ft, force, joint_stamp0_ns=0)
+    with caplog.at_level("WARNING"):
+        df2 = logs.load_log(bag2)
+    assert df2[["fx", "fy", "fz"]].isna().all().all()
+    assert "no shared time, the ground force is left out" in caplog.text
 
 
 def test_defaults_force_sign_and_ros2_file_path(tmp_path: Path) -> None:
