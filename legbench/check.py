@@ -60,6 +60,7 @@ from legbench.results import (
     run_dirs,
     tolerances_of,
 )
+from legbench.scenario import TOLERANCE_METRICS, validate_tolerances
 from legbench.signals import keyed
 from legbench.signals import label as column_label
 
@@ -81,12 +82,19 @@ __all__ = [
 #: Runs are deterministic (bit-identical on one machine, and the three engines agree to 1e-10 % in
 #: reference mode), so the defaults only absorb round-off across machines: a 4x change of one
 #: engine's sub-step moves its metrics by 0.6-0.8 %, which they catch.
-DEFAULT_TOLERANCES: dict[str, Any] = {
-    "sim_error_pct": {"abs": 0.01, "rel": 0.005},  # [percentage points], [1]
-    "rms": {"abs": {"q": 1e-5, "qd": 1e-4, "tau": 1e-4, "force": 1e-3}, "rel": 0.005},  # [signal unit], [1]
-    "steady_mean": {"abs": {"qd": 1e-4, "force": 1e-2}, "rel": 0.005},  # [signal unit], [1]
-    "max_sim_error_pct": {},  # label or signal -> ceiling [%]
-}
+#: One per metric of :data:`legbench.scenario.TOLERANCE_METRICS` (the valid names, kept there), in its order.
+DEFAULT_TOLERANCES: dict[str, Any] = dict(
+    zip(
+        TOLERANCE_METRICS,
+        (
+            {"abs": 0.01, "rel": 0.005},  # sim_error_pct: [percentage points], [1]
+            {"abs": {"q": 1e-5, "qd": 1e-4, "tau": 1e-4, "force": 1e-3}, "rel": 0.005},  # rms: [signal unit], [1]
+            {"abs": {"qd": 1e-4, "force": 1e-2}, "rel": 0.005},  # steady_mean: [signal unit], [1]
+            {},  # max_sim_error_pct: label or signal -> ceiling [%]
+        ),
+        strict=True,
+    )
+)
 #: Metrics that may only grow within tolerance; the others may move either way.
 ONE_SIDED = ("sim_error_pct", "rms")
 #: Row statuses that fail the check.
@@ -199,33 +207,8 @@ class CheckReport:
 
 
 def _validate(tol: Any, file: str, prefix: str) -> dict[str, Any]:
-    if not isinstance(tol, Mapping):
-        raise ScenarioError(file, prefix, "tolerances must be a mapping")
-    for k, v in tol.items():
-        key = f"{prefix}.{k}" if prefix else str(k)
-        if k not in DEFAULT_TOLERANCES:
-            raise ScenarioError(file, key, f"unknown tolerance; valid: {sorted(DEFAULT_TOLERANCES)}")
-        if not isinstance(v, Mapping):
-            raise ScenarioError(file, key, "must be a mapping")
-        if k == "max_sim_error_pct":
-            for lab, x in v.items():
-                _number(x, file, f"{key}.{lab}")
-            continue
-        for sub, x in v.items():
-            if sub not in ("abs", "rel"):
-                raise ScenarioError(file, f"{key}.{sub}", "unknown key; valid: ['abs', 'rel']")
-            if isinstance(x, Mapping):
-                for lab, y in x.items():
-                    _number(y, file, f"{key}.{sub}.{lab}")
-            else:
-                _number(x, file, f"{key}.{sub}")
-    return dict(tol)
-
-
-def _number(x: Any, file: str, key: str) -> float:
-    if isinstance(x, bool) or not isinstance(x, int | float) or not x >= 0:
-        raise ScenarioError(file, key, f"must be a number >= 0, not {x!r}")
-    return float(x)
+    """Tolerances checked by the rules a scenario's own are (:func:`legbench.scenario.validate_tolerances`)."""
+    return validate_tolerances(tol, file, prefix)
 
 
 def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:

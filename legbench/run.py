@@ -29,13 +29,8 @@ from legbench.controllers import Controller, make_controller
 from legbench.exceptions import BackendNotFound, LegbenchError, SimulationDiverged
 from legbench.model import load_params
 from legbench.results import RunResult, check_out_dir, read_meta, resumable, run_dirs, write_run
-from legbench.scenario import Scenario, physics_of
+from legbench.scenario import MAX_JOINT_SPEED, MAX_PENETRATION, Scenario, physics_of
 from legbench.studies.executors import LocalExecutor
-
-#: Divergence bounds no physical run of this leg reaches: joint speed [rad/s] (20x the hip's
-#: speed limit) and foot penetration [m] (5 cm is 500 N at Kp = 1e4 N/m; the leg pushes <= 100 N).
-MAX_JOINT_SPEED = 1.0e3
-MAX_PENETRATION = 0.05
 
 
 def _diverged(code: int) -> str:

@@ -36,8 +36,9 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -46,12 +47,23 @@ import numpy as np
 import yaml
 
 from legbench import backends, kinematics, resources
-from legbench.backends.base import PROFILES, Physics
+from legbench.backends.base import PROFILES, Physics, Range, dt_problem
 from legbench.contact import CONTACT_MODES, ContactParams
-from legbench.exceptions import BackendNotFound, ScenarioError
+from legbench.exceptions import BackendNotFound, LegbenchError, ScenarioError
 from legbench.model import load_params
 from legbench.trajectories import ellipse_waypoints
-from legbench.yamlfile import LIMITS, YamlContext, check_keys, integer, limit, number, read_yaml, set_key, vector
+from legbench.yamlfile import (
+    LIMITS,
+    YamlContext,
+    check_keys,
+    integer,
+    keypath,
+    limit,
+    number,
+    read_yaml,
+    set_key,
+    vector,
+)
 
 CONTROLLERS = ("position", "trajectory", "ellipse", "effort", "torque")
 #: Keys of each controller's event body: (allowed, required). The validator and :func:`json_schema` use them.
@@ -75,6 +87,14 @@ SECTION_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 MAX_TICKS = 10_000_000  # the default of limit('ticks'); LEGBENCH_LIMITS=ticks=N raises it
 MAX_WAYPOINTS = 100_000
 NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}")
+#: Divergence bounds no physical run of this leg reaches: joint speed [rad/s] (20x the hip's speed limit) and
+#: foot penetration [m] (5 cm is 500 N at Kp = 1e4 N/m; the leg pushes <= 100 N). The run loop stops a backend
+#: beyond them; the loader refuses an initial state beyond them (every run would stop at t = 0).
+MAX_JOINT_SPEED = 1.0e3
+MAX_PENETRATION = 0.05
+#: The metrics a tolerance may be given for (``comparison.tolerances``, a tolerance file): their defaults are
+#: :data:`legbench.check.DEFAULT_TOLERANCES`, built from these names.
+TOLERANCE_METRICS = ("sim_error_pct", "rms", "steady_mean", "max_sim_error_pct")
 
 
 @dataclass(frozen=True)
@@ -305,10 +325,23 @@ TOP_KEYS = ["name", "description", "duration", "control_rate", "gains", "initial
             "profile", "backends", "comparison"]  # fmt: skip
 
 
-def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None, overridden: Sequence[str] = ()) -> Scenario:
+def parse(
+    doc: Any,
+    file: str = "<memory>",
+    root: yaml.Node | None = None,
+    overridden: Sequence[str] = (),
+    placeholders: Collection[str] = (),
+    every_engine: bool = False,
+) -> Scenario:
     """Validate a scenario document (already parsed YAML) into a :class:`Scenario`; ``overridden``: the dotted
-    keys ``--set`` replaced (their errors name the override, not the file's line)."""
+    keys ``--set`` replaced (their errors name the override, not the file's line); ``placeholders``: top-level
+    keys (``duration``, ``control_rate``) whose values stand in for invalid ones (:func:`errors` looks past
+    them so): the checks that compare other values with them are skipped. ``every_engine`` (``legbench
+    validate``): also check that the control period suits the default (or profile) sub-step of every
+    installed engine the scenario gives no ``dt`` (this imports them all); a run checks only the engines it
+    loads, when it loads them."""
     ctx = YamlContext(file, root, overridden)
+    exact_d, exact_r = "duration" not in placeholders, "control_rate" not in placeholders
     check_keys(ctx, [], doc, TOP_KEYS, ["name", "duration", "events"])
     name = doc["name"]
     if not isinstance(name, str) or not NAME_RE.fullmatch(name) or set(name) == {"."}:
@@ -318,10 +351,10 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None, overr
         raise ctx.error(["description"], "expected text")
     duration = number(ctx, ["duration"], doc["duration"], positive=True)
     rate = number(ctx, ["control_rate"], doc.get("control_rate", 1000.0), positive=True)
-    if duration * rate > limit("ticks"):
+    if exact_d and exact_r and duration * rate > limit("ticks"):
         raise ctx.error(["duration"], f"{duration} s at {rate} Hz is more than {limit('ticks'):.0e} control ticks "
                                       "(limit ticks: LEGBENCH_LIMITS=ticks=N raises it)")  # fmt: skip
-    if abs(duration * rate - round(duration * rate)) > 1e-6:
+    if exact_d and exact_r and abs(duration * rate - round(duration * rate)) > 1e-6:
         raise ctx.error(["duration"], f"{duration} s is not a whole number of control periods at {rate} Hz")
 
     gains_d = doc.get("gains", {})
@@ -344,7 +377,18 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None, overr
     p = load_params()
     for i, (qi, lo, hi) in enumerate(zip(q0, p.lower, p.upper, strict=True)):
         if not lo <= qi <= hi:
-            raise ctx.error(["initial", "q", i], f"{qi} rad outside the joint limits [{lo:.4f}, {hi:.4f}]")
+            raise ctx.error(["initial", "q", i] if isinstance(init.get("q"), list) else ["initial", "q"],
+                            f"{qi} rad outside the joint limits [{lo:.4f}, {hi:.4f}]")  # fmt: skip
+    depth = p.geometry.R_foot - float(kinematics.fk(np.array(q0))[2])  # of the foot sphere's lowest point [m]
+    if depth > MAX_PENETRATION:
+        raise ctx.error(["initial", "q"], f"puts the foot {depth:.4g} m into the ground, deeper than "
+                        f"{MAX_PENETRATION:g} m, where the run loop stops a backend as diverged: every run would "
+                        "end at t = 0")  # fmt: skip
+    for i, v in enumerate(qd0):
+        if abs(v) > MAX_JOINT_SPEED:
+            raise ctx.error(["initial", "qd", i] if isinstance(init.get("qd"), list) else ["initial", "qd"],
+                            f"{v:g} rad/s is faster than {MAX_JOINT_SPEED:g} rad/s, where the run loop stops a "
+                            "backend as diverged: every run would end at t = 0")  # fmt: skip
 
     evs = doc["events"]
     if not isinstance(evs, list) or not evs:
@@ -362,12 +406,12 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None, overr
         raise ctx.error(["events", 0, "delay"], "the first event cannot be delayed (nothing would control the leg)")
     for i, e in enumerate(events):
         for key, value in (("t", e.t), ("delay", e.delay), ("force_delay", e.force_delay)):
-            if abs(value * rate - round(value * rate)) > 1e-6:  # the tolerance of the duration's check
+            if exact_r and abs(value * rate - round(value * rate)) > 1e-6:  # the tolerance of the duration's check
                 raise ctx.error(["events", i, key], f"{value:g} s is not a whole number of control periods at "
                                                     f"{rate:g} Hz: a controller switches only on a tick")  # fmt: skip
-        if e.t >= duration:
+        if exact_d and e.t >= duration:
             raise ctx.error(["events", i, "t"], f"event at {e.t} s is past the end ({duration} s)")
-        if e.t_switch >= duration:
+        if exact_d and e.t_switch >= duration:
             raise ctx.error(["events", i, "delay"], f"the switch at {e.t_switch:g} s is past the end ({duration} s)")
     for i, (a, b) in enumerate(zip(events, events[1:], strict=False)):
         if b.t_switch < a.t_switch:
@@ -414,16 +458,11 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None, overr
     backends: dict[str, dict[str, Any]] = {}
     for bname, bset in bdoc.items():
         backends[bname] = _backend_settings(ctx, str(bname), bset or {})
-        dt = backends[bname].get("dt")
-        if isinstance(dt, float) and dt > 0:
-            ratio = 1.0 / (rate * dt)
-            if ratio > limit("sub_steps"):
-                raise ctx.error(["backends", bname, "dt"], f"{dt:g} s is {ratio:.3g} sub-steps per control tick, more "
-                                f"than {limit('sub_steps')} (limit sub_steps)")  # fmt: skip
-            if round(ratio) < 1 or abs(ratio - round(ratio)) > 1e-9:
-                raise ctx.error(["backends", bname, "dt"], f"{dt:g} s does not divide the control period "
-                                f"{1.0 / rate:g} s (choose control period / n, e.g. "
-                                f"{1.0 / (rate * max(round(ratio), 1)):g} s)")  # fmt: skip
+        why = _sub_step_problem(backends[bname].get("dt"), 1.0 / rate) if exact_r else None
+        if why is not None:
+            raise ctx.error(["backends", bname, "dt"], why)
+    if exact_r and every_engine:
+        _check_default_sub_steps(ctx, backends, profile, 1.0 / rate)
 
     cmp_d = doc.get("comparison", {})
     check_keys(ctx, ["comparison"], cmp_d, *SECTION_KEYS["comparison"])
@@ -439,9 +478,10 @@ def parse(doc: Any, file: str = "<memory>", root: yaml.Node | None = None, overr
                         f"{', '.join(_BUILTIN)}")  # fmt: skip
     if not isinstance(comparison.tolerances, Mapping):
         raise ctx.error(["comparison", "tolerances"], "expected a mapping of metric -> tolerance")
-    if comparison.skip >= duration:
+    validate_tolerances(comparison.tolerances, file, "comparison.tolerances", ctx)
+    if exact_d and comparison.skip >= duration:
         raise ctx.error(["comparison", "skip"], f"skips the whole run ({duration} s)")
-    if comparison.steady_window > duration:
+    if exact_d and comparison.steady_window > duration:
         raise ctx.error(["comparison", "steady_window"], f"longer than the run ({duration} s)")
     return Scenario(
         name=name,
@@ -512,7 +552,87 @@ def _published(ctx: YamlContext, rows: Any) -> tuple[dict[str, Any], ...]:
     return tuple(out)
 
 
+def validate_tolerances(tol: Any, file: str, prefix: str = "", ctx: YamlContext | None = None) -> dict[str, Any]:
+    """Tolerances, checked: a scenario's ``comparison.tolerances``, a tolerance file or one of its sections
+    (:func:`legbench.check.load_tolerances`); the one set of rules for all of them.
+
+    A mapping of :data:`TOLERANCE_METRICS`: ``max_sim_error_pct`` to ``{label or signal: ceiling}``, each other
+    metric to ``{abs: x, rel: x}``, each ``x`` a number or a mapping of label, signal or ``default`` to one;
+    every number >= 0. Errors name ``prefix`` and the key below it, with its line where ``ctx`` knows it.
+
+    Raises:
+        ScenarioError: the first problem found.
+    """
+    base: list[str | int] = list(prefix.split(".")) if prefix else []
+
+    def error(path: list[str | int], problem: str) -> ScenarioError:
+        return ctx.error([*base, *path], problem) if ctx is not None else ScenarioError(file, keypath([*base, *path]),
+                                                                                          problem)  # fmt: skip
+
+    def nonneg(x: Any, path: list[str | int]) -> None:
+        if isinstance(x, bool) or not isinstance(x, int | float) or not x >= 0:
+            raise error(path, f"must be a number >= 0, not {x!r}")
+
+    if not isinstance(tol, Mapping):
+        raise error([], "tolerances must be a mapping")
+    for k, v in tol.items():
+        key: list[str | int] = [str(k)]
+        if k not in TOLERANCE_METRICS:
+            raise error(key, f"unknown tolerance; valid: {sorted(TOLERANCE_METRICS)}")
+        if not isinstance(v, Mapping):
+            raise error(key, "must be a mapping")
+        if k == "max_sim_error_pct":
+            for lab, x in v.items():
+                nonneg(x, [*key, str(lab)])
+            continue
+        for sub, x in v.items():
+            if sub not in ("abs", "rel"):
+                raise error([*key, str(sub)], "unknown key; valid: ['abs', 'rel']")
+            if isinstance(x, Mapping):
+                for lab, y in x.items():
+                    nonneg(y, [*key, sub, str(lab)])
+            else:
+                nonneg(x, [*key, sub])
+    return dict(tol)
+
+
 _BUILTIN = tuple(backends.BUILTIN)
+
+
+def _sub_step_problem(dt: Any, control_dt: float) -> str | None:
+    """Why an engine's sub-step ``dt`` [s] does not fit the control period ``control_dt`` [s]: it does not divide
+    it (the one rule, :func:`legbench.backends.base.dt_problem`) or more than ``limit("sub_steps")`` times; None
+    if it fits, or is not a positive number (an engine without a fixed step, one not installed here)."""
+    if isinstance(dt, bool) or not isinstance(dt, int | float) or not dt > 0:
+        return None
+    ratio = control_dt / dt
+    if ratio > limit("sub_steps"):
+        return f"{dt:g} s is {ratio:.3g} sub-steps per control tick, more than {limit('sub_steps')} (limit sub_steps)"
+    return dt_problem(float(dt), control_dt)
+
+
+def _check_default_sub_steps(ctx: YamlContext, settings: Mapping[str, Mapping[str, Any]], profile: str,
+                             control_dt: float) -> None:  # fmt: skip
+    """The default (or profile) sub-step of every installed engine the scenario gives no ``dt`` for fits the
+    control period (:func:`_sub_step_problem`): else the engine would refuse to load (``legbench run``,
+    ``doctor``, with no file named), so ``control_rate`` is blamed, naming the engines."""
+    misfits: list[tuple[str, str]] = []
+    for name in dict.fromkeys([*backends.BUILTIN, *settings]):
+        given = settings.get(name, {})
+        if "dt" in given:
+            continue  # checked as the scenario's own
+        try:
+            dt = backends.get(name).resolve_settings({}, str(given.get("profile", profile))).get("dt")
+        except LegbenchError:  # not installed here (BackendNotFound), or a plug-in without this profile
+            continue
+        why = _sub_step_problem(dt, control_dt)
+        if why is not None:
+            misfits.append((name, f"backends.{name}.dt: {why}"))
+    if misfits:
+        names = ", ".join(n for n, _ in misfits)
+        raise ctx.error(["control_rate"], f"{1.0 / control_dt:g} Hz does not suit the default (or profile) sub-step "
+                        f"of {names}: {misfits[0][1]}; set their backends.<name>.dt to such a step, or choose another "
+                        "control_rate")  # fmt: skip
 
 
 def _known_backend(name: str) -> bool:
@@ -549,6 +669,8 @@ def _backend_settings(ctx: YamlContext, name: str, given: Any) -> dict[str, Any]
             if v not in cls.choices[k]:
                 raise ctx.error([*path, k], f"expected one of {', '.join(cls.choices[k])}, got {v!r}")
             out[k] = v
+        elif k in cls.ranges:
+            out[k] = _ranged(ctx, [*path, k], v, cls.ranges[k])
         elif isinstance(default, bool):
             if not isinstance(v, bool):
                 raise ctx.error([*path, k], f"expected true or false, got {v!r}")
@@ -560,6 +682,17 @@ def _backend_settings(ctx: YamlContext, name: str, given: Any) -> dict[str, Any]
         else:
             out[k] = v
     return out
+
+
+def _ranged(ctx: YamlContext, path: list[str | int], v: Any, rng: Range) -> float | None:
+    """A number setting in the range its backend declares (:attr:`Backend.ranges`), or ``null`` where allowed."""
+    if v is None and rng.nullable:
+        return None
+    x = number(ctx, path, v)
+    why = rng.problem(x)
+    if why is not None:
+        raise ctx.error(path, why + (" (or null: off)" if rng.nullable else ""))
+    return x
 
 
 def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
@@ -631,12 +764,16 @@ def json_schema() -> dict[str, Any]:
         for k, default in cls.defaults.items():
             if k in cls.choices:
                 props[k] = {"enum": list(cls.choices[k])}
+            elif k in cls.ranges:
+                props[k] = _range_schema(cls.ranges[k])
             elif isinstance(default, bool):
                 props[k] = {"type": "boolean"}
             elif isinstance(default, int):
                 props[k] = {"type": "integer", "minimum": 1, "maximum": LIMITS["integer"]}
             elif isinstance(default, float):
                 props[k] = pos
+            else:
+                props[k] = {}  # a setting the backend reads as it likes (None by default)
         backend_props[name] = {"type": "object", "additionalProperties": False, "properties": props}
     sections = {
         "gains": obj(SECTION_KEYS["gains"], {"Kp": vec3_nonneg, "Kd": vec3_nonneg, "Ki": vec3_nonneg}),
@@ -671,6 +808,17 @@ def json_schema() -> dict[str, Any]:
     }
 
 
+def _range_schema(rng: Range) -> dict[str, Any]:
+    """JSON Schema of a number setting's :class:`~legbench.backends.base.Range`."""
+    out: dict[str, Any] = {"type": ["number", "null"] if rng.nullable else "number"}
+    out["exclusiveMinimum" if rng.open_low else "minimum"] = rng.low
+    if rng.high != math.inf:
+        out["maximum"] = rng.high
+    return out
+
+
+#: Valid values put in place of an invalid name, duration [s] or control rate [Hz] to look for further errors.
+_STAND_INS: dict[str, Any] = {"name": "scenario", "duration": 1.0, "control_rate": 1000.0}
 #: Optional sections dropped (their defaults apply) to look for further errors after one in them.
 _DROPPABLE = ("description", "gains", "initial", "physics", "profile", "backends", "comparison")
 
@@ -680,8 +828,10 @@ def errors(path: str | Path) -> list[ScenarioError]:
 
     After an error, the optional section it is in (or the one backend's settings) is dropped, so its
     defaults apply, and the document is validated again; an error in ``events`` replaces them by one
-    hold so the sections after them are still checked; an error in ``name``, ``duration`` or
-    ``control_rate`` ends the search (what follows depends on them). At most 50 errors.
+    hold so the sections after them are still checked; an invalid ``name``, ``duration`` or
+    ``control_rate`` is replaced by a stand-in (:data:`_STAND_INS`) and the checks that compare other
+    values with a stand-in duration or rate are skipped (``parse``'s ``placeholders``), so that what does not
+    depend on them is still checked and nothing is blamed on the stand-in. At most 50 errors.
     """
     try:
         doc, root = read_yaml(path)
@@ -689,15 +839,22 @@ def errors(path: str | Path) -> list[ScenarioError]:
         return [exc]
     found: list[ScenarioError] = []
     doc = copy.deepcopy(doc)
+    placeholders: set[str] = set()
     while len(found) < 50:
         try:
-            parse(doc, str(path), root)
+            parse(doc, str(path), root, placeholders=placeholders, every_engine=True)
             return found
         except ScenarioError as exc:
             found.append(exc)
             top = re.split(r"[.\[]", exc.key, maxsplit=1)[0] if exc.key else ""
             if not isinstance(doc, dict) or top not in doc:
                 return found
+            if top in _STAND_INS:
+                if top in placeholders:  # the stand-in itself refused: nothing more to learn
+                    return found
+                doc[top] = _STAND_INS[top]
+                placeholders.add(top)
+                continue
             if top == "backends" and isinstance(doc["backends"], dict) and exc.key.count(".") >= 1:
                 bname = exc.key.split(".")[1]
                 if bname in doc["backends"]:

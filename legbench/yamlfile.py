@@ -16,6 +16,7 @@ import difflib
 import math
 import os
 import re
+import stat
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -67,19 +68,27 @@ FLOAT_TINY = 1e-30
 def limit(name: str) -> int:
     """The limit ``name`` of :data:`LIMITS`, raised by ``LEGBENCH_LIMITS=name=value,...`` if set.
 
+    Every item of ``LEGBENCH_LIMITS`` is checked whichever limit is asked for, so a bad one is refused at once.
+
     Raises:
-        ScenarioError: ``LEGBENCH_LIMITS`` names a limit that does not exist, or its value is not a number.
+        ScenarioError: ``LEGBENCH_LIMITS`` names a limit that does not exist, or its value is not a whole
+            number >= 1 (a limit of 0 or below would refuse everything, and its message would make no sense).
     """
+    given: dict[str, int] = {}
     for item in os.environ.get("LEGBENCH_LIMITS", "").split(","):
         key, sep, value = item.partition("=")
-        if item.strip() and (not sep or key.strip() not in LIMITS):  # a typo would leave the limit as it was
+        if not item.strip():
+            continue
+        if not sep or key.strip() not in LIMITS:  # a typo would leave the limit as it was
             raise ScenarioError("LEGBENCH_LIMITS", item.strip(), f"unknown limit; known: {', '.join(LIMITS)}")
-        if sep and key.strip() == name:
-            try:
-                return int(float(value))
-            except (ValueError, OverflowError):
-                raise ScenarioError("LEGBENCH_LIMITS", name, f"expected a number, got {value!r}") from None
-    return LIMITS[name]
+        try:
+            n = int(float(value))
+        except (ValueError, OverflowError):
+            raise ScenarioError("LEGBENCH_LIMITS", key.strip(), f"expected a number, got {value!r}") from None
+        if n < 1:
+            raise ScenarioError("LEGBENCH_LIMITS", key.strip(), f"must be a whole number >= 1, got {value!r}")
+        given[key.strip()] = n
+    return given.get(name, LIMITS[name])
 
 
 class Loader(yaml.SafeLoader):
@@ -349,16 +358,43 @@ def _parse_text(text: str, file: str) -> tuple[Any, yaml.Node | None]:
     return doc, root
 
 
+#: What a path that is not a regular file is, by its ``stat`` mode.
+_KINDS = ((stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a FIFO"),
+          (stat.S_ISSOCK, "a socket"))  # fmt: skip
+
+
+def _not_regular(path: Path, mode: int, what: str) -> ScenarioError:
+    kind = next((name for test, name in _KINDS if test(mode)), "a special file")
+    return ScenarioError(str(path), "", f"is {kind}, not a regular file (a {what} is read only from one)")
+
+
 def read_text(path: str | Path, what: str = "file") -> str:
-    """A UTF-8 text file no larger than ``limit("file_bytes")``, or a one-line :class:`ScenarioError`."""
+    """A UTF-8 text file no larger than ``limit("file_bytes")``, or a one-line :class:`ScenarioError`.
+
+    Only a regular file is read (a device such as ``/dev/zero`` has no end, a FIFO blocks until a writer
+    comes): its type is checked before it is opened, and again on the open file (opened without blocking, so a
+    path swapped for a FIFO in between cannot hang); at most ``limit + 1`` bytes are read, whatever its size
+    said.
+    """
     path = Path(path)
+    cap = limit("file_bytes")
     try:
-        if path.is_dir():
+        mode = os.stat(path).st_mode
+        if stat.S_ISDIR(mode):
             raise ScenarioError(str(path), "", f"is a directory, not a {what}")
-        size = path.stat().st_size
-        if size > limit("file_bytes"):
-            raise ScenarioError(str(path), "", f"{size} bytes is more than {limit('file_bytes')} (limit file_bytes)")
-        return path.read_bytes().decode("utf-8")
+        if not stat.S_ISREG(mode):
+            raise _not_regular(path, mode, what)
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        with os.fdopen(fd, "rb") as fh:
+            st = os.fstat(fh.fileno())
+            if not stat.S_ISREG(st.st_mode):
+                raise _not_regular(path, st.st_mode, what)
+            if st.st_size > cap:
+                raise ScenarioError(str(path), "", f"{st.st_size} bytes is more than {cap} (limit file_bytes)")
+            data = fh.read(cap + 1)
+        if len(data) > cap:  # a file that grew, or one whose size stat does not tell (/proc)
+            raise ScenarioError(str(path), "", f"more than {cap} bytes (limit file_bytes)")
+        return data.decode("utf-8")
     except FileNotFoundError:
         raise ScenarioError(str(path), "", "no such file") from None
     except UnicodeDecodeError as exc:

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from legbench import backends as registry
-from legbench import kinematics, model
+from legbench import kinematics, model, scenario
 from legbench.backends.base import Backend, Physics
 from legbench.contact import ContactParams
-from legbench.exceptions import BackendNotFound
+from legbench.exceptions import BackendNotFound, ScenarioError
 
 ode_ = pytest.importorskip("legbench.backends.ode_")
 OdeBackend = ode_.OdeBackend
@@ -77,6 +77,59 @@ def test_profiles_are_overlays_of_the_defaults() -> None:
     assert {"matched", "engine-defaults", "gazebo"} <= set(OdeBackend.profiles)
     for overlay in OdeBackend.profiles.values():
         assert set(overlay) <= set(OdeBackend.defaults)
+
+
+def test_every_default_and_profile_value_lies_in_its_declared_range() -> None:
+    """Each range ODE declares is for a setting it has, and the defaults and every profile's values lie in it
+    (the validator refused ODE's own default 0 for cfm, stop_cfm, damping, ground_kd, contact_surface_layer)."""
+    assert set(OdeBackend.ranges) <= set(OdeBackend.defaults)
+    for profile in OdeBackend.profiles:
+        settings = OdeBackend.resolve_settings({}, profile)
+        for key, rng in OdeBackend.ranges.items():
+            value = settings[key]
+            assert (value is None and rng.nullable) or rng.problem(float(value)) is None, (profile, key, value)
+
+
+BASE_SCENARIO = {"name": "t", "duration": 1.0, "events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}}]}
+
+
+def test_settings_of_zero_where_ode_allows_it_are_valid() -> None:
+    """0 is a valid cfm, stop_cfm, damping, ground_kd, contact_surface_layer and erp (ODE's own defaults or
+    documented bounds), and null switches off the optional ones: a sweep over cfm: [0.0, 1e-10] is accepted."""
+    zeros = {k: 0 for k in ("cfm", "stop_cfm", "damping", "ground_kd", "contact_surface_layer", "erp", "stop_erp")}
+    nulls = dict.fromkeys(("contact_max_correcting_vel", "surface_max_vel", "surface_min_depth", "ground_kp"))
+    sc = scenario.parse({**BASE_SCENARIO, "backends": {"ode": {**zeros, **nulls}}}, "s.yaml")
+    assert sc.backends["ode"]["cfm"] == 0.0 and sc.backends["ode"]["ground_kp"] is None
+    schema = scenario.json_schema()["properties"]["backends"]["properties"]["ode"]["properties"]
+    assert schema["cfm"] == {"type": "number", "minimum": 0.0} and schema["erp"]["maximum"] == 1.0
+    for cfm in (0.0, 1e-10):  # the grid points of such a sweep
+        assert scenario.parse({**BASE_SCENARIO, "backends": {"ode": {"cfm": cfm}}}, "s.yaml").backends["ode"] == {
+            "cfm": cfm
+        }
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "words"),
+    [
+        ("erp", 5, "must be in [0, 1], got 5"),
+        ("erp", -0.1, "must be in [0, 1], got -0.1"),
+        ("stop_erp", 1.5, "must be in [0, 1], got 1.5"),
+        ("cfm", -1e-10, "must be >= 0, got -1e-10"),
+        ("stop_cfm", -1, "must be >= 0, got -1"),
+        ("damping", 2, "must be in [0, 1], got 2"),
+        ("contact_surface_layer", -0.001, "must be >= 0, got -0.001"),
+        ("ground_kp", 0, "must be > 0, got 0 (or null: off)"),
+        ("ground_kd", -1, "must be >= 0, got -1"),
+        ("surface_max_vel", "fast", "expected a number, got 'fast'"),
+        ("dt", 0, "must be > 0, got 0"),
+    ],
+)
+def test_settings_outside_the_range_ode_documents_are_refused_naming_the_key(key: str, value: Any, words: str) -> None:
+    """An ERP outside [0, 1] (``erp: 5`` was accepted and diverged at the first tick), a negative CFM, damping
+    scale outside [0, 1], a non-positive ground stiffness: a ScenarioError naming backends.ode.<key>."""
+    with pytest.raises(ScenarioError) as err:
+        scenario.parse({**BASE_SCENARIO, "backends": {"ode": {key: value}}}, "s.yaml")
+    assert err.value.key == f"backends.ode.{key}" and words in err.value.problem
 
 
 @pytest.mark.parametrize("profile", ["matched", "engine-defaults", "gazebo"])

@@ -15,7 +15,7 @@ import pytest
 from fakerun import Transform, add_to, offset, scale, write_run
 
 from legbench import check as K
-from legbench import cli, results
+from legbench import cli, results, scenario
 from legbench import compare as C
 from legbench.exceptions import ResultsError, ScenarioError
 
@@ -261,6 +261,22 @@ def test_malformed_tolerances_raise_naming_the_key(baseline: Path, tmp_path: Pat
         with pytest.raises(ScenarioError) as err:
             K.check(baseline, baseline, tol)
         assert f"{tol}: {key}:" in str(err.value)
+
+
+def test_tolerance_files_and_scenarios_share_one_list_of_names_and_one_set_of_rules(tmp_path: Path) -> None:
+    """The valid tolerance names exist once (scenario.TOLERANCE_METRICS) and check's defaults are given for
+    exactly them; a tolerance file and a scenario's comparison.tolerances are refused with the same words."""
+    assert tuple(K.DEFAULT_TOLERANCES) == scenario.TOLERANCE_METRICS
+    base = {"name": "t", "duration": 1.0, "events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}}]}
+    tol = tmp_path / "tol.yaml"
+    for bad in ({"foo": 1}, {"rms": {"abs": -1}}, {"max_sim_error_pct": {"q1": -5}}, {"rms": {"absolute": 1}}):
+        tol.write_text(json.dumps(bad))
+        with pytest.raises(ScenarioError) as in_file:
+            K.load_tolerances(tol)
+        with pytest.raises(ScenarioError) as in_scenario:
+            scenario.parse({**base, "comparison": {"tolerances": bad}}, "s.yaml")
+        assert in_scenario.value.problem == in_file.value.problem
+        assert in_scenario.value.key == f"comparison.tolerances.{in_file.value.key}"
 
 
 def test_missing_directories_raise(tmp_path: Path) -> None:

@@ -409,6 +409,77 @@ def test_validate_tolerance_and_sweep_files_fully(tmp_path: Path, capsys: pytest
     assert "limit sweep_points" in capsys.readouterr().err
 
 
+def test_validate_looks_past_an_invalid_duration_and_control_rate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An invalid duration or control_rate no longer ends validate's search: each is replaced by a stand-in and
+    the rest is still checked (it reported only the unknown key and the duration of this file), and nothing is
+    blamed on a stand-in (an event after it, off its tick grid, a window longer than it)."""
+    f = tmp_path / "bad.yaml"
+    f.write_text("name: t\nbogus: 1\nduration: -1\ncontrol_rate: 0\ngains: {Kp: -1}\nevents:\n"
+                 "  - {t: 0.0, effort: {force: [0, 0]}}\n")  # fmt: skip
+    assert cli.main(["validate", str(f)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert [ln.split(": ")[3] for ln in lines] == ["bogus", "duration", "control_rate", "gains.Kp",
+                                                   "events[0].effort.force"]  # fmt: skip
+    hold = "{joint: [0, 0, 0]}"
+    f.write_text(f"name: t\nduration: -1\ncontrol_rate: 0\nevents:\n  - {{t: 0.0, position: {hold}}}\n"
+                 f"  - {{t: 5.0005, position: {hold}}}\ncomparison: {{skip: 3, steady_window: 4}}\n")  # fmt: skip
+    assert cli.main(["validate", str(f)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert [ln.split(": ")[3] for ln in lines] == ["duration", "control_rate"]
+
+
+def test_validate_refuses_what_would_fail_every_run_at_t_0(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """What validated ok and then failed every engine (an initial speed past the divergence bound: exit 3) or
+    every load with no file named (a control_rate the engines' default step does not divide) is one line of
+    validate naming the file and the key, exit 2."""
+    for text, key in (("initial: {qd: [0, 0, 5000]}\n", "initial.qd[2]"), ("control_rate: 333\n", "control_rate")):
+        f = tmp_path / "s.yaml"
+        f.write_text(yaml.safe_dump({**GOOD, "duration": 3.0}) + text)
+        assert cli.main(["validate", str(f)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{f}:" in err and f": {key}: " in err
+
+
+def test_a_path_that_is_not_a_regular_file_is_refused_without_reading_it(tmp_path: Path) -> None:
+    """A character device (/dev/zero: no end, read until the process was killed) and a FIFO (open blocked for
+    ever) are refused in one line naming what they are, exit 2, at once (each in a fresh process, bounded)."""
+    fifo = tmp_path / "fifo.yaml"
+    os.mkfifo(fifo)
+    for path, kind in (("/dev/zero", "a character device"), (str(fifo), "a FIFO")):
+        if not Path(path).exists():
+            continue
+        done = subprocess.run([sys.executable, "-m", "legbench", "validate", path], capture_output=True, text=True,
+                              timeout=120)  # fmt: skip
+        assert done.returncode == 2, done.stderr[-500:]
+        assert done.stderr == f"legbench: error: {path}: is {kind}, not a regular file (a file is read only from one)\n"
+
+
+def test_at_most_the_file_size_limit_is_read_whatever_stat_says(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A regular file whose stat size is 0 (a /proc file) is read only up to file_bytes + 1 bytes: beyond the
+    limit it is refused (the size limit was a stat check only)."""
+    proc = Path("/proc/self/status")
+    if not proc.is_file() or proc.stat().st_size != 0:
+        pytest.skip("needs Linux /proc")
+    monkeypatch.setenv("LEGBENCH_LIMITS", "file_bytes=64")
+    with pytest.raises(ScenarioError, match="/proc/self/status: more than 64 bytes \\(limit file_bytes\\)"):
+        yamlfile.read_text(proc)
+
+
+@pytest.mark.parametrize("value", ["-1", "0", "0.5", "-1e9"])
+def test_a_limit_below_1_is_refused(monkeypatch: pytest.MonkeyPatch, value: str) -> None:
+    """LEGBENCH_LIMITS=ticks=-1 was taken ("more than -1e+00 control ticks"): a limit must be a whole number >= 1,
+    refused whichever limit is read first."""
+    monkeypatch.setenv("LEGBENCH_LIMITS", f"ticks={value}")
+    for name in ("ticks", "file_bytes"):
+        with pytest.raises(ScenarioError) as err:
+            yamlfile.limit(name)
+        assert str(err.value) == f"LEGBENCH_LIMITS: ticks: must be a whole number >= 1, got {value!r}"
+    monkeypatch.setenv("LEGBENCH_LIMITS", "ticks=1")
+    assert yamlfile.limit("ticks") == 1
+
+
 # --------------------------------------------------------------------------- #
 # Output paths checked before any work; readers guarded
 
@@ -510,6 +581,78 @@ def test_run_without_out_never_replaces_a_finished_run(tmp_path: Path, monkeypat
     assert "--out" in err and "--force" in err and err.count("\n") == 1
     assert meta.read_bytes() == before
     assert cli.main([*argv, "--force"]) == 0
+
+
+def test_run_with_out_never_replaces_a_finished_run_without_force(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run into an --out that holds a finished run of the same scenario is refused in one line naming --force
+    (exit 2, the run untouched; it was silently replaced), replaced with --force. An interrupted run there
+    (``"complete": false``, no backend finished) is resumed without --force; one of other settings (another
+    --set) is not, and needs --force as well."""
+    import json
+
+    f = _fake_run(tmp_path, monkeypatch)
+    out = tmp_path / "r"
+    argv = ["run", str(f), "--backends", "fake", "--out", str(out), "-q", "--no-compare", "--no-preflight"]
+    assert cli.main(argv) == 0
+    (out / "mine.txt").write_text("kept")  # what a replacement would lose
+    before = (out / "run.json").read_bytes()
+    capsys.readouterr()
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"{out} holds a finished run" in err and "--force" in err and err.count("\n") == 1
+    assert (out / "run.json").read_bytes() == before and (out / "mine.txt").read_text() == "kept"
+    assert cli.main([*argv, "--force"]) == 0
+    meta = json.loads((out / "run.json").read_text())
+    meta["backends"]["fake"] |= {"status": "interrupted", "reason": "interrupted at t = 0.0000 s"}
+    interrupted = json.dumps({**meta, "complete": False})  # as Ctrl-C before the backend finished leaves it
+    (out / "run.json").write_text(interrupted)
+    assert cli.main([*argv, "--set", "duration=1.5"]) == 2
+    err = capsys.readouterr().err
+    assert "holds an interrupted run of other settings" in err and "--force" in err and err.count("\n") == 1
+    assert (out / "run.json").read_text() == interrupted
+    assert cli.main(argv) == 0
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["complete"] is True and meta["backends"]["fake"]["status"] == "ok"
+
+
+def test_check_replaces_an_existing_summary_or_junit_file_only_with_force(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``legbench check --summary FILE`` / ``--junit FILE`` naming an existing file: one line naming --force,
+    exit 2, the file untouched (it was overwritten); with --force it is replaced. The defaults in the results
+    directory (check.md, check-junit.xml) are rewritten on every check."""
+    f = _fake_run(tmp_path, monkeypatch)
+    dirs = []
+    for name in ("new", "base"):
+        dirs.append(tmp_path / name)
+        assert cli.main(["run", str(f), "--backends", "fake", "--out", str(dirs[-1]), "-q", "--no-preflight"]) == 0
+    check = ["check", str(dirs[0]), "--baseline", str(dirs[1])]
+    assert cli.main(check) == 0 and cli.main(check) == 0
+    assert (dirs[0] / "check.md").is_file() and (dirs[0] / "check-junit.xml").is_file()
+    for opt in ("--summary", "--junit"):
+        mine = tmp_path / f"mine{opt}"
+        mine.write_text("my notes")
+        capsys.readouterr()
+        assert cli.main([*check, opt, str(mine)]) == 2
+        err = capsys.readouterr().err
+        assert f"{opt} {mine}: exists" in err and "--force" in err and err.count("\n") == 1
+        assert mine.read_text() == "my notes"
+        assert cli.main([*check, opt, str(mine), "--force"]) == 0
+        assert mine.read_text() != "my notes"
+
+
+def test_an_out_that_is_not_writable_is_refused_before_any_work_exit_2(
+    readonly_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--out in a place that is not writable is bad input found before any work (README: exit 2, one line,
+    nothing written); exit 4 is a write that fails while writing (test_full_disk_...)."""
+    before = sorted(p.name for p in readonly_dir.iterdir())
+    assert cli.main(["run", str(EFFORT), "--backends", "pinocchio", "--out", str(readonly_dir / "run"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "is not writable" in err and err.count("\n") == 1
+    assert sorted(p.name for p in readonly_dir.iterdir()) == before
 
 
 def test_two_scenarios_with_one_name_are_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,

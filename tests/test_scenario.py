@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
 import yaml
 
-from legbench import scenario
-from legbench.exceptions import ScenarioError
+from legbench import backends, scenario
+from legbench.exceptions import LegbenchError, ScenarioError
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 TASKS = ("position", "ellipse", "effort", "combined", "combined_ros")
@@ -191,3 +192,94 @@ def test_an_overridden_value_is_blamed_on_the_override_not_the_files_line(tmp_pa
     with pytest.raises(ScenarioError) as err:
         scenario.load(path, {"gains.Kp": [1.0, -2.0, 3.0]})
     assert err.value.key == "gains.Kp[1]" and "(from --set gains.Kp)" in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("initial", "key"),
+    [({"qd": [0, 0, 5000]}, "initial.qd[2]"), ({"qd": [-1000.5, 0, 0]}, "initial.qd[0]"), ({"qd": 2000}, "initial.qd")],
+)
+def test_an_initial_joint_speed_above_the_divergence_bound_is_refused(tmp_path: Path, initial: dict, key: str) -> None:  # type: ignore[type-arg]
+    """An initial joint speed above MAX_JOINT_SPEED (the run loop's divergence bound: every engine stopped at
+    t = 0 with exit 3) is a ScenarioError naming the file and initial.qd; the bound itself is accepted."""
+    with pytest.raises(ScenarioError) as err:
+        scenario.load(_write(tmp_path, {**BASE, "initial": initial}))
+    assert err.value.key == key and str(tmp_path) in str(err.value)
+    assert f"faster than {scenario.MAX_JOINT_SPEED:g} rad/s" in err.value.problem
+    bound = scenario.parse({**BASE, "initial": {"qd": [0, 0, -scenario.MAX_JOINT_SPEED]}})
+    assert bound.qd0 == (0.0, 0.0, -scenario.MAX_JOINT_SPEED)
+
+
+def test_an_initial_pose_with_the_foot_deeper_than_the_divergence_bound_is_refused(tmp_path: Path) -> None:
+    """initial.q within the joint limits but with the foot 9.8 cm into the ground (beyond MAX_PENETRATION, where
+    the run loop stops every engine at t = 0) is a ScenarioError naming initial.q; a foot resting on it is not."""
+    with pytest.raises(ScenarioError) as err:
+        scenario.load(_write(tmp_path, {**BASE, "initial": {"q": [0.0, -1.6, 0.0]}}))
+    assert err.value.key == "initial.q" and "0.0984 m into the ground, deeper than 0.05 m" in err.value.problem
+    assert scenario.parse({**BASE, "initial": {"q": [-0.0025, -1.1899, -1.2599]}}).q0 == (-0.0025, -1.1899, -1.2599)
+
+
+@pytest.mark.parametrize(
+    ("tolerances", "key", "words"),
+    [
+        ({"foo": 1}, "comparison.tolerances.foo", "unknown tolerance; valid: ['max_sim_error_pct', 'rms'"),
+        ({"max_sim_error_pct": -5}, "comparison.tolerances.max_sim_error_pct", "must be a mapping"),
+        ({"max_sim_error_pct": {"q1": -5}}, "comparison.tolerances.max_sim_error_pct.q1", "must be a number >= 0"),
+        ({"rms": {"abs": -1}}, "comparison.tolerances.rms.abs", "must be a number >= 0, not -1"),
+        ({"rms": {"abs": {"tau": "x"}}}, "comparison.tolerances.rms.abs.tau", "must be a number >= 0, not 'x'"),
+        ({"steady_mean": {"absolute": 1}}, "comparison.tolerances.steady_mean.absolute", "unknown key"),
+    ],
+)
+def test_malformed_comparison_tolerances_are_refused_when_the_scenario_loads(
+    tmp_path: Path,
+    tolerances: dict,  # type: ignore[type-arg]
+    key: str,
+    words: str,
+) -> None:
+    """A scenario's comparison.tolerances with an unknown metric or a negative value is refused by load (validate
+    and run), by the rules legbench check applies, naming the file, the key and its line; it passed both and
+    failed only a later check."""
+    path = _write(tmp_path, {**BASE, "comparison": {"tolerances": tolerances}})
+    with pytest.raises(ScenarioError) as err:
+        scenario.load(path)
+    assert err.value.key == key and words in err.value.problem
+    assert str(path) in str(err.value) and err.value.line is not None
+    good = {"sim_error_pct": {"abs": 0.1}, "rms": {"abs": {"q": 1e-4}, "rel": 0}, "max_sim_error_pct": {"q1": 5}}
+    assert scenario.parse({**BASE, "comparison": {"tolerances": good}}).comparison.tolerances == good
+
+
+def test_a_control_rate_the_engines_default_sub_step_does_not_divide_is_refused_naming_file_and_key(
+    tmp_path: Path,
+) -> None:
+    """control_rate: 333 validated, then run and doctor refused it with no file named (the engines' default dt,
+    5e-5 s, does not divide 1/333 s): validate (scenario.errors) now refuses it naming the file, control_rate
+    and its line, and the engines; with a dt that divides the period given to every installed engine, it is
+    valid. Loading it for a run does not import every engine: a run checks the engines it loads (the pre-flight
+    names the file: tests/test_cli.py)."""
+    path = _write(tmp_path, {**BASE, "duration": 3.0, "control_rate": 333})
+    (err,) = scenario.errors(path)
+    assert err.key == "control_rate" and err.line is not None and str(path) in str(err)
+    assert "backends.pinocchio.dt: 5e-05 s does not divide the control period 0.003003 s" in err.problem
+    assert scenario.load(path).control_rate == 333
+    step = 1.0 / 333 / 60
+    fixed = {name: {"dt": step} for name in backends.available() if "dt" in backends.get(name).defaults}
+    doc = {**BASE, "duration": 3.0, "control_rate": 333, "backends": fixed}
+    assert scenario.parse(doc, every_engine=True).control_rate == 333
+
+
+def test_the_sub_step_rule_is_the_backends_own() -> None:
+    """The loader's sub-step check and the engines' load ask one rule (backends.base.dt_problem): what one
+    refuses, the other does, with the same words."""
+    from legbench.backends.base import dt_problem, sub_step_count
+
+    for dt, control_dt in ((5e-5, 1 / 333), (3e-4, 1e-3), (2e-3, 1e-3), (1e-4, 1e-3)):
+        why = dt_problem(dt, control_dt)
+        if why is None:
+            assert sub_step_count("x", dt, control_dt) == round(control_dt / dt)
+            continue
+        with pytest.raises(LegbenchError, match=re.escape(f"backends.x.dt: {why}")):
+            sub_step_count("x", dt, control_dt)
+        with pytest.raises(ScenarioError) as err:
+            scenario.parse(
+                {**BASE, "control_rate": 1 / control_dt, "duration": 3.0, "backends": {"pinocchio": {"dt": dt}}}
+            )
+        assert err.value.key == "backends.pinocchio.dt" and err.value.problem == why

@@ -14,7 +14,16 @@ from importlib import metadata
 from typing import Any
 
 from legbench import resources
-from legbench.backends.base import INTEGRATOR_FAMILIES, PROFILES, Backend, Limits, Physics, sub_step_count
+from legbench.backends.base import (
+    INTEGRATOR_FAMILIES,
+    PROFILES,
+    Backend,
+    Limits,
+    Physics,
+    Range,
+    dt_problem,
+    sub_step_count,
+)
 from legbench.exceptions import BackendNotFound, LegbenchError
 
 __all__ = [
@@ -23,7 +32,9 @@ __all__ = [
     "Backend",
     "Limits",
     "Physics",
+    "Range",
     "available",
+    "dt_problem",
     "engine_packages",
     "get",
     "load",

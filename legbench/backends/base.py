@@ -77,20 +77,50 @@ class Limits:
     enforcement: str = ""
 
 
+@dataclass(frozen=True)
+class Range:
+    """The values a number setting of a backend may take (:attr:`Backend.ranges`): ``low <= x <= high``, or
+    ``low < x <= high`` where ``open_low``; ``nullable``: ``null`` too (the setting off)."""
+
+    low: float = 0.0
+    high: float = math.inf
+    open_low: bool = False
+    nullable: bool = False
+
+    def problem(self, x: float) -> str | None:
+        """Why ``x`` is out of this range (one phrase), or None."""
+        if (x <= self.low if self.open_low else x < self.low) or x > self.high:
+            return f"must be {self}, got {x:g}"
+        return None
+
+    def __str__(self) -> str:
+        if self.high == math.inf:
+            return f"{'>' if self.open_low else '>='} {self.low:g}"
+        return f"in {'(' if self.open_low else '['}{self.low:g}, {self.high:g}]"
+
+
+def dt_problem(dt: float, control_dt: float) -> str | None:
+    """Why a sub-step of ``dt`` [s] cannot make up the control period ``control_dt`` [s] (not positive, or not a
+    whole fraction of it), one phrase; None if ``control_dt / dt`` is a whole number >= 1. The one sub-step rule:
+    :func:`sub_step_count` and the scenario loader both ask it."""
+    ratio = control_dt / dt if dt > 0 else 0.0
+    n = round(ratio)
+    if n < 1 or abs(ratio - n) > 1e-9:
+        return (f"{dt:g} s does not divide the control period {control_dt:g} s "
+                f"(choose control_dt / n, e.g. {control_dt / max(n, 1):g} s)")  # fmt: skip
+    return None
+
+
 def sub_step_count(backend: str, dt: float, control_dt: float) -> int:
     """Number of sub-steps of length ``dt`` [s] in one control period ``control_dt`` [s].
 
     Raises:
-        LegbenchError: ``dt`` is not positive or does not divide the control period.
+        LegbenchError: ``dt`` is not positive or does not divide the control period (:func:`dt_problem`).
     """
-    ratio = control_dt / dt if dt > 0 else 0.0
-    n = round(ratio)
-    if n < 1 or abs(ratio - n) > 1e-9:
-        raise LegbenchError(
-            f"backends.{backend}.dt: {dt:g} s does not divide the control period {control_dt:g} s "
-            f"(choose control_dt / n, e.g. {control_dt / max(n, 1):g} s)"
-        )
-    return n
+    why = dt_problem(dt, control_dt)
+    if why is not None:
+        raise LegbenchError(f"backends.{backend}.dt: {why}")
+    return round(control_dt / dt)
 
 
 def check_finite(backend: str, t: float, q: Sequence[float] | np.ndarray, qd: Sequence[float] | np.ndarray) -> None:
@@ -117,6 +147,9 @@ class Backend(ABC):
     defaults: ClassVar[Mapping[str, Any]] = {}
     #: Allowed values of string settings, e.g. {"integrator": ("euler", "rk4")}.
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {}
+    #: Allowed values of number settings, where the engine documents them (e.g. an ERP in [0, 1], a CFM >= 0),
+    #: and of those whose default is ``None`` (``Range(nullable=True)``). A float setting not listed must be > 0.
+    ranges: ClassVar[Mapping[str, Range]] = {}
     #: Named settings overlays on :attr:`defaults`. ``matched``: the spec's physics mapped as
     #: faithfully as the engine allows (usually :attr:`defaults` itself, ``{}``);
     #: ``engine-defaults``: what a user gets from the engine's documented defaults with only

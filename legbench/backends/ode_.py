@@ -72,7 +72,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from legbench.backends.base import Backend, Limits, Physics, check_finite, sub_step_count
+from legbench.backends.base import Backend, Limits, Physics, Range, check_finite, sub_step_count
 from legbench.contact import ReferenceContact
 from legbench.exceptions import LegbenchError
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine
@@ -131,6 +131,22 @@ class OdeBackend(Backend):
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "stepper": _STEPPERS,
         "reference_friction": ("implicit", "explicit"),
+    }
+    #: The ranges the ODE manual gives: an ERP in [0, 1] (above 1 the correction overshoots and the joints
+    #: diverge), a CFM >= 0 (0: a hard constraint), a damping scale in [0, 1], lengths, speeds and the ground's
+    #: damping >= 0; ``ground_kp`` (a stiffness in series) > 0. ``None``: the setting off.
+    ranges: ClassVar[Mapping[str, Range]] = {
+        "erp": Range(0.0, 1.0),
+        "stop_erp": Range(0.0, 1.0),
+        "cfm": Range(),
+        "stop_cfm": Range(),
+        "damping": Range(0.0, 1.0),
+        "contact_surface_layer": Range(),
+        "ground_kd": Range(),
+        "contact_max_correcting_vel": Range(nullable=True),
+        "surface_max_vel": Range(nullable=True),
+        "surface_min_depth": Range(nullable=True),
+        "ground_kp": Range(open_low=True, nullable=True),
     }
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "matched": {},

@@ -36,7 +36,7 @@ from legbench import backends as registry
 from legbench import model
 from legbench import scenario as scenario_mod
 from legbench.backends.base import Backend
-from legbench.exceptions import LegbenchError
+from legbench.exceptions import BackendNotFound, LegbenchError
 from legbench.scenario import Scenario, physics_of
 
 __all__ = ["RTOL", "ParityError", "add_cli", "check", "doctor", "preflight", "readback", "table"]
@@ -183,7 +183,12 @@ def table(scenario: Scenario | str | Path, backends: Sequence[str] | None = None
     physics = physics_of(sc)
     values: dict[str, dict[str, Any]] = {}
     for name in names:
-        b = registry.load(name, physics, sc.backends.get(name, {}))
+        try:
+            b = registry.load(name, physics, sc.backends.get(name, {}))
+        except BackendNotFound:
+            raise
+        except LegbenchError as exc:  # a setting the engine refuses for this scenario (a dt that does not
+            raise LegbenchError(f"{sc.file}: {exc}") from exc  # divide its control period): name the file
         try:
             values[name] = readback(b)
         finally:

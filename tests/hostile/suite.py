@@ -89,17 +89,32 @@ def build(d: Path) -> list[tuple[str, list[str], set[int]]]:
                                                        for i in range(20)]}),
         "big_ellipse": yaml.safe_dump({**GOOD, "events": [{"t": 0.0, "ellipse": {"a": 0.01, "b": 0.01, "DY": 0.0,
                                                           "DZ": 0.1, "T": 1.0, "points": 10**7}}]}),
+        # valid-looking, but every run would fail: at t = 0 (diverged), or at an engine's load
+        "qd_fast": yaml.safe_dump({**GOOD, "initial": {"qd": [0, 0, 5000]}}),
+        "foot_deep": yaml.safe_dump({**GOOD, "initial": {"q": [0.0, -1.6, 0.0]}}),
+        "rate_333": yaml.safe_dump({**GOOD, "duration": 3.0, "control_rate": 333}),
+        "tol_unknown": yaml.safe_dump({**GOOD, "comparison": {"tolerances": {"foo": 1}}}),
+        "tol_negative": yaml.safe_dump({**GOOD, "comparison": {"tolerances": {"rms": {"abs": -1}}}}),
     }  # fmt: skip
+    if "ode" in registry.available():  # its settings are checked where it is installed
+        sc["ode_erp"] = yaml.safe_dump({**GOOD, "backends": {"ode": {"erp": 5}}})
     files = {k: w(f"{k}.yaml", v) for k, v in sc.items()}
     files["latin1"] = wb("latin1.yaml", b"name: caf\xe9\n")
+    if Path("/dev/zero").exists():  # no end: it was read until the process was killed
+        files["dev_zero"] = "/dev/zero"
+    if hasattr(os, "mkfifo"):  # opening it for reading blocked for ever
+        os.mkfifo(d / "fifo.yaml")
+        files["fifo"] = str(d / "fifo.yaml")
     files["dir"] = str(d)
     files["missing"] = str(d / "nope.yaml")
     files["huge_file"] = w("huge.yaml", "name: t\n" + "#" * 3_000_000)
     cases: list[tuple[str, list[str], set[int]]] = []
     for k, f in files.items():
         cases.append((f"validate/{k}", ["validate", f], {2}))
+        # big_list is valid; rate_333 suits no engine's default sub-step (validate refuses it) but the fake
+        # engine has no fixed step, so it runs: a run checks only the engines it loads
         cases.append((f"run/{k}", ["run", f, "--backends", "fake", "--out", str(d / "o" / k), "-q", "--no-preflight"],
-                      {0} if k == "big_list" else {2}))  # fmt: skip
+                      {0} if k in ("big_list", "rate_333") else {2}))  # fmt: skip
     cases.append(("validate/good", ["validate", good], {0}))
     cases[cases.index(("validate/big_list", ["validate", files["big_list"]], {2}))] = (
         "validate/big_list",
