@@ -265,3 +265,19 @@ def test_info_lists_only_the_settings_the_solver_reads() -> None:
     assert "hc_reference_depth" not in a and "sap_near_rigid_threshold" in a
     assert b["contact"]["stiction_tolerance"] == 1e-4 and "sap_near_rigid_threshold" not in b
     assert not {"accuracy", "resolution_hint", "reference_friction"} & (set(a) | set(b))
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0e-4])
+def test_a_stiction_tolerance_that_is_not_positive_is_refused_naming_the_key(value: float) -> None:
+    """Drake's friction regularisation speed must be > 0 (null: legbench's choice per solver): 0 or a negative
+    speed is a ScenarioError naming backends.drake.stiction_tolerance, not a failure inside Drake."""
+    from legbench import scenario
+    from legbench.exceptions import ScenarioError
+
+    doc = {"name": "s", "duration": 1.0, "events": [{"t": 0.0, "position": {"joint": [0.0, 0.0, 0.0]}}],
+           "backends": {"drake": {"stiction_tolerance": value}}}  # fmt: skip
+    with pytest.raises(ScenarioError) as err:
+        scenario.parse(doc, "s.yaml")
+    assert err.value.key == "backends.drake.stiction_tolerance" and "must be > 0" in err.value.problem
+    doc["backends"] = {"drake": {"stiction_tolerance": None}}
+    assert scenario.parse(doc, "s.yaml").backends["drake"]["stiction_tolerance"] is None

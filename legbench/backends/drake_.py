@@ -113,7 +113,7 @@ from pydrake.multibody.plant import AddMultibodyPlant, CoulombFriction, Multibod
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from legbench.backends.base import Backend, Limits, Physics, check_finite, sub_step_count
+from legbench.backends.base import Backend, Limits, Physics, Range, check_finite, sub_step_count
 from legbench.contact import ContactParams, ReferenceContact
 from legbench.exceptions import LegbenchError
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine, load_params
@@ -181,6 +181,8 @@ class DrakeBackend(Backend):
         "sap_near_rigid_threshold": 1.0,  # SAP's near-rigid regime threshold (Drake's default)
         "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
     }
+    #: A regularisation speed is > 0; null: :func:`stiction_tolerance` (the law's slope near zero slip).
+    ranges: ClassVar[Mapping[str, Range]] = {"stiction_tolerance": Range(open_low=True, nullable=True)}
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "solver": SOLVERS,
         "contact_model": CONTACT_MODELS,
