@@ -342,6 +342,13 @@ def parse(
     loads, when it loads them."""
     ctx = YamlContext(file, root, overridden)
     exact_d, exact_r = "duration" not in placeholders, "control_rate" not in placeholders
+    if isinstance(doc, Mapping) and "events" not in doc:  # another of legbench's files, given where a scenario goes
+        for key, kind, command in (("studies", "a sweep file", "legbench sweep"),
+                                   ("frameworks", "a framework file", "legbench reproduce")):  # fmt: skip
+            if key in doc:
+                raise ctx.error([], f"is {kind} (it has '{key}'), not a scenario: run it with {command}")
+        if doc and set(doc) <= {*TOLERANCE_METRICS, "scenarios"}:
+            raise ctx.error([], "is a tolerance file, not a scenario: give it to legbench check --tolerances")
     check_keys(ctx, [], doc, TOP_KEYS, ["name", "duration", "events"])
     name = doc["name"]
     if not isinstance(name, str) or not NAME_RE.fullmatch(name) or set(name) == {"."}:

@@ -871,3 +871,35 @@ def test_absurd_leg_parameters_are_refused(tmp_path: Path, capsys: pytest.Captur
     assert cli.main(["--model", str(bad), "model", "check"]) == 2
     err = capsys.readouterr().err
     assert f"materials.{first}" in err and "beyond +-1e+12" in err
+
+
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (["run", "scenarios/sweeps/timestep.yaml"], "is a sweep file (it has 'studies'), not a scenario: run it "
+                                                     "with legbench sweep"),
+        (["run", "scenarios/reproduce.yaml"], "is a framework file (it has 'frameworks'), not a scenario: run it "
+                                               "with legbench reproduce"),
+        (["sweep", "scenarios/effort.yaml"], "is a scenario (it has 'events'), not a sweep: run it with legbench run"),
+    ],
+)  # fmt: skip
+def test_a_file_of_another_kind_is_named_as_such(
+    argv: list[str], words: str, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A sweep given to run, a framework file to run, a scenario to sweep: one line saying which kind of file it
+    is and the command it belongs to (it said 'scenario: unknown key' or 'duration: unknown key'), exit 2,
+    nothing written."""
+    monkeypatch.chdir(ROOT)
+    out = tmp_path / "o"
+    assert cli.main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0], err
+    assert not out.exists()
+
+
+def test_a_tolerance_file_given_as_a_scenario_is_named_as_such(tmp_path: Path) -> None:
+    """A tolerance file where a scenario goes: named as a tolerance file, with where it belongs."""
+    f = tmp_path / "tol.yaml"
+    f.write_text("sim_error_pct: {abs: 1.0}\nscenarios: {effort: {rms: {rel: 0.1}}}\n")
+    with pytest.raises(ScenarioError, match="is a tolerance file, not a scenario: give it to legbench check"):
+        scenario.load(f)

@@ -193,6 +193,8 @@ def load_sweep(path: str | Path) -> Sweep:
     path = Path(path)
     raw, root = read_yaml(path)
     doc = YamlContext(str(path), root)
+    if isinstance(raw, Mapping) and "events" in raw and "studies" not in raw:  # a scenario given as a sweep
+        raise doc.error([], "is a scenario (it has 'events'), not a sweep: run it with legbench run")
     check_keys(doc, [], raw, TOP_KEYS, ["name", "scenario", "studies"])
     name = raw["name"]
     if not isinstance(name, str) or not NAME_RE.fullmatch(name) or set(name) == {"."}:  # a directory name
