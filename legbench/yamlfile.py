@@ -436,6 +436,9 @@ def set_key(doc: dict[str, Any], dotted: str, value: Any) -> None:
     Raises:
         ScenarioError: a part of the path is a value, not a mapping or list, or an index is out of range.
     """
+    if re.search(r"\[\s*-?\d+\s*\]", dotted):  # events[0].t: the error messages' notation, not --set's
+        dots = re.sub(r"\[\s*(-?\d+)\s*\]", r".\1", dotted)
+        raise ScenarioError("--set", dotted, f"a list item is written with a dot: {dots}")
     parts = dotted.split(".")
     d: Any = doc
     for i, k in enumerate(parts):

@@ -303,6 +303,7 @@ def test_tick_limit_can_be_raised(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
         ("duration=[0.3", "malformed YAML"),
         ("duration.x=1", "'duration' is 3.0, not a mapping"),
         ("events.7.t=1", "not an index"),
+        ("events[0].t=1", "events[0].t: a list item is written with a dot: events.0.t"),
         ("name=!!python/object/apply:os.system ['echo hacked']", "malformed YAML"),
         ("=1", "expected KEY=VALUE"),
         ("backends.pinocchio.dt=1e-9", "limit sub_steps"),
