@@ -245,28 +245,10 @@ def _check_plan(plan: list[tuple[scenario.Scenario, str | None, Path]], args: ar
         seen[out] = sc.file
     for sc, mode, out in plan:
         results.check_out_dir(sc, out)
-        held = None if args.force else _would_replace(sc, mode, out)
+        held = None if args.force else results.replaced_by_run(sc, out, mode)
         if held is not None:
             new_place = "choose another --out" if args.out is not None else "pass --out DIR"
             raise LegbenchError(f"{out} holds {held}; {new_place} for a new one, or --force to replace it")
-
-
-def _would_replace(sc: scenario.Scenario, mode: str | None, out: Path) -> str | None:
-    """What of ``out`` a run of ``sc`` in ``mode`` would replace rather than resume, or None: a finished run
-    (run.json without ``"complete": false``), or an interrupted run of other settings (another scenario hash or
-    contact mode). An interrupted run of the same settings is resumed, even with no backend finished yet."""
-    if not (out / "run.json").is_file():
-        return None
-    try:
-        meta = results.read_meta(out)
-    except LegbenchError:  # check_out_dir has refused an unreadable one; anything else is not ours to replace
-        return "a run"
-    if meta.get("complete", True) is not False:
-        return "a finished run"
-    prev = meta.get("scenario") or {}
-    if prev.get("sha256") != sc.sha256 or prev.get("contact_mode") != (mode or sc.contact_mode):
-        return "an interrupted run of other settings (it resumes only with the same scenario and options)"
-    return None
 
 
 def _validate(args: argparse.Namespace) -> int:

@@ -77,6 +77,7 @@ __all__ = [
     "read_meta",
     "read_metrics",
     "read_study",
+    "replaced_by_run",
     "result_from_frame",
     "resumable",
     "run_dirs",
@@ -452,15 +453,37 @@ def check_out_dir(scenario: Scenario, out_dir: Path) -> None:
         )
 
 
+def _same_settings(prev: Mapping[str, Any], scenario: Scenario, contact_mode: str | None) -> bool:
+    """A run.json of the same scenario (its hash) in the same contact mode: one a run of it resumes."""
+    sc = prev.get("scenario") or {}
+    return bool(
+        sc.get("sha256") == scenario.sha256 and sc.get("contact_mode") == (contact_mode or scenario.contact_mode)
+    )
+
+
 def resumable(scenario: Scenario, out_dir: Path, contact_mode: str | None) -> dict[str, Any]:
     """Entries of backends already finished in an interrupted run of the same scenario (same hash and mode)."""
     prev = _previous(Path(out_dir))
-    if not prev or prev.get("complete", True):
-        return {}
-    sc = prev.get("scenario", {})
-    if sc.get("sha256") != scenario.sha256 or sc.get("contact_mode") != (contact_mode or scenario.contact_mode):
+    if not prev or prev.get("complete", True) or not _same_settings(prev, scenario, contact_mode):
         return {}
     return {name: e for name, e in prev.get("backends", {}).items() if e.get("status") == "ok"}
+
+
+def replaced_by_run(scenario: Scenario, out_dir: Path, contact_mode: str | None) -> str | None:
+    """What of ``out_dir`` a run of ``scenario`` in ``contact_mode`` would replace rather than resume, in words,
+    or None: a finished run (run.json without ``"complete": false``), or an interrupted run of other settings
+    (another scenario hash or contact mode). An interrupted run of the same settings is resumed (:func:`resumable`),
+    even with no backend finished yet."""
+    prev = _previous(Path(out_dir))
+    if prev is None:
+        return None
+    if not prev:  # unreadable: check_out_dir refuses it; anything else is not ours to replace
+        return "a run"
+    if prev.get("complete", True) is not False:
+        return "a finished run"
+    if not _same_settings(prev, scenario, contact_mode):
+        return "an interrupted run of other settings (it resumes only with the same scenario and options)"
+    return None
 
 
 def write_log(tr: RunResult, path: Path) -> None:
