@@ -55,3 +55,23 @@ class FakeBackend(Backend):
     def limits(self) -> Limits:
         inf = float("inf")
         return Limits(gravity=0.0, lower=(-inf, -inf, -inf), upper=(inf, inf, inf), enforcement="none")
+
+
+def install_crashing_engine(site: Path) -> str:
+    """Write a plug-in distribution into ``site`` (put it on sys.path; pool workers inherit it): backend
+    ``crashy``, the Pinocchio backend whose first step kills its process with SIGSEGV, as a crash in an
+    engine's C code would. Only ever run it in a worker process. Returns the backend's name."""
+    site.mkdir(parents=True, exist_ok=True)
+    (site / "legbench_crashy.py").write_text(
+        "import os, signal\n"
+        "from legbench.backends.pinocchio_ import PinocchioBackend\n\n\n"
+        "class CrashyBackend(PinocchioBackend):\n"
+        "    name = 'crashy'\n\n"
+        "    def step(self, tau):\n"
+        "        os.kill(os.getpid(), signal.SIGSEGV)\n"
+    )
+    dist = site / "legbench_crashy-0.1.dist-info"
+    dist.mkdir(exist_ok=True)
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: legbench-crashy\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("[legbench.backends]\ncrashy = legbench_crashy:CrashyBackend\n")
+    return "crashy"

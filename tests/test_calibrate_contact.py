@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from fakes import install_crashing_engine
 
 from legbench import backends, cli, kinematics
 from legbench import scenario as scenario_mod
@@ -109,3 +110,16 @@ def test_a_failing_engine_gets_a_row_saying_why_and_the_others_are_calibrated(mo
     assert good.backend == "pinocchio" and good.k_eff == pytest.approx(good.Kp, rel=1e-3) and not good.note
     assert "failed: RuntimeError: solver blew up" in (tmp_path / "calibration.md").read_text()
     assert cli.main(["calibrate-contact", "--out", str(tmp_path / "cli"), "--backends", "exploding,pinocchio"]) == 1
+
+
+def test_an_engine_that_crashes_its_worker_gets_a_failed_row_and_the_others_are_calibrated(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """calibrate-contact --jobs 2 with a plug-in engine that kills its worker (SIGSEGV) beside Pinocchio: its
+    row is NaN with a note naming the signal, Pinocchio's row is calibrated (k_eff = Kp to 1 %)."""
+    monkeypatch.syspath_prepend(str(tmp_path))
+    crashy = install_crashing_engine(tmp_path)
+    df = calibrate_contact.calibrate(None, ["pinocchio", crashy], jobs=2).set_index("backend")
+    assert math.isnan(df.loc[crashy, "k_eff"])
+    assert "the engine crashed: its worker process died (killed by SIGSEGV)" in df.loc[crashy, "note"]
+    assert df.loc["pinocchio", "k_eff"] == pytest.approx(df.loc["pinocchio", "Kp"], rel=0.01)

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
-from fakes import FakeBackend
+from fakes import FakeBackend, install_crashing_engine
 
 from legbench import backends, kinematics, results, run, scenario, signals
 from legbench.exceptions import LegbenchError
@@ -135,19 +135,7 @@ def test_an_engine_that_crashes_its_worker_is_marked_failed_and_the_others_finis
     from legbench import backends
 
     site = tmp_path / "site"
-    site.mkdir()
-    (site / "legbench_crashy.py").write_text(
-        "import os, signal\n"
-        "from legbench.backends.pinocchio_ import PinocchioBackend\n\n\n"
-        "class CrashyBackend(PinocchioBackend):\n"
-        "    name = 'crashy'\n\n"
-        "    def step(self, tau):\n"
-        "        os.kill(os.getpid(), signal.SIGSEGV)\n"
-    )
-    dist = site / "legbench_crashy-0.1.dist-info"
-    dist.mkdir()
-    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: legbench-crashy\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text("[legbench.backends]\ncrashy = legbench_crashy:CrashyBackend\n")
+    install_crashing_engine(site)
     monkeypatch.syspath_prepend(str(site))
     names = [n for n in ("pinocchio", "crashy", "mujoco") if n == "crashy" or n in backends.available()]
     sc = scenario.load(Path(__file__).resolve().parent.parent / "scenarios" / "effort.yaml", {"duration": 0.5})

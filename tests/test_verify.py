@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from fakes import FakeBackend
+from fakes import FakeBackend, install_crashing_engine
 
 from legbench import backends
 from legbench.exceptions import LegbenchError
@@ -197,3 +197,19 @@ def test_the_table_does_not_depend_on_the_number_of_workers(tmp_path: Path) -> N
     two = verify.verify(None, names, cases, jobs=2)
     assert len(one) > 10 and set(one["case"]) == set(cases)
     pd.testing.assert_frame_equal(one, two)
+
+
+def test_an_engine_that_crashes_its_worker_fails_its_cases_and_the_others_are_verified(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """verify --jobs 2 with a plug-in engine that kills its worker (SIGSEGV) beside Pinocchio: every case of
+    the crashing engine is a failed row naming the signal, Pinocchio's rows are those of a verify without it
+    (it ended with BrokenProcessPool, a traceback, before)."""
+    monkeypatch.syspath_prepend(str(tmp_path))
+    crashy = install_crashing_engine(tmp_path)
+    df = verify.verify(None, ["pinocchio", crashy], ["energy", "rest_penetration"], jobs=2)
+    bad = df[df["backend"] == crashy]
+    assert len(bad) and (bad["status"] == "fail").all()
+    assert bad["note"].str.contains("the engine crashed: its worker process died \\(killed by SIGSEGV\\)").all()
+    alone = verify.verify(None, ["pinocchio"], ["energy", "rest_penetration"], jobs=1)
+    pd.testing.assert_frame_equal(df[df["backend"] == "pinocchio"].reset_index(drop=True), alone)

@@ -216,6 +216,15 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     )  # fmt: skip
 
 
+def _failed_row(name: str, contact: ContactParams, why: str) -> dict[str, Any]:
+    """A backend's row of NaN whose note says why it could not be calibrated."""
+    nan = math.nan
+    return dataclasses.asdict(Calibration(
+        backend=name, Kp=contact.Kp, Kd=contact.Kd, mu_s=contact.mu_s, v_th=contact.v_th, k_eff=nan, c_eff=nan,
+        Fn=nan, Ft=nan, creep=nan, creep_law=nan, c_tangential=nan, note=f"failed: {why}",
+    ))  # fmt: skip
+
+
 def _calibrate_one(task: tuple[str, Program, Path, str | None, ContactParams]) -> dict[str, Any]:
     """One backend's row, ``(name, program, scenario_file, contact_mode, contact)``: a task for the pool. An
     engine that fails (the errors the run loop treats as a failed run) gives a row of NaN whose note says why,
@@ -224,12 +233,13 @@ def _calibrate_one(task: tuple[str, Program, Path, str | None, ContactParams]) -
     try:
         log, saturated = push(name, program, scenario_file, contact_mode)
     except (LegbenchError, FloatingPointError, RuntimeError, ValueError) as exc:
-        nan = math.nan
-        return dataclasses.asdict(Calibration(
-            backend=name, Kp=contact.Kp, Kd=contact.Kd, mu_s=contact.mu_s, v_th=contact.v_th, k_eff=nan, c_eff=nan,
-            Fn=nan, Ft=nan, creep=nan, creep_law=nan, c_tangential=nan, note=f"failed: {type(exc).__name__}: {exc}",
-        ))  # fmt: skip
+        return _failed_row(name, contact, f"{type(exc).__name__}: {exc}")
     return dataclasses.asdict(estimate(log, program, contact, saturated))
+
+
+def _crashed(task: tuple[str, Program, Path, str | None, ContactParams], why: str) -> dict[str, Any]:
+    """The row of a backend whose worker process died under it (the engine crashed)."""
+    return _failed_row(task[0], task[4], f"the engine crashed: {why}")
 
 
 def calibrate(
@@ -252,7 +262,7 @@ def calibrate(
     rates = backend_rates() if jobs > 1 else {}
     first = sorted(range(len(tasks)), key=lambda i: -rates.get(names[i], 1.0))  # the slowest backend first
     with make_executor("local", jobs, preload=(*DEFAULT_PRELOAD, __name__)) as ex:
-        rows = list(ex.imap(_calibrate_one, tasks, first))
+        rows = list(ex.imap(_calibrate_one, tasks, first, _crashed))
     df = pd.DataFrame(rows)
     if out_dir is not None:
         write_calibration(df, Path(out_dir), program)

@@ -78,17 +78,24 @@ class Executor(ABC):
             out[i] = r
         return out
 
-    def imap(self, fn: Callable[[T], R], items: Sequence[T], first: Sequence[int] | None = None) -> Iterator[R]:
+    def imap(
+        self,
+        fn: Callable[[T], R],
+        items: Sequence[T],
+        first: Sequence[int] | None = None,
+        on_crash: Callable[[T, str], R] | None = None,
+    ) -> Iterator[R]:
         """``fn(x)`` for each item, yielded in item order as each becomes available.
 
         Args:
             fn: a picklable top-level function.
             items: its arguments.
             first: item indices in the order to start them (e.g. longest first); default item order.
+            on_crash: the result for an item whose worker process died under it (:meth:`imap_unordered`).
         """
         ready: dict[int, R] = {}
         nxt = 0
-        for i, r in self.imap_unordered(fn, items, first):
+        for i, r in self.imap_unordered(fn, items, first, on_crash):
             ready[i] = r
             while nxt in ready:
                 yield ready.pop(nxt)

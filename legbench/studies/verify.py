@@ -580,6 +580,12 @@ def _group_checks(task: tuple[str, str]) -> list[Check]:
     return _GROUPS[group][1]([name])
 
 
+def _crashed_group(task: tuple[str, str], why: str) -> list[Check]:
+    """The rows of a group whose worker process died under it (the engine crashed): one failed row per case."""
+    group, name = task
+    return [_failed(case, name, "", f"the engine crashed: {why}") for case in _GROUPS[group][0]]
+
+
 def verify(
     out_dir: str | Path | None = None,
     backends: Sequence[str] | None = None,
@@ -615,7 +621,7 @@ def verify(
     rates = backend_rates() if jobs > 1 else {}
     first = sorted(range(len(tasks)), key=lambda i: -seconds[tasks[i][0]] * rates.get(tasks[i][1], 1.0))
     with make_executor("local", jobs, preload=(*DEFAULT_PRELOAD, __name__)) as ex:
-        parts = list(ex.imap(_group_checks, tasks, first))
+        parts = list(ex.imap(_group_checks, tasks, first, _crashed_group))
     checks = [c for part in parts for c in part if c.case in cases]
     df = pd.DataFrame([dataclasses.asdict(c) for c in checks]).rename(columns={"passed": "pass"})
     df = df.reindex(columns=list(COLUMNS))
