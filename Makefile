@@ -80,7 +80,7 @@ bench: $(STAMP)
 
 ## the time-step study (convergence order, speed-accuracy) -> results/sweeps/timestep/
 sweep: $(STAMP)
-	$(LEGBENCH) sweep scenarios/sweeps/timestep.yaml --out results/sweeps/timestep --jobs $(JOBS)
+	$(LEGBENCH) sweep scenarios/sweeps/timestep.yaml --out results/sweeps/timestep --jobs $(JOBS) --force
 
 ## verification cases and contact calibration on their own
 verify: $(STAMP)

@@ -37,7 +37,7 @@ from legbench import resources, yamlfile
 from legbench import scenario as scenario_mod
 from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import LegbenchError, ResultsError
-from legbench.results import RunResult, check_out_path, load_run, out_dir_for
+from legbench.results import RunResult, check_out_path, load_run, out_dir_for, replaced_by_run
 from legbench.scenario import Scenario
 from legbench.signals import RUN_COLUMNS, SLICE
 
@@ -259,6 +259,7 @@ def run_scenario(
     out: str | Path | None = None,
     jobs: int = 1,
     progress: bool = False,
+    force: bool = False,
 ) -> Result:
     """Run one scenario on several backends, as ``legbench run`` does, and return the :class:`Result`.
 
@@ -276,11 +277,14 @@ def run_scenario(
             call under ``if __name__ == "__main__":``: the worker processes (fork server or spawn) import
             the main module again.
         progress: show a progress bar on stderr.
+        force: replace a finished run (or an interrupted one of other settings) in ``out``, as ``--force``;
+            without it that is refused, and an interrupted run of the same settings is resumed.
 
     Raises:
         ScenarioError: invalid scenario or override.
         BackendNotFound: an unknown backend name.
-        LegbenchError: ``jobs`` below 1; ``out`` a regular file or in a place that is not writable.
+        LegbenchError: ``jobs`` below 1; ``out`` a regular file or in a place that is not writable; ``out``
+            holds a finished run and ``force`` is not set.
         ResultsError: ``out`` holds another scenario's run.
     """
     from legbench import backends as registry
@@ -304,6 +308,10 @@ def run_scenario(
         plan = [(sc, m, out_dir_for(root, sc, m)) for m in ("native", "reference")]
     else:
         plan = [(sc, contact_mode or sc.contact_mode, root)]
+    for s_, mode, d in plan:  # as the command line: a finished run is replaced only when asked
+        held = None if force else replaced_by_run(s_, d, mode)
+        if held is not None:
+            raise LegbenchError(f"{d} holds {held}; choose another out for a new one, or force=True to replace it")
     outcome = run_mod.run_many(plan, names, jobs=jobs, progress=progress)
     made = [
         Result(s, d, {tr.backend: tr for tr in res}, load_run(d).contact_mode)

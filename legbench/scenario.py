@@ -698,7 +698,7 @@ def _ranged(ctx: YamlContext, path: list[str | int], v: Any, rng: Range) -> floa
     x = number(ctx, path, v)
     why = rng.problem(x)
     if why is not None:
-        raise ctx.error(path, why + (" (or null: off)" if rng.nullable else ""))
+        raise ctx.error(path, why + (" (or null: the backend's default for it)" if rng.nullable else ""))
     return x
 
 

@@ -125,6 +125,19 @@ def test_jobs_below_1_and_a_file_as_out_are_refused_before_anything_runs(tmp_pat
     assert f.read_text() == "keep me" and sorted(p.name for p in tmp_path.iterdir()) == ["file"]
 
 
+def test_a_finished_run_in_out_is_replaced_only_with_force(tmp_path: Path) -> None:
+    """As the command line: a second run_scenario into the ``out`` of a finished run raises LegbenchError naming
+    force=True and leaves the run as it was; with force=True it is replaced."""
+    out = tmp_path / "r"
+    legbench.run_scenario("position", backends="pinocchio", overrides=SHORT, out=out)
+    before = (out / "run.json").read_bytes()
+    with pytest.raises(LegbenchError, match="holds a finished run; choose another out for a new one, or force=True"):
+        legbench.run_scenario("position", backends="pinocchio", overrides=SHORT, out=out)
+    assert (out / "run.json").read_bytes() == before
+    legbench.run_scenario("position", backends="pinocchio", overrides=SHORT, out=out, force=True)
+    assert (out / "run.json").read_bytes() != before  # rewritten: its wall times differ
+
+
 def test_bundled_scenarios_by_name() -> None:
     assert api.load_scenario("effort").sha256 == api.load_scenario(resources.scenario("effort")).sha256
     assert api.load_scenario("verification/energy").name == "energy"

@@ -118,7 +118,7 @@ def test_settings_of_zero_where_ode_allows_it_are_valid() -> None:
         ("stop_cfm", -1, "must be >= 0, got -1"),
         ("damping", 2, "must be in [0, 1], got 2"),
         ("contact_surface_layer", -0.001, "must be >= 0, got -0.001"),
-        ("ground_kp", 0, "must be > 0, got 0 (or null: off)"),
+        ("ground_kp", 0, "must be > 0, got 0 (or null: the backend's default for it)"),
         ("ground_kd", -1, "must be >= 0, got -1"),
         ("surface_max_vel", "fast", "expected a number, got 'fast'"),
         ("dt", 0, "must be > 0, got 0"),

@@ -204,10 +204,16 @@ def test_cli_replaces_a_finished_sweep_in_its_out_directory_only_with_force(
     out = tmp_path / "res"
     args = parser.parse_args(["sweep", str(path), "--out", str(out), "--jobs", "1"])
     assert args.func(args) == 0
-    first, inode = (out / "sweep.json").read_bytes(), (out / "sweep.json").stat().st_ino
+    first = (out / "sweep.json").read_bytes()
     with pytest.raises(LegbenchError, match="holds a finished sweep; choose another --out .* or --force"):
         args.func(args)
-    assert (out / "sweep.json").read_bytes() == first and (out / "sweep.json").stat().st_ino == inode
+    assert (out / "sweep.json").read_bytes() == first  # left as it was
+    meta = json.loads(first)
+    (out / "sweep.json").write_text(json.dumps({**meta, "complete": False}))  # as an interrupted one leaves it
+    with pytest.raises(LegbenchError, match=r"holds an interrupted sweep \(a sweep is not resumed\); .* --force"):
+        args.func(args)
+    (out / "sweep.json").write_bytes(first)
+    inode = (out / "sweep.json").stat().st_ino
     args = parser.parse_args(["sweep", str(path), "--out", str(out), "--jobs", "1", "--force"])
     assert args.func(args) == 0
     assert "2 runs + 1 references, 0 failed" in capsys.readouterr().out

@@ -80,7 +80,8 @@ class Limits:
 @dataclass(frozen=True)
 class Range:
     """The values a number setting of a backend may take (:attr:`Backend.ranges`): ``low <= x <= high``, or
-    ``low < x <= high`` where ``open_low``; ``nullable``: ``null`` too (the setting off)."""
+    ``low < x <= high`` where ``open_low``; ``nullable``: ``null`` too (the backend's default for it: off, or
+    derived, as the backend documents)."""
 
     low: float = 0.0
     high: float = math.inf

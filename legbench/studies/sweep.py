@@ -1030,11 +1030,20 @@ def run_sweep(
 # Command line
 
 
+def _complete(out: Path) -> bool:
+    """Whether the sweep in ``out`` finished (its sweep.json says ``complete``; an unreadable one counts as
+    finished: it is not ours to call interrupted)."""
+    try:
+        return bool(json.loads((out / "sweep.json").read_text()).get("complete", True))
+    except (OSError, ValueError, AttributeError):
+        return True
+
+
 def _cli(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out is not None else Path("results") / "sweeps" / load_sweep(args.sweep).name
     if (out / "sweep.json").exists() and not args.force:  # with or without --out, as for runs
-        raise LegbenchError(f"{out} holds a finished sweep; choose another --out for a new one, or --force to "
-                            "replace it")  # fmt: skip
+        held = "a finished sweep" if _complete(out) else "an interrupted sweep (a sweep is not resumed)"
+        raise LegbenchError(f"{out} holds {held}; choose another --out for a new one, or --force to replace it")
     res = run_sweep(args.sweep, out, args.executor, args.jobs, args.scheduler, quiet=args.quiet)
     t = res.table
     if not len(t):
@@ -1062,7 +1071,7 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
     p.add_argument("sweep", help="sweep YAML file (format: docs/studies.md)")
     p.add_argument("--out", default=None, help="output directory (default results/sweeps/<sweep name>)")
     p.add_argument("--force", action="store_true",
-                   help="replace a finished sweep in the output directory")  # fmt: skip
+                   help="replace a sweep (finished or interrupted) in the output directory")  # fmt: skip
     p.add_argument("--jobs", type=int, default=None, help="parallel runs (default: CPU count)")
     p.add_argument("--executor", choices=EXECUTORS, default="local",
                    help="local process pool or Dask (default local)")  # fmt: skip
