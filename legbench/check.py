@@ -27,7 +27,7 @@ for bit ("identical" or "changed").
 
 The check never passes on results it cannot read: both sides' run.json and
 metrics.json are read through :mod:`legbench.results`' checked readers, and a
-directory's logs are read (and checked) even when its metrics.json is newer, so
+directory's logs are read (and checked) even when its metrics.json was computed from them, so
 an empty, cut-short or column-less log is a ResultsError (exit 2), and a log
 run.json calls ok that is gone makes the backend ``missing`` (a FAILED row).
 """
@@ -235,7 +235,7 @@ def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[st
     doc = dict(doc)
     per = doc.pop("scenarios", {}) or {}
     if not isinstance(per, Mapping):
-        raise ScenarioError(str(path), "scenarios", "must be a mapping of scenario name to tolerances")
+        raise ScenarioError(str(path), "scenarios", "must be a mapping of scenario name or run label to tolerances")
     common = _validate(doc, str(path), "")
     return common, {str(k): _validate(v, str(path), f"scenarios.{k}") for k, v in per.items()}
 
@@ -252,7 +252,9 @@ def tolerance_errors(path: str | Path) -> list[ScenarioError]:
     sections: list[tuple[str, Any]] = [(str(k), {k: v}) for k, v in doc.items() if k != "scenarios"]
     per = doc.get("scenarios", {}) or {}
     if not isinstance(per, Mapping):
-        errors.append(ScenarioError(str(path), "scenarios", "must be a mapping of scenario name to tolerances"))
+        errors.append(
+            ScenarioError(str(path), "scenarios", "must be a mapping of scenario name or run label to tolerances")
+        )
         per = {}
     for name, tol in per.items():
         if not isinstance(tol, Mapping):
@@ -278,7 +280,7 @@ def _metrics(d: Path) -> tuple[dict[str, Any], pd.DataFrame, Run | None]:
 
     A committed baseline usually holds only run.json and metrics.json: its metrics.json is used as is, and
     its run.json is still read (checked, :func:`legbench.results.read_meta`). A directory that holds logs
-    has them read through :func:`legbench.results.load_run` even when its metrics.json is newer: a
+    has them read through :func:`legbench.results.load_run` even when its metrics.json was computed from them: a
     metrics.json is only as good as the logs beside it, so a log that is empty, cut short, lacks a
     column or holds non-finite values is a :class:`ResultsError` (exit 2), and a log run.json calls ok
     but which is gone makes that backend ``missing`` (see :func:`_with_run_statuses`).
@@ -471,7 +473,8 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
 
     Raises:
         ResultsError: a directory or metrics file is missing or malformed.
-        ScenarioError: a tolerance file or run.json tolerances are malformed.
+        ScenarioError: a tolerance file or run.json tolerances are malformed, or a ``scenarios`` section of the
+            file matches no scenario name or run label checked.
     """
     new, baseline = Path(new), Path(baseline)
     common, per = load_tolerances(tolerance_file) if tolerance_file is not None else ({}, {})

@@ -323,7 +323,8 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                         "repeat for several, all in one pool (instead of --profile and --contact-mode)")  # fmt: skip
     variant.completer = lambda **_: [f"{prof}:{mode}" for prof in PROFILES for mode in CONTACT_MODES]  # type: ignore[attr-defined]
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario key, e.g. --set backends.<name>.dt=5e-5")  # fmt: skip
+                   help="override a scenario key, e.g. --set backends.<name>.dt=5e-5 (a list item with a dot: "
+                        "events.0.t=0.5)")  # fmt: skip
     p.add_argument("--no-compare", action="store_true", help="do not write the comparison report")
     p.add_argument("--no-preflight", action="store_true",
                    help="skip the parity pre-flight (legbench doctor) before running")  # fmt: skip

@@ -193,7 +193,7 @@ class RosOptions:
             -1 if it is the force the foot exerts on the ground. Its frame is taken as W: a bag carries
             no transform legbench could apply.
         t0: the bag time [s] that is legbench's t = 0; None: the first joint-state sample. Times are
-            the messages' header stamps, or the recording times where every stamp is zero.
+            the messages' header stamps when both topics have them, else both topics' recording times.
     """
 
     joint_topic: str | None = None

@@ -434,7 +434,8 @@ def set_key(doc: dict[str, Any], dotted: str, value: Any) -> None:
     """Set ``a.b.c`` (``events.0.t``: a list index) in a nested document, creating mappings as needed.
 
     Raises:
-        ScenarioError: a part of the path is a value, not a mapping or list, or an index is out of range.
+        ScenarioError: a part of the path is a value, not a mapping or list, an index is out of range, or the
+            key writes a list index in brackets (``events[0].t``: the error messages' notation).
     """
     if re.search(r"\[\s*-?\d+\s*\]", dotted):  # events[0].t: the error messages' notation, not --set's
         dots = re.sub(r"\[\s*(-?\d+)\s*\]", r".\1", dotted)

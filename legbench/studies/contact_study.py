@@ -5,7 +5,7 @@ quantities docs/contact_mapping.md tabulates per profile and setting: mean
 ground force over the final window, its standard deviation (chatter), the
 mean joint velocities (creep), how far the foot moved after the first 50 ms,
 and the read-out error against the leg's own statics
-h = -(J_poc^T)^-1 (tau - G(q)) (the force of the ground on the foot in W).
+F = -(J_poc^T)^-1 (tau - G(q)) (the force of the ground on the foot in W).
 :func:`run_case` runs a scenario on one backend with a profile and settings;
 ``python -m legbench.studies.contact_study`` prints the table of a grid (the study of
 ``scenarios/sweeps/contact_profiles.yaml``, with these columns).
@@ -40,7 +40,7 @@ class SteadyContact:
     Attributes:
         force: mean ground force on the foot in W over the final window (Fx, Fy, Fn) [N].
         force_std: standard deviation of each component over the window [N].
-        statics: mean over the window of h = -(J_poc^T)^-1 (tau - G(q)) per tick, in W [N].
+        statics: mean over the window of F = -(J_poc^T)^-1 (tau - G(q)) per tick, in W [N].
         readout_error: max_k |force_k - statics_k| / Fn over the three components [1].
         qd: mean joint velocities over the window [rad/s].
         foot_travel: largest horizontal distance of the foot centre from its position at
@@ -64,7 +64,7 @@ class SteadyContact:
 
 
 def statics_force(q: np.ndarray, tau: np.ndarray, true_poc: bool = True) -> np.ndarray:
-    """h = -(J_poc(q)^T)^-1 (tau - G(q)) per row: the ground force on the foot in W [N] that balances
+    """F = -(J_poc(q)^T)^-1 (tau - G(q)) per row: the ground force on the foot in W [N] that balances
     the joint torques tau [N m] at rest at q [rad] (N x 3 in, N x 3 out)."""
     q = np.atleast_2d(np.asarray(q, float))
     tau = np.atleast_2d(np.asarray(tau, float))
