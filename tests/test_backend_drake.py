@@ -281,3 +281,17 @@ def test_a_stiction_tolerance_that_is_not_positive_is_refused_naming_the_key(val
     assert err.value.key == "backends.drake.stiction_tolerance" and "must be > 0" in err.value.problem
     doc["backends"] = {"drake": {"stiction_tolerance": None}}
     assert scenario.parse(doc, "s.yaml").backends["drake"]["stiction_tolerance"] is None
+
+
+def test_the_stiction_tolerance_gives_each_solver_the_laws_slope_near_zero_slip() -> None:
+    """v_s per solver from Drake's curves, so the slope near zero slip is the law's mu_s / v_th: TAMSI's
+    mu s (2 - s) -> 2 v_th; the continuous plant's hydroelastic mu_k 2/pi atan(s) -> 2 mu_k v_th / (pi mu_s);
+    lagged, similar, SAP and continuous point contact v_th (exact arithmetic)."""
+    from legbench.backends.drake_ import stiction_tolerance
+    from legbench.contact import ContactParams
+
+    c = ContactParams()
+    assert stiction_tolerance("tamsi", "point", c) == 2.0 * c.v_th
+    assert stiction_tolerance("continuous", "hydroelastic", c) == 2.0 * c.mu_k * c.v_th / (np.pi * c.mu_s)
+    for solver, model_ in (("lagged", "point"), ("similar", "hydroelastic"), ("sap", "point"), ("continuous", "point")):
+        assert stiction_tolerance(solver, model_, c) == c.v_th

@@ -435,3 +435,33 @@ def test_a_malformed_baseline_run_json_is_the_same_error_as_on_the_new_side(
         err = capsys.readouterr().err
         assert err == f"legbench: error: {bad}: invalid JSON at line 1: Expecting property name enclosed in double " \
                       "quotes\n"  # fmt: skip
+
+
+def test_within_a_layer_the_component_label_wins_over_the_signal(baseline: Path, tmp_path: Path) -> None:
+    """abs {tau: 100, tau2: 1e-9}, rel 0 on sim_error_pct: backend a's 0.5-point growth passes in tau1 and tau3
+    (the signal's 100) and fails in tau2 (its label's 1e-9): the label is the more specific key."""
+    new = tree(tmp_path / "new", a=scale(1.025))
+    tol = tmp_path / "tol.json"
+    tol.write_text(json.dumps({"sim_error_pct": {"abs": {"default": 100, "tau": 100, "tau2": 1e-9}, "rel": 0},
+                               "rms": {"rel": 1}, "steady_mean": {"rel": 1}}))  # fmt: skip
+    assert {r.label for r in K.check(new, baseline, tol).regressions} == {"tau2"}
+
+
+def test_a_scenarios_own_ceiling_wins_over_the_files(baseline: Path, tmp_path: Path) -> None:
+    """The file's max_sim_error_pct {default: 1} would put every component of fake/a (2.5 % off) OVER LIMIT;
+    fake's own {default: 50} is more specific and wins: nothing of fake is over its limit."""
+    new = tree(tmp_path / "new", a=scale(1.025), tolerances={"max_sim_error_pct": {"default": 50.0}})
+    tol = tmp_path / "tol.yaml"
+    tol.write_text("max_sim_error_pct: {default: 1.0}\nsim_error_pct: {abs: 10}\nrms: {rel: 1}\n")
+    assert not [r for r in K.check(new, baseline, tol).rows if r.status == "OVER LIMIT" and r.scenario == "fake"]
+    new2 = tree(tmp_path / "new2", a=scale(1.025))
+    assert {r.status for r in K.check(new2, baseline, tol).regressions} == {"OVER LIMIT"}
+
+
+def test_a_metrics_json_with_malformed_log_digests_is_refused(baseline: Path, tmp_path: Path) -> None:
+    """metrics.json's ``logs`` must map file names to 64-hex SHA-256 digests: "xyz" is a ResultsError at key logs."""
+    d = tmp_path / "fake"
+    shutil.copytree(baseline / "fake", d)
+    _set_json(d / "metrics.json", ["logs"], {"a.parquet": "xyz"})
+    with pytest.raises(ResultsError, match="logs: must be an object of log file name -> SHA-256"):
+        results.read_metrics(d / "metrics.json")

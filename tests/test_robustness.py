@@ -472,7 +472,7 @@ def test_at_most_the_file_size_limit_is_read_whatever_stat_says(monkeypatch: pyt
 def test_a_limit_below_1_is_refused(monkeypatch: pytest.MonkeyPatch, value: str) -> None:
     """LEGBENCH_LIMITS=ticks=-1 was taken ("more than -1e+00 control ticks"): a limit must be a whole number >= 1,
     refused whichever limit is read first."""
-    monkeypatch.setenv("LEGBENCH_LIMITS", f"ticks={value}")
+    monkeypatch.setenv("LEGBENCH_LIMITS", f"file_bytes=2e6,ticks={value}")  # the bad one after a good one
     for name in ("ticks", "file_bytes"):
         with pytest.raises(ScenarioError) as err:
             yamlfile.limit(name)
@@ -579,7 +579,7 @@ def test_run_without_out_never_replaces_a_finished_run(tmp_path: Path, monkeypat
     before = meta.read_bytes()
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
-    assert "--out" in err and "--force" in err and err.count("\n") == 1
+    assert "holds a finished run; pass --out DIR for a new one, or --force" in err and err.count("\n") == 1
     assert meta.read_bytes() == before
     assert cli.main([*argv, "--force"]) == 0
 
@@ -602,7 +602,8 @@ def test_run_with_out_never_replaces_a_finished_run_without_force(
     capsys.readouterr()
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
-    assert f"{out} holds a finished run" in err and "--force" in err and err.count("\n") == 1
+    assert f"{out} holds a finished run; choose another --out for a new one, or --force" in err  # --out given
+    assert err.count("\n") == 1
     assert (out / "run.json").read_bytes() == before and (out / "mine.txt").read_text() == "kept"
     assert cli.main([*argv, "--force"]) == 0
     meta = json.loads((out / "run.json").read_text())

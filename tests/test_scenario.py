@@ -283,3 +283,29 @@ def test_the_sub_step_rule_is_the_backends_own() -> None:
                 {**BASE, "control_rate": 1 / control_dt, "duration": 3.0, "backends": {"pinocchio": {"dt": dt}}}
             )
         assert err.value.key == "backends.pinocchio.dt" and err.value.problem == why
+
+
+def test_the_sub_step_rule_refuses_a_near_fraction_and_a_zero_step() -> None:
+    """dt_problem: 1 ms / 3.0001 is not a whole fraction of 1 ms (the ratio must be whole to 1e-9); a step of 0
+    is refused (sub_step_count raises LegbenchError, not ZeroDivisionError); 1 ms / 20 fits."""
+    from legbench.backends.base import dt_problem, sub_step_count
+
+    assert dt_problem(1e-3 / 3.0001, 1e-3) is not None
+    assert dt_problem(0.0, 1e-3) is not None
+    with pytest.raises(LegbenchError, match="does not divide"):
+        sub_step_count("x", 0.0, 1e-3)
+    assert dt_problem(1e-3 / 20, 1e-3) is None and sub_step_count("x", 1e-3 / 20, 1e-3) == 20
+
+
+def test_a_null_setting_is_refused_where_the_range_does_not_allow_it() -> None:
+    """ODE's erp has a range without null: ``erp: null`` is a ScenarioError naming the key; its nullable
+    settings (ground_kp) take null; the JSON schema gives an open lower bound as exclusiveMinimum."""
+    if "ode" not in backends.available():
+        pytest.skip("ODE not installed here")
+    with pytest.raises(ScenarioError) as err:
+        scenario.parse({**BASE, "backends": {"ode": {"erp": None}}}, "s.yaml")
+    assert err.value.key == "backends.ode.erp"
+    assert scenario.parse({**BASE, "backends": {"ode": {"ground_kp": None}}}).backends["ode"]["ground_kp"] is None
+    if "drake" in backends.available():
+        drake = scenario.json_schema()["properties"]["backends"]["properties"]["drake"]["properties"]
+        assert drake["stiction_tolerance"] == {"type": ["number", "null"], "exclusiveMinimum": 0.0}

@@ -296,3 +296,22 @@ def test_what_the_sweep_would_refuse_is_refused_when_it_is_read(
     with pytest.raises(ScenarioError) as exc:
         sweep.load_sweep(f)
     assert exc.value.key == key and words in str(exc.value), str(exc.value)
+
+
+def test_an_engine_that_crashes_its_worker_fails_its_rows_and_the_sweep_goes_on(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--jobs 2, a study on a plug-in engine that kills its worker (SIGSEGV) against a Pinocchio reference, beside
+    a Pinocchio study: the crashing engine's rows are failed naming the signal, every other row is ok."""
+    from fakes import install_crashing_engine
+
+    monkeypatch.syspath_prepend(str(tmp_path / "site"))
+    crashy = install_crashing_engine(tmp_path / "site")
+    text = GOOD + (f"  - backends: [{crashy}]\n    grid: {{backends.*.dt: [1.0e-3, 5.0e-4]}}\n"
+                   "    reference: {backend: pinocchio, set: {backends.pinocchio.dt: 1.0e-4}}\n")  # fmt: skip
+    res = sweep.run_sweep(_write(tmp_path, text), None, "local", jobs=2)
+    t = res.table
+    bad = t[t["backend"] == crashy]
+    assert len(bad) == 2 and (bad["status"] == "failed").all()
+    assert bad["reason"].str.contains("the engine crashed: its worker process died \\(killed by SIGSEGV\\)").all()
+    assert (t[t["backend"] != crashy]["status"] == "ok").all() and len(t) > len(bad)

@@ -209,7 +209,7 @@ def test_an_engine_that_crashes_its_worker_fails_its_cases_and_the_others_are_ve
     crashy = install_crashing_engine(tmp_path)
     df = verify.verify(None, ["pinocchio", crashy], ["energy", "rest_penetration"], jobs=2)
     bad = df[df["backend"] == crashy]
-    assert len(bad) and (bad["status"] == "fail").all()
+    assert set(bad["case"]) == {"energy", "rest_penetration"} and (bad["status"] == "fail").all()
     assert bad["note"].str.contains("the engine crashed: its worker process died \\(killed by SIGSEGV\\)").all()
     alone = verify.verify(None, ["pinocchio"], ["energy", "rest_penetration"], jobs=1)
     pd.testing.assert_frame_equal(df[df["backend"] == "pinocchio"].reset_index(drop=True), alone)
