@@ -283,6 +283,11 @@ def test_imported_log_without_foot_columns_gets_the_foot_from_q(tmp_path: Path) 
     got = logs.load_log(partial)[ee].to_numpy()
     np.testing.assert_array_equal(got[:, 0], run["ee_x"].to_numpy() + 1e-3)  # as logged
     np.testing.assert_allclose(got[:, 1:], run[ee[1:]].to_numpy(), rtol=0, atol=1e-12)  # from q
+    gap = tmp_path / "eegap.csv"  # a logged column with one missing sample stays the log's, gap and all
+    x = run["ee_x"].to_numpy() + 1e-3
+    x[5] = np.nan
+    run.drop(columns=ee[1:]).assign(ee_x=x).to_csv(gap, index=False)
+    np.testing.assert_array_equal(logs.load_log(gap)["ee_x"].to_numpy(), x)
 
 
 @pytest.mark.parametrize(
@@ -651,3 +656,5 @@ def test_a_log_that_wraps_the_hip_is_not_interpolated_across_the_jump() -> None:
     assert np.ptp(a.q[:, 1]) > 6.0  # the log really wraps
     p = metrics.pair_metrics(a, ref)
     assert np.nanmax(np.abs(p.deviation[:, signals.LABELS.index("q2")])) < 1e-9
+    plain = metrics.pair_metrics(a, ref, wrap=np.zeros(len(signals.LABELS), dtype=bool))  # told: no angle wraps
+    assert np.nanmax(np.abs(plain.deviation[:, signals.LABELS.index("q2")])) > 6.0  # then the jump is a deviation
