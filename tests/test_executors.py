@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import math
 import os
-from concurrent.futures import BrokenExecutor
+from concurrent.futures import BrokenExecutor, Future
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 import pytest
@@ -143,33 +145,89 @@ def test_imap_unordered_starts_in_the_given_order_and_yields_every_item_once() -
         list(executors.LocalExecutor(1).imap_unordered(math.sqrt, items, [0, 0, 1, 2, 3]))
 
 
-def _square_or_crash(x: int) -> int:
-    """In a worker: x * x; for x == 3 the process kills itself with SIGSEGV, as an engine's segmentation fault."""
+def _gone(pid: int) -> bool:
+    """Whether process ``pid`` has ended (no such process, or a zombie not yet reaped)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] == "Z"
+    except FileNotFoundError:
+        return True
+
+
+def _square_or_crash(task: tuple[int, str]) -> int:
+    """In a worker: x * x; for x == 3 the process writes its pid to ``marker`` and kills itself with SIGSEGV, as an
+    engine's segmentation fault. Items after it return only once that process has ended (the observable event),
+    so they are still in the pool when it breaks, however fast the machine; a bound of 60 s, not a wait."""
     import os
     import signal
     import time
+    from pathlib import Path
 
+    x, marker = task
+    pid_file = Path(marker)
     if x == 3:
+        pid_file.write_text(str(os.getpid()))
         os.kill(os.getpid(), signal.SIGSEGV)
-    if x > 3:  # the items after it are still running or queued when the pool breaks, whatever the timing
-        time.sleep(0.3)
+    if x > 3:
+        deadline = time.monotonic() + 60.0
+        while not (pid_file.is_file() and _gone(int(pid_file.read_text() or 0))):
+            if time.monotonic() > deadline:
+                raise TimeoutError("item 3's worker never ended")
+            time.sleep(0.005)  # polling for the event above
     return x * x
 
 
-def test_a_task_that_kills_its_worker_gets_on_crash_and_the_others_their_results() -> None:
+def test_a_task_that_kills_its_worker_gets_on_crash_and_the_others_their_results(tmp_path: Path) -> None:
     """Item 3 of 8 kills its worker (SIGSEGV): the pool breaks with every item in it, and with ``on_crash``
     those are run again one by one in a pool of their own: item 3 gets on_crash's result naming the signal,
     every other item its own square, each exactly once. Without on_crash the map ends with BrokenExecutor."""
-    items = list(range(8))
+    marker = str(tmp_path / "crashed.pid")
+    items = [(x, marker) for x in range(8)]
     with executors.LocalExecutor(2) as ex:
-        got = list(ex.imap_unordered(_square_or_crash, items, None, lambda x, why: f"crashed {x}: {why}"))
-        assert sorted(ex.imap_unordered(_square_or_crash, [4, 5])) == [(0, 16), (1, 25)]  # the new pool works on
-    assert sorted(j for j, _ in got) == items
+        got = list(ex.imap_unordered(_square_or_crash, items, None, lambda t, why: f"crashed {t[0]}: {why}"))
+        again = sorted(ex.imap_unordered(_square_or_crash, [(4, marker), (5, marker)]))
+        assert again == [(0, 16), (1, 25)]  # the new pool works on
+    assert sorted(j for j, _ in got) == list(range(8))
     res = dict(got)
     assert str(res[3]).startswith("crashed 3: its worker process died (killed by SIGSEGV)"), res[3]
-    assert all(res[j] == j * j for j in items if j != 3)
+    assert all(res[j] == j * j for j in range(8) if j != 3)
+    (tmp_path / "crashed.pid").unlink()
     with pytest.raises(BrokenExecutor), executors.LocalExecutor(2) as ex:
         list(ex.imap_unordered(_square_or_crash, items))
+
+
+class _OncePool:
+    """A stand-in process pool that runs each task at once in this process; with ``break_after``, the submission
+    after that many raises BrokenProcessPool, as a pool whose worker died between a result and the next item."""
+
+    def __init__(self, break_after: int | None) -> None:
+        self.break_after, self.submitted = break_after, 0
+
+    def submit(self, fn: Any, *args: Any) -> Future[Any]:
+        if self.break_after is not None and self.submitted >= self.break_after:
+            raise BrokenProcessPool("a worker died")
+        self.submitted += 1
+        fut: Future[Any] = Future()
+        fut.set_result(fn(*args))
+        return fut
+
+    def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
+        pass
+
+
+def test_a_pool_that_breaks_between_a_result_and_the_next_submission_goes_on_in_a_new_pool(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The pool breaks after two submissions, with nothing of it running (its worker died idle, or just after
+    returning): with on_crash the third item goes to a new pool and every item comes back once (it raised
+    BrokenProcessPool out of the map); without on_crash that is still the map's end."""
+    pools = iter([_OncePool(2), _OncePool(None), _OncePool(2)])
+    monkeypatch.setattr(executors, "ProcessPoolExecutor", lambda **kw: next(pools))
+    ex = executors.LocalExecutor(2)
+    got = list(ex.imap_unordered(math.sqrt, [0.0, 1.0, 4.0, 9.0, 16.0], None, lambda x, why: -1.0))
+    assert sorted(got) == [(0, 0.0), (1, 1.0), (2, 2.0), (3, 3.0), (4, 4.0)]
+    with pytest.raises(BrokenProcessPool):
+        list(executors.LocalExecutor(2).imap_unordered(math.sqrt, [0.0, 1.0, 4.0]))
 
 
 def test_terminate_stops_running_workers_and_keeps_what_finished() -> None:

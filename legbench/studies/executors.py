@@ -29,6 +29,7 @@ import os
 import signal
 import threading
 from abc import ABC, abstractmethod
+from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, Future, ProcessPoolExecutor, wait
 from types import TracebackType
@@ -274,20 +275,29 @@ class LocalExecutor(Executor):
             return
         self._started()
         pool = self._get_pool()
-        pending = iter(order)
+        pending = deque(order)
         running: dict[Future[Any], int] = {}
+        broken = False  # the pool refused a submission: it broke between a result and the next item
 
         def submit() -> None:
-            j = next(pending, None)
-            if j is not None:
-                running[pool.submit(_call, fn, items[j])] = j
+            nonlocal broken
+            if pending and not broken:
+                j = pending.popleft()
+                try:
+                    running[pool.submit(_call, fn, items[j])] = j
+                except BrokenExecutor:
+                    if on_crash is None:
+                        raise
+                    pending.appendleft(j)  # not started: it goes on in the next pool
+                    broken = True
 
         try:
             for _ in range(self.jobs):
                 submit()
-            while running:
-                done, _ = wait(running, return_when=FIRST_COMPLETED)
-                if on_crash is not None and any(isinstance(f.exception(), BrokenExecutor) for f in done):
+            while running or (broken and pending):
+                done, _ = wait(running, return_when=FIRST_COMPLETED) if running else (set(), set())
+                if on_crash is not None and (broken or any(isinstance(f.exception(), BrokenExecutor) for f in done)):
+                    broken = False
                     suspects = []
                     for fut, j in sorted(running.items(), key=lambda fj: fj[1]):
                         ok = fut.done() and not fut.cancelled() and fut.exception() is None
