@@ -206,9 +206,14 @@ def _task(args: tuple[Scenario, str, str | None, bool]) -> RunResult:
 BASELINE_ROOT = Path("results") / "baseline"
 
 
+def crashed(backend: str, why: str) -> RunResult:
+    """The result of ``backend``'s run whose worker process died under it (the engine crashed): failed, with
+    ``why`` (the executor's words); for ``legbench run`` and the sweeps."""
+    return RunResult.empty(backend, "failed", f"the engine crashed: {why}")
+
+
 def _crashed(task: tuple[Scenario, str, str | None, bool], why: str) -> RunResult:
-    """The result of a run whose worker process died under it (the engine crashed): failed, with why."""
-    return RunResult.empty(task[1], "failed", f"the engine crashed: {why}")
+    return crashed(task[1], why)
 
 
 def cost_hints(

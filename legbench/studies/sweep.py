@@ -67,7 +67,7 @@ from legbench.contact import CONTACT_MODES
 from legbench.exceptions import LegbenchError, ScenarioError
 from legbench.metrics import signal_errors
 from legbench.results import RunResult, platform_info, versions
-from legbench.run import deferred_interrupts
+from legbench.run import crashed, deferred_interrupts
 from legbench.scenario import NAME_RE
 from legbench.signals import COLUMNS, UNITS
 from legbench.studies import horizon
@@ -514,7 +514,7 @@ def _cost(task: RunTask, default: float) -> float:
 
 def _crashed(task: RunTask, why: str) -> TaskResult:
     """The row of a run whose worker process died under it (the engine crashed): failed, with why."""
-    return TaskResult(task.index, RunResult.empty(task.backend, "failed", f"the engine crashed: {why}"))
+    return TaskResult(task.index, crashed(task.backend, why))
 
 
 def execute(sweep: Sweep, p: Plan, executor: Executor, bar: progress.Progress | None = None) -> dict[int, TaskResult]:
