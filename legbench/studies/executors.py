@@ -333,8 +333,9 @@ class LocalExecutor(Executor):
             try:
                 out = fut.result()
             except BrokenExecutor:
-                for p in procs:
-                    p.join(5.0)
+                # the pool's own thread reaps its worker: wait for it, then read the exit status it read (a
+                # second reader of the fork server's status pipe racing it got end-of-file: "exit status 255")
+                solo.shutdown(wait=True)
                 why = _died(procs[0].exitcode if procs else None)
                 log.warning("a worker process died (%s) running %r", why, x)
                 out = on_crash(x, f"its worker process died ({why}); the other tasks ran on")
