@@ -132,6 +132,27 @@ def test_start_spawns_the_workers_before_the_first_task() -> None:
     assert all(ign and pre for _, ign, pre in got)
 
 
+def test_the_start_spawns_every_worker_even_when_the_first_is_already_idle(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The pool spawns a worker per task only while none is idle: when the first no-op is done before the second
+    is handed out (as a warm fork server makes it within milliseconds; forced here by waiting for each), the
+    second found that worker idle and spawned none (seen as a failure of the start test under load); the start
+    tops the pool up to its two workers."""
+    pool = executors.ProcessPoolExecutor(max_workers=2, mp_context=executors._mp_context(executors.DEFAULT_PRELOAD))
+    submit = pool.submit
+
+    def submit_and_wait(*args: Any) -> Future[Any]:
+        fut = submit(*args)
+        fut.result()
+        return fut
+
+    monkeypatch.setattr(pool, "submit", submit_and_wait)
+    try:
+        executors._spawn(pool, 2)
+        assert len(pool._processes) == 2  # type: ignore[attr-defined]
+    finally:
+        pool.shutdown(wait=True)
+
+
 def test_imap_unordered_starts_in_the_given_order_and_yields_every_item_once() -> None:
     items = [0.0, 1.0, 4.0, 9.0, 16.0]
     order = [4, 2, 0, 1, 3]

@@ -170,9 +170,22 @@ def _noop() -> None:
 
 
 def _spawn(pool: ProcessPoolExecutor, n: int) -> None:
-    """Hand ``n`` no-op tasks to ``pool``: it spawns its workers (:meth:`LocalExecutor.start`, in a thread)."""
+    """Hand ``n`` no-op tasks to ``pool``: it spawns its workers (:meth:`LocalExecutor.start`, in a thread).
+
+    The pool spawns a worker per task only while none is idle: a no-op that finished before the next one was
+    handed out (a warm fork server forks a ready worker in milliseconds) left one worker for both, so the
+    pool is topped up to ``n`` workers here, as its own ``_adjust_process_count`` would spawn them.
+    """
     for _ in range(n):
         pool.submit(_noop)
+    spawn = getattr(pool, "_spawn_process", None)
+    lock = getattr(pool, "_shutdown_lock", None)
+    procs = getattr(pool, "_processes", None)
+    if spawn is None or lock is None or procs is None:  # another Python's pool: as many as it spawned
+        return
+    with lock:
+        while len(procs) < n and not getattr(pool, "_broken", False) and not getattr(pool, "_shutdown_thread", False):
+            spawn()
 
 
 def _call(fn: Callable[[T], R], x: T) -> R | None:
