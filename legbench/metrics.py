@@ -224,16 +224,27 @@ def _same_grid(t1: np.ndarray, t2: np.ndarray) -> bool:
 def _resample(t: np.ndarray, x: np.ndarray, grid: np.ndarray, wrap: np.ndarray | None = None) -> np.ndarray:
     """Linear interpolation of each column of x (N, k) onto ``grid`` (inside [t0, tN]).
 
-    The ``wrap`` columns (angles of continuous joints) are unwrapped first, so a log that wraps the
-    hip to [-pi, pi) is not interpolated straight across the jump; :func:`deviation` wraps their
-    differences again, so wrapped and unwrapped logs agree.
+    The ``wrap`` columns (angles of continuous joints) are unwrapped first (their finite samples), so a log
+    that wraps the hip to [-pi, pi) is not interpolated straight across the jump; :func:`deviation` wraps
+    their differences again, so wrapped and unwrapped logs agree.
     """
     if _same_grid(t, grid):
         return x
     g = np.clip(grid, t[0], t[-1])
     w = np.zeros(x.shape[1], dtype=bool) if wrap is None else np.asarray(wrap, dtype=bool)
-    cols = [np.unwrap(x[:, j]) if w[j] and np.isfinite(x[:, j]).all() else x[:, j] for j in range(x.shape[1])]
+    cols = [_unwrap_finite(x[:, j]) if w[j] else x[:, j] for j in range(x.shape[1])]
     return np.column_stack([np.interp(g, t, c) for c in cols])
+
+
+def _unwrap_finite(c: np.ndarray) -> np.ndarray:
+    """``np.unwrap`` of the finite samples of an angle column [rad]; a missing sample (NaN) stays missing and
+    the unwrapping goes on across it (unwrapped whole, one NaN would make every later sample NaN)."""
+    ok = np.isfinite(c)
+    if ok.all():
+        return np.unwrap(c)
+    out = c.copy()
+    out[ok] = np.unwrap(c[ok])
+    return out
 
 
 def _common_grid(ref_t: np.ndarray, *spans: np.ndarray, source: str = "") -> np.ndarray:

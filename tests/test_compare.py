@@ -658,3 +658,27 @@ def test_a_log_that_wraps_the_hip_is_not_interpolated_across_the_jump() -> None:
     assert np.nanmax(np.abs(p.deviation[:, signals.LABELS.index("q2")])) < 1e-9
     plain = metrics.pair_metrics(a, ref, wrap=np.zeros(len(signals.LABELS), dtype=bool))  # told: no angle wraps
     assert np.nanmax(np.abs(plain.deviation[:, signals.LABELS.index("q2")])) > 6.0  # then the jump is a deviation
+
+
+def test_a_wrapped_hip_with_a_missing_sample_is_still_unwrapped() -> None:
+    """The same wrapped 500 Hz hip log with one sample missing (NaN, as an imported log has) far from the jump:
+    only that sample is left out; the jump is still unwrapped, so away from the gap the deviation stays
+    round-off (< 1e-9 rad). Unwrapping nothing when a column had a NaN put 1.57 rad of false deviation there."""
+    t_ref = np.arange(0.0, 1.0 + 1e-12, 1e-3)
+    t_a = np.arange(0.0005, 1.0, 2e-3)
+    q2 = np.mod(3.0 + 0.3 * t_a + np.pi, 2 * np.pi) - np.pi
+    q2[50] = np.nan  # t = 0.1005 s; the jump through pi is at t = 0.472 s
+    ref = results.result_from_frame(
+        pd.DataFrame({"t": t_ref, "q1": 0.1 * t_ref, "q2": 3.0 + 0.3 * t_ref, "q3": -1.0 + 0.2 * t_ref}),
+        "ref",
+        required=["t", "q1", "q2", "q3"],
+    )
+    a = results.result_from_frame(
+        pd.DataFrame({"t": t_a, "q1": 0.1 * t_a, "q2": q2, "q3": -1.0 + 0.2 * t_a}),
+        "a",
+        required=["t", "q1", "q2", "q3"],
+    )
+    p = metrics.pair_metrics(a, ref)
+    d = p.deviation[:, signals.LABELS.index("q2")]
+    far = np.abs(p.t - t_a[50]) > 2.5e-3  # the ticks interpolated from the missing sample are NaN
+    assert np.isnan(d[~far]).any() and np.nanmax(np.abs(d[far])) < 1e-9
