@@ -251,6 +251,47 @@ def test_a_pool_that_breaks_between_a_result_and_the_next_submission_goes_on_in_
         list(executors.LocalExecutor(2).imap_unordered(math.sqrt, [0.0, 1.0, 4.0]))
 
 
+class _CrashingPool:
+    """A stand-in process pool that runs each task at once in this process, except that the task for
+    ``crash_on`` comes back broken (BrokenProcessPool), as the futures of a pool whose worker died under it."""
+
+    def __init__(self, crash_on: float | None) -> None:
+        self.crash_on = crash_on
+
+    def submit(self, fn: Any, *args: Any) -> Future[Any]:
+        fut: Future[Any] = Future()
+        if args and args[-1] == self.crash_on:
+            fut.set_exception(BrokenProcessPool("a worker died"))
+        else:
+            fut.set_result(fn(*args))
+        return fut
+
+    def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
+        pass
+
+
+def test_a_result_finished_beside_the_crash_is_kept_and_the_crash_alone_is_rerun(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Items 2 (the crash) and 3 are in the pool together and both done when it breaks: item 3's result, finished
+    before the break, is yielded as it is; only item 2 runs again, alone (it crashes again: on_crash's -1),
+    then item 4 goes on in a new pool. Three pools in all (the first, item 2's one-worker pool, the new one),
+    every item exactly once."""
+    pools = [_CrashingPool(4.0), _CrashingPool(4.0), _CrashingPool(None)]
+    made: list[_CrashingPool] = []
+
+    def make(**kw: Any) -> _CrashingPool:
+        made.append(pools[len(made)])
+        return made[-1]
+
+    monkeypatch.setattr(executors, "ProcessPoolExecutor", make)
+    got = list(
+        executors.LocalExecutor(2).imap_unordered(math.sqrt, [0.0, 1.0, 4.0, 9.0, 16.0], None, lambda x, why: -1.0)
+    )
+    assert sorted(got) == [(0, 0.0), (1, 1.0), (2, -1.0), (3, 3.0), (4, 4.0)]
+    assert made == pools
+
+
 def test_terminate_stops_running_workers_and_keeps_what_finished() -> None:
     """A worker busy with a long task is stopped by terminate() (SIGTERM, then SIGKILL after 2 s: the blocked
     tasks never end by themselves); the result that finished before is kept."""
