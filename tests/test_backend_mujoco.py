@@ -2,7 +2,8 @@
 
 ``force_readout: end`` needs one ``mj_forward`` at the end of each control period; the next
 period's first sub-step then runs only the acceleration stage (``mj_forwardSkip``) and the
-integrator. The log must be the one of plain ``mj_step`` calls, bit for bit.
+integrator. The log must be the one of plain ``mj_step`` calls, bit for bit. Also: what the
+``last`` and ``mean`` read-outs hold with ``rk4`` (the 4th stage's solve).
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip("mujoco")
+mujoco = pytest.importorskip("mujoco")
 
 from legbench import backends as registry  # noqa: E402
 from legbench import scenario  # noqa: E402
@@ -79,3 +80,48 @@ def test_cached_contact_frame_reads_the_force_of_the_general_read_out(profile: s
     assert np.max(fast.f[:, 2]) > 30.0  # [N]
     assert np.max(np.abs(fast.f - general_log.f)) <= 1e-12
     assert np.array_equal(fast.q, general_log.q)
+
+
+@pytest.mark.parametrize("readout", ["last", "mean"])
+def test_rk4_last_and_mean_read_the_last_stage_solve(readout: str) -> None:
+    """With ``rk4`` the force ``mj_step`` leaves is its 4th stage's solve, not its start state's.
+
+    ``mj_RungeKutta`` runs stages 2-4 with ``mj_forwardSkip`` and restores only qpos, qvel and act, so
+    ``efc_force`` is that of the state x0 + h k3. Rebuilt here stage by stage on a second MjData: the
+    backend's read equals the 4th stage's force (measured bit-identical, 7.706 N; 1e-9 allows a rounding)
+    and differs from the start state's (8.947 N), so the test tells the two apart. One 1 ms sub-step.
+    """
+    physics = physics_of(scenario.load(ROOT / "scenarios" / "effort.yaml"), None)
+    backend = registry.load("mujoco", physics, {"integrator": "rk4", "force_readout": readout, "dt": 1.0e-3})
+    try:
+        m = backend.model  # type: ignore[attr-defined]
+        q0, qd0 = np.array([-0.0025, -1.1799, -1.2599]), np.array([0.0, -0.5, 0.3])
+        tau = np.zeros(3)
+        backend.reset(q0, qd0)
+        fn_start = float(backend.ground_force()[2])
+        backend.step(tau)
+        fn_read = float(backend.ground_force()[2])
+
+        d = mujoco.MjData(m)
+        d.ctrl[:] = tau
+        h = m.opt.timestep
+        qvel: list[np.ndarray] = []
+        qacc: list[np.ndarray] = []
+        for i, a in enumerate((0.0, 0.5, 0.5, 1.0)):  # classical RK4: stage i at x0 + a h k_{i-1}
+            d.qpos[:] = q0
+            d.qvel[:] = qd0
+            if i:
+                mujoco.mj_integratePos(m, d.qpos, qvel[-1], a * h)
+                d.qvel[:] = qd0 + a * h * qacc[-1]
+            mujoco.mj_forward(m, d)
+            qvel.append(d.qvel.copy())
+            qacc.append(d.qacc.copy())
+        f6, fn_stage4 = np.zeros(6), 0.0  # the 4th stage's normal force (contact frame: normal first)
+        for c in range(d.ncon):
+            mujoco.mj_contactForce(m, d, c, f6)
+            fn_stage4 += f6[0]
+    finally:
+        backend.close()
+    assert fn_start > 5.0  # [N]: in contact
+    assert abs(fn_start - fn_stage4) > 0.5  # [N]: the stages differ enough to be told apart
+    assert abs(fn_read - fn_stage4) <= 1e-9 * fn_stage4

@@ -81,9 +81,12 @@ mapping above). ``engine-defaults`` is what a Drake user gets from
 with Kp, Kd and mu set the usual way: ``point_contact_stiffness = Kp``,
 ``hunt_crossley_dissipation = Kd / (Kp x_ref)`` [s/m] (Kd at the reference depth,
 as above) and ``relaxation_time = Kd / Kp`` [s] (read only by SAP) on the foot,
-the ground registered with friction only (so Drake's default stiffness from
-``penetration_allowance`` acts in series with Kp, and the ground's default
-dissipation adds about 0.5 s/m to the pair's d).
+the ground registered with friction only, so it gets
+``SceneGraphConfig().default_proximity_properties`` (Drake 1.51: ``point_stiffness``
+1e6 N/m, ``hunt_crossley_dissipation`` 50 s/m, ``relaxation_time`` 0.1 s; the
+``penetration_allowance`` estimate is only for geometry that still lacks a value): 1e6 N/m
+in series with Kp gives Fn / (Kp y) = 1/1.01, and the ground's 50 s/m weighted by the foot's
+share of the stiffness, 50 Kp / (1e6 + Kp) = 0.50 s/m, adds to 0.99 of the foot's d.
 """
 
 from __future__ import annotations

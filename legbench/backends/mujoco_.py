@@ -3,8 +3,9 @@
 Model: ``models/leg.urdf`` is loaded with :func:`mujoco.MjSpec.from_string` (no
 hand-written MJCF copy of the leg), with MuJoCo's ``<mujoco><compiler fusestatic="false"/>``
 added by this backend (:data:`COMPILER`): it keeps the foot a body of its own, welded to link 3
-at the foot centre E; a site ``E`` marks that point. On the spec we add the
-ground plane z_W = 0, one ``motor`` actuator per joint (gear 1, control range
+at the foot centre E; a site ``E`` marks that point (MuJoCo's URDF default ``fusestatic="true"``
+would fuse the foot into link 3; the ``engine-defaults`` force depends on it, see below). On the
+spec we add the ground plane z_W = 0, one ``motor`` actuator per joint (gear 1, control range
 = torque limit), stiff joint limits (docs/contact_mapping.md: solref (0.002, 1), solimp
 (0.99, 0.999, ...): the knee driven into its 2.229 rad limit with 10 N m rests
 at 2.2292 rad after a 0.02 rad overshoot) and collision filters so that only
@@ -30,7 +31,15 @@ other geom collides). Profiles (docs/contact_mapping.md has the study):
   Newton, 100 iterations, no noslip, solimp (0.9, 0.95, 0.001, 0.5, 2)) with Kp,
   Kd as the usual direct ``solref = (-Kp, -Kd)`` and mu as the pair friction,
   one 1 ms step per control period (MuJoCo's 2 ms default does not divide it).
-  Friction is then the regularised cone: the foot creeps at about F_t / Kd.
+  Friction is then the regularised cone: the foot creeps, 19.4 mm/s under F_t = 6.9 N
+  in the effort task (F_t / creep = 3.5 Kd; F_t / Kd holds for the scaled solref).
+  The raw solref's stiffness is per unit of the foot body's ``body_invweight0``
+  (``mj_diagApprox`` takes the contact geom's body), so it depends on ``fusestatic="false"``:
+  MuJoCo's URDF default (foot fused into link 3, A = 0.8431 instead of 2.2101 1/kg) gives
+  Fn 75.0 N instead of 59.0 N in the effort task (docs/contact_mapping.md). So besides the
+  1 ms step this profile keeps two things that are not MuJoCo's defaults: that compiler option
+  and the stiff joint limits above (MuJoCo's: solref (0.02, 1), solimp (0.9, 0.95, ...); none
+  of the four tasks reaches a limit).
 
 Ground force read-out (setting ``force_readout``): ``end`` (default) is the force
 at the end state of the control period (one more ``mj_forward`` after the sub-steps, whose position
@@ -50,7 +59,9 @@ the leg's statics F = -(J_poc^T)^-1 (tau - G(q)) (the ground's force on the foot
 spec's h, the force the foot exerts, is -F) over the effort task's last
 0.5 s: 0.2 % of Fn (matched), 0.01 % (engine-defaults); the 0.2 % is MuJoCo's
 contact point, which sits in the middle of the penetration, y/2 above the true
-poc (``contact_point_lift``). With ``rk4`` the forces are those of a step's first stage.
+poc (``contact_point_lift``). With ``rk4``, ``last`` and ``mean`` read a step's last (4th)
+stage's solve (``mj_RungeKutta`` runs stages 2-4 with ``mj_forwardSkip`` and restores only
+qpos, qvel and act), not its first stage's; ``end`` solves again at the end state.
 
 Reference contact (``contact_mode = "reference"``): engine contact off
 (``mjDSBL_CONTACT``); before every sub-step, ``qfrc_applied`` is set to
@@ -119,6 +130,9 @@ _STAGE_VEL = mujoco.mjtStage.mjSTAGE_VEL
 #: MuJoCo's own URDF import options, which this backend adds (the generated URDF carries no engine's element):
 #: angles in radians, visual geoms kept, no inertia balancing, and ``fusestatic="false"`` so that the foot,
 #: welded to link 3 by a fixed joint, stays a body of its own (its contact pair and the site E need it).
+#: MuJoCo's URDF default is ``fusestatic="true"`` (the foot fused into link 3), so the ``engine-defaults``
+#: force depends on this option: its raw solref (-Kp, -Kd) is per unit of the contact body's
+#: ``body_invweight0`` (foot 2.2101 1/kg, fused link 3 0.8431), effort task Fn 59.0 N here, 75.0 N fused.
 COMPILER = '<mujoco><compiler angle="radian" discardvisual="false" fusestatic="false" balanceinertia="false"/></mujoco>'
 
 
@@ -169,7 +183,9 @@ class MujocoBackend(Backend):
     }
     #: ``engine-defaults``: MuJoCo's documented option defaults (2 ms is replaced by the control
     #: period: a step must divide it), Kp and Kd as the usual direct solref (-Kp, -Kd) with the
-    #: default solimp, mu as the geom friction.
+    #: default solimp, mu as the pair friction (``pair_friction`` of the explicit pair, like all
+    #: its parameters). Not MuJoCo's defaults: ``fusestatic="false"`` (:data:`COMPILER`) and the
+    #: stiff joint limits (:data:`LIMIT_SOLREF`, :data:`LIMIT_SOLIMP`).
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "matched": {},
         "engine-defaults": {
@@ -314,15 +330,15 @@ class MujocoBackend(Backend):
     def _step_native(self) -> None:
         """``n_sub`` steps, then the ground force at the end state (``force_readout: end``).
 
-        ``mj_step`` leaves the contact forces of the last sub-step's start state; the force at
-        the end state needs the constraint solve at that state, so one ``mj_forward`` per period
-        is kept (the end-state force aligned with the logged state, like the law's). It is not
-        wasted: the next period's first sub-step starts from the same qpos and qvel with only
-        ``ctrl`` changed, so it reuses that call's position and velocity stages (kinematics,
-        mass matrix, collision, constraint Jacobians) and runs ``mj_forwardSkip`` from the
-        acceleration stage, then the integrator: bit-identical to ``mj_step``
-        (tests/test_backend_mujoco.py). :meth:`reset` and :meth:`load` end with ``mj_forward``,
-        so d always holds those stages of its current state when a period starts.
+        ``mj_step`` leaves the contact forces of the last sub-step's start state (with ``rk4`` its
+        last stage's); the force at the end state needs the constraint solve at that state, so one
+        ``mj_forward`` per period is kept (the end-state force aligned with the logged state, like
+        the law's). It is not wasted: the next period's first sub-step starts from the same qpos and
+        qvel with only ``ctrl`` changed, so it reuses that call's position and velocity stages
+        (kinematics, mass matrix, collision, constraint Jacobians) and runs ``mj_forwardSkip`` from
+        the acceleration stage, then the integrator: bit-identical to ``mj_step``
+        (tests/test_backend_mujoco.py). :meth:`reset` and :meth:`load` end with ``mj_forward``, so d
+        always holds those stages of its current state when a period starts.
         """
         m, d = self.model, self.data
         mujoco.mj_checkPos(m, d)
@@ -348,14 +364,15 @@ class MujocoBackend(Backend):
 
         After ``mj_step`` the contacts and ``efc_force`` are those the step used (computed at its
         start state, after the noslip pass when there is one): Bullet's convention, one sub-step
-        behind the state.
+        behind the state. With ``rk4`` they are the step's last (4th) stage's, not its start state's.
         """
         mujoco.mj_step(self.model, self.data, self.n_sub)
         self._contact_force()
 
     def _step_native_mean(self) -> None:
         """``n_sub`` calls of ``mj_step``, averaging the contact force each sub-step applied
-        (``force_readout: mean``): the control period's contact impulse over its length.
+        (``force_readout: mean``): the control period's contact impulse over its length
+        (with ``rk4``: each sub-step's last-stage force, what ``mj_step`` leaves in ``efc_force``).
 
         Use it with settings under which the friction force alternates from sub-step to
         sub-step (a stiff friction row: impratio >> 1, or noslip with the contact's own
