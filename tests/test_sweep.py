@@ -63,8 +63,8 @@ def test_first_order_integrators_converge_at_order_one(timestep: sweep.SweepResu
 def test_rk4_converges_at_order_four(timestep: sweep.SweepResult) -> None:
     """RK4 converges at order ~4 on every backend that offers it (slope within 0.3 of 4).
 
-    The points at or below the 1e-12 rad floor (round-off of 10^4 steps) are left out;
-    the three above it span 5.6e-10 .. 2.2e-12 rad.
+    The points at or below the 1e-12 rad floor are left out (a conservative floor: the round-off of the two
+    runs is nearer 1e-15, scenarios/sweeps/timestep.yaml); the three above it span 5.6e-10 .. 2.2e-12 rad.
     """
     fits = timestep.fits
     offered = {n for n in backends.available() if "rk4" in backends.get(n).choices.get("integrator", ())}

@@ -9,6 +9,7 @@ assertion.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -18,8 +19,10 @@ import pandas as pd
 import pytest
 from fakes import FakeBackend, install_crashing_engine
 
-from legbench import backends
+from legbench import backends, kinematics, model
+from legbench.backends.pinocchio_ import PinocchioBackend
 from legbench.exceptions import LegbenchError
+from legbench.results import RunResult
 from legbench.studies import verify
 
 
@@ -49,10 +52,12 @@ KNOWN_DISCREPANCIES = {("sliding", "drake", "slip acceleration along the slip (m
 @pytest.mark.parametrize("case", verify.CASES)
 def test_case_passes_on_every_backend(results: tuple[pd.DataFrame, Path], case: str) -> None:
     """energy: first-order integrators follow the predicted drift h int e2 dt within max|pred| (h W + (Ts W)^2)
-    (the O(h^2) remainder and the trapezoid sum), RK4 stays at round-off, adaptive within n (rtol |x| + atol)
-    |grad E|; rest_penetration: y = Fn/Kp within 0.1 % plus Kd max|ydot|/Kp; static_balance: within the
-    dynamic terms left, the application point's lever y |F_t| and 0.1 % of |F|; small_oscillation: each
-    closed-loop pole within 0.5 % of the sampled, integrator-aware linear model."""
+    (the O(h^2) remainder and the trapezoid sum), RK4 within (h W)^4 W T max T + round-off, adaptive within
+    (max_step W)^5 W T max T + round-off (each + the URDF's 12 digits); rest_penetration: y = Fn/Kp within
+    0.1 % plus Kd max|ydot|/Kp; static_balance: within the dynamic terms left and the held torque's step, plus
+    for an engine's own contact the application point's lever y |F_t| and 0.1 % of |F|, for a law backend
+    round-off and its solver's tolerance; small_oscillation: each closed-loop pole within 0.5 % of the
+    sampled, integrator-aware linear model."""
     df, _ = results
     rows = df[df["case"] == case]
     assert set(rows["backend"]) == set(backends.available())
@@ -74,15 +79,22 @@ def test_tolerances_are_the_stated_ones_not_the_codes_choice(results: tuple[pd.D
     """The pass/fail tolerances come from the code under test, so they are bounded here from the physics:
     rest penetration within 10 um of a 5.25 mm sink (0.1 % of it plus the damping of a foot at rest: measured
     5.3 um), static balance within 1 N of a 52 N push (measured <= 0.54 N: the dynamic terms left and the
-    application point's lever), each closed-loop pole within 0.5 % plus one step's first-order error h |s|
-    (at most 2.5 %, measured <= 2.2 %); and the two rates the docstring above states. A tolerance widened in
-    verify.py fails this test."""
-    assert (verify.SOLVER_RTOL, verify.POLE_RTOL) == (1e-3, 5e-3)
+    application point's lever), within 0.1 N for a backend applying the law itself (no lever: Pinocchio 2e-4 N,
+    the held torque's step; Lagrange 0.062 N, its atol 1e-6 times the friction's slope), each adaptive energy
+    row within 1e-10 J (6.7e-11 J: (max_step W)^5 W T max T, round-off and the URDF's 12 digits), each
+    closed-loop pole within 0.5 % plus one step's first-order error h |s| (at most 2.5 %, measured <= 2.2 %);
+    and the rates the docstring above states. A tolerance widened in verify.py fails this test."""
+    assert (verify.SOLVER_RTOL, verify.POLE_RTOL, verify.URDF_RTOL) == (1e-3, 5e-3, 1.5e-11)
     df, _ = results
     rest = df[(df["case"] == "rest_penetration") & (df["status"] != "not-applicable")]
     assert len(rest) and (rest["tolerance"] <= 1e-5).all(), rest[["backend", "tolerance"]]
     balance = df[(df["case"] == "static_balance") & (df["status"] != "not-applicable")]
     assert len(balance) and (balance["tolerance"] <= 1.0).all(), balance[["backend", "quantity", "tolerance"]]
+    law = balance[balance["note"].str.startswith("law backend")]
+    assert set(law["backend"]) == {"pinocchio", "lagrange"} & set(backends.available())
+    assert (law["tolerance"] <= 0.1).all(), law[["backend", "quantity", "tolerance"]]
+    adaptive = df[(df["case"] == "energy") & df["note"].str.startswith("adaptive")]
+    assert len(adaptive) and (adaptive["tolerance"] <= 1e-10).all(), adaptive[["backend", "variant", "tolerance"]]
     poles = df[(df["case"] == "small_oscillation") & (df["status"] != "not-applicable")]
     rel = poles["tolerance"] / poles["expected"].abs()
     assert len(poles) and (rel >= 5e-3 - 1e-12).all() and (rel <= 0.025).all(), rel.describe()
@@ -187,6 +199,13 @@ def test_verify_runs_the_sliding_case_with_three_closed_form_rows_per_backend() 
     df = V.verify(backends=["pinocchio", "mujoco"], cases=["sliding"])
     assert sorted(df["backend"].value_counts().to_dict().items()) == [("mujoco", 3), ("pinocchio", 3)]
     assert (df["status"] == "pass").all(), df[["backend", "quantity", "measured", "expected", "note"]]
+    # Pinocchio applies the law itself: its friction ratio and angle are the law read back, and say so
+    # (|F_t|/Fn = mu_k to round-off); MuJoCo's are its engine's, and its acceleration row is a test either way
+    read_back = df["note"].str.startswith("the law read back")
+    assert set(df[read_back]["backend"]) == {"pinocchio"} and read_back.sum() == 2
+    assert not df[read_back]["quantity"].str.startswith("slip acceleration").any()
+    ratio = df[read_back & df["quantity"].str.startswith("friction")]
+    assert float(ratio["error"].iloc[0]) < 1e-9
 
 
 def test_the_table_does_not_depend_on_the_number_of_workers(tmp_path: Path) -> None:
@@ -213,3 +232,62 @@ def test_an_engine_that_crashes_its_worker_fails_its_cases_and_the_others_are_ve
     assert bad["note"].str.contains("the engine crashed: its worker process died \\(killed by SIGSEGV\\)").all()
     alone = verify.verify(None, ["pinocchio"], ["energy", "rest_penetration"], jobs=1)
     pd.testing.assert_frame_equal(df[df["backend"] == "pinocchio"].reset_index(drop=True), alone)
+
+
+def test_the_adaptive_energy_tolerance_fails_a_first_order_step(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The adaptive rows' tolerance, (max_step W)^5 W T max T + round-off + the URDF's 12 digits (6.7e-11 J at
+    max_step 1e-4 s), tells a fifth-order step from a first-order one: Pinocchio's semi-implicit Euler at 50 us,
+    declared adaptive with max_step = its step, drifts 4.9e-4 J and fails (its tolerance is 1.1e-10 J). The
+    former tolerance, n_periods (rtol |x| + atol) |grad E| = 5.2e-4 J, passed it."""
+    info = PinocchioBackend.info
+    monkeypatch.setattr(PinocchioBackend, "integrator_family", lambda self: "adaptive")
+    monkeypatch.setattr(PinocchioBackend, "info", lambda self: {**info(self), "max_step": self.h})
+    (row,) = verify.check_energy(["pinocchio"], integrators=["euler"])
+    assert row.measured > 1e-4  # Euler's drift, 4.9e-4 J
+    assert row.status == "fail" and row.tolerance < 1e-9, (row.measured, row.tolerance)
+    assert row.note.startswith("adaptive") and "h = 5e-05 s" in row.note
+
+
+def test_the_adaptive_energy_rows_pass_for_the_real_solvers() -> None:
+    """Pinocchio's rk45 and dop853 (1.1e-14 J) and the Lagrange backend's (1.2e-11 J: its model from the
+    parameter file against E on the URDF's 12 digits) stay within the same tolerance, 6.7e-11 J."""
+    rows = verify.check_energy(["pinocchio", "lagrange"], integrators=["rk45", "dop853"])
+    assert len(rows) == 4 and all(r.note.startswith("adaptive") for r in rows)
+    for r in rows:
+        assert r.passed and r.measured <= r.tolerance <= 1e-10, (r.backend, r.variant, r.measured, r.tolerance)
+
+
+def _read_with_a_lever_error(tr: RunResult) -> RunResult:
+    """The run with its ground force read as if the law's force acted y below the sphere's lowest point (at
+    R_foot + y below E, a lever error of y): the force that balances the same torques through that point."""
+    R = model.load_params().geometry.R_foot
+    f, q = tr.f.copy(), tr.q
+    y = R - kinematics.fk(q)[:, 2]
+    J, Jv, Jw = kinematics.jacobian_poc(q), kinematics.jacobian(q), kinematics.angular_jacobian(q)
+    for k in np.flatnonzero(y > 0):
+        d = R + y[k]
+        J_app = Jv[k] - np.array([[0.0, d, 0.0], [-d, 0.0, 0.0], [0.0, 0.0, 0.0]]) @ Jw[k]
+        f[k] = np.linalg.solve(J_app.T, J[k].T @ f[k])
+    return dataclasses.replace(tr, f=f)
+
+
+def test_static_balance_of_a_law_backend_catches_a_lever_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A backend applying the law itself puts the force at the known point of contact, so its static balance has
+    no lever term: Pinocchio's tolerance is 2e-4 N (the held torque's step) against its 5e-5 N. The same run with
+    the force read at R_foot + y below E (a lever error of y = 5.25 mm) is off by (0.018, 0.078, 0.20) N and
+    fails every component; the former tolerance, 0.54 N (the lever term for a point anywhere in the
+    penetration band), passed it."""
+    with monkeypatch.context() as m:
+        simulate = verify._simulate
+        m.setattr(verify, "_simulate", lambda *a: _read_with_a_lever_error(simulate(*a)))
+        bad = [c for c in verify.check_rest(["pinocchio"]) if c.case == "static_balance"]
+    assert len(bad) == 3
+    for c in bad:
+        assert c.error > 0.01 and c.status == "fail", (c.quantity, c.error, c.tolerance)
+
+    real = verify.check_rest(["pinocchio"])
+    balance = [c for c in real if c.case == "static_balance"]
+    assert len(balance) == 3 and all(c.passed for c in balance), balance
+    assert all(c.tolerance < 1e-3 and c.note.startswith("law backend") for c in balance)
+    (rest,) = [c for c in real if c.case == "rest_penetration"]
+    assert rest.passed and "checks the force read-out's consistency, not the engine" in rest.note

@@ -15,10 +15,23 @@ answer computed here from the leg's reference model (:class:`legbench.model.Dyna
     motion, and the predicted curve is compared with the measured one over the
     whole run. Tolerance: max|prediction| x (h W + (Ts W)^2), the O(h^2)
     remainder relative to the O(h) term (W = max joint speed) plus the
-    trapezoid sum on the 1 ms log, plus round-off 4 n eps |E|. RK4 and the
-    adaptive scipy integrators: expected 0; RK4 tolerance (h W)^4 W T_end max T
-    (its global error) + round-off; adaptive: n_periods (rtol |x| + atol) |grad E|
-    (each 1 ms solve keeps its local error near rtol |x| + atol). A backend
+    trapezoid sum on the 1 ms log, plus round-off 4 n eps |E| (n steps). Every
+    row adds the reference's own precision: E is evaluated on the URDF, whose
+    numbers carry 12 significant digits (each rounded by up to 5e-12), so a
+    backend built from the parameter file at full precision conserves an energy
+    that differs from it by up to 3 x 5e-12 (max T + range V) = 2.9e-11 J here
+    (the Lagrange backend's whole 1.2e-11 J drift: 8e-15 J against a URDF
+    written at full precision). RK4 and the adaptive integrators: expected 0;
+    RK4 tolerance (h W)^4 W T_end max T (its global error) + round-off;
+    adaptive (a 5(4) pair with local extrapolation, or DOP853): the same with
+    the fifth power of the longest step it can take, h = max_step (at most the
+    control period), (h W)^5 W T_end max T + round-off over n = T_end / h steps:
+    a shorter step chosen by its error control only lowers the error, and the
+    bound of that error control, n_periods (rtol |x| + atol) |grad E|, is 5e-4 J
+    (Pinocchio) and 3e-3 J (Lagrange's atol 1e-6): larger than semi-implicit
+    Euler's max |E - E0| at 50 us, 4.9e-4 J, so it cannot tell a fifth-order step
+    from a first-order one, while this bound (6.7e-11 J at max_step 1e-4 s) can
+    (RK4 at that step, 8e-14 J, is at round-off and passes either). A backend
     declaring the family ``first-order`` (a first-order step with no closed form here,
     e.g. one in maximal coordinates): no prediction; max |E - E0| must stay
     within 2 h int |e2| dt with semi-implicit Euler's e2, the size a first-order
@@ -28,13 +41,31 @@ answer computed here from the leg's reference model (:class:`legbench.model.Dyna
     Tolerance: 0.1 % of y (the engines' contact solvers) plus Kd max|ydot|/Kp
     (the damping force the residual motion may carry). A backend whose native
     contact is rigid (``info()["contact"]["Kp"]`` is None) is expected not to
-    sink, y = 0, to the same tolerance.
+    sink, y = 0, to the same tolerance. A law backend (one that applies the
+    spec's law itself: no contact of its own, ``Backend.engine_contact()`` False,
+    or reference contact mode; :func:`applies_law`) reads Fn as the law at the
+    logged y, so its residual is -Kd mean(max(ydot, 0))/Kp by construction: the
+    row checks the force read-out's consistency, not the engine.
 ``static_balance``
     Same run: F = -(J_poc^T)^-1 (tau - G(q)) per component of the ground force.
-    Tolerance: the dynamic terms left in the window, |(J_poc^T)^-1 (M qdd + C qd)|,
-    plus the lever of the force's application point (anywhere between the
-    undeformed sphere's lowest point and the ground surface, a band of height y):
-    |(J_poc^T)^-1| y |F_t|, plus 0.1 % of |F|.
+    Tolerance: the dynamic terms left in the window, |(J_poc^T)^-1 (M qdd + C qd)|
+    with qdd the central difference of the 1 kHz log, plus the held torque's
+    step at the sample, |(J_poc^T)^-1| |tau_k - tau_{k-1}| (the central
+    difference averages the step out, the contact's slow normal mode does not
+    follow it within the period: 2e-4 N here, Pinocchio's whole 5e-5 N). An
+    engine's own contact adds the lever of the force's application point
+    (anywhere between the undeformed sphere's lowest point and the ground
+    surface, a band of height y): |(J_poc^T)^-1| y |F_t| (0.48 N here), plus
+    0.1 % of |F| (its contact solver). A law backend applies the force at the
+    point its law declares (J_poc of its ``poc``), exactly, with no contact
+    solver: no lever term (a lever error of y moves F by 0.02-0.2 N, which it
+    must catch) and round-off 8 eps (|F| + |(J_poc^T)^-1| (|tau| + |G|))
+    instead of 0.1 % of |F|; an adaptive one adds the law's slopes times the
+    state error one step of its solver admits, |J_poc| ((max(mu_s, 2|mu_s -
+    mu_k|) Fn / v_th + Kd (1 + mu_s)) e_qd + Kp (1 + mu_s) e_q) with e =
+    sqrt(6) (atol + rtol |x|) (scipy's RMS error norm <= 1): the law reads the
+    state, and the friction's slope mu_s Fn / v_th = 3.7e4 N s/m makes Lagrange's
+    atol 1e-6 worth 0.06 N (measured 0.023 N; 5e-5 N at atol 1e-10).
 ``small_oscillation``
     PD hold about q_eq from a 1e-4 rad offset (``small_oscillation.yaml``): the
     closed-loop poles. Expected: eigenvalues of the linearised loop
@@ -81,7 +112,7 @@ from legbench.results import atomic_write_text, checks_summary, platform_info, v
 from legbench.run import backend_rates, simulate
 from legbench.scenario import physics_of
 from legbench.studies.executors import DEFAULT_PRELOAD, make_executor
-from legbench.studies.sliding_case import WINDOW, sliding_case
+from legbench.studies.sliding_case import WINDOW, applies_law, sliding_case
 
 __all__ = [
     "CASES",
@@ -89,6 +120,7 @@ __all__ = [
     "VERIFICATION_DIR",
     "Check",
     "add_cli",
+    "applies_law",
     "check_energy",
     "check_rest",
     "check_small_oscillation",
@@ -116,6 +148,9 @@ FAMILY_TEXT = {"euler": "semi-implicit euler", "implicit": "implicit euler", "rk
 POLE_RTOL = 5e-3
 #: Share of the quantity the engines' contact solvers may miss by (rest and balance checks).
 SOLVER_RTOL = 1e-3
+#: Relative difference of an energy computed on the URDF's numbers (12 significant digits, so each rounded by up
+#: to 5e-12) from one on the parameter file's: three rounded factors per term (a mass or inertia and lengths).
+URDF_RTOL = 3 * 5e-12
 EPS = float(np.finfo(float).eps)
 
 
@@ -201,13 +236,19 @@ def _sub_step(info: Mapping[str, Any], control_dt: float) -> float:
 
 def _variant(info: Mapping[str, Any], control_dt: float) -> str:
     integ = info.get("integrator", FAMILY_TEXT.get(_family(info), "?"))
+    if _family(info) == "adaptive" and "max_step" in info:  # its steps are bounded by max_step, not a sub-step
+        return f"integrator={integ} max_step={float(info['max_step']):g}"
     return f"integrator={integ} dt={_sub_step(info, control_dt):g}"
 
 
 def _simulate(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any]) -> Any:
+    """Run ``scenario`` on backend ``name``; the run's info also records ``engine_contact`` (the backend's
+    :meth:`~legbench.backends.base.Backend.engine_contact`)."""
     backend = registry.load(name, physics, settings)
     try:
-        return simulate(scenario, backend, physics)
+        tr = simulate(scenario, backend, physics)
+        tr.info["engine_contact"] = bool(backend.engine_contact())
+        return tr
     finally:
         backend.close()
 
@@ -271,13 +312,16 @@ def check_energy(
             h = _sub_step(tr.info, Ts)
             n_steps = (len(tr.t) - 1) * round(Ts / h)
             roundoff = 4.0 * n_steps * EPS * float(np.abs(TV).max())
+            # E is evaluated on the URDF, whose numbers carry 12 significant digits: a backend built from the
+            # parameter file at full precision conserves an energy that differs from it (module docstring)
+            urdf = URDF_RTOL * (float(TV[:, 0].max()) + float(np.ptp(TV[:, 1])))
             W = float(np.abs(tr.qd).max())
             inside = bool(np.all((tr.q >= lower - 1e-9) & (tr.q <= upper + 1e-9)))
             invalid = "" if inside else "; INVALID: a joint limit was reached"
             if family in ("euler", "implicit"):
                 e2 = np.array([energy.local_rate(q, qd, family) for q, qd in zip(tr.q, tr.qd, strict=True)])
                 P = h * np.concatenate([[0.0], np.cumsum(0.5 * (e2[1:] + e2[:-1]) * np.diff(tr.t))])
-                tol = float(np.abs(P).max()) * (h * W + (Ts * W) ** 2) + roundoff
+                tol = float(np.abs(P).max()) * (h * W + (Ts * W) ** 2) + roundoff + urdf
                 note = (f"{family} x{round(Ts / h)}: predicted E(t) - E(0) = h int e2 dt (local energy error "
                         f"e2 h^2 per step); error = max over t of |measured - predicted|; max|E - E0| = "
                         f"{np.abs(D).max():.3g} J; W = {W:.3g} rad/s{invalid}")  # fmt: skip
@@ -289,18 +333,22 @@ def check_energy(
                 # no closed form for the step (e.g. one in maximal coordinates): bound the drift by the size
                 # a first-order step has, twice semi-implicit Euler's h int |e2| dt at the same step
                 e2 = np.abs([energy.local_rate(q, qd, "euler") for q, qd in zip(tr.q, tr.qd, strict=True)])
-                tol = 2.0 * h * float(np.sum(0.5 * (e2[1:] + e2[:-1]) * np.diff(tr.t))) + roundoff
+                tol = 2.0 * h * float(np.sum(0.5 * (e2[1:] + e2[:-1]) * np.diff(tr.t))) + roundoff + urdf
                 why = (f"first order x{round(Ts / h)}: no closed-form prediction; bound 2 h int |e2_euler| dt "
                        f"(a first-order step's drift, twice semi-implicit Euler's), W = {W:.3g} rad/s")  # fmt: skip
             elif family == "rk4":
-                tol = (h * W) ** 4 * W * float(tr.t[-1]) * float(TV[:, 0].max()) + roundoff
-                why = f"RK4: (h W)^4 W T_end max T with W = {W:.3g} rad/s, + round-off {roundoff:.2g} J"
+                tol = (h * W) ** 4 * W * float(tr.t[-1]) * float(TV[:, 0].max()) + roundoff + urdf
+                why = (f"RK4: (h W)^4 W T_end max T with W = {W:.3g} rad/s, + round-off {roundoff:.2g} J + "
+                       f"the reference model's 12 digits {urdf:.2g} J")  # fmt: skip
             elif family == "adaptive":
-                rtol, atol = float(tr.info.get("rtol", 1e-8)), float(tr.info.get("atol", 1e-10))
-                x = float(np.abs(np.hstack([tr.q, tr.qd])).max())
-                g = max(_energy_gradient(energy, q, qd) for q, qd in zip(tr.q, tr.qd, strict=True))
-                tol = (len(tr.t) - 1) * (rtol * x + atol) * g + roundoff
-                why = f"adaptive: n_periods (rtol |x| + atol) |grad E| with rtol {rtol:g}, atol {atol:g}"
+                h_max = min(float(tr.info.get("max_step", Ts)), Ts)  # one solve per period: no step is longer
+                n_min = (len(tr.t) - 1) * math.ceil(Ts / h_max - 1e-9)  # the fewest steps the solver can take
+                trunc = (h_max * W) ** 5 * W * float(tr.t[-1]) * float(TV[:, 0].max())
+                roundoff = 4.0 * n_min * EPS * float(np.abs(TV).max())
+                tol = trunc + roundoff + urdf
+                why = (f"adaptive 5(4) or higher, steps <= h = {h_max:g} s (max_step): (h W)^5 W T_end max T = "
+                       f"{trunc:.2g} J with W = {W:.3g} rad/s, + round-off {roundoff:.2g} J ({n_min} steps) + "
+                       f"the reference model's 12 digits {urdf:.2g} J")  # fmt: skip
             else:
                 out.append(_not_applicable("energy", name, variant, "max |E(t) - E(0)|", family))
                 continue
@@ -308,16 +356,6 @@ def check_energy(
                        why + invalid)  # fmt: skip
             out.append(c if inside else dataclasses.replace(c, passed=False, status="fail"))
     return out
-
-
-def _energy_gradient(energy: _Energy, q: np.ndarray, qd: np.ndarray, eps: float = 1e-6) -> float:
-    """|dE/dq|_1 + |dE/dqd|_1 (dE/dqd = M qd) at (q, qd), by central differences in q."""
-    dq = np.zeros(3)
-    for i in range(3):
-        e = np.zeros(3)
-        e[i] = eps
-        dq[i] = (sum(energy(q + e, qd)) - sum(energy(q - e, qd))) / (2 * eps)
-    return float(np.abs(dq).sum() + np.abs(energy.mass_matrix(q) @ qd).sum())
 
 
 # --------------------------------------------------------------------------- #
@@ -339,11 +377,15 @@ def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO) -> 
             out += [_failed(case, name, variant, tr.reason or tr.status) for case in ("rest_penetration",
                                                                                       "static_balance")]  # fmt: skip
             continue
-        w = tr.t >= tr.t[-1] - sc.comparison.steady_window - 1e-9
-        q, qd, tau, f = tr.q[w], tr.qd[w], tr.tau[w], tr.f[w]
-        qdd = np.gradient(tr.qd, tr.t, axis=0)[w]
+        law = applies_law(tr.info, physics)
+        # a law backend applies the force at the point its law declares (the scenario's unless its settings say)
+        poc = str(tr.info.get("contact", {}).get("poc", c.poc)) if law else c.poc
+        idx = np.flatnonzero(tr.t >= tr.t[-1] - sc.comparison.steady_window - 1e-9)
+        q, qd, tau, f = tr.q[idx], tr.qd[idx], tr.tau[idx], tr.f[idx]
+        tau_step = tau - tr.tau[np.maximum(idx - 1, 0)]  # the held torque's step at each sample
+        qdd = np.gradient(tr.qd, tr.t, axis=0)[idx]
         y = R - kinematics.fk(q)[:, 2]
-        J = kinematics.jacobian_poc(q, true_poc=c.poc == "true")
+        J = kinematics.jacobian_poc(q, true_poc=poc == "true")
         ydot = -np.einsum("nj,nj->n", J[:, 2, :], qd)
         # rest penetration
         y_m, fn = float(y.mean()), float(f[:, 2].mean())
@@ -355,25 +397,51 @@ def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO) -> 
                               f"a {c.Kp:g} N/m spring would sink {fn / c.Kp:.2e} m"))  # fmt: skip
         else:
             note = f"Fn = {fn:.3f} N, Kp = {c.Kp:g} N/m, max|ydot| = {np.abs(ydot).max():.2e} m/s"
+            if law:
+                note = (f"law backend: Fn is the law at the logged y, so y - Fn/Kp = -Kd mean(max(ydot, 0))/Kp = "
+                        f"{-c.Kd * float(np.maximum(ydot, 0.0).mean()) / c.Kp:.2e} m by construction: this checks "
+                        f"the force read-out's consistency, not the engine; {note}")  # fmt: skip
             out.append(_check("rest_penetration", name, variant, "penetration R_foot - z_E", "m", y_m, fn / c.Kp, tol,
                               note))  # fmt: skip
         # static balance, per tick
-        F_exp = np.empty_like(f)
-        dyn = np.empty_like(f)
-        lever = np.empty(len(f))
-        for k in range(len(f)):
+        n = len(f)
+        F_exp, dyn = np.empty_like(f), np.empty_like(f)
+        step, lever, solver, roundoff = np.empty(n), np.zeros(n), np.zeros(n), np.empty(n)
+        adaptive_law = law and _family(tr.info) == "adaptive"
+        rtol, atol = float(tr.info.get("rtol", 0.0)), float(tr.info.get("atol", 0.0))
+        slope_v = max(c.mu_s, 2.0 * abs(c.mu_s - c.mu_k)) / c.v_th  # [1/(m/s)], times Fn: the friction's slope
+        for k in range(n):
             G = kinematics.gravity(q[k])
             JTinv = np.linalg.inv(J[k].T)
             F_exp[k] = -JTinv @ (tau[k] - G)
             Mqdd_Cqd = leg.inverse_dynamics(q[k], qd[k], qdd[k]) - G
             dyn[k] = np.abs(JTinv @ Mqdd_Cqd)
-            lever[k] = np.linalg.norm(JTinv, 2) * max(y[k], 0.0) * math.hypot(f[k, 0], f[k, 1])
+            norm_JTinv = np.linalg.norm(JTinv, 2)
+            step[k] = norm_JTinv * np.linalg.norm(tau_step[k])
+            roundoff[k] = 8 * EPS * (np.linalg.norm(f[k]) + norm_JTinv * (np.linalg.norm(tau[k]) + np.linalg.norm(G)))
+            if not law:
+                lever[k] = norm_JTinv * max(y[k], 0.0) * math.hypot(f[k, 0], f[k, 1])
+            elif adaptive_law:
+                # the law's slopes times the state error one step of the solver admits (scipy's RMS norm <= 1:
+                # each component within sqrt(6) (atol + rtol |x|)); the contact's modes damp it, it does not add up
+                e_q = math.sqrt(6) * (atol + rtol * float(np.abs(q[k]).max()))
+                e_qd = math.sqrt(6) * (atol + rtol * float(np.abs(qd[k]).max()))
+                slope = (slope_v * max(f[k, 2], 0.0) + c.Kd * (1.0 + c.mu_s)) * e_qd + c.Kp * (1.0 + c.mu_s) * e_q
+                solver[k] = np.linalg.norm(J[k], 2) * slope
+        # an engine's contact solver may miss by SOLVER_RTOL of |F|; the law has no solver, only round-off
+        rest = roundoff if law else SOLVER_RTOL * np.linalg.norm(f, axis=1)
         for j, comp in enumerate(("Fx", "Fy", "Fz")):
             err = np.abs(f[:, j] - F_exp[:, j])
             k = int(np.argmax(err))
-            tol = float((dyn[:, j] + lever + SOLVER_RTOL * np.linalg.norm(f, axis=1)).max())
+            tol = float((dyn[:, j] + step + lever + solver + rest).max())
             quantity = f"{comp} (worst tick of the last {sc.comparison.steady_window:g} s)"
-            note = f"dynamic terms up to {dyn[:, j].max():.2e} N, lever term up to {lever.max():.2e} N"
+            terms = f"dynamic terms up to {dyn[:, j].max():.2e} N, torque step up to {step.max():.2e} N"
+            if law:
+                note = (f"law backend (the law's force at its known point of contact, poc {poc}): no lever term; "
+                        f"{terms}, solver tolerance up to {solver.max():.2e} N, "
+                        f"round-off {roundoff.max():.1e} N")  # fmt: skip
+            else:
+                note = f"{terms}, lever term up to {lever.max():.2e} N, solver {SOLVER_RTOL:g} |F|"
             out.append(_check("static_balance", name, variant, quantity, "N", float(f[k, j]), float(F_exp[k, j]),
                               tol, note))  # fmt: skip
     return out
