@@ -108,3 +108,34 @@ def test_period_mean_force_keeps_the_impact_that_the_end_sample_misses() -> None
     w = end.t >= end.t[-1] - 0.5
     assert np.abs(mean.f[w] - end.f[w]).max() < 1e-9 * end.f[w, 2].mean()
     assert mean.info["contact"]["force_readout"] == "contact impulse over the control period / the period"
+
+
+def test_enforced_limits_leave_joint_speeds_free_as_every_other_backend() -> None:
+    """The hip spun at 50 rad/s, above the URDF's 38.84 rad/s rating, keeps its speed with the limits enforced.
+
+    setLimitEnforcement makes DART's joint constraint bound qd by the URDF's
+    ``<limit velocity>`` too (38.84 and 55.49 rad/s): one 50 us step took the
+    hip from 50 to 38.84 rad/s and pushed the other joints. No other backend
+    bounds a speed, so matched sets the velocity limits to +-inf. Gravity off,
+    no contact, zero torque, q inside the position limits: one control period
+    (20 sub-steps) with the limits enforced must equal the same period with
+    them off (no constraint acts either way) to 1e-9 rad/s and rad: the same
+    semi-implicit Euler steps, measured identical to the last bit.
+    """
+    q0, qd0 = np.array([0.0, -1.0, -1.0]), np.array([0.0, 50.0, 0.0])
+    physics = Physics(gravity=0.0, contact_mode="reference")
+    states, infos = {}, {}
+    for enforce in (True, False):
+        backend = load("dart", physics, {"enforce_limits": enforce})
+        try:
+            backend.reset(q0, qd0)
+            backend.step(np.zeros(3))
+            states[enforce], infos[enforce] = backend.state(), backend.info()
+        finally:
+            backend.close()
+    (q_on, qd_on), (q_off, qd_off) = states[True], states[False]
+    assert qd_off[1] > 45.0  # [rad/s]: the free hip is still far above 38.84 rad/s
+    np.testing.assert_allclose(qd_on, qd_off, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(q_on, q_off, rtol=0, atol=1e-9)
+    for enforce, info in infos.items():
+        assert info["joint_limits_enforced"] is enforce and not info["joint_velocity_limits_enforced"]

@@ -17,8 +17,12 @@ import pytest
 
 pytest.importorskip("pybullet")
 
+from test_backends_engines import R_FOOT, run_press  # noqa: E402
+
 from legbench import backends as registry  # noqa: E402
-from legbench import scenario  # noqa: E402
+from legbench import kinematics, model, scenario  # noqa: E402
+from legbench.backends.base import Physics  # noqa: E402
+from legbench.backends.pybullet_ import p as bullet  # noqa: E402
 from legbench.run import simulate  # noqa: E402
 from legbench.scenario import physics_of, shorten  # noqa: E402
 from legbench.studies.contact_study import steady_contact  # noqa: E402
@@ -92,3 +96,54 @@ def test_import_prints_no_build_banner_but_keeps_other_stderr() -> None:
     assert out.stderr == "after\n"
     bare = subprocess.run([sys.executable, "-c", "import pybullet"], capture_output=True, text=True, env=env)
     assert "pybullet build time" in bare.stderr  # the banner this backend hides is really there
+
+
+def _press(settings: dict[str, object]):  # type: ignore[no-untyped-def]
+    """Foot pressed with 40 N and dragged with 3.6 N (tests/test_backends_engines.py's press), 0.8 s: backend, log."""
+    backend = registry.load("pybullet", Physics(), settings)
+    return backend, run_press(backend, np.array([3.0, 2.0, -40.0]), duration=0.8)
+
+
+def test_bullet_keeps_the_foot_first_in_its_contact_manifold() -> None:
+    """The raw contact (manifold body0, body1) is (foot, ground), so getContactPoints(foot, ground) swaps nothing.
+
+    When it swaps, PyBullet negates the normal but not the friction directions
+    (PhysicsServerCommandProcessor.cpp), so the backend's friction read-out
+    relies on Bullet's own order: btConvexPlaneCollisionAlgorithm creates a
+    sphere-plane manifold as (sphere, plane). Checked on the unfiltered
+    getContactPoints, and with the drag: the read force balances the statics
+    (F = -h) to 1e-5 of Fn in all three components (a flipped friction would be
+    off by twice the 3.6 N drag, 9 % of Fn; measured 2e-7).
+    """
+    backend, log = _press({})
+    try:
+        raw = bullet.getContactPoints(physicsClientId=backend.cid)
+        assert len(raw) >= 1
+        assert {(cp[1], cp[3], cp[2]) for cp in raw} == {(backend.body, backend.foot, backend.ground)}
+    finally:
+        backend.close()
+    q, tau, F = log["q"][-1], log["tau"][-1], log["F"][-1]
+    h = np.linalg.solve(kinematics.jacobian_poc(q).T, tau - model.gravity_torque(q))
+    assert F[2] > 30.0 and np.hypot(F[0], F[1]) > 2.0  # [N]: pressing and dragged
+    assert np.linalg.norm(F + h) < 1e-5 * F[2], (F, -h)
+
+
+def test_default_margins_record_and_apply_pybullets_1e5_m_slop() -> None:
+    """contact_margins: default keeps PyBullet's contactSlop, 1e-5 m (not Bullet's 0): info() records the number,
+    and the resting foot sinks that much deeper than with zero margins at the same force.
+
+    Depth beyond Fn / Kp, y - Fn / Kp with y = R_foot - z_E: the slop adds 1e-5 m to it (measured 2.7e-7 m
+    with zero margins, 1.027e-5 m with PyBullet's: the difference 1.000e-5 m); checked to 1e-7 m, 1 % of the
+    slop.
+    """
+    extra = {}
+    for margins in ("zero", "default"):
+        backend, log = _press({"contact_margins": margins})
+        try:
+            info = backend.info()["contact"]
+        finally:
+            backend.close()
+        y = R_FOOT - kinematics.fk(log["q"][-1])[2]
+        extra[margins] = y - log["F"][-1][2] / 1e4  # [m], Kp = 1e4 N/m (the rigid plane in series)
+        assert info["contact_slop"] == (0.0 if margins == "zero" else 1e-5)
+    assert extra["default"] - extra["zero"] == pytest.approx(1e-5, abs=1e-7), extra

@@ -6,7 +6,11 @@ skeleton: a welded 20 m x 20 m x 1 m box whose top face is z_W = 0 (every
 collision detector offered handles sphere-box). Only the foot sphere collides:
 the link cylinders' collision aspects are removed, self-collision is off.
 Joint position limits are enforced (``setLimitEnforcement``) in ``matched``;
-DART's URDF loader leaves them off, which ``engine-defaults`` keeps.
+DART's URDF loader leaves them off, which ``engine-defaults`` keeps. The same
+switch makes DART's joint constraint enforce the velocity limits too, which the
+loader takes from the URDF's ``<limit velocity>`` (38.84 and 55.49 rad/s): no
+other backend enforces a joint speed, so with the limits enforced each DOF's
+velocity limits are set to +-inf (position limits kept).
 
 Native contact is DART's rigid contact: a ``ContactConstraint`` per contact
 point solved with the other constraints as a boxed LCP (``lcp_solver``:
@@ -128,6 +132,12 @@ class DartBackend(Backend):
         self.dofs = [j.getIndexInSkeleton(0) for j in self.joints]
         for j in self.joints:
             j.setLimitEnforcement(bool(cfg["enforce_limits"]))
+            if cfg["enforce_limits"]:
+                # DART's joint constraint enforces velocity limits with the position limits
+                # (dart/constraint/JointConstraint.cpp: a bound row where qd leaves [lower, upper]);
+                # the URDF's <limit velocity> is a motor rating, enforced by no other backend
+                j.setVelocityLowerLimit(0, -np.inf)
+                j.setVelocityUpperLimit(0, np.inf)
             j.setDampingCoefficient(0, 0.0)
             j.setCoulombFriction(0, 0.0)
             j.setSpringStiffness(0, 0.0)
@@ -317,6 +327,12 @@ class DartBackend(Backend):
                 ),
             },
             "joint_limits_enforced": bool(self.cfg["enforce_limits"]),
+            # read back: a speed is bounded only where the limits are enforced and a velocity limit is finite
+            "joint_velocity_limits_enforced": all(j.areLimitsEnforced() for j in self.joints)
+            and any(
+                np.isfinite(self.skel.getVelocityLowerLimit(i)) or np.isfinite(self.skel.getVelocityUpperLimit(i))
+                for i in self.dofs
+            ),
         }
 
     # ------------------------------------------------------- declared abilities

@@ -47,7 +47,7 @@ Integrator: ``dWorldStep`` (exact LCP: Dantzig pivoting) or ``dWorldQuickStep``
 (projected Gauss-Seidel with SOR), both a first-order semi-implicit step in
 maximal coordinates: body velocities v += h M^-1 (f + J^T lambda) with the
 joint constraints solved at velocity level (with ERP position correction),
-then positions x += h v. :meth:`integrator_family` is ``other``, see there.
+then positions x += h v. :meth:`integrator_family` is ``first-order``, see there.
 Quick-step randomly reorders its constraint rows with ODE's one global random
 generator; the seed is reset before every step so that runs are deterministic
 and instances do not disturb each other.
@@ -125,7 +125,10 @@ class OdeBackend(Backend):
         "surface_min_depth": None,  # [m] per-collision layer (Gazebo's ODE fork only); None: not used
         "ground_kp": None,  # [N/m] ground surface stiffness in series with Kp (Gazebo); None: rigid
         "ground_kd": 0.0,  # [N s/m] ground surface damping added to Kd (Gazebo)
-        "damping": 0.0,  # world linear and angular velocity damping per step (ODE default 0)
+        # world damping scale (ODE default 0): a body's linear (angular) velocity is scaled by 1 - damping after a
+        # step only while its speed is above 0.01 m/s (0.01 rad/s), ODE's default thresholds (ode/src/objects.cpp
+        # dxDampingParameters, ode/src/util.cpp dxStepBody)
+        "damping": 0.0,
         "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
     }
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
@@ -164,12 +167,20 @@ class OdeBackend(Backend):
             "stop_erp": 0.2,  # <joint><physics><ode><limit><erp> 0.2
             "stop_cfm": 0.0,  # <joint><physics><ode><limit><cfm> 0
             "contact_max_correcting_vel": 100.0,  # <constraints><contact_max_correcting_vel> 100
-            "contact_surface_layer": 0.001,  # <constraints><contact_surface_layer> 0.001
-            "surface_max_vel": None,  # the foot's <surface><contact><ode><max_vel> (set it to what the lab used)
-            "surface_min_depth": None,  # the foot's <min_depth>
+            "contact_surface_layer": 0.001,  # <constraints><contact_surface_layer> 0.001: the world's, unused
+            # the foot's <surface><contact><ode><max_vel>: left off, stock ODE cannot do what the fork does with it
+            # (docs/backends/ode.md, "What stock ODE cannot reproduce")
+            "surface_max_vel": None,
+            # the foot's <min_depth>, SDFormat's default 0 (surface.sdf): ODELink::UpdateSurface gives every link
+            # with a collision dBodySetMinDepth, and the fork's contact row then uses it instead of the world's
+            # contact_surface_layer (deps/opende/src/joints/contact.cpp), so the foot's layer is 0
+            "surface_min_depth": 0.0,
             "ground_kp": 1.0e12,  # ground plane's <surface><contact><ode><kp> default
             "ground_kd": 1.0,  # ground plane's <kd> default
-            "damping": 1.0e-4,  # ODEPhysics::Load: dWorldSetDamping(0.0001, 0.0001)
+            # ODEPhysics::Load sets dWorldSetDamping(0.0001, 0.0001), but ODELink::Init then sets every link's own
+            # damping to its <velocity_decay> (Link::GetLinearDamping: 0 by default, link.sdf), which switches
+            # ODE's damping off for that body (dBodySetLinearDamping / dBodySetAngularDamping with 0)
+            "damping": 0.0,
         },
     }
 
@@ -240,7 +251,8 @@ class OdeBackend(Backend):
         self._contact_refs = [ctypes.byref(ct) for ct in self.contacts]
         self._feedback_refs = [ctypes.byref(fb) for fb in self._feedback]
         self._n_contacts = 0
-        self._foot_is_g1 = True
+        self._foot_first = True  # the foot's force is the contact joints' f1 (set per contact in _near_callback)
+        self._foot_body = _address(self.bodies[-1])
         self._contact_joints: list[Any] = [None] * MAX_CONTACTS
         self._near = ode.dNearCallback(self._near_callback)
 
@@ -403,7 +415,10 @@ class OdeBackend(Backend):
             _set_feedback(joint, feedback[k])
             self._contact_joints[k] = joint
         self._n_contacts = n
-        self._foot_is_g1 = bool(b1)
+        # which feedback side is the foot's: dJointAttach moves a null (static) body to the joint's second place
+        # (ode/src/ode.cpp), and ODE writes f1 for the first body, f2 only for a second one (ode/src/step.cpp,
+        # quickstep.cpp); so the foot is f1 unless two bodies collide and the foot is the second
+        self._foot_first = not (b1 and b2) or _address(b1) == self._foot_body
 
     def _step_reference(self) -> None:
         world, h, joints, tau, cmd = self.world, self.h, self.joints, self._tau, self._cmd
@@ -448,7 +463,7 @@ class OdeBackend(Backend):
         """Sum of the contact joints' feedback forces on the foot over the last sub-step, in W."""
         force = self._force
         force[:] = 0.0
-        foot_first = self._foot_is_g1
+        foot_first = self._foot_first
         for k in range(self._n_contacts):
             fb = self._feedback[k]
             f = fb.f1 if foot_first else fb.f2
@@ -524,9 +539,11 @@ class OdeBackend(Backend):
         """``first-order``: ODE's step is semi-implicit and first order, but in maximal coordinates.
 
         Body velocities are updated with the constraint forces solved at
-        velocity level (plus ERP drift correction, CFM regularisation and an
-        explicit gyroscopic term), then body positions and orientations are
-        advanced with the new velocities. Projected to joint space this is not
+        velocity level (plus ERP drift correction, CFM regularisation and ODE
+        0.16's implicit gyroscopic torque: ode/src/step.cpp and quickstep.cpp,
+        Lacoursiere 2006, the explicit one under ``#if 0``; on for every body,
+        dBodyCreate sets dxBodyGyroscopic), then body positions and
+        orientations are advanced with the new velocities. Projected to joint space this is not
         the scheme qd += h qdd(q, qd), q += h qd that verification's ``euler``
         prediction models: its trajectory is close (1.4e-7 rad in the reference
         contact test at 5e-5 s) but its energy is not (verification's energy case
@@ -620,8 +637,15 @@ def _effective_correction(cfg: Mapping[str, Any]) -> tuple[float | None, float]:
     Gazebo's ODE fork gives each body the collision's ``max_vel`` and
     ``min_depth``: a contact with such a body uses min(body max_vel, world
     contact_max_correcting_vel) and the body's min_depth instead of the world's
-    contact_surface_layer. Stock ODE has only the world values, so those are
-    set to the effective ones when a per-collision value is given.
+    contact_surface_layer (deps/opende/src/joints/contact.cpp). Stock ODE has
+    only the world values, so those are set to the effective ones when a
+    per-collision value is given. The layer is then exact. The cap is not:
+    stock ODE clamps the contact row's push-out itself (ode/src/joints/contact.cpp),
+    so a binding cap slows the position correction too, while the fork's quick
+    step keeps the cap in ``c_v_max`` and solves twice, the capped problem for
+    the velocities it keeps and for dJointFeedback, the uncapped one for the
+    position update (deps/opende/src/quickstep.cpp: rhs, rhs_erp). Both agree
+    while the push-out stays below the cap.
     """
     max_vel = cfg["contact_max_correcting_vel"]
     layer = float(cfg["contact_surface_layer"])

@@ -20,11 +20,16 @@ explicit rigid, undamped pair (1e30 N/m, 0): the contact is then exactly
 friction ``mu_s`` on the foot and 1 on the plane (Bullet multiplies them), no
 spinning or rolling friction, restitution 0, and ``contactSlop = 0`` /
 ``contactProcessingThreshold = 0`` so the spring acts on the true
-penetration. Friction is a hard Coulomb cone: the foot sticks.
+penetration (PyBullet's slop is 1e-5 m, PhysicsServerCommandProcessor.cpp
+``m_linearSlop = 0.00001``, added to the contact distance in
+btMultiBodyConstraintSolver.cpp: the foot would rest 10 um deeper; Bullet's own
+``btContactSolverInfo`` default is 0). Friction is a hard Coulomb cone: the foot
+sticks.
 
 Profiles: ``matched`` is the above (the defaults); ``engine-defaults`` keeps
 Bullet's own plane (no explicit stiffness/damping: its default contact damping
-adds to Kd), slop and processing thresholds, 50 solver iterations, and takes one
+adds to Kd), PyBullet's slop (1e-5 m) and Bullet's processing threshold
+(BT_LARGE_FLOAT), PyBullet's 50 solver iterations, and takes one
 1 ms ``stepSimulation`` per control period, with Kp, Kd as the foot's
 ``contactStiffness``/``contactDamping`` and mu as its ``lateralFriction`` on a
 plane of friction 1 (pybullet_data's plane.urdf). Both stick (Coulomb cone);
@@ -112,6 +117,10 @@ p = _import_quietly()
 
 #: Joint-speed clamp [rad/s]: Bullet's default of 100 replaced by a bound the leg cannot reach.
 MAX_JOINT_VELOCITY = 1000.0
+#: PyBullet's contact slop [m] (PhysicsServerCommandProcessor.cpp: ``m_linearSlop = 0.00001``; Bullet's own
+#: btContactSolverInfo default is 0): added to the contact distance (btMultiBodyConstraintSolver.cpp), so a
+#: resting contact sinks that much deeper. ``contact_margins: zero`` sets it to 0.
+PYBULLET_CONTACT_SLOP = 1.0e-5
 #: Contact stiffness of the plane [N/m]: Bullet combines stiffnesses in series, so a
 #: rigid plane leaves the foot's Kp (1/(1/Kp + 1e-30) = Kp in double precision).
 PLANE_STIFFNESS = 1.0e30
@@ -123,7 +132,9 @@ class PybulletBackend(Backend):
     name: ClassVar[str] = "pybullet"
     defaults: ClassVar[Mapping[str, Any]] = {
         "dt": 5.0e-5,  # sub-step [s]: the Pinocchio default (docs/pinocchio.md), so defaults are same-step
-        "solver_iterations": 50,  # sequential-impulse iterations per step (Bullet default 50)
+        # sequential-impulse iterations per step: PyBullet's default 50 (PhysicsServerCommandProcessor.cpp,
+        # m_numIterations = 50; Bullet's own btContactSolverInfo default is 10)
+        "solver_iterations": 50,
         "plane_contact": "rigid",  # rigid: plane (1e30 N/m, 0 N s/m); default: Bullet's plane (adds its damping)
         "plane_friction": 1.0,  # lateral friction of the plane (Bullet multiplies it with the foot's mu)
         "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
@@ -356,6 +367,16 @@ class PybulletBackend(Backend):
         With the foot as body A, ``contactNormalOnB`` points from the ground
         towards the foot, the normal force pushes the foot along it, and the
         two friction forces act on A along ``lateralFrictionDir1/2``.
+
+        That last holds because Bullet itself keeps the foot first: when a query's
+        (A, B) is the contact manifold's (body1, body0), getContactPoints swaps the
+        bodies and negates the normal but leaves the friction directions as they
+        are (PhysicsServerCommandProcessor.cpp,
+        processRequestContactpointInformationCommand), which would flip the
+        friction force read on the foot. A sphere-plane pair's manifold is always
+        (sphere, plane) (btConvexPlaneCollisionAlgorithm.cpp: getNewManifold(convex,
+        plane) whichever order the broadphase gives), so the foot is the manifold's
+        body0 and nothing is swapped; tests/test_backend_pybullet.py checks the order.
         """
         fx = fy = fz = 0.0
         for cp in p.getContactPoints(self.body, self.ground, self.foot, -1, physicsClientId=self.cid):
@@ -375,9 +396,9 @@ class PybulletBackend(Backend):
     def ground_force(self) -> np.ndarray:
         """Force of the ground on the foot in W [N].
 
-        Native: Bullet's contact impulse of the last sub-step divided by ``dt``
-        (the force over the final 0.1 ms, not at the end instant). Reference:
-        the law at the current state.
+        Native: Bullet's contact impulse of the last sub-step divided by its
+        duration ``dt`` (the force over the final sub-step, 0.05 ms by default,
+        not at the end instant). Reference: the law at the current state.
         """
         return np.array(self._reading[6:9])
 
@@ -414,8 +435,11 @@ class PybulletBackend(Backend):
                 "spinning_friction": foot[7],
                 "rolling_friction": foot[6],
                 "restitution": foot[5],
-                "contact_slop": 0.0 if self.exact_margins else "Bullet default",
-                "contact_processing_threshold": 0.0 if self.exact_margins else "Bullet default",
+                # [m] PyBullet's slop, which getPhysicsEngineParameters does not report
+                "contact_slop": 0.0 if self.exact_margins else PYBULLET_CONTACT_SLOP,
+                "contact_processing_threshold": (
+                    0.0 if self.exact_margins else "Bullet default (BT_LARGE_FLOAT, btCollisionObject.cpp)"
+                ),
                 "cone": "Coulomb cone (sticks below mu Fn, slides at mu Fn)",
                 "Kp": c.Kp,
                 "Kd": c.Kd,
