@@ -342,19 +342,32 @@ def tangential_mass(q: tuple[float, float, float] | list[float] | np.ndarray, tr
     return float(1.0 / np.linalg.eigvalsh(J_t @ np.linalg.solve(M, J_t.T)).max())
 
 
-def friction_step_bound(fn: float, q: tuple[float, float, float] | list[float] | np.ndarray, p: ContactParams) -> float:
-    """Largest explicit sub-step [s] that resolves the stick-slip law's slope: m v_th / (mu_s Fn).
+#: Stability factors x of explicit steps for the viscous friction below v_th (h c / m <= x, c = mu_s Fn / v_th,
+#: m the apparent mass): semi-implicit Euler's non-oscillating bound h < m / c (it is stable to 2 m / c, but
+#: its step factor 1 - h c / m turns negative past m / c: the friction then flips sign every step), and
+#: classical RK4's stability interval on the negative real axis, |1 - x + x^2/2 - x^3/6 + x^4/24| <= 1 for
+#: x <= 2.7853 (its step factor is positive for every real x, so there it never flips sign before it is unstable).
+EULER_FRICTION_STABILITY = 1.0
+RK4_FRICTION_STABILITY = 2.785293563405282
 
-    Below v_th the law is a viscous friction of coefficient mu_s Fn / v_th [N s/m]; an explicit
-    (semi-implicit Euler) step h is non-oscillating for h < m / c and stable for h < 2 m / c, with m
-    the apparent mass :func:`tangential_mass` at q [rad] and Fn [N] the normal force.
+
+def friction_step_bound(fn: float, q: tuple[float, float, float] | list[float] | np.ndarray, p: ContactParams,
+                        stability: float = EULER_FRICTION_STABILITY) -> float:  # fmt: skip
+    """Largest explicit sub-step [s] that resolves the stick-slip law's slope: ``stability`` m v_th / (mu_s Fn).
+
+    Below v_th the law is a viscous friction of coefficient c = mu_s Fn / v_th [N s/m] on the apparent mass m
+    [kg] (:func:`tangential_mass` at q [rad]; Fn [N] the normal force): an explicit step h resolves it for
+    h c / m <= ``stability``. The default, :data:`EULER_FRICTION_STABILITY` = 1, is semi-implicit Euler's
+    non-oscillating bound h < m / c (stable to 2 m / c); :data:`RK4_FRICTION_STABILITY` = 2.785 is RK4's
+    stability interval (2.785 / 2 of Euler's stable bound 2 m / c).
     """
     if fn <= 0.0:
         return math.inf
-    return tangential_mass(q, p.poc == "true") * p.v_th / (p.mu_s * fn)
+    return stability * tangential_mass(q, p.poc == "true") * p.v_th / (p.mu_s * fn)
 
 
-def law_step_warnings(backend: str, h: float, fn_peak: float, q_peak: list[float], p: ContactParams) -> list[str]:
+def law_step_warnings(backend: str, h: float, fn_peak: float, q_peak: list[float], p: ContactParams,
+                      stability: float = EULER_FRICTION_STABILITY) -> list[str]:  # fmt: skip
     """The warning a backend that applies the law explicitly every sub-step ``h`` [s] gives, or none.
 
     Args:
@@ -362,13 +375,17 @@ def law_step_warnings(backend: str, h: float, fn_peak: float, q_peak: list[float
         h: sub-step [s].
         fn_peak: largest normal force of the run [N]; q_peak: joint angles there [rad].
         p: contact parameters.
+        stability: the integrator's stability factor (:func:`friction_step_bound`): the default is
+            semi-implicit Euler's bound m v_th / (mu_s Fn), :data:`RK4_FRICTION_STABILITY` RK4's.
     """
-    bound = friction_step_bound(fn_peak, q_peak, p)
+    bound = friction_step_bound(fn_peak, q_peak, p, stability)
     if h <= bound:
         return []
     m = tangential_mass(q_peak, p.poc == "true")
+    factor = "" if stability == EULER_FRICTION_STABILITY else f"{stability:.4g} "
+    factor_x = "" if stability == EULER_FRICTION_STABILITY else f"{stability:.4g} x "
     return [
-        f"{backend}: sub-step {h:.3g} s is too coarse for the stick-slip law: h > m v_th / (mu_s Fn) = "
-        f"{m:.3g} kg x {p.v_th:.3g} m/s / ({p.mu_s:g} x {fn_peak:.3g} N) = {bound:.3g} s; the friction "
+        f"{backend}: sub-step {h:.3g} s is too coarse for the stick-slip law: h > {factor}m v_th / (mu_s Fn) = "
+        f"{factor_x}{m:.3g} kg x {p.v_th:.3g} m/s / ({p.mu_s:g} x {fn_peak:.3g} N) = {bound:.3g} s; the friction "
         f"chatters (use a sub-step <= {bound:.2g} s, or the implicit friction step where the backend has one)"
     ]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -15,8 +16,8 @@ from scipy.integrate import solve_ivp
 
 from legbench import kinematics as K
 from legbench import model, run, scenario
+from legbench.backends import joint_limits, pinocchio_kernel
 from legbench.backends import load as registry_load
-from legbench.backends import pinocchio_kernel
 from legbench.backends.base import Physics
 from legbench.backends.pinocchio_ import PinocchioBackend
 from legbench.contact import ContactParams
@@ -130,6 +131,96 @@ def test_knee_limit_holds_like_an_engine_limit() -> None:
     assert q3 == pytest.approx(2.229 + 10.0 / be.limit_law.k, abs=1e-4)
 
 
+def _knee_pushed_into_its_limit(settings: dict, control_dt: float, duration: float) -> tuple[np.ndarray, list[str]]:  # type: ignore[type-arg]
+    """Zero gravity, 10 N m pushing the knee into its 2.229 rad limit from 2.2 rad for ``duration`` [s] at
+    control period ``control_dt`` [s]: the knee angle [rad] of each period and the backend's warnings."""
+    be = PinocchioBackend()
+    be.load(model.URDF_FILE, Physics(gravity=0.0, contact=NO_CONTACT, control_dt=control_dt), settings)
+    be.reset(np.array([0.0, 0.0, 2.2]), np.zeros(3))
+    q3 = []
+    with np.errstate(all="ignore"):  # the diverging runs overflow
+        for _ in range(round(duration / control_dt)):
+            be.step(np.array([0.0, 0.0, 10.0]))
+            q3.append(be.state()[0][2])
+    return np.array(q3), be.warnings()
+
+
+def _knee_limit_bound() -> float:
+    """The limit spring-damper's semi-implicit Euler bound [s] at the knee resting on its limit, from Pinocchio's
+    M^-1 (I = 1/(M^-1)_33 = 0.00651 kg m^2: 570 us)."""
+    m = _pin_model()
+    Mi = pin.computeMinverse(m, m.createData(), _pin_q(np.array([0.0, 0.0, 2.23])))
+    return joint_limits.step_bound(joint_limits.STIFFNESS, joint_limits.DAMPING, 1.0 / Mi[2, 2], "euler")
+
+
+@pytest.mark.parametrize("kernel", ["compiled", "python"])
+def test_knee_limit_at_too_coarse_a_step_diverges_and_warns(kernel: str) -> None:
+    """The limit spring-damper is explicit in semi-implicit Euler: 10 N m into the knee limit rests at 2.230 rad
+    (within 1e-6 rad over the last 0.1 s of 1 s) at 50 us and at 0.95 of the bound 4 / (c + sqrt(c^2 + 4 k/I))
+    (570 us), with no warning; at 1.25 of it (712 us) and at 1 ms it diverges (NaN or more than 0.1 rad off), and
+    warnings() names the knee, the limit and the bound."""
+    if kernel == "compiled" and not pinocchio_kernel.available():
+        pytest.skip("needs numba")
+    bound = _knee_limit_bound()
+    assert bound == pytest.approx(5.70e-4, rel=0.01)
+    for h, control_dt, stable in ((5e-5, 1e-3, True), (0.95 * bound, 0.95 * bound, True),
+                                  (1.25 * bound, 1.25 * bound, False), (1e-3, 1e-3, False)):  # fmt: skip
+        q3, notes = _knee_pushed_into_its_limit({"dt": h, "kernel": kernel}, control_dt, 1.0)
+        last = q3[-round(0.1 / control_dt) :]
+        if stable:
+            assert np.abs(last - (2.229 + 10.0 / joint_limits.STIFFNESS)).max() < 1e-6, h
+            assert notes == [], (h, notes)
+        else:
+            assert not np.all(np.abs(last - 2.230) < 0.1), h
+            (note,) = notes
+            assert "joint-limit spring-damper" in note and "q3_knee" in note, note
+            # the smallest bound over the poses past the limit: the resting pose's, or a diverging pose's below it
+            stated = float(re.search(r"c = b / I: ([0-9.e+-]+) s;", note).group(1))  # type: ignore[union-attr]
+            assert stated <= bound * 1.001, note
+
+
+def test_no_limit_warning_for_a_run_inside_the_limits() -> None:
+    """The warning needs a limit reached: the free swing at 1 ms (far above the knee's 570 us bound) without
+    touching a limit gets none."""
+    be = _backend({"dt": 1e-3})
+    q = _drive(be, Q0, 300)
+    assert np.all(np.abs(q[:, 2]) < 2.229) and np.all(np.abs(q[:, 0]) < np.pi / 2)
+    assert be.warnings() == []
+
+
+@pytest.mark.parametrize("integrator", ["rk45", "dop853"])
+def test_adaptive_integrators_declare_one_sub_step(integrator: str) -> None:
+    """An adaptive solve per control period is one step for the harness (as the lagrange backend declares):
+    sub_steps() and info() say 1, not control period / dt (20 at the default dt); the fixed-step ones n_sub."""
+    be = _backend({"integrator": integrator})
+    assert be.sub_steps() == 1 and be.info()["sub_steps"] == 1
+    assert run.backend_info(be)["sub_steps"] == 1
+    assert _backend({}).sub_steps() == 20 and _backend({"integrator": "rk4", "dt": 2.5e-5}).sub_steps() == 40
+
+
+def test_rk4_friction_warning_uses_rk4s_stability_interval() -> None:
+    """RK4 takes the friction explicitly, stable for h c / m <= 2.785 (c = mu_s Fn / v_th), 2.785 times semi-implicit
+    Euler's m v_th / (mu_s Fn) (5.2 us at the effort task's 59 N peak): at 12.5 us it resolves the stick-slip
+    ramp (the steady force within 0.01 N of the default implicit Euler's, std of Fx, Fy < 0.01 N) and gets no
+    warning; at 25 us (above 2.785 x 5.2 = 14.4 us) it chatters (Fy more than 5 N off) and gets the warning."""
+    sc = scenario.load(SCENARIOS / "effort.yaml")
+    physics = scenario.physics_of(sc)
+
+    def steady(settings: dict) -> tuple[np.ndarray, np.ndarray, list[str]]:  # type: ignore[type-arg]
+        be = registry_load("pinocchio", physics, settings)
+        tr = run.simulate(sc, be, physics)
+        w = tr.t >= tr.t[-1] - 0.5
+        return tr.f[w].mean(0), tr.f[w].std(0), be.warnings()
+
+    f_ref, _, _ = steady({})
+    f, std, notes = steady({"integrator": "rk4", "dt": 1.25e-5})
+    assert notes == [] and np.abs(f - f_ref).max() < 0.01 and std[:2].max() < 0.01, (notes, f, f_ref, std)
+    f, std, notes = steady({"integrator": "rk4", "dt": 2.5e-5})
+    assert abs(f[1] - f_ref[1]) > 5.0, (f, f_ref)
+    (note,) = notes
+    assert "stick-slip law" in note and "h > 2.785 m v_th / (mu_s Fn)" in note, note
+
+
 def _effort_steady(poc: str = "true") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     sc = scenario.load(SCENARIOS / "effort.yaml", {"physics.contact.poc": poc})
     (tr,) = run.run(sc, ["pinocchio"], None, progress=False)
@@ -226,8 +317,8 @@ def _pin_q(q: np.ndarray) -> np.ndarray:
 @numba_needed
 def test_compiled_aba_and_minverse_match_pinocchio() -> None:
     """The kernel's ABA is Pinocchio's algorithm on the same numbers: qdd equal to pin.aba and M^-1 to
-    pin.computeMinverse within 1e-13 relative (round-off of a few hundred operations: measured 2e-15) over 300
-    random states, torques up to 20 N m and speeds up to 10 rad/s."""
+    pin.computeMinverse within 1e-13 relative (round-off of a few hundred operations: measured qdd 1.2e-15,
+    M^-1 1.3e-14, median 9.7e-16) over 300 random states, torques up to 20 N m and speeds up to 10 rad/s."""
     m = _pin_model()
     d = m.createData()
     R, p, inertia, a0 = pinocchio_kernel.model_arrays(m)

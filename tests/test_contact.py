@@ -2,11 +2,23 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 
 from legbench import kinematics as K
-from legbench.contact import ContactParams, ReferenceContact, friction_coefficient, ground_force
+from legbench.contact import (
+    EULER_FRICTION_STABILITY,
+    RK4_FRICTION_STABILITY,
+    ContactParams,
+    ReferenceContact,
+    friction_coefficient,
+    friction_step_bound,
+    ground_force,
+    law_step_warnings,
+    tangential_mass,
+)
 from legbench.model import load_params
 
 RNG_SEED = 20261121
@@ -85,3 +97,60 @@ def test_ground_force_spring_damper_and_friction_against_the_motion() -> None:
     fx, fy, fz = ground_force(1e-3, 0.0, vx, vy, p)
     assert fz == pytest.approx(10.0, rel=1e-12)
     assert (fx, fy) == pytest.approx((-0.65 * 10.0 * 0.6, -0.65 * 10.0 * 0.8), rel=1e-12)
+
+
+Q_SS = (-0.00270, -1.20408, -1.22272)  # the effort task's settled pose [rad] (docs/contact_law.md)
+
+
+def _decay_after(step: Callable[[float], float], n: int = 200) -> float:
+    """|v_n / v_0| after n steps of a one-step map v -> step(v) from v = 1."""
+    v = 1.0
+    for _ in range(n):
+        v = step(v)
+    return abs(v)
+
+
+def test_friction_step_bound_is_each_integrators_on_the_viscous_ramp() -> None:
+    """Below v_th the law is a viscous friction c = mu_s Fn / v_th on the apparent mass m: m v' = -c v. Semi-implicit
+    Euler's bound (the default, today's m v_th / (mu_s Fn)) is where its step factor 1 - h c / m turns negative (the
+    friction flips sign every step: chatter); RK4's (2.785 m v_th / (mu_s Fn)) where its step factor
+    1 - x + x^2/2 - x^3/6 + x^4/24 (x = h c / m, positive for every real x) passes 1: 200 RK4 steps 1 % below
+    it shrink v below 0.2, 1 % above grow it past 5 (the step factor is 0.959 and 1.043 there). Fn = 59.1 N
+    (the effort task's peak) at q_ss: 5.14 us and 14.3 us."""
+    p = ContactParams()
+    fn = 59.1
+    euler = friction_step_bound(fn, Q_SS, p)
+    rk4 = friction_step_bound(fn, Q_SS, p, RK4_FRICTION_STABILITY)
+    assert euler == pytest.approx(5.14e-6, rel=2e-3)
+    assert rk4 == pytest.approx(2.785293563405282 * euler, rel=1e-12)
+    m, c = tangential_mass(Q_SS), p.mu_s * fn / p.v_th
+    assert euler == pytest.approx(m / c, rel=1e-12)
+    assert 1.0 - 0.99 * euler * c / m > 0.0 > 1.0 - 1.01 * euler * c / m  # Euler: the sign flip
+
+    def rk4_step(h: float) -> Callable[[float], float]:
+        def step(v: float) -> float:
+            k1 = -c / m * v
+            k2 = -c / m * (v + 0.5 * h * k1)
+            k3 = -c / m * (v + 0.5 * h * k2)
+            k4 = -c / m * (v + h * k3)
+            return v + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+        return step
+
+    assert _decay_after(rk4_step(0.99 * rk4)) < 0.2
+    assert _decay_after(rk4_step(1.01 * rk4)) > 5.0
+
+
+def test_law_step_warnings_default_is_eulers_and_rk4s_factor_widens_it() -> None:
+    """Between the two bounds (2x Euler's) the default (Euler: MuJoCo, PyBullet, Pinocchio's explicit friction)
+    warns with today's sentence and RK4's factor does not; above RK4's (3x Euler's) RK4 warns naming its factor."""
+    p = ContactParams()
+    fn = 59.1
+    euler = friction_step_bound(fn, Q_SS, p)
+    (note,) = law_step_warnings("x", 2.0 * euler, fn, list(Q_SS), p)
+    assert "h > m v_th / (mu_s Fn) = 0.213 kg x 0.001 m/s / (0.7 x 59.1 N) = 5.14e-06 s" in note, note
+    assert law_step_warnings("x", 2.0 * euler, fn, list(Q_SS), p, EULER_FRICTION_STABILITY) == [note]
+    assert law_step_warnings("x", 2.0 * euler, fn, list(Q_SS), p, RK4_FRICTION_STABILITY) == []
+    (note,) = law_step_warnings("x", 3.0 * euler, fn, list(Q_SS), p, RK4_FRICTION_STABILITY)
+    assert "h > 2.785 m v_th / (mu_s Fn) = 2.785 x 0.213 kg x 0.001 m/s / (0.7 x 59.1 N) = 1.43e-05 s" in note, note
+    assert law_step_warnings("x", 0.99 * euler, fn, list(Q_SS), p) == []

@@ -23,17 +23,21 @@ the control period (linearly implicit Euler in the friction, a W-method; explici
 in the rest, and exactly ``explicit`` out of contact). ``explicit`` is plain
 semi-implicit Euler, which resolves the stick-slip law only for
 h < m v_th / (mu_s Fn) (~5.6 us at the effort task's loads with v_th = 1e-3 m/s)
-and chatters above it: :meth:`warnings` says so with the numbers.
+and chatters above it: :meth:`warnings` says so with the numbers (for ``rk4`` at 2.785 times that bound,
+RK4's stability interval). The joint-limit spring-damper is explicit in every fixed-step integrator and has a
+step bound of its own (:func:`joint_limits.step_bound`: semi-implicit Euler 4 / (c + sqrt(c^2 + 4 k/I)),
+c = b/I, I = 1/(M^-1)_jj; 570 us for the knee, whose limit diverges at 1 ms); :meth:`warnings` says so when
+a run reached a limit with h above it.
 docs/pinocchio.md has the trade-off, convergence and cost. Pinocchio is
 legbench's own integrator, so its ``engine-defaults`` profile is these defaults.
 
 Profiles: ``matched`` and ``engine-defaults`` are the defaults above (Pinocchio is
 legbench's own integrator). ``ode45`` is the lab report's Simscape Multibody set-up,
 MATLAB's ode45 (Dormand-Prince 5(4), adaptive): ``integrator: rk45`` (scipy's RK45 is the
-same Dormand-Prince pair) with the report's Simscape tolerances rtol 1e-6, atol 1e-8 and
-max step 2e-4 s, one solve per control period; the contact law at the true point of
-contact as Simscape had it (the scenario's ``physics.contact.poc``, true by default: the
-poc is physics every backend shares, not a backend setting).
+same Dormand-Prince pair, its error norm RMS where ode45's is a max-norm: docs/pinocchio.md)
+with the report's Simscape tolerances rtol 1e-6, atol 1e-8 and max step 2e-4 s, one solve per
+control period; the contact law at the true point of contact as Simscape had it (the scenario's
+``physics.contact.poc``, true by default: the poc is physics every backend shares, not a backend setting).
 
 Ground force read-out: the law at the state at the end of the control period
 (it is a function of the state); it matches the leg's statics over the effort
@@ -53,9 +57,15 @@ import pinocchio as pin
 from legbench.backends import joint_limits, pinocchio_kernel
 from legbench.backends.base import Backend, Limits, Physics, sub_step_count
 from legbench.backends.joint_limits import JointLimitLaw
-from legbench.contact import ReferenceContact, implicit_velocity_step, law_step_warnings
+from legbench.contact import (
+    EULER_FRICTION_STABILITY,
+    RK4_FRICTION_STABILITY,
+    ReferenceContact,
+    implicit_velocity_step,
+    law_step_warnings,
+)
 from legbench.exceptions import LegbenchError
-from legbench.model import LINK_NAMES, load_params
+from legbench.model import JOINT_NAMES, LINK_NAMES, load_params
 
 
 class PinocchioBackend(Backend):
@@ -119,6 +129,9 @@ class PinocchioBackend(Backend):
         euler = self._euler_implicit if self.implicit else self._euler
         self._step = {"euler": euler, "rk4": self._rk4}.get(self.cfg["integrator"], self._adaptive)
         self._fn_peak, self._q_peak = 0.0, [0.0, 0.0, 0.0]
+        #: per joint the largest (M^-1)_jj [1/(kg m^2)] at which it was past its limit in this run, 0 if never
+        #: (the Python sub-steps; the compiled period keeps it in its scratch: pinocchio_kernel.limit_record)
+        self._limit_minv = [0.0, 0.0, 0.0]
         self._kernel_note = ""
         self._compiled = self._load_kernel() if self.cfg["integrator"] in ("euler", "rk4") else None
         if self._compiled is not None:
@@ -156,6 +169,7 @@ class PinocchioBackend(Backend):
         self._x = np.zeros(9)
         self._floor_args = inputs
         model, scratch = pinocchio_kernel.pack(R, p, inertia, a0, lc, lim)
+        self._limit_view = pinocchio_kernel.limit_record(scratch)
         if self.cfg["integrator"] == "rk4":
             method = pinocchio_kernel.RK4
         else:
@@ -176,12 +190,14 @@ class PinocchioBackend(Backend):
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
         self._fn_peak, self._q_peak = 0.0, [float(x) for x in q]
+        self._limit_minv = [0.0, 0.0, 0.0]
         self.q = [float(x) for x in q]
         self.qd = [float(x) for x in qd]
         self._update_force()
         if self._compiled is not None:
             x = self._x
             x[0:3], x[3:6], x[6:9] = self.q, self.qd, self.force
+            self._limit_view[:] = 0.0
 
     # ----------------------------------------------------------------- step
     def _qdd(self, q: Sequence[float], qd: Sequence[float], tau: Sequence[float]) -> tuple[float, float, float]:
@@ -208,11 +224,14 @@ class PinocchioBackend(Backend):
         u1, u2, u3 = np.asarray(tau, dtype=float).tolist()
         q1, q2, q3 = self.q
         qd1, qd2, qd3 = self.qd
+        seen = 0  # joints whose limit this period has recorded (bits)
         for _ in range(self.n_sub):
             tc1, tc2, tc3, _, _, _ = law(q1, q2, q3, qd1, qd2, qd3)
             tl1, tl2, tl3 = limit_law(q1, q2, q3, qd1, qd2, qd3)
             t1, t2, t3 = u1 + tc1 + tl1, u2 + tc2 + tl2, u3 + tc3 + tl3
             qp[0], qp[1], qp[2], qp[3] = q1, cos(q2), sin(q2), q3
+            if tl1 != 0.0 or tl2 != 0.0 or tl3 != 0.0:
+                seen = self._record_limits(qp, (tl1, tl2, tl3), seen)
             v[0], v[1], v[2] = qd1, qd2, qd3
             t[0], t[1], t[2] = t1, t2, t3
             a1, a2, a3 = aba(model, data, qp, v, t).tolist()
@@ -248,11 +267,14 @@ class PinocchioBackend(Backend):
         qd1, qd2, qd3 = self.qd
         minv: tuple[float, ...] | None = None  # M0^-1, at the period's first sub-step in contact
         solve = implicit_velocity_step
+        seen = 0  # joints whose limit this period has recorded (bits)
         for _ in range(self.n_sub):
             tc1, tc2, tc3, _, _, _, K11, K12, K13, K22, K23, K33 = slope(q1, q2, q3, qd1, qd2, qd3)
             tl1, tl2, tl3 = limit_law(q1, q2, q3, qd1, qd2, qd3)
             t1, t2, t3 = u1 + tc1 + tl1, u2 + tc2 + tl2, u3 + tc3 + tl3
             qp[0], qp[1], qp[2], qp[3] = q1, cos(q2), sin(q2), q3
+            if tl1 != 0.0 or tl2 != 0.0 or tl3 != 0.0:
+                seen = self._record_limits(qp, (tl1, tl2, tl3), seen)
             v[0], v[1], v[2] = qd1, qd2, qd3
             t[0], t[1], t[2] = t1, t2, t3
             a1, a2, a3 = aba(model, data, qp, v, t).tolist()
@@ -272,6 +294,20 @@ class PinocchioBackend(Backend):
         self.q = [q1, q2, q3]
         self.qd = [qd1, qd2, qd3]
 
+    def _record_limits(self, qp: np.ndarray, tl: tuple[float, float, float], seen: int) -> int:
+        """:func:`pinocchio_kernel._record_limits` for the Python sub-steps: for each joint past its limit (limit
+        torque ``tl`` [N m] non-zero) not yet recorded this period (bit j of ``seen``), the largest (M^-1)_jj
+        [1/(kg m^2)] at Pinocchio's configuration ``qp`` into :attr:`_limit_minv`; returns the new ``seen``."""
+        if all(t == 0.0 or seen & (1 << j) for j, t in enumerate(tl)):
+            return seen
+        mi = self._minverse(qp)
+        rec = self._limit_minv
+        for j, t in enumerate(tl):
+            if t != 0.0:
+                rec[j] = max(rec[j], float(mi[j, j]))
+                seen |= 1 << j
+        return seen
+
     def _minverse(self, qp: np.ndarray) -> np.ndarray:
         """M(q)^-1 [1/(kg m^2)] at Pinocchio's configuration vector ``qp``, symmetric (both triangles)."""
         Mi = pin.computeMinverse(self.model, self.data, qp)
@@ -281,7 +317,13 @@ class PinocchioBackend(Backend):
         h = self.h
         u = np.asarray(tau, dtype=float).tolist()
         q, qd = self.q, self.qd
+        limit_law, qp, cos, sin = self.limit_law, self._qp, math.cos, math.sin
+        seen = 0  # joints whose limit this period has recorded (bits)
         for _ in range(self.n_sub):
+            tl = limit_law(q[0], q[1], q[2], 0.0, 0.0, 0.0)  # the spring alone: non-zero past a limit
+            if tl[0] != 0.0 or tl[1] != 0.0 or tl[2] != 0.0:
+                qp[0], qp[1], qp[2], qp[3] = q[0], cos(q[1]), sin(q[1]), q[2]
+                seen = self._record_limits(qp, tl, seen)
             a1 = self._qdd(q, qd, u)
             v1 = qd
             q2 = [q[i] + 0.5 * h * v1[i] for i in range(3)]
@@ -389,7 +431,7 @@ class PinocchioBackend(Backend):
             "engine": "pinocchio",
             "version": pin.__version__,
             **{k: self.cfg[k] for k in self.defaults if k not in unused},
-            "sub_steps": self.n_sub,
+            "sub_steps": self.sub_steps(),
             "kernel_used": "compiled (numba)" if self._compiled is not None or self._dopri is not None else "python",
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
@@ -405,11 +447,53 @@ class PinocchioBackend(Backend):
         }
 
     def warnings(self) -> list[str]:
-        """The explicit law's step bound (euler with ``friction: explicit``, rk4) at the run's peak Fn."""
+        """Why the compiled period does not run where it was asked for; for the fixed-step integrators the step
+        bounds the run exceeded: the explicit law's (euler with ``friction: explicit``: h <= m v_th / (mu_s Fn);
+        rk4: 2.785 times that, :data:`~legbench.contact.RK4_FRICTION_STABILITY`) at the run's peak Fn, and the
+        joint-limit spring-damper's (:meth:`limit_step_warnings`)."""
         notes = [self._kernel_note] if self._kernel_note else []
-        if self.implicit or self.cfg["integrator"] not in ("euler", "rk4"):
+        integ = self.cfg["integrator"]
+        if integ not in ("euler", "rk4"):
             return notes
-        return notes + law_step_warnings(self.name, self.h, self._fn_peak, self._q_peak, self.physics.contact)
+        notes += self.limit_step_warnings()
+        if self.implicit:
+            return notes
+        stability = RK4_FRICTION_STABILITY if integ == "rk4" else EULER_FRICTION_STABILITY
+        return notes + law_step_warnings(self.name, self.h, self._fn_peak, self._q_peak, self.physics.contact,
+                                         stability)  # fmt: skip
+
+    def limit_step_warnings(self) -> list[str]:
+        """The warning for a run that reached a joint limit with a sub-step h [s] above the limit spring-damper's
+        stability bound, or none.
+
+        The bound is :func:`joint_limits.step_bound` for the integrator (semi-implicit Euler, also with the
+        implicit friction: the limit law is explicit in it, h < 4 / (c + sqrt(c^2 + 4 k/I)) with c = b/I; RK4:
+        its stability region), k and b the limit's stiffness [N m/rad] and damping [N m s/rad], and
+        I = 1 / (M^-1)_jj [kg m^2] the joint's effective inertia, the smallest at which the run was past the
+        joint's limit (recorded at each period's first sub-step past it: the compiled period keeps it in its
+        scratch at no cost inside the limits, see :func:`pinocchio_kernel._record_limits`). Empty for the
+        adaptive integrators (their error control sets the step) and for a run that stayed inside the limits.
+        """
+        integ = self.cfg["integrator"]
+        if integ not in joint_limits.INTEGRATORS:
+            return []
+        rec = self._limit_view.tolist() if self._compiled is not None else self._limit_minv
+        k, b = self.limit_law.k, self.limit_law.b
+        reached = [(joint_limits.step_bound(k, b, 1.0 / m, integ), j, 1.0 / m) for j, m in enumerate(rec) if m > 0.0]
+        if not reached:
+            return []
+        bound, j, inertia = min(reached)
+        if self.h <= bound:
+            return []
+        how = ("semi-implicit Euler is stable there for h < 4 / (c + sqrt(c^2 + 4 k / I)), c = b / I"
+               if integ == "euler" else "RK4 is stable there for h within its stability region")  # fmt: skip
+        return [
+            f"{self.name}: sub-step {self.h:.3g} s is too coarse for the joint-limit spring-damper: "
+            f"{JOINT_NAMES[j]} reached its limit, there with effective inertia down to I = 1/(M^-1)_jj = "
+            f"{inertia:.3g} kg m^2, and with k = {k:g} N m/rad, b = {b:g} N m s/rad {how}: {bound:.3g} s; the limit "
+            f"bounces or diverges "
+            f"(use a sub-step <= {bound:.2g} s)"
+        ]
 
     # ------------------------------------------------------- declared abilities
     def integrator_family(self) -> str:
@@ -421,7 +505,9 @@ class PinocchioBackend(Backend):
         return False
 
     def sub_steps(self) -> int:
-        return self.n_sub
+        """Fixed-step sub-steps per control period; 1 for the adaptive integrators (one solve per period, as
+        the lagrange backend declares), whose steps their error control chooses."""
+        return 1 if self.integrator_family() == "adaptive" else self.n_sub
 
     def limits(self) -> Limits:
         """Model gravity and ``effortLimit``; position limits as the integrator enforces them."""

@@ -24,7 +24,9 @@ cos/sin), and refuses a model with any other (:class:`KernelUnavailable`).
   ABA: :meth:`PinocchioBackend._qdd` compiled), where the Python path calls ``scipy.integrate.solve_ivp``.
 * :func:`period` is :meth:`PinocchioBackend._euler_implicit` (:data:`EULER_IMPLICIT`: the friction's slope
   linearly implicit, M^-1 frozen over the period at its first sub-step in contact), ``_euler``
-  (:data:`EULER`) or ``_rk4`` (:data:`RK4`).
+  (:data:`EULER`) or ``_rk4`` (:data:`RK4`). It also keeps the joint-limit record the backend's step-bound
+  warning reads (:func:`_record_limits`, :func:`limit_record`): per joint the largest (M^-1)_jj at which it
+  was past its limit, one M^-1 per period and joint past its limit, three comparisons per sub-step inside.
 
 Units: q [rad], qd [rad/s], tau [N m], F in W [N], h [s].
 """
@@ -55,6 +57,7 @@ __all__ = [
     "dopri_data",
     "dopri_period",
     "floor",
+    "limit_record",
     "minverse",
     "model_arrays",
     "period",
@@ -321,16 +324,38 @@ def minverse(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, q: np.ndarray, o
 
 
 @_njit
+def _record_limits(rec: np.ndarray, mi: np.ndarray, tl1: float, tl2: float, tl3: float, seen1: bool, seen2: bool,
+                   seen3: bool) -> tuple[bool, bool, bool]:  # fmt: skip
+    """Record in ``rec`` (3,) the largest (M^-1)_jj [1/(kg m^2)] at which joint j was past its limit (its limit
+    torque tl_j [N m] non-zero); ``mi``: M^-1 at that state. 0 in ``rec`` = the joint never reached its limit.
+    The backend's :meth:`~legbench.backends.pinocchio_.PinocchioBackend.warnings` turns it into the limit
+    spring-damper's step bound (:func:`legbench.backends.joint_limits.step_bound`, I = 1 / (M^-1)_jj). Called
+    at most once per joint and period (``seen``: recorded already), so a joint resting at its limit costs one
+    M^-1 per period, and a period inside the limits only the three comparisons before the call."""
+    if tl1 != 0.0:
+        rec[0] = max(rec[0], mi[0, 0])
+        seen1 = True
+    if tl2 != 0.0:
+        rec[1] = max(rec[1], mi[1, 1])
+        seen2 = True
+    if tl3 != 0.0:
+        rec[2] = max(rec[2], mi[2, 2])
+        seen3 = True
+    return seen1, seen2, seen3
+
+
+@_njit
 def _period_arrays(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: np.ndarray, lim: np.ndarray,
            h: float, n_sub: int, implicit: bool, u: np.ndarray, x: np.ndarray, work: np.ndarray,
-           tmp: np.ndarray, buf: np.ndarray) -> None:  # fmt: skip
+           tmp: np.ndarray, buf: np.ndarray, rec: np.ndarray) -> None:  # fmt: skip
     """``n_sub`` semi-implicit Euler sub-steps of ``h`` [s] under the held torque u [N m].
 
     ``u``: the torque row as the run loop hands it (read, never written). ``x`` = (q1, q2, q3, qd1, qd2, qd3,
     fx, fy, fz) in and out: the state, then the law's F in W [N] at the
     end state (the backend's force read-out). ``implicit``: the friction slope linearly implicit with M^-1
     at the period's first sub-step in contact (:meth:`PinocchioBackend._euler_implicit`), else explicit
-    (``_euler``). ``buf``: scratch of 64 floats.
+    (``_euler``). ``buf``: scratch of 64 floats. ``rec``: the joint-limit record, kept across periods
+    (:func:`_record_limits`).
     """
     q = buf[16:19]
     qd = buf[19:22]
@@ -341,6 +366,7 @@ def _period_arrays(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.nda
     q1, q2, q3, qd1, qd2, qd3 = x[0], x[1], x[2], x[3], x[4], x[5]
     have_minv = False
     m11 = m12 = m13 = m22 = m23 = m33 = 0.0
+    seen1 = seen2 = seen3 = False  # joints whose limit this period has recorded
     for _ in range(n_sub):
         if implicit:
             tc1, tc2, tc3, _f1, _f2, _f3, K11, K12, K13, K22, K23, K33 = wrench_slope(lc, q1, q2, q3, qd1, qd2, qd3)
@@ -352,6 +378,9 @@ def _period_arrays(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.nda
         q[0], q[1], q[2] = q1, q2, q3
         qd[0], qd[1], qd[2] = qd1, qd2, qd3
         aba(R, p, inertia, a0, q, qd, t, a, work, tmp)
+        if (tl1 != 0.0 and not seen1) or (tl2 != 0.0 and not seen2) or (tl3 != 0.0 and not seen3):
+            minverse_factored(work, tmp, mi)  # the aba just above was at this q
+            seen1, seen2, seen3 = _record_limits(rec, mi, tl1, tl2, tl3, seen1, seen2, seen3)
         a1, a2, a3 = a[0], a[1], a[2]
         if K11 == 0.0 and K22 == 0.0 and K33 == 0.0:
             x1, x2, x3 = h * a1, h * a2, h * a3
@@ -394,15 +423,24 @@ def _accel(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc
 @_njit
 def _rk4_arrays(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: np.ndarray, lim: np.ndarray,
                 h: float, n_sub: int, u: np.ndarray, x: np.ndarray, work: np.ndarray, tmp: np.ndarray,
-                buf: np.ndarray) -> None:  # fmt: skip
+                buf: np.ndarray, rec: np.ndarray) -> None:  # fmt: skip
     """``n_sub`` classical Runge-Kutta 4 steps of ``h`` [s] under the held torque u [N m]:
     :meth:`PinocchioBackend._rk4`, compiled (the same stages in the same order). ``x`` as in
-    :func:`_period_arrays`: the state in, the state and the law's F in W [N] at the end state out."""
+    :func:`_period_arrays`: the state in, the state and the law's F in W [N] at the end state out. ``rec``: the
+    joint-limit record (:func:`_record_limits`) at each step's start state."""
     u1, u2, u3 = u[0], u[1], u[2]
     q1, q2, q3, qd1, qd2, qd3 = x[0], x[1], x[2], x[3], x[4], x[5]
     hh = 0.5 * h
     h6 = h / 6.0
+    mi = buf[28:37].reshape((3, 3))
+    qm = buf[37:40]
+    seen1 = seen2 = seen3 = False
     for _ in range(n_sub):
+        tl1, tl2, tl3 = limit_torques(lim, q1, q2, q3, 0.0, 0.0, 0.0)  # the spring alone: non-zero past a limit
+        if (tl1 != 0.0 and not seen1) or (tl2 != 0.0 and not seen2) or (tl3 != 0.0 and not seen3):
+            qm[0], qm[1], qm[2] = q1, q2, q3
+            minverse(R, p, inertia, qm, mi, work, tmp, buf)
+            seen1, seen2, seen3 = _record_limits(rec, mi, tl1, tl2, tl3, seen1, seen2, seen3)
         # stage 1 at (q, qd); v1 = qd
         a11, a12, a13 = _accel(R, p, inertia, a0, lc, lim, u1, u2, u3, q1, q2, q3, qd1, qd2, qd3, work, tmp, buf)
         # stage 2 at (q + h/2 v1, qd + h/2 a1)
@@ -464,19 +502,27 @@ def pack(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: 
     from Python then passes four arrays, not fourteen arguments (numba's dispatch costs per argument).
 
     model = (n, R (n*9), p (n*3), inertia (n*36), a0 (6), lc (14), lim (8)); scratch = work (n*96), tmp (96),
-    buf (64).
+    buf (64), the joint-limit record (n: :func:`_record_limits`, kept across periods; :func:`limit_record`).
     """
     n = R.shape[0]
     model = np.concatenate([[float(n)], R.ravel(), p.ravel(), inertia.ravel(), a0, lc, lim]).astype(float)
-    scratch = np.zeros(n * 96 + 96 + 64)
+    scratch = np.zeros(n * 96 + 96 + 64 + n)
     return model, scratch
+
+
+def limit_record(scratch: np.ndarray) -> np.ndarray:
+    """The joint-limit record in :func:`pack`'s ``scratch`` (a view, length n): per joint the largest (M^-1)_jj
+    [1/(kg m^2)] at which the joint was past its limit since the record was last zeroed, 0 if never."""
+    n = (scratch.shape[0] - 160) // 97
+    return scratch[96 * n + 160 :]
 
 
 @_njit
 def period(model: np.ndarray, scratch: np.ndarray, u: np.ndarray, x: np.ndarray, h: float, n_sub: int,
            method: int) -> None:  # fmt: skip
     """One control period on :func:`pack`'s arrays: what the backend calls. ``method``: :data:`EULER`,
-    :data:`EULER_IMPLICIT` (:func:`_period_arrays`) or :data:`RK4` (:func:`_rk4_arrays`)."""
+    :data:`EULER_IMPLICIT` (:func:`_period_arrays`) or :data:`RK4` (:func:`_rk4_arrays`); both update the
+    joint-limit record at the end of ``scratch`` (:func:`limit_record`)."""
     n = int(model[0])
     o = 1
     R = model[o : o + 9 * n].reshape((n, 3, 3))
@@ -490,11 +536,12 @@ def period(model: np.ndarray, scratch: np.ndarray, u: np.ndarray, x: np.ndarray,
     lim = model[o + 20 : o + 28]
     work = scratch[: 96 * n].reshape((n, 6, 16))
     tmp = scratch[96 * n : 96 * n + 96].reshape((6, 16))
-    buf = scratch[96 * n + 96 :]
+    buf = scratch[96 * n + 96 : 96 * n + 160]
+    rec = scratch[96 * n + 160 :]
     if method == RK4:
-        _rk4_arrays(R, p, inertia, a0, lc, lim, h, n_sub, u, x, work, tmp, buf)
+        _rk4_arrays(R, p, inertia, a0, lc, lim, h, n_sub, u, x, work, tmp, buf, rec)
     else:
-        _period_arrays(R, p, inertia, a0, lc, lim, h, n_sub, method == EULER_IMPLICIT, u, x, work, tmp, buf)
+        _period_arrays(R, p, inertia, a0, lc, lim, h, n_sub, method == EULER_IMPLICIT, u, x, work, tmp, buf, rec)
 
 
 def _dopri_rhs(lc: np.ndarray, lim: np.ndarray, u: np.ndarray, g: float, y: np.ndarray, out: np.ndarray,

@@ -1,0 +1,68 @@
+"""The joint-limit spring-damper's step bound (:func:`legbench.backends.joint_limits.step_bound`) against the
+linear dynamics it bounds, integrated step by step."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from legbench.backends.joint_limits import DAMPING, STIFFNESS, step_bound
+
+#: The knee's effective inertia 1/(M^-1)_33 with the knee at its limit [kg m^2] (0.0064-0.0075 over the hip angle).
+I_KNEE = 0.0065
+N_STEPS = 200
+
+
+def _euler_amplitude(h: float, c: float, w2: float) -> float:
+    """|(x, h v)| after N_STEPS semi-implicit Euler steps of x'' = -c x' - w2 x from x = 1 rad, v = 0."""
+    x, v = 1.0, 0.0
+    for _ in range(N_STEPS):
+        v = v + h * (-c * v - w2 * x)
+        x = x + h * v
+    return math.hypot(x, h * v)
+
+
+def _rk4_amplitude(h: float, c: float, w2: float) -> float:
+    """The same for classical RK4's four stages."""
+
+    def f(x: float, v: float) -> tuple[float, float]:
+        return v, -c * v - w2 * x
+
+    x, v = 1.0, 0.0
+    for _ in range(N_STEPS):
+        k1 = f(x, v)
+        k2 = f(x + 0.5 * h * k1[0], v + 0.5 * h * k1[1])
+        k3 = f(x + 0.5 * h * k2[0], v + 0.5 * h * k2[1])
+        k4 = f(x + h * k3[0], v + h * k3[1])
+        x += h / 6.0 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+        v += h / 6.0 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+    return math.hypot(x, h * v)
+
+
+@pytest.mark.parametrize("integrator", ["euler", "rk4"])
+@pytest.mark.parametrize("inertia", [0.002, I_KNEE, 0.05])  # over-damped, over-damped, under-damped
+def test_step_bound_is_where_the_damped_limit_spring_turns_unstable(integrator: str, inertia: float) -> None:
+    """k = 1e4 N m/rad, b = 20 N m s/rad on I: 200 steps of 3 % below the bound shrink the excursion below
+    1e-2 (spectral radius 0.88-0.92 at the knee), 3 % above grow it past 1e2 (1.08-1.13)."""
+    c, w2 = DAMPING / inertia, STIFFNESS / inertia
+    h = step_bound(STIFFNESS, DAMPING, inertia, integrator)
+    amplitude = _euler_amplitude if integrator == "euler" else _rk4_amplitude
+    assert amplitude(0.97 * h, c, w2) < 1e-2
+    assert amplitude(1.03 * h, c, w2) > 1e2
+
+
+def test_step_bound_numbers_and_limits() -> None:
+    """The knee's bounds (Euler 4 / (c + sqrt(c^2 + 4 w2)) = 570 us at I = 0.00651 kg m^2, where the backend
+    diverges at 1 ms; RK4 1.14 ms), and the closed forms at the ends: a spring alone (Euler 2/w, RK4 2 sqrt 2 / w,
+    the imaginary axis), a damper alone (Euler 2/c, RK4 2.7853/c, the real axis)."""
+    assert step_bound(STIFFNESS, DAMPING, 0.0065110, "euler") == pytest.approx(5.699e-4, rel=1e-3)
+    assert step_bound(STIFFNESS, DAMPING, 0.0065110, "rk4") == pytest.approx(1.1401e-3, rel=1e-3)
+    w, c = math.sqrt(STIFFNESS / I_KNEE), DAMPING / I_KNEE
+    assert step_bound(STIFFNESS, 0.0, I_KNEE, "euler") == pytest.approx(2.0 / w, rel=1e-12)
+    assert step_bound(STIFFNESS, 0.0, I_KNEE, "rk4") == pytest.approx(2.0 * math.sqrt(2.0) / w, rel=1e-9)
+    assert step_bound(0.0, DAMPING, I_KNEE, "euler") == pytest.approx(2.0 / c, rel=1e-12)
+    assert step_bound(0.0, DAMPING, I_KNEE, "rk4") == pytest.approx(2.785293563405282 / c, rel=1e-9)
+    assert step_bound(0.0, 0.0, I_KNEE, "euler") == math.inf
+    with pytest.raises(ValueError, match="rk45"):
+        step_bound(STIFFNESS, DAMPING, I_KNEE, "rk45")
