@@ -432,7 +432,10 @@ def joint_origins(geom: Geometry) -> dict[str, np.ndarray]:
 
 
 def _fmt(v: float) -> str:
-    return f"{v:.12g}"
+    """A number for the URDF: the shortest text that reads back as the same double (``repr``), so the URDF
+    carries the parameter file's numbers exactly (12 significant digits put 5e-12 into the rotation of
+    every rpy of pi/2 and the products of inertia)."""
+    return repr(float(v))
 
 
 def _vec(v: Any) -> str:

@@ -144,19 +144,25 @@ def _is_bundled(params: Path) -> bool:
         return False
 
 
+#: The version of the URDF text ``model.urdf_text`` writes, hashed into a cached URDF's name with the parameter
+#: file, so a URDF cached by an earlier legbench is not reused once the generator writes something else
+#: (2: numbers written exactly, ``repr``, no longer to 12 significant digits).
+URDF_FORMAT = b"legbench-urdf-2\n"
+
+
 def urdf_target(params: str | Path | None = None) -> Path:
     """Where the URDF of ``params`` (default: the active model) lives or is to be written.
 
     The bundled model's URDF in a source checkout: ``models/leg.urdf``; installed: the shipped file
     for reading, and the cache for writing (see :func:`urdf_file`). Any other model: the cache,
-    ``urdf/<stem>-<hash of the parameter file>.urdf``.
+    ``urdf/<stem>-<hash of the parameter file and URDF_FORMAT>.urdf``.
     """
     path = Path(params) if params is not None else model_file()
     if _is_bundled(path):
         root = source_tree()
         return root / "models" / "leg.urdf" if root is not None else cache_dir() / "urdf" / "leg.urdf"
     try:
-        digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+        digest = hashlib.sha256(URDF_FORMAT + path.read_bytes()).hexdigest()[:16]
     except OSError:
         digest = "missing"
     return cache_dir() / "urdf" / f"{path.stem}-{digest}.urdf"

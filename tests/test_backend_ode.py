@@ -280,7 +280,7 @@ def test_contact_without_stiffness_or_damping_exerts_no_force(loaded: list[Backe
 def test_limits_are_the_urdf_stops_read_back_from_ode(loaded: list[Backend]) -> None:
     """dJointGetHingeParam: ab/ad +-pi/2, knee +-2.229, continuous hip none (+-inf); gravity and step.
 
-    1e-11 rad: the URDF writes pi/2 with 12 significant digits (5e-12 off).
+    1e-11 rad (read back exactly now that the URDF writes pi/2 with repr; 5e-12 off at 12 digits).
     """
     lim = load(loaded, Physics(gravity=9.81)).limits()
     np.testing.assert_allclose(lim.lower, PARAMS.lower, rtol=0, atol=1e-11)

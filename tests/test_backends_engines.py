@@ -204,9 +204,9 @@ def test_hip_angle_is_continuous_past_pi(make: Make, engine: str) -> None:
 def test_mass_properties_equal_the_parameter_file(make: Make, engine: str) -> None:
     """Read-back mass, COM and full inertia (link 3 with the foot) equal model.body_inertial to 1e-9.
 
-    The URDF stores 12 significant digits (measured 4e-12 relative in MuJoCo, 4e-13 in
-    ODE; 4e-10 in PyBullet, whose principal-axis decomposition of link 1's inertia
-    rounds more); 1e-9 (relative for mass and inertia, metres for the COM)
+    The URDF carries the parameter file's numbers exactly (repr); measured 8e-15 relative
+    in MuJoCo, 3e-17 in ODE, 4e-16 in Drake, 0 in DART, 4.3e-10 in PyBullet, whose
+    principal-axis decomposition of link 1's inertia rounds; 1e-9 (relative for mass and inertia, metres for the COM)
     would still catch a sign flip of the products of inertia (~1e-4) or a foot
     left out of link 3 (40 % of its mass).
     """

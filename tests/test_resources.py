@@ -62,6 +62,26 @@ def test_environment_variable_and_urdf_in_the_cache(other_model: Path, monkeypat
     assert model.load_params().gravity == 9.81
 
 
+def test_a_urdf_cached_by_another_generator_version_is_not_reused(
+    other_model: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The cached URDF's name hashes the generator's URDF_FORMAT with the parameter file: a URDF an earlier
+    legbench wrote for the same file (its numbers to 12 digits) sits under another name and is not read; the
+    one used is what model.urdf_text writes now (numbers exact: pi/2 as 1.5707963267948966)."""
+    monkeypatch.setenv(resources.MODEL_ENV, str(other_model))
+    now = resources.urdf_target()
+    monkeypatch.setattr(resources, "URDF_FORMAT", b"legbench-urdf-1\n")
+    earlier = resources.urdf_target()
+    assert earlier != now and earlier.parent == now.parent
+    earlier.parent.mkdir(parents=True, exist_ok=True)
+    earlier.write_text("<robot name='stale'/>")
+    monkeypatch.undo()
+    monkeypatch.setenv(resources.CACHE_ENV, str(earlier.parent.parent))
+    monkeypatch.setenv(resources.MODEL_ENV, str(other_model))
+    urdf = resources.urdf_file()
+    assert urdf == now and "1.5707963267948966" in urdf.read_text()
+
+
 def test_bad_model_file_is_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bad = tmp_path / "bad.yaml"
     bad.write_text("geometry: {H: 1}\n")

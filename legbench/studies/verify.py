@@ -15,13 +15,11 @@ answer computed here from the leg's reference model (:class:`legbench.model.Dyna
     motion, and the predicted curve is compared with the measured one over the
     whole run. Tolerance: max|prediction| x (h W + (Ts W)^2), the O(h^2)
     remainder relative to the O(h) term (W = max joint speed) plus the
-    trapezoid sum on the 1 ms log, plus round-off 4 n eps |E| (n steps). Every
-    row adds the reference's own precision: E is evaluated on the URDF, whose
-    numbers carry 12 significant digits (each rounded by up to 5e-12), so a
-    backend built from the parameter file at full precision conserves an energy
-    that differs from it by up to 3 x 5e-12 (max T + range V) = 2.9e-11 J here
-    (the Lagrange backend's whole 1.2e-11 J drift: 8e-15 J against a URDF
-    written at full precision). RK4 and the adaptive integrators: expected 0;
+    trapezoid sum on the 1 ms log, plus round-off 4 n eps |E| (n steps). E is
+    evaluated on the URDF, which carries the parameter file's numbers exactly
+    (written with ``repr``; at 12 significant digits it put 1.2e-11 J between the
+    Lagrange model, built from the parameter file, and the reference: now 8e-15 J).
+    RK4 and the adaptive integrators: expected 0;
     RK4 tolerance (h W)^4 W T_end max T (its global error) + round-off;
     adaptive (a 5(4) pair with local extrapolation, or DOP853): the same with
     the fifth power of the longest step it can take, h = max_step (at most the
@@ -148,9 +146,6 @@ FAMILY_TEXT = {"euler": "semi-implicit euler", "implicit": "implicit euler", "rk
 POLE_RTOL = 5e-3
 #: Share of the quantity the engines' contact solvers may miss by (rest and balance checks).
 SOLVER_RTOL = 1e-3
-#: Relative difference of an energy computed on the URDF's numbers (12 significant digits, so each rounded by up
-#: to 5e-12) from one on the parameter file's: three rounded factors per term (a mass or inertia and lengths).
-URDF_RTOL = 3 * 5e-12
 EPS = float(np.finfo(float).eps)
 
 
@@ -312,16 +307,13 @@ def check_energy(
             h = _sub_step(tr.info, Ts)
             n_steps = (len(tr.t) - 1) * round(Ts / h)
             roundoff = 4.0 * n_steps * EPS * float(np.abs(TV).max())
-            # E is evaluated on the URDF, whose numbers carry 12 significant digits: a backend built from the
-            # parameter file at full precision conserves an energy that differs from it (module docstring)
-            urdf = URDF_RTOL * (float(TV[:, 0].max()) + float(np.ptp(TV[:, 1])))
             W = float(np.abs(tr.qd).max())
             inside = bool(np.all((tr.q >= lower - 1e-9) & (tr.q <= upper + 1e-9)))
             invalid = "" if inside else "; INVALID: a joint limit was reached"
             if family in ("euler", "implicit"):
                 e2 = np.array([energy.local_rate(q, qd, family) for q, qd in zip(tr.q, tr.qd, strict=True)])
                 P = h * np.concatenate([[0.0], np.cumsum(0.5 * (e2[1:] + e2[:-1]) * np.diff(tr.t))])
-                tol = float(np.abs(P).max()) * (h * W + (Ts * W) ** 2) + roundoff + urdf
+                tol = float(np.abs(P).max()) * (h * W + (Ts * W) ** 2) + roundoff
                 note = (f"{family} x{round(Ts / h)}: predicted E(t) - E(0) = h int e2 dt (local energy error "
                         f"e2 h^2 per step); error = max over t of |measured - predicted|; max|E - E0| = "
                         f"{np.abs(D).max():.3g} J; W = {W:.3g} rad/s{invalid}")  # fmt: skip
@@ -333,22 +325,21 @@ def check_energy(
                 # no closed form for the step (e.g. one in maximal coordinates): bound the drift by the size
                 # a first-order step has, twice semi-implicit Euler's h int |e2| dt at the same step
                 e2 = np.abs([energy.local_rate(q, qd, "euler") for q, qd in zip(tr.q, tr.qd, strict=True)])
-                tol = 2.0 * h * float(np.sum(0.5 * (e2[1:] + e2[:-1]) * np.diff(tr.t))) + roundoff + urdf
+                tol = 2.0 * h * float(np.sum(0.5 * (e2[1:] + e2[:-1]) * np.diff(tr.t))) + roundoff
                 why = (f"first order x{round(Ts / h)}: no closed-form prediction; bound 2 h int |e2_euler| dt "
                        f"(a first-order step's drift, twice semi-implicit Euler's), W = {W:.3g} rad/s")  # fmt: skip
             elif family == "rk4":
-                tol = (h * W) ** 4 * W * float(tr.t[-1]) * float(TV[:, 0].max()) + roundoff + urdf
-                why = (f"RK4: (h W)^4 W T_end max T with W = {W:.3g} rad/s, + round-off {roundoff:.2g} J + "
-                       f"the reference model's 12 digits {urdf:.2g} J")  # fmt: skip
+                tol = (h * W) ** 4 * W * float(tr.t[-1]) * float(TV[:, 0].max()) + roundoff
+                why = f"RK4: (h W)^4 W T_end max T with W = {W:.3g} rad/s, + round-off {roundoff:.2g} J"
             elif family == "adaptive":
                 h_max = min(float(tr.info.get("max_step", Ts)), Ts)  # one solve per period: no step is longer
                 n_min = (len(tr.t) - 1) * math.ceil(Ts / h_max - 1e-9)  # the fewest steps the solver can take
                 trunc = (h_max * W) ** 5 * W * float(tr.t[-1]) * float(TV[:, 0].max())
                 roundoff = 4.0 * n_min * EPS * float(np.abs(TV).max())
-                tol = trunc + roundoff + urdf
+                tol = trunc + roundoff
                 why = (f"adaptive 5(4) or higher, steps <= h = {h_max:g} s (max_step): (h W)^5 W T_end max T = "
-                       f"{trunc:.2g} J with W = {W:.3g} rad/s, + round-off {roundoff:.2g} J ({n_min} steps) + "
-                       f"the reference model's 12 digits {urdf:.2g} J")  # fmt: skip
+                       f"{trunc:.2g} J with W = {W:.3g} rad/s, + round-off {roundoff:.2g} J "
+                       f"({n_min} steps)")  # fmt: skip
             else:
                 out.append(_not_applicable("energy", name, variant, "max |E(t) - E(0)|", family))
                 continue
