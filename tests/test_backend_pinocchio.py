@@ -417,7 +417,10 @@ def test_compiled_rk45_takes_solve_ivps_steps_in_stick_slip_contact() -> None:
     """The ``rk45`` period compiled (legbench/backends/dopri.py over the compiled law, limits and ABA) from 100
     states of the foot pressed 1 mm into the ground, random speeds and torques, the ode45 profile's
     tolerances: the same right-hand-side evaluations as scipy's solve_ivp(RK45) on the Python ABA (same initial
-    step, same accepted and rejected steps) and the end state within 1e-12 (round-off of the two ABAs)."""
+    step, same accepted and rejected steps) and the end state within 1e-12 (round-off of the two ABAs), or, where
+    the state is ill-conditioned, within what solve_ivp itself moves when its start state is perturbed by round-off
+    (1e-16 relative, five draws): one of the 100 states (the foot near the stick-slip ramp) turns such a
+    perturbation into up to 6.5e-11 of the end state, and the two ABAs differ there by 1.5e-12."""
     be = _backend({"integrator": "rk45", "rtol": 1e-6, "atol": 1e-8, "max_step": 2e-4}, 9.81, ContactParams())
     assert be.info()["kernel_used"] == "compiled (numba)"
     period, x, u, lc, lim, k, data = be._dopri
@@ -425,6 +428,7 @@ def test_compiled_rk45_takes_solve_ivps_steps_in_stick_slip_contact() -> None:
     start = K.ik_nearest(np.array([0.1667, 0.0, model.load_params().geometry.R_foot - 0.001]),
                          np.array(model.load_params().q_star))  # fmt: skip
     nfev = []
+    ill = 0  # states where the two differ by more than 1e-12
     for _ in range(100):
         x0 = np.concatenate([start + rng.normal(0.0, 0.01, 3), rng.normal(0.0, 0.3, 3)])
         tau = rng.normal(0.0, 2.0, 3)
@@ -437,9 +441,19 @@ def test_compiled_rk45_takes_solve_ivps_steps_in_stick_slip_contact() -> None:
         u[:] = tau
         n = period(x, u, 0.0, lc, lim, T_CTRL, 1e-6, 1e-8, 2e-4, k, data)
         assert n == ref.nfev
-        np.testing.assert_allclose(x, ref.y[:, -1], rtol=0, atol=1e-12)
+        err = float(np.abs(x - ref.y[:, -1]).max())
+        if err > 1e-12:  # the ill-conditioned state: the reference's own spread under round-off
+            ill += 1
+            spread = max(
+                float(np.abs(solve_ivp(f, (0.0, T_CTRL), x0 * (1.0 + np.random.default_rng(s).normal(0.0, 1e-16, 6)),
+                                       method="RK45", rtol=1e-6, atol=1e-8, max_step=2e-4).y[:, -1]
+                             - ref.y[:, -1]).max())
+                for s in range(5)
+            )  # fmt: skip
+            assert err <= spread, (err, spread)
         nfev.append(n)
     assert max(nfev) > min(nfev)  # the error control chose different steps for different states
+    assert ill <= 3  # measured 1 of 100: the 1e-12 bound holds for the rest
 
 
 @numba_needed
