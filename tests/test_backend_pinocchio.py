@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 import subprocess
@@ -185,6 +186,113 @@ def test_no_limit_warning_for_a_run_inside_the_limits() -> None:
     be = _backend({"dt": 1e-3})
     q = _drive(be, Q0, 300)
     assert np.all(np.abs(q[:, 2]) < 2.229) and np.all(np.abs(q[:, 0]) < np.pi / 2)
+    assert be.warnings() == []
+
+
+#: The knee-limit record runs: integrator settings and sub-step h [s], Euler's below the limit's bound (563 us at
+#: the record's I = 0.00643 kg m^2), RK4's above its 1.12 ms
+LIMIT_RUNS: dict[str, tuple[dict[str, str], float]] = {
+    "euler-implicit": ({"integrator": "euler", "friction": "implicit"}, 2.5e-4),
+    "euler-explicit": ({"integrator": "euler", "friction": "explicit"}, 2.5e-4),
+    "rk4": ({"integrator": "rk4"}, 1.5e-3),
+}
+
+
+def _limit_record(be: PinocchioBackend) -> list[float]:
+    """The backend's joint-limit record, where its warnings() reads it: per joint the largest (M^-1)_jj
+    [1/(kg m^2)] at which the joint was past its limit, 0 if never."""
+    return be._limit_view.tolist() if be._compiled is not None else list(be._limit_minv)
+
+
+def _knee_on_its_limit_while_the_hip_swings(settings: dict, h: float) -> tuple[PinocchioBackend, list[float], float]:  # type: ignore[type-arg]
+    """Zero gravity, no contact, two sub-steps of ``h`` [s] per control period, 0.6 s from q = (0, 1, 2.2) rad:
+    10 N m pushes the knee onto its 2.229 rad limit while a PD (4 N m/rad, 0.2 N m s/rad) holds the hip at
+    1 rad for 0.15 s, then swings it towards -0.5 rad (it swings through -0.95 rad and back, the abad drifting
+    to 1.03 rad inside its limits), so (M^-1)_33 at the knee's limit goes over its peak 155.57 1/(kg m^2)
+    (hip ~0.2 rad) and ends at 139.6-139.9 (hip -0.38 rad).
+
+    Every sub-step's state comes from a twin backend stepping one sub-step per period under the same held
+    torque (asserted bit-equal to the run's state at each period start). Returns the run's backend, per period
+    pin.computeMinverse(...)[2, 2] at its first sub-step with the knee past its limit (the state the backend
+    records: the Python sub-steps and the compiled period both record a joint once per period, at its first
+    sub-step past the limit; RK4 at a step's start state), and the largest (M^-1)_33 over every sub-step past
+    the limit (the discrimination check: a record of every sub-step would be this)."""
+    physics = Physics(gravity=0.0, contact=NO_CONTACT, control_dt=2 * h)
+    be, twin = PinocchioBackend(), PinocchioBackend()
+    be.load(model.URDF_FILE, physics, {**settings, "dt": h})
+    twin.load(model.URDF_FILE, dataclasses.replace(physics, control_dt=h), {**settings, "dt": h})
+    assert be.sub_steps() == 2 and twin.sub_steps() == 1
+    m = _pin_model()
+    d = m.createData()
+    q0 = np.array([0.0, 1.0, 2.2])
+    be.reset(q0, np.zeros(3))
+    twin.reset(q0, np.zeros(3))
+    knee_limit = be.upper[2]
+    recorded, every = [], 0.0
+    for k in range(round(0.6 / (2 * h))):
+        q, qd = be.state()
+        assert np.array_equal(twin.state()[0], q) and np.array_equal(twin.state()[1], qd), k
+        target = 1.0 if k * 2 * h < 0.15 else -0.5
+        tau = np.array([0.0, 4.0 * (target - q[1]) - 0.2 * qd[1], 10.0])
+        first = True
+        for _ in range(2):
+            qs = twin.state()[0]
+            assert -np.pi / 2 < qs[0] < np.pi / 2 and qs[2] > -knee_limit  # no other limit reached
+            if qs[2] > knee_limit:
+                minv = float(pin.computeMinverse(m, d, _pin_q(qs))[2, 2])
+                every = max(every, minv)
+                if first:
+                    recorded.append(minv)
+                    first = False
+            twin.step(tau)
+        be.step(tau)
+    return be, recorded, every
+
+
+@pytest.mark.parametrize("run_name", list(LIMIT_RUNS))
+@pytest.mark.parametrize("kernel", ["python", "compiled"])
+def test_limit_record_is_the_largest_minverse_at_each_periods_first_sub_step_past_the_limit(
+    kernel: str, run_name: str
+) -> None:
+    """The knee held on its limit while the hip swings (:func:`_knee_on_its_limit_while_the_hip_swings`): the
+    backend's record of the knee equals the largest pin.computeMinverse(q)[2, 2] over the states it records
+    (each period's first sub-step past the limit) to rel 1e-12 (measured 155.5726 1/(kg m^2), Euler, and
+    155.5616, RK4, i.e. I = 0.00643 kg m^2; compiled vs pin.computeMinverse 2e-15), not the last recorded
+    value (139.6-139.9) nor the largest over every sub-step (larger by 3e-6 rel, Euler, 7e-5, RK4); abad and hip
+    record 0; the Python and the compiled records agree to rel 1e-12 (measured 7e-16). RK4 at h = 1.5 ms
+    above its bound 1.12 ms at that I: warnings() names q3_knee, I and the bound; Euler at 250 us below its
+    563 us: no warning. After reset() the record is 0 and a free swing inside the limits gets no warning."""
+    if kernel == "compiled" and not pinocchio_kernel.available():
+        pytest.skip("needs numba")
+    settings, h = LIMIT_RUNS[run_name]
+    be, recorded, every = _knee_on_its_limit_while_the_hip_swings({**settings, "kernel": kernel}, h)
+    assert (be._compiled is not None) == (kernel == "compiled")
+    expected = max(recorded)
+    assert recorded[-1] < 0.95 * expected and every > expected * (1 + 1e-7)  # the run tells them apart
+    rec = _limit_record(be)
+    assert rec[0] == 0.0 and rec[1] == 0.0
+    assert rec[2] == pytest.approx(expected, rel=1e-12)
+    if kernel == "compiled":
+        py, _, _ = _knee_on_its_limit_while_the_hip_swings({**settings, "kernel": "python"}, h)
+        assert rec[2] == pytest.approx(_limit_record(py)[2], rel=1e-12)
+    integ = settings["integrator"]
+    inertia = 1.0 / expected
+    bound = joint_limits.step_bound(joint_limits.STIFFNESS, joint_limits.DAMPING, inertia, integ)
+    if integ == "rk4":
+        assert h > bound
+        (note,) = be.warnings()
+        assert "joint-limit spring-damper" in note and "q3_knee" in note, note
+        assert f"I = 1/(M^-1)_jj = {inertia:.3g} kg m^2" in note and f"{bound:.3g} s;" in note, note
+    else:
+        assert h < bound
+        assert be.warnings() == []
+    be.reset(np.array([0.0, 0.5, 1.0]), np.zeros(3))
+    assert _limit_record(be) == [0.0, 0.0, 0.0]
+    for _ in range(100):
+        be.step(np.array([0.05, 0.2, -0.1]))
+        q = be.state()[0]
+        assert abs(q[0]) < np.pi / 2 and abs(q[2]) < be.upper[2], q
+    assert _limit_record(be) == [0.0, 0.0, 0.0]
     assert be.warnings() == []
 
 
