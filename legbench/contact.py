@@ -299,7 +299,11 @@ class ReferenceContact:
         the state) goes to :attr:`force`; the returned array is reused by the next call. Call
         :meth:`use_implicit_friction` first.
         """
-        r = self.wrench_slope(q1, q2, q3, qd1, qd2, qd3)
+        # Python floats from here on: an engine's numpy scalars would make every operation of the law and
+        # the step below a numpy one (the same IEEE result, several times the cost)
+        q1, q2, q3, qd1, qd2, qd3 = float(q1), float(q2), float(q3), float(qd1), float(qd2), float(qd3)
+        u1, u2, u3, h = float(u1), float(u2), float(u3), float(h)
+        r = law_wrench_slope(self.constants, q1, q2, q3, qd1, qd2, qd3)
         tc1, tc2, tc3, fx, fy, fz, K11, K12, K13, K22, K23, K33 = r
         f, tau = self.force, self._tau
         f[0], f[1], f[2] = fx, fy, fz
@@ -309,8 +313,8 @@ class ReferenceContact:
             v[0], v[1], v[2] = qd1, qd2, qd3
             u[0], u[1], u[2] = u1 + tc1, u2 + tc2, u3 + tc3
             a1, a2, a3 = pin.aba(model, data, qp, v, u).tolist()
-            Mi = pin.computeMinverse(model, data, qp)
-            m = (Mi[0, 0], Mi[0, 1], Mi[0, 2], Mi[1, 1], Mi[1, 2], Mi[2, 2])
+            (m11, m12, m13), (_, m22, m23), (_, _, m33) = pin.computeMinverse(model, data, qp).tolist()
+            m = (m11, m12, m13, m22, m23, m33)
             x1, x2, x3 = implicit_velocity_step(h, m, (K11, K12, K13, K22, K23, K33), a1, a2, a3)
             tc1 -= K11 * x1 + K12 * x2 + K13 * x3
             tc2 -= K12 * x1 + K22 * x2 + K23 * x3

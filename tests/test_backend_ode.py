@@ -21,7 +21,7 @@ from legbench import backends as registry
 from legbench import kinematics, model, scenario
 from legbench.backends.base import Backend, Physics
 from legbench.contact import ContactParams
-from legbench.exceptions import BackendNotFound, ScenarioError
+from legbench.exceptions import BackendNotFound, LegbenchError, ScenarioError
 
 ode_ = pytest.importorskip("legbench.backends.ode_")
 OdeBackend = ode_.OdeBackend
@@ -236,12 +236,12 @@ def test_gazebo_fork_surface_values_override_the_world_ones() -> None:
 
 
 def test_force_is_read_on_the_foot_side_when_the_ground_comes_first_in_the_pair(loaded: list[Backend]) -> None:
-    """ODE may hand the near callback the pair as (ground, foot): the force read is the same, on the foot.
+    """ODE may hand the pair as (ground, foot) (dSpaceCollide's order): the force read is the same, on the foot.
 
     dJointAttach(joint, 0, foot) swaps the static ground to the joint's second
     place (ode/src/ode.cpp: dJointAttach), so the foot's force is in f1 and f2 is
     never written (ode/src/step.cpp: feedback f2 only for a second body). The
-    press is run twice, the callback's geoms once in ODE's order and once
+    press is run twice, the pair's geoms once in ODE's order and once
     swapped: the steady force must be the same to 1e-9 N (both are the same
     contact; only the bookkeeping differs) and balance the statics to 2 %
     (reading the stale f2 gives 0 N).
@@ -250,9 +250,8 @@ def test_force_is_read_on_the_foot_side_when_the_ground_comes_first_in_the_pair(
     for swap in (False, True):
         backend = load(loaded, Physics())
         if swap:
-            backend._near = ode_.ode.dNearCallback(
-                lambda data, g1, g2, callback=backend._near_callback: callback(data, g2, g1)
-            )
+            g1, g2 = backend._pair
+            backend._use_pair(g2, g1)
         log = press(backend, np.array([0.0, 0.0, -10.0]))
         ground = ctypes.cast(ode_.ode.dGeomGetBody(backend.plane), ctypes.c_void_p).value
         assert ground is None and backend._n_contacts == 1
@@ -262,6 +261,67 @@ def test_force_is_read_on_the_foot_side_when_the_ground_comes_first_in_the_pair(
     q, tau = forces[1]["q"][-1], forces[1]["tau"][-1]
     h = np.linalg.solve(kinematics.jacobian_poc(q).T, tau - model.gravity_torque(q))
     assert F_swapped[2] > 5.0 and np.linalg.norm(F_swapped + h) < 0.02 * np.linalg.norm(h), (F_swapped, -h)
+
+
+def space_collide_step(backend: Any) -> None:
+    """The native step as it was with ``dSpaceCollide`` and a near callback from C into Python."""
+    ode, h = ode_.ode, backend.h
+    t0, t1, t2 = backend._u
+    j0, j1, j2 = backend.joints
+
+    def near(_data: Any, g1: Any, g2: Any) -> None:
+        n = ode_._collide(g1, g2, ode_.MAX_CONTACTS, backend._contact_geoms, ode_._CONTACT_STRIDE)
+        backend._use_pair(g1, g2)
+        backend._add_contacts(n)
+        backend._n_contacts = n
+
+    callback = ode.dNearCallback(near)
+    for _ in range(backend.n_sub):
+        ode.dJointGroupEmpty(backend.contact_group)
+        backend._n_contacts = 0  # what is left where the bounding boxes do not meet (no callback)
+        ode.dSpaceCollide(backend.space, None, callback)
+        ode.dJointAddHingeTorque(j0, t0)
+        ode.dJointAddHingeTorque(j1, t1)
+        ode.dJointAddHingeTorque(j2, t2)
+        backend._world_step(backend.world, h)
+    backend._read()
+    backend._native_force()
+
+
+def test_the_native_step_collides_the_pair_as_dspacecollide_did_bit_for_bit(loaded: list[Backend]) -> None:
+    """The native step calls dCollide on its one pair itself: the same run, bit for bit, as dSpaceCollide
+    with a near callback (the pair in ODE's order, its bounding-box test first), through flight, touch-down
+    and a press."""
+    logs = []
+    for via_space in (False, True):
+        backend = load(loaded, Physics())
+        if via_space:
+            backend._step = lambda b=backend: space_collide_step(b)
+        q0 = kinematics.ik_nearest(START + np.array([0.0, 0.0, 0.005]), np.array(PARAMS.q_star))
+        backend.reset(q0, np.zeros(3))
+        rows = []
+        for k in range(400):
+            q, qd = backend.state()
+            target = q0 + kinematics.jacobian_poc(q0).T @ np.array([0.0, 0.0, -10.0 * min(k, 200) / 200]) / KP_JOINT
+            backend.step(KP_JOINT * (target - q) - KD_JOINT * qd + model.gravity_torque(q))
+            rows.append(np.concatenate([*backend.state(), backend.ground_force()]))
+        logs.append(np.array(rows))
+    fz = logs[0][:, 8]
+    assert fz[0] == 0.0 and fz[-1] > 5.0  # flight, then the foot carries the press
+    assert np.array_equal(logs[0], logs[1])
+
+
+def test_load_refuses_a_collision_space_with_more_than_the_foot_and_the_ground(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The native step collides the foot-ground pair alone: a third geom in the space is an error at load."""
+    create_plane = ode_.ode.dCreatePlane
+
+    def plane_and_box(space: Any, *args: Any) -> Any:
+        ode_.ode.dCreateBox(space, 1.0, 1.0, 1.0)
+        return create_plane(space, *args)
+
+    monkeypatch.setattr(ode_.ode, "dCreatePlane", plane_and_box)
+    with pytest.raises(LegbenchError, match="exactly the foot sphere and the ground plane .* it holds 3 geoms"):
+        registry.load("ode", Physics(), {})
 
 
 def test_contact_without_stiffness_or_damping_exerts_no_force(loaded: list[Backend]) -> None:

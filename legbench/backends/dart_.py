@@ -183,9 +183,8 @@ class DartBackend(Backend):
 
         self._implicit = self.reference and cfg["reference_friction"] == "implicit"
         self.contact = ReferenceContact.from_leg(c, physics.gravity if self._implicit else None)
-        self._hi = np.asarray(physics.torque_limit, float)
-        self._lo = -self._hi
-        self._tau = np.zeros(3)
+        self._limit = tuple(float(x) for x in physics.torque_limit)  # [N m]
+        self._tau = np.zeros(3)  # the clamped torque [N m], what setForces takes
         self._cmd = np.zeros(3)
         self._force = np.zeros(3)
         self._impulse = np.zeros(3)  # force_readout mean: the sub-steps' forces summed
@@ -217,35 +216,52 @@ class DartBackend(Backend):
     # ----------------------------------------------------------------- step
     def step(self, tau: np.ndarray) -> None:
         """Advance one control period with tau [N m], clamped to the torque limits, held."""
-        np.clip(tau, self._lo, self._hi, out=self._tau)
-        skel, world = self.skel, self.world
+        t1, t2, t3 = tau.tolist()
+        l1, l2, l3 = self._limit
+        # as np.clip (a NaN passes)
+        u1 = -l1 if t1 < -l1 else (l1 if t1 > l1 else t1)
+        u2 = -l2 if t2 < -l2 else (l2 if t2 > l2 else t2)
+        u3 = -l3 if t3 < -l3 else (l3 if t3 > l3 else t3)
+        u = self._tau
+        u[0], u[1], u[2] = u1, u2, u3
+        skel, world, n = self.skel, self.world, self.n_sub
         if self.reference:
-            q, qd, cmd, u, h = self._q, self._qd, self._cmd, self._tau, self.physics.control_dt / self.n_sub
+            cmd, h, setf = self._cmd, self.physics.control_dt / n, skel.setForces
+            getp, getv, advance = skel.getPositions, skel.getVelocities, world.step
             implicit, law, law_i = self._implicit, self.contact.generalized, self.contact.implicit_generalized
-            for _ in range(self.n_sub):
+            q, qd = self._q, self._qd
+            # the state as floats through the sub-steps, written back once
+            q1, q2, q3 = q.tolist()
+            qd1, qd2, qd3 = qd.tolist()
+            for _ in range(n):
                 if implicit:  # the friction slope linearly implicit over the sub-step (docs/pinocchio.md)
-                    tc = law_i(q[0], q[1], q[2], qd[0], qd[1], qd[2], u[0], u[1], u[2], h)
+                    c1, c2, c3 = law_i(q1, q2, q3, qd1, qd2, qd3, u1, u2, u3, h).tolist()
                 else:
-                    tc = law(q[0], q[1], q[2], qd[0], qd[1], qd[2])
-                np.add(u, tc, out=cmd)
-                skel.setForces(cmd)
-                world.step()
-                self._read()
+                    c1, c2, c3 = law(q1, q2, q3, qd1, qd2, qd3).tolist()
+                cmd[0], cmd[1], cmd[2] = u1 + c1, u2 + c2, u3 + c3
+                setf(cmd)
+                advance()
+                q1, q2, q3 = getp().tolist()
+                qd1, qd2, qd3 = getv().tolist()
+            q[0], q[1], q[2], qd[0], qd[1], qd[2] = q1, q2, q3, qd1, qd2, qd3
             self._reference_force()
         elif self._period_mean:
             total = self._impulse
             total[:] = 0.0
-            for _ in range(self.n_sub):
-                skel.setForces(self._tau)
-                world.step()
+            # World.step() clears the joint forces after the step, World.step(False) keeps them: set once, cleared
+            # after the last sub-step as before
+            skel.setForces(u)
+            for k in range(n):
+                world.step(k == n - 1)
                 self._native_force()
                 total += self._force
             self._read()
-            np.divide(total, self.n_sub, out=self._force)  # sum of (impulse / h) x h / Ts
+            np.divide(total, n, out=self._force)  # sum of (impulse / h) x h / Ts
         else:
-            for _ in range(self.n_sub):
-                skel.setForces(self._tau)
-                world.step()
+            skel.setForces(u)  # held over the sub-steps (World.step(False)), cleared after the last
+            for _ in range(n - 1):
+                world.step(False)
+            world.step()
             self._read()
             self._native_force()
         self.t += self.physics.control_dt
@@ -285,6 +301,10 @@ class DartBackend(Backend):
     def ground_force(self) -> np.ndarray:
         """Force of the ground on the foot in W [N]: DART's contact impulse / dt (native) or the law (reference)."""
         return self._force.copy()
+
+    def read(self) -> tuple[float, ...]:
+        """:meth:`state` and :meth:`ground_force` as nine floats, without the copies."""
+        return (*self._q.tolist(), *self._qd.tolist(), *self._force.tolist())
 
     def info(self) -> dict[str, Any]:
         """Engine, version and every setting actually used, read back from the world where DART allows."""

@@ -94,6 +94,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import operator
 from collections.abc import Iterator, Mapping
 from importlib import metadata
 from pathlib import Path
@@ -250,10 +251,8 @@ class DrakeBackend(Backend):
             self._build(urdf, physics, plant_cfg, usual)
         self._implicit = self.reference and cfg["reference_friction"] == "implicit"
         self.contact = ReferenceContact.from_leg(c, physics.gravity if self._implicit else None)
-        self._hi = np.asarray(physics.torque_limit, float)
-        self._lo = -self._hi
-        self._tau = np.zeros(3)
-        self._cmd = np.zeros(3)
+        self._limit = tuple(float(x) for x in physics.torque_limit)  # [N m]
+        self._tau = np.zeros(3)  # the clamped torque [N m], what the actuation port takes
         self._force = np.zeros(3)
         self._q = np.zeros(3)
         self._qd = np.zeros(3)
@@ -316,6 +315,10 @@ class DrakeBackend(Backend):
         #: where each joint's q and qd sit in the plant's [q; v] state vector, as index arrays made once
         self._q_idx = np.array([j.position_start() for j in self.joints])
         self._qd_idx = plant.num_positions() + np.array([j.velocity_start() for j in self.joints])
+        #: (q1, q2, q3, qd1, qd2, qd3) out of the state vector as a list
+        self._pick = operator.itemgetter(*self._q_idx.tolist(), *self._qd_idx.tolist())
+        #: the foot body's index, an int (read per contact)
+        self._foot_index = int(self.foot_body.index())
 
     def _ground(self, plant: Any, usual: bool) -> Any:
         """Register the ground half-space on the world body: rigid, the foot's friction (or friction only)."""
@@ -403,20 +406,33 @@ class DrakeBackend(Backend):
     # ----------------------------------------------------------------- step
     def step(self, tau: np.ndarray) -> None:
         """Advance one control period with tau [N m], clamped to the torque limits, held."""
-        np.clip(tau, self._lo, self._hi, out=self._tau)
-        _set(self._act, self._tau)
+        t1, t2, t3 = tau.tolist()
+        l1, l2, l3 = self._limit
+        # as np.clip (a NaN passes)
+        u1 = -l1 if t1 < -l1 else (l1 if t1 > l1 else t1)
+        u2 = -l2 if t2 < -l2 else (l2 if t2 > l2 else t2)
+        u3 = -l3 if t3 < -l3 else (l3 if t3 > l3 else t3)
+        u = self._tau
+        u[0], u[1], u[2] = u1, u2, u3
+        _set(self._act, u)
         Ts, n, h = self.physics.control_dt, self.n_sub, self._h
         if self.reference:
-            q, qd, u = self._q, self._qd, self._tau
-            implicit = self._implicit
+            implicit, gen, advance = self._implicit, self._gen, self.simulator.AdvanceTo
             law, law_i = self.contact.generalized, self.contact.implicit_generalized
+            get, ctx, pick = self.plant.GetPositionsAndVelocities, self.ctx, self._pick
+            q, qd = self._q, self._qd
+            # the state as floats through the sub-steps, written back once
+            q1, q2, q3 = q.tolist()
+            qd1, qd2, qd3 = qd.tolist()
+            first = self.tick * n + 1
             for k in range(n):
                 if implicit:  # the friction slope linearly implicit over the sub-step (docs/pinocchio.md)
-                    _set(self._gen, law_i(q[0], q[1], q[2], qd[0], qd[1], qd[2], u[0], u[1], u[2], h))
+                    _set(gen, law_i(q1, q2, q3, qd1, qd2, qd3, u1, u2, u3, h))
                 else:
-                    _set(self._gen, law(q[0], q[1], q[2], qd[0], qd[1], qd[2]))
-                self.simulator.AdvanceTo((self.tick * n + k + 1) * h)
-                self._read()
+                    _set(gen, law(q1, q2, q3, qd1, qd2, qd3))
+                advance((first + k) * h)
+                q1, q2, q3, qd1, qd2, qd3 = pick(get(ctx).tolist())
+            q[0], q[1], q[2], qd[0], qd[1], qd[2] = q1, q2, q3, qd1, qd2, qd3
             self._reference_force()
         else:
             # an integer count of Drake's own period, so every target is exactly one of its event times
@@ -427,9 +443,8 @@ class DrakeBackend(Backend):
         check_finite(self.name, self.tick * Ts, self._q, self._qd)
 
     def _read(self) -> None:
-        x = self.plant.GetPositionsAndVelocities(self.ctx)
-        self._q[:] = x[self._q_idx]
-        self._qd[:] = x[self._qd_idx]
+        q, qd = self._q, self._qd
+        q[0], q[1], q[2], qd[0], qd[1], qd[2] = self._pick(self.plant.GetPositionsAndVelocities(self.ctx).tolist())
 
     def _reference_force(self) -> None:
         q, qd = self._q, self._qd
@@ -443,13 +458,13 @@ class DrakeBackend(Backend):
         i.e. the force over the last sub-step. Continuous: at the current state.
         """
         results = self._results_port.Eval(self.ctx)
-        force, foot = self._force, self.foot_body.index()
+        force, foot = self._force, self._foot_index
         force[:] = 0.0
         for i in range(results.num_point_pair_contacts()):
             info = results.point_pair_contact_info(i)
-            if info.bodyB_index() == foot:
+            if int(info.bodyB_index()) == foot:
                 force += info.contact_force()
-            elif info.bodyA_index() == foot:
+            elif int(info.bodyA_index()) == foot:
                 force -= info.contact_force()
         for i in range(results.num_hydroelastic_contacts()):
             info = results.hydroelastic_contact_info(i)
@@ -467,6 +482,10 @@ class DrakeBackend(Backend):
     def ground_force(self) -> np.ndarray:
         """Force of the ground on the foot in W [N]: Drake's contact results (native) or the law (reference)."""
         return self._force.copy()
+
+    def read(self) -> tuple[float, ...]:
+        """:meth:`state` and :meth:`ground_force` as nine floats, without the copies."""
+        return (*self._q.tolist(), *self._qd.tolist(), *self._force.tolist())
 
     def info(self) -> dict[str, Any]:
         """Engine, version and every setting actually used, read back from the plant where Drake allows."""

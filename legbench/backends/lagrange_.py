@@ -200,6 +200,10 @@ class LagrangeBackend(Backend):
     def ground_force(self) -> np.ndarray:
         return self.force.copy()
 
+    def read(self) -> tuple[float, ...]:
+        """:meth:`state` and :meth:`ground_force` as nine floats, without the copies."""
+        return (*self.x.tolist(), *self.force.tolist())
+
     def info(self) -> dict[str, Any]:
         c = self.contact_params
         return {

@@ -21,8 +21,9 @@ the control period (ODE clears the accumulators after each step).
 
 Native contact: one sphere geom (the URDF foot collision, radius R_foot) on
 link 3's body at the foot centre E and a static plane z_W = 0; nothing else
-collides (the link cylinders are not built). Contact joints are created in the
-near callback of ``dSpaceCollide`` with the profile's surface: per-contact
+collides (the link cylinders are not built). Contact joints are created for that
+one pair (``dCollide`` every sub-step, what ``dSpaceCollide``'s near callback
+would be handed) with the profile's surface: per-contact
 ``soft_erp = h Kp / (h Kp + Kd)`` and ``soft_cfm = 1 / (h Kp + Kd)`` (the ODE
 manual's spring-damper mapping, the same as Gazebo's; h the ODE step), which
 makes the normal force ``Kp y(t+h) + Kd ydot(t+h)``: an implicit spring-damper
@@ -38,7 +39,7 @@ a step. With several sub-steps per control period the backend reports the
 **last sub-step's** force (the contact joints of earlier sub-steps are gone),
 like the PyBullet backend: the force over the final sub-step, not an average.
 
-Reference contact: no collision at all (``dSpaceCollide`` is not called); before
+Reference contact: no collision at all (``dCollide`` is not called); before
 every sub-step ``J_poc^T F`` of :class:`~legbench.contact.ReferenceContact` at
 the sub-step's start state (hinge angles and rates) is added to the hinge
 torques.
@@ -251,17 +252,26 @@ class OdeBackend(Backend):
         self._contact_refs = [ctypes.byref(ct) for ct in self.contacts]
         self._feedback_refs = [ctypes.byref(fb) for fb in self._feedback]
         self._n_contacts = 0
-        self._foot_first = True  # the foot's force is the contact joints' f1 (set per contact in _near_callback)
         self._foot_body = _address(self.bodies[-1])
         self._contact_joints: list[Any] = [None] * MAX_CONTACTS
-        self._near = ode.dNearCallback(self._near_callback)
+        # the space's one pair, foot sphere and ground plane, collided directly (dCollide) in the order
+        # dSpaceCollide hands a simple space's pair to its near callback: its geoms from the newest
+        # (ode/src/collision_space.cpp: dxSpace::add puts a geom first, dxSimpleSpace::collide pairs each
+        # with those after it); no per-sub-step callback from C into Python
+        n_geoms = ode.dSpaceGetNumGeoms(self.space)
+        pair = tuple(ode.dSpaceGetGeom(self.space, i) for i in range(n_geoms))
+        if n_geoms != 2 or {_address(g) for g in pair} != {_address(self.plane), _address(self.foot_geom)}:
+            raise LegbenchError(
+                "ode: the collision space must hold exactly the foot sphere and the ground plane "
+                f"(the native step collides that one pair), it holds {n_geoms} geoms"
+            )
+        self._use_pair(*pair)
 
         self._implicit = self.reference and cfg["reference_friction"] == "implicit"
         self.contact = ReferenceContact.from_leg(c, physics.gravity if self._implicit else None)
         self._hi = np.asarray(physics.torque_limit, float)
-        self._lo = -self._hi
-        self._tau = np.zeros(3)
-        self._cmd = np.zeros(3)
+        self._limit = tuple(float(x) for x in physics.torque_limit)  # [N m]
+        self._u = (0.0, 0.0, 0.0)  # the clamped torque of the period [N m]
         self._force = np.zeros(3)
         self._q = np.zeros(3)
         self._qd = np.zeros(3)
@@ -377,65 +387,79 @@ class OdeBackend(Backend):
     # ----------------------------------------------------------------- step
     def step(self, tau: np.ndarray) -> None:
         """Advance one control period with tau [N m], clamped to the torque limits, held over the sub-steps."""
-        np.clip(tau, self._lo, self._hi, out=self._tau)
+        t1, t2, t3 = tau.tolist()
+        l1, l2, l3 = self._limit
+        # as np.clip (a NaN passes)
+        self._u = (-l1 if t1 < -l1 else (l1 if t1 > l1 else t1), -l2 if t2 < -l2 else (l2 if t2 > l2 else t2),
+                   -l3 if t3 < -l3 else (l3 if t3 > l3 else t3))  # fmt: skip
         self._step()
         self.t += self.physics.control_dt
         check_finite(self.name, self.t, self._q, self._qd)
 
     def _step_native(self) -> None:
-        world, h, joints, tau = self.world, self.h, self.joints, self._tau
+        world, h, joints = self.world, self.h, self.joints
         add, step, quick = ode.dJointAddHingeTorque, self._world_step, self._quick
-        group, space, near, empty = self.contact_group, self.space, self._near, ode.dJointGroupEmpty
-        collide, seed = ode.dSpaceCollide, ode.dRandSetSeed
-        t0, t1, t2 = float(tau[0]), float(tau[1]), float(tau[2])
+        group, empty, seed = self.contact_group, ode.dJointGroupEmpty, ode.dRandSetSeed
+        g1, g2 = self._pair
+        contact_geoms, contacts = self._contact_geoms, self._add_contacts
+        t0, t1, t2 = self._u
         j0, j1, j2 = joints
         collide_on = self._collide_on
+        n = 0
         for _ in range(self.n_sub):
             empty(group)
-            self._n_contacts = 0
             if collide_on:
-                collide(space, None, near)
+                # what dSpaceCollide's near callback did, called here (dCollide updates the geoms' poses itself;
+                # the space's bounding-box test it skips only ever spared a dCollide that finds no contact)
+                n = _collide(g1, g2, MAX_CONTACTS, contact_geoms, _CONTACT_STRIDE)
+                if n:
+                    contacts(n)
             add(j0, t0)
             add(j1, t1)
             add(j2, t2)
             if quick:
                 seed(SEED)
             step(world, h)
+        self._n_contacts = n
         self._read()
         self._native_force()
 
-    def _near_callback(self, _data: Any, g1: Any, g2: Any) -> None:
-        """ODE's near callback: contact joints with the profile's surface for the foot-ground pair."""
-        n = _collide(g1, g2, MAX_CONTACTS, self._contact_geoms, _CONTACT_STRIDE)
+    def _use_pair(self, g1: Any, g2: Any) -> None:
+        """Collide the geoms in this order in the native step; their bodies and the foot's feedback side cached
+        (neither geom changes body after load)."""
         b1, b2 = _geom_body(g1), _geom_body(g2)
+        self._pair, self._pair_bodies = (g1, g2), (b1, b2)
+        # which feedback side is the foot's: dJointAttach moves a null (static) body to the joint's second place
+        # (ode/src/ode.cpp), and ODE writes f1 for the first body, f2 only for a second one (ode/src/step.cpp,
+        # quickstep.cpp); so the foot is f1 unless two bodies collide and the foot is the second
+        self._foot_first = not (b1 and b2) or _address(b1) == self._foot_body
+
+    def _add_contacts(self, n: int) -> None:
+        """Contact joints with the profile's surface for the pair's ``n`` contacts (in ``_contact_geoms``)."""
+        b1, b2 = self._pair_bodies
         world, group, contacts, feedback = self.world, self.contact_group, self._contact_refs, self._feedback_refs
         for k in range(n):
             joint = _create_contact(world, group, contacts[k])
             _attach(joint, b1, b2)
             _set_feedback(joint, feedback[k])
             self._contact_joints[k] = joint
-        self._n_contacts = n
-        # which feedback side is the foot's: dJointAttach moves a null (static) body to the joint's second place
-        # (ode/src/ode.cpp), and ODE writes f1 for the first body, f2 only for a second one (ode/src/step.cpp,
-        # quickstep.cpp); so the foot is f1 unless two bodies collide and the foot is the second
-        self._foot_first = not (b1 and b2) or _address(b1) == self._foot_body
 
     def _step_reference(self) -> None:
-        world, h, joints, tau, cmd = self.world, self.h, self.joints, self._tau, self._cmd
+        world, h, joints = self.world, self.h, self.joints
         add, step, quick, seed = ode.dJointAddHingeTorque, self._world_step, self._quick, ode.dRandSetSeed
         angle, rate = ode.dJointGetHingeAngle, ode.dJointGetHingeAngleRate
         law, law_i, implicit = self.contact.generalized, self.contact.implicit_generalized, self._implicit
         j0, j1, j2 = joints
+        u1, u2, u3 = self._u
         for _ in range(self.n_sub):
+            q1, q2, q3, qd1, qd2, qd3 = angle(j0), angle(j1), angle(j2), rate(j0), rate(j1), rate(j2)
             if implicit:  # the friction slope linearly implicit over the sub-step (docs/pinocchio.md)
-                u1, u2, u3 = float(tau[0]), float(tau[1]), float(tau[2])
-                tc = law_i(angle(j0), angle(j1), angle(j2), rate(j0), rate(j1), rate(j2), u1, u2, u3, h)
+                t1, t2, t3 = law_i(q1, q2, q3, qd1, qd2, qd3, u1, u2, u3, h).tolist()
             else:
-                tc = law(angle(j0), angle(j1), angle(j2), rate(j0), rate(j1), rate(j2))
-            np.add(tau, tc, out=cmd)
-            add(j0, float(cmd[0]))
-            add(j1, float(cmd[1]))
-            add(j2, float(cmd[2]))
+                t1, t2, t3 = law(q1, q2, q3, qd1, qd2, qd3).tolist()
+            add(j0, u1 + t1)
+            add(j1, u2 + t2)
+            add(j2, u3 + t3)
             if quick:
                 seed(SEED)
             step(world, h)
@@ -484,6 +508,10 @@ class OdeBackend(Backend):
         period). Reference: the law at the current state.
         """
         return self._force.copy()
+
+    def read(self) -> tuple[float, ...]:
+        """:meth:`state` and :meth:`ground_force` as nine floats, without the copies."""
+        return (*self._q.tolist(), *self._qd.tolist(), *self._force.tolist())
 
     def contact_bodies(self) -> list[tuple[str | None, str | None]]:
         """Link names of the two bodies (None: the static world) of each contact joint of the last sub-step."""

@@ -248,9 +248,7 @@ class PybulletBackend(Backend):
         #: getContactPoints reports the last internal step's impulse over the whole stepSimulation
         #: (fixedTimeStep): with Bullet's sub-stepping that is n_sub times the internal step
         self._force_scale = float(n_sub) if self.engine_sub else 1.0
-        self._tau = np.zeros(3)
         self._tau_list = [0.0, 0.0, 0.0]  # the clamped torque [N m], as the command takes it
-        self._cmd = np.zeros(3)
         self._force = np.zeros(3)
         self._q = np.zeros(3)
         self._qd = np.zeros(3)
@@ -317,24 +315,30 @@ class PybulletBackend(Backend):
         (:meth:`ReferenceContact.implicit_generalized`, the clamped command as the other torque);
         ``explicit`` applies the law as it is (stable only below m v_th / (mu_s Fn)).
         """
-        body, cid, joints, tau, cmd = self.body, self.cid, self.joints, self._tau, self._cmd
-        tau[:] = self._tau_list
-        q, qd = self._q, self._qd
+        body, cid, joints = self.body, self.cid, self.joints
         implicit = self.cfg["reference_friction"] == "implicit"
         law, law_i, h = (
             self.contact.generalized,
             self.contact.implicit_generalized,
             self.physics.control_dt / self.n_sub,
         )
-        u1, u2, u3 = tau.tolist()
+        control, step, states = p.setJointMotorControlArray, p.stepSimulation, p.getJointStates
+        torque = p.TORQUE_CONTROL
+        u1, u2, u3 = self._tau_list
+        q, qd = self._q, self._qd
+        # the state as floats through the sub-steps, written back once
+        q1, q2, q3 = q.tolist()
+        qd1, qd2, qd3 = qd.tolist()
         for _ in range(self.n_sub):
             if implicit:
-                np.add(tau, law_i(q[0], q[1], q[2], qd[0], qd[1], qd[2], u1, u2, u3, h), out=cmd)
+                t1, t2, t3 = law_i(q1, q2, q3, qd1, qd2, qd3, u1, u2, u3, h).tolist()
             else:
-                np.add(tau, law(q[0], q[1], q[2], qd[0], qd[1], qd[2]), out=cmd)
-            p.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=cmd.tolist(), physicsClientId=cid)
-            p.stepSimulation(physicsClientId=cid)
-            self._read()
+                t1, t2, t3 = law(q1, q2, q3, qd1, qd2, qd3).tolist()
+            control(body, joints, torque, forces=[u1 + t1, u2 + t2, u3 + t3], physicsClientId=cid)
+            step(physicsClientId=cid)
+            s1, s2, s3 = states(body, joints, physicsClientId=cid)
+            q1, q2, q3, qd1, qd2, qd3 = s1[0], s2[0], s3[0], s1[1], s2[1], s3[1]
+        q[0], q[1], q[2], qd[0], qd[1], qd[2] = q1, q2, q3, qd1, qd2, qd3
         self._reference_force()
         self._reading = (*q.tolist(), *qd.tolist(), *self._force.tolist())
 
