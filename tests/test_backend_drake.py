@@ -295,3 +295,22 @@ def test_the_stiction_tolerance_gives_each_solver_the_laws_slope_near_zero_slip(
     assert stiction_tolerance("continuous", "hydroelastic", c) == 2.0 * c.mu_k * c.v_th / (np.pi * c.mu_s)
     for solver, model_ in (("lagged", "point"), ("similar", "hydroelastic"), ("sap", "point"), ("continuous", "point")):
         assert stiction_tolerance(solver, model_, c) == c.v_th
+
+
+def test_the_continuous_plant_refuses_reference_contact() -> None:
+    """Reference contact applies J_poc^T F at each sub-step's start; the continuous plant has no sub-steps, and it
+    ran with a step of 0 (every AdvanceTo(0) left the leg where it started: q constant over a whole run). Load
+    refuses the pair with an error naming the setting; a discrete solver in reference contact still moves."""
+    from legbench.exceptions import LegbenchError
+
+    with pytest.raises(LegbenchError, match=r"^backends\.drake\.solver: 'continuous' cannot run reference contact"):
+        load("drake", Physics(contact_mode="reference"), {"solver": "continuous"})
+    b = load("drake", Physics(contact_mode="reference"), {"solver": "sap"})
+    try:
+        q0 = np.array([0.3, -0.6, -1.1])
+        b.reset(q0, np.zeros(3))
+        for _ in range(10):
+            b.step(np.zeros(3))
+        assert np.abs(b.state()[0] - q0).max() > 1e-4  # [rad]: 10 ms falling under gravity
+    finally:
+        b.close()

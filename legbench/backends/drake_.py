@@ -220,8 +220,8 @@ class DrakeBackend(Backend):
             settings: overrides of :attr:`defaults`.
 
         Raises:
-            LegbenchError: an unknown solver, contact model or contact-parameter way, or a
-                ``dt`` that does not divide the control period.
+            LegbenchError: an unknown solver, contact model or contact-parameter way, a
+                ``dt`` that does not divide the control period, or the continuous plant in reference contact.
         """
         cfg = self.settings(settings)
         for key, offered in self.choices.items():
@@ -230,6 +230,14 @@ class DrakeBackend(Backend):
         self.cfg, self.physics = cfg, physics
         self.reference = physics.contact_mode == "reference"
         self.continuous = cfg["solver"] == "continuous"
+        if self.continuous and self.reference:
+            # reference contact applies J_poc^T F at each sub-step's start state; the continuous plant has no
+            # sub-steps (it ran with h = 0: every AdvanceTo(0) left the leg where it started)
+            raise LegbenchError(
+                "backends.drake.solver: 'continuous' cannot run reference contact (the law is applied at each "
+                "sub-step's start and the continuous plant has none); use a discrete solver (sap, tamsi, lagged, "
+                "similar) with contact_mode: reference"
+            )
         self.n_sub = 1 if self.continuous else sub_step_count(self.name, cfg["dt"], physics.control_dt)
         c = physics.contact
         self.v_s = float(
