@@ -561,3 +561,18 @@ def test_sub_step_must_divide_the_control_period(make: Make, engine: str) -> Non
 def test_mujoco_rejects_an_unknown_integrator(make: Make) -> None:
     with pytest.raises(LegbenchError, match="unknown integrator 'verlet'"):
         make("mujoco", integrator="verlet")
+
+
+def test_clamp_torque_is_np_clip_on_three_floats() -> None:
+    """backends.base.clamp_torque gives np.clip(tau, -limit, limit) bit for bit, NaN passing through (the run loop's
+    divergence check reports it), on 1000 random torques within and beyond the limits and at the limits exactly."""
+    from legbench.backends.base import clamp_torque
+
+    rng = np.random.default_rng(3)
+    limit = tuple(float(x) for x in PARAMS.effort)  # [N m]
+    hi = np.asarray(limit, dtype=float)
+    cases = [rng.uniform(-2.0, 2.0, 3) * hi for _ in range(1000)] + [hi.copy(), -hi, np.array([np.nan, 0.0, -np.inf])]
+    for tau in cases:
+        got = np.array(clamp_torque(tau, limit))
+        want = np.clip(tau, -hi, hi)
+        assert np.array_equal(got, want, equal_nan=True), (tau, got, want)

@@ -124,6 +124,18 @@ def sub_step_count(backend: str, dt: float, control_dt: float) -> int:
     return round(control_dt / dt)
 
 
+def clamp_torque(tau: np.ndarray, limit: Sequence[float]) -> tuple[float, float, float]:
+    """tau [N m] (3,) clamped to +-limit [N m] per joint, as three floats: what ``np.clip(tau, -limit, limit)``
+    gives (a NaN passes), without its cost on three numbers (1.2 against 0.15 us per tick)."""
+    t1, t2, t3 = tau.tolist()
+    l1, l2, l3 = limit
+    return (
+        -l1 if t1 < -l1 else (l1 if t1 > l1 else t1),
+        -l2 if t2 < -l2 else (l2 if t2 > l2 else t2),
+        -l3 if t3 < -l3 else (l3 if t3 > l3 else t3),
+    )
+
+
 def check_finite(backend: str, t: float, q: Sequence[float] | np.ndarray, qd: Sequence[float] | np.ndarray) -> None:
     """Raise :class:`SimulationDiverged` if the joint state q [rad], qd [rad/s] at time t [s] is not finite.
 

@@ -117,7 +117,7 @@ from pydrake.multibody.plant import AddMultibodyPlant, CoulombFriction, Multibod
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from legbench.backends.base import Backend, Limits, Physics, Range, check_finite, sub_step_count
+from legbench.backends.base import Backend, Limits, Physics, Range, check_finite, clamp_torque, sub_step_count
 from legbench.contact import ContactParams, ReferenceContact
 from legbench.exceptions import LegbenchError
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine, load_params
@@ -414,12 +414,7 @@ class DrakeBackend(Backend):
     # ----------------------------------------------------------------- step
     def step(self, tau: np.ndarray) -> None:
         """Advance one control period with tau [N m], clamped to the torque limits, held."""
-        t1, t2, t3 = tau.tolist()
-        l1, l2, l3 = self._limit
-        # as np.clip (a NaN passes)
-        u1 = -l1 if t1 < -l1 else (l1 if t1 > l1 else t1)
-        u2 = -l2 if t2 < -l2 else (l2 if t2 > l2 else t2)
-        u3 = -l3 if t3 < -l3 else (l3 if t3 > l3 else t3)
+        u1, u2, u3 = clamp_torque(tau, self._limit)
         u = self._tau
         u[0], u[1], u[2] = u1, u2, u3
         _set(self._act, u)

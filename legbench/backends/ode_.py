@@ -73,7 +73,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from legbench.backends.base import Backend, Limits, Physics, Range, check_finite, sub_step_count
+from legbench.backends.base import Backend, Limits, Physics, Range, check_finite, clamp_torque, sub_step_count
 from legbench.contact import ReferenceContact
 from legbench.exceptions import LegbenchError
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine
@@ -387,11 +387,7 @@ class OdeBackend(Backend):
     # ----------------------------------------------------------------- step
     def step(self, tau: np.ndarray) -> None:
         """Advance one control period with tau [N m], clamped to the torque limits, held over the sub-steps."""
-        t1, t2, t3 = tau.tolist()
-        l1, l2, l3 = self._limit
-        # as np.clip (a NaN passes)
-        self._u = (-l1 if t1 < -l1 else (l1 if t1 > l1 else t1), -l2 if t2 < -l2 else (l2 if t2 > l2 else t2),
-                   -l3 if t3 < -l3 else (l3 if t3 > l3 else t3))  # fmt: skip
+        self._u = clamp_torque(tau, self._limit)
         self._step()
         self.t += self.physics.control_dt
         check_finite(self.name, self.t, self._q, self._qd)

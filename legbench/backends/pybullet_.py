@@ -70,7 +70,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from legbench.backends.base import Backend, Limits, Physics, check_finite, sub_step_count
+from legbench.backends.base import Backend, Limits, Physics, check_finite, clamp_torque, sub_step_count
 from legbench.contact import ReferenceContact, law_step_warnings
 from legbench.model import FOOT_FRAME, LINK_NAMES, Inertial, combine
 
@@ -274,13 +274,7 @@ class PybulletBackend(Backend):
     # ----------------------------------------------------------------- step
     def step(self, tau: np.ndarray) -> None:
         """Advance one control period with tau [N m], clamped to the torque limits, held."""
-        t1, t2, t3 = tau.tolist()
-        l1, l2, l3 = self._limit
-        # as np.clip (a NaN passes)
-        u = self._tau_list
-        u[0] = -l1 if t1 < -l1 else (l1 if t1 > l1 else t1)
-        u[1] = -l2 if t2 < -l2 else (l2 if t2 > l2 else t2)
-        u[2] = -l3 if t3 < -l3 else (l3 if t3 > l3 else t3)
+        self._tau_list[:] = clamp_torque(tau, self._limit)
         self._step()
         self.t += self._dt
         r = self._reading
