@@ -166,35 +166,34 @@ def test_imap_unordered_starts_in_the_given_order_and_yields_every_item_once() -
         list(executors.LocalExecutor(1).imap_unordered(math.sqrt, items, [0, 0, 1, 2, 3]))
 
 
-def _gone(pid: int) -> bool:
-    """Whether process ``pid`` has ended (no such process, or a zombie not yet reaped)."""
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] == "Z"
-    except FileNotFoundError:
-        return True
-
-
-def _square_or_crash(task: tuple[int, str]) -> int:
-    """In a worker: x * x; for x == 3 the process writes its pid to ``marker`` and kills itself with SIGSEGV, as an
-    engine's segmentation fault. Items after it return only once that process has ended (the observable event),
-    so they are still in the pool when it breaks, however fast the machine; a bound of 60 s, not a wait."""
+def _square_or_crash(task: tuple[int, str, Any]) -> int:
+    """In a worker: x * x; for x == 3 the process writes its pid to ``marker``, sets ``ready`` (an Event of a
+    multiprocessing manager) and kills itself with SIGSEGV, as an engine's segmentation fault. Items after it
+    return only once that process has ended (the observable event: they block on ``ready``, then on a pidfd of
+    the process, which becomes readable when it exits), so they are still in the pool when it breaks, however
+    fast the machine; 60 s bounds each wait, it is not a wait."""
     import os
+    import select
     import signal
-    import time
     from pathlib import Path
 
-    x, marker = task
-    pid_file = Path(marker)
+    x, marker, ready = task
     if x == 3:
-        pid_file.write_text(str(os.getpid()))
+        Path(marker).write_text(str(os.getpid()))
+        ready.set()
         os.kill(os.getpid(), signal.SIGSEGV)
     if x > 3:
-        deadline = time.monotonic() + 60.0
-        while not (pid_file.is_file() and _gone(int(pid_file.read_text() or 0))):
-            if time.monotonic() > deadline:
+        if not ready.wait(60.0):
+            raise TimeoutError("item 3 never ran")
+        try:
+            fd = os.pidfd_open(int(Path(marker).read_text()))
+        except ProcessLookupError:  # ended and reaped already
+            return x * x
+        try:
+            if not select.select([fd], [], [], 60.0)[0]:
                 raise TimeoutError("item 3's worker never ended")
-            time.sleep(0.005)  # polling for the event above
+        finally:
+            os.close(fd)
     return x * x
 
 
@@ -202,19 +201,23 @@ def test_a_task_that_kills_its_worker_gets_on_crash_and_the_others_their_results
     """Item 3 of 8 kills its worker (SIGSEGV): the pool breaks with every item in it, and with ``on_crash``
     those are run again one by one in a pool of their own: item 3 gets on_crash's result naming the signal,
     every other item its own square, each exactly once. Without on_crash the map ends with BrokenExecutor."""
+    import multiprocessing
+
     marker = str(tmp_path / "crashed.pid")
-    items = [(x, marker) for x in range(8)]
-    with executors.LocalExecutor(2) as ex:
-        got = list(ex.imap_unordered(_square_or_crash, items, None, lambda t, why: f"crashed {t[0]}: {why}"))
-        again = sorted(ex.imap_unordered(_square_or_crash, [(4, marker), (5, marker)]))
-        assert again == [(0, 16), (1, 25)]  # the new pool works on
-    assert sorted(j for j, _ in got) == list(range(8))
-    res = dict(got)
-    assert str(res[3]).startswith("crashed 3: its worker process died (killed by SIGSEGV)"), res[3]
-    assert all(res[j] == j * j for j in range(8) if j != 3)
-    (tmp_path / "crashed.pid").unlink()
-    with pytest.raises(BrokenExecutor), executors.LocalExecutor(2) as ex:
-        list(ex.imap_unordered(_square_or_crash, items))
+    with multiprocessing.Manager() as manager:
+        ready = manager.Event()
+        items = [(x, marker, ready) for x in range(8)]
+        with executors.LocalExecutor(2) as ex:
+            got = list(ex.imap_unordered(_square_or_crash, items, None, lambda t, why: f"crashed {t[0]}: {why}"))
+            again = sorted(ex.imap_unordered(_square_or_crash, [(4, marker, ready), (5, marker, ready)]))
+            assert again == [(0, 16), (1, 25)]  # the new pool works on
+        assert sorted(j for j, _ in got) == list(range(8))
+        res = dict(got)
+        assert str(res[3]).startswith("crashed 3: its worker process died (killed by SIGSEGV)"), res[3]
+        assert all(res[j] == j * j for j in range(8) if j != 3)
+        fresh = manager.Event()
+        with pytest.raises(BrokenExecutor), executors.LocalExecutor(2) as ex:
+            list(ex.imap_unordered(_square_or_crash, [(x, marker, fresh) for x in range(8)]))
 
 
 class _OncePool:
