@@ -23,7 +23,7 @@ Format (every key but ``name``, ``duration`` and ``events`` has a default)::
     physics:
       gravity: 9.81
       contact_mode: native            # or reference
-      contact: {Kp: 1e4, Kd: 100, mu_s: 0.7, mu_k: 0.6, v_th: 0.02, poc: true}
+      contact: {Kp: 1e4, Kd: 100, mu_s: 0.7, mu_k: 0.6, v_th: 1.0e-3, poc: true}
     backends:                         # per-backend settings (see each backend's defaults)
       <name>: {dt: 1.0e-4}            # e.g. the reference backend's step and integrator
     comparison: {reference: pinocchio, skip: 0.0, steady_window: 0.5, tolerances: {}}
@@ -468,6 +468,7 @@ def parse(
         why = _sub_step_problem(backends[bname].get("dt"), 1.0 / rate) if exact_r else None
         if why is not None:
             raise ctx.error(["backends", bname, "dt"], why)
+        _check_combination(ctx, str(bname), backends[bname], profile, mode)
     if exact_r and every_engine:
         _check_default_sub_steps(ctx, backends, profile, 1.0 / rate)
 
@@ -640,6 +641,21 @@ def _check_default_sub_steps(ctx: YamlContext, settings: Mapping[str, Mapping[st
         raise ctx.error(["control_rate"], f"{1.0 / control_dt:g} Hz does not suit the default (or profile) sub-step "
                         f"of {names}: {misfits[0][1]}; set their backends.<name>.dt to such a step, or choose another "
                         "control_rate")  # fmt: skip
+
+
+def _check_combination(ctx: YamlContext, name: str, given: Mapping[str, Any], profile: str, mode: str) -> None:
+    """Refuse settings of an installed backend that cannot run in the scenario's contact ``mode`` (the backend's
+    own rule, :meth:`Backend.settings_problem`, as its load asks it), naming the setting."""
+    try:
+        cls = backends.get(name)
+    except BackendNotFound:
+        return  # not installed here: the run reports it missing
+    settings = dict(given)
+    resolved = cls.resolve_settings(settings, str(settings.pop("profile", profile)))
+    bad = cls.settings_problem(resolved, mode)
+    if bad is not None:
+        key, why = bad
+        raise ctx.error(["backends", name, key] if key in given else ["physics", "contact_mode"], why)
 
 
 def _known_backend(name: str) -> bool:

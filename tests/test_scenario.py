@@ -309,3 +309,15 @@ def test_a_null_setting_is_refused_where_the_range_does_not_allow_it() -> None:
     if "drake" in backends.available():
         drake = scenario.json_schema()["properties"]["backends"]["properties"]["drake"]["properties"]
         assert drake["stiction_tolerance"] == {"type": ["number", "null"], "exclusiveMinimum": 0.0}
+
+
+def test_a_backend_setting_that_cannot_run_the_contact_mode_is_refused_at_load(tmp_path: Path) -> None:
+    """Drake's continuous plant cannot apply the reference law (it has no sub-steps): the loader asks the backend's
+    own rule (Backend.settings_problem, which its load asks too) and names the setting, or the contact mode when
+    the combination comes from a profile or default; the same settings in native contact load."""
+    pytest.importorskip("pydrake")
+    doc = {**BASE, "physics": {"contact_mode": "reference"}, "backends": {"drake": {"solver": "continuous"}}}
+    with pytest.raises(ScenarioError, match=r"backends\.drake\.solver: 'continuous' cannot run reference contact"):
+        scenario.load(_write(tmp_path, doc))
+    doc["physics"] = {"contact_mode": "native"}
+    assert scenario.load(_write(tmp_path, doc)).backends["drake"] == {"solver": "continuous"}

@@ -205,6 +205,13 @@ class Backend(ABC):
             )
         return {**cls.defaults, **cls.profiles[profile], **given}
 
+    @classmethod
+    def settings_problem(cls, settings: Mapping[str, Any], contact_mode: str) -> tuple[str, str] | None:
+        """A combination of resolved ``settings`` (:meth:`resolve_settings`) that cannot run in ``contact_mode``:
+        (the setting's key, why, one phrase), or None. The one rule the scenario loader (``legbench validate``
+        and every run's load of the file) and the backend's :meth:`load` both ask."""
+        return None
+
     @abstractmethod
     def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
         """Build the engine's model of the leg from the generated URDF."""

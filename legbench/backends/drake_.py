@@ -211,6 +211,17 @@ class DrakeBackend(Backend):
         return None
 
     # ----------------------------------------------------------------- load
+    @classmethod
+    def settings_problem(cls, settings: Mapping[str, Any], contact_mode: str) -> tuple[str, str] | None:
+        """``solver: continuous`` in reference contact: the law is applied at each sub-step's start state, and the
+        continuous plant has no sub-steps (it ran with a step of 0: every AdvanceTo(0) left the leg where it
+        started)."""
+        if settings.get("solver") == "continuous" and contact_mode == "reference":
+            return "solver", ("'continuous' cannot run reference contact (the law is applied at each sub-step's "
+                              "start and the continuous plant has none); use a discrete solver (sap, tamsi, "
+                              "lagged, similar) with contact_mode: reference")  # fmt: skip
+        return None
+
     def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
         """Build plant, scene graph and simulator; map the contact parameters (module docstring).
 
@@ -230,14 +241,9 @@ class DrakeBackend(Backend):
         self.cfg, self.physics = cfg, physics
         self.reference = physics.contact_mode == "reference"
         self.continuous = cfg["solver"] == "continuous"
-        if self.continuous and self.reference:
-            # reference contact applies J_poc^T F at each sub-step's start state; the continuous plant has no
-            # sub-steps (it ran with h = 0: every AdvanceTo(0) left the leg where it started)
-            raise LegbenchError(
-                "backends.drake.solver: 'continuous' cannot run reference contact (the law is applied at each "
-                "sub-step's start and the continuous plant has none); use a discrete solver (sap, tamsi, lagged, "
-                "similar) with contact_mode: reference"
-            )
+        bad = self.settings_problem(cfg, physics.contact_mode)
+        if bad is not None:
+            raise LegbenchError(f"backends.drake.{bad[0]}: {bad[1]}")
         self.n_sub = 1 if self.continuous else sub_step_count(self.name, cfg["dt"], physics.control_dt)
         c = physics.contact
         self.v_s = float(
