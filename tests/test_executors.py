@@ -221,18 +221,23 @@ def test_a_task_that_kills_its_worker_gets_on_crash_and_the_others_their_results
 
 
 class _OncePool:
-    """A stand-in process pool that runs each task at once in this process; with ``break_after``, the submission
-    after that many raises BrokenProcessPool, as a pool whose worker died between a result and the next item."""
+    """A stand-in process pool that runs each task at once in this process. ``break_after``: the submission after
+    that many raises BrokenProcessPool, as a pool whose worker died between a result and the next item;
+    ``crash_on``: the task for that item comes back broken (its future holds BrokenProcessPool), as the futures
+    of a pool whose worker died under them."""
 
-    def __init__(self, break_after: int | None) -> None:
-        self.break_after, self.submitted = break_after, 0
+    def __init__(self, break_after: int | None = None, crash_on: float | None = None) -> None:
+        self.break_after, self.crash_on, self.submitted = break_after, crash_on, 0
 
     def submit(self, fn: Any, *args: Any) -> Future[Any]:
         if self.break_after is not None and self.submitted >= self.break_after:
             raise BrokenProcessPool("a worker died")
         self.submitted += 1
         fut: Future[Any] = Future()
-        fut.set_result(fn(*args))
+        if self.crash_on is not None and args and args[-1] == self.crash_on:
+            fut.set_exception(BrokenProcessPool("a worker died"))
+        else:
+            fut.set_result(fn(*args))
         return fut
 
     def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
@@ -254,25 +259,6 @@ def test_a_pool_that_breaks_between_a_result_and_the_next_submission_goes_on_in_
         list(executors.LocalExecutor(2).imap_unordered(math.sqrt, [0.0, 1.0, 4.0]))
 
 
-class _CrashingPool:
-    """A stand-in process pool that runs each task at once in this process, except that the task for
-    ``crash_on`` comes back broken (BrokenProcessPool), as the futures of a pool whose worker died under it."""
-
-    def __init__(self, crash_on: float | None) -> None:
-        self.crash_on = crash_on
-
-    def submit(self, fn: Any, *args: Any) -> Future[Any]:
-        fut: Future[Any] = Future()
-        if args and args[-1] == self.crash_on:
-            fut.set_exception(BrokenProcessPool("a worker died"))
-        else:
-            fut.set_result(fn(*args))
-        return fut
-
-    def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
-        pass
-
-
 def test_a_result_finished_beside_the_crash_is_kept_and_the_crash_alone_is_rerun(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -280,10 +266,10 @@ def test_a_result_finished_beside_the_crash_is_kept_and_the_crash_alone_is_rerun
     before the break, is yielded as it is; only item 2 runs again, alone (it crashes again: on_crash's -1),
     then item 4 goes on in a new pool. Three pools in all (the first, item 2's one-worker pool, the new one),
     every item exactly once."""
-    pools = [_CrashingPool(4.0), _CrashingPool(4.0), _CrashingPool(None)]
-    made: list[_CrashingPool] = []
+    pools = [_OncePool(crash_on=4.0), _OncePool(crash_on=4.0), _OncePool()]
+    made: list[_OncePool] = []
 
-    def make(**kw: Any) -> _CrashingPool:
+    def make(**kw: Any) -> _OncePool:
         made.append(pools[len(made)])
         return made[-1]
 
