@@ -154,10 +154,12 @@ def simulate(
 
 def backend_info(backend: Backend) -> dict[str, Any]:
     """What run.json records of a backend: its :meth:`~Backend.info`, the ``profile`` it was loaded with,
-    its declared ``integrator_family`` and ``sub_steps`` (what verification predicts by), and its
-    :meth:`~Backend.warnings` after the run (e.g. a sub-step too coarse for the contact law)."""
+    its declared ``integrator_family``, ``sub_steps`` and ``engine_contact`` (what verification predicts and
+    scores by), and its :meth:`~Backend.warnings` after the run (e.g. a sub-step too coarse for the contact
+    law)."""
     return {**backend.info(), "profile": backend.profile, "integrator_family": backend.integrator_family(),
-            "sub_steps": backend.sub_steps(), "warnings": backend.warnings()}  # fmt: skip
+            "sub_steps": backend.sub_steps(), "engine_contact": bool(backend.engine_contact()),
+            "warnings": backend.warnings()}  # fmt: skip
 
 
 def run_backend(scenario: Scenario, name: str, contact_mode: str | None = None, progress: bool = False) -> RunResult:

@@ -112,17 +112,15 @@ def drag(
     except Exception as exc:
         return RunResult.empty(backend, "failed", f"{type(exc).__name__}: {exc}"), physics
     try:
-        tr = simulate(sc, b, physics)
-        tr.info["engine_contact"] = bool(b.engine_contact())  # for :func:`applies_law`
-        return tr, physics
+        return simulate(sc, b, physics), physics
     finally:
         b.close()
 
 
 def applies_law(info: Mapping[str, Any], physics: Physics) -> bool:
     """True if the run's ground force is the spec's law, applied by legbench at its known point of contact:
-    the backend has no contact of its own (``engine_contact`` False, as :func:`drag` and the verification
-    cases record it in the run's info) or runs in reference contact mode."""
+    the backend has no contact of its own (``engine_contact`` False in the run's info, as
+    :func:`legbench.run.backend_info` records it for every run) or runs in reference contact mode."""
     return physics.contact_mode == "reference" or not info.get("engine_contact", True)
 
 

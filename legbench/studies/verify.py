@@ -28,7 +28,7 @@ answer computed here from the leg's reference model (:class:`legbench.model.Dyna
     bound of that error control, n_periods (rtol |x| + atol) |grad E|, is 5e-4 J
     (Pinocchio) and 3e-3 J (Lagrange's atol 1e-6): larger than semi-implicit
     Euler's max |E - E0| at 50 us, 4.9e-4 J, so it cannot tell a fifth-order step
-    from a first-order one, while this bound (6.7e-11 J at max_step 1e-4 s) can
+    from a first-order one, while this bound (3.9e-11 J at max_step 1e-4 s) can
     (RK4 at that step, 8e-14 J, is at round-off and passes either). A backend
     declaring the family ``first-order`` (a first-order step with no closed form here,
     e.g. one in maximal coordinates): no prediction; max |E - E0| must stay
@@ -237,13 +237,9 @@ def _variant(info: Mapping[str, Any], control_dt: float) -> str:
 
 
 def _simulate(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any]) -> Any:
-    """Run ``scenario`` on backend ``name``; the run's info also records ``engine_contact`` (the backend's
-    :meth:`~legbench.backends.base.Backend.engine_contact`)."""
     backend = registry.load(name, physics, settings)
     try:
-        tr = simulate(scenario, backend, physics)
-        tr.info["engine_contact"] = bool(backend.engine_contact())
-        return tr
+        return simulate(scenario, backend, physics)
     finally:
         backend.close()
 
