@@ -471,8 +471,9 @@ class PinocchioBackend(Backend):
         its stability region), k and b the limit's stiffness [N m/rad] and damping [N m s/rad], and
         I = 1 / (M^-1)_jj [kg m^2] the joint's effective inertia, the smallest at which the run was past the
         joint's limit (recorded at each period's first sub-step past it: the compiled period keeps it in its
-        scratch at no cost inside the limits, see :func:`pinocchio_kernel._record_limits`). Empty for the
-        adaptive integrators (their error control sets the step) and for a run that stayed inside the limits.
+        scratch, three comparisons per sub-step inside the limits, see :func:`pinocchio_kernel._record_limits`).
+        Empty for the adaptive integrators (their error control sets the step) and for a run that stayed inside
+        the limits.
         """
         integ = self.cfg["integrator"]
         if integ not in joint_limits.INTEGRATORS:
@@ -491,8 +492,7 @@ class PinocchioBackend(Backend):
             f"{self.name}: sub-step {self.h:.3g} s is too coarse for the joint-limit spring-damper: "
             f"{JOINT_NAMES[j]} reached its limit, there with effective inertia down to I = 1/(M^-1)_jj = "
             f"{inertia:.3g} kg m^2, and with k = {k:g} N m/rad, b = {b:g} N m s/rad {how}: {bound:.3g} s; the limit "
-            f"bounces or diverges "
-            f"(use a sub-step <= {bound:.2g} s)"
+            f"bounces or diverges (use a sub-step <= {bound:.2g} s)"
         ]
 
     # ------------------------------------------------------- declared abilities
