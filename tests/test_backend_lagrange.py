@@ -472,7 +472,8 @@ def test_each_model_has_its_own_compiled_period(make: Any, tmp_path: Path) -> No
     )
     assert first is not second and first is lagrange_kernel.period(backend.eom.module.KEY, backend._qdd)
     x0 = np.array([0.1, -0.6, 1.2, 0.5, -0.3, 0.8])  # free swing: the masses alone set the motion
-    u, g, rtol, atol, max_step = np.zeros(3), backend.g, *backend._tols
+    u, g = np.zeros(3), backend.g
+    rtol, atol, max_step = backend._tols
     ends = []
     for key, qdd, period in ((backend.eom.module.KEY, backend._qdd, first), (other.KEY, other.qdd, second)):
         x, y = x0.copy(), x0.copy()

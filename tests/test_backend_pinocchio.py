@@ -531,6 +531,7 @@ def test_compiled_rk45_takes_solve_ivps_steps_in_stick_slip_contact() -> None:
     perturbation into up to 6.5e-11 of the end state, and the two ABAs differ there by 1.5e-12."""
     be = _backend({"integrator": "rk45", "rtol": 1e-6, "atol": 1e-8, "max_step": 2e-4}, 9.81, ContactParams())
     assert be.info()["kernel_used"] == "compiled (numba)"
+    assert be._dopri is not None
     period, x, u, lc, lim, k, data = be._dopri
     rng = np.random.default_rng(5)
     start = K.ik_nearest(np.array([0.1667, 0.0, model.load_params().geometry.R_foot - 0.001]),
@@ -634,6 +635,7 @@ def test_compiled_rk45_drives_a_joint_past_its_limit_as_solve_ivp_does() -> None
     limit moving out at 0.5 rad/s (tau_lim = -k 0.02 - b 0.5 = -210 N m; k and b swapped would give ~-5000 N m):
     solve_ivp(RK45)'s evaluations on the Python ABA and limit law, and its end state within 1e-12."""
     be = _backend({"integrator": "rk45", "rtol": 1e-6, "atol": 1e-8, "max_step": 2e-4}, 9.81, ContactParams())
+    assert be._dopri is not None
     period, x, u, lc, lim, k, data = be._dopri
     x0 = np.array([0.0, -0.3, be.upper[2] + 0.02, 0.0, 0.0, 0.5])
     assert be.law(*x0)[5] == 0.0  # off the ground
@@ -654,6 +656,7 @@ def test_a_step_size_underflow_in_the_compiled_rk45_is_a_clear_error() -> None:
     """The compiled period's -1 (step size below 10 ulp of t) becomes the backend's one-line error."""
     be = _backend({"integrator": "rk45"})
     be.reset(np.zeros(3), np.zeros(3))
+    assert be._dopri is not None
     be._dopri = (lambda *_: -1, *be._dopri[1:])
     with pytest.raises(LegbenchError, match="rk45 failed: Required step size"):
         be.step(np.zeros(3))

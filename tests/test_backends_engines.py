@@ -268,7 +268,7 @@ def engine_gravity(backend: Backend, q: np.ndarray) -> np.ndarray:
     import pybullet
 
     tau = pybullet.calculateInverseDynamics(
-        backend.body,
+        backend.body,  # type: ignore[attr-defined]
         q.tolist(),
         [0.0] * 3,
         [0.0] * 3,
@@ -455,6 +455,9 @@ def test_only_the_foot_touches_the_ground(make: Make, engine: str, mode: str) ->
         assert law[5] > 0.0  # [N] the foot is below the ground, so the law pushes
         np.testing.assert_array_equal(backend.ground_force(), law[3:])
         return
+    # contact pairs as each engine names them: body ids, body names, or bullet (body, link) ids
+    pairs: set[tuple[object, ...]]
+    foot: set[tuple[object, ...]]
     if engine == "mujoco":
         m, d = backend.model, backend.data  # type: ignore[attr-defined]
         pairs = {(m.geom_bodyid[c.geom1], m.geom_bodyid[c.geom2]) for c in d.contact[: d.ncon]}

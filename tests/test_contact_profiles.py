@@ -183,8 +183,8 @@ def test_reference_mode_engines_match_pinocchio_with_implicit_friction() -> None
     from legbench import scenario as scenario_mod
     from legbench.run import physics_of, simulate
 
-    for b in BACKENDS:
-        _need(b)
+    for name in BACKENDS:
+        _need(name)
     sc = scenario_mod.load(SCENARIOS["effort"])
     physics = physics_of(sc, "reference")
     runs = {}

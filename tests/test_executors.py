@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Generator
 from concurrent.futures import BrokenExecutor, Future
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import pandas as pd
 import pytest
@@ -120,7 +121,8 @@ def test_start_spawns_the_workers_before_the_first_task() -> None:
     serial = executors.LocalExecutor(1)
     serial.start()
     assert serial._pool is None
-    with executors.LocalExecutor(2) as ex:
+    ex = executors.LocalExecutor(2)  # bound outside the with: __enter__ is typed as returning the base Executor
+    with ex:
         ex.start()  # returns at once; the workers are spawned from a thread
         ex._started()  # the thread has handed out its tasks: the processes exist
         pool = ex._pool
@@ -285,7 +287,8 @@ def test_terminate_stops_running_workers_and_keeps_what_finished() -> None:
     """A worker busy with a long task is stopped by terminate() (SIGTERM, then SIGKILL after 2 s: the blocked
     tasks never end by themselves); the result that finished before is kept."""
     ex = executors.LocalExecutor(2)
-    it = ex.imap_unordered(_pid_or_block, [0, 1, 1], [0, 1, 2])
+    # LocalExecutor.imap_unordered is a generator function, so its result has close()
+    it = cast("Generator[tuple[int, int], None, None]", ex.imap_unordered(_pid_or_block, [0, 1, 1], [0, 1, 2]))
     j, pid = next(it)  # the quick item finished: the others are running or queued
     assert j == 0 and isinstance(pid, int)
     pool = ex._pool

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -11,7 +12,7 @@ from legbench import cli, model, resources
 
 
 @pytest.fixture
-def other_model(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+def other_model(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
     """The bundled parameter file with gravity 9.0 instead of 9.81 m/s^2; the cache in tmp; selection undone after."""
     monkeypatch.setenv(resources.CACHE_ENV, str(tmp_path / "cache"))
     monkeypatch.delenv(resources.MODEL_ENV, raising=False)

@@ -17,7 +17,7 @@ from legbench.model import load_params
 
 LIMIT = np.array(load_params().effort)  # joint torque limits [N m]
 
-DOC = {
+DOC: dict[str, Any] = {
     "name": "fake",
     "duration": 0.5,
     "events": [
@@ -27,7 +27,7 @@ DOC = {
 }
 
 
-def _simulate(doc: dict) -> tuple[results.RunResult, FakeBackend]:  # type: ignore[type-arg]
+def _simulate(doc: dict[str, Any]) -> tuple[results.RunResult, FakeBackend]:
     sc = scenario.parse(doc)
     be = FakeBackend()
     phys = scenario.physics_of(sc)

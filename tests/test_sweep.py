@@ -230,7 +230,9 @@ def test_star_keys_configure_the_run_not_another_backends_reference(tmp_path: Pa
     p = sweep.plan(sweep.load_sweep(_write(tmp_path, text)))
     refs = {r.ref for r in p.rows if r.role == "run"}
     assert len(refs) == 1
-    ref_task = p.tasks[refs.pop()]
+    ref = refs.pop()
+    assert ref is not None  # a run row always names its reference task
+    ref_task = p.tasks[ref]
     assert ref_task.backend == "pinocchio" and not any(k.startswith("backends.") for k in ref_task.overrides)
     runs = [p.tasks[r.run] for r in p.rows if r.role == "run"]
     assert {tuple(t.overrides) for t in runs} == {("duration", f"backends.{t.backend}.dt") for t in runs}

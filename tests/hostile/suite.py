@@ -16,6 +16,7 @@ import tempfile
 import traceback
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -29,7 +30,7 @@ from legbench import cli  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 EFFORT = str(ROOT / "scenarios" / "effort.yaml")
-GOOD = {"name": "t", "duration": 0.6, "events": [{"t": 0.0, "position": {"joint": [0.0, -1.0, -1.0]}}]}
+GOOD: dict[str, Any] = {"name": "t", "duration": 0.6, "events": [{"t": 0.0, "position": {"joint": [0.0, -1.0, -1.0]}}]}
 _reg = registry._registry
 
 
