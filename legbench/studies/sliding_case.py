@@ -36,7 +36,7 @@ import numpy as np
 from legbench import backends as registry
 from legbench import kinematics, resources
 from legbench import scenario as scenario_mod
-from legbench.backends.base import Physics
+from legbench.backends.base import Backend, Physics
 from legbench.model import Dynamics, load_params
 from legbench.results import RunResult
 from legbench.run import physics_of, simulate
@@ -151,7 +151,10 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     k = k[(k > 0) & (k < len(tr.t) - 1)]
     n_window = len(k)
     # samples in contact only (an engine's foot may hop: the closed form is for sliding contact)
-    k = k[(tr.f[k, 2] > FN_MIN) & (np.linalg.norm(v[k], axis=1) > 0.0)]
+    k = k[tr.f[k, 2] > FN_MIN]
+    if cls.friction_cone == "pyramid" and len(k):
+        return _score_pyramid(tr, physics, cls, mu, v, k, n_window)
+    k = k[np.linalg.norm(v[k], axis=1) > 0.0]
     if len(k) == 0:
         return [dict(zip(ROW_KEYS, (case, backend, "run", "", math.nan, math.nan, math.nan, 0.0, False,
                                     "no sample of the window in sliding contact"), strict=True))]  # fmt: skip
@@ -188,4 +191,81 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     return out
 
 
-__all__ = ["ROW_KEYS", "applies_law", "drag", "predicted_acceleration", "score", "sliding_case"]
+def pyramid_friction(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, fn: np.ndarray, mu: float,
+                     lift: float = 0.0) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The friction pyramid's closed form at each sample: the tangential ground force in W [N] (n x 2) and the
+    poc's horizontal acceleration in W [m/s^2] (n x 2) it gives, under tau [N m] and the normal force fn [N].
+
+    The pyramid bounds each of W x and W y on its own, |F_i| <= mu Fn (the axes both pyramid engines take for a
+    ground normal +z_W: ODE's dPlaneSpace, DART's tangent basis). The acceleration is affine in the force
+    (:func:`predicted_acceleration`); the axes that can hold (|F_i| <= mu Fn with the foot stuck along both)
+    hold, an axis that cannot slides with F_i = mu Fn against its holding force's sign and the other axis is
+    solved again with it (and slides too if it then cannot hold).
+    """
+    n = len(q)
+    force = np.zeros((n, 3))
+    force[:, 2] = fn
+    a0 = predicted_acceleration(q, qd, tau, force, lift)
+    cols = []
+    for i in range(2):
+        unit = force.copy()
+        unit[:, i] = 1.0
+        cols.append(predicted_acceleration(q, qd, tau, unit, lift) - a0)
+    ft = np.empty((n, 2))
+    acc = np.empty((n, 2))
+    for s in range(n):
+        A = np.column_stack([cols[0][s], cols[1][s]])
+        bound = mu * fn[s]
+        f = np.linalg.solve(A, -a0[s])  # both axes held
+        over = np.abs(f) > bound
+        if over.any():
+            i = int(np.argmax(np.abs(f)))  # the axis furthest past its (common) bound slides first
+            j = 1 - i
+            f[i] = math.copysign(bound, f[i])
+            f[j] = -(a0[s, j] + A[j, i] * f[i]) / A[j, j]
+            if abs(f[j]) > bound:
+                f[j] = math.copysign(bound, f[j])
+        ft[s] = f
+        acc[s] = a0[s] + A @ f
+    return ft, acc
+
+
+def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], mu: float, v: np.ndarray, k: np.ndarray,
+                   n_window: int) -> list[dict[str, Any]]:  # fmt: skip
+    """The drag scored against the friction pyramid's closed form (:func:`pyramid_friction`): the force along
+    the drag (W y) at mu Fn, the force across it (W x) within mu Fn, the slip acceleration along W y."""
+    case, backend = "sliding", tr.backend
+    Ts = physics.control_dt
+    fn = tr.f[k, 2]
+    ft_pred, a_pred = pyramid_friction(tr.q[k], tr.qd[k], tr.tau[k], fn, mu, cls.contact_point_lift)
+    slides = np.abs(ft_pred[:, 1]) >= mu * fn * (1.0 - 1e-12)  # the closed form's W y at its bound
+    along = float(np.mean(np.abs(tr.f[k, 1]) / fn))
+    across = float(np.max(np.abs(tr.f[k, 0]) / fn))
+    a_meas = (v[k + 1, 1] - v[k - 1, 1]) / (2 * Ts)
+    am, ap = float(np.mean(a_meas)), float(np.mean(a_pred[:, 1]))
+    speed = np.abs(v[k, 1])
+    ctx = (f"pyramid along W x and W y, {cls.sliding_coefficient} = {mu:g}; the closed form slides W y at "
+           f"{int(slides.sum())} of {len(k)} samples; slip along W y {1e3 * speed.min():.3g}-"
+           f"{1e3 * speed.max():.3g} mm/s, Fn {fn.mean():.3g} N, {len(k)} of {n_window} samples in "
+           "contact")  # fmt: skip
+    expected_along = mu if slides.all() else float(np.mean(np.abs(ft_pred[:, 1]) / fn))
+    e_along = abs(along / expected_along - 1.0)
+    e_across = max(across / mu - 1.0, 0.0)
+    e_acc = abs(am / ap - 1.0) if ap != 0.0 else abs(am)
+    rows = [
+        (case, backend, "friction along the drag |F_y| / Fn (pyramid)", "1", along, expected_along, e_along,
+         TOL_MU, e_along <= TOL_MU, ctx),
+        (case, backend, "friction across the drag |F_x| / Fn (max; pyramid bound)", "1", across, mu, e_across,
+         TOL_MU, e_across <= TOL_MU, ctx),
+        (case, backend, "slip acceleration along the drag (mean; pyramid)", "m/s^2", am, ap, e_acc, TOL_ACC,
+         e_acc <= TOL_ACC, f"closed form M^-1 (tau - nle + J_poc^T F), F the pyramid's; {ctx}"),
+    ]  # fmt: skip
+    out = [dict(zip(ROW_KEYS, r, strict=True)) for r in rows]
+    for r in out:
+        known = None if r["passed"] else cls.known_deviation(case, str(r["quantity"]), tr.info)
+        if known:
+            r["note"] = f"{known}; {r['note']}"
+    return out
+
+
+__all__ = ["ROW_KEYS", "applies_law", "drag", "predicted_acceleration", "pyramid_friction", "score", "sliding_case"]
