@@ -32,7 +32,7 @@ import pandas as pd
 
 from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import ResultsError
-from legbench.report_figures import ASSETS, NAMES, PLOTLY_JS, Arrays, run_figures, write_assets
+from legbench.report_figures import ASSETS, NAMES, PLOTLY_JS, Arrays, run_figures, run_title, write_assets
 from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num, relpath, to_html, to_markdown
 from legbench.results import (
     atomic_write_text,
@@ -140,34 +140,86 @@ def sim_class(value: float, signal: str, joint: str, tolerances: Mapping[str, An
     return "", ""
 
 
+#: A component whose reference peak is under this fraction of its signal's largest (the effort task's q1, 0.004 rad
+#: beside the knee's 1.26 rad; qd1, 0.089 rad/s beside 2.24 rad/s) turns a small deviation into a large
+#: percentage: the headline leaves it out, and says what it left out when that was larger.
+SMALL_PEAK = 0.1
+#: Backends whose simulation error in the headline's component is within this fraction of the largest deviate
+#: as much, and are named with it (the 1 ms engines of an engine-defaults run, equal to 1e-5).
+TIE = 1e-3
+
+
+def time_text(t: float) -> str:
+    """A time [s] to the millisecond of a 1 kHz log at least (``11.009``, not ``11.01``; ``3``, ``0.004``)."""
+    if not math.isfinite(t) or t == 0.0:
+        return num(t)
+    return num(t, max(4, math.floor(math.log10(abs(t))) + 4))
+
+
+def at_most(x: float, digits: int = 3) -> str:
+    """``x`` rounded up to ``digits`` significant digits, so that "within X" holds as printed (100.04 is
+    ``101``, not ``100``); an x within 1e-9 of a printed value is that value."""
+    if not math.isfinite(x) or x <= 0.0:
+        return num(x, digits)
+    step = 10.0 ** (math.floor(math.log10(x)) - digits + 1)
+    return num(math.ceil(x * (1.0 - 1e-9) / step) * step, digits)
+
+
+def _names(items: Sequence[str]) -> str:
+    return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
+
+
 def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
-    """One sentence from the metrics of a run: the largest deviation, whose, in what signal, and why."""
+    """One sentence from the metrics of a run: the largest deviation, whose, in what signal, and why.
+
+    The headline is the largest simulation error % among the components whose reference peak is at least
+    :data:`SMALL_PEAK` of their signal's largest (else a deviation of 0.09 rad/s in a joint that barely moves
+    outranks one of 2.2 rad/s in one that swings); backends within :data:`TIE` of it in the same component are
+    named with it; the bound on every other backend is rounded up and taken over the same components; a
+    left-out component that exceeds what the sentence says is stated after it, with its size and time.
+    """
     ref = str(meta.get("reference", ""))
     cols = [df[c].tolist() for c in ("backend", "reference", "signal", "joint", "metric", "value")]
     value = {(b, r, s, j, m): float(v) for b, r, s, j, m, v in zip(*cols, strict=True)}
     sim = {k: v for k, v in value.items() if k[4] == "sim_error_pct" and k[1] == ref and math.isfinite(v)}
     if not sim:
         return f"No deviation measured: the reference backend '{ref}' has no data."
-    (b, _, s, j, _), v = max(sim.items(), key=lambda kv: kv[1])
-    lab = column_label(s, j)
     nan = math.nan
+    peaks: dict[tuple[str, str], float] = {}
+    for (_, r, s, j, m), x in value.items():
+        if m == "ref_peak" and r == ref and math.isfinite(x):
+            peaks[(s, j)] = max(peaks.get((s, j), 0.0), x)
+    largest: dict[str, float] = {}
+    for (s, _), x in peaks.items():
+        largest[s] = max(largest.get(s, 0.0), x)
+    small = {c for c, x in peaks.items() if x < SMALL_PEAK * largest[c[0]]}
+    main = {k: v for k, v in sim.items() if (k[2], k[3]) not in small} or sim
+    (b, _, s, j, _), v = max(main.items(), key=lambda kv: kv[1])
+    lab = column_label(s, j)
     dev, t = value.get((b, ref, s, j, "max_abs"), nan), value.get((b, ref, s, j, "t_max_abs"), nan)
-    others = [x for k, x in sim.items() if k[0] != b]
-    if v < BANDS[0][0]:
+    tied = sorted(k[0] for k, x in sim.items() if k[0] != b and k[2:4] == (s, j) and abs(x - v) <= TIE * v)
+    others = [x for k, x in main.items() if k[0] != b and k[0] not in tied]
+    top_key, top = max(sim.items(), key=lambda kv: kv[1])
+    if top < BANDS[0][0]:
         text = (
-            f"Every backend agrees with {ref} to round-off: the largest simulation error is {num(v, 3)} % ({b}, {lab})."
+            f"Every backend agrees with {ref} to round-off: the largest simulation error is {num(top, 3)} % "
+            f"({top_key[0]}, {column_label(top_key[2], top_key[3])})."
         )
     else:
+        peak = value.get((b, ref, s, j, "ref_peak"), nan)
+        peak = peak if math.isfinite(peak) else dev * 100.0 / v
         text = (
             f"Largest difference: {b}'s {lab} ({NAMES[s]}) deviates from {ref} by up to {num(dev, 3)} "
-            f"{UNITS[s]} at t = {num(t, 4)} s, {num(v, 3)} % of the reference's peak ({num(dev * 100.0 / v, 3)} "
+            f"{UNITS[s]} at t = {time_text(t)} s, {num(v, 3)} % of the reference's peak ({num(peak, 3)} "
             f"{UNITS[s]})"
         )
-        text += f"; every other backend stays within {num(max(others), 3)} %." if others else "."
+        if tied:
+            text += f"; {_names(tied)} deviate as much (within {num(TIE * 100.0)} %)"
+        text += f"; every other backend stays within {at_most(max(others))} %." if others else "."
     contact = value.get((b, ref, s, j, "split_contact_pct"), nan)
     integ = value.get((b, ref, s, j, "split_integration_pct"), nan)
     n_contact = [x for k, x in value.items() if k[4] == "residual_n_contact"]
-    if v >= BANDS[0][0] and math.isfinite(contact) and math.isfinite(integ):
+    if top >= BANDS[0][0] and math.isfinite(contact) and math.isfinite(integ):
         part = "contact model" if contact >= integ else "integration and dynamics"
         text += (
             f" Why: mostly the {part} (contact-mode split: contact {num(contact, 3)} %, integration {num(integ, 3)} %)."
@@ -176,13 +228,32 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
         text += " Every engine runs the same contact law here, so what differs is integration and dynamics."
     elif n_contact and max(n_contact) == 0:
         text += " The foot never touches the ground, so what differs is integration and dynamics."
+    if top >= BANDS[0][0]:
+        bound = max(others) if others else v
+        beyond = {k: x for k, x in sim.items() if (k[2], k[3]) in small
+                  and x > (v if k[0] == b or k[0] in tied else bound)}  # fmt: skip
+        if beyond:
+            (b2, _, s2, j2, _), v2 = max(beyond.items(), key=lambda kv: kv[1])
+            dev2, t2 = value.get((b2, ref, s2, j2, "max_abs"), nan), value.get((b2, ref, s2, j2, "t_max_abs"), nan)
+            left = [f"{column_label(*c)} ({num(peaks[c], 3)} {UNITS[c[0]]})" for c in sorted(small, key=_order)]
+            text += (
+                f" Left out above, as their reference peak is under {num(SMALL_PEAK * 100.0)} % of their signal's "
+                f"largest: {_names(left)}; there {b2}'s {column_label(s2, j2)} reaches {num(v2, 3)} % "
+                f"({num(dev2, 3)} {UNITS[s2]} at t = {time_text(t2)} s)."
+            )
     return text
+
+
+def _order(c: tuple[str, str]) -> int:
+    """A component's place among the 12 data columns (q1..q3, qd1..qd3, tau1..tau3, fx..fz)."""
+    lab = column_label(*c)
+    return LABELS.index(lab) if lab in LABELS else len(LABELS)
 
 
 def colour_key() -> Table:
     """One row showing every colour of a simulation error % and what it means."""
-    header = (*(why.split(": ")[0] for _, _, why in BANDS), "scenario limit", "scenario limit")
-    row = (*(why.split(": ")[1] for _, _, why in BANDS), "within", "exceeded")
+    header = (*(why.split(": ")[0] for _, _, why in BANDS), "<= scenario limit", "> scenario limit")
+    row = (*(why.split(": ")[1] for _, _, why in BANDS), "within the limit", "exceeds the limit")
     classes = {(0, j): c for j, c in enumerate(("agree", "close", "differ", "far", "within", "over"))}
     return Table(header, (row,), "Colour key of the simulation error % (a scenario's own limit overrides the bands)",
                  classes=classes)  # fmt: skip
@@ -211,10 +282,15 @@ def _pair_table(result: ComparisonResult, metric: str, caption: str, unit: bool)
     return Table(header, rows, caption, classes=classes, titles=titles)
 
 
+def _at_time(m: float, t: float) -> str:
+    """A largest deviation and its time; a component that never deviates (0) or has no data has no time."""
+    return f"{num(m, 3)} @ {time_text(t)} s" if math.isfinite(m) and m != 0.0 and math.isfinite(t) else num(m, 3)
+
+
 def _maxdev_table(result: ComparisonResult) -> Table:
     header = ("backend", "vs", *(_col_header(i) for i in range(12)))
     rows = tuple(
-        (p.backend, p.reference, *(f"{num(m, 3)} @ {num(t, 4)} s" for m, t in zip(p.max_abs, p.t_max_abs, strict=True)))
+        (p.backend, p.reference, *(_at_time(float(m), float(t)) for m, t in zip(p.max_abs, p.t_max_abs, strict=True)))
         for p in result.pairs
     )
     return Table(header, rows, "Largest deviation |x - x_ref| and the time it happens")
@@ -321,15 +397,28 @@ def _backend_tables(result: ComparisonResult) -> list[Block]:
     return blocks
 
 
+def _rigid(result: ComparisonResult, name: str) -> bool:
+    """The backend reports its own contact as rigid (run.json: engine contact on, ``contact.Kp`` null, as DART's
+    LCP): it has no spring, so the law's penetration Fn/Kp is not what it was meant to follow."""
+    b = result.run.backends.get(name)
+    contact = b.info.get("contact") if b is not None else None
+    return (
+        isinstance(contact, Mapping)
+        and contact.get("enabled") is not False
+        and ("Kp" in contact and contact["Kp"] is None)
+    )
+
+
 def _residual_table(result: ComparisonResult) -> Table:
     rows = []
     for name, r in result.residuals.items():
+        rigid = _rigid(result, name)
         rows.append(
             (
                 name,
                 str(r.n_contact),
-                num(r.penetration_max * 1e3),
-                num(r.penetration_rel),
+                "n/a (rigid)" if rigid else num(r.penetration_max * 1e3),
+                "n/a (rigid)" if rigid else num(r.penetration_rel),
                 str(r.n_sliding),
                 num(r.friction_ratio),
                 num(r.angle_max),
@@ -355,7 +444,8 @@ def _residual_table(result: ComparisonResult) -> Table:
         "Each backend against the contact law it was meant to follow (docs/metrics.md, section Contact-law "
         "residuals): penetration against the spring, Fn_spring = Fn - Kd max(ydot, 0), friction magnitude while "
         "sliding (1 for the law), friction direction against the slip, and creep under a sub-limit load beside "
-        "the law's v_th |F_t| / (mu_s Fn); n/a where no sample qualifies",
+        "the law's v_th |F_t| / (mu_s Fn); n/a where no sample qualifies; n/a (rigid) for a backend whose "
+        "contact reports no stiffness (run.json: contact.Kp null), which has no spring to compare",
     )
 
 
@@ -388,7 +478,7 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
     sc = run.meta.get("scenario", {})
     nav = [("\u2190 all scenarios", index)] if index else []
     nav += [("tables", "#tables"), ("figures", "#figures"), ("3D leg", "#leg")]
-    b: list[Block] = [Nav(tuple(nav)), Heading(1, f"legbench comparison: {run.label}")]
+    b: list[Block] = [Nav(tuple(nav)), Heading(1, f"legbench comparison: {run_title(run)}")]
     if sc.get("description"):
         b.append(Para(str(sc["description"])))
     b.append(Para(sentence(result.to_json(), result.frame())))
@@ -447,7 +537,12 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
         b.append(_split_table(result, "rms"))
         b.append(_split_table(result, "pct"))
     b.append(Heading(2, "Figures", "figures"))
-    b.append(Para("Drag to zoom (double-click to reset), hover for values; rows of a figure share their time axis."))
+    b.append(
+        Para(
+            "Drag to zoom (double-click to reset), hover for values; the rows of a figure share their time axis, "
+            "except in the focus on transients (one window of its own per row)."
+        )
+    )
     b.extend(figures)
     if index:
         b.append(Nav((("\u2190 all scenarios", index), ("top", "#"))))
@@ -543,7 +638,7 @@ def _stage_report(
     figures = run_figures(res, arrays)
     blocks = _blocks(res, figures, index)
     markdown = to_markdown(blocks)
-    html = to_html(blocks, f"legbench: {res.run.label}", relpath(adir, path), arrays)
+    html = to_html(blocks, f"legbench: {run_title(res.run)}", relpath(adir, path), arrays)
     md, page, metrics = path / "report.md", path / "report.html", path / "metrics.json"
     moves = (stage_text(metrics, metrics_doc, tag), stage_text(md, markdown, tag), stage_text(page, html, tag))
     logger.info("rendered %s and %s (%d figures)", md, page, len(figures))
@@ -781,10 +876,9 @@ def _step_text(info: Mapping[str, Any]) -> tuple[str, str]:
     return step, f"{name}, {solver}" if isinstance(solver, str) else name
 
 
-def _step_blocks(entries: Sequence[_Entry]) -> list[Block]:
-    """How each backend integrated, per profile (native contact): the step, the sub-steps per control period
-    and the integrator, from each run's run.json, so a difference can be read against the steps that made it
-    (the reference carries its own step error too)."""
+def _steps(entries: Sequence[_Entry]) -> dict[str, dict[str, tuple[str, str]]]:
+    """backend -> profile -> (step, integrator) of its native-contact runs (``varies by task`` where they
+    differ)."""
     cells: dict[str, dict[str, tuple[str, str]]] = {}
     for e in entries:
         if e.mode != "native":
@@ -796,6 +890,14 @@ def _step_blocks(entries: Sequence[_Entry]) -> list[Block]:
                 if old != mine:  # tasks set it differently
                     seen[e.profile] = (old[0] if old[0] == mine[0] else "varies by task",
                                        old[1] if old[1] == mine[1] else "varies by task")  # fmt: skip
+    return cells
+
+
+def _step_blocks(entries: Sequence[_Entry]) -> list[Block]:
+    """How each backend integrated, per profile (native contact): the step, the sub-steps per control period
+    and the integrator, from each run's run.json, so a difference can be read against the steps that made it
+    (the reference carries its own step error too)."""
+    cells = _steps(entries)
     if not cells:
         return []
     profiles = sorted({p for c in cells.values() for p in c}, key=lambda p: _PROFILE_ORDER.get(p, 9))
@@ -823,6 +925,17 @@ def _profile_blocks(entries: Sequence[_Entry]) -> list[Block]:
     ]
     if not names:
         return []
+    kept = [
+        b
+        for b, c in _steps(entries).items()
+        if "matched" in c and c["matched"] == c.get("engine-defaults") and "varies by task" not in c["matched"]
+    ]
+    same = (
+        f" Here {_names(kept)} {'keeps' if len(kept) == 1 else 'keep'} the same step and integrator in both "
+        "profiles (see the step table above)."
+        if kept
+        else ""
+    )
     rows: list[tuple[str, ...]] = []
     for name in names:
         cells: dict[str, dict[str, tuple[float, float]]] = {}
@@ -847,7 +960,7 @@ def _profile_blocks(entries: Sequence[_Entry]) -> list[Block]:
             "with Kp, Kd and mu set through its own parameters the way its users usually do (not always in the "
             "spec's units: MuJoCo's direct solref is per unit of constraint mass), and a few choices the engine "
             "leaves open made by legbench (docs/contact_mapping.md lists them per engine). "
-            "A difference between the two columns is the settings', not the engine's."
+            "A difference between the two columns is the settings', not the engine's." + same
         ),
         Table(
             (
@@ -880,19 +993,34 @@ STUDIES: tuple[tuple[str, str, str, tuple[str, ...], str], ...] = (
         "calibration/calibration.json",
         "Contact calibration",
         "rows",
-        ("backend", "Kp", "k_eff", "Kd", "c_eff", "mu_s", "Fn", "Ft", "creep", "creep_law", "c_tangential"),
-        "legbench calibrate-contact: effective normal stiffness k_eff [N/m] and damping c_eff [N s/m] from a static "
-        "push, creep [m/s] under a tangential load Ft [N] below mu_s Fn, beside the spec (Kp, Kd, mu_s) and the "
-        "law's own creep",
+        ("backend", "Kp", "k_eff", "Kd", "c_eff", "mu_s", "Fn", "Ft", "creep", "creep_law", "c_tangential", "note"),
+        "legbench calibrate-contact: effective normal stiffness k_eff and damping c_eff from a static push, creep "
+        "under a tangential load Ft below mu_s Fn, beside the spec (Kp, Kd, mu_s) and the law's own creep; "
+        "c_tangential = Ft / creep (inf: the foot sticks)",
     ),
 )
+
+
+#: Units of the study tables' columns, shown in their headers.
+STUDY_UNITS = {
+    "Kp": "N/m",
+    "k_eff": "N/m",
+    "Kd": "N s/m",
+    "c_eff": "N s/m",
+    "Fn": "N",
+    "Ft": "N",
+    "creep": "m/s",
+    "creep_law": "m/s",
+    "c_tangential": "N s/m",
+}
 
 
 def _cell(v: Any) -> str:
     if isinstance(v, bool):
         return "yes" if v else "NO"
     if isinstance(v, int | float):
-        return num(float(v), 4)
+        x = float(v)
+        return ("inf" if x > 0 else "-inf") if math.isinf(x) else num(x, 4)  # inf is a value; n/a is NaN
     return str(v)
 
 
@@ -916,8 +1044,9 @@ def _study_blocks(root: Path) -> list[Block]:
         link = f"{rel.rsplit('/', 1)[0]}/"
         if "pass" not in cols:
             rows = tuple(tuple(_cell(r.get(c, "")) for c in cols) for r in records)
+            header = tuple(f"{c} [{STUDY_UNITS[c]}]" if c in STUDY_UNITS else c for c in cols)
             blocks.append(Heading(2, f"{heading}: {len(records)} backends measured"))
-            blocks.append(Details(f"the {len(records)} rows", (Table(cols, rows, caption),)))
+            blocks.append(Details(f"the {len(records)} rows", (Table(header, rows, caption),)))
             blocks.append(Nav(((f"files in {link}", link),)))
             continue
         status = [_status(r) for r in records]

@@ -52,6 +52,7 @@ __all__ = [
     "Figure",
     "envelope",
     "run_figures",
+    "run_title",
     "write_assets",
 ]
 
@@ -253,6 +254,19 @@ class Figure:
     kind: str = "plot"
 
 
+def run_title(run: Run) -> str:
+    """A run's name in page and figure titles: its label with the profile and contact mode (the runs of one
+    scenario in two profiles share a label)."""
+    profile = str((run.meta.get("scenario") or {}).get("profile") or "matched")
+    return f"{run.label} ({profile} profile, {run.contact_mode} contact)"
+
+
+def _run_styles(result: ComparisonResult) -> dict[str, tuple[str, str]]:
+    """(colour, dash) of every backend of the run, its failed ones too, the same in every figure (a backend
+    missing from one figure does not shift the colours of those after it)."""
+    return _styles([*result.traces, *result.run.partial], result.reference)
+
+
 def _styles(names: Sequence[str], reference: str) -> dict[str, tuple[str, str]]:
     """(colour, dash) per trace name: the reference black and solid, the others a palette colour and a dash."""
     out = {reference: ("#000000", "solid")}
@@ -375,7 +389,7 @@ def _overlay(result: ComparisonResult, signal: str, arrays: Arrays) -> Figure | 
     shown = {k: v for k, v in shown.items() if len(v.t)}
     if signal != "ee" and not any(tr.has(signal) for tr in shown.values()):
         return None
-    styles = _styles([k.removesuffix(" (failed)") for k in shown], result.reference)
+    styles = _run_styles(result)
     comps = ("x", "y", "z") if signal == "ee" else JOINTS[signal]
     unit = UNITS[signal]
     data = []
@@ -401,7 +415,7 @@ def _overlay(result: ComparisonResult, signal: str, arrays: Arrays) -> Figure | 
                 )
             )
     ylabels = [f"{'ee_' + c if signal == 'ee' else column_label(signal, c)} [{unit}]" for c in comps]
-    lay = _layout(f"{run.label}: {NAMES[signal]}, every backend", 3, ylabels)
+    lay = _layout(f"{run_title(run)}: {NAMES[signal]}, every backend", 3, ylabels)
     lay["xaxis"]["range"] = _xrange(run, shown)
     _events(lay, run)
     return Figure(
@@ -422,7 +436,7 @@ def _deviation(result: ComparisonResult, signal: str, arrays: Arrays) -> Figure 
     pairs = _pairs(result, signal)
     if not pairs:
         return None
-    styles = _styles([p.backend for p in pairs], result.reference)
+    styles = _run_styles(result)
     cols = np.arange(12)[SLICE[signal]]
     unit = UNITS[signal]
     data = []
@@ -433,7 +447,7 @@ def _deviation(result: ComparisonResult, signal: str, arrays: Arrays) -> Figure 
         for j in range(3):
             data.append(_trace(arrays, tt[:, j], yy[:, j], j, f"{p.backend}{lag}", color, dash, 1.4, j == 0))
     ylabels = [f"\u0394{column_label(signal, c)} [{unit}]" for c in JOINTS[signal]]
-    lay = _layout(f"{run.label}: {NAMES[signal]}, deviation from {result.reference}", 3, ylabels)
+    lay = _layout(f"{run_title(run)}: {NAMES[signal]}, deviation from {result.reference}", 3, ylabels)
     lay["xaxis"]["range"] = _xrange(run, result.traces)
     if run.skip > 0:
         lay["shapes"] = [
@@ -473,7 +487,7 @@ def _focus_transients(result: ComparisonResult, arrays: Arrays) -> Figure | None
             rows.append((s, best[1], best[2]))
     if not rows:
         return None
-    styles = _styles([p.backend for p in result.pairs], result.reference)
+    styles = _run_styles(result)
     data, ylabels = [], []
     for r, (s, c, tm) in enumerate(rows):
         for p in _pairs(result, s):
@@ -484,7 +498,8 @@ def _focus_transients(result: ComparisonResult, arrays: Arrays) -> Figure | None
             data.append(_trace(arrays, p.t[k0:k1], p.deviation[k0:k1, c], r, p.backend, color, dash, 1.4, r == 0))
         lab = column_label(s, JOINTS[s][c - SLICE[s].start])
         ylabels.append(f"\u0394{lab} [{UNITS[s]}]")
-    lay = _layout(f"{result.run.label}: the largest deviations at full resolution", len(rows), ylabels, shared=False)
+    title = f"{run_title(result.run)}: the largest deviations at full resolution"
+    lay = _layout(title, len(rows), ylabels, shared=False)
     for r, (_, _, tm) in enumerate(rows):
         lay["xaxis" if r == 0 else f"xaxis{r + 1}"]["title"]["text"] = f"t [s] (around {tm:.4f} s)"
     return Figure(
@@ -501,7 +516,7 @@ def _focus_steady(result: ComparisonResult, arrays: Arrays) -> Figure | None:
     pairs = _pairs(result, "q")
     if not pairs or not run.steady_window > 0:
         return None
-    styles = _styles([p.backend for p in pairs], result.reference)
+    styles = _run_styles(result)
     data = []
     for p in pairs:
         k0 = int(np.searchsorted(p.t, p.t[-1] - run.steady_window))
@@ -509,7 +524,7 @@ def _focus_steady(result: ComparisonResult, arrays: Arrays) -> Figure | None:
         for j in range(3):
             data.append(_trace(arrays, p.t[k0:], p.deviation[k0:, j], j, p.backend, color, dash, 1.4, j == 0))
     ylabels = [f"\u0394{column_label('q', c)} [rad]" for c in JOINTS["q"]]
-    lay = _layout(f"{run.label}: joint-angle deviation over the steady window", 3, ylabels)
+    lay = _layout(f"{run_title(run)}: joint-angle deviation over the steady window", 3, ylabels)
     return Figure(
         "focus-steady",
         f"Focus on the steady state: deviation of q from {result.reference} over the "
@@ -524,7 +539,7 @@ def _leg_view(result: ComparisonResult, arrays: Arrays) -> Figure | None:
     shown = {k: v for k, v in {**result.traces, **run.partial}.items() if len(v.t) and np.isfinite(v.q).all()}
     if not shown:
         return None
-    styles = _styles(list(shown), result.reference)
+    styles = _run_styles(result)
     t_end = max(float(tr.t[-1]) for tr in shown.values())
     times = np.linspace(0.0, t_end, LEG_FRAMES)
     backends: list[dict[str, Any]] = []
@@ -584,7 +599,7 @@ def _leg_view(result: ComparisonResult, arrays: Arrays) -> Figure | None:
         "camera": {"eye": {"x": 1.25, "y": -1.25, "z": 0.7}},
     }
     layout = {
-        "title": {"text": f"{run.label}: the leg of every backend (W)", "font": {"size": 14}, "x": 0.01},
+        "title": {"text": f"{run_title(run)}: the leg of every backend (W)", "font": {"size": 14}, "x": 0.01},
         "height": 620,
         "margin": {"l": 0, "r": 0, "t": 40, "b": 0},
         "scene": scene,

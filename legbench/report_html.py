@@ -96,6 +96,8 @@ def _md_cell(s: str) -> str:
 def _md(blocks: Sequence[Block], out: list[str], page: str) -> None:
     for b in blocks:
         if isinstance(b, Heading):
+            if b.anchor:  # the target of the page's own links (#task-effort, #tables), as in the HTML
+                out.append(f'<a id="{b.anchor}"></a>\n')
             out.append(f"{'#' * b.level} {b.text}\n")
         elif isinstance(b, Para):
             out.append(f"{'**Warning:** ' if b.warn else ''}{b.text}\n")
@@ -120,7 +122,8 @@ def _md(blocks: Sequence[Block], out: list[str], page: str) -> None:
                 + "\n"
             )
         else:
-            out.append(f"- Figure ({b.key}): {b.caption} Interactive in [{page}]({page}#{b.key}).\n")
+            link = f"[{page}]({page}#{b.key})"
+            out.append(f'- <a id="{b.key}"></a>Figure ({b.key}): {b.caption} Interactive in {link}.\n')
 
 
 def to_markdown(blocks: Sequence[Block], page: str = "report.html") -> str:

@@ -663,3 +663,206 @@ def test_index_shows_each_backends_step_and_integrator_per_profile(tmp_path: Pat
     assert "| backend | step per control tick (matched) | integrator (matched) |" in md
     assert "| ref | 50 us x 20 | euler |" in md
     assert "| a | varies by task | varies by task |" in md  # 100 us x 10 (euler, sap) in one, rk45 in two
+
+
+# --------------------------------------------------------------------------- #
+# What the sentences and tables claim, against the numbers they come from
+
+
+def _metrics(rows: dict[tuple[str, str, str], tuple[float, float, float]],
+             peaks: dict[tuple[str, str], float]) -> pd.DataFrame:  # fmt: skip
+    """A metrics table against reference ``ref``: (backend, signal, joint) -> (sim_error_pct, max_abs,
+    t_max_abs); ``peaks``: (signal, joint) -> ref_peak, written for every backend."""
+    out = []
+    for (b, s, j), (pct, dev, t) in rows.items():
+        out += [(b, "ref", s, j, "sim_error_pct", pct), (b, "ref", s, j, "max_abs", dev)]
+        out += [(b, "ref", s, j, "t_max_abs", t)]
+    for b in {k[0] for k in rows}:
+        out += [(b, "ref", s, j, "ref_peak", p) for (s, j), p in peaks.items()]
+    cols = ["backend", "reference", "signal", "joint", "metric", "value"]
+    return pd.DataFrame([dict(zip(cols, r, strict=True)) for r in out])
+
+
+#: The effort task's reference peaks (results/latest/effort, 28 Nov): q1 0.004 rad beside q3's 1.26 rad, qd1
+#: 0.0891 rad/s beside qd3's 2.24 rad/s; the other components are a third of their signal's largest or more.
+EFFORT_PEAKS = {
+    ("q", "1"): 0.00397, ("q", "2"): 1.2037, ("q", "3"): 1.2599,
+    ("qd", "1"): 0.0891, ("qd", "2"): 0.9289, ("qd", "3"): 2.2449,
+    ("force", "x"): 16.787, ("force", "y"): 24.804, ("force", "z"): 59.257,
+}  # fmt: skip
+
+
+def _bound(text: str) -> float:
+    m = re.search(r"every other backend stays within ([^ ]+) %", text)
+    assert m is not None, text
+    return float(m.group(1))
+
+
+def test_the_headline_leaves_out_components_whose_reference_barely_moves_and_says_so() -> None:
+    """The effort task's numbers: ODE's qd1 is 102 % of a 0.0891 rad/s peak (0.0911 rad/s at t = 0.004 s), DART's
+    qd3 100.04 % of a 2.24 rad/s peak (2.2458 rad/s at t = 0.007 s). A component whose reference peak is under 10 %
+    of its signal's largest is left out of the headline (DART's qd3 leads), the bound on the others is over the
+    same components (ODE's 63.8 % fx: 'within 63.9 %', never below the true 63.815) and the left-out component's
+    102 % is still stated with its size and time."""
+    rows = {
+        ("ode", "qd", "1"): (102.213, 0.091062, 0.004),
+        ("ode", "force", "x"): (63.815, 10.713, 0.006),
+        ("ode", "q", "1"): (37.772, 0.0015, 3.0),
+        ("dart", "qd", "3"): (100.0403, 2.24583, 0.007),
+        ("dart", "qd", "1"): (99.998, 0.08909, 0.004),
+        ("dart", "force", "x"): (64.382, 10.808, 0.006),
+        ("mujoco", "force", "x"): (63.765, 10.704, 0.006),
+    }
+    text = R.sentence({"reference": "ref"}, _metrics(rows, EFFORT_PEAKS))
+    assert text.startswith(
+        "Largest difference: dart's qd3 (joint velocity) deviates from ref by up to 2.25 rad/s at t = 0.007 s, "
+        "100 % of the reference's peak (2.24 rad/s)"
+    ), text
+    assert _bound(text) == 63.9 and _bound(text) >= 63.815
+    assert "ode's qd1 reaches 102 % (0.0911 rad/s at t = 0.004 s)" in text
+    assert "q1 (0.00397 rad)" in text and "qd1 (0.0891 rad/s)" in text
+
+
+def test_every_other_backend_stays_within_a_bound_that_holds_after_rounding() -> None:
+    """'every other backend stays within X %' is an upper bound: 20.04 % is 'within 20.1 %', not '20' (the effort
+    page said 'within 100 %' of DART's 100.04 %); an exact 5 % stays '5'."""
+    peaks = {("tau", "2"): 2.0}
+    text = R.sentence({"reference": "ref"}, _metrics({("a", "tau", "2"): (50.0, 1.0, 1.5),
+                                                      ("b", "tau", "2"): (20.04, 0.4008, 1.5)}, peaks))  # fmt: skip
+    assert _bound(text) >= 20.04 and _bound(text) == 20.1
+    text = R.sentence({"reference": "ref"}, _metrics({("a", "tau", "2"): (50.0, 1.0, 1.5),
+                                                      ("b", "tau", "2"): (5.0, 0.1, 1.5)}, peaks))  # fmt: skip
+    assert _bound(text) == 5.0
+
+
+def test_backends_that_deviate_as_much_as_the_largest_are_named_with_it() -> None:
+    """position__engine-defaults: ODE's tau1 3.964814 %, DART's, Drake's, MuJoCo's and PyBullet's 3.964759 %
+    (1.4e-5 apart relative, all at the 1 ms step): the sentence names the four as deviating as much (within 0.1 %)
+    instead of 'every other backend stays within 3.96 %'; the bound is then lagrange's 0.2087 %."""
+    rows = {(b, "tau", "1"): (3.964759, 0.046735, 0.001) for b in ("pybullet", "dart", "drake", "mujoco")}
+    rows |= {("ode", "tau", "1"): (3.964814, 0.046736, 0.001), ("lagrange", "tau", "1"): (0.2087, 0.00246, 0.001)}
+    text = R.sentence({"reference": "ref"}, _metrics(rows, {("tau", "1"): 1.1788}))
+    assert text.startswith("Largest difference: ode's tau1 (joint torque)"), text
+    assert "dart, drake, mujoco and pybullet deviate as much (within 0.1 %)" in text
+    assert _bound(text) == 0.209
+
+
+def test_times_are_quoted_to_the_millisecond_of_the_log(tmp_path: Path) -> None:
+    """A 1 kHz log's largest deviation at t = 11.009 s is quoted as 11.009 s (not 11.01 s) in the sentence and in
+    the largest-deviation table; a component that never deviates reads 0 there, without a time."""
+    spike = add_to("q2", lambda t: 1e-3 * (np.abs(t - 11.009) < 5e-4))
+    d = write_run(tmp_path / "s", {"ref": None, "a": spike}, duration=12.0)
+    res = compare(d)
+    assert "at t = 11.009 s" in R.sentence(res.to_json(), res.frame())
+    md = R.write_report(d, res).markdown.read_text()
+    table = md[md.index("*Largest deviation |x - x_ref|") :]
+    row = next(line for line in table.splitlines() if line.startswith("| a | ref |"))
+    assert row.startswith(f"| a | ref | 0 | {num(res.pairs[0].max_abs[1], 3)} @ 11.009 s | 0 |"), row
+
+
+def test_colour_key_names_each_colour_once() -> None:
+    """Each column of the colour key is one colour with its own header (the limit's two were both 'scenario
+    limit')."""
+    key = R.colour_key()
+    assert len(set(key.header)) == len(key.header) == len(key.rows[0]) == 6
+    assert R.sim_class(5.0, "q", "1", {"max_sim_error_pct": 5.0})[0] == "within"  # <= limit is within
+
+
+def test_every_anchor_a_markdown_page_links_to_exists_in_it(tmp_path: Path) -> None:
+    """The index's task links (#task-one) and a run page's (#tables, #figures, #leg) land on an anchor in the
+    Markdown too, not only in the HTML."""
+    root = tmp_path / "latest"
+    write_run(root / "one", {"ref": None, "a": scale(1.1)}, name="one")
+    R.write_all(root)
+    for md in (root / "report.md", root / "one" / "report.md"):
+        text = md.read_text()
+        anchors = set(re.findall(r"\]\(#([\w-]+)\)", text))
+        assert anchors, md
+        missing = {a for a in anchors if f'<a id="{a}"></a>' not in text}
+        assert not missing, (md, missing)
+
+
+def test_a_run_page_names_its_profile_and_contact_mode(tmp_path: Path) -> None:
+    """The engine-defaults run of a task has the same scenario label as the matched one; its page title, heading
+    and figure titles say which profile and contact mode it is."""
+    d = write_run(tmp_path / "one__engine-defaults", {"ref": None, "a": scale(1.1)}, name="one")
+    meta = json.loads((d / "run.json").read_text())
+    meta["scenario"]["profile"] = "engine-defaults"
+    (d / "run.json").write_text(json.dumps(meta))
+    files = R.write_report(d)
+    md, page = files.markdown.read_text(), files.html.read_text()
+    assert "# legbench comparison: one (engine-defaults profile, native contact)\n" in md
+    assert "<title>legbench: one (engine-defaults profile, native contact)</title>" in page
+    assert '"text":"one (engine-defaults profile, native contact): joint angle, every backend"' in page
+
+
+def test_calibration_table_shows_a_stuck_foot_as_inf_with_units_and_notes(tmp_path: Path) -> None:
+    """calibration.json's c_tangential = inf (the foot sticks: MuJoCo, ODE) reads 'inf', not 'n/a' (which the
+    table also uses for an unmeasured NaN); every dimensional column names its unit; a row's note (DART: rigid
+    contact, no Kp or Kd to match) is shown."""
+    root = tmp_path / "results"
+    write_run(root / "fake", {"ref": None, "a": scale(1.02)})
+    (root / "calibration").mkdir()
+    row = {"backend": "a", "Kp": 1e4, "k_eff": 1e4, "Kd": 100.0, "c_eff": math.nan, "mu_s": 0.7, "Fn": 40.0, "Ft": 13.0,
+           "creep": 0.0, "creep_law": 4.7e-4, "c_tangential": math.inf, "note": "rigid contact"}  # fmt: skip
+    (root / "calibration" / "calibration.json").write_text(json.dumps({"rows": [row]}))
+    R.write_all(root)
+    md = (root / "report.md").read_text()
+    header = next(line for line in md.splitlines() if line.startswith("| backend | Kp"))
+    assert "| c_tangential [N s/m] |" in header and "| k_eff [N/m] |" in header and "| creep [m/s] |" in header
+    line = next(line for line in md.splitlines() if line.startswith("| a | 10000 |"))
+    assert line.endswith("| n/a | 0.7 | 40 | 13 | 0 | 4.7e-4 | inf | rigid contact |"), line
+
+
+def test_the_profile_paragraph_names_the_backends_that_keep_their_step(tmp_path: Path) -> None:
+    """'engine-defaults' runs the engines at one step per 1 ms period, but not every backend: the reference
+    (50 us x 20 in both profiles here) is named as keeping its step and integrator."""
+    root = tmp_path / "tree"
+    for label, prof, dt, n in (("one", "matched", 5e-5, 20), ("one__engine-defaults", "engine-defaults", 1e-3, 1)):
+        d = write_run(root / label, {"ref": None, "a": scale(1.01)}, name="one")
+        meta = json.loads((d / "run.json").read_text())
+        meta["scenario"]["profile"] = prof
+        meta["backends"]["ref"]["info"] |= {"dt": 5e-5, "sub_steps": 20, "integrator": "euler"}
+        meta["backends"]["a"]["info"] |= {"dt": dt, "sub_steps": n, "integrator": "euler"}
+        (d / "run.json").write_text(json.dumps(meta))
+    md = R.write_index(root).markdown.read_text()
+    para = next(line for line in md.splitlines() if line.startswith("Native contact. 'matched'"))
+    assert "ref keeps the same step and integrator in both profiles" in para, para
+
+
+def test_a_backend_keeps_its_colour_in_every_figure(tmp_path: Path) -> None:
+    """An imported log without a force (NaN: a bag without a wrench topic) has no force deviation; the
+    backends after it keep their colour there (b was drawn in a's colour in deviation-force)."""
+
+    def no_force(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        x[:, 9:12] = np.nan
+        return 1.01 * x
+
+    res = compare(write_run(tmp_path / "s", {"ref": None, "a": no_force, "b": scale(1.02)}))
+    figs = {f.key: f for f in run_figures(res, Arrays())}
+
+    def colour(key: str, name: str) -> str:
+        return next(tr["line"]["color"] for tr in figs[key].spec["data"] if tr["name"] == name)
+
+    assert colour("deviation-force", "b") == colour("deviation-q", "b") == colour("overlay-q", "b")
+    legs = {b["name"]: b["color"] for b in figs["leg"].spec["backends"]}
+    assert legs["b"] == colour("overlay-q", "b")
+
+
+def test_a_rigid_contact_is_not_scored_against_the_spring_it_does_not_have(tmp_path: Path) -> None:
+    """A backend whose run.json says its engine contact has no stiffness (DART's LCP: contact.Kp null) reads
+    'n/a (rigid)' in the penetration columns, not a 5.13 mm miss of Fn/Kp (the effort page's DART row); the
+    same backend with the law applied (reference mode: contact.enabled false) is scored."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.01)})
+    meta = json.loads((d / "run.json").read_text())
+    meta["backends"]["a"]["info"]["contact"] = {"enabled": True, "Kp": None, "Kd": None}
+    (d / "run.json").write_text(json.dumps(meta))
+    md = R.write_report(d).markdown.read_text()
+    table = md[md.index("## Contact-law residuals") :]
+    row = next(line for line in table.splitlines() if line.startswith("| a |"))
+    assert row.split(" | ")[2:4] == ["n/a (rigid)", "n/a (rigid)"], row
+    meta["backends"]["a"]["info"]["contact"]["enabled"] = False
+    (d / "run.json").write_text(json.dumps(meta))
+    md = R.write_report(d).markdown.read_text()
+    row = next(line for line in md[md.index("## Contact-law residuals") :].splitlines() if line.startswith("| a |"))
+    assert "rigid" not in row
