@@ -229,11 +229,15 @@ def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[st
     path = Path(path)
     if not path.is_file() and not path.is_dir():
         raise ScenarioError(str(path), "", "no such tolerance file")
-    doc = yamlfile.parse_text(yamlfile.read_text(path, "tolerance file"), str(path))[0] or {}
+    doc = yamlfile.parse_text(yamlfile.read_text(path, "tolerance file"), str(path))[0]
+    if doc is None:  # empty, or comments only: the defaults (a list, 0 or '' is no mapping and refused)
+        doc = {}
     if not isinstance(doc, Mapping):
         raise ScenarioError(str(path), "", "top level must be a mapping")
     doc = dict(doc)
-    per = doc.pop("scenarios", {}) or {}
+    per = doc.pop("scenarios", None)
+    if per is None:
+        per = {}
     if not isinstance(per, Mapping):
         raise ScenarioError(str(path), "scenarios", "must be a mapping of scenario name or run label to tolerances")
     common = _validate(doc, str(path), "")
@@ -250,7 +254,9 @@ def tolerance_errors(path: str | Path) -> list[ScenarioError]:
         return [ScenarioError(str(path), "", "top level must be a mapping")]
     errors: list[ScenarioError] = []
     sections: list[tuple[str, Any]] = [(str(k), {k: v}) for k, v in doc.items() if k != "scenarios"]
-    per = doc.get("scenarios", {}) or {}
+    per = doc.get("scenarios")
+    if per is None:
+        per = {}
     if not isinstance(per, Mapping):
         errors.append(
             ScenarioError(str(path), "scenarios", "must be a mapping of scenario name or run label to tolerances")

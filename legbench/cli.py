@@ -144,10 +144,35 @@ def _select_model(path: str) -> None:
     from legbench import model
 
     file = Path(path)
-    if not file.is_file():
-        raise ModelError(f"--model {path}: no such parameter file")
+    kind = _not_a_model_file(file)
+    if kind:
+        raise ModelError(f"--model {path}: {kind}")
     model.load_params(file)  # raises ModelError naming the file and the entry
     resources.select_model(file)
+
+
+def _not_a_model_file(file: Path) -> str:
+    """Why ``file`` cannot be a leg parameter file ('' if it is a regular file), without opening it: a device
+    such as /dev/zero has no end and a FIFO blocks until a writer comes."""
+    try:
+        if file.is_file():
+            return ""
+        if file.exists():
+            return "is a directory" if file.is_dir() else "is not a regular file"
+        return "no such parameter file"
+    except OSError as exc:  # a name too long
+        return str(exc.strerror or exc)
+
+
+def _check_model_env() -> None:
+    """``LEGBENCH_MODEL`` naming no regular file is refused before any subcommand's module is imported: the
+    active model's URDF path is derived from the file's content on import (``legbench.results``), and a device
+    or a FIFO there was read without end (/dev/zero until the process was killed) or blocked for ever."""
+    env = os.environ.get(resources.MODEL_ENV)
+    if env:
+        kind = _not_a_model_file(Path(env).expanduser())
+        if kind:
+            raise ModelError(f"{resources.MODEL_ENV}={env}: {kind}")
 
 
 _KEPT = "what finished is kept (lines above), rerun the same command to finish"
@@ -181,10 +206,17 @@ def _check_outputs(args: argparse.Namespace) -> None:
     if out == "":
         raise LegbenchError("--out '': an empty path (give a directory, or leave --out out for the default)")
     if out is not None:
-        if args.cmd in _OUT_DIRS:
-            results.check_out_path(out)
-        else:
-            results.check_out_file(out)
+        try:
+            if args.cmd in _OUT_DIRS:
+                if os.path.islink(out) and not os.path.exists(out):  # the result could not be moved into place
+                    raise LegbenchError(f"--out {out}: a symbolic link to {os.readlink(out)}, which does not exist; "
+                                        "choose another --out")  # fmt: skip
+                results.check_out_path(out)
+                _not_inside_a_run(Path(out), itself=args.cmd != "run")  # run resumes or replaces its own
+            else:
+                results.check_out_file(out)
+        except OSError as exc:  # a name too long, a loop of links: a place that cannot be, not a failed write
+            raise LegbenchError(f"--out {out}: {exc.strerror or exc}") from None
     scheduler = getattr(args, "scheduler", None)
     if scheduler is not None:
         scheme, sep, rest = str(scheduler).rpartition("://")
@@ -195,12 +227,28 @@ def _check_outputs(args: argparse.Namespace) -> None:
                                 f"(schemes: {', '.join(_SCHEMES)})")  # fmt: skip
     for opt in ("summary", "junit"):
         if getattr(args, opt, None) is not None:
-            path = results.check_out_file(getattr(args, opt), f"--{opt}")
-            if path.exists() and not getattr(args, "force", False):
+            try:
+                path = results.check_out_file(getattr(args, opt), f"--{opt}")
+                exists = path.exists()
+            except OSError as exc:
+                raise LegbenchError(f"--{opt} {getattr(args, opt)}: {exc.strerror or exc}") from None
+            if exists and not getattr(args, "force", False):
                 raise LegbenchError(f"--{opt} {path}: exists; choose another file, or pass --force to replace it")
     summary, junit = getattr(args, "summary", None), getattr(args, "junit", None)
     if summary is not None and junit is not None and Path(summary).resolve() == Path(junit).resolve():
         raise LegbenchError(f"--summary and --junit name the same file {summary}: the second would replace the first")
+
+
+def _not_inside_a_run(out: Path, itself: bool) -> None:
+    """Refuse an output directory inside a run directory (one holding ``run.json``), and with ``itself`` one
+    that is a run directory: a run directory holds one run's files, and what is nested in it would be taken for
+    part of that run (its report, its check), or lost with it when the run is replaced."""
+    if itself and (out / "run.json").is_file():
+        raise LegbenchError(f"--out {out}: a run directory, which holds one run; choose another --out")
+    for parent in out.absolute().parents:
+        if (parent / "run.json").is_file():
+            raise LegbenchError(f"--out {out}: inside the run directory {parent}, which holds one run; choose "
+                                "another --out")  # fmt: skip
 
 
 def _sigterm(signum: int, frame: object) -> None:
@@ -215,17 +263,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             import argcomplete
 
             argcomplete.autocomplete(build_parser(os.environ.get("COMP_LINE", "").split()[1:]))
+        _check_model_env()
         args = build_parser(argv).parse_args(argv)
         if args.model is not None:
             _select_model(args.model)
         _check_outputs(args)
         return int(args.func(args))
     except LegbenchError as exc:
-        print(f"legbench: error: {exc}", file=sys.stderr)
+        print(f"legbench: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_USER_ERROR
     except OSError as exc:  # full disk, read-only or vanished output: one line, the previous result is intact
         where = f" {exc.filename}:" if exc.filename else ""
-        print(f"legbench: I/O error:{where} {exc.strerror or exc}; nothing was replaced", file=sys.stderr)
+        print(_one_line(f"legbench: I/O error:{where} {exc.strerror or exc}; nothing was replaced"), file=sys.stderr)
         return EXIT_IO_ERROR
     except RecursionError:
         print("legbench: error: input nested too deep", file=sys.stderr)
@@ -236,6 +285,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_INTERRUPTED
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def _one_line(message: object) -> str:
+    """A message on one line whatever the user's input in it holds (:func:`legbench.yamlfile.one_line`)."""
+    from legbench.yamlfile import one_line  # only when there is an error to print
+
+    return one_line(str(message))
 
 
 def entry() -> int:

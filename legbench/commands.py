@@ -137,6 +137,7 @@ def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
     if getattr(args, "params", None) is None:
         args.params = model.PARAMS_FILE
     if hasattr(args, "out") and args.out is None:
+        model.load_raw(args.params)  # refused unread if no regular file: urdf_target hashes all of it (/dev/zero)
         args.out = resources.urdf_target(args.params)
     return args
 
@@ -176,8 +177,10 @@ def _run(args: argparse.Namespace) -> int:
         raise LegbenchError(f"--out {root}: holds one run, and {len(runs)} runs make a tree of run directories; "
                             "choose another --out")  # fmt: skip
     _check_plan(plan, args)
+    # no more workers than runs: each worker is a process that imports every engine (--jobs 1000 started 1000)
+    jobs = min(args.jobs, len(plan) * len(names))
     # the workers import the engines while the pre-flight runs here (a single run needs no pool)
-    pool = run.start_pool(args.jobs) if len(plan) * len(names) > 1 else None
+    pool = run.start_pool(jobs) if len(plan) * len(names) > 1 else None
     try:
         if not args.no_preflight:
             available = set(backends.available())
@@ -192,7 +195,7 @@ def _run(args: argparse.Namespace) -> int:
         if pool is not None:
             pool.terminate()
         raise
-    outcome = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet, pool=pool)
+    outcome = run.run_many(plan, names, jobs=jobs, csv=args.csv, progress=not args.quiet, pool=pool)
     failed = 0
     for (sc, mode, out), res in zip(plan, outcome, strict=True):
         print(
@@ -217,7 +220,7 @@ def _run(args: argparse.Namespace) -> int:
             files = report.write_report(plan[0][2])
             print(f"report: {files.html}")
         else:
-            report.write_all(root, jobs=args.jobs)
+            report.write_all(root, jobs=min(args.jobs, len(plan)))  # one page per run
             print(f"report: {root / 'report.html'}")
     return EXIT_BACKEND_FAILED if failed else EXIT_OK
 
@@ -265,7 +268,7 @@ def _validate(args: argparse.Namespace) -> int:
         except LegbenchError as exc:
             ok, problems = "", [exc]
         for problem in problems:
-            print(f"legbench: error: {problem}", file=sys.stderr)
+            print(f"legbench: error: {yamlfile.one_line(str(problem))}", file=sys.stderr)
         if problems:
             bad += 1
         else:
@@ -339,7 +342,11 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 def _compare(args: argparse.Namespace) -> int:
     from legbench import logs, report
 
-    if Path(args.dir).exists() and not Path(args.dir).is_dir():
+    try:
+        a_file = Path(args.dir).exists() and not Path(args.dir).is_dir()
+    except OSError as exc:  # a name too long: no such directory can exist
+        raise LegbenchError(f"{args.dir}: {exc.strerror or exc}") from None
+    if a_file:
         raise LegbenchError(f"{args.dir}: is a file, not a results directory (give a run directory or a tree)")
     if args.reference_log is None:  # these only shape the reference log: without one they would be ignored
         given = [f for f, on in (("--log-columns", args.log_columns), ("--log-is-reference", args.log_is_reference),

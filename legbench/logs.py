@@ -56,16 +56,18 @@ def _normalise_header(col: str) -> str:
 PLAUSIBLE_MAX = 1e9
 
 
-def _check_plausible(t: np.ndarray, data: np.ndarray, source: str) -> None:
-    """Refuse a log with no finite joint angle or with values no leg produces; warn, with the evidence, on
-    units that look wrong (time in ms, angles in degrees)."""
+def _check_plausible(t: np.ndarray, data: np.ndarray, source: str, foot: np.ndarray | None = None) -> None:
+    """Refuse a log with no finite joint angle or with values no leg produces (in the signals and in the foot
+    centre ``foot`` as logged, (n, 3), if given); warn, with the evidence, on units that look wrong (time in ms,
+    angles in degrees)."""
     q = data[:, 0:3]
     if not np.isfinite(q).any():
         raise ResultsError(source, "q1..q3 hold no finite value (NaN only): nothing to compare")
-    finite = np.abs(np.where(np.isfinite(data), data, 0.0))
+    values, names = (data, LABELS) if foot is None else (np.hstack([data, foot]), (*LABELS, *EE_COLUMNS))
+    finite = np.abs(np.where(np.isfinite(values), values, 0.0))
     if finite.max(initial=0.0) > PLAUSIBLE_MAX:
         i, j = np.unravel_index(int(np.argmax(finite)), finite.shape)
-        raise ResultsError(source, f"column '{LABELS[j]}' reaches {data[i, j]:.3g} at row {i + 1}: not a physical "
+        raise ResultsError(source, f"column '{names[j]}' reaches {values[i, j]:.3g} at row {i + 1}: not a physical "
                                    f"value (limit {PLAUSIBLE_MAX:g})")  # fmt: skip
     step = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
     if step > 0.1:
@@ -167,7 +169,7 @@ def load_log(
         raise ResultsError(str(path), f"no column matches {unmatched} in the header {header}; map them with "
                                       "--log-columns 'theirs=t, ...' (column_map in the Python API)")  # fmt: skip
     trace = result_from_frame(df, path.stem, str(path), required)  # validates
-    _check_plausible(trace.t * time_scale, trace.data, str(path))
+    _check_plausible(trace.t * time_scale, trace.data, str(path), trace.ee)
     out = {"t": trace.t * time_scale}
     out |= {c: trace.data[:, i] for i, c in enumerate(LABELS)}
     out |= {c: v for c, v in zip(EE_COLUMNS, _foot(trace).T, strict=True)}

@@ -95,6 +95,10 @@ MAX_PENETRATION = 0.05
 #: The metrics a tolerance may be given for (``comparison.tolerances``, a tolerance file): their defaults are
 #: :data:`legbench.check.DEFAULT_TOLERANCES`, built from these names.
 TOLERANCE_METRICS = ("sim_error_pct", "rms", "steady_mean", "max_sim_error_pct")
+#: The keys of a per-component tolerance mapping: ``default``, a signal and a component label (the names of
+#: :mod:`legbench.signals`, which :func:`legbench.signals.keyed` looks up; tests/test_scenario.py keeps them equal).
+TOLERANCE_KEYS = ("default", "q", "qd", "tau", "force", "q1", "q2", "q3", "qd1", "qd2", "qd3", "tau1", "tau2", "tau3",
+                  "fx", "fy", "fz")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -464,7 +468,7 @@ def parse(
         raise ctx.error(["backends"], "expected a mapping of backend name -> settings")
     backends: dict[str, dict[str, Any]] = {}
     for bname, bset in bdoc.items():
-        backends[bname] = _backend_settings(ctx, str(bname), bset or {})
+        backends[bname] = _backend_settings(ctx, str(bname), {} if bset is None else bset)  # `name:` alone
         why = _sub_step_problem(backends[bname].get("dt"), 1.0 / rate) if exact_r else None
         if why is not None:
             raise ctx.error(["backends", bname, "dt"], why)
@@ -478,7 +482,7 @@ def parse(
         reference=str(cmp_d.get("reference", DEFAULT_REFERENCE)),
         skip=number(ctx, ["comparison", "skip"], cmp_d.get("skip", 0.0), nonneg=True),
         steady_window=number(ctx, ["comparison", "steady_window"], cmp_d.get("steady_window", 0.5), positive=True),
-        tolerances=cmp_d.get("tolerances", {}) or {},
+        tolerances={} if cmp_d.get("tolerances") is None else cmp_d["tolerances"],  # [] is no mapping: refused
         published=_published(ctx, cmp_d.get("published", [])),
     )
     if not _known_backend(comparison.reference):
@@ -565,8 +569,11 @@ def validate_tolerances(tol: Any, file: str, prefix: str = "", ctx: YamlContext 
     (:func:`legbench.check.load_tolerances`); the one set of rules for all of them.
 
     A mapping of :data:`TOLERANCE_METRICS`: ``max_sim_error_pct`` to ``{label or signal: ceiling}``, each other
-    metric to ``{abs: x, rel: x}``, each ``x`` a number or a mapping of label, signal or ``default`` to one;
-    every number >= 0. Errors name ``prefix`` and the key below it, with its line where ``ctx`` knows it.
+    metric to ``{abs: x, rel: x}``, each ``x`` a number or a mapping of label, signal or ``default``
+    (:data:`TOLERANCE_KEYS`) to one; every number finite and >= 0. A key that is no label, signal or
+    ``default`` would never be looked up (a typo silently leaving the tolerance as it was), and a key that is
+    not text could not be written to run.json: both are refused. Errors name ``prefix`` and the key below
+    it, with its line where ``ctx`` knows it.
 
     Raises:
         ScenarioError: the first problem found.
@@ -580,6 +587,16 @@ def validate_tolerances(tol: Any, file: str, prefix: str = "", ctx: YamlContext 
     def nonneg(x: Any, path: list[str | int]) -> None:
         if isinstance(x, bool) or not isinstance(x, int | float) or not x >= 0:
             raise error(path, f"must be a number >= 0, not {x!r}")
+        try:
+            finite = math.isfinite(x)
+        except OverflowError:  # an integer beyond a double
+            finite = False
+        if not finite:  # run.json would hold Infinity, which is not JSON
+            raise error(path, f"must be a finite number >= 0, not {x!r}")
+
+    def component(lab: Any, path: list[str | int]) -> None:
+        if lab not in TOLERANCE_KEYS:
+            raise error([*path, str(lab)], f"unknown component; valid: {', '.join(TOLERANCE_KEYS)}")
 
     if not isinstance(tol, Mapping):
         raise error([], "tolerances must be a mapping")
@@ -591,6 +608,7 @@ def validate_tolerances(tol: Any, file: str, prefix: str = "", ctx: YamlContext 
             raise error(key, "must be a mapping")
         if k == "max_sim_error_pct":
             for lab, x in v.items():
+                component(lab, key)
                 nonneg(x, [*key, str(lab)])
             continue
         for sub, x in v.items():
@@ -598,6 +616,7 @@ def validate_tolerances(tol: Any, file: str, prefix: str = "", ctx: YamlContext 
                 raise error([*key, str(sub)], "unknown key; valid: ['abs', 'rel']")
             if isinstance(x, Mapping):
                 for lab, y in x.items():
+                    component(lab, [*key, sub])
                     nonneg(y, [*key, sub, str(lab)])
             else:
                 nonneg(x, [*key, sub])

@@ -35,6 +35,7 @@ __all__ = [
     "keypath",
     "limit",
     "number",
+    "one_line",
     "parse_overrides",
     "positive_float",
     "read_yaml",
@@ -157,10 +158,13 @@ class YamlContext:
 
     def error(self, path: Sequence[str | int], problem: str) -> ScenarioError:
         """The error naming the file, the key path, its line and the problem; for a value that ``--set``
-        replaced, the override instead of the file's line (which holds the old value)."""
+        replaced, the override instead of the file's line (which holds the old value). A key above an
+        override's (``backends.*`` of ``--set backends.*.dt=...``) is blamed on the override too: the override
+        made or changed it, and the file's line nearest it (its parent's) would point at what the user did
+        not write."""
         dotted = ".".join(str(p) for p in path)
         for key in self.overridden:
-            if dotted == key or dotted.startswith(key + "."):
+            if dotted == key or dotted.startswith(key + ".") or (dotted and key.startswith(dotted + ".")):
                 return ScenarioError(self.file, keypath(path), f"{problem} (from --set {key})")
         return ScenarioError(self.file, keypath(path), problem, self.line(path))
 
@@ -241,6 +245,17 @@ def _one_line(text: str) -> str:
     return " ".join(str(text).split())
 
 
+#: Control characters (line breaks among them) as they are escaped in a message: a file name, key or value
+#: holding one (``name: "a\nb"``, a path with a newline) must not break the message's one line.
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+
+
+def one_line(text: str) -> str:
+    """``text`` on one line: every control character (newline, carriage return, ...) written as its escape
+    (``\\n``), so a message that quotes the user's input is still one line."""
+    return _CONTROL.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), str(text))
+
+
 def _check_tree(file: str, root: yaml.Node) -> None:
     """Depth, alias count, expanded size and duplicate keys of a composed (not yet expanded) node tree.
 
@@ -263,6 +278,9 @@ def _check_tree(file: str, root: yaml.Node) -> None:
             children = [n for kv in node.value for n in kv]
         else:
             children = []
+        if isinstance(node, yaml.ScalarNode) and _SURROGATE.search(node.value):  # "\ud800": not UTF-8
+            raise fail(node, f"{node.value!r}: a lone surrogate (a \\u escape of half a character) cannot be "
+                             "written as UTF-8 text")  # fmt: skip
         if done:
             size[id(node)] = 1 + sum(size[id(c)] for c in children)
             if size[id(node)] > max_nodes:
@@ -289,6 +307,9 @@ def _check_tree(file: str, root: yaml.Node) -> None:
         stack.append((node, depth, True))
         stack.extend((c, depth + 1, False) for c in reversed(children))
 
+
+#: A lone surrogate code point: YAML's "\ud800" escape loads as one, and no output file can hold it (UTF-8).
+_SURROGATE = re.compile("[\ud800-\udfff]")
 
 _OPEN = (yaml.FlowSequenceStartToken, yaml.FlowMappingStartToken, yaml.BlockSequenceStartToken,
          yaml.BlockMappingStartToken)  # fmt: skip

@@ -358,3 +358,147 @@ def test_a_run_whose_engine_refuses_the_control_rate_names_the_scenario_file(
     argv = ["run", str(sc), "--backends", "pinocchio", "--out", str(out), "-q", "--no-compare",
             "--set", f"backends.pinocchio.dt={1 / 333 / 60!r}"]  # fmt: skip
     assert cli.main(argv) == 0
+
+
+def _framework_file(tmp_path: Path, frameworks: str, tasks: str) -> Path:
+    scenarios = Path(__file__).resolve().parents[1] / "scenarios"
+    for name in ("position", "effort"):
+        (tmp_path / f"{name}.yaml").write_text((scenarios / f"{name}.yaml").read_text())
+    (tmp_path / "bad.yaml").write_text("name: bad\nduration: -1\nevents: [{t: 0, position: {joint: [0, 0, 0]}}]\n")
+    fw = tmp_path / "fw.yaml"
+    fw.write_text(f"frameworks:\n{frameworks}tasks:\n{tasks}")
+    return fw
+
+
+_FW = "  - {name: Simscape, backend: pinocchio, profile: ode45}\n"
+
+
+@pytest.mark.parametrize(
+    ("frameworks", "tasks", "key", "words"),
+    [
+        # validate said ok; reproduce then refused the task's scenario, naming neither the framework file nor its key
+        (_FW, "  - {file: bad.yaml, tables: [force]}\n", "tasks[0].file", "bad.yaml:2: duration: must be > 0"),
+        (_FW, "  - {file: fw.yaml, tables: [force]}\n", "tasks[0].file", "is a framework file"),
+        # two tasks of one scenario ran into one directory, the second over the first
+        (_FW, "  - {file: effort.yaml, tables: [force]}\n  - {file: effort.yaml, tables: [steady]}\n",
+         "tasks[1].file", "'effort' is task 0's too"),
+        # two frameworks of one name: the tables' rows and columns could not be told apart
+        (_FW + "  - {name: Simscape, backend: mujoco, profile: matched}\n",
+         "  - {file: effort.yaml, tables: [force]}\n", "frameworks[1].name", "names another framework already"),
+        (_FW, "  - {file: effort.yaml, tables: [force, force]}\n", "tasks[0].tables[1]", "given twice"),
+        (_FW, "  - {file: 12, tables: [force]}\n", "tasks[0].file", "expected the path of a scenario file"),
+        # a scenario given as the framework file: 'comparison: unknown key; valid keys: frameworks, ...'
+        ("", "", "", "is a scenario (it has 'events'), not a framework file: run it with legbench run"),
+    ],
+)  # fmt: skip
+def test_validate_refuses_a_framework_file_that_reproduce_cannot_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], frameworks: str, tasks: str, key: str, words: str
+) -> None:
+    """`legbench validate` and `legbench reproduce` refuse in one line, naming the framework file and the key,
+    exit 2, nothing written."""
+    fw = _framework_file(tmp_path, frameworks, tasks)
+    if not frameworks:
+        fw = tmp_path / "effort.yaml"
+    out = tmp_path / "out"
+    for argv in (["validate", str(fw)], ["reproduce", "--frameworks", str(fw), "--out", str(out), "--backends",
+                                        "none", "--duration", "0.01", "-q"]):  # fmt: skip
+        if argv[0] == "validate" and not frameworks:
+            continue  # validate takes a scenario for one
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{fw}:" in err and (f": {key}: " in err or not key) and words in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(("key", "value"), [("description", "[]"), ("description", "0"), ("label", "[]")])
+def test_sweep_text_keys_that_are_no_text_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], key: str, value: str
+) -> None:
+    """A sweep's ``description: []`` or a study's ``label: 0`` was read as empty text (``or ""``)."""
+    effort = Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml"
+    sw = tmp_path / "sw.yaml"
+    top = f"description: {value}\n" if key == "description" else ""
+    label = f"label: {value}, " if key == "label" else ""
+    sw.write_text(f"name: s\n{top}scenario: {effort}\nstudies:\n  - {{{label}backends: [pinocchio], "
+                  "reference: {backend: pinocchio}}\n")  # fmt: skip
+    assert cli.main(["validate", str(sw)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{key}: expected text" in err
+
+
+@pytest.mark.parametrize(("path", "words"), [("/dev/null", "is not a regular file"), (".", "is a directory")])
+def test_a_model_that_is_no_file_says_what_it_is(capsys: pytest.CaptureFixture[str], path: str, words: str) -> None:
+    """``--model /dev/null`` said 'no such parameter file' of a path that exists."""
+    if not Path(path).exists():
+        pytest.skip(f"no {path} here")
+    assert cli.main(["--model", path, "model", "check"]) == 2
+    assert capsys.readouterr().err == f"legbench: error: --model {path}: {words}\n"
+
+
+def test_a_model_variable_naming_no_regular_file_is_refused_before_it_is_read(tmp_path: Path) -> None:
+    """``LEGBENCH_MODEL`` naming a FIFO (or /dev/zero) was read on import, to hash it for the URDF's name: the
+    command blocked for ever (/dev/zero: read until the kernel killed the process). One line naming the variable,
+    exit 2, at once (a fresh process: the import is what read it)."""
+    import os
+
+    fifo = tmp_path / "leg.yaml"
+    os.mkfifo(fifo)
+    env = {**os.environ, "LEGBENCH_MODEL": str(fifo)}
+    done = subprocess.run([sys.executable, "-m", "legbench", "model", "check"], capture_output=True, text=True,
+                          env=env, timeout=120)  # fmt: skip
+    assert done.returncode == 2, done.stderr[-500:]
+    assert done.stderr == f"legbench: error: LEGBENCH_MODEL={fifo}: is not a regular file\n"
+
+
+def test_model_urdf_refuses_a_params_path_that_is_no_file_before_hashing_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``model urdf --params /dev/zero`` (no --out) hashed the whole file to name the URDF before reading it as
+    YAML, and /dev/zero has no end: the file is refused unread, one line, exit 2."""
+    from legbench import resources
+
+    hashed: list[object] = []
+    monkeypatch.setattr(resources, "urdf_target", lambda params=None: hashed.append(params))
+    fifo = tmp_path / "p.yaml"
+    import os
+
+    os.mkfifo(fifo)
+    assert cli.main(["model", "urdf", "--params", str(fifo)]) == 2
+    assert capsys.readouterr().err == f"legbench: error: {fifo}: is a FIFO, not a regular file (a file is read only " \
+                                      "from one)\n"  # fmt: skip
+    assert hashed == []
+
+
+def test_a_study_out_that_is_a_run_directory_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``legbench reproduce --out RUN`` (RUN an existing run directory) wrote its task runs and pages into that
+    run's directory, exit 0: refused before any work, one line, exit 2, the run untouched."""
+    run_dir = write_run(tmp_path / "one", {"ref": None, "a": scale(1.01)})
+    before = sorted(p.name for p in run_dir.iterdir())
+    argv = ["reproduce", "--out", str(run_dir), "--backends", "none", "--duration", "0.01", "--no-report", "-q"]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert err == f"legbench: error: --out {run_dir}: a run directory, which holds one run; choose another --out\n"
+    assert sorted(p.name for p in run_dir.iterdir()) == before
+
+
+@pytest.mark.parametrize(
+    ("extra", "study", "key", "words"),
+    [
+        # every error metric undefined (NaN), the sweep exited 0
+        ("skip: 5.0\n", "backends: [pinocchio]", "skip", "5 s skips the whole of the runs (3 s)"),
+        # each run a second table row and a second point of the fit
+        ("", "backends: [pinocchio, mujoco, pinocchio]", "studies[0].backends[2]", "pinocchio given twice"),
+    ],
+)
+def test_a_sweep_that_would_measure_nothing_or_twice_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: str, study: str, key: str, words: str
+) -> None:
+    effort = Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml"
+    sw = tmp_path / "sw.yaml"
+    sw.write_text(f"name: s\nscenario: {effort}\n{extra}studies:\n  - {{{study}, grid: {{backends.*.dt: [1.0e-4]}}, "
+                  "reference: {set: {backends.*.dt: 5.0e-5}}}\n")  # fmt: skip
+    for argv in (["validate", str(sw)], ["sweep", str(sw), "--out", str(tmp_path / "o"), "--jobs", "1", "-q"]):
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{sw}:" in err and f": {key}: {words}" in err, err
+    assert not (tmp_path / "o").exists()

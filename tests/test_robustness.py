@@ -261,8 +261,20 @@ def test_alias_bomb_is_refused_before_expansion(tmp_path: Path, capsys: pytest.C
         ("".join(f"k{i}: &a{i} 1\nv{i}: *a{i}\n" for i in range(1001)), "limit yaml_aliases"),
         ("name: t\nduration: " + "1" * 5000 + "\n", "cannot convert: Exceeds the limit (4300 digits)"),
         ("name: t\nwhen: 2001-13-01\n", "cannot convert: month must be in 1..12"),
+        # validated ok, then every run ended in a traceback (UnicodeEncodeError) writing run.json
+        ('name: t\ndescription: "a \\ud800"\n', "x.yaml:2: 'a \\ud800': a lone surrogate"),
     ],
-    ids=["duplicate", "deep", "nul", "recursive", "undefined-alias", "many-aliases", "huge-int", "bad-date"],
+    ids=[
+        "duplicate",
+        "deep",
+        "nul",
+        "recursive",
+        "undefined-alias",
+        "many-aliases",
+        "huge-int",
+        "bad-date",
+        "surrogate",
+    ],
 )
 def test_hostile_yaml_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, words: str) -> None:
     f = tmp_path / "x.yaml"
@@ -905,3 +917,169 @@ def test_a_tolerance_file_given_as_a_scenario_is_named_as_such(tmp_path: Path) -
     f.write_text("sim_error_pct: {abs: 1.0}\nscenarios: {effort: {rms: {rel: 0.1}}}\n")
     with pytest.raises(ScenarioError, match="is a tolerance file, not a scenario: give it to legbench check"):
         scenario.load(f)
+
+
+# --------------------------------------------------------------------------- #
+# Found by fuzzing the command line (each test failed before its fix)
+
+
+@pytest.mark.parametrize(
+    ("setting", "key"),
+    [
+        ("backends.*.dt=1e-4", "backends.*"),  # '*' is a sweep's; the override made the unknown backend '*'
+        ("gains.Kq.x=1", "gains.Kq"),  # blamed on the file's line of gains:, which holds nothing wrong
+        ("bogus.x=1", "bogus"),
+    ],
+)
+def test_an_error_above_an_overridden_key_names_the_override(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], setting: str, key: str
+) -> None:
+    """An override that creates or changes the keys above its own (``--set backends.*.dt``: the backend ``*``)
+    is refused at such a key: the message said nothing of ``--set`` and named the file's line of the nearest
+    key the file has (``gains:``), which holds nothing wrong."""
+    out = tmp_path / "out"
+    assert cli.main(["run", str(EFFORT), "--backends", "pinocchio", "--out", str(out), "-q", "--set", setting]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{EFFORT}: {key}: " in err, err
+    assert f"(from --set {setting.split('=')[0]})" in err
+    assert not out.exists()
+
+
+def test_user_text_with_a_line_break_stays_on_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A file name or a value with a newline, quoted in a message, broke it into two lines (a sweep's
+    ``scenario: "a\\nb"``, a missing file named so): it is escaped, the message one line."""
+    sw = tmp_path / "sw.yaml"
+    sw.write_text('name: s\nscenario: "no\\nsuch.yaml"\nstudies:\n  - {backends: [pinocchio], reference: '
+                  "{backend: pinocchio}}\n")  # fmt: skip
+    missing = tmp_path / "two\nlines.yaml"
+    for argv in (["validate", str(sw)], ["validate", str(missing)], ["sweep", str(sw), "--out", str(tmp_path / "o")],
+                 ["run", str(missing), "--out", str(tmp_path / "o")]):  # fmt: skip
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "\\n" in err, (argv, err)
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_path_too_long_for_the_file_system_is_bad_input_not_an_io_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A name longer than the file system allows (ENAMETOOLONG) in --out, a sweep's scenario or a framework
+    file's task was an 'I/O error', exit 4 (after the runs, for --out), naming neither the option nor the key:
+    it is bad input, one line naming them, exit 2, nothing written."""
+    long = "x" * 300
+    out = tmp_path / long
+    assert cli.main(["run", str(EFFORT), "--backends", "pinocchio", "--out", str(out), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"legbench: error: --out {out}: ") and "too long" in err and err.count("\n") == 1
+    sw = tmp_path / "sw.yaml"
+    sw.write_text(f"name: s\nscenario: {long}.yaml\nstudies:\n  - {{backends: [pinocchio], reference: "
+                  "{backend: pinocchio}}\n")  # fmt: skip
+    fw = tmp_path / "fw.yaml"
+    fw.write_text(f"frameworks:\n  - {{name: S, backend: pinocchio, profile: ode45}}\ntasks:\n"
+                  f"  - {{file: {long}.yaml, tables: [force]}}\n")  # fmt: skip
+    for f, key in ((sw, "scenario"), (fw, "tasks[0].file")):
+        assert cli.main(["validate", str(f)]) == 2
+        err = capsys.readouterr().err
+        assert f"{f}:" in err and f": {key}: " in err and "too long" in err and err.count("\n") == 1, err
+    assert cli.main(["compare", str(out)]) == 2
+    assert "too long" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fw.yaml", "sw.yaml"]
+
+
+def test_an_out_inside_a_run_directory_is_refused(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--out RUN/sub`` (RUN a run directory, alone or in a tree) wrote a second run inside the first, where it
+    is taken for part of it or lost with it: refused in one line before any work, exit 2, the run untouched."""
+    f = _fake_run(tmp_path, monkeypatch)
+    run_dir = tmp_path / "r"
+    common = ["--backends", "fake", "-q", "--no-preflight", "--no-compare"]
+    assert cli.main(["run", str(f), *common, "--out", str(run_dir)]) == 0
+    before = sorted(p.name for p in run_dir.iterdir())
+    for cmd in (["run", str(f), *common], ["sweep", str(ROOT / "scenarios/sweeps/gains.yaml")]):
+        capsys.readouterr()
+        assert cli.main([*cmd, "--out", str(run_dir / "sub" / "deeper")]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"inside the run directory {run_dir}," in err, err
+    assert sorted(p.name for p in run_dir.iterdir()) == before
+
+
+def test_an_out_that_is_a_dangling_link_is_refused_before_any_work(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--out LINK`` (a symbolic link to nothing) ran every backend and then failed to move the result into
+    place: 'I/O error ... Not a directory', exit 4. It is refused before the run, exit 2, the link as it was."""
+    f = _fake_run(tmp_path, monkeypatch)
+    link = tmp_path / "link"
+    link.symlink_to(tmp_path / "nowhere")
+    ran: list[object] = []
+    from legbench import run
+
+    monkeypatch.setattr(run, "run_many", lambda *a, **k: ran.append(a))
+    assert cli.main(["run", str(f), "--backends", "fake", "-q", "--no-preflight", "--out", str(link)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--out {link}: a symbolic link to" in err and "does not exist" in err
+    assert ran == [] and link.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["link", "t.yaml"]
+
+
+def test_jobs_beyond_the_runs_start_no_more_workers_than_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--jobs 64`` for two runs started 64 worker processes (each importing every engine; --jobs 10000 would
+    start 10000): the pool is as large as the runs, at most."""
+    from legbench import run
+
+    f = _fake_run(tmp_path, monkeypatch)
+    asked: list[int] = []
+
+    def start(jobs: int) -> None:
+        asked.append(jobs)
+        raise LegbenchError("stopped before the runs")
+
+    monkeypatch.setattr(run, "start_pool", start)
+    argv = ["run", str(f), "--backends", "fake,pinocchio", "-q", "--no-preflight", "--jobs", "64", "--out",
+            str(tmp_path / "o")]  # fmt: skip
+    assert cli.main(argv) == 2
+    assert asked == [2]
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "words"),
+    [
+        ("[]\n", "", "top level must be a mapping"),  # a list (or 0, false) was taken for 'no tolerances'
+        ("false\n", "", "top level must be a mapping"),
+        ("scenarios: []\n", "scenarios", "must be a mapping"),
+        ("max_sim_error_pct: {7: 1, q: 5}\n", "max_sim_error_pct.7", "unknown component"),
+        ("rms: {abs: {qq: 1.0e-3}}\n", "rms.abs.qq", "unknown component"),  # a typo left the default in force
+        ("rms: {abs: .inf}\n", "rms.abs", "finite"),
+    ],
+)
+def test_malformed_tolerance_files_are_refused_by_check(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, key: str, words: str
+) -> None:
+    """``legbench check --tolerances FILE``: one line naming the file and the key, exit 2, no check.md written."""
+    from fakerun import scale, write_run
+
+    new = write_run(tmp_path / "new", {"ref": None, "a": scale(1.01)})
+    base = write_run(tmp_path / "base", {"ref": None, "a": scale(1.01)})
+    tol = tmp_path / "tol.yaml"
+    tol.write_text(text)
+    assert cli.main(["check", str(new), "--baseline", str(base), "--tolerances", str(tol)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{tol}: {key + ': ' if key else ''}" in err and words in err, err
+    assert not (new / "check.md").exists()
+
+
+def test_an_external_log_with_an_absurd_foot_position_is_refused(tmp_path: Path) -> None:
+    """The foot centre of a CSV log (ee_x..ee_z) was taken unchecked: 1e300 m passed, and the report's float32
+    figures overflowed (a RuntimeWarning on stderr). It is refused as the signals are, naming the column."""
+    import numpy as np
+    import pandas as pd
+
+    from legbench import logs
+    from legbench.exceptions import ResultsError
+
+    t = np.arange(21) * 1e-3
+    f = tmp_path / "foot.csv"
+    cols = {"t": t, **{f"q{i}": np.zeros(21) for i in (1, 2, 3)}, "ee_x": np.full(21, 1e300)}
+    pd.DataFrame(cols).to_csv(f, index=False)
+    with pytest.raises(ResultsError, match="column 'ee_x' reaches 1e\\+300 at row 1: not a physical value"):
+        logs.load_log(f)

@@ -321,3 +321,52 @@ def test_a_backend_setting_that_cannot_run_the_contact_mode_is_refused_at_load(t
         scenario.load(_write(tmp_path, doc))
     doc["physics"] = {"contact_mode": "native"}
     assert scenario.load(_write(tmp_path, doc)).backends["drake"] == {"solver": "continuous"}
+
+
+@pytest.mark.parametrize(
+    ("patch", "key", "words"),
+    [
+        # a label that is not text: run.json's sorted keys raised TypeError ('<' between int and str): a traceback
+        ({"tolerances": {"max_sim_error_pct": {7: 1.0, "q": 5.0}}}, "comparison.tolerances.max_sim_error_pct.7",
+         "unknown component"),
+        # a label no lookup asks for was kept and silently never used: the tolerance stayed the default
+        ({"tolerances": {"rms": {"abs": {"qq": 1.0}}}}, "comparison.tolerances.rms.abs.qq", "unknown component"),
+        ({"tolerances": {"sim_error_pct": {"rel": {"Q1": 1.0}}}}, "comparison.tolerances.sim_error_pct.rel.Q1",
+         "valid: default, q, qd, tau, force, q1"),
+        # infinity was taken, and written to run.json as Infinity, which is not JSON
+        ({"tolerances": {"rms": {"abs": float("inf")}}}, "comparison.tolerances.rms.abs", "finite"),
+        ({"tolerances": {"max_sim_error_pct": {"q": float("inf")}}}, "comparison.tolerances.max_sim_error_pct.q",
+         "finite"),
+        # an empty list was taken for "no tolerances" (`[] or {}`), a list of items refused
+        ({"tolerances": []}, "comparison.tolerances", "mapping"),
+    ],
+)  # fmt: skip
+def test_tolerance_labels_must_be_components_and_numbers_finite(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], patch: dict[str, object], key: str, words: str
+) -> None:
+    from legbench import cli
+
+    path = _write(tmp_path, {**BASE, "comparison": patch})
+    assert cli.main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{path}:" in err and f": {key}: " in err and words in err, err
+    with pytest.raises(ScenarioError) as exc:
+        scenario.load(path)
+    assert exc.value.key == key
+
+
+def test_tolerance_component_keys_are_the_signals_names() -> None:
+    """The validator's list of component keys is what :func:`legbench.signals.keyed` looks up."""
+    from legbench.signals import LABELS, SIGNALS
+
+    assert scenario.TOLERANCE_KEYS == ("default", *SIGNALS, *LABELS)
+
+
+@pytest.mark.parametrize("settings", [[], 0, "", False])
+def test_backend_settings_that_are_no_mapping_are_refused(tmp_path: Path, settings: object) -> None:
+    """``backends: {pinocchio: []}`` (or 0, '', false) was read as no settings (``bset or {}``); only an empty
+    entry (``pinocchio:``, null) means the defaults."""
+    with pytest.raises(ScenarioError) as exc:
+        scenario.load(_write(tmp_path, {**BASE, "backends": {"pinocchio": settings}}))
+    assert exc.value.key == "backends.pinocchio" and "mapping" in exc.value.problem
+    assert scenario.load(_write(tmp_path, {**BASE, "backends": {"pinocchio": None}})).backends["pinocchio"] == {}

@@ -41,7 +41,7 @@ import numpy as np
 from legbench import backends as registry
 from legbench import report, resources, results, run, scenario, yamlfile
 from legbench.backends.base import PROFILES
-from legbench.exceptions import BackendNotFound
+from legbench.exceptions import BackendNotFound, ScenarioError
 from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK
 from legbench.metrics import SteadyState, pair_metrics, steady_state
 from legbench.results import Run, load_run
@@ -99,11 +99,20 @@ def load_plan(path: str | Path = FRAMEWORKS_FILE) -> Plan:
     is checked against the backend's ``profiles`` where the engine is installed
     (elsewhere the run reports the backend missing).
 
+    Each task's scenario is loaded as :func:`scenarios_of` loads it (the frameworks' profiles set), so a task
+    that is not a valid scenario is refused here, by ``legbench validate`` too, naming the task's key.
+
     Raises:
-        ScenarioError: unknown key, backend, profile, role, or a task file that does not exist.
+        ScenarioError: unknown key, backend, profile, role, a framework name given twice, a task file that does
+            not exist or is not a valid scenario, two tasks of one scenario name (one run directory).
     """
     doc, root = yamlfile.read_yaml(path)
     ctx = yamlfile.YamlContext(str(path), root)
+    if isinstance(doc, Mapping) and "frameworks" not in doc:  # another of legbench's files, given as a framework file
+        for key, kind, command in (("events", "a scenario", "legbench run"), ("studies", "a sweep file",
+                                                                                "legbench sweep")):  # fmt: skip
+            if key in doc:
+                raise ctx.error([], f"is {kind} (it has '{key}'), not a framework file: run it with {command}")
     yamlfile.check_keys(ctx, [], doc, ["frameworks", "others", "tasks"], ["frameworks", "tasks"])
     fws = doc["frameworks"]
     if not isinstance(fws, list) or not fws:
@@ -115,6 +124,8 @@ def load_plan(path: str | Path = FRAMEWORKS_FILE) -> Plan:
         name, backend, profile = (fw[k] for k in ("name", "backend", "profile"))
         if not isinstance(name, str) or not name:
             raise ctx.error(["frameworks", i, "name"], "expected the framework's name")
+        if any(f.name == name for f in frameworks):  # the tables' rows and columns are named by it
+            raise ctx.error(["frameworks", i, "name"], f"{name!r} names another framework already")
         if backend not in known:
             raise ctx.error(["frameworks", i, "backend"], f"unknown backend {backend!r}; known: {', '.join(known)}")
         if any(f.backend == backend for f in frameworks):
@@ -136,10 +147,17 @@ def load_plan(path: str | Path = FRAMEWORKS_FILE) -> Plan:
     if not isinstance(tdoc, list) or not tdoc:
         raise ctx.error(["tasks"], "expected a non-empty list of {file, tables}")
     tasks: list[Task] = []
+    names: dict[str, int] = {}  # scenario name -> task: each task's run directory is OUT/<name>
     for i, t in enumerate(tdoc):
         yamlfile.check_keys(ctx, ["tasks", i], t, ["file", "tables"], ["file", "tables"])
-        file = Path(path).parent / str(t["file"])
-        if not file.is_file():
+        if not isinstance(t["file"], str) or not t["file"]:
+            raise ctx.error(["tasks", i, "file"], "expected the path of a scenario file, relative to this file")
+        file = Path(path).parent / t["file"]
+        try:
+            found = file.is_file()
+        except OSError as exc:  # a name too long, a loop of links: no file can be there
+            raise ctx.error(["tasks", i, "file"], f"cannot be a scenario file: {exc.strerror or exc}") from None
+        if not found:
             raise ctx.error(["tasks", i, "file"], f"no scenario file {file}")
         roles = t["tables"]
         if not isinstance(roles, list) or not roles:
@@ -147,6 +165,19 @@ def load_plan(path: str | Path = FRAMEWORKS_FILE) -> Plan:
         for j, r in enumerate(roles):
             if r not in ROLES:
                 raise ctx.error(["tasks", i, "tables", j], f"expected one of {', '.join(ROLES)}, got {r!r}")
+            if r in roles[:j]:
+                raise ctx.error(["tasks", i, "tables", j], f"{r} given twice")
+        # the task as reproduce runs it (the frameworks' profiles set), so validate finds what the run would refuse
+        sets: dict[str, Any] = {"profile": str(others)}
+        sets |= {f"backends.{fw.backend}.profile": fw.profile for fw in frameworks}
+        try:
+            sc = scenario.load(file, sets)
+        except ScenarioError as exc:
+            raise ctx.error(["tasks", i, "file"], str(exc)) from None
+        if sc.name in names:
+            raise ctx.error(["tasks", i, "file"], f"scenario {sc.name!r} is task {names[sc.name]}'s too: both would "
+                                                  "run into one directory")  # fmt: skip
+        names[sc.name] = i
         tasks.append(Task(file, tuple(roles)))
     return Plan(resources.shown(path), tuple(frameworks), str(others), tuple(tasks))
 

@@ -199,13 +199,19 @@ def load_sweep(path: str | Path) -> Sweep:
     name = raw["name"]
     if not isinstance(name, str) or not NAME_RE.fullmatch(name) or set(name) == {"."}:  # a directory name
         raise doc.error(["name"], f"expected a plain name (letters, digits, - _ ., at most 64), got {name!r}")
-    description = raw.get("description", "") or ""
+    description = raw.get("description")
+    if description is None:  # absent or empty; a list or number is no text and refused
+        description = ""
     if not isinstance(description, str):
         raise doc.error(["description"], "expected text")
     if not isinstance(raw["scenario"], str):
         raise doc.error(["scenario"], "expected the path of a scenario file, relative to this sweep file")
-    scenario = (path.parent / raw["scenario"]).resolve()
-    if not scenario.is_file():
+    try:
+        scenario = (path.parent / raw["scenario"]).resolve()
+        found = scenario.is_file()
+    except OSError as exc:  # a name too long, a loop of links: no file can be there
+        raise doc.error(["scenario"], f"cannot be a scenario file: {exc.strerror or exc}") from None
+    if not found:
         raise doc.error(["scenario"], f"no such scenario file: {scenario}")
     try:  # the scenario on its own first, so its own problems name its file, not a study's override
         base_scenario = scenario_mod.load(scenario)
@@ -245,8 +251,10 @@ def load_sweep(path: str | Path) -> Sweep:
     if fit is not None and not any(_column(k) == fit.x for st in studies for k in st.grid):
         raise doc.error(["fit", "x"], f"no study sweeps a column named {fit.x!r}")
     _check_values(doc, scenario, common, studies)
-    if window is not None:  # against the runs' control period and length (the sweep's own set may change them)
-        duration = float(common.get("duration", base_scenario.duration))
+    duration = float(common.get("duration", base_scenario.duration))  # the runs' (the sweep's own set may change it)
+    if skip >= duration:  # every error metric would be undefined (NaN), and the sweep would still pass
+        raise doc.error(["skip"], f"{skip:g} s skips the whole of the runs ({duration:g} s)")
+    if window is not None:  # against the runs' control period and length
         control_dt = 1.0 / float(common.get("control_rate", base_scenario.control_rate))
         try:
             horizon.window_ticks(window, control_dt)
@@ -291,7 +299,9 @@ def _check_values(doc: YamlContext, scenario: Path, common: Mapping[str, Any], s
 def _study(doc: YamlContext, i: int, d: Any) -> Study:
     p: list[str | int] = ["studies", i]
     check_keys(doc, p, d, STUDY_KEYS, ["backends", "reference"])
-    label = d.get("label", "") or ""
+    label = d.get("label")
+    if label is None:
+        label = ""
     if not isinstance(label, str):
         raise doc.error([*p, "label"], "expected text (may contain {backend})")
     names = d["backends"]
@@ -303,6 +313,8 @@ def _study(doc: YamlContext, i: int, d: Any) -> Study:
     for j, n in enumerate(names):
         if n not in known:
             raise doc.error([*p, "backends", j], f"unknown backend {n!r}; known: {', '.join(known)}")
+        if n in names[:j]:  # each of its runs would be a second row of the table, and a second point of the fit
+            raise doc.error([*p, "backends", j], f"{n} given twice")
     fixed = _dotted(doc, [*p, "set"], d.get("set"))
     grid_raw = _dotted(doc, [*p, "grid"], d.get("grid"))
     grid: dict[str, tuple[Any, ...]] = {}
