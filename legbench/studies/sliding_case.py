@@ -199,8 +199,8 @@ def pyramid_friction(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, fn: np.ndar
     The pyramid bounds each of W x and W y on its own, |F_i| <= mu Fn (the axes both pyramid engines take for a
     ground normal +z_W: ODE's dPlaneSpace, DART's tangent basis). The acceleration is affine in the force
     (:func:`predicted_acceleration`); the axes that can hold (|F_i| <= mu Fn with the foot stuck along both)
-    hold, an axis that cannot slides with F_i = mu Fn against its holding force's sign and the other axis is
-    solved again with it (and slides too if it then cannot hold).
+    hold, an axis that cannot slides with |F_i| = mu Fn in its holding force's direction (against the slip),
+    the other is solved again with it (and slides too if it then cannot hold).
     """
     n = len(q)
     force = np.zeros((n, 3))
