@@ -25,7 +25,7 @@ import pinocchio as pin
 
 from legbench import resources
 from legbench.exceptions import ModelError
-from legbench.yamlfile import check_magnitude, read_yaml
+from legbench.yamlfile import check_magnitude, limit, read_yaml
 
 #: The source checkout's root (only meaningful when running from one; data paths come from
 #: :mod:`legbench.resources`).
@@ -257,13 +257,36 @@ def load_raw(path: Path | str | None = None) -> dict[str, Any]:
     return raw
 
 
+def max_param_bytes() -> int:
+    """The largest leg parameter file legbench reads [bytes]: the YAML reader's ``limit("file_bytes")`` (raised by
+    ``LEGBENCH_LIMITS``). :func:`legbench.resources.urdf_target` hashes no more than this; it may not import
+    :mod:`legbench.yamlfile` itself (docs/architecture.md, "What may import what")."""
+    return limit("file_bytes")
+
+
 #: Dimensions of CAD parts and collision primitives that must be > 0 [m] or [kg].
 _POSITIVE_DIMS = ("r", "r_out", "length", "mass", "a", "b", "c", "size")
 
+#: The geometry entries (docs/spec.md section 1) that are lengths, so > 0, with what each is. The others
+#: (``L_B0``, ``L_01``) are positions of the base and the chain along a line they can move on without changing
+#: the leg, and may be 0 or negative: ``L_B0`` is x_W of frame 0 (where the leg stands along the ground: the
+#: ground is the whole plane z_W = 0), ``L_01`` the DH offset d1 = -L_01 of frame 1 along the ab/ad axis, the axis
+#: q1 turns about (it shifts the chain along y_W only: G(q), M(q) and the workspace's shape are the same).
+_GEOMETRY_LENGTHS = {
+    "H": "the height of frame 0, the hip, above the ground z_W = 0",
+    "L_12": "a length: the lever from the ab/ad axis to the hip",
+    "L_23": "a length: the thigh",
+    "L_3E": "a length: the shank",
+    "R_foot": "a length: the foot sphere's radius",
+}
+
 
 def check_physical(raw: dict[str, Any], path: Path | str = "leg parameters") -> None:
-    """Refuse physically meaningless parameters: lengths, radii, densities, masses, scale factors, joint
-    limits, the contact law's constants (Kp > 0, Kd >= 0, 0 <= mu_k <= mu_s, v_th > 0).
+    """Refuse physically meaningless parameters: the geometry (every entry finite, the lengths and H > 0, the
+    positions ``L_B0`` and ``L_01`` of any sign: :data:`_GEOMETRY_LENGTHS`), lengths, radii and positions of the
+    CAD parts and collision primitives, densities, masses, scale factors, q*, G(q*), gravity, joint limits, the
+    contact law's constants (Kp > 0, Kd >= 0, 0 <= mu_k <= mu_s, v_th > 0). Every number must be finite and
+    within ``limit("float_abs")``: a NaN or inf reached the URDF, which no parser reads.
 
     Raises:
         ModelError: naming the file, the key and the value.
@@ -278,11 +301,21 @@ def check_physical(raw: dict[str, Any], path: Path | str = "leg parameters") -> 
         check_magnitude(float(v), lambda why: ModelError(f"{path}: {key}: {why}"))
         return float(v)
 
+    def three(key: str, v: Any, what: str = "a position (a list of three numbers [m])") -> None:
+        """Three finite numbers of any sign (a position [m], one value per joint)."""
+        if not isinstance(v, list) or len(v) != 3:
+            raise bad(key, v, f"is not {what}")
+        for i, x in enumerate(v):
+            num(f"{key}[{i}]", x)
+
     try:
         lengths = [f.name for f in fields(Geometry)]
-        for k in raw["geometry"]:
+        geometry = raw["geometry"]
+        if not isinstance(geometry, dict):
+            raise bad("geometry", geometry, f"is not a mapping of the leg's lengths ({', '.join(lengths)})")
+        for k in geometry:
             if k not in lengths:
-                raise bad(f"geometry.{k}", raw["geometry"][k], f"is not a length of the leg ({', '.join(lengths)})")
+                raise bad(f"geometry.{k}", geometry[k], f"is not a length of the leg ({', '.join(lengths)})")
         joints = raw["joints"]
         if not isinstance(joints, list) or len(joints) != 3:
             n = len(joints) if isinstance(joints, list) else type(joints).__name__
@@ -290,9 +323,11 @@ def check_physical(raw: dict[str, Any], path: Path | str = "leg parameters") -> 
         for i, j in enumerate(joints):
             if j.get("type") not in ("revolute", "continuous"):
                 raise bad(f"joints[{i}].type", j.get("type"), "is not a rotary joint (revolute or continuous)")
-        for k in ("L_12", "L_23", "L_3E", "R_foot"):
-            if num(f"geometry.{k}", raw["geometry"][k]) <= 0:
-                raise bad(f"geometry.{k}", raw["geometry"][k], "must be > 0 (a length)")
+        for k in lengths:  # every entry finite (NaN or inf made a URDF no parser reads), the lengths > 0
+            if k not in geometry:
+                raise ModelError(f"{path}: geometry.{k}: missing (the leg's geometry is {', '.join(lengths)})")
+            if num(f"geometry.{k}", geometry[k]) <= 0 and k in _GEOMETRY_LENGTHS:
+                raise bad(f"geometry.{k}", geometry[k], f"must be > 0 ({_GEOMETRY_LENGTHS[k]})")
         for name, rho in (raw.get("materials") or {}).items():
             if num(f"materials.{name}", rho) <= 0:
                 raise bad(f"materials.{name}", rho, "must be > 0 (a density [kg/m^3])")
@@ -304,6 +339,25 @@ def check_physical(raw: dict[str, Any], path: Path | str = "leg parameters") -> 
                             raise bad(f"links.{link}.parts[{i}].{k}", part[k], "must be > 0")
                 if "r_in" in part and not 0 <= num(f"links.{link}.parts[{i}].r_in", part["r_in"]) < part["r_out"]:
                     raise bad(f"links.{link}.parts[{i}].r_in", part["r_in"], "must be in [0, r_out)")
+                if "hole_r" in part and not 0 <= num(f"links.{link}.parts[{i}].hole_r", part["hole_r"]) < part["r"]:
+                    raise bad(f"links.{link}.parts[{i}].hole_r", part["hole_r"], "must be in [0, r)")
+                three(f"links.{link}.parts[{i}].pos", part["pos"])  # the part's centre in its link frame
+        collision = raw["collision"]
+        if not isinstance(collision, dict) or not isinstance(collision.get("foot"), dict):
+            raise bad("collision", collision, "is not a mapping of collision primitives by link, with the foot's")
+        for link, shape in collision.items():
+            if not isinstance(shape, dict):
+                raise bad(f"collision.{link}", shape, "is not a collision primitive (a mapping: shape, r, ...)")
+            for k in ("r", "length"):
+                if k in shape and num(f"collision.{link}.{k}", shape[k]) <= 0:
+                    raise bad(f"collision.{link}.{k}", shape[k], "must be > 0 (a length)")
+            if "pos" in shape:
+                three(f"collision.{link}.pos", shape["pos"])
+        cal = raw["calibration"]
+        for k in ("q_star", "G_star"):
+            three(f"calibration.{k}", cal[k], "a list of three numbers (one per joint)")
+        if num("calibration.gravity", cal["gravity"]) <= 0:  # calibrate's solve is singular at 0; metrics divide by it
+            raise bad("calibration.gravity", cal["gravity"], "must be > 0 (the gravity G_star is for [m/s^2])")
         for k, v in (raw.get("calibration", {}).get("scale") or {}).items():
             if num(f"calibration.scale.{k}", v) <= 0:
                 raise bad(f"calibration.scale.{k}", v, "must be > 0 (a mass scale factor)")

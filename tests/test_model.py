@@ -142,3 +142,117 @@ def test_cli_urdf_of_another_parameter_file_never_replaces_the_bundled_urdf(
     (written,) = (tmp_path / "cache" / "urdf").glob("other-*.urdf")
     assert written == resources.urdf_target(other)
     assert written.read_text() == model.urdf_text(model.load_params(other))
+
+
+def _leg_with(tmp_path: Path, key: str, value: str) -> Path:
+    """The bundled parameter file with one ``geometry`` entry's value replaced by the YAML text ``value``."""
+    import re
+
+    from legbench import resources
+
+    text, n = re.subn(rf"(\n  {key}:\s*)\S+", rf"\g<1>{value}", resources.bundled_model().read_text(), count=1)
+    assert n == 1, key
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "words"),
+    [
+        ("H", ".nan", ": nan is not a finite number"),
+        ("H", "-.inf", "-inf is not a finite number"),
+        ("H", "-0.4", "-0.4 must be > 0 (the height of frame 0, the hip, above the ground"),
+        ("H", "0", "0 must be > 0"),
+        ("H", "1.0e300", "1e+300 is beyond +-1e+12"),
+        ("L_B0", ".nan", "nan is not a finite number"),
+        ("L_B0", ".inf", "inf is not a finite number"),
+        ("L_B0", "1.0e300", "1e+300 is beyond"),
+        ("L_01", ".nan", "nan is not a finite number"),
+        ("L_01", "-.inf", "-inf is not a finite number"),
+        ("L_01", "-1.0e300", "-1e+300 is beyond"),
+        ("L_12", ".nan", "nan is not a finite number"),
+        ("L_12", "0", "0 must be > 0 (a length"),
+        ("L_23", ".inf", "inf is not a finite number"),
+        ("L_3E", "-0.223", "-0.223 must be > 0 (a length"),
+        ("R_foot", ".nan", "nan is not a finite number"),
+    ],
+)
+def test_a_bad_geometry_entry_is_one_line_exit_2_and_no_urdf(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], key: str, value: str,
+    words: str,
+) -> None:  # fmt: skip
+    """H, L_B0 and L_01 were not checked: NaN or inf went into the URDF (written to the cache, then Pinocchio's
+    "does not contain a valid URDF model" traceback, exit 1), and a negative or zero H, or 1e300, was accepted (a
+    negative H then blamed the scenario's initial.q). Every geometry entry is refused in one line naming the file
+    and the key, exit 2, before any URDF is written."""
+    from legbench import cli, resources
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv(resources.CACHE_ENV, str(cache))
+    monkeypatch.delenv(resources.MODEL_ENV, raising=False)
+    bad = _leg_with(tmp_path, key, value)
+    try:
+        for argv in (["model", "check"], ["validate", str(resources.scenario("effort"))]):
+            assert cli.main(["--model", str(bad), *argv]) == 2
+            err = capsys.readouterr().err
+            assert err.startswith(f"legbench: error: {bad}: geometry.{key}: ") and err.count("\n") == 1, err
+            assert words in err and "initial.q" not in err, err
+    finally:
+        resources.select_model(None)
+    assert not cache.exists() or not any(cache.rglob("*")), sorted(cache.rglob("*"))
+
+
+@pytest.mark.parametrize(("key", "value"), [("L_B0", "0"), ("L_B0", "-0.05555"), ("L_01", "0"), ("L_01", "-0.07763")])
+def test_the_offsets_l_b0_and_l_01_may_be_zero_or_negative(tmp_path: Path, key: str, value: str) -> None:
+    """L_B0 (x_W of frame 0) and L_01 (frame 1's offset along the ab/ad axis, which q1 turns about) place the leg,
+    they do not shape it: 0 or a negative value is a leg moved along x_W or y_W, with the same G(q*)."""
+    path = _leg_with(tmp_path, key, value)
+    params = model.load_params(path)
+    assert getattr(params.geometry, key) == float(value)
+    urdf = model.write_urdf(params, tmp_path / "moved.urdf")
+    q_star = np.array(params.q_star)
+    np.testing.assert_allclose(model.gravity_torque(q_star, urdf=str(urdf)), model.gravity_torque(q_star), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("edit", "words"),
+    [
+        (lambda raw: raw["links"]["link1"]["parts"][0]["pos"].__setitem__(0, float("nan")),
+         "links.link1.parts[0].pos[0]: nan is not a finite number"),
+        (lambda raw: raw["links"]["link2"]["parts"][1].update(pos=[0.1, 0.0]),
+         "links.link2.parts[1].pos: [0.1, 0.0] is not a position"),
+        (lambda raw: raw["links"]["foot"]["parts"][0].update(hole_r=float("nan")),
+         "links.foot.parts[0].hole_r: nan is not a finite number"),
+        (lambda raw: raw["links"]["foot"]["parts"][0].update(hole_r=0.0225),
+         "links.foot.parts[0].hole_r: 0.0225 must be in [0, r)"),
+        (lambda raw: raw["collision"]["link2"].update(r=float("inf")), "collision.link2.r: inf is not a finite number"),
+        (lambda raw: raw["collision"]["link3"].update(length=0.0), "collision.link3.length: 0.0 must be > 0"),
+        (lambda raw: raw["collision"]["foot"].update(r=float("nan")), "collision.foot.r: nan is not a finite number"),
+        (lambda raw: raw["collision"]["link2"]["pos"].__setitem__(2, float("-inf")),
+         "collision.link2.pos[2]: -inf is not a finite number"),
+        (lambda raw: raw["collision"].pop("foot"), "collision: "),
+        (lambda raw: raw["calibration"]["q_star"].__setitem__(1, float("nan")),
+         "calibration.q_star[1]: nan is not a finite number"),
+        (lambda raw: raw["calibration"]["G_star"].__setitem__(0, float("inf")),
+         "calibration.G_star[0]: inf is not a finite number"),
+        (lambda raw: raw["calibration"].update(gravity=0.0), "calibration.gravity: 0.0 must be > 0"),
+        (lambda raw: raw["geometry"].pop("H"), "geometry.H: missing"),
+        (lambda raw: raw.update(geometry=[0.4]), "geometry: [0.4] is not a mapping"),
+    ],
+    ids=["part-pos-nan", "part-pos-short", "hole-nan", "hole-full", "coll-r-inf", "coll-length-0", "foot-r-nan",
+         "coll-pos-inf", "no-foot", "q-star-nan", "g-star-inf", "gravity-0", "no-H", "geometry-list"],
+)  # fmt: skip
+def test_every_other_length_and_position_of_the_file_is_checked(edit: object, words: str) -> None:
+    """The CAD parts' positions and the collision primitives' sizes and positions went into the URDF unchecked
+    (NaN: a URDF no parser reads, or a NaN inertia), q* and G(q*) into `model check` as NaN, and gravity 0 made
+    `model calibrate`'s solve singular (a LinAlgError traceback): each is one line naming the file and the key."""
+    import copy
+    import re
+
+    from legbench.exceptions import ModelError
+
+    raw = copy.deepcopy(model.load_raw())
+    edit(raw)  # type: ignore[operator]
+    with pytest.raises(ModelError, match=re.escape(f"p.yaml: {words}")):
+        model.params_from_raw(raw, "p.yaml")

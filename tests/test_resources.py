@@ -113,3 +113,67 @@ def test_outputs_name_files_without_this_machines_paths(tmp_path: Path, monkeypa
     monkeypatch.chdir(resources.source_tree() or tmp_path)
     if resources.source_tree() is not None:  # a checkout: the bundled scenarios are links to scenarios/
         assert resources.shown(effort) == "scenarios/effort.yaml"
+
+
+def test_the_cached_urdf_name_hashes_the_whole_parameter_file_as_before(tmp_path: Path) -> None:
+    """A regular parameter file's URDF is named by sha256(URDF_FORMAT + the file's bytes), as it always was (the
+    cache's names depend on it); a missing file's is '<stem>-missing.urdf'."""
+    import hashlib
+
+    leg = tmp_path / "my_leg.yaml"
+    leg.write_bytes(resources.bundled_model().read_bytes())
+    digest = hashlib.sha256(resources.URDF_FORMAT + leg.read_bytes()).hexdigest()[:16]
+    assert resources.urdf_target(leg).name == f"my_leg-{digest}.urdf"
+    assert resources.urdf_target(tmp_path / "gone.yaml").name == "gone-missing.urdf"
+
+
+def test_urdf_target_refuses_what_is_not_a_regular_file_unread(tmp_path: Path) -> None:
+    """urdf_target read the whole parameter file to hash it, whatever it was: a device (/dev/zero: no end) was
+    read until the process was killed. Anything but a regular file is a one-line ModelError naming it and what it
+    is, before a byte is read (/dev/null, which ends, shows it without the hang)."""
+    from legbench.exceptions import ModelError
+
+    cases = [(tmp_path, "a directory")]
+    if Path("/dev/null").exists():
+        cases.append((Path("/dev/null"), "a character device"))
+    for path, kind in cases:
+        with pytest.raises(ModelError) as exc:
+            resources.urdf_target(path)
+        assert str(exc.value) == f"{path}: is {kind}, not a regular file (a leg parameter file is read only from one)"
+
+
+def test_urdf_target_reads_no_more_than_the_file_size_limit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A parameter file larger than the YAML reader's limit (``file_bytes``, which LEGBENCH_LIMITS sets) is refused
+    in one line before it is hashed, as reading it would be; one at the limit is hashed as before."""
+    from legbench.exceptions import ModelError
+
+    leg = tmp_path / "leg_copy.yaml"
+    leg.write_bytes(resources.bundled_model().read_bytes())
+    size = leg.stat().st_size
+    monkeypatch.setenv("LEGBENCH_LIMITS", f"file_bytes={size - 1}")
+    with pytest.raises(ModelError, match=rf"^{re.escape(str(leg))}: {size} bytes is more than {size - 1} \(limit"):
+        resources.urdf_target(leg)
+    monkeypatch.setenv("LEGBENCH_LIMITS", f"file_bytes={size}")
+    assert resources.urdf_target(leg).name.startswith("leg_copy-") and "missing" not in resources.urdf_target(leg).name
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "mkfifo"), reason="no FIFOs here")
+def test_the_library_refuses_a_model_variable_naming_a_fifo_on_import(tmp_path: Path) -> None:
+    """``import legbench.results`` (the Python API's path, not the CLI's, which checks LEGBENCH_MODEL first) hashed
+    the active model's file for its URDF name: a FIFO there blocked the import for ever (no writer comes). The
+    import now reads no model, and naming the URDF (what a run's run.json records) is a ModelError at once, in a
+    fresh process (the timeout only bounds a regression)."""
+    import os
+    import subprocess
+    import sys
+
+    fifo = tmp_path / "leg.yaml"
+    os.mkfifo(fifo)
+    env = {**os.environ, resources.MODEL_ENV: str(fifo), resources.CACHE_ENV: str(tmp_path / "cache")}
+    code = "import legbench.results; print('imported', flush=True); legbench.resources.urdf_target()"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 1 and done.stdout == "imported\n"
+    last = done.stderr.strip().splitlines()[-1]
+    assert last == f"legbench.exceptions.ModelError: {fifo}: is a FIFO, not a regular file (a leg parameter file " \
+                   "is read only from one)"  # fmt: skip
+    assert not (tmp_path / "cache").exists()
