@@ -47,7 +47,7 @@ import pandas as pd
 
 from legbench import yamlfile
 from legbench.compare import compare
-from legbench.exceptions import ResultsError, ScenarioError
+from legbench.exceptions import LegbenchError, ResultsError, ScenarioError
 from legbench.results import (
     Run,
     atomic_write_bytes,
@@ -673,7 +673,14 @@ def run_check(
 
     Raises:
         ResultsError: as :func:`check`, and where ``baseline`` is ``new`` itself.
+        LegbenchError: a path no file system can hold (a name too long), naming its option.
     """
+    for what, given in (("", new), ("--baseline ", baseline), ("--tolerances ", tolerance_file)):
+        try:
+            if given is not None:
+                Path(given).exists()
+        except OSError as exc:  # a name too long for the file system: bad input, not a failed read or write
+            raise LegbenchError(f"{what}{given}: {exc.strerror or exc}") from None
     if Path(new).exists() and Path(new).resolve() == Path(baseline).resolve():  # would pass, and write into it
         raise ResultsError(str(baseline), "the baseline is the new results directory itself: nothing to check")
     report = check(new, baseline, tolerance_file)

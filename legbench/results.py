@@ -28,7 +28,8 @@ import os
 import platform
 import re
 import shutil
-from collections.abc import Iterator, Mapping, Sequence
+import stat
+from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from functools import cached_property
 from importlib import metadata
@@ -41,10 +42,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from legbench import backends as registry
-from legbench import kinematics
+from legbench import kinematics, resources
 from legbench.contact import ContactParams
 from legbench.exceptions import LegbenchError, ResultsError
-from legbench.model import URDF_FILE, load_params
+from legbench.model import load_params
 from legbench.scenario import DEFAULT_REFERENCE, Scenario
 from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS, SLICE
 
@@ -62,6 +63,7 @@ __all__ = [
     "check_out_dir",
     "check_out_file",
     "check_out_path",
+    "check_out_tree",
     "checks_summary",
     "clean_stale",
     "commit_staged",
@@ -379,6 +381,20 @@ def atomic_dir(path: str | Path, keep: Sequence[str] = ()) -> Iterator[Path]:
         raise
 
 
+#: What a path that is not a directory is, by its ``stat`` mode (the first test that holds).
+_KINDS = ((stat.S_ISREG, "a regular file"), (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+          (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"))  # fmt: skip
+
+
+def _kind(path: Path) -> str:
+    """What ``path``, an existing non-directory, is: ``a regular file``, ``a character device`` (/dev/null), ..."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return "not a directory"
+    return next((name for test, name in _KINDS if test(mode)), "a special file")
+
+
 def _writable_dir(d: Path, what: str) -> None:
     """The nearest existing ancestor of ``d`` is a directory we can write into."""
     probe = d
@@ -387,19 +403,38 @@ def _writable_dir(d: Path, what: str) -> None:
             break
         probe = probe.parent
     if probe.exists() and not probe.is_dir():
-        raise LegbenchError(f"{what} {d}: {probe} is a regular file, not a directory")
+        raise LegbenchError(f"{what} {d}: {probe} is {_kind(probe)}, not a directory")
     if probe.exists() and not os.access(probe, os.W_OK | os.X_OK):
         raise LegbenchError(f"{what} {d}: {probe} is not writable")
 
 
 def check_out_path(path: str | Path, what: str = "--out") -> Path:
-    """An output directory given on the command line, checked before any work: not a regular file,
-    inside a writable place (missing folders are created when writing)."""
+    """An output directory given on the command line, checked before any work: not a regular file, device or
+    other non-directory (the message says which), inside a writable place (missing folders are created when
+    writing)."""
     path = Path(path)
     if path.exists() and not path.is_dir():
-        raise LegbenchError(f"{what} {path}: is a regular file, not a directory")
+        raise LegbenchError(f"{what} {path}: is {_kind(path)}, not a directory")
     _writable_dir(path, what)
     return path
+
+
+def check_out_tree(root: str | Path, dirs: Collection[str], files: Collection[str], kind: str) -> None:
+    """Refuse a results tree's root (``legbench reproduce --out``) holding anything legbench did not put there,
+    before any work: every entry must be a directory named in ``dirs`` (the tree's run directories, each
+    checked on its own by the caller) or any run directory (holds run.json), a file named in ``files`` (the
+    tree's pages), or a temporary of an earlier write (:func:`clean_stale` removes it). A missing or empty
+    root is fine; ``kind`` names the tree in the message."""
+    root = Path(root)
+    if not root.is_dir():
+        return
+    for p in sorted(root.iterdir()):
+        if _TEMP_RE.match(p.name) or (p.is_dir() and (p.name in dirs or (p / "run.json").is_file())):
+            continue
+        if p.is_file() and p.name in files:
+            continue
+        raise LegbenchError(f"{root}: not empty and not a legbench {kind} directory (it holds {p.name}); "
+                            "choose another --out")  # fmt: skip
 
 
 def check_out_file(path: str | Path, what: str = "--out") -> Path:
@@ -541,7 +576,7 @@ def write_run(scenario: Scenario, results: Sequence[RunResult], out_dir: Path, c
             "versions": vers,
             "platform": platform_info(),
             "legbench_version": vers.get("legbench", "unknown"),
-            "urdf": str(URDF_FILE.name),
+            "urdf": resources.urdf_target().name,  # the model active now (--model selects it after import)
         }
         write_json(meta, tmp / "run.json")
     return out_dir

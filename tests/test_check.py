@@ -465,3 +465,24 @@ def test_a_metrics_json_with_malformed_log_digests_is_refused(baseline: Path, tm
     _set_json(d / "metrics.json", ["logs"], {"a.parquet": "xyz"})
     with pytest.raises(ResultsError, match="logs: must be an object of log file name -> SHA-256"):
         results.read_metrics(d / "metrics.json")
+
+
+@pytest.mark.parametrize("which", ["dir", "--baseline", "--tolerances"])
+def test_a_path_too_long_for_the_file_system_is_bad_input(
+    baseline: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], which: str
+) -> None:
+    """``legbench check`` given a name longer than the file system allows (ENAMETOOLONG) said 'I/O error', exit 4:
+    it is bad input, one line naming the option (or the directory) and the problem, exit 2, nothing written."""
+    long = str(tmp_path / ("x" * 300))
+    new = tmp_path / "new"
+    shutil.copytree(baseline, new)
+    args = {"dir": long if which == "dir" else str(new), "--baseline": long if which == "--baseline" else str(baseline)}
+    argv = ["check", args["dir"], "--baseline", args["--baseline"]]
+    if which == "--tolerances":
+        argv += ["--tolerances", long]
+    before = sorted(p.name for p in new.rglob("*"))
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    named = f"{which} {long}" if which != "dir" else long
+    assert err.startswith(f"legbench: error: {named}: ") and "too long" in err and err.count("\n") == 1, err
+    assert sorted(p.name for p in new.rglob("*")) == before

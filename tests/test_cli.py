@@ -502,3 +502,52 @@ def test_a_sweep_that_would_measure_nothing_or_twice_is_refused(
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and f"{sw}:" in err and f": {key}: {words}" in err, err
     assert not (tmp_path / "o").exists()
+
+
+def test_an_unknown_backend_names_the_backends_option(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``legbench run SCENARIO --backends bogus`` said "backend 'bogus' is not available", naming no option: one
+    line naming ``--backends`` and the name, with the backends available here (and, for one legbench knows
+    whose engine is missing, what to install), exit 2."""
+    from legbench import backends
+
+    effort = Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml"
+    here = ", ".join(sorted(backends.available()))
+    assert cli.main(["run", str(effort), "--backends", "bogus"]) == 2
+    assert capsys.readouterr().err == f"legbench: error: --backends bogus: unknown backend; available here: {here}\n"
+    monkeypatch.setitem(backends.BUILTIN, "ghostengine", ("legbench.backends.ghostengine_", "G", "ghostengine"))
+    assert cli.main(["run", str(effort), "--backends", "pinocchio,ghostengine"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("legbench: error: --backends ghostengine: not installed here (pip install ghostengine")
+    assert err.endswith(f"; available here: {here}\n") and err.count("\n") == 1
+
+
+def test_compare_jobs_beyond_the_pages_start_no_more_workers_than_pages(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``legbench compare TREE --jobs 8`` for a tree of two runs made a pool of 8 workers: it is as large as the
+    pages, at most, and no more workers than that are started."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from legbench import report
+
+    for name in ("a", "b"):
+        write_run(tmp_path / "tree" / name, {"ref": None, "x": scale(1.01)}, name=name, duration=0.2, steady_window=0.1)
+    made: list[Any] = []
+    spawned: list[int] = []
+    real_make, real_spawn = report.make_executor, ProcessPoolExecutor._spawn_process  # type: ignore[attr-defined]
+
+    def make(*args: Any, **kwargs: Any) -> Any:
+        made.append(real_make(*args, **kwargs))
+        return made[-1]
+
+    def spawn(self: Any) -> None:
+        spawned.append(1)
+        real_spawn(self)
+
+    monkeypatch.setattr(report, "make_executor", make)
+    monkeypatch.setattr(ProcessPoolExecutor, "_spawn_process", spawn)
+    assert cli.main(["compare", str(tmp_path / "tree"), "--jobs", "8"]) == 0
+    assert [ex.jobs for ex in made] == [2] and 1 <= len(spawned) <= 2
+    assert (tmp_path / "tree" / "a" / "report.html").is_file() and (tmp_path / "tree" / "report.html").is_file()

@@ -134,6 +134,24 @@ def test_start_spawns_the_workers_before_the_first_task() -> None:
     assert all(ign and pre for _, ign, pre in got)
 
 
+def test_a_pool_starts_no_more_workers_than_its_tasks() -> None:
+    """``tasks``: a pool told it has two tasks starts two workers, not ``jobs`` (``--jobs 8`` for two runs
+    started eight processes, each importing every engine); at least one, and ``jobs`` below 1 is still refused."""
+    ex = executors.LocalExecutor(8, preload=(), tasks=2)
+    with ex:
+        ex.start()
+        ex._started()  # the thread has handed out its tasks: the processes exist
+        assert ex._pool is not None
+        assert len(ex._pool._processes) == 2  # type: ignore[attr-defined]
+        assert ex.map(math.sqrt, [4.0, 9.0]) == [2.0, 3.0]
+        assert len(ex._pool._processes) == 2  # type: ignore[attr-defined]
+    assert executors.make_executor("local", 8, tasks=3).jobs == 3  # type: ignore[attr-defined]
+    assert executors.make_executor("local", 2, tasks=5).jobs == 2  # type: ignore[attr-defined]
+    assert executors.LocalExecutor(4, tasks=0).jobs == 1
+    with pytest.raises(LegbenchError, match="jobs must be >= 1"):
+        executors.LocalExecutor(-1, tasks=2)
+
+
 def test_the_start_spawns_every_worker_even_when_the_first_is_already_idle(monkeypatch: pytest.MonkeyPatch) -> None:
     """The pool spawns a worker per task only while none is idle: when the first no-op is done before the second
     is handed out (as a warm fork server makes it within milliseconds; forced here by waiting for each), the

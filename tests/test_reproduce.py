@@ -239,3 +239,79 @@ def test_sim_error_between_frameworks_equals_the_metrics(with_metrics: Path, rep
     assert rows[("Gazebo", "Simscape")][0] > 0.0  # two engines: not identical traces
     assert str(rows[("Simscape", "custom sim")][0]).startswith(f"{GHOST} missing:")
     assert len(table.rows) == 6  # every ordered pair of the three frameworks
+
+
+def _tiny(tmp_path: Path) -> Path:
+    """A framework file of one task whose one framework backend is not installed: a reproduce of it runs no
+    engine (the backend's row says missing) and writes one run directory and the pages."""
+    doc = {"frameworks": [{"name": "custom sim", "backend": GHOST, "profile": "engine-defaults"}],
+           "tasks": [{"file": str(SCENARIOS / "effort.yaml"), "tables": ["force"]}]}  # fmt: skip
+    return _write(tmp_path, doc)
+
+
+def _reproduce(fw: Path, *extra: str) -> list[str]:
+    return ["reproduce", "--frameworks", str(fw), "--backends", "none", "--duration", "0.01", "--no-report", "-q",
+            *extra]  # fmt: skip
+
+
+def test_reproduce_refuses_a_folder_that_is_not_legbench_s(
+    tmp_path: Path, ghost: None, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``legbench reproduce --out DIR`` into a non-empty folder of someone else's files wrote its runs and pages
+    among them, exit 0: refused before any work, one line, exit 2, the folder as it was (also with --force)."""
+    fw = _tiny(tmp_path)
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("keep me")
+    for extra in ((), ("--force",)):
+        assert cli.main(_reproduce(fw, "--out", str(out), *extra)) == 2
+        err = capsys.readouterr().err
+        assert err == f"legbench: error: {out}: not empty and not a legbench reproduce directory (it holds " \
+                      "notes.txt); choose another --out\n"  # fmt: skip
+        assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+    (out / "notes.txt").unlink()
+    (out / "effort").mkdir()
+    (out / "effort" / "notes.txt").write_text("keep me")  # a task's directory holding someone else's files
+    assert cli.main(_reproduce(fw, "--out", str(out))) == 2
+    assert "not empty and not a legbench run directory" in capsys.readouterr().err
+    assert sorted(p.name for p in (out / "effort").iterdir()) == ["notes.txt"]
+
+
+def test_reproduce_replaces_its_finished_runs_only_with_force(
+    tmp_path: Path, ghost: None, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A rerun of ``legbench reproduce`` silently replaced its finished task runs and tables, where ``run`` and
+    ``sweep`` refuse without --force: refused in one line naming --force (exit 2, everything as it was), replaced
+    with --force; an interrupted reproduce of the same command is resumed without it; tables whose runs are gone
+    are not replaced without it either. Without --out, the message says to pass one."""
+    import json
+
+    fw = _tiny(tmp_path)
+    out = tmp_path / "rep"
+    argv = _reproduce(fw, "--out", str(out))
+    assert cli.main(argv) == 0
+    before = {p.name: p.read_bytes() for p in [*out.iterdir(), *(out / "effort").iterdir()] if p.is_file()}
+    capsys.readouterr()
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert err == f"legbench: error: {out / 'effort'} holds a finished run; choose another --out for a new one, " \
+                  "or --force to replace it\n"  # fmt: skip
+    assert {p.name: p.read_bytes() for p in [*out.iterdir(), *(out / "effort").iterdir()] if p.is_file()} == before
+    assert cli.main([*argv, "--force"]) == 0
+    meta = json.loads((out / "effort" / "run.json").read_text())
+    meta["backends"][GHOST] |= {"status": "interrupted", "reason": "not run: interrupted before it finished"}
+    (out / "effort" / "run.json").write_text(json.dumps({**meta, "complete": False}))  # as Ctrl-C leaves it
+    assert cli.main(argv) == 0  # resumed
+    assert results.read_meta(out / "effort")["complete"] is True
+    for p in (out / "effort").iterdir():
+        p.unlink()
+    (out / "effort").rmdir()
+    capsys.readouterr()
+    assert cli.main(argv) == 2
+    assert capsys.readouterr().err == f"legbench: error: {out} holds a finished reproduce (reproduce.json); " \
+                                      "choose another --out for a new one, or --force to replace it\n"  # fmt: skip
+    assert not (out / "effort").exists()
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(_reproduce(fw)) == 0  # the default, results/reproduce
+    assert cli.main(_reproduce(fw)) == 2
+    assert "holds a finished run; pass --out DIR for a new one, or --force" in capsys.readouterr().err

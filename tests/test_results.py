@@ -12,7 +12,7 @@ import pytest
 from fakerun import scale, write_run
 
 from legbench import cli, results
-from legbench.exceptions import ResultsError
+from legbench.exceptions import LegbenchError, ResultsError
 
 
 def _set(path: Path, key: str, value: Any) -> None:
@@ -102,3 +102,53 @@ def test_a_run_json_without_duration_is_compared_with_duration_null(tmp_path: Pa
     assert cli.main(["compare", str(run)]) == 0
     head, _ = results.read_metrics(run / "metrics.json")
     assert head["duration"] is None
+
+
+@pytest.mark.parametrize(
+    ("path", "words"),
+    [("/dev/null", "--out /dev/null: is a character device, not a directory"),
+     ("/dev/null/sub", "--out /dev/null/sub: /dev/null is a character device, not a directory")],
+)  # fmt: skip
+def test_an_out_that_is_a_device_is_called_a_device(path: str, words: str) -> None:
+    """``check_out_path('/dev/null')`` called /dev/null 'a regular file': the message says what it is."""
+    with pytest.raises(LegbenchError) as exc:
+        results.check_out_path(path)
+    assert str(exc.value) == words and "regular file" not in str(exc.value)
+
+
+def test_an_out_that_is_a_regular_file_is_still_called_one(tmp_path: Path) -> None:
+    f = tmp_path / "file"
+    f.write_text("keep")
+    with pytest.raises(LegbenchError, match=r": is a regular file, not a directory$"):
+        results.check_out_path(f)
+    with pytest.raises(LegbenchError, match=rf": {f} is a regular file, not a directory$"):
+        results.check_out_path(f / "sub")
+
+
+def test_run_json_names_the_model_active_when_the_run_is_written(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """run.json's ``urdf`` is the URDF of the model ``--model`` selected, which happens after legbench.results is
+    imported: it named the bundled leg.urdf for every ``--model`` run (the name was taken at import), so a
+    report could not tell which leg the run used."""
+    import re
+
+    from legbench import resources
+
+    monkeypatch.setenv(resources.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.delenv(resources.MODEL_ENV, raising=False)
+    text, n = re.subn(r"(\n\s*gravity:\s*)9\.81", r"\g<1>9.0", resources.bundled_model().read_text())
+    assert n == 1
+    params = tmp_path / "heavy_leg.yaml"
+    params.write_text(text)
+    out = tmp_path / "run"
+    try:
+        argv = ["--model", str(params), "run", str(resources.scenario("position")), "--backends", "pinocchio",
+                "--set", "duration=0.01", "--set", "comparison.steady_window=0.005", "--out", str(out), "--no-compare",
+                "-q"]  # fmt: skip
+        assert cli.main(argv) == 0
+        want = resources.urdf_target().name
+    finally:
+        resources.select_model(None)
+    assert want.startswith("heavy_leg-") and want.endswith(".urdf")
+    assert json.loads((out / "run.json").read_text())["urdf"] == want

@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 import tracemalloc
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -741,7 +742,7 @@ def test_full_disk_is_one_line_exit_4_and_the_previous_file_intact(tmp_path: Pat
 
 
 @pytest.fixture
-def readonly_dir(tmp_path: Path) -> Path:
+def readonly_dir(tmp_path: Path) -> Iterator[Path]:
     """A read-only tmpfs (root ignores chmod); skipped where mounting is not allowed."""
     d = tmp_path / "ro"
     d.mkdir()

@@ -7,6 +7,7 @@ import dataclasses
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -317,3 +318,21 @@ def test_an_engine_that_crashes_its_worker_fails_its_rows_and_the_sweep_goes_on(
     assert len(bad) == 2 and (bad["status"] == "failed").all()
     assert bad["reason"].str.contains("the engine crashed: its worker process died \\(killed by SIGSEGV\\)").all()
     assert (t[t["backend"] != crashy]["status"] == "ok").all() and len(t) > len(bad)
+
+
+def test_a_sweep_starts_no_more_workers_than_its_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``legbench sweep --jobs 8`` on a sweep of three runs (a reference and two steps) started eight worker
+    processes, each importing every engine: it starts three, counted as the pool spawns them."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    spawned: list[int] = []
+    real_spawn = ProcessPoolExecutor._spawn_process  # type: ignore[attr-defined]
+
+    def spawn(self: Any) -> None:
+        spawned.append(1)
+        real_spawn(self)
+
+    monkeypatch.setattr(ProcessPoolExecutor, "_spawn_process", spawn)
+    res = sweep.run_sweep(_write(tmp_path, GOOD), None, "local", jobs=8)
+    assert len(res.table) == 3 and (res.table["status"] == "ok").all()
+    assert len(spawned) == 3

@@ -9,7 +9,7 @@ Other packages add backends through the ``legbench.backends`` entry-point group
 from __future__ import annotations
 
 import importlib
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from importlib import metadata
 from typing import Any
 
@@ -33,6 +33,7 @@ __all__ = [
     "Limits",
     "Physics",
     "Range",
+    "UnknownBackend",
     "available",
     "dt_problem",
     "engine_packages",
@@ -136,12 +137,26 @@ def load(name: str, physics: Physics, settings: Mapping[str, Any], profile: str 
     return backend
 
 
+class UnknownBackend(BackendNotFound):
+    """A name given to ``--backends`` (the API's ``backends``) that cannot run here, in one line naming the
+    option: ``--backends bogus: unknown backend; available here: dart, drake, ...``, or for a backend legbench
+    knows whose engine is not installed, ``--backends ode: not installed here (what to install); ...``."""
+
+    def __init__(self, name: str, available: Iterable[str], hint: str = "") -> None:
+        super().__init__(name, available, hint)
+        known = name in BUILTIN or name in _MISSING
+        what = "unknown backend" if not known else f"not installed here ({hint})" if hint else "not installed here"
+        names = ", ".join(self.available) or "none"
+        self.args = (f"--backends {name}: {what}; available here: {names}",)
+
+
 def resolve(names: str | list[str]) -> list[str]:
     """Expand ``"all"`` or a comma-separated list into backend names (checked).
 
     Raises:
         LegbenchError: the list names no backend (``""``: an empty list never means all).
-        BackendNotFound: an unknown name.
+        UnknownBackend: a name that is unknown or not installed here (a :class:`BackendNotFound`), in one line
+            naming ``--backends`` and the backends available here.
     """
     given = names
     if isinstance(names, str):
@@ -152,5 +167,8 @@ def resolve(names: str | list[str]) -> list[str]:
     if names == ["all"]:
         return available()
     for n in names:
-        get(n)
+        try:
+            get(n)
+        except BackendNotFound as exc:
+            raise UnknownBackend(n, exc.available, exc.hint) from None
     return list(dict.fromkeys(names))

@@ -44,6 +44,7 @@ __all__ = [
     "Executor",
     "LocalExecutor",
     "make_executor",
+    "warm_up",
 ]
 
 log = logging.getLogger("legbench.executors")
@@ -223,6 +224,24 @@ def _mp_context(preload: Sequence[str]) -> multiprocessing.context.BaseContext:
     return ctx
 
 
+def warm_up(preload: Sequence[str] = DEFAULT_PRELOAD) -> None:
+    """Start the fork server now, for a caller that learns how many tasks it has only later: the server imports
+    ``preload`` in the background while the caller plans, and the workers a :class:`LocalExecutor` made after
+    (sized to the tasks) fork from it ready, in milliseconds. Nothing where there is no fork server."""
+    if _mp_context(preload).get_start_method() == "forkserver":
+        from multiprocessing import forkserver
+
+        forkserver.ensure_running()
+
+
+def _capped(jobs: int | None, tasks: int | None) -> int:
+    """The worker count: ``jobs`` (default: the CPU count), checked >= 1, at most ``tasks`` (and at least 1)."""
+    n = int(jobs) if jobs else (os.cpu_count() or 1)
+    if n < 1:
+        raise LegbenchError(f"jobs must be >= 1, got {jobs}")
+    return n if tasks is None else max(1, min(n, tasks))
+
+
 class LocalExecutor(Executor):
     """A pool of ``jobs`` long-lived local worker processes; ``jobs = 1`` runs in this process.
 
@@ -235,14 +254,17 @@ class LocalExecutor(Executor):
 
     name = "local"
 
-    def __init__(self, jobs: int | None = None, preload: Sequence[str] = DEFAULT_PRELOAD) -> None:
+    def __init__(
+        self, jobs: int | None = None, preload: Sequence[str] = DEFAULT_PRELOAD, tasks: int | None = None
+    ) -> None:
         """Args:
         jobs: number of worker processes (default: the CPU count).
         preload: imported by each worker when it starts (see :data:`DEFAULT_PRELOAD`).
+        tasks: how many tasks the pool will have at most at once, where the caller knows it: no more workers
+            than that are started (each is a process that imports the engines; ``--jobs 1000`` for two
+            runs started 1000).
         """
-        self.jobs = int(jobs) if jobs else (os.cpu_count() or 1)
-        if self.jobs < 1:
-            raise LegbenchError(f"jobs must be >= 1, got {jobs}")
+        self.jobs = _capped(jobs, tasks)
         self.preload = tuple(preload)
         self._pool: ProcessPoolExecutor | None = None
         self._starter: threading.Thread | None = None
@@ -428,6 +450,7 @@ class DaskExecutor(Executor):
         jobs: int | None = None,
         processes: bool = True,
         preload: Sequence[str] = DEFAULT_PRELOAD,
+        tasks: int | None = None,
     ) -> None:
         """Args:
         scheduler: address of a running scheduler (``tcp://host:8786``); None starts a
@@ -435,13 +458,14 @@ class DaskExecutor(Executor):
         jobs: workers of the local cluster (default: the CPU count); ignored with a scheduler.
         processes: local cluster workers are processes (True) or threads of this process.
         preload: imported once by every worker before the first task (:data:`DEFAULT_PRELOAD`).
+        tasks: at most this many tasks at once, where known: the local cluster has no more workers.
         """
         try:
             import distributed
         except ImportError as exc:
             raise LegbenchError("executor 'dask' needs Dask distributed: pip install 'legbench[dask]'") from exc
         self.scheduler = scheduler
-        self.jobs = int(jobs) if jobs else (os.cpu_count() or 1)
+        self.jobs = _capped(jobs, tasks)
         self.processes = processes
         self._cluster: Any = None
         if scheduler is None:
@@ -504,7 +528,11 @@ class DaskExecutor(Executor):
 
 
 def make_executor(
-    kind: str = "local", jobs: int | None = None, scheduler: str | None = None, preload: Sequence[str] = DEFAULT_PRELOAD
+    kind: str = "local",
+    jobs: int | None = None,
+    scheduler: str | None = None,
+    preload: Sequence[str] = DEFAULT_PRELOAD,
+    tasks: int | None = None,
 ) -> Executor:
     """The executor named ``kind`` (one of :data:`EXECUTORS`).
 
@@ -513,6 +541,7 @@ def make_executor(
         jobs: worker count (local pool size, or local Dask cluster size).
         scheduler: Dask scheduler address; only with ``kind = "dask"``.
         preload: what each local worker imports once when it starts (:data:`DEFAULT_PRELOAD`).
+        tasks: the most tasks it will run at once, where the caller knows it: no more workers than that.
 
     Raises:
         LegbenchError: an unknown executor, a scheduler given to the local one,
@@ -521,7 +550,7 @@ def make_executor(
     if kind == "local":
         if scheduler:
             raise LegbenchError("--scheduler needs --executor dask")
-        return LocalExecutor(jobs, preload)
+        return LocalExecutor(jobs, preload, tasks)
     if kind == "dask":
-        return DaskExecutor(scheduler, jobs, preload=preload)
+        return DaskExecutor(scheduler, jobs, preload=preload, tasks=tasks)
     raise LegbenchError(f"unknown executor '{kind}'; choose one of {', '.join(EXECUTORS)}")

@@ -41,7 +41,7 @@ import numpy as np
 from legbench import backends as registry
 from legbench import report, resources, results, run, scenario, yamlfile
 from legbench.backends.base import PROFILES
-from legbench.exceptions import BackendNotFound, ScenarioError
+from legbench.exceptions import BackendNotFound, LegbenchError, ScenarioError
 from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK
 from legbench.metrics import SteadyState, pair_metrics, steady_state
 from legbench.results import Run, load_run
@@ -52,6 +52,8 @@ FRAMEWORKS_FILE = resources.scenario("reproduce")
 DEFAULT_OUT = Path("results") / "reproduce"
 #: What a task can feed: tables 10 and 11, table 12, sections 7.1 / 7.2.
 ROLES = ("steady", "force", "sim_error")
+#: The pages of a reproduce, beside its run directories in OUT.
+PAGES = ("reproduce.md", "reproduce.html", "reproduce.json")
 
 
 # --------------------------------------------------------------------------- #
@@ -387,6 +389,31 @@ def page_items(plan: Plan, tabs: Sequence[Table]) -> list[report.PageItem]:
 # The command
 
 
+def check_out(scs: Sequence[Scenario], out: Path, force: bool = False, new_place: str = "choose another --out") -> None:
+    """Before any work, as ``legbench run`` decides for its runs: ``out`` holds nothing but what a reproduce
+    writes (its task run directories, any other run directory, its pages), each task's directory holds no other
+    scenario's results, and nothing finished is replaced without ``force``: a task directory holding a finished
+    run (or an interrupted one of other settings), or ``reproduce.json`` when no task is resumed. An interrupted
+    reproduce of the same command (task runs ``"complete": false``) is resumed.
+
+    Raises:
+        LegbenchError: one line naming the directory and what it holds (``new_place``: where a new one goes).
+    """
+    out = Path(out)
+    results.check_out_tree(out, [sc.name for sc in scs], PAGES, "reproduce")
+    resumed = False
+    for sc in scs:
+        d = out / sc.name
+        results.check_out_dir(sc, d)
+        held = None if force else results.replaced_by_run(sc, d, None)
+        if held is not None:
+            raise LegbenchError(f"{d} holds {held}; {new_place} for a new one, or --force to replace it")
+        resumed = resumed or (d / "run.json").is_file()  # an interrupted run of the same settings
+    if not force and not resumed and (out / "reproduce.json").is_file():
+        raise LegbenchError(f"{out} holds a finished reproduce (reproduce.json); {new_place} for a new one, "
+                            "or --force to replace it")  # fmt: skip
+
+
 def reproduce(
     plan: Plan,
     out: Path,
@@ -396,14 +423,20 @@ def reproduce(
     jobs: int = 1,
     progress: bool = False,
     reports: bool = True,
+    force: bool = False,
+    new_place: str = "choose another --out",
 ) -> tuple[list[Table], list[Run]]:
     """Run every task on every backend into ``out/<task>/``, then build, print-ready, the tables.
+
+    ``out`` is checked first (:func:`check_out`): finished results there are replaced only with ``force``.
 
     Returns:
         The tables and the run directories read back (``plan.tasks`` order).
     """
     scs = scenarios_of(plan, overrides, duration)
+    check_out(scs, out, force, new_place)
     dirs = [out / sc.name for sc in scs]
+    jobs = max(1, min(jobs, len(scs) * len(names)))  # no more workers than runs
     run.run_many([(sc, None, d) for sc, d in zip(scs, dirs, strict=True)], names, jobs=jobs, progress=progress)
     if reports:
         for d in dirs:
@@ -425,7 +458,7 @@ def reproduce(
 
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Register ``legbench reproduce [--frameworks FILE] [--out DIR] [--jobs N] [--duration S] ...``."""
+    """Register ``legbench reproduce [--frameworks FILE] [--out DIR] [--force] [--jobs N] [--duration S] ...``."""
     p = subparsers.add_parser(
         "reproduce",
         help="the lab report's comparison in one command: its tables from the framework analogues",
@@ -439,7 +472,11 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
     p.add_argument("--backends", default="all",
                    help="the other backends besides the framework analogues: 'all' available (default), "
                         "'none', or comma-separated names")  # fmt: skip
-    p.add_argument("--out", default=str(DEFAULT_OUT), help=f"results tree (default {DEFAULT_OUT})")
+    p.add_argument("--out", default=None, help=f"results tree (default {DEFAULT_OUT})")
+    p.add_argument("--force", action="store_true",
+                   help="replace finished task runs (or interrupted ones of other settings) and the tables in the "
+                        "output directory; refused otherwise (an interrupted reproduce of the same command is "
+                        "resumed)")  # fmt: skip
     p.add_argument("--jobs", type=int, default=1, help="parallel runs (default 1)")
     p.add_argument("--duration", type=yamlfile.positive_float, default=None,
                    help="cut every task to this many seconds (a smoke test; later events dropped)")  # fmt: skip
@@ -454,9 +491,11 @@ def _cli(args: argparse.Namespace) -> int:
     plan = load_plan(args.frameworks)
     others = args.backends if args.backends in ("all", "none") else args.backends.split(",")
     names = backend_names(plan, others)
-    out = Path(args.out)
+    out = Path(args.out) if args.out is not None else DEFAULT_OUT
+    new_place = "choose another --out" if args.out is not None else "pass --out DIR"
     tabs, runs = reproduce(plan, out, names, yamlfile.parse_overrides(args.set), args.duration, args.jobs,
-                           progress=not args.quiet, reports=not args.no_report)  # fmt: skip
+                           progress=not args.quiet, reports=not args.no_report, force=args.force,
+                           new_place=new_place)  # fmt: skip
     print(report.page_markdown(page_items(plan, tabs)))
     print(f"written: {out / 'reproduce.md'}, {out / 'reproduce.html'}, {out / 'reproduce.json'}")
     failed = any(st.status == "failed" for r in runs for st in r.backends.values())

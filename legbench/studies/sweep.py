@@ -71,7 +71,7 @@ from legbench.run import crashed, deferred_interrupts
 from legbench.scenario import NAME_RE
 from legbench.signals import COLUMNS, UNITS
 from legbench.studies import horizon
-from legbench.studies.executors import DEFAULT_PRELOAD, EXECUTORS, Executor, make_executor
+from legbench.studies.executors import DEFAULT_PRELOAD, EXECUTORS, Executor, make_executor, warm_up
 from legbench.studies.horizon import HorizonResult
 from legbench.studies.tasks import RunTask, TaskResult, run_task
 from legbench.yamlfile import YamlContext, check_keys, limit, read_yaml
@@ -990,11 +990,15 @@ def run_sweep(
     own = not isinstance(executor, Executor)
     # the workers also import this module and matplotlib while they start: they draw the figures at the end
     preload = (*DEFAULT_PRELOAD, "legbench.studies.sweep", "matplotlib.figure", "matplotlib.backends.backend_agg")
-    ex = make_executor(executor, jobs, scheduler, preload) if isinstance(executor, str) else executor
+    if executor == "local" and (jobs or os.cpu_count() or 1) > 1:
+        warm_up(preload)  # the fork server imports the engines while the sweep is read and planned here
+    sw = load_sweep(sweep_file)
+    p = plan(sw)
+    # no more workers than runs (each is a process holding every engine; --jobs 1000 started 1000)
+    ex = executor if isinstance(executor, Executor) else make_executor(executor, jobs, scheduler, preload,
+                                                                       tasks=len(p.tasks))  # fmt: skip
     try:
-        ex.start()  # the workers start (imports, engines) while the sweep is read and planned here
-        sw = load_sweep(sweep_file)
-        p = plan(sw)
+        ex.start()
     except BaseException:
         if own:
             ex.terminate()
