@@ -28,11 +28,24 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import ResultsError
-from legbench.report_figures import ASSETS, NAMES, PLOTLY_JS, Arrays, run_figures, run_title, write_assets
+from legbench.metrics import SteadyState, max_abs
+from legbench.report_figures import (
+    ASSETS,
+    NAMES,
+    PLOTLY_JS,
+    Arrays,
+    ModelMatch,
+    model_advice,
+    model_match,
+    run_figures,
+    run_title,
+    write_assets,
+)
 from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num, relpath, to_html, to_markdown
 from legbench.results import (
     atomic_write_text,
@@ -296,14 +309,48 @@ def _maxdev_table(result: ComparisonResult) -> Table:
     return Table(header, rows, "Largest deviation |x - x_ref| and the time it happens")
 
 
+#: Largest joint speed [rad/s] in the steady window at which the analytic force check is shown; at or above it
+#: the check is n/a. The check is statics (qd = qdd = 0): it leaves out the window's mean of M qdd + C qd, and the
+#: mean of qdd over a window T is (qd(t1) - qd(t0)) / T, at most 2 max|qd| / T, so max |qd| bounds what it leaves
+#: out. The static windows stay under a fifth of it (results/latest, every profile and contact mode: effort and
+#: combined 4e-13..1e-3 rad/s, 2.1e-3 for ODE's engine defaults; position 2e-8, at its target), the moving ones
+#: over it (ellipse 0.40 rad/s, where the check reads -0.1 N of a force that is 0; MuJoCo's engine defaults let
+#: the pressed foot creep at 0.047-0.052 rad/s on effort and combined: a slide, not statics).
+STATIC_QD = 0.01
+
+
+def _steady_speed(result: ComparisonResult, s: SteadyState) -> float:
+    """max |qd| [rad/s] over the comparison's steady window [s.t0, s.t1] of backend ``s``, from its log (NaN when
+    the log has no finite qd there)."""
+    tr = result.traces.get(s.backend)
+    if tr is None or not len(tr.t):
+        return math.nan
+    m = max_abs(tr.qd[(tr.t >= s.t0) & (tr.t <= s.t1)])
+    return float(np.nanmax(m)) if np.isfinite(m).any() else math.nan
+
+
 def _steady_table(result: ComparisonResult) -> Table:
     header = ("backend", "row", "qd1 [rad/s]", "qd2 [rad/s]", "qd3 [rad/s]", "Fx [N]", "Fy [N]", "Fn [N]")
     rows: list[tuple[str, ...]] = []
+    classes: dict[tuple[int, int], str] = {}
+    titles: dict[tuple[int, int], str] = {}
     blank = ("", "", "")
     for s in result.steady:
         win = f"measured (mean over {s.t0:.3f}..{s.t1:.3f} s)"
         rows.append((s.backend, win, *(num(v) for v in s.qd), *(num(v) for v in s.force)))
-        rows.append((s.backend, "analytic check, J_poc", *blank, *(num(v) for v in s.analytic_poc)))
+        speed = _steady_speed(result, s)
+        if speed >= STATIC_QD:  # the leg moves: statics does not hold, whatever the check would print
+            why = (
+                f"the leg moves in the steady window: max |qd| {num(speed, 3)} rad/s, static means below "
+                f"{num(STATIC_QD)} rad/s"
+            )
+            r = len(rows)
+            rows.append((s.backend, f"analytic check: n/a ({why})", *blank, "n/a", "n/a", "n/a"))
+            for c in range(5, 8):
+                classes[(r, c)], titles[(r, c)] = "na", why
+            continue
+        check = "analytic check, J_poc" + (" (no qd logged: static not checked)" if math.isnan(speed) else "")
+        rows.append((s.backend, check, *blank, *(num(v) for v in s.analytic_poc)))
         rows.append((s.backend, "measured - analytic (J_poc)", *blank, *(num(v) for v in s.residual)))
         if s.analytic_centre is not None and s.poc_compensation is not None:
             rows.append(
@@ -321,7 +368,10 @@ def _steady_table(result: ComparisonResult) -> Table:
         header,
         tuple(rows),
         "Steady state over the final window; analytic check F = -(J^T)^-1 (tau - G(q)) at the mean q and tau "
-        "(ground force on the foot; valid when the leg is static)",
+        f"(ground force on the foot; valid when the leg is static: n/a where max |qd| over the window reaches "
+        f"{num(STATIC_QD)} rad/s)",
+        classes=classes,
+        titles=titles,
     )
 
 
@@ -473,11 +523,33 @@ def _scenario_table(result: ComparisonResult) -> Table:
     return Table(("item", "value"), tuple(rows), "Scenario")
 
 
+def _model_notes(result: ComparisonResult, match: ModelMatch) -> tuple[Para, Para]:
+    """(why the 3D leg view is left out, which model the model-dependent checks used) for a run made with another
+    leg model than the active one."""
+    advice = model_advice(match, result.run)
+    leg = Para(
+        f"The 3D leg view is left out: this run used another leg model (run.json: {match.run}) than the active "
+        f"one ({match.active}), whose geometry the view would draw; to get it, report the run with its own "
+        f"model: {advice}."
+    )
+    checks = Para(
+        f"The analytic force check and the contact-law residuals on this page (and in metrics.json) used the "
+        f"active leg model ({match.active}: its J(q), G(q), lengths and foot radius), not this run's "
+        f"({match.run}); for the run's own, {advice}.",
+        warn=True,
+    )
+    return leg, checks
+
+
 def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None) -> list[Block]:
     run = result.run
     sc = run.meta.get("scenario", {})
+    match = model_match(run)
+    leg_note, checks_note = _model_notes(result, match) if match.differs else (None, None)
     nav = [("\u2190 all scenarios", index)] if index else []
-    nav += [("tables", "#tables"), ("figures", "#figures"), ("3D leg", "#leg")]
+    nav += [("tables", "#tables"), ("figures", "#figures")]
+    if leg_note is not None or any(getattr(f, "key", None) == "leg" for f in figures):
+        nav.append(("3D leg", "#leg"))
     b: list[Block] = [Nav(tuple(nav)), Heading(1, f"legbench comparison: {run_title(run)}")]
     if sc.get("description"):
         b.append(Para(str(sc["description"])))
@@ -526,9 +598,13 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
                 )
             )
     b.append(Heading(2, "Steady state and analytic force check"))
+    if checks_note is not None:
+        b.append(checks_note)
     b.append(_steady_table(result))
     if any(r.n_contact for r in result.residuals.values()):
         b.append(Heading(2, "Contact-law residuals"))
+        if checks_note is not None:
+            b.append(checks_note)
         b.append(_residual_table(result))
     if result.split:
         b.append(
@@ -544,6 +620,8 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
         )
     )
     b.extend(figures)
+    if leg_note is not None:
+        b += [Heading(3, "3D leg view", "leg"), leg_note]
     if index:
         b.append(Nav((("\u2190 all scenarios", index), ("top", "#"))))
     return b
@@ -1165,7 +1243,7 @@ def write_all(
     staged: list[_Staged] = []
     try:
         # the workers render pages only: they import the report's modules, not the engines
-        with make_executor("local", jobs, preload=REPORT_PRELOAD) as ex:
+        with make_executor("local", jobs, preload=REPORT_PRELOAD, tasks=len(tasks)) as ex:  # <= a worker a page
             staged += ex.imap(_report_page, tasks)
         metrics_files = {st.files.html.parent: tmp for st in staged for tmp, final in st.moves
                          if final.name == "metrics.json"}  # fmt: skip

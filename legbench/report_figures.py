@@ -18,7 +18,12 @@ Figures (every time axis in seconds, every value in its signal's unit):
   at full resolution (differences of 1e-5 rad are visible there);
 * the leg of every backend in 3D with a time slider, drawn through
   :func:`legbench.kinematics.chain` from the logged joint angles, with the
-  ground plane and the foot.
+  ground plane and the foot. The kinematics are the *active* model's (the
+  parameter file of the process writing the report), so the view is drawn
+  only when the run used that model (:func:`model_match`: run.json's ``urdf``
+  against the name :func:`legbench.resources.urdf_target` gives the active
+  model's URDF); otherwise it is left out and :func:`model_advice` says how
+  to get it.
 
 Long series are decimated for display with a min/max envelope
 (:func:`envelope`): each bin keeps its smallest and largest sample, so a
@@ -41,6 +46,8 @@ import numpy as np
 
 from legbench import kinematics
 from legbench.compare import ComparisonResult
+from legbench.resources import bundled_urdf, urdf_target
+from legbench.resources import shown as shown_file
 from legbench.results import Run, RunResult, atomic_write_text
 from legbench.signals import JOINTS, SIGNALS, SLICE, UNITS
 from legbench.signals import label as column_label
@@ -50,7 +57,10 @@ __all__ = [
     "LEGBENCH_JS",
     "Arrays",
     "Figure",
+    "ModelMatch",
     "envelope",
+    "model_advice",
+    "model_match",
     "run_figures",
     "run_title",
     "write_assets",
@@ -190,6 +200,52 @@ class Arrays:
     def nbytes(self) -> int:
         """Characters of base64 held."""
         return sum(len(v) for v in self.items.values())
+
+
+@dataclass(frozen=True)
+class ModelMatch:
+    """The leg model a run used against the active one, by their URDF file names.
+
+    run.json's ``urdf`` is the file name of the URDF the run was made with: ``leg.urdf`` for the bundled model,
+    ``<stem>-<hash of the parameter file>.urdf`` for any other (:func:`legbench.resources.urdf_target`), so equal
+    names mean the same parameter file's content (for the bundled model: whatever the bundled file held then).
+
+    Attributes:
+        run: the run's URDF name (run.json ``urdf``), or None when run.json names none.
+        active: the active model's URDF name, as :func:`legbench.resources.urdf_target` names it.
+    """
+
+    run: str | None
+    active: str
+
+    @property
+    def differs(self) -> bool:
+        """True when run.json names another model than the active one (False when it names none)."""
+        return self.run is not None and self.run != self.active
+
+
+def model_match(run: Run) -> ModelMatch:
+    """The run's leg model (run.json ``urdf``) against the active one (``--model``, ``LEGBENCH_MODEL``, the bundled
+    leg): every figure or check drawn through :mod:`legbench.kinematics` uses the active model's geometry."""
+    urdf = run.meta.get("urdf")
+    name = Path(urdf).name if isinstance(urdf, str) and urdf.strip() else None
+    return ModelMatch(name or None, urdf_target().name)
+
+
+def model_advice(match: ModelMatch, run: Run) -> str:
+    """How to report ``run`` with its own model: the command, and which parameter file FILE is."""
+    urdf = match.run or ""
+    if urdf == bundled_urdf().name:
+        which = "the bundled leg, legbench/data/models/leg.yaml (models/leg.yaml in a source checkout)"
+    else:
+        stem, _, digest = Path(urdf).stem.rpartition("-")
+        which = (
+            f"the run's parameter file ({stem}.yaml, with the content it had for the run: {urdf} is named by a "
+            "hash of that content)"
+            if stem and digest
+            else f"the run's parameter file (its URDF was {urdf})"
+        )
+    return f"`legbench --model FILE compare {shown_file(run.path)}` with FILE {which}"
 
 
 def envelope(t: np.ndarray, y: np.ndarray, bins: int = BINS) -> tuple[np.ndarray, np.ndarray]:
@@ -534,8 +590,12 @@ def _focus_steady(result: ComparisonResult, arrays: Arrays) -> Figure | None:
 
 
 def _leg_view(result: ComparisonResult, arrays: Arrays) -> Figure | None:
-    """The leg of every backend in W, one pose per slider step, with each foot's path and the ground plane."""
+    """The leg of every backend in W, one pose per slider step, with each foot's path and the ground plane; None
+    when the run used another leg model than the active one (:func:`model_match`), whose geometry it would draw."""
     run = result.run
+    match = model_match(run)
+    if match.differs:  # the kinematics would draw the active model's leg, not the one that ran
+        return None
     shown = {k: v for k, v in {**result.traces, **run.partial}.items() if len(v.t) and np.isfinite(v.q).all()}
     if not shown:
         return None
@@ -618,7 +678,12 @@ def _leg_view(result: ComparisonResult, arrays: Arrays) -> Figure | None:
         "leg",
         "The leg of every backend, drawn from its logged joint angles through the forward "
         "kinematics (frame 0, ab/ad, hip, knee, foot centre); thin lines are each foot's path, the "
-        "plane is the ground. Drag the slider or press play; drag the view to turn it.",
+        "plane is the ground. Drag the slider or press play; drag the view to turn it."
+        + (
+            ""
+            if match.run is not None
+            else f" run.json does not name the leg model of the run: drawn with the active one ({match.active})."
+        ),
         spec,
         "leg",
     )

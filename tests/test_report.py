@@ -13,9 +13,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
-from fakerun import add_to, offset, scale, write_run
+from fakerun import add_to, base_signals, offset, scale, write_run
 
-from legbench import cli, kinematics, results
+from legbench import cli, kinematics, resources, results
 from legbench import report as R
 from legbench.compare import compare
 from legbench.exceptions import ResultsError
@@ -866,3 +866,105 @@ def test_a_rigid_contact_is_not_scored_against_the_spring_it_does_not_have(tmp_p
     md = R.write_report(d).markdown.read_text()
     row = next(line for line in md[md.index("## Contact-law residuals") :].splitlines() if line.startswith("| a |"))
     assert "rigid" not in row
+
+
+def _set_urdf(d: Path, urdf: str) -> None:
+    """Name the leg model of a fake run as run.json does: its URDF's file name."""
+    meta = json.loads((d / "run.json").read_text())
+    meta["urdf"] = urdf
+    (d / "run.json").write_text(json.dumps(meta))
+
+
+def test_the_leg_view_is_drawn_only_for_a_run_made_with_the_active_model(tmp_path: Path) -> None:
+    """The 3D view draws the legs through the active model's kinematics: it is on the page when run.json's urdf is
+    the active model's URDF name, and left out, with one sentence saying why and how to get it, when the run used
+    another model (a `--model other.yaml` run reported without --model); the pages then say that the analytic
+    check and the contact-law residuals used the active model, and the nav's #leg lands on the sentence."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.01)})
+    _set_urdf(d, resources.urdf_target().name)
+    files = R.write_report(d)
+    assert "leg" in files.figures and "left out" not in files.markdown.read_text()
+    _set_urdf(d, "other_leg-0123456789abcdef.urdf")
+    files = R.write_report(d)
+    assert "leg" not in files.figures and len(files.figures) == N_FIGURES - 1
+    assert "leg" not in {f.key for f in run_figures(compare(d), Arrays())}
+    md, page = files.markdown.read_text(), files.html.read_text()
+    leg = [line for line in md.splitlines() if line.startswith("The 3D leg view is left out")]
+    assert len(leg) == 1 and leg[0].count(". ") == 0, leg  # one sentence
+    assert f"(run.json: other_leg-0123456789abcdef.urdf) than the active one ({resources.urdf_target().name})" in leg[0]
+    command = f"`legbench --model FILE compare {resources.shown(d)}` with FILE the run's parameter file (other_leg.yaml"
+    assert command in leg[0]
+    assert '<a id="leg"></a>' in md and '<h3 id="leg">3D leg view</h3>' in page and "legbench.leg(" not in page
+    used = "The analytic force check and the contact-law residuals on this page (and in metrics.json) used the active"
+    assert md.count(used) == 2  # above the steady-state table and the residual table
+    assert md.index(used) < md.index("## Contact-law residuals") < md.rindex(used)
+
+
+def test_a_bundled_model_run_reported_with_another_active_model_says_which_file_to_pass(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The other way round: a run of the bundled leg (run.json urdf leg.urdf) reported while another parameter file
+    is active (LEGBENCH_MODEL, --model) has no leg view, and the page names the bundled file as FILE."""
+    other = tmp_path / "long_thigh.yaml"
+    other.write_text(resources.bundled_model().read_text().replace("L_23: 0.2531", "L_23: 0.26", 1))
+    assert other.read_text() != resources.bundled_model().read_text()
+    monkeypatch.setenv(resources.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.setattr(resources, "_selected", other.resolve())  # what select_model sets, without the env var
+    assert resources.urdf_target().name.startswith("long_thigh-")
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.01)})
+    _set_urdf(d, "leg.urdf")
+    files = R.write_report(d)
+    md = files.markdown.read_text()
+    assert "leg" not in files.figures
+    assert f"(run.json: leg.urdf) than the active one ({resources.urdf_target().name})" in md
+    assert "with FILE the bundled leg, legbench/data/models/leg.yaml" in md
+    assert f"used the active leg model ({resources.urdf_target().name}: " in md
+
+
+def _still(qd_peak: float) -> Any:
+    """Base signals of a leg held still in the steady window, its hip speed oscillating with peak ``qd_peak``."""
+
+    def base(t: np.ndarray) -> np.ndarray:
+        x = base_signals(t)
+        x[:, 0:3] = (0.05, -1.0, -1.2)
+        x[:, 3:6] = 0.0
+        x[:, 4] = qd_peak * np.sin(2 * np.pi * 3.0 * t + 0.4)
+        return x
+
+    return base
+
+
+def test_the_analytic_force_check_is_na_where_the_leg_moves_in_the_steady_window(tmp_path: Path) -> None:
+    """The check is statics: a backend whose max |qd| over the steady window reaches STATIC_QD (the ellipse's 0.40
+    rad/s: -0.1 N printed for a force of 0) gets one n/a row with the reason instead of the check's numbers; a leg
+    held still (below it, as the static tasks' 1e-3 rad/s) keeps them."""
+    moving = write_run(tmp_path / "moving", {"ref": None, "a": scale(1.01)})
+    res = compare(moving)
+    files = R.write_report(moving, res)
+    md, page = files.markdown.read_text(), files.html.read_text()
+    for s in res.steady:
+        tr = res.traces[s.backend]
+        speed = float(np.abs(tr.qd[tr.t >= s.t0]).max())
+        assert speed > 1.0
+        row = next(line for line in md.splitlines() if line.startswith(f"| {s.backend} | analytic check"))
+        assert row == (
+            f"| {s.backend} | analytic check: n/a (the leg moves in the steady window: max \\|qd\\| {num(speed, 3)} "
+            f"rad/s, static means below {num(R.STATIC_QD)} rad/s) |  |  |  | n/a | n/a | n/a |"
+        )
+        assert num(s.analytic_poc[2]) not in row
+    assert "measured - analytic" not in md
+    assert page.count(' na" title="the leg moves in the steady window: max |qd| ') == 3 * len(res.steady)
+    for peak, shown in ((0.5 * R.STATIC_QD, True), (2.0 * R.STATIC_QD, False)):
+        d = write_run(tmp_path / f"still-{peak}", {"ref": None, "a": scale(1.01)}, base=_still(peak))
+        res = compare(d)
+        md = R.write_report(d, res).markdown.read_text()
+        rows = [line for line in md.splitlines() if "| analytic check" in line]
+        assert len(rows) == 2, rows
+        if shown:
+            assert all(
+                r.startswith(f"| {s.backend} | analytic check, J_poc |") for r, s in zip(rows, res.steady, strict=True)
+            )
+            assert f"| ref | analytic check, J_poc |  |  |  | {num(res.steady[0].analytic_poc[0])} |" in md
+            assert md.count("| measured - analytic (J_poc) |") == 2
+        else:
+            assert all("analytic check: n/a (the leg moves" in r for r in rows)
