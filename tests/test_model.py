@@ -256,3 +256,30 @@ def test_every_other_length_and_position_of_the_file_is_checked(edit: object, wo
     edit(raw)  # type: ignore[operator]
     with pytest.raises(ModelError, match=re.escape(f"p.yaml: {words}")):
         model.params_from_raw(raw, "p.yaml")
+
+
+def test_model_check_with_a_zero_report_torque_says_inf_without_a_warning(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A report G(q*) component of 0 (a valid file) printed numpy's divide-by-zero warning over two more lines of
+    `model check`: the component's relative error is now inf (or 0 where the model's is 0 too), the check fails
+    (exit 1: the model's 0.163 N m is not the report's 0), and stderr stays empty."""
+    import re
+    import warnings
+
+    from legbench import cli, resources
+
+    monkeypatch.setenv(resources.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.delenv(resources.MODEL_ENV, raising=False)
+    text, n = re.subn(r"G_star: \[1\.0426, 0\.1631,", "G_star: [1.0426, 0.0,", resources.bundled_model().read_text())
+    assert n == 1
+    path = tmp_path / "zero_g.yaml"
+    path.write_text(text)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # a RuntimeWarning would fail the command
+            assert cli.main(["--model", str(path), "model", "check"]) == 1
+    finally:
+        resources.select_model(None)
+    out, err = capsys.readouterr()
+    assert err == "" and "relative error per component: [" in out and "inf" in out, (out, err)
