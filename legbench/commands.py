@@ -178,6 +178,11 @@ def _run(args: argparse.Namespace) -> int:
     if not single and (root / "run.json").is_file():  # a tree inside a run: the run's pages would be rewritten
         raise LegbenchError(f"--out {root}: holds one run, and {len(runs)} runs make a tree of run directories; "
                             "choose another --out")  # fmt: skip
+    if not single and args.out:  # the tree's index pages go into --out: a folder of someone else's is refused
+        from legbench.report_figures import ASSETS
+
+        results.check_out_tree(root, [out.name for *_, out in plan] + [ASSETS], ("report.html", "report.md"),
+                               "results tree")  # fmt: skip
     _check_plan(plan, args)
     # no more workers than runs: each worker is a process that imports every engine (--jobs 1000 started 1000)
     jobs = min(args.jobs, len(plan) * len(names))

@@ -53,6 +53,7 @@ __all__ = [
     "FRAME_COLUMNS",
     "METRICS_SCHEMA",
     "STATUSES",
+    "STUDY_OUTPUTS",
     "BackendStatus",
     "EventMark",
     "Run",
@@ -419,17 +420,23 @@ def check_out_path(path: str | Path, what: str = "--out") -> Path:
     return path
 
 
+#: The JSON document each study writes into its output directory: a directory holding one is legbench's.
+STUDY_OUTPUTS = ("verification.json", "calibration.json", "sweep.json", "reproduce.json", "bench.json")
+
+
 def check_out_tree(root: str | Path, dirs: Collection[str], files: Collection[str], kind: str) -> None:
-    """Refuse a results tree's root (``legbench reproduce --out``) holding anything legbench did not put there,
-    before any work: every entry must be a directory named in ``dirs`` (the tree's run directories, each
-    checked on its own by the caller) or any run directory (holds run.json), a file named in ``files`` (the
+    """Refuse a results tree's root (``legbench reproduce --out``, ``legbench run`` of several runs with
+    ``--out``) holding anything legbench did not put there, before any work: every entry must be a directory
+    named in ``dirs`` (the tree's run directories, each checked on its own by the caller), any run directory
+    (holds run.json) or study output (holds one of :data:`STUDY_OUTPUTS`), a file named in ``files`` (the
     tree's pages), or a temporary of an earlier write (:func:`clean_stale` removes it). A missing or empty
     root is fine; ``kind`` names the tree in the message."""
     root = Path(root)
     if not root.is_dir():
         return
     for p in sorted(root.iterdir()):
-        if _TEMP_RE.match(p.name) or (p.is_dir() and (p.name in dirs or (p / "run.json").is_file())):
+        ours = p.is_dir() and (p.name in dirs or any((p / f).is_file() for f in ("run.json", *STUDY_OUTPUTS)))
+        if _TEMP_RE.match(p.name) or ours:
             continue
         if p.is_file() and p.name in files:
             continue

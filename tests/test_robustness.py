@@ -1005,6 +1005,32 @@ def test_an_out_inside_a_run_directory_is_refused(
     assert sorted(p.name for p in run_dir.iterdir()) == before
 
 
+def test_a_tree_into_a_folder_of_someone_elses_is_refused_and_legbench_s_own_is_not(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``legbench run a.yaml b.yaml --out DIR`` writes a tree: a run directory per run and the index pages
+    report.html, report.md and assets/ in DIR itself, where a user's own report.html was replaced without a
+    word. A DIR holding anything legbench did not write is refused in one line before any work, exit 2, DIR as
+    it was; a tree holding legbench's own outputs (run directories, a study's directory, the pages) is run into."""
+    a, b = _fake_run(tmp_path, monkeypatch, "a"), _fake_run(tmp_path, monkeypatch, "b")
+    common = ["--backends", "fake", "-q", "--no-preflight", "--no-compare"]
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "report.html").write_text("my page")
+    (mine / "notes.txt").write_text("mine")
+    assert cli.main(["run", str(a), str(b), *common, "--out", str(mine)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not a legbench results tree directory (it holds notes.txt)" in err, err
+    assert sorted(p.name for p in mine.iterdir()) == ["notes.txt", "report.html"]
+    tree = tmp_path / "tree"
+    (tree / "verification").mkdir(parents=True)
+    (tree / "verification" / "verification.json").write_text("{}")
+    (tree / "assets").mkdir()
+    (tree / "report.html").write_text("an index legbench wrote")
+    assert cli.main(["run", str(a), str(b), *common, "--out", str(tree)]) == 0
+    assert {"a", "b", "verification"} <= {p.name for p in tree.iterdir()}
+
+
 def test_an_out_that_is_a_dangling_link_is_refused_before_any_work(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
