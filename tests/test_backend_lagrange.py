@@ -410,6 +410,19 @@ def test_the_stepper_rejects_steps_like_scipy_on_a_stiff_problem() -> None:
 
 
 @numba_needed
+def test_the_compiled_equations_are_the_python_equations_to_the_last_bit(eom: Any) -> None:
+    """The generated qdd compiled by numba and run by CPython give the same bits at 20,000 random states and
+    torques. Squares are written x*x: CPython's x**2 is the C library's pow, which differs from numba's x*x in
+    the last bit for some x (8 of these states differed, and the combined task's two paths parted at 2.191 s)."""
+    from legbench import jit
+
+    compiled = jit.njit(eom.qdd)
+    rng = np.random.default_rng(0)
+    for a in rng.uniform(-3.0, 3.0, (20000, 9)).tolist():
+        assert compiled(*a, G_EARTH) == eom.qdd(*a, G_EARTH), a
+
+
+@numba_needed
 def test_the_compiled_period_is_the_python_period(make: Any) -> None:
     """From the 200 pressed-foot states: the compiled period makes the same right-hand-side evaluations as the
     same code run as Python and ends within 1e-12 of it (measured: equal to the last bit)."""
@@ -422,7 +435,7 @@ def test_the_compiled_period_is_the_python_period(make: Any) -> None:
 
 
 @numba_needed
-@pytest.mark.parametrize(("task", "duration"), [("position", None), ("effort", 1.0), ("combined", 1.5)])
+@pytest.mark.parametrize(("task", "duration"), [("position", None), ("effort", 1.0), ("combined", None)])
 def test_compiled_period_agrees_with_the_python_path_over_each_task(task: str, duration: float | None) -> None:
     """The same task through the compiled period and the Python solve: joint angles within 1e-12 rad at every
     tick, speeds within 1e-9 rad/s, the ground force within 1e-9 N (measured: equal to the last bit; the

@@ -46,8 +46,8 @@ if TYPE_CHECKING:
 
 # sympy is imported only where a derivation needs it: loading cached equations does not pay for it.
 
-#: Bumped whenever the generated code changes shape; part of the cache key.
-GENERATOR_VERSION = 3
+#: Bumped whenever the generated code changes shape; part of the cache key (4: squares written x*x).
+GENERATOR_VERSION = 4
 
 #: Number of symbolic derivations made in this process (the cache test observes it).
 derivations = 0
@@ -279,12 +279,22 @@ class _TrigReduction:
 
 
 def _printer() -> Any:
-    """A Python code printer: plain ``sin``/``cos`` names and floats with all 17 significant digits."""
+    """A Python code printer: plain ``sin``/``cos`` names, floats with all 17 significant digits, and squares
+    as products: CPython computes ``x**2`` with the C library's pow, numba as ``x*x``, and the two differ in
+    the last bit for some x (45 of 50,000 uniform draws on [-3, 3]), so the compiled period and the Python
+    one drifted apart; ``(x*x)`` is the same operation in both."""
+    from sympy.printing.precedence import precedence
     from sympy.printing.pycode import PythonCodePrinter
 
     class Printer(PythonCodePrinter):  # type: ignore[misc]
         def _print_Float(self, expr: Any) -> str:
             return repr(float(expr))
+
+        def _print_Pow(self, expr: Any, rational: bool = False) -> str:
+            if expr.exp == 2:
+                base = self.parenthesize(expr.base, precedence(expr))
+                return f"({base}*{base})"
+            return str(super()._print_Pow(expr, rational=rational))
 
     return Printer({"fully_qualified_modules": False, "standard": "python3"})
 
