@@ -256,6 +256,27 @@ def one_line(text: str) -> str:
     return _CONTROL.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), str(text))
 
 
+_NUMBER_TAGS = ("tag:yaml.org,2002:int", "tag:yaml.org,2002:float")
+#: YAML 1.1 number forms that read as something else than they look: base 60 (``1:30`` is 90) and octal
+#: (``01750`` is 1000). YAML 1.2 reads neither; PyYAML reads both silently.
+_BASE60 = re.compile(r"[-+]?[0-9][0-9_]*(?::[0-5]?[0-9])+(?:\.[0-9_]*)?")
+_OCTAL = re.compile(r"[-+]?0[0-7_]+")
+
+
+def _yaml11_number(text: str) -> str:
+    """Why the plain scalar ``text`` must not be read as YAML 1.1 reads it ('' if it may)."""
+    if _BASE60.fullmatch(text):
+        value = yaml_load(text)
+        return (f"{text}: YAML 1.1 reads this as the base-60 number {value!r}; write {value!r} if that is meant, "
+                f"or quote it ('{text}') for text")  # fmt: skip
+    if _OCTAL.fullmatch(text) and text.lstrip("+-").strip("0_"):
+        value = yaml_load(text)
+        plain = text.lstrip("+-").lstrip("0_") or "0"
+        return (f"{text}: YAML 1.1 reads a leading 0 as octal ({value!r}); write {plain} for the decimal "
+                f"number, or {value!r}")  # fmt: skip
+    return ""
+
+
 def _check_tree(file: str, root: yaml.Node) -> None:
     """Depth, alias count, expanded size and duplicate keys of a composed (not yet expanded) node tree.
 
@@ -269,6 +290,7 @@ def _check_tree(file: str, root: yaml.Node) -> None:
     def fail(node: yaml.Node, problem: str) -> ScenarioError:
         return ScenarioError(file, "", problem, node.start_mark.line + 1)
 
+    key_of: dict[int, str] = {}  # a mapping value's key, for the errors that name it
     stack: list[tuple[yaml.Node, int, bool]] = [(root, 1, False)]
     while stack:
         node, depth, done = stack.pop()
@@ -278,6 +300,10 @@ def _check_tree(file: str, root: yaml.Node) -> None:
             children = [n for kv in node.value for n in kv]
         else:
             children = []
+        if isinstance(node, yaml.ScalarNode) and node.style is None and node.tag in _NUMBER_TAGS:
+            why = _yaml11_number(node.value)
+            if why:
+                raise ScenarioError(file, key_of.get(id(node), ""), why, node.start_mark.line + 1)
         if isinstance(node, yaml.ScalarNode) and _SURROGATE.search(node.value):  # "\ud800": not UTF-8
             raise fail(node, f"{node.value!r}: a lone surrogate (a \\u escape of half a character) cannot be "
                              "written as UTF-8 text")  # fmt: skip
@@ -297,7 +323,9 @@ def _check_tree(file: str, root: yaml.Node) -> None:
             raise fail(node, f"nested more than {max_depth} levels deep (limit yaml_depth)")
         if isinstance(node, yaml.MappingNode):
             seen: dict[Any, int] = {}
-            for k, _ in node.value:
+            for k, v in node.value:
+                if isinstance(k, yaml.ScalarNode):
+                    key_of[id(v)] = str(k.value)
                 if isinstance(k, yaml.ScalarNode) and k.value != "<<":
                     if k.value in seen:
                         raise ScenarioError(file, str(k.value), f"duplicate key (first at line {seen[k.value]})",

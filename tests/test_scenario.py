@@ -370,3 +370,31 @@ def test_backend_settings_that_are_no_mapping_are_refused(tmp_path: Path, settin
         scenario.load(_write(tmp_path, {**BASE, "backends": {"pinocchio": settings}}))
     assert exc.value.key == "backends.pinocchio" and "mapping" in exc.value.problem
     assert scenario.load(_write(tmp_path, {**BASE, "backends": {"pinocchio": None}})).backends["pinocchio"] == {}
+
+
+@pytest.mark.parametrize(
+    ("key", "text", "says"),
+    [
+        ("control_rate", "01750", "01750: YAML 1.1 reads a leading 0 as octal (1000); write 1750"),
+        ("duration", "1:30", "1:30: YAML 1.1 reads this as the base-60 number 90; write 90 if that is meant"),
+    ],
+)
+def test_yaml_11_numbers_that_read_as_something_else_are_refused(tmp_path: Path, key: str, text: str,
+                                                                  says: str) -> None:  # fmt: skip
+    """PyYAML reads YAML 1.1: ``control_rate: 01750`` loaded as 1000 Hz (octal) and ``duration: 1:30`` as 90 s
+    (base 60), without a word. Both are refused with the file, the line, the key and what YAML 1.1 makes of
+    them, in the file and in ``--set``; quoted, or written as what is meant, they load; 0, 00 and 0.5 stay
+    numbers."""
+    from legbench import resources, yamlfile
+
+    lines = resources.scenario("effort").read_text().splitlines()
+    at = next(i for i, line in enumerate(lines) if line.startswith(f"{key}:"))
+    lines[at] = f"{key}: {text}"
+    p = tmp_path / "s.yaml"
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ScenarioError) as err:
+        scenario.load(p)
+    assert str(err.value).startswith(f"{p}:{at + 1}: {key}: {says}"), err.value
+    with pytest.raises(ScenarioError, match=re.escape(says)):
+        yamlfile.parse_overrides([f"{key}={text}"])
+    assert yamlfile.parse_overrides([f"x='{text}'", "a=0", "b=00", "c=0.5"]) == {"x": text, "a": 0, "b": 0, "c": 0.5}
