@@ -1036,8 +1036,8 @@ def _profile_blocks(entries: Sequence[_Entry]) -> list[Block]:
             "Native contact. 'matched': each engine configured to the spec's physics as faithfully as it allows; "
             "'engine-defaults': the engine's own solver and contact defaults at one step per 1 ms control period, "
             "with Kp, Kd and mu set through its own parameters the way its users usually do (not always in the "
-            "spec's units: MuJoCo's direct solref is per unit of constraint mass), and a few choices the engine "
-            "leaves open made by legbench (docs/contact_mapping.md lists them per engine). "
+            "spec's units: an engine's parameter may be per unit of constraint mass), and a few choices the engine "
+            "leaves open made by legbench (docs/contact_mapping.md lists them, and the units, per engine). "
             "A difference between the two columns is the settings', not the engine's." + same
         ),
         Table(
