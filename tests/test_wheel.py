@@ -94,8 +94,10 @@ def test_wheel_holds_the_model_and_scenarios(installed: dict[str, object]) -> No
 
     names = set(zipfile.ZipFile(str(installed["wheel"])).namelist())
     data = "legbench/data/"
+    # py.typed: a user's type checker reads legbench's annotations (PEP 561; without it mypy calls legbench untyped)
     expected = {f"{data}models/leg.yaml", f"{data}models/leg.urdf", f"{data}scenarios/effort.yaml",
-                f"{data}scenarios/sweeps/gains.yaml", f"{data}scenarios/verification/energy.yaml"}  # fmt: skip
+                f"{data}scenarios/sweeps/gains.yaml", f"{data}scenarios/verification/energy.yaml",
+                "legbench/py.typed"}  # fmt: skip
     assert expected <= names
     tracked = {p.relative_to(ROOT / "scenarios").as_posix() for p in (ROOT / "scenarios").rglob("*.yaml")}
     assert {n.removeprefix("legbench/data/scenarios/") for n in names if n.startswith("legbench/data/scenarios/")} == (
