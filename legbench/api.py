@@ -20,10 +20,14 @@ argument, else a new temporary directory, so nothing the user has is ever overwr
 
 from __future__ import annotations
 
+import ast
 import copy
+import dataclasses
 import html
 import math
+import numbers
 import shutil
+import sys
 import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -36,8 +40,16 @@ import pandas as pd
 from legbench import resources, yamlfile
 from legbench import scenario as scenario_mod
 from legbench.compare import ComparisonResult, compare
-from legbench.exceptions import LegbenchError, ResultsError
-from legbench.results import RunResult, check_out_path, load_run, out_dir_for, replaced_by_run
+from legbench.exceptions import LegbenchError, ResultsError, ScenarioError
+from legbench.results import (
+    RunResult,
+    check_out_dir,
+    check_out_path,
+    check_out_tree,
+    load_run,
+    out_dir_for,
+    replaced_by_run,
+)
 from legbench.scenario import Scenario
 from legbench.signals import RUN_COLUMNS, SLICE
 
@@ -250,6 +262,82 @@ class Result:
         return f"Result({self.scenario.name!r}, backends={self.status()}, path={str(self.path)!r})"
 
 
+def _check_overrides(overrides: object) -> None:
+    """``overrides`` is None or a mapping of dotted keys (strings), else a ScenarioError (not an AttributeError or
+    TypeError from inside the loader)."""
+    if overrides is None:
+        return
+    if not isinstance(overrides, Mapping):
+        raise ScenarioError(
+            "<overrides>", "", f"expected a mapping of dotted keys to values, got {type(overrides).__name__}"
+        )
+    for key in overrides:
+        if not isinstance(key, str) or not key:
+            raise ScenarioError("<overrides>", repr(key), "expected a dotted scenario key (a non-empty string)")
+
+
+def _check_tree(root: Path, dirs: Sequence[str]) -> None:
+    """As ``legbench run --contact-mode both --out ROOT``: ``root`` is a results tree, so neither a run directory
+    (its pages would be rewritten) nor a folder holding anything legbench did not put there."""
+    from legbench.report_figures import ASSETS
+
+    if (root / "run.json").is_file():
+        raise LegbenchError(f"out {root}: holds one run, and contact_mode='both' makes a tree of two run "
+                            "directories; choose another out")  # fmt: skip
+    check_out_tree(root, [*dirs, ASSETS], ("report.html", "report.md"), "results tree")
+
+
+def _check_main_guard(jobs: int) -> None:
+    """With ``jobs > 1``, refuse a call the worker processes would make again: they import the main script anew
+    (fork server or spawn), so a call in its top-level code outside ``if __name__ == "__main__":`` ran again in
+    each worker, which died, and every backend came back "failed: the engine crashed". A main module read from
+    stdin cannot be imported by a worker at all. Interactive sessions (Jupyter, ``python -c``) have no main file:
+    nothing to check."""
+    main = sys.modules.get("__main__")
+    file = getattr(main, "__file__", None)
+    if jobs <= 1 or main is None or not isinstance(file, str):
+        return
+    if not Path(file).is_file():
+        raise LegbenchError(f"jobs {jobs}: the main module {file} is not a file the worker processes can import; "
+                            "run a script file, or jobs=1")  # fmt: skip
+    frame = sys._getframe(1)
+    while frame is not None and not (frame.f_globals is vars(main) and frame.f_code.co_name == "<module>"):
+        frame = frame.f_back  # type: ignore[assignment]
+    if frame is None or frame.f_code.co_filename != file:
+        return  # called from elsewhere (a function run by another entry point)
+    try:
+        tree = ast.parse(Path(file).read_text(encoding="utf-8"))
+    except (OSError, SyntaxError, ValueError):
+        return
+    line = frame.f_lineno
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and any(
+            isinstance(n, ast.Name) and n.id == "__name__" for n in ast.walk(node.test)
+        ):
+            if node.body[0].lineno <= line <= (node.end_lineno or line):
+                return
+    raise LegbenchError(f'{file}:{line}: run_scenario(jobs={jobs}) outside `if __name__ == "__main__":`; the worker '
+                        "processes import the script again and would run it again: put the call under that guard, "
+                        "or use jobs=1")  # fmt: skip
+
+
+def _traces(run_dir: Path, names: Sequence[str], ran: Sequence[RunResult]) -> dict[str, RunResult]:
+    """Every backend asked for, in that order: those that ran now, and those an interrupted run into the same
+    directory had finished (resumed, not run again: read back from the run directory)."""
+    got = {tr.backend: tr for tr in ran}
+    missing = [n for n in names if n not in got]
+    if missing:
+        run = load_run(run_dir)
+        for n in missing:
+            if n in run.traces:
+                b = run.backends[n]
+                got[n] = dataclasses.replace(run.traces[n], info=dict(b.info), wall_time=b.wall_time)
+            elif n in run.backends:
+                b = run.backends[n]
+                got[n] = RunResult.empty(n, b.status, b.reason or "")
+    return {n: got[n] for n in names if n in got}
+
+
 def run_scenario(
     scenario: str | Path | Mapping[str, Any] | Scenario,
     backends: str | Sequence[str] = "all",
@@ -281,15 +369,23 @@ def run_scenario(
             without it that is refused, and an interrupted run of the same settings is resumed.
 
     Raises:
-        ScenarioError: invalid scenario or override.
+        ScenarioError: invalid scenario or override (``overrides`` not a mapping of string keys included).
         BackendNotFound: an unknown backend name.
-        LegbenchError: ``jobs`` below 1; ``out`` a regular file or in a place that is not writable; ``out``
-            holds a finished run and ``force`` is not set.
-        ResultsError: ``out`` holds another scenario's run.
+        LegbenchError: ``jobs`` not a whole number at least 1; ``contact_mode`` not one of the three; ``out`` a
+            regular file or in a place that is not writable; ``out`` holds another scenario's run or anything that
+            is not a legbench run (with ``"both"``: not a results tree); ``out`` holds a finished run and ``force``
+            is not set. All before anything runs.
     """
     from legbench import backends as registry
     from legbench import run as run_mod  # deferred: imports the backends
 
+    if isinstance(jobs, bool) or not isinstance(jobs, numbers.Integral):  # 1.5 ran in one process, "2" a TypeError
+        raise LegbenchError(f"jobs {jobs!r}: expected a whole number of processes, at least 1")
+    jobs = int(jobs)  # numpy's integers too
+    if jobs < 1:  # as the command line's --jobs: 0 would still run, in one process
+        raise LegbenchError(f"jobs {jobs}: must be at least 1")
+    _check_main_guard(jobs)
+    _check_overrides(overrides)
     if isinstance(scenario, Scenario):
         sc = load_scenario(scenario.raw, overrides) if overrides else scenario
     else:
@@ -299,24 +395,21 @@ def run_scenario(
     names = registry.resolve(list(backends) if not isinstance(backends, str) else backends)
     if contact_mode not in (None, "native", "reference", "both"):
         raise LegbenchError(f"contact_mode {contact_mode!r}: expected 'native', 'reference' or 'both'")
-    if jobs < 1:  # as the command line's --jobs: 0 would still run, in one process
-        raise LegbenchError(f"jobs {jobs}: must be at least 1")
     if out is not None:  # as the command line's --out: a regular file is one error, not NotADirectoryError
         check_out_path(out, "out")
     root = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix=f"legbench-{sc.name}-"))
     if contact_mode == "both":
         plan = [(sc, m, out_dir_for(root, sc, m)) for m in ("native", "reference")]
+        _check_tree(root, [d.name for *_, d in plan])
     else:
         plan = [(sc, contact_mode or sc.contact_mode, root)]
-    for s_, mode, d in plan:  # as the command line: a finished run is replaced only when asked
+    for s_, mode, d in plan:  # as the command line: another scenario's run or a foreign folder is refused outright,
+        check_out_dir(s_, d)  # a finished run of this one is replaced only when asked
         held = None if force else replaced_by_run(s_, d, mode)
         if held is not None:
             raise LegbenchError(f"{d} holds {held}; choose another out for a new one, or force=True to replace it")
     outcome = run_mod.run_many(plan, names, jobs=jobs, progress=progress)
-    made = [
-        Result(s, d, {tr.backend: tr for tr in res}, load_run(d).contact_mode)
-        for (s, _, d), res in zip(plan, outcome, strict=True)
-    ]
+    made = [Result(s, d, _traces(d, names, res), mode) for (s, mode, d), res in zip(plan, outcome, strict=True)]
     if len(made) == 2:
         made[0].reference_mode = made[1]
     return made[0]

@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -151,3 +152,110 @@ def test_import_legbench_is_light() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
     assert legbench.run_scenario is api.run_scenario and "run_scenario" in dir(legbench)
+
+
+def test_a_resumed_run_returns_every_backend_asked_for(tmp_path: Path) -> None:
+    """An interrupted run into ``out`` is resumed: only the unfinished backend runs again, and the Result still holds
+    every backend asked for, in that order (it held only the one that ran: the reference's frame was missing), the
+    kept one read back from the run directory with its wall time."""
+    out = tmp_path / "r"
+    first = legbench.run_scenario("position", backends=["pinocchio", "mujoco"], overrides=SHORT, out=out)
+    meta = json.loads((out / "run.json").read_text())  # as a run stopped by Ctrl-C during mujoco leaves it
+    meta["complete"] = False
+    meta["backends"]["mujoco"] |= {"status": "interrupted", "reason": "interrupted"}
+    (out / "run.json").write_text(json.dumps(meta))
+    (out / "mujoco.parquet").unlink()
+    res = legbench.run_scenario("position", backends=["pinocchio", "mujoco"], overrides=SHORT, out=out)
+    assert res.backends == ["pinocchio", "mujoco"] and res.status() == {"pinocchio": "ok", "mujoco": "ok"}
+    assert res["pinocchio"].equals(first["pinocchio"])
+    assert res.traces["pinocchio"].wall_time == meta["backends"]["pinocchio"]["wall_time"]
+    assert res.compare().summary()["backend"].tolist() == ["pinocchio", "mujoco"]
+
+
+def test_out_holding_another_scenarios_run_is_refused_even_with_force(tmp_path: Path) -> None:
+    """As ``legbench run``: a run directory of scenario 'position' is not replaced by a run of another scenario, with
+    or without force=True (the error offered force=True, which then failed with another message); it stays as it
+    was."""
+    out = tmp_path / "r"
+    legbench.run_scenario("position", backends="pinocchio", overrides=SHORT, out=out)
+    before = (out / "run.json").read_bytes()
+    other = {**api.load_scenario("position", SHORT).raw, "name": "other"}
+    for force in (False, True):
+        with pytest.raises(LegbenchError, match=r"holds results of scenario 'position', not 'other'"):
+            legbench.run_scenario(other, backends="pinocchio", out=out, force=force)
+    assert (out / "run.json").read_bytes() == before
+
+
+def test_both_contact_modes_refuse_a_foreign_folder_or_a_run_as_out(tmp_path: Path) -> None:
+    """With contact_mode='both' ``out`` is a results tree's root, refused as ``legbench run --contact-mode both
+    --out`` refuses it, before anything runs: a folder holding the user's files (both runs were written beside them)
+    and a run directory (two run directories were written inside it)."""
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep")
+    with pytest.raises(LegbenchError, match=r"not a legbench results tree directory \(it holds notes.txt\)"):
+        legbench.run_scenario("position", backends="pinocchio", overrides=SHORT, out=mine, contact_mode="both")
+    assert [p.name for p in mine.iterdir()] == ["notes.txt"]
+    run = tmp_path / "run"
+    legbench.run_scenario("position", backends="pinocchio", overrides=SHORT, out=run)
+    before = sorted(p.name for p in run.iterdir())
+    with pytest.raises(LegbenchError, match="holds one run, and contact_mode='both' makes a tree"):
+        legbench.run_scenario("position", backends="pinocchio", overrides=SHORT, out=run, contact_mode="both")
+    assert sorted(p.name for p in run.iterdir()) == before
+
+
+@pytest.mark.parametrize("overrides", [[("duration", 0.3)], {1: 0.3}, {"": 0.3}])
+def test_overrides_not_a_mapping_of_keys_is_a_scenario_error(overrides: Any, tmp_path: Path) -> None:
+    """``overrides`` that is not a mapping of dotted keys raises ScenarioError naming it (it was an AttributeError or
+    TypeError from inside the loader)."""
+    with pytest.raises(ScenarioError, match=r"<overrides>: .*expected a"):
+        legbench.run_scenario("position", backends="pinocchio", overrides=overrides, out=tmp_path / "r")
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("jobs", [1.5, "2", True])
+def test_jobs_not_a_whole_number_is_refused(jobs: Any, tmp_path: Path) -> None:
+    """``jobs`` must be a whole number: 1.5 ran silently in one process, "2" was a TypeError, True was taken as 1."""
+    with pytest.raises(LegbenchError, match=r"jobs .*: expected a whole number of processes, at least 1"):
+        legbench.run_scenario("position", backends="pinocchio", overrides=SHORT, out=tmp_path / "r", jobs=jobs)
+    assert not (tmp_path / "r").exists()
+
+
+_SCRIPT = """import legbench
+
+def main():
+    legbench.run_scenario("position", backends=["pinocchio", "mujoco"], overrides={short!r}, out={out!r}, jobs=2)
+    print("done")
+
+{call}
+"""
+
+
+def test_jobs_2_from_a_script_under_the_main_guard_gives_the_jobs_1_logs(result: api.Result, tmp_path: Path) -> None:
+    """A script calling run_scenario(jobs=2) under ``if __name__ == "__main__":`` runs both backends in worker
+    processes and writes the same logs, bit for bit, as the same run with jobs=1."""
+    out = tmp_path / "r"
+    script = tmp_path / "guarded.py"
+    script.write_text(_SCRIPT.format(short=SHORT, out=str(out), call='if __name__ == "__main__":\n    main()'))
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0 and done.stdout.strip() == "done", done.stderr
+    import pandas as pd
+
+    for name in ("pinocchio", "mujoco"):
+        assert pd.read_parquet(out / f"{name}.parquet").equals(pd.read_parquet(result.path / f"{name}.parquet"))
+
+
+def test_jobs_2_at_a_scripts_top_level_is_refused_before_anything_runs(tmp_path: Path) -> None:
+    """Without the guard the workers import the script again and run the call again: they died, and the Result came
+    back with every backend "failed: the engine crashed". Now a LegbenchError names the script's line and the guard,
+    and nothing is written."""
+    out = tmp_path / "r"
+    script = tmp_path / "bare.py"
+    script.write_text(_SCRIPT.format(short=SHORT, out=str(out), call="main()"))
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 1 and "done" not in done.stdout
+    last = done.stderr.strip().splitlines()[-1]
+    assert (
+        last.startswith("legbench.exceptions.LegbenchError: ") and f"{script}:7: run_scenario(jobs=2) outside" in last
+    )
+    assert 'if __name__ == "__main__":' in last and not out.exists()
