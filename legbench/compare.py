@@ -254,9 +254,16 @@ def compare(
             raise ResultsError(str(sdir), f"contact_mode is '{split_run.contact_mode}', expected 'reference'")
         if split_run.name != run.name:
             raise ResultsError(str(sdir), f"scenario '{split_run.name}' is not '{run.name}'")
-        split = contact_split(run, split_run)
-        if not split:
+        shifts = {p.backend: p.lag_removed for p in pairs if p.reference == run.reference and p.lag_removed}
+        split = contact_split(run, split_run, shifts=shifts)
+        if run.reference not in run.traces or run.reference not in split_run.traces:
             notes.append(f"no contact-mode split: reference backend '{run.reference}' missing in one mode")
+        else:
+            for name in run.traces:
+                if name != run.reference and name not in split_run.traces:
+                    bs = split_run.backends.get(name)
+                    why = f"{bs.status}: {bs.reason or 'no reason given'}" if bs is not None else "not in its run.json"
+                    notes.append(f"no contact-mode split for '{name}': no data in {split_run.label} ({why})")
     law = ContactParams(**(run.meta.get("scenario") or {}).get("contact", {}))
     res = {name: residuals(tr.t, tr.q, tr.qd, tr.f, law) for name, tr in traces.items()}
     return ComparisonResult(run, reference, traces, tuple(pairs), steady, split, split_run, tuple(notes), res)

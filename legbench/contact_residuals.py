@@ -106,20 +106,23 @@ def residuals(
     contact = fn > FN_MIN
 
     fn_spring = fn - params.Kd * np.maximum(ydot, 0.0)
-    pen = (y - fn_spring / params.Kp)[contact]
+    # A sample missing a value a score needs (an imported log's NaN: a ROS bag's force outside the wrench
+    # topic's span, a velocity not logged) does not qualify for that score; the others still do.
+    pen_all = y - fn_spring / params.Kp
+    pen = pen_all[contact & np.isfinite(pen_all)]
     rel = np.abs(y[contact] * params.Kp / np.where(fn_spring[contact] > 0, fn_spring[contact], np.nan) - 1.0)
     rel = rel[np.isfinite(rel)]
 
     vt = np.hypot(v[:, 0], v[:, 1])
     ft = np.hypot(f[:, 0], f[:, 1])
-    sliding = contact & (vt >= 1.5 * params.v_th)
+    sliding = contact & (vt >= 1.5 * params.v_th) & np.isfinite(ft)
     ratio = ft[sliding] / (params.mu_k * fn[sliding])
 
     scored = contact & (vt >= V_DIRECTION) & (ft > 1e-9)
     cosang = -(f[scored, 0] * v[scored, 0] + f[scored, 1] * v[scored, 1]) / (ft[scored] * vt[scored])
     angle = np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0)))
 
-    creep = contact & (ft < SUB_LIMIT * min(params.mu_s, params.mu_k) * fn)
+    creep = contact & (ft < SUB_LIMIT * min(params.mu_s, params.mu_k) * fn) & np.isfinite(vt)
     law = params.v_th * ft[creep] / (params.mu_s * fn[creep])
     return ContactResiduals(
         n_contact=int(contact.sum()),

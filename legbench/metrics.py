@@ -23,7 +23,7 @@ one run -> :func:`steady_state`; a run in both contact modes ->
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -282,16 +282,35 @@ def align(
 
 
 def _uniform_pair(a: RunResult, ref: RunResult, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Both traces on one uniform grid over the common span (for correlation)."""
+    """Both traces on one uniform grid over the common span (for correlation).
+
+    The angles of continuous joints (the hip) are unwrapped on every path, also where a trace is already on
+    the grid and is not interpolated: a log that wraps the hip to [-pi, pi) at the reference's rate would
+    otherwise be correlated across its 2 pi jumps.
+    """
+    w = wrap_mask()[cols]
     if _same_grid(a.t, ref.t) and np.allclose(np.diff(ref.t), ref.t[1] - ref.t[0], rtol=1e-6, atol=T_EPS):
-        return ref.t, a.data[:, cols], ref.data[:, cols]
+        return ref.t, _unwrap_columns(a.data[:, cols], w), _unwrap_columns(ref.data[:, cols], w)
     dt = min(float(np.median(np.diff(a.t))), float(np.median(np.diff(ref.t))))
     lo, hi = max(a.t[0], ref.t[0]), min(a.t[-1], ref.t[-1])
     if hi - lo < 2 * dt:
         raise ResultsError(a.source or a.backend, f"time spans of {a.backend} and {ref.backend} do not overlap")
     grid = lo + dt * np.arange(int(math.floor((hi - lo) / dt + 1e-9)) + 1)
-    w = wrap_mask()[cols]
-    return grid, _resample(a.t, a.data[:, cols], grid, w), _resample(ref.t, ref.data[:, cols], grid, w)
+
+    def on_grid(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return _unwrap_columns(x, w) if _same_grid(t, grid) else _resample(t, x, grid, w)
+
+    return grid, on_grid(a.t, a.data[:, cols]), on_grid(ref.t, ref.data[:, cols])
+
+
+def _unwrap_columns(x: np.ndarray, wrap: np.ndarray) -> np.ndarray:
+    """x (N, k) with its ``wrap`` columns unwrapped (:func:`_unwrap_finite`); x itself when none is."""
+    if not wrap.any():
+        return x
+    out = np.array(x, dtype=float, copy=True)
+    for j in np.flatnonzero(wrap):
+        out[:, j] = _unwrap_finite(out[:, j])
+    return out
 
 
 def estimate_lag(a: RunResult, ref: RunResult, max_lag: float = 0.1, signals: Sequence[str] = ("q",)) -> LagEstimate:
@@ -539,7 +558,9 @@ def steady_state(trace: RunResult, window: float, poc: str = "true", gravity: fl
     )
 
 
-def contact_split(native: Run, refmode: Run, reference: str | None = None) -> tuple[ModeSplit, ...]:
+def contact_split(
+    native: Run, refmode: Run, reference: str | None = None, shifts: Mapping[str, float] | None = None
+) -> tuple[ModeSplit, ...]:
     """Split each backend's native-mode deviation into contact, integration and drift parts.
 
     See :class:`ModeSplit`. Backends must be ok in both runs; all four traces
@@ -549,6 +570,10 @@ def contact_split(native: Run, refmode: Run, reference: str | None = None) -> tu
         native: the run in native contact mode.
         refmode: the same scenario in reference contact mode.
         reference: reference backend (default: the native run's).
+        shifts: backend -> the lag [s] removed from its native trace before measuring (the pair's
+            ``lag_removed``, with ``lag="remove"``): its native trace a_n is shifted by it, as
+            :func:`pair_metrics` shifts it, so the parts still add up to the deviation reported
+            (``native`` equals the pair's) and the lag, estimated on the native pair, stays with a_n.
     """
     ref = reference or native.reference
     if ref not in native.traces or ref not in refmode.traces:
@@ -560,8 +585,10 @@ def contact_split(native: Run, refmode: Run, reference: str | None = None) -> tu
         if name == ref or name not in refmode.traces:
             continue
         ar = refmode.traces[name]
-        grid = _common_grid(rn.t, an.t, ar.t, rr.t, source=str(native.path))
-        xrn, xan = _resample(rn.t, rn.data, grid, wrap), _resample(an.t, an.data, grid, wrap)
+        shift = float((shifts or {}).get(name, 0.0))
+        tan = an.t - shift if shift else an.t
+        grid = _common_grid(rn.t, tan, ar.t, rr.t, source=str(native.path))
+        xrn, xan = _resample(rn.t, rn.data, grid, wrap), _resample(tan, an.data, grid, wrap)
         xar, xrr = _resample(ar.t, ar.data, grid, wrap), _resample(rr.t, rr.data, grid, wrap)
         sel = grid >= native.skip - T_EPS
         parts = {

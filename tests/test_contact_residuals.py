@@ -65,6 +65,33 @@ def test_residuals_see_a_wrong_law() -> None:
     assert r.penetration_rel == pytest.approx(0.25, rel=0.05)  # y Kp / Fn - 1 = 1/0.8 - 1 (damping is small here)
 
 
+def test_a_missing_sample_leaves_out_only_that_sample() -> None:
+    """An imported log's NaN (one joint speed, one friction component) leaves that sample out of the scores that
+    need it, as the deviation metrics do; before, one NaN made penetration_max, penetration_rms and creep_speed
+    null for the whole run. Each score equals the one over the other samples (1e-12 relative)."""
+    qd_dir = np.array([1.0, 0.0, 0.0])
+    speeds = np.concatenate([np.linspace(1e-5, 0.9 * P.v_th, 20), np.linspace(2 * P.v_th, 0.1, 20)]) / 0.4
+    t, q, qd, f = _synthetic(qd_dir, speeds)
+    f = f.copy()
+    f[:, 2] *= 1.01  # a 1 % stiffer spring, so that the penetration residual is not round-off
+    qd_gap, f_gap = qd.copy(), f.copy()
+    qd_gap[3, 1] = np.nan  # a creep sample
+    f_gap[30, 0] = np.nan  # a sliding sample
+    keep = np.ones(len(t), dtype=bool)
+    keep[[3, 30]] = False
+    r = residuals(t, q, qd_gap, f_gap, P)
+    ref = residuals(t[keep], q[keep], qd[keep], f[keep], P)
+    for key, value in ref.to_dict().items():
+        got = r.to_dict()[key]
+        assert math.isfinite(got), key
+        if key == "n_contact":
+            assert got == value + 2  # both samples have a normal force: in contact
+        elif key.startswith("n_"):
+            assert got == value, key
+        else:
+            assert got == pytest.approx(value, rel=1e-12), key
+
+
 def test_rotated_friction_gives_its_angle() -> None:
     qd_dir = np.array([1.0, 0.0, 0.0])
     t, q, qd, f = _synthetic(qd_dir, np.linspace(2 * P.v_th, 0.1, 5) / 0.4)
