@@ -167,6 +167,13 @@ def _sibling(run: Run) -> Path | None:
     return cand if (cand / "run.json").is_file() else None
 
 
+def _contact_law(run: Run) -> ContactParams | None:
+    """The contact law the run was meant to follow (run.json ``scenario.contact``, whose keys
+    :func:`legbench.results.load_run` has checked), None where it names none."""
+    contact = (run.meta.get("scenario") or {}).get("contact")
+    return ContactParams(**contact) if contact else None
+
+
 def compare(
     run_dir: str | Path,
     *,
@@ -264,6 +271,8 @@ def compare(
                     bs = split_run.backends.get(name)
                     why = f"{bs.status}: {bs.reason or 'no reason given'}" if bs is not None else "not in its run.json"
                     notes.append(f"no contact-mode split for '{name}': no data in {split_run.label} ({why})")
-    law = ContactParams(**(run.meta.get("scenario") or {}).get("contact", {}))
-    res = {name: residuals(tr.t, tr.q, tr.qd, tr.f, law) for name, tr in traces.items()}
+    law = _contact_law(run)
+    if law is None:
+        notes.append("no contact-law residuals: run.json's scenario names no contact law")
+    res = {} if law is None else {name: residuals(tr.t, tr.q, tr.qd, tr.f, law) for name, tr in traces.items()}
     return ComparisonResult(run, reference, traces, tuple(pairs), steady, split, split_run, tuple(notes), res)

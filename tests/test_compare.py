@@ -718,3 +718,25 @@ def test_a_wrapped_hip_with_a_missing_sample_is_still_unwrapped() -> None:
     far = np.abs(p.t - t_a[50]) > 2.5e-3  # the ticks interpolated from the missing sample are NaN
     assert np.isnan(d[~far]).any() and np.isfinite(d[far]).all()  # np.unwrap of the whole column: NaN after the gap
     assert np.max(np.abs(d[far])) < 1e-9
+
+
+@pytest.mark.parametrize("contact", ["absent", None, {}, {"Kp": 1e4, "stiffness": 3}])
+def test_a_run_json_without_a_usable_contact_law(tmp_path: Path, contact: object) -> None:
+    """The residuals score a run against the law in run.json's scenario.contact. Without one they were scored
+    against ContactParams' built-in defaults (not the run's law, and not said); ``contact: null`` crashed with a
+    TypeError. No law (absent, null, empty): no residuals and a note saying why; a mapping of other keys: the
+    reader's one ResultsError naming run.json and the key."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.01)})
+    meta = json.loads((d / "run.json").read_text())
+    if contact == "absent":
+        del meta["scenario"]["contact"]
+    else:
+        meta["scenario"]["contact"] = contact
+    (d / "run.json").write_text(json.dumps(meta))
+    if isinstance(contact, dict) and contact:
+        with pytest.raises(ResultsError, match=r"run\.json: scenario\.contact\.stiffness: unknown contact parameter"):
+            C.compare(d)
+        return
+    res = C.compare(d)
+    assert res.residuals == {}
+    assert "no contact-law residuals: run.json's scenario names no contact law" in res.notes
