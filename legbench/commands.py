@@ -184,10 +184,9 @@ def _run(args: argparse.Namespace) -> int:
         results.check_out_tree(root, [out.name for *_, out in plan] + [ASSETS], ("report.html", "report.md"),
                                "results tree")  # fmt: skip
     _check_plan(plan, args)
-    # no more workers than runs: each worker is a process that imports every engine (--jobs 1000 started 1000)
-    jobs = min(args.jobs, len(plan) * len(names))
-    # the workers import the engines while the pre-flight runs here (a single run needs no pool)
-    pool = run.start_pool(jobs) if len(plan) * len(names) > 1 else None
+    # the workers (no more than the runs) import the engines while the pre-flight runs here (one run needs none)
+    n_runs = len(plan) * len(names)
+    pool = run.start_pool(args.jobs, tasks=n_runs) if n_runs > 1 else None
     try:
         if not args.no_preflight:
             available = set(backends.available())
@@ -202,7 +201,7 @@ def _run(args: argparse.Namespace) -> int:
         if pool is not None:
             pool.terminate()
         raise
-    outcome = run.run_many(plan, names, jobs=jobs, csv=args.csv, progress=not args.quiet, pool=pool)
+    outcome = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet, pool=pool)
     failed = 0
     for (sc, mode, out), res in zip(plan, outcome, strict=True):
         print(
@@ -227,7 +226,7 @@ def _run(args: argparse.Namespace) -> int:
             files = report.write_report(plan[0][2])
             print(f"report: {files.html}")
         else:
-            report.write_all(root, jobs=min(args.jobs, len(plan)))  # one page per run
+            report.write_all(root, jobs=args.jobs)
             print(f"report: {root / 'report.html'}")
     return EXIT_BACKEND_FAILED if failed else EXIT_OK
 

@@ -303,12 +303,13 @@ def deferred_interrupts() -> Iterator[list[int]]:
         raise KeyboardInterrupt
 
 
-def start_pool(jobs: int) -> LocalExecutor | None:
-    """A pool of ``jobs`` workers started now, for :func:`run_many`: they import the engines while the caller
-    reads scenarios and runs its pre-flight. None for ``jobs <= 1`` (the runs go in this process)."""
+def start_pool(jobs: int, tasks: int | None = None) -> LocalExecutor | None:
+    """A pool of ``jobs`` workers (no more than ``tasks``, the runs it will have) started now, for
+    :func:`run_many`: they import the engines while the caller reads scenarios and runs its pre-flight. None
+    for ``jobs <= 1`` (the runs go in this process)."""
     if jobs <= 1:
         return None
-    pool = LocalExecutor(jobs)
+    pool = LocalExecutor(jobs, tasks=tasks)
     pool.start()
     return pool
 
@@ -358,6 +359,8 @@ def run_many(
         if pool is not None:
             pool.terminate()
         raise
+    # no more workers than runs left (each a process importing every engine; a resume runs fewer)
+    jobs = pool.jobs if pool is not None else max(1, min(jobs, len(plan)))
     outs = [out for _, _, out in jobs_list]
     cost = _estimates(plan, outs, cost_hints(outs) if jobs > 1 and len(plan) > jobs else {})
     first = sorted(range(len(plan)), key=lambda j: (-cost[j], j))
@@ -365,7 +368,7 @@ def run_many(
     tasks = [(sc, name, mode, per_run_bar) for _, sc, name, mode in plan]
     got: dict[int, RunResult] = {}
     interrupted = False
-    pool = pool if pool is not None else LocalExecutor(max(jobs, 1))
+    pool = pool if pool is not None else LocalExecutor(jobs)
     with progress_mod.bar(len(plan), "runs", quiet=not progress or jobs <= 1) as bar:
         try:
             for j, tr in pool.imap_unordered(_task, tasks, first, _crashed):

@@ -120,8 +120,8 @@ def test_the_pool_starts_before_the_preflight_and_stops_when_it_fails(
 
     pools: list[Any] = []
 
-    def start(jobs: int) -> Any:
-        pool = real_start(jobs)
+    def start(jobs: int, tasks: int | None = None) -> Any:
+        pool = real_start(jobs, tasks)
         pools.append(pool)
         return pool
 

@@ -372,3 +372,32 @@ def test_a_given_pool_is_stopped_when_the_plan_is_refused(tmp_path: Path) -> Non
     with pytest.raises(LegbenchError, match="holds results of scenario 'other'"):
         run.run_many([(sc, None, tmp_path / "x")], ["pinocchio", "mujoco"], jobs=2, progress=False, pool=pool)
     assert pool._pool is None and not _alive(pool)
+
+
+def test_run_many_starts_no_more_workers_than_runs_left(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``run_many(jobs=8)`` of one scenario on two backends makes a pool of 2 (each worker a process importing
+    every engine: the Python API's ``run_scenario(jobs=1000)`` started 1000), and a resume counts only the
+    runs left: after one of the two backends finished, jobs=8 runs the other in this process (a pool of 1)."""
+    made: list[Any] = []
+    real = run.LocalExecutor
+
+    def count(*args: Any, **kw: Any) -> Any:
+        made.append(real(*args, **kw))
+        return made[-1]
+
+    monkeypatch.setattr(run, "LocalExecutor", count)
+    root = Path(__file__).resolve().parent.parent / "scenarios"
+    sc = scenario.load(root / "position.yaml", {"duration": 0.05, "comparison.steady_window": 0.01})
+    names = [n for n in ("pinocchio", "mujoco") if n in backends.available()]
+    if len(names) < 2:
+        pytest.skip("needs pinocchio and mujoco")
+    out = tmp_path / "r"
+    run.run_many([(sc, None, out)], names, jobs=8, progress=False)
+    assert [p.jobs for p in made] == [2]
+    meta = json.loads((out / "run.json").read_text())  # as an interrupt leaves it: mujoco not finished
+    meta["complete"] = False
+    meta["backends"]["mujoco"]["status"] = "interrupted"
+    (out / "run.json").write_text(json.dumps(meta))
+    (out / "mujoco.parquet").unlink()
+    (res,) = run.run_many([(sc, None, out)], names, jobs=8, progress=False)
+    assert [p.jobs for p in made] == [2, 1] and [tr.backend for tr in res] == ["mujoco"]

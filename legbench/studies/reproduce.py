@@ -436,7 +436,6 @@ def reproduce(
     scs = scenarios_of(plan, overrides, duration)
     check_out(scs, out, force, new_place)
     dirs = [out / sc.name for sc in scs]
-    jobs = max(1, min(jobs, len(scs) * len(names)))  # no more workers than runs
     run.run_many([(sc, None, d) for sc, d in zip(scs, dirs, strict=True)], names, jobs=jobs, progress=progress)
     if reports:
         for d in dirs:
