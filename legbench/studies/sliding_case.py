@@ -183,12 +183,17 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
         _relative(case, backend, "slip acceleration along the slip (mean)", "m/s^2", am, ap, TOL_ACC,
                   f"closed form M^-1 (tau - nle + J_poc^T F), F = mu Fn vs the slip; {slip}"),
     ]  # fmt: skip
-    out = [dict(zip(ROW_KEYS, r, strict=True)) for r in rows]
-    for r in out:  # a miss the backend has measured and explained says so beside the row (which still fails)
-        known = None if r["passed"] else cls.known_deviation(case, str(r["quantity"]), tr.info)
+    return _with_known(cls, tr, [dict(zip(ROW_KEYS, r, strict=True)) for r in rows])
+
+
+def _with_known(cls: type[Backend], tr: RunResult, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """``rows`` with each failing row's measured and explained miss (``Backend.known_deviation``) before its
+    note; the row still fails."""
+    for r in rows:
+        known = None if r["passed"] else cls.known_deviation("sliding", str(r["quantity"]), tr.info)
         if known:
             r["note"] = f"{known}; {r['note']}"
-    return out
+    return rows
 
 
 def _relative(case: str, backend: str, quantity: str, unit: str, measured: float, expected: float, rel: float,
@@ -277,12 +282,7 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], mu: floa
          TOL_MU * mu, e_across <= TOL_MU * mu, f"{ctx}; tolerance {100 * TOL_MU:g} % of the bound"),
         acc_row,
     ]  # fmt: skip
-    out = [dict(zip(ROW_KEYS, r, strict=True)) for r in rows]
-    for r in out:
-        known = None if r["passed"] else cls.known_deviation(case, str(r["quantity"]), tr.info)
-        if known:
-            r["note"] = f"{known}; {r['note']}"
-    return out
+    return _with_known(cls, tr, [dict(zip(ROW_KEYS, r, strict=True)) for r in rows])
 
 
 __all__ = ["ROW_KEYS", "applies_law", "drag", "predicted_acceleration", "pyramid_friction", "score", "sliding_case"]
