@@ -165,9 +165,10 @@ def _not_a_model_file(file: Path) -> str:
 
 
 def _check_model_env() -> None:
-    """``LEGBENCH_MODEL`` naming no regular file is refused before any subcommand's module is imported: the
-    active model's URDF path is derived from the file's content on import (``legbench.results``), and a device
-    or a FIFO there was read without end (/dev/zero until the process was killed) or blocked for ever."""
+    """``LEGBENCH_MODEL`` naming no regular file is refused before any subcommand's module is imported, with the
+    variable's name: the library refuses it too where it reads the file (``legbench.model.param_bytes`` for the
+    URDF's name, the YAML reader), but naming the file only; a device or a FIFO there was once read without end
+    (/dev/zero until the process was killed) or blocked for ever."""
     env = os.environ.get(resources.MODEL_ENV)
     if env:
         kind = _not_a_model_file(Path(env).expanduser())

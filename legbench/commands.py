@@ -139,7 +139,6 @@ def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
     if getattr(args, "params", None) is None:
         args.params = model.PARAMS_FILE
     if hasattr(args, "out") and args.out is None:
-        model.load_raw(args.params)  # refused unread if no regular file: urdf_target hashes all of it (/dev/zero)
         args.out = resources.urdf_target(args.params)
     return args
 

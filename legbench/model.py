@@ -24,8 +24,8 @@ import numpy as np
 import pinocchio as pin
 
 from legbench import resources
-from legbench.exceptions import ModelError
-from legbench.yamlfile import check_magnitude, limit, read_yaml
+from legbench.exceptions import ModelError, ScenarioError
+from legbench.yamlfile import check_magnitude, read_bytes, read_yaml
 
 #: The source checkout's root (only meaningful when running from one; data paths come from
 #: :mod:`legbench.resources`).
@@ -257,11 +257,20 @@ def load_raw(path: Path | str | None = None) -> dict[str, Any]:
     return raw
 
 
-def max_param_bytes() -> int:
-    """The largest leg parameter file legbench reads [bytes]: the YAML reader's ``limit("file_bytes")`` (raised by
-    ``LEGBENCH_LIMITS``). :func:`legbench.resources.urdf_target` hashes no more than this; it may not import
-    :mod:`legbench.yamlfile` itself (docs/architecture.md, "What may import what")."""
-    return limit("file_bytes")
+def param_bytes(path: Path) -> bytes:
+    """The content of the leg parameter file ``path`` [bytes], read as the YAML reader reads any file
+    (:func:`legbench.yamlfile.read_bytes`: a regular file within ``limit("file_bytes")``), for the hash that names
+    its URDF (:func:`legbench.resources.urdf_target`, which may import no reader but this module).
+
+    Raises:
+        FileNotFoundError: no such file (its URDF is then named ``-missing``; reading it as YAML says why).
+        ModelError: anything else that cannot be read (a device, a FIFO, a directory, too large), in one line.
+    """
+    os.stat(path)  # FileNotFoundError as it is
+    try:
+        return read_bytes(path, "leg parameter file")
+    except ScenarioError as exc:
+        raise ModelError(str(exc)) from None
 
 
 #: Dimensions of CAD parts and collision primitives that must be > 0 [m] or [kg].

@@ -21,7 +21,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
-import stat
 import tempfile
 from importlib import resources
 from pathlib import Path
@@ -167,54 +166,13 @@ def urdf_target(params: str | Path | None = None) -> Path:
     if _is_bundled(path):
         root = source_tree()
         return root / "models" / "leg.urdf" if root is not None else cache_dir() / "urdf" / "leg.urdf"
+    from legbench import model  # deferred, as in urdf_file: the reader comes through model (docs/architecture.md)
+
     try:
-        digest = hashlib.sha256(URDF_FORMAT + _param_bytes(path)).hexdigest()[:16]
-    except OSError:  # no such file (or unreadable): the URDF's name says so; reading it as YAML says why
+        digest = hashlib.sha256(URDF_FORMAT + model.param_bytes(path)).hexdigest()[:16]
+    except FileNotFoundError:  # the URDF's name says so; reading it as YAML says why
         digest = "missing"
     return cache_dir() / "urdf" / f"{path.stem}-{digest}.urdf"
-
-
-#: What a path that is not a regular file is, by its ``stat`` mode.
-_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-          (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"))  # fmt: skip
-
-
-def _param_bytes(path: Path) -> bytes:
-    """The whole content of the parameter file ``path``, for its hash, read only from a regular file of at most
-    ``limit("file_bytes")`` bytes (the YAML reader's limit: a larger file could not be loaded anyway).
-
-    Its type is checked before it is opened and again on the open file (opened without blocking, so a path
-    swapped for a FIFO in between cannot hang), and at most ``limit + 1`` bytes are read whatever its size said
-    (a /proc file's is 0): a device such as ``/dev/zero`` has no end and a FIFO blocks until a writer comes, and
-    ``legbench.results`` hashes the active model's file on import, for the Python API as for the command line.
-
-    Raises:
-        ModelError: ``path`` is not a regular file, or is larger than the limit (one line naming it).
-        OSError: ``path`` does not exist or cannot be read.
-    """
-    # deferred, as in urdf_file: ModelError and the limit come through model, the one module docs/architecture.md
-    # lets this one import (inside a function); every caller of urdf_target has imported it already
-    from legbench import model
-
-    def refuse(mode: int) -> Exception:
-        kind = next((name for test, name in _KINDS if test(mode)), "a special file")
-        return model.ModelError(f"{path}: is {kind}, not a regular file (a leg parameter file is read only from one)")
-
-    mode = os.stat(path).st_mode
-    if not stat.S_ISREG(mode):
-        raise refuse(mode)
-    cap = model.max_param_bytes()
-    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    with os.fdopen(fd, "rb") as fh:
-        st = os.fstat(fh.fileno())
-        if not stat.S_ISREG(st.st_mode):
-            raise refuse(st.st_mode)
-        if st.st_size > cap:
-            raise model.ModelError(f"{path}: {st.st_size} bytes is more than {cap} (limit file_bytes)")
-        data = fh.read(cap + 1)
-    if len(data) > cap:  # a file that grew, or one whose size stat does not tell (/proc)
-        raise model.ModelError(f"{path}: more than {cap} bytes (limit file_bytes)")
-    return data
 
 
 def urdf_file(params: str | Path | None = None) -> Path:

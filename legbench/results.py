@@ -28,7 +28,6 @@ import os
 import platform
 import re
 import shutil
-import stat
 from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from functools import cached_property
@@ -48,6 +47,7 @@ from legbench.exceptions import LegbenchError, ResultsError
 from legbench.model import load_params
 from legbench.scenario import DEFAULT_REFERENCE, Scenario
 from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS, SLICE
+from legbench.yamlfile import file_kind
 
 __all__ = [
     "FRAME_COLUMNS",
@@ -382,18 +382,12 @@ def atomic_dir(path: str | Path, keep: Sequence[str] = ()) -> Iterator[Path]:
         raise
 
 
-#: What a path that is not a directory is, by its ``stat`` mode (the first test that holds).
-_KINDS = ((stat.S_ISREG, "a regular file"), (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-          (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"))  # fmt: skip
-
-
 def _kind(path: Path) -> str:
     """What ``path``, an existing non-directory, is: ``a regular file``, ``a character device`` (/dev/null), ..."""
     try:
-        mode = os.stat(path).st_mode
+        return file_kind(os.stat(path).st_mode)
     except OSError:
         return "not a directory"
-    return next((name for test, name in _KINDS if test(mode)), "a special file")
 
 
 def _writable_dir(d: Path, what: str) -> None:

@@ -30,6 +30,7 @@ __all__ = [
     "Loader",
     "YamlContext",
     "check_keys",
+    "file_kind",
     "finite_float",
     "integer",
     "keypath",
@@ -38,6 +39,7 @@ __all__ = [
     "one_line",
     "parse_overrides",
     "positive_float",
+    "read_bytes",
     "read_yaml",
     "set_key",
     "vector",
@@ -407,18 +409,22 @@ def _parse_text(text: str, file: str) -> tuple[Any, yaml.Node | None]:
     return doc, root
 
 
-#: What a path that is not a regular file is, by its ``stat`` mode.
-_KINDS = ((stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a FIFO"),
-          (stat.S_ISSOCK, "a socket"))  # fmt: skip
+#: What a path is, by its ``stat`` mode (:func:`file_kind`).
+_KINDS = ((stat.S_ISREG, "a regular file"), (stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"),
+          (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"))  # fmt: skip
+
+
+def file_kind(mode: int) -> str:
+    """What a path of ``stat`` mode ``mode`` is, in words (``a FIFO``, ``a character device``, ...)."""
+    return next((name for test, name in _KINDS if test(mode)), "a special file")
 
 
 def _not_regular(path: Path, mode: int, what: str) -> ScenarioError:
-    kind = next((name for test, name in _KINDS if test(mode)), "a special file")
-    return ScenarioError(str(path), "", f"is {kind}, not a regular file (a {what} is read only from one)")
+    return ScenarioError(str(path), "", f"is {file_kind(mode)}, not a regular file (a {what} is read only from one)")
 
 
-def read_text(path: str | Path, what: str = "file") -> str:
-    """A UTF-8 text file no larger than ``limit("file_bytes")``, or a one-line :class:`ScenarioError`.
+def read_bytes(path: str | Path, what: str = "file") -> bytes:
+    """The content of a regular file no larger than ``limit("file_bytes")``, or a one-line :class:`ScenarioError`.
 
     Only a regular file is read (a device such as ``/dev/zero`` has no end, a FIFO blocks until a writer
     comes): its type is checked before it is opened, and again on the open file (opened without blocking, so a
@@ -443,13 +449,20 @@ def read_text(path: str | Path, what: str = "file") -> str:
             data = fh.read(cap + 1)
         if len(data) > cap:  # a file that grew, or one whose size stat does not tell (/proc)
             raise ScenarioError(str(path), "", f"more than {cap} bytes (limit file_bytes)")
-        return data.decode("utf-8")
+        return data
     except FileNotFoundError:
         raise ScenarioError(str(path), "", "no such file") from None
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(str(path), "", f"not UTF-8 text (byte {exc.start})") from None
     except OSError as exc:
         raise ScenarioError(str(path), "", f"cannot read: {exc.strerror or exc}") from None
+
+
+def read_text(path: str | Path, what: str = "file") -> str:
+    """A UTF-8 text file read as :func:`read_bytes` reads it, or a one-line :class:`ScenarioError`."""
+    data = read_bytes(path, what)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(str(path), "", f"not UTF-8 text (byte {exc.start})") from None
 
 
 def read_yaml(path: str | Path) -> tuple[Any, yaml.Node | None]:

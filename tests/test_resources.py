@@ -133,13 +133,14 @@ def test_urdf_target_refuses_what_is_not_a_regular_file_unread(tmp_path: Path) -
     is, before a byte is read (/dev/null, which ends, shows it without the hang)."""
     from legbench.exceptions import ModelError
 
-    cases = [(tmp_path, "a directory")]
+    cases = [(tmp_path, "is a directory, not a leg parameter file")]  # the YAML reader's words (one reader)
     if Path("/dev/null").exists():
-        cases.append((Path("/dev/null"), "a character device"))
-    for path, kind in cases:
+        cases.append((Path("/dev/null"), "is a character device, not a regular file (a leg parameter file is read "
+                                         "only from one)"))  # fmt: skip
+    for path, says in cases:
         with pytest.raises(ModelError) as exc:
             resources.urdf_target(path)
-        assert str(exc.value) == f"{path}: is {kind}, not a regular file (a leg parameter file is read only from one)"
+        assert str(exc.value) == f"{path}: {says}"
 
 
 def test_urdf_target_reads_no_more_than_the_file_size_limit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
