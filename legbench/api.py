@@ -43,12 +43,9 @@ from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import LegbenchError, ResultsError, ScenarioError
 from legbench.results import (
     RunResult,
-    check_out_dir,
     check_out_path,
-    check_out_tree,
     load_run,
     out_dir_for,
-    replaced_by_run,
 )
 from legbench.scenario import Scenario
 from legbench.signals import RUN_COLUMNS, SLICE
@@ -276,17 +273,6 @@ def _check_overrides(overrides: object) -> None:
             raise ScenarioError("<overrides>", repr(key), "expected a dotted scenario key (a non-empty string)")
 
 
-def _check_tree(root: Path, dirs: Sequence[str]) -> None:
-    """As ``legbench run --contact-mode both --out ROOT``: ``root`` is a results tree, so neither a run directory
-    (its pages would be rewritten) nor a folder holding anything legbench did not put there."""
-    from legbench.report_figures import ASSETS
-
-    if (root / "run.json").is_file():
-        raise LegbenchError(f"out {root}: holds one run, and contact_mode='both' makes a tree of two run "
-                            "directories; choose another out")  # fmt: skip
-    check_out_tree(root, [*dirs, ASSETS], ("report.html", "report.md"), "results tree")
-
-
 def _check_main_guard(jobs: int) -> None:
     """With ``jobs > 1``, refuse a call the worker processes would make again: they import the main script anew
     (fork server or spawn), so a call in its top-level code outside ``if __name__ == "__main__":`` ran again in
@@ -400,14 +386,12 @@ def run_scenario(
     root = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix=f"legbench-{sc.name}-"))
     if contact_mode == "both":
         plan = [(sc, m, out_dir_for(root, sc, m)) for m in ("native", "reference")]
-        _check_tree(root, [d.name for *_, d in plan])
+        run_mod.check_tree(root, [d.name for *_, d in plan], "out")
     else:
         plan = [(sc, contact_mode or sc.contact_mode, root)]
-    for s_, mode, d in plan:  # as the command line: another scenario's run or a foreign folder is refused outright,
-        check_out_dir(s_, d)  # a finished run of this one is replaced only when asked
-        held = None if force else replaced_by_run(s_, d, mode)
-        if held is not None:
-            raise LegbenchError(f"{d} holds {held}; choose another out for a new one, or force=True to replace it")
+    # as the command line: another scenario's run or a foreign folder is refused outright, a finished run of this
+    # one is replaced only when asked
+    run_mod.check_outs(plan, force, "choose another out", "force=True")
     outcome = run_mod.run_many(plan, names, jobs=jobs, progress=progress)
     made = [Result(s, d, _traces(d, names, res), mode) for (s, mode, d), res in zip(plan, outcome, strict=True)]
     if len(made) == 2:

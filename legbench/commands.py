@@ -174,14 +174,8 @@ def _run(args: argparse.Namespace) -> int:
     single = len(runs) == 1
     root = Path(args.out) if args.out else Path("results") / "latest"
     plan = [(sc, mode, root if (single and args.out) else results.out_dir_for(root, sc, mode)) for sc, mode in runs]
-    if not single and (root / "run.json").is_file():  # a tree inside a run: the run's pages would be rewritten
-        raise LegbenchError(f"--out {root}: holds one run, and {len(runs)} runs make a tree of run directories; "
-                            "choose another --out")  # fmt: skip
-    if not single and args.out:  # the tree's index pages go into --out: a folder of someone else's is refused
-        from legbench.report_figures import ASSETS
-
-        results.check_out_tree(root, [out.name for *_, out in plan] + [ASSETS], ("report.html", "report.md"),
-                               "results tree")  # fmt: skip
+    if not single:  # a tree: not inside a run, and a --out of someone else's is refused (its index goes there)
+        run.check_tree(root, [out.name for *_, out in plan], foreign=args.out is not None)
     _check_plan(plan, args)
     # the workers (no more than the runs) import the engines while the pre-flight runs here (one run needs none)
     n_runs = len(plan) * len(names)
@@ -251,12 +245,9 @@ def _check_plan(plan: list[tuple[scenario.Scenario, str | None, Path]], args: ar
             raise LegbenchError(f"{sc.file} and {seen[out]} are both scenario {sc.name!r}: their results would "
                                 f"collide in {out}; rename one")  # fmt: skip
         seen[out] = sc.file
-    for sc, mode, out in plan:
-        results.check_out_dir(sc, out)
-        held = None if args.force else results.replaced_by_run(sc, out, mode)
-        if held is not None:
-            new_place = "choose another --out" if args.out is not None else "pass --out DIR"
-            raise LegbenchError(f"{out} holds {held}; {new_place} for a new one, or --force to replace it")
+    from legbench import run
+
+    run.check_outs(plan, args.force, "choose another --out" if args.out is not None else "pass --out DIR")
 
 
 def _validate(args: argparse.Namespace) -> int:

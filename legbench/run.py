@@ -28,7 +28,16 @@ from legbench.backends.base import Backend, Physics
 from legbench.controllers import Controller, make_controller
 from legbench.exceptions import BackendNotFound, LegbenchError, SimulationDiverged
 from legbench.model import load_params
-from legbench.results import RunResult, check_out_dir, read_meta, resumable, run_dirs, write_run
+from legbench.results import (
+    RunResult,
+    check_out_dir,
+    check_out_tree,
+    read_meta,
+    replaced_by_run,
+    resumable,
+    run_dirs,
+    write_run,
+)
 from legbench.scenario import MAX_JOINT_SPEED, MAX_PENETRATION, Scenario, physics_of
 from legbench.studies.executors import LocalExecutor
 
@@ -301,6 +310,40 @@ def deferred_interrupts() -> Iterator[list[int]]:
             signal.signal(sig, handler)
     if got:
         raise KeyboardInterrupt
+
+
+def check_outs(plan: Sequence[tuple[Scenario, str | None, Path]], force: bool, new_place: str,
+               replace: str = "--force") -> None:  # fmt: skip
+    """Before any work, each (scenario, contact mode, output directory) of a plan: the directory holds no other
+    scenario's results (:func:`legbench.results.check_out_dir`), and a finished run there, or an interrupted one
+    of other settings, is replaced only with ``force`` (an interrupted run of the same settings is resumed).
+
+    Raises:
+        LegbenchError: one line naming the directory, what it holds, ``new_place`` (where a new one goes) and
+            ``replace`` (the option that replaces it).
+    """
+    for sc, mode, out in plan:
+        check_out_dir(sc, out)
+        held = None if force else replaced_by_run(sc, out, mode)
+        if held is not None:
+            raise LegbenchError(f"{out} holds {held}; {new_place} for a new one, or {replace} to replace it")
+
+
+def check_tree(root: Path, dirs: Sequence[str], option: str = "--out", foreign: bool = True) -> None:
+    """Before any work, ``root`` as the root of a results tree whose run directories are ``dirs`` (several runs,
+    or one run in both contact modes): not itself a run directory (its pages would be rewritten), and, with
+    ``foreign``, holding nothing legbench did not put there (the tree's index pages go into it).
+
+    Raises:
+        LegbenchError: one line naming ``option`` and the root.
+    """
+    from legbench.report_figures import ASSETS
+
+    if (root / "run.json").is_file():
+        raise LegbenchError(f"{option} {root}: holds one run, and {len(dirs)} runs make a tree of run directories; "
+                            f"choose another {option}")  # fmt: skip
+    if foreign:
+        check_out_tree(root, [*dirs, ASSETS], ("report.html", "report.md"), "results tree")
 
 
 def start_pool(jobs: int, tasks: int | None = None) -> LocalExecutor | None:

@@ -401,14 +401,8 @@ def check_out(scs: Sequence[Scenario], out: Path, force: bool = False, new_place
     """
     out = Path(out)
     results.check_out_tree(out, [sc.name for sc in scs], PAGES, "reproduce")
-    resumed = False
-    for sc in scs:
-        d = out / sc.name
-        results.check_out_dir(sc, d)
-        held = None if force else results.replaced_by_run(sc, d, None)
-        if held is not None:
-            raise LegbenchError(f"{d} holds {held}; {new_place} for a new one, or --force to replace it")
-        resumed = resumed or (d / "run.json").is_file()  # an interrupted run of the same settings
+    run.check_outs([(sc, None, out / sc.name) for sc in scs], force, new_place)
+    resumed = any((out / sc.name / "run.json").is_file() for sc in scs)  # left: interrupted runs of these settings
     if not force and not resumed and (out / "reproduce.json").is_file():
         raise LegbenchError(f"{out} holds a finished reproduce (reproduce.json); {new_place} for a new one, "
                             "or --force to replace it")  # fmt: skip
