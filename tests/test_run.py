@@ -339,10 +339,8 @@ def _alive(pool: Any) -> list[Any]:
     return [p for p in procs if p.is_alive()]
 
 
-def test_a_given_pool_is_the_one_used_and_closed_afterwards(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """``run_many(pool=start_pool(2))`` runs on that pool (no second pool is made) and closes it when the runs
-    end; ``start_pool(1)`` makes none (the runs go in this process)."""
-    assert run.start_pool(1) is None
+def _made_pools(monkeypatch: pytest.MonkeyPatch) -> list[Any]:
+    """Every pool ``run`` makes from now on, in order (the real executors, recorded)."""
     made: list[Any] = []
     real = run.LocalExecutor
 
@@ -351,6 +349,14 @@ def test_a_given_pool_is_the_one_used_and_closed_afterwards(tmp_path: Path, monk
         return made[-1]
 
     monkeypatch.setattr(run, "LocalExecutor", count)
+    return made
+
+
+def test_a_given_pool_is_the_one_used_and_closed_afterwards(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``run_many(pool=start_pool(2))`` runs on that pool (no second pool is made) and closes it when the runs
+    end; ``start_pool(1)`` makes none (the runs go in this process)."""
+    assert run.start_pool(1) is None
+    made = _made_pools(monkeypatch)
     root = Path(__file__).resolve().parent.parent / "scenarios"
     sc = scenario.load(root / "position.yaml", {"duration": 0.05, "comparison.steady_window": 0.01})
     pool = run.start_pool(2)
@@ -378,14 +384,7 @@ def test_run_many_starts_no_more_workers_than_runs_left(tmp_path: Path, monkeypa
     """``run_many(jobs=8)`` of one scenario on two backends makes a pool of 2 (each worker a process importing
     every engine: the Python API's ``run_scenario(jobs=1000)`` started 1000), and a resume counts only the
     runs left: after one of the two backends finished, jobs=8 runs the other in this process (a pool of 1)."""
-    made: list[Any] = []
-    real = run.LocalExecutor
-
-    def count(*args: Any, **kw: Any) -> Any:
-        made.append(real(*args, **kw))
-        return made[-1]
-
-    monkeypatch.setattr(run, "LocalExecutor", count)
+    made = _made_pools(monkeypatch)
     root = Path(__file__).resolve().parent.parent / "scenarios"
     sc = scenario.load(root / "position.yaml", {"duration": 0.05, "comparison.steady_window": 0.01})
     names = [n for n in ("pinocchio", "mujoco") if n in backends.available()]
