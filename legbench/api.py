@@ -20,14 +20,12 @@ argument, else a new temporary directory, so nothing the user has is ever overwr
 
 from __future__ import annotations
 
-import ast
 import copy
 import dataclasses
 import html
 import math
 import numbers
 import shutil
-import sys
 import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -273,40 +271,6 @@ def _check_overrides(overrides: object) -> None:
             raise ScenarioError("<overrides>", repr(key), "expected a dotted scenario key (a non-empty string)")
 
 
-def _check_main_guard(jobs: int) -> None:
-    """With ``jobs > 1``, refuse a call the worker processes would make again: they import the main script anew
-    (fork server or spawn), so a call in its top-level code outside ``if __name__ == "__main__":`` ran again in
-    each worker, which died, and every backend came back "failed: the engine crashed". A main module read from
-    stdin cannot be imported by a worker at all. Interactive sessions (Jupyter, ``python -c``) have no main file:
-    nothing to check."""
-    main = sys.modules.get("__main__")
-    file = getattr(main, "__file__", None)
-    if jobs <= 1 or main is None or not isinstance(file, str):
-        return
-    if not Path(file).is_file():
-        raise LegbenchError(f"jobs {jobs}: the main module {file} is not a file the worker processes can import; "
-                            "run a script file, or jobs=1")  # fmt: skip
-    frame = sys._getframe(1)
-    while frame is not None and not (frame.f_globals is vars(main) and frame.f_code.co_name == "<module>"):
-        frame = frame.f_back  # type: ignore[assignment]
-    if frame is None or frame.f_code.co_filename != file:
-        return  # called from elsewhere (a function run by another entry point)
-    try:
-        tree = ast.parse(Path(file).read_text(encoding="utf-8"))
-    except (OSError, SyntaxError, ValueError):
-        return
-    line = frame.f_lineno
-    for node in ast.walk(tree):
-        if isinstance(node, ast.If) and any(
-            isinstance(n, ast.Name) and n.id == "__name__" for n in ast.walk(node.test)
-        ):
-            if node.body[0].lineno <= line <= (node.end_lineno or line):
-                return
-    raise LegbenchError(f'{file}:{line}: run_scenario(jobs={jobs}) outside `if __name__ == "__main__":`; the worker '
-                        "processes import the script again and would run it again: put the call under that guard, "
-                        "or use jobs=1")  # fmt: skip
-
-
 def _traces(run_dir: Path, names: Sequence[str], ran: Sequence[RunResult]) -> dict[str, RunResult]:
     """Every backend asked for, in that order: those that ran now, and those an interrupted run into the same
     directory had finished (resumed, not run again: read back from the run directory)."""
@@ -370,7 +334,6 @@ def run_scenario(
     jobs = int(jobs)  # numpy's integers too
     if jobs < 1:  # as the command line's --jobs: 0 would still run, in one process
         raise LegbenchError(f"jobs {jobs}: must be at least 1")
-    _check_main_guard(jobs)
     _check_overrides(overrides)
     if isinstance(scenario, Scenario):
         sc = load_scenario(scenario.raw, overrides) if overrides else scenario

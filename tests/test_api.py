@@ -247,8 +247,8 @@ def test_jobs_2_from_a_script_under_the_main_guard_gives_the_jobs_1_logs(result:
 
 def test_jobs_2_at_a_scripts_top_level_is_refused_before_anything_runs(tmp_path: Path) -> None:
     """Without the guard the workers import the script again and run the call again: they died, and the Result came
-    back with every backend "failed: the engine crashed". Now a LegbenchError names the script's line and the guard,
-    and nothing is written."""
+    back with every backend "failed: the engine crashed". Now the pool refuses to start (studies.executors: for a
+    sweep or a reproduce too), with a LegbenchError naming the script's line and the guard, and nothing is written."""
     out = tmp_path / "r"
     script = tmp_path / "bare.py"
     script.write_text(_SCRIPT.format(short=SHORT, out=str(out), call="main()"))
@@ -256,6 +256,7 @@ def test_jobs_2_at_a_scripts_top_level_is_refused_before_anything_runs(tmp_path:
     assert done.returncode == 1 and "done" not in done.stdout
     last = done.stderr.strip().splitlines()[-1]
     assert (
-        last.startswith("legbench.exceptions.LegbenchError: ") and f"{script}:7: run_scenario(jobs=2) outside" in last
+        last.startswith("legbench.exceptions.LegbenchError: ")
+        and f"{script}:7: 2 worker processes started outside" in last
     )
     assert 'if __name__ == "__main__":' in last and not out.exists()

@@ -412,3 +412,19 @@ def test_preloading_the_engines_survives_a_backend_that_fails_to_import(tmp_path
     assert "broken" not in missing
     assert set(backends.available()) <= set(missing) and "pinocchio" in missing
     assert names("raising_engine_") == [""]  # nothing preloaded, nothing raised
+
+
+def test_a_pool_started_at_a_scripts_top_level_is_refused(tmp_path: Path) -> None:
+    """A script that starts a pool of 2 in its top-level code, outside ``if __name__ == "__main__":``: the fork
+    server's workers import the script again and run that code again (a sweep's or a reproduce's workers died).
+    The pool refuses to start, naming the script's line and the guard; no worker process is made."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "bare.py"
+    script.write_text("from legbench.studies import executors\n\nex = executors.LocalExecutor(2, preload=())\n"
+                      "print(ex.map(abs, [-1, -2]))\n")  # fmt: skip
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
+    last = done.stderr.strip().splitlines()[-1]
+    assert done.returncode == 1 and done.stdout == "", done.stdout
+    assert last.startswith(f"legbench.exceptions.LegbenchError: {script}:4: 2 worker processes started outside")

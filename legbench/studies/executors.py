@@ -22,16 +22,19 @@ Executors:
 
 from __future__ import annotations
 
+import ast
 import importlib
 import logging
 import multiprocessing
 import os
 import signal
+import sys
 import threading
 from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, BrokenExecutor, Future, ProcessPoolExecutor, wait
+from pathlib import Path
 from types import TracebackType
 from typing import Any, TypeVar
 
@@ -242,6 +245,41 @@ def _capped(jobs: int | None, tasks: int | None) -> int:
     return n if tasks is None else max(1, min(n, tasks))
 
 
+def _check_main_guard(jobs: int) -> None:
+    """Before a pool of ``jobs > 1`` workers that import the main script anew (fork server or spawn) is made,
+    refuse a start from the script's top-level code outside ``if __name__ == "__main__":``: each worker would run
+    that code again, and died (every backend of a run came back "failed: the engine crashed"; a sweep's or a
+    reproduce's workers alike). A main module read from stdin cannot be imported by a worker at all. Interactive
+    sessions (Jupyter, ``python -c``) have no main file, and a start from another thread no module frame to
+    look at: nothing to check."""
+    main = sys.modules.get("__main__")
+    file = getattr(main, "__file__", None)
+    if jobs <= 1 or main is None or not isinstance(file, str):
+        return
+    if not Path(file).is_file():
+        raise LegbenchError(f"jobs {jobs}: the main module {file} is not a file the worker processes can import; "
+                            "run a script file, or jobs=1")  # fmt: skip
+    frame: Any = sys._getframe(1)
+    while frame is not None and not (frame.f_globals is vars(main) and frame.f_code.co_name == "<module>"):
+        frame = frame.f_back
+    if frame is None or frame.f_code.co_filename != file:
+        return  # called from elsewhere (a function run by another entry point)
+    try:
+        tree = ast.parse(Path(file).read_text(encoding="utf-8"))
+    except (OSError, SyntaxError, ValueError):
+        return
+    line = frame.f_lineno
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and any(
+            isinstance(n, ast.Name) and n.id == "__name__" for n in ast.walk(node.test)
+        ):
+            if node.body[0].lineno <= line <= (node.end_lineno or line):
+                return
+    raise LegbenchError(f'{file}:{line}: {jobs} worker processes started outside `if __name__ == "__main__":`; '
+                        "they import the script again and would run it again: put the call under that guard, or "
+                        "use jobs=1")  # fmt: skip
+
+
 class LocalExecutor(Executor):
     """A pool of ``jobs`` long-lived local worker processes; ``jobs = 1`` runs in this process.
 
@@ -271,9 +309,12 @@ class LocalExecutor(Executor):
 
     def _get_pool(self) -> ProcessPoolExecutor:
         if self._pool is None:
+            context = _mp_context(self.preload)
+            if context.get_start_method() != "fork":  # the workers import the main script again
+                _check_main_guard(self.jobs)
             self._pool = ProcessPoolExecutor(
                 max_workers=self.jobs,
-                mp_context=_mp_context(self.preload),
+                mp_context=context,
                 initializer=_worker_init,
                 initargs=(self.preload,),
             )
