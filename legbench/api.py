@@ -341,7 +341,7 @@ def run_scenario(
         sc = load_scenario(scenario, overrides)
     if profile is not None and profile != sc.profile:  # as the CLI: a profile override is part of the scenario
         sc = load_scenario(sc.raw, {"profile": profile})
-    names = registry.resolve(list(backends) if not isinstance(backends, str) else backends)
+    names = registry.resolve(list(backends) if not isinstance(backends, str) else backends, "backends")
     if contact_mode not in (None, "native", "reference", "both"):
         raise LegbenchError(f"contact_mode {contact_mode!r}: expected 'native', 'reference' or 'both'")
     if out is not None:  # as the command line's --out: a regular file is one error, not NotADirectoryError

@@ -75,6 +75,21 @@ class BackendNotFound(LegbenchError):
         super().__init__(msg)
 
 
+class UnknownBackend(BackendNotFound):
+    """A backend name given by the user (``option``: ``--backends``, or the API's ``backends``) that cannot run
+    here, in one line naming the option: ``--backends bogus: unknown backend; available here: dart, drake, ...``,
+    or for a backend legbench knows (``known``) whose engine is not installed, ``--backends ode: not installed
+    here (what to install); ...``."""
+
+    def __init__(self, name: str, available: Iterable[str], hint: str = "", known: bool = False,
+                 option: str = "--backends") -> None:  # fmt: skip
+        super().__init__(name, available, hint)
+        self._init_args, self._init_kwargs = (name, self.available, hint, known, option), {}
+        what = "not installed here" + (f" ({hint})" if hint else "") if known else "unknown backend"
+        names = ", ".join(self.available) or "none"
+        self.args = (f"{option} {name}: {what}; available here: {names}",)
+
+
 class SimulationDiverged(LegbenchError):
     """A backend's state became non-finite or left its physical bounds."""
 

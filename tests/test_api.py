@@ -260,3 +260,14 @@ def test_jobs_2_at_a_scripts_top_level_is_refused_before_anything_runs(tmp_path:
         and f"{script}:7: 2 worker processes started outside" in last
     )
     assert 'if __name__ == "__main__":' in last and not out.exists()
+
+
+def test_an_unknown_backend_names_the_argument_the_caller_used() -> None:
+    """The API's error named the command line's option ("--backends mujocoo: ..."): it names ``backends``, one
+    line, with the backends available here; it is the registry's UnknownBackend either way."""
+    from legbench.exceptions import UnknownBackend
+
+    with pytest.raises(UnknownBackend) as exc:
+        legbench.run_scenario("effort", backends=["pinocchio", "mujocoo"])
+    assert str(exc.value).startswith("backends mujocoo: unknown backend; available here: ")
+    assert "--backends" not in str(exc.value) and "\n" not in str(exc.value)

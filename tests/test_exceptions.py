@@ -21,6 +21,10 @@ SAMPLES: dict[type[E.LegbenchError], list[tuple[tuple[Any, ...], dict[str, Any]]
     ],
     # a dict's keys view does not pickle: the error must keep the sorted list it shows
     E.BackendNotFound: [(("drake", {"mujoco": 1, "ode": 2}.keys()), {"hint": "pip install drake"})],
+    E.UnknownBackend: [
+        (("bogus", {"mujoco": 1}.keys()), {}),
+        (("ode", ["mujoco"], "pip install ode-python", True, "backends"), {}),
+    ],
     E.SimulationDiverged: [(("ode", 0.1234, "q2 is NaN"), {})],
     E.ResultsError: [
         (("results/x/a.parquet", "not a readable parquet file"), {}),

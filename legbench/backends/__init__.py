@@ -9,7 +9,7 @@ Other packages add backends through the ``legbench.backends`` entry-point group
 from __future__ import annotations
 
 import importlib
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from importlib import metadata
 from typing import Any
 
@@ -24,7 +24,7 @@ from legbench.backends.base import (
     dt_problem,
     sub_step_count,
 )
-from legbench.exceptions import BackendNotFound, LegbenchError
+from legbench.exceptions import BackendNotFound, LegbenchError, UnknownBackend
 
 __all__ = [
     "INTEGRATOR_FAMILIES",
@@ -137,38 +137,27 @@ def load(name: str, physics: Physics, settings: Mapping[str, Any], profile: str 
     return backend
 
 
-class UnknownBackend(BackendNotFound):
-    """A name given to ``--backends`` (the API's ``backends``) that cannot run here, in one line naming the
-    option: ``--backends bogus: unknown backend; available here: dart, drake, ...``, or for a backend legbench
-    knows whose engine is not installed, ``--backends ode: not installed here (what to install); ...``."""
-
-    def __init__(self, name: str, available: Iterable[str], hint: str = "") -> None:
-        super().__init__(name, available, hint)
-        known = name in BUILTIN or name in _MISSING
-        what = "unknown backend" if not known else f"not installed here ({hint})" if hint else "not installed here"
-        names = ", ".join(self.available) or "none"
-        self.args = (f"--backends {name}: {what}; available here: {names}",)
-
-
-def resolve(names: str | list[str]) -> list[str]:
-    """Expand ``"all"`` or a comma-separated list into backend names (checked).
+def resolve(names: str | list[str], option: str = "--backends") -> list[str]:
+    """Expand ``"all"`` or a comma-separated list into backend names (checked); ``option`` is how the caller's
+    user gave them (``--backends``, the API's ``backends``), for the errors.
 
     Raises:
         LegbenchError: the list names no backend (``""``: an empty list never means all).
         UnknownBackend: a name that is unknown or not installed here (a :class:`BackendNotFound`), in one line
-            naming ``--backends`` and the backends available here.
+            naming ``option`` and the backends available here.
     """
     given = names
     if isinstance(names, str):
         names = names.split(",")
     names = [n.strip() for n in names if n.strip()]
     if not names:
-        raise LegbenchError(f"--backends {given!r}: names no backend (give names, or 'all')")
+        raise LegbenchError(f"{option} {given!r}: names no backend (give names, or 'all')")
     if names == ["all"]:
         return available()
     for n in names:
         try:
             get(n)
         except BackendNotFound as exc:
-            raise UnknownBackend(n, exc.available, exc.hint) from None
+            known = n in BUILTIN or n in _MISSING
+            raise UnknownBackend(n, exc.available, exc.hint, known, option) from None
     return list(dict.fromkeys(names))
