@@ -224,16 +224,17 @@ def _same_grid(t1: np.ndarray, t2: np.ndarray) -> bool:
 def _resample(t: np.ndarray, x: np.ndarray, grid: np.ndarray, wrap: np.ndarray | None = None) -> np.ndarray:
     """Linear interpolation of each column of x (N, k) onto ``grid`` (inside [t0, tN]).
 
-    The ``wrap`` columns (angles of continuous joints) are unwrapped first (their finite samples), so a log
-    that wraps the hip to [-pi, pi) is not interpolated straight across the jump; :func:`deviation` wraps
-    their differences again, so wrapped and unwrapped logs agree.
+    The ``wrap`` columns (angles of continuous joints) are unwrapped first (their finite samples), also where
+    ``t`` is already ``grid``, so a log that wraps the hip to [-pi, pi) is neither interpolated nor correlated
+    across the jump; :func:`deviation` wraps their differences again, so wrapped and unwrapped logs agree.
+    A log without a jump over pi comes back unchanged, to the bit.
     """
+    if wrap is not None:
+        x = _unwrap_columns(x, np.asarray(wrap, dtype=bool))
     if _same_grid(t, grid):
         return x
     g = np.clip(grid, t[0], t[-1])
-    w = np.zeros(x.shape[1], dtype=bool) if wrap is None else np.asarray(wrap, dtype=bool)
-    cols = [_unwrap_finite(x[:, j]) if w[j] else x[:, j] for j in range(x.shape[1])]
-    return np.column_stack([np.interp(g, t, c) for c in cols])
+    return np.column_stack([np.interp(g, t, x[:, j]) for j in range(x.shape[1])])
 
 
 def _unwrap_finite(c: np.ndarray) -> np.ndarray:
@@ -290,17 +291,14 @@ def _uniform_pair(a: RunResult, ref: RunResult, cols: np.ndarray) -> tuple[np.nd
     """
     w = wrap_mask()[cols]
     if _same_grid(a.t, ref.t) and np.allclose(np.diff(ref.t), ref.t[1] - ref.t[0], rtol=1e-6, atol=T_EPS):
-        return ref.t, _unwrap_columns(a.data[:, cols], w), _unwrap_columns(ref.data[:, cols], w)
-    dt = min(float(np.median(np.diff(a.t))), float(np.median(np.diff(ref.t))))
-    lo, hi = max(a.t[0], ref.t[0]), min(a.t[-1], ref.t[-1])
-    if hi - lo < 2 * dt:
-        raise ResultsError(a.source or a.backend, f"time spans of {a.backend} and {ref.backend} do not overlap")
-    grid = lo + dt * np.arange(int(math.floor((hi - lo) / dt + 1e-9)) + 1)
-
-    def on_grid(t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        return _unwrap_columns(x, w) if _same_grid(t, grid) else _resample(t, x, grid, w)
-
-    return grid, on_grid(a.t, a.data[:, cols]), on_grid(ref.t, ref.data[:, cols])
+        grid = ref.t
+    else:
+        dt = min(float(np.median(np.diff(a.t))), float(np.median(np.diff(ref.t))))
+        lo, hi = max(a.t[0], ref.t[0]), min(a.t[-1], ref.t[-1])
+        if hi - lo < 2 * dt:
+            raise ResultsError(a.source or a.backend, f"time spans of {a.backend} and {ref.backend} do not overlap")
+        grid = lo + dt * np.arange(int(math.floor((hi - lo) / dt + 1e-9)) + 1)
+    return grid, _resample(a.t, a.data[:, cols], grid, w), _resample(ref.t, ref.data[:, cols], grid, w)
 
 
 def _unwrap_columns(x: np.ndarray, wrap: np.ndarray) -> np.ndarray:
