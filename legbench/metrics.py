@@ -148,6 +148,8 @@ class SteadyState:
             whose contact law takes the poc at the sphere centre, else None [N].
         cond: condition number of J_poc at the mean state (inf if singular; NaN if the window has
             no finite q or tau, as in a log without torques: no check possible).
+        qd_max: the largest |qd| of any joint over the window [rad/s] (NaN without a finite qd): the check
+            holds only at rest, where it is near 0.
     """
 
     backend: str
@@ -160,6 +162,7 @@ class SteadyState:
     analytic_poc: np.ndarray
     analytic_centre: np.ndarray | None
     cond: float
+    qd_max: float = math.nan
 
     @property
     def residual(self) -> np.ndarray:
@@ -551,8 +554,10 @@ def steady_state(trace: RunResult, window: float, poc: str = "true", gravity: fl
 
     f_poc, cond = ground_force(True)
     f_centre = ground_force(False)[0] if poc == "centre" else None
+    speeds = max_abs(trace.data[sel][:, SLICE["qd"]])
+    qd_max = float(np.nanmax(speeds)) if np.isfinite(speeds).any() else math.nan
     return SteadyState(
-        trace.backend, float(trace.t[sel][0]), float(trace.t[-1]), q, qd, tau, force, f_poc, f_centre, cond
+        trace.backend, float(trace.t[sel][0]), float(trace.t[-1]), q, qd, tau, force, f_poc, f_centre, cond, qd_max
     )
 
 

@@ -28,12 +28,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
 from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import ResultsError
-from legbench.metrics import SteadyState, max_abs
 from legbench.report_figures import (
     ASSETS,
     NAMES,
@@ -324,16 +322,6 @@ def _maxdev_table(result: ComparisonResult) -> Table:
 STATIC_QD = 0.01
 
 
-def _steady_speed(result: ComparisonResult, s: SteadyState) -> float:
-    """max |qd| [rad/s] over the comparison's steady window [s.t0, s.t1] of backend ``s``, from its log (NaN when
-    the log has no finite qd there)."""
-    tr = result.traces.get(s.backend)
-    if tr is None or not len(tr.t):
-        return math.nan
-    m = max_abs(tr.qd[(tr.t >= s.t0) & (tr.t <= s.t1)])
-    return float(np.nanmax(m)) if np.isfinite(m).any() else math.nan
-
-
 def _steady_table(result: ComparisonResult) -> Table:
     header = ("backend", "row", "qd1 [rad/s]", "qd2 [rad/s]", "qd3 [rad/s]", "Fx [N]", "Fy [N]", "Fn [N]")
     rows: list[tuple[str, ...]] = []
@@ -343,7 +331,7 @@ def _steady_table(result: ComparisonResult) -> Table:
     for s in result.steady:
         win = f"measured (mean over {s.t0:.3f}..{s.t1:.3f} s)"
         rows.append((s.backend, win, *(num(v) for v in s.qd), *(num(v) for v in s.force)))
-        speed = _steady_speed(result, s)
+        speed = s.qd_max
         if speed >= STATIC_QD:  # the leg moves: statics does not hold, whatever the check would print
             why = (
                 f"the leg moves in the steady window: max |qd| {num(speed, 3)} rad/s, static means below "
