@@ -24,7 +24,7 @@ import numpy as np
 
 from legbench import backends as registry
 from legbench import progress as progress_mod
-from legbench.backends.base import Backend, Physics
+from legbench.backends.base import Backend, Physics, info_problem
 from legbench.controllers import Controller, make_controller
 from legbench.exceptions import BackendNotFound, LegbenchError, SimulationDiverged
 from legbench.model import load_params
@@ -134,7 +134,7 @@ def simulate(
     except SimulationDiverged as exc:
         status, reason = "failed", str(exc)
         n = k
-    except (LegbenchError, FloatingPointError, RuntimeError, ValueError) as exc:
+    except Exception as exc:  # any error of the engine's (a plug-in's TypeError too) fails this backend alone
         status, reason = "failed", f"{type(exc).__name__} at t = {k * Ts:.4f} s: {exc}"
         n = k
     except KeyboardInterrupt:
@@ -146,6 +146,13 @@ def simulate(
     controller = np.empty(n, dtype=object)
     for first, name in zip(ticks, names, strict=True):
         controller[min(first, n) :] = name
+    try:
+        info = backend_info(backend)
+    except Exception as exc:  # the run is kept up to here, but a backend that cannot say what it ran failed
+        info = {}
+        if status == "ok":
+            why = str(exc) if isinstance(exc, LegbenchError) else f"info() failed: {type(exc).__name__}: {exc}"
+            status, reason = "failed", why
     return RunResult(
         backend=backend.name,
         t=t[:n] if status != "ok" else t,
@@ -156,7 +163,7 @@ def simulate(
         controller=controller,
         status=status,
         reason=reason,
-        info=backend_info(backend),
+        info=info,
         wall_time=wall,
     )
 
@@ -165,8 +172,17 @@ def backend_info(backend: Backend) -> dict[str, Any]:
     """What run.json records of a backend: its :meth:`~Backend.info`, the ``profile`` it was loaded with,
     its declared ``integrator_family``, ``sub_steps`` and ``engine_contact`` (what verification predicts and
     scores by), and its :meth:`~Backend.warnings` after the run (e.g. a sub-step too coarse for the contact
-    law)."""
-    return {**backend.info(), "profile": backend.profile, "integrator_family": backend.integrator_family(),
+    law).
+
+    Raises:
+        LegbenchError: the backend's info breaks what legbench reads of it
+            (:func:`~legbench.backends.base.info_problem`).
+    """
+    info = backend.info()
+    problem = info_problem(info)
+    if problem is not None:
+        raise LegbenchError(f"{backend.name}: info() {problem}")
+    return {**info, "profile": backend.profile, "integrator_family": backend.integrator_family(),
             "sub_steps": backend.sub_steps(), "engine_contact": bool(backend.engine_contact()),
             "warnings": backend.warnings()}  # fmt: skip
 

@@ -11,6 +11,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import yaml
 from fakes import FakeBackend
@@ -1110,3 +1111,87 @@ def test_an_external_log_with_an_absurd_foot_position_is_refused(tmp_path: Path)
     pd.DataFrame(cols).to_csv(f, index=False)
     with pytest.raises(ResultsError, match="column 'ee_x' reaches 1e\\+300 at row 1: not a physical value"):
         logs.load_log(f)
+
+
+# --------------------------------------------------------------------------- #
+# A plug-in's own bugs fail that backend alone
+
+
+class _StepTypeError(FakeBackend):
+    """A plug-in whose step raises an error of its own after 5 ticks (not one of legbench's)."""
+
+    name = "steptypeerror"
+
+    def step(self, tau: Any) -> None:
+        if len(self.steps) >= 5:
+            raise TypeError("plug-in bug")
+        super().step(tau)
+
+
+class _InfoRaises(FakeBackend):
+    name = "inforaises"
+
+    def info(self) -> dict[str, Any]:
+        raise KeyError("engine")
+
+
+class _InfoContactText(FakeBackend):
+    """info()['contact'] as text: verification and calibration read it as a mapping (poc, Kp)."""
+
+    name = "infocontacttext"
+
+    def info(self) -> dict[str, Any]:
+        return {**super().info(), "contact": "the spec's law"}
+
+
+def test_any_error_of_a_backend_fails_it_alone(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A plug-in raising TypeError in step() took the whole run down (the loop caught legbench's errors and three
+    numeric ones only); an info() that raises or breaks the keys legbench reads did the same after the run. Now
+    each fails alone with the reason, its log kept up to the error, and the fake beside them runs to the end."""
+    from legbench import run
+
+    reg = registry._registry
+    extra = {c.name: c for c in (_StepTypeError, _InfoRaises, _InfoContactText, FakeBackend)}
+    monkeypatch.setattr(registry, "_registry", lambda: {**reg(), **extra})
+    doc = {"name": "t", "duration": 0.02, "events": GOOD["events"][:1], "comparison": {"steady_window": 0.01}}
+    sc = scenario.parse(doc, "t.yaml")
+    (res,) = run.run_many([(sc, None, tmp_path / "t")], list(extra), jobs=1, progress=False)
+    got = {tr.backend: tr for tr in res}
+    assert got["steptypeerror"].status == "failed"
+    assert got["steptypeerror"].reason == "TypeError at t = 0.0050 s: plug-in bug"
+    assert len(got["steptypeerror"].t) == 5  # the ticks before the error are kept
+    assert got["inforaises"].status == "failed" and got["inforaises"].reason == "info() failed: KeyError: 'engine'"
+    assert got["infocontacttext"].status == "failed"
+    assert got["infocontacttext"].reason.startswith("infocontacttext: info() contact: expected a mapping")
+    assert got["fake"].status == "ok" and len(got["fake"].t) == sc.n_ticks
+    meta = results.read_meta(tmp_path / "t")
+    assert {n: b["status"] for n, b in meta["backends"].items()} == {
+        "steptypeerror": "failed", "inforaises": "failed", "infocontacttext": "failed", "fake": "ok"
+    }  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("info", "words"),
+    [
+        ([("engine", "x")], "expected a mapping of setting -> value, got list"),
+        ({1: "x"}, "key 1: expected text keys"),
+        ({"contact": "law"}, "contact: expected a mapping"),
+        ({"contact": {"poc": "centre-ish"}}, "contact.poc: expected 'true' or 'centre', got 'centre-ish'"),
+        ({"contact": {"Kp": "stiff"}}, "contact.Kp: expected a stiffness [N/m] or null (rigid contact), got 'stiff'"),
+        ({"contact": {"Kp": True}}, "contact.Kp: expected a stiffness"),
+        ({"max_step": "1e-4"}, "max_step: expected a number, got '1e-4'"),
+        ({"rtol": None}, "rtol: expected a number, got None"),
+    ],
+)
+def test_info_problem_names_the_key(info: Any, words: str) -> None:
+    from legbench.backends.base import info_problem
+
+    assert (info_problem(info) or "").startswith(words)
+
+
+def test_info_problem_accepts_the_documented_shapes() -> None:
+    from legbench.backends.base import info_problem
+
+    assert info_problem({}) is None
+    assert info_problem({"engine": "e", "contact": {"poc": "true", "Kp": None}, "max_step": 1e-4, "rtol": 1}) is None
+    assert info_problem({"contact": {"poc": "centre", "Kp": 1.0e4}, "atol": np.float64(1e-9)}) is None

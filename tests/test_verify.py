@@ -582,3 +582,27 @@ def test_the_torque_step_term_is_the_2_norm_of_the_step_over_the_joints(monkeypa
         rest = terms["dyn"][:, j] + terms["roundoff"]
         assert row.tolerance == pytest.approx((rest + terms["step"]).max(), rel=1e-6), (row.quantity, row.tolerance)
         assert row.tolerance > 1.1 * (rest + largest).max(), (row.quantity, row.tolerance)
+
+
+class _LoadRaises(FakeBackend):
+    """A plug-in whose load raises an error of its own (not one of legbench's)."""
+
+    name = "loadraises"
+
+    def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
+        raise AttributeError("'str' object has no attribute 'get'")
+
+
+def test_a_backend_that_raises_fails_its_own_rows_and_the_others_are_verified(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A plug-in raising in load (or in its run, or an info() verification cannot read) ended verify with a
+    traceback, every other backend's rows lost. Now each of its cases is one failed row naming the error, and
+    Pinocchio's rows are those of a verify without it."""
+    reg = backends._registry
+    monkeypatch.setattr(backends, "_registry", lambda: {**reg(), "loadraises": _LoadRaises})
+    cases = ["energy", "rest_penetration", "static_balance"]
+    df = verify.verify(None, ["pinocchio", "loadraises"], cases, jobs=1)
+    bad = df[df["backend"] == "loadraises"]
+    assert sorted(bad["case"]) == sorted(cases) and (bad["status"] == "fail").all()
+    assert bad["note"].str.contains("AttributeError: 'str' object has no attribute 'get'", regex=False).all()
+    alone = verify.verify(None, ["pinocchio"], cases, jobs=1)
+    pd.testing.assert_frame_equal(df[df["backend"] == "pinocchio"].reset_index(drop=True), alone)

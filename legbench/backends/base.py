@@ -9,6 +9,7 @@ hold) with whatever sub-steps it uses, and reports state and ground force.
 from __future__ import annotations
 
 import math
+import numbers
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -30,6 +31,47 @@ INTEGRATOR_FAMILIES = ("euler", "implicit", "rk4", "adaptive", "first-order", "o
 
 #: The two profiles every backend offers (a backend may add its own, e.g. ``gazebo``).
 PROFILES = ("matched", "engine-defaults")
+
+#: The keys of :meth:`Backend.info` that legbench reads (verification, calibration, the report), and what each
+#: holds; any is optional, every other key is the backend's own and only recorded (run.json).
+INFO_KEYS = {
+    "engine": "the engine's name (text)",
+    "version": "the engine's version (text)",
+    "integrator": "the integrator's name as the backend's settings call it (text)",
+    "contact": "the contact as loaded: a mapping; its 'poc' ('true' or 'centre') is where a law backend applies "
+    "the force, its 'Kp' the normal stiffness [N/m], null for rigid contact (no stiffness declared)",
+    "max_step": "an adaptive solver's largest step [s] (a number)",
+    "rtol": "an adaptive solver's relative tolerance (a number)",
+    "atol": "an adaptive solver's absolute tolerance (a number)",
+}
+
+
+def info_problem(info: object) -> str | None:
+    """What is wrong with a backend's :meth:`~Backend.info` for the keys legbench reads (:data:`INFO_KEYS`), or
+    None: it must be a mapping with text keys, ``contact`` a mapping (``poc`` 'true' or 'centre', ``Kp`` a
+    number or None), ``max_step``, ``rtol`` and ``atol`` numbers."""
+    if not isinstance(info, Mapping):
+        return f"expected a mapping of setting -> value, got {type(info).__name__}"
+    bad = [k for k in info if not isinstance(k, str)]
+    if bad:
+        return f"key {bad[0]!r}: expected text keys"
+    contact = info.get("contact")
+    if contact is not None:
+        if not isinstance(contact, Mapping):
+            return f"contact: expected a mapping ({INFO_KEYS['contact']}), got {contact!r}"
+        if contact.get("poc", "true") not in ("true", "centre"):
+            return f"contact.poc: expected 'true' or 'centre', got {contact['poc']!r}"
+        kp = contact.get("Kp")
+        if kp is not None and not _is_number(kp):
+            return f"contact.Kp: expected a stiffness [N/m] or null (rigid contact), got {kp!r}"
+    for key in ("max_step", "rtol", "atol"):
+        if key in info and not _is_number(info[key]):
+            return f"{key}: expected a number, got {info[key]!r}"
+    return None
+
+
+def _is_number(v: object) -> bool:
+    return isinstance(v, numbers.Real) and not isinstance(v, bool)
 
 
 @dataclass(frozen=True)
@@ -242,7 +284,12 @@ class Backend(ABC):
 
     @abstractmethod
     def info(self) -> dict[str, Any]:
-        """Engine name and version and every physics setting actually used (JSON-serialisable)."""
+        """Engine name and version and every physics setting actually used (JSON-serialisable, text keys).
+
+        The keys legbench reads, when given, hold what :data:`INFO_KEYS` says (checked after each run by
+        :func:`info_problem`: a backend whose info breaks it fails its run with the reason); the others are
+        recorded in run.json as they are.
+        """
 
     # ------------------------------------------------------- declared abilities
     @abstractmethod

@@ -227,12 +227,12 @@ def _failed_row(name: str, contact: ContactParams, why: str) -> dict[str, Any]:
 
 def _calibrate_one(task: tuple[str, Program, Path, str | None, ContactParams]) -> dict[str, Any]:
     """One backend's row, ``(name, program, scenario_file, contact_mode, contact)``: a task for the pool. An
-    engine that fails (the errors the run loop treats as a failed run) gives a row of NaN whose note says why,
+    engine that fails (any error, as in the run loop) gives a row of NaN whose note says why,
     and the other backends are still calibrated."""
     name, program, scenario_file, contact_mode, contact = task
     try:
         log, saturated = push(name, program, scenario_file, contact_mode)
-    except (LegbenchError, FloatingPointError, RuntimeError, ValueError) as exc:
+    except Exception as exc:  # as the run loop: any error of the engine's fails this backend alone
         return _failed_row(name, contact, f"{type(exc).__name__}: {exc}")
     return dataclasses.asdict(estimate(log, program, contact, saturated))
 

@@ -624,7 +624,11 @@ _GROUPS: dict[str, tuple[tuple[str, ...], Callable[[Sequence[str]], list[Check]]
 def _group_checks(task: tuple[str, str]) -> list[Check]:
     """One group of cases on one backend, ``(group, backend)``: a task for the pool (a top-level function)."""
     group, name = task
-    return _GROUPS[group][1]([name])
+    try:
+        return _GROUPS[group][1]([name])
+    except Exception as exc:  # a backend that cannot load or run fails its own rows, not the whole verification
+        why = f"{type(exc).__name__}: {exc}"
+        return [_failed(case, name, "", why) for case in _GROUPS[group][0]]
 
 
 def _crashed_group(task: tuple[str, str], why: str) -> list[Check]:
