@@ -10,6 +10,7 @@ from typing import Any
 import pytest
 
 from legbench import backends
+from legbench.backends.base import Backend
 from legbench.studies import doctor
 
 EFFORT = Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml"
@@ -126,3 +127,32 @@ def test_cli_prints_the_table_and_reports_a_mismatch(monkeypatch: pytest.MonkeyP
     monkeypatch.setattr(backends.get("pinocchio"), "load", load)
     assert args.func(args) == 1
     assert "pinocchio holds q1_abad.lower" in capsys.readouterr().out
+
+
+def test_a_backend_that_reads_nothing_back_is_not_called_in_parity(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A backend without mass_properties leaves 30 parity rows unread; doctor said "every backend holds the spec's
+    leg" (exit 0) all the same. It still exits 0 (nothing read back differs) but names the backend and the count."""
+    cls = backends.get("pinocchio")
+    monkeypatch.setattr(cls, "mass_properties", Backend.mass_properties)  # the contract's default: none
+    t = doctor.table(EFFORT, ["pinocchio"])
+    doctor.check(t)  # nothing read back differs
+    unread = int(t.loc[t["status"] != "info", "pinocchio"].isna().sum())
+    assert unread == 30  # 3 links x (mass, 3 com, 6 inertia)
+    parser = argparse.ArgumentParser()
+    doctor.add_cli(parser.add_subparsers())
+    args = parser.parse_args(["doctor", str(EFFORT), "--backends", "pinocchio"])
+    assert args.func(args) == 0
+    out = capsys.readouterr().out
+    assert "every backend holds" not in out
+    assert f"not read back, so not checked: pinocchio ({unread} of {int((t['status'] != 'info').sum())} rows)" in out
+
+
+def test_a_mismatch_message_shows_plain_numbers() -> None:
+    """numpy's repr leaked into the message: 'says np.float64(7.051408) N m'."""
+    import numpy as np
+
+    err = doctor.ParityError("euler", "q1_abad.torque_limit", float("inf"), np.float64(7.051408), "N m")
+    assert "holds q1_abad.torque_limit = inf N m, the spec" in str(err)
+    assert "says 7.051408 N m" in str(err) and "np.float64" not in str(err)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import numbers
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -39,7 +40,7 @@ from legbench.backends.base import Backend
 from legbench.exceptions import BackendNotFound, LegbenchError
 from legbench.scenario import Scenario, physics_of
 
-__all__ = ["RTOL", "ParityError", "add_cli", "check", "doctor", "preflight", "readback", "table"]
+__all__ = ["RTOL", "ParityError", "add_cli", "check", "doctor", "preflight", "readback", "table", "verdict"]
 
 #: Relative tolerance of the parity rows.
 RTOL = 1e-6
@@ -59,11 +60,21 @@ class ParityError(LegbenchError):
 
     def __init__(self, backend: str, row: str, value: Any, expected: Any, unit: str = "", more: int = 0) -> None:
         self.backend, self.row, self.value, self.expected = backend, row, value, expected
-        msg = (f"parity: {backend} holds {row} = {value!r} {unit}, the spec (models/leg.yaml and the scenario) says "
-               f"{expected!r} {unit} (relative tolerance {RTOL:g})")  # fmt: skip
+        msg = (f"parity: {backend} holds {row} = {_plain(value)} {unit}, the spec (models/leg.yaml and the scenario) "
+               f"says {_plain(expected)} {unit} (relative tolerance {RTOL:g})")  # fmt: skip
         if more:
             msg += f"; {more} more row(s) differ, see `legbench doctor`"
         super().__init__(msg)
+
+
+def _plain(v: Any) -> str:
+    """A value as a message shows it: numbers to 10 significant digits (numpy's too, without their
+    ``np.float64(...)`` repr), text quoted."""
+    if isinstance(v, bool | np.bool_):
+        return str(bool(v))
+    if isinstance(v, numbers.Real):
+        return f"{float(v):.10g}"
+    return repr(v)
 
 
 # --------------------------------------------------------------------------- #
@@ -228,6 +239,20 @@ def check(t: pd.DataFrame) -> None:
     raise ParityError(name, first["row"], first[name], first["spec"], first["unit"], len(bad) - 1)
 
 
+def verdict(t: pd.DataFrame) -> str:
+    """The one-line outcome of a table that :func:`check` passed: every backend holds the spec, or which
+    backends did not read back some parity rows (those rows are not checked, so parity is not claimed for them)."""
+    names = [c for c in t.columns if c not in _FIXED]
+    parity = t[t["status"] != "info"]
+    unread = {n: int(parity[n].isna().sum()) for n in names}
+    unread = {n: k for n, k in unread.items() if k}
+    if not unread:
+        return "parity: every backend holds the spec's leg, limits and gravity"
+    which = ", ".join(f"{n} ({k} of {len(parity)} rows)" for n, k in unread.items())
+    return (f"parity: every row read back matches the spec's leg, limits and gravity; not read back, so not "
+            f"checked: {which}")  # fmt: skip
+
+
 def doctor(scenario: Scenario | str | Path, backends: Sequence[str] | None = None) -> pd.DataFrame:
     """:func:`table` across backends (default: all available); raises :class:`ParityError` on a mismatch."""
     t = table(scenario, backends)
@@ -263,7 +288,7 @@ def _cli(args: argparse.Namespace) -> int:
     except ParityError as exc:
         print(f"legbench: error: {exc}")
         return 1
-    print("parity: every backend holds the spec's leg, limits and gravity")
+    print(verdict(t))
     return 0
 
 
