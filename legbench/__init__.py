@@ -10,18 +10,19 @@ The Python API (:mod:`legbench.api`, imported on first use so ``import legbench`
     import legbench
     res = legbench.run_scenario("effort", backends=["pinocchio", "mujoco"], overrides={"duration": 0.5})
     res.frames["mujoco"], res.compare().summary(), res.report("out")
+    legbench.open_run("results/latest/effort")  # a run directory already on disk, as the same Result
 """
 
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from legbench.api import Comparison, Result, load_scenario, run_scenario
+    from legbench.api import Comparison, Result, load_scenario, open_run, run_scenario
 
     __version__: str
 
-__all__ = ["Comparison", "Result", "__version__", "load_scenario", "run_scenario"]
+__all__ = ["Comparison", "Result", "__version__", "load_scenario", "open_run", "run_scenario"]
 
-_API = {"Comparison", "Result", "load_scenario", "run_scenario"}
+_API = {"Comparison", "Result", "load_scenario", "open_run", "run_scenario"}
 
 
 def __getattr__(name: str) -> Any:

@@ -9,13 +9,15 @@ Example (also in the README)::
     cmp = res.compare()      # every metric of docs/metrics.md against the scenario's reference backend
     cmp.metrics              # the long metrics table (DataFrame)
     res.report("my-report")  # report.html / report.md / metrics.json in a new directory
+    old = legbench.open_run("results/latest/effort")  # a run directory already on disk, as the same Result
 
 Everything is measured by :mod:`legbench.compare` and :mod:`legbench.metrics` and written by
 :mod:`legbench.report`, as by the command line; this module only ties them together. A
 :class:`Result` and a :class:`Comparison` render as small HTML tables in Jupyter.
 
 Runs are written to a run directory (the same layout as ``legbench run --out``): the ``out``
-argument, else a new temporary directory, so nothing the user has is ever overwritten.
+argument, else a new temporary directory, so nothing the user has is ever overwritten. :func:`open_run`
+reads one back, whoever wrote it (``legbench run``, ``make compare``, :func:`run_scenario`).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import html
 import math
 import numbers
 import shutil
+import stat
 import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -40,6 +43,7 @@ from legbench import scenario as scenario_mod
 from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import LegbenchError, ResultsError, ScenarioError
 from legbench.results import (
+    Run,
     RunResult,
     check_out_path,
     load_run,
@@ -48,7 +52,7 @@ from legbench.results import (
 from legbench.scenario import Scenario
 from legbench.signals import RUN_COLUMNS, SLICE
 
-__all__ = ["Comparison", "Result", "load_scenario", "run_scenario"]
+__all__ = ["Comparison", "Result", "load_scenario", "open_run", "run_scenario"]
 
 
 def load_scenario(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | None = None) -> Scenario:
@@ -159,15 +163,18 @@ class Comparison:
 
 @dataclass(eq=False)
 class Result:
-    """One scenario run on several backends, held in its run directory.
+    """One scenario run on several backends, held in its run directory (:func:`run_scenario` makes one,
+    :func:`open_run` opens one already on disk).
 
     Attributes:
         scenario: the validated scenario that ran.
         path: the run directory (run.json, ``<backend>.parquet``).
-        traces: each backend's outcome, by name (``status`` ``ok``, ``failed`` or ``missing``).
+        traces: each backend's outcome, by name (``status`` ``ok``, ``failed``, ``missing`` or, in a run
+            stopped by Ctrl-C, ``interrupted``).
         contact_mode: the contact mode it ran in.
-        reference_mode: with ``contact_mode="both"``, the same scenario in the reference contact
-            mode (its :meth:`compare` is then split into contact and integration parts), else None.
+        reference_mode: with ``contact_mode="both"`` (or, opened, a sibling ``<name>__reference`` run), the same
+            scenario in the reference contact mode (its :meth:`compare` is then split into contact and integration
+            parts), else None.
     """
 
     scenario: Scenario
@@ -271,6 +278,15 @@ def _check_overrides(overrides: object) -> None:
             raise ScenarioError("<overrides>", repr(key), "expected a dotted scenario key (a non-empty string)")
 
 
+def _trace(run: Run, name: str) -> RunResult:
+    """One backend of a run directory read back: an ok backend's log, else an empty result with its status and
+    reason (a failed backend's partial log, if any, is in ``run.partial``); either way with the settings
+    (``info``) and wall time [s] run.json records for it (NaN where it records none)."""
+    b = run.backends[name]
+    tr = run.traces[name] if name in run.traces else RunResult.empty(name, b.status, b.reason or "")
+    return dataclasses.replace(tr, info=dict(b.info), wall_time=b.wall_time)
+
+
 def _traces(run_dir: Path, names: Sequence[str], ran: Sequence[RunResult]) -> dict[str, RunResult]:
     """Every backend asked for, in that order: those that ran now, and those an interrupted run into the same
     directory had finished (resumed, not run again: read back from the run directory)."""
@@ -278,13 +294,7 @@ def _traces(run_dir: Path, names: Sequence[str], ran: Sequence[RunResult]) -> di
     missing = [n for n in names if n not in got]
     if missing:
         run = load_run(run_dir)
-        for n in missing:
-            if n in run.traces:
-                b = run.backends[n]
-                got[n] = dataclasses.replace(run.traces[n], info=dict(b.info), wall_time=b.wall_time)
-            elif n in run.backends:
-                b = run.backends[n]
-                got[n] = RunResult.empty(n, b.status, b.reason or "")
+        got |= {n: _trace(run, n) for n in missing if n in run.backends}
     return {n: got[n] for n in names if n in got}
 
 
@@ -360,6 +370,114 @@ def run_scenario(
     if len(made) == 2:
         made[0].reference_mode = made[1]
     return made[0]
+
+
+def _run_dir(path: Path) -> None:
+    """``path`` is a run directory to open, else a one-line :class:`ResultsError` saying what it is: missing, a
+    file (or another non-directory), or a results tree's root (naming one of its runs). A folder with neither
+    run.json nor runs in it is left to :func:`legbench.results.load_run` ("no run.json here")."""
+    try:
+        mode = path.stat().st_mode
+        if not stat.S_ISDIR(mode):
+            hint = f"open its folder, {path.parent}" if path.name == "run.json" else "a folder holding run.json"
+            raise ResultsError(str(path), f"is {yamlfile.file_kind(mode)}, not a run directory ({hint})")
+        if (path / "run.json").is_file():
+            return
+        runs = sorted(p.name for p in path.iterdir() if (p / "run.json").is_file())
+    except (FileNotFoundError, NotADirectoryError):
+        raise ResultsError(str(path), "no such run directory") from None
+    except OSError as exc:  # permissions, a name too long
+        raise ResultsError(str(path), f"cannot read: {exc.strerror or exc}") from None
+    if runs:
+        raise ResultsError(str(path), f"is a results tree of {len(runs)} run(s), not a run directory: open one of "
+                                      f"them, e.g. {path / runs[0]}")  # fmt: skip
+
+
+def _recorded_scenario(run: Run) -> Scenario:
+    """The scenario run.json records, validated again: its ``scenario.raw`` (the scenario document as run, overrides
+    applied), which must still validate here and hash to the recorded ``scenario.sha256``.
+
+    Raises:
+        ResultsError: naming run.json and ``scenario.raw``: absent or not an object; invalid with this legbench,
+            its leg model and the backends installed here (a plug-in's settings, a joint target outside another
+            model's limits); or not the document that ran (its hash differs: edited afterwards).
+    """
+    rj = run.path / "run.json"
+    recorded = run.meta["scenario"]  # an object with a name: load_run checked it
+    raw = recorded.get("raw")
+    if raw is None:
+        raise ResultsError(str(rj), "missing key 'scenario.raw' (the scenario document as run)")
+    if not isinstance(raw, Mapping):
+        raise ResultsError(str(rj), f"must be an object, not {type(raw).__name__}", "scenario.raw")
+    file = recorded.get("file")
+    try:
+        sc = scenario_mod.parse(copy.deepcopy(dict(raw)), file if isinstance(file, str) and file else str(rj))
+    except ScenarioError as exc:
+        where = f"{exc.key}: " if exc.key else ""
+        raise ResultsError(str(rj), f"does not validate here ({where}{exc.problem}): validated again with this "
+                                    "legbench, its leg model and the backends installed here",
+                           "scenario.raw") from None  # fmt: skip
+    sha = recorded.get("sha256")
+    if isinstance(sha, str) and sha and sha != sc.sha256:
+        raise ResultsError(str(rj), f"hashes to {sc.sha256[:12]}..., not to scenario.sha256 {sha[:12]}...: not the "
+                                    "scenario that ran (edited afterwards)", "scenario.raw")  # fmt: skip
+    return sc
+
+
+def open_run(path: str | Path) -> Result:
+    """Open a run directory already on disk as a :class:`Result`, as :func:`run_scenario` returns it.
+
+    Any run directory will do: ``legbench run SCENARIO --out DIR``, one of a results tree
+    (``results/latest/effort`` after ``make compare``), or a :func:`run_scenario` ``out``. Everything is
+    read through :func:`legbench.results.load_run`, which checks run.json and every ok backend's log
+    (columns, finite values, t spanning the scenario's 0 .. duration [s]); nothing runs again.
+
+    * :attr:`Result.scenario`: run.json's ``scenario.raw`` (the scenario document as run, overrides
+      applied) validated again, with the recorded hash; its ``file`` is the one run.json names.
+    * :attr:`Result.traces`: every backend of run.json, in its order: an ok backend's log, else an
+      empty trace with its status (``failed``, ``missing``, ``interrupted``) and reason; each with the
+      settings (``info``) and wall time [s] run.json records.
+    * :attr:`Result.contact_mode`: run.json's (``native`` when it names none).
+    * :attr:`Result.reference_mode`: for a native-mode run whose sibling ``<name>__reference`` holds a run of
+      the same scenario name in reference contact mode (``legbench run --contact-mode both``,
+      ``contact_mode="both"``, ``make compare``), that run opened too; :meth:`Result.compare` then holds the
+      contact / integration split, as :func:`legbench.compare.compare` finds the same sibling. Else None.
+
+    :meth:`Result.report` with no directory writes the report into the run directory itself, as
+    ``legbench compare DIR`` does (metrics.json, report.md, report.html replaced; the logs and run.json
+    untouched).
+
+    Example::
+
+        import legbench
+
+        res = legbench.open_run("results/latest/effort")
+        res.status()                       # {"pinocchio": "ok", "mujoco": "ok", ...}
+        res["mujoco"][["t", "q1", "fz"]]   # t [s], q1 [rad], fz [N]
+        res.compare().summary()            # split by contact mode: results/latest/effort__reference
+
+    Args:
+        path: the run directory (the folder holding run.json).
+
+    Raises:
+        ResultsError: one line naming the path: it is missing, a file, a folder without run.json or a
+            results tree's root (naming one of its runs); or run.json, a log or the sibling reference-mode run
+            is malformed; or the recorded scenario no longer validates here (another leg model, a plug-in
+            backend not installed) or is not the one that ran (see :func:`legbench.results.load_run`).
+    """
+    given = Path(path)
+    _run_dir(given)
+    run = load_run(given)
+    scenario = _recorded_scenario(run)
+    # "." or "..": no name to find the sibling <name>__reference by, here or in Result.compare
+    path = given.resolve() if given.name in ("", ".", "..") else given
+    res = Result(scenario, path, {n: _trace(run, n) for n in run.backends}, run.contact_mode)
+    sibling = path.parent / f"{path.name}__reference"
+    if run.contact_mode == "native" and (sibling / "run.json").is_file():
+        other = open_run(sibling)
+        if other.contact_mode == "reference" and other.scenario.name == res.scenario.name:
+            res.reference_mode = other
+    return res
 
 
 #: The log columns of every DataFrame the API returns (see :attr:`Result.frames`).

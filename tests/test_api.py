@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 import pytest
 
 import legbench
@@ -271,3 +274,184 @@ def test_an_unknown_backend_names_the_argument_the_caller_used() -> None:
         legbench.run_scenario("effort", backends=["pinocchio", "mujocoo"])
     assert str(exc.value).startswith("backends mujocoo: unknown backend; available here: ")
     assert "--backends" not in str(exc.value) and "\n" not in str(exc.value)
+
+
+# --------------------------------------------------------------------------- #
+# open_run: a run directory already on disk as a Result
+
+
+def test_open_run_gives_back_the_result_run_scenario_returned(result: api.Result) -> None:
+    """open_run on run_scenario's ``out``: the same backends in the same order and statuses, every log column
+    exactly, the settings and wall times run.json records, the scenario validated again from run.json (equal to the
+    one that ran but for its file name, which run.json shows relative), the contact mode and the metrics; reading
+    writes nothing."""
+    before = sorted(p.name for p in result.path.iterdir())
+    opened = legbench.open_run(str(result.path))
+    assert opened.path == result.path and opened.backends == result.backends == ["pinocchio", "mujoco"]
+    assert opened.status() == result.status()
+    for name in result.backends:
+        pd.testing.assert_frame_equal(opened[name], result[name], check_exact=True)
+        assert opened.traces[name].info == result.traces[name].info
+        assert opened.traces[name].wall_time == result.traces[name].wall_time
+    assert dataclasses.replace(opened.scenario, file=result.scenario.file) == result.scenario
+    assert (opened.scenario.name, opened.scenario.duration) == ("position", 0.3)
+    assert opened.scenario.sha256 == result.scenario.sha256
+    assert opened.contact_mode == result.contact_mode == "native" and opened.reference_mode is None
+    pd.testing.assert_frame_equal(opened.compare().metrics, result.compare().metrics, check_exact=True)
+    assert sorted(p.name for p in result.path.iterdir()) == before
+
+
+def test_open_run_keeps_a_failed_backend_failed_with_its_reason(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A backend that failed mid-run (MuJoCo raising at its 20th step, in this process: jobs=1) is opened as failed,
+    with its reason, settings and no log (its partial log is not a result); the comparison is the original's, and
+    report() with no directory writes into the run directory, as ``legbench compare DIR`` does."""
+    from legbench.backends.mujoco_ import MujocoBackend
+
+    real = MujocoBackend.step
+    steps = [0]
+
+    def failing(self: MujocoBackend, tau: np.ndarray) -> None:
+        steps[0] += 1
+        if steps[0] == 20:
+            raise RuntimeError("the solver gave up")
+        real(self, tau)
+
+    monkeypatch.setattr(MujocoBackend, "step", failing)
+    out = tmp_path / "r"
+    res = legbench.run_scenario("position", backends=["pinocchio", "mujoco"], overrides=SHORT, out=out)
+    assert res.traces["mujoco"].status == "failed"
+    opened = legbench.open_run(out)
+    assert opened.status() == res.status() and opened.status()["mujoco"].startswith("failed: RuntimeError at t = ")
+    tr = opened.traces["mujoco"]
+    assert (tr.status, tr.reason) == ("failed", res.traces["mujoco"].reason) and "the solver gave up" in str(tr.reason)
+    assert len(tr.t) == 0 and tr.info == res.traces["mujoco"].info and list(opened.frames) == ["pinocchio"]
+    with pytest.raises(KeyError, match="backend 'mujoco' failed: RuntimeError"):
+        opened["mujoco"]
+    pd.testing.assert_frame_equal(opened["pinocchio"], res["pinocchio"], check_exact=True)
+    pd.testing.assert_frame_equal(opened.compare().metrics, res.compare().metrics, check_exact=True)
+    assert opened.report() == out / "report.html" and (out / "report.html").is_file()
+    assert json.loads((out / "metrics.json").read_text())["backends"]["mujoco"]["status"] == "failed"
+
+
+def test_open_run_of_a_native_run_opens_its_reference_mode_sibling(result: api.Result, tmp_path: Path) -> None:
+    """contact_mode="both" writes <name>/ and <name>__reference/: opening the native one opens the other as
+    reference_mode, and its comparison is split as the original's; the reference-mode run opened alone has none. A
+    sibling that is not the same scenario in reference mode is not taken for one."""
+    res = legbench.run_scenario("position", backends=["pinocchio", "mujoco"], overrides=SHORT, contact_mode="both",
+                                out=tmp_path / "both")  # fmt: skip
+    assert res.reference_mode is not None
+    opened = legbench.open_run(res.path)
+    ref = opened.reference_mode
+    assert ref is not None and ref.path == res.reference_mode.path and ref.reference_mode is None
+    assert (opened.contact_mode, ref.contact_mode) == ("native", "reference")
+    for mine, theirs in ((opened, res), (ref, res.reference_mode)):
+        for name in theirs.backends:
+            pd.testing.assert_frame_equal(mine[name], theirs[name], check_exact=True)
+    cmp = opened.compare()
+    assert cmp.result.split_run is not None and cmp.result.split_run.path == ref.path
+    pd.testing.assert_frame_equal(cmp.metrics, res.compare().metrics, check_exact=True)
+    alone = legbench.open_run(res.reference_mode.path)
+    assert alone.contact_mode == "reference" and alone.reference_mode is None
+    # two native runs side by side, one named as the other's sibling: no reference_mode
+    shutil.copytree(result.path, tmp_path / "x")
+    shutil.copytree(result.path, tmp_path / "x__reference")
+    assert legbench.open_run(tmp_path / "x").reference_mode is None
+
+
+def test_open_run_of_what_is_not_a_run_directory_says_what_it_is(result: api.Result, tmp_path: Path) -> None:
+    """A missing path, a file, run.json itself, a folder without run.json and a results tree's root: ResultsError,
+    one line starting with the path, saying what it is and what open_run wants."""
+    (tmp_path / "notes.txt").write_text("mine")
+    (tmp_path / "empty").mkdir()
+    tree = result.path.parent  # the fixture's folder, holding the run directory "position"
+    cases = {
+        tmp_path / "nope": "no such run directory",
+        tmp_path / "notes.txt": "is a regular file, not a run directory (a folder holding run.json)",
+        result.path / "run.json": f"is a regular file, not a run directory (open its folder, {result.path})",
+        tmp_path / "empty": "no run.json here: not a legbench run directory",
+        tree: f"is a results tree of 1 run(s), not a run directory: open one of them, e.g. {result.path}",
+    }
+    for path, what in cases.items():
+        with pytest.raises(ResultsError) as exc:
+            legbench.open_run(path)
+        assert str(exc.value) == f"{path}: {what}"
+
+
+def test_open_run_refuses_a_scenario_it_cannot_validate_again(result: api.Result, tmp_path: Path) -> None:
+    """run.json's scenario.raw is validated again: missing, invalid here, or not the scenario that ran (its hash
+    differs from scenario.sha256) is a ResultsError naming run.json and the key, not a Result of another scenario."""
+    out = tmp_path / "r"
+    shutil.copytree(result.path, out)
+    meta = json.loads((out / "run.json").read_text())
+    edits: list[tuple[Any, str]] = [
+        (None, "missing key 'scenario.raw'"),
+        ({**meta["scenario"]["raw"], "duration": -1}, "scenario.raw: does not validate here (duration: must be > 0"),
+        ({**meta["scenario"]["raw"], "duration": 0.2}, "scenario.raw: hashes to "),
+    ]
+    for raw, problem in edits:
+        doc = json.loads(json.dumps(meta))
+        if raw is None:
+            del doc["scenario"]["raw"]
+        else:
+            doc["scenario"]["raw"] = raw
+        (out / "run.json").write_text(json.dumps(doc))
+        with pytest.raises(ResultsError) as exc:
+            legbench.open_run(out)
+        assert str(exc.value).startswith(f"{out / 'run.json'}: {problem}"), str(exc.value)
+
+
+def test_open_run_is_exported_lazily() -> None:
+    assert legbench.open_run is api.open_run and "open_run" in legbench.__all__ and "open_run" in dir(legbench)
+
+
+# --------------------------------------------------------------------------- #
+# Errors an API caller receives in the command line's wording, from modules other than api.py that do not take the
+# wording as a parameter (listed for their owners): strict xfail, so each turns red when its module is changed and
+# the marker can go.
+
+_CLI_WORDING = pytest.mark.xfail(strict=True, reason="message worded for the command line in another module")
+
+
+@_CLI_WORDING
+@pytest.mark.parametrize(
+    "overrides", [{"events[0].t": 0.1}, {"events.7.t": 0.1}, {"duration.x": 0.1}, {"duration": "soon"}]
+)
+def test_an_override_error_names_overrides_not_set(overrides: dict[str, Any]) -> None:
+    """yamlfile.set_key (file "--set") and YamlContext.error ("(from --set KEY)"), reached by load_scenario."""
+    with pytest.raises(ScenarioError) as exc:
+        api.load_scenario("position", overrides)
+    assert "--set" not in str(exc.value) and "overrides" in str(exc.value)
+
+
+@_CLI_WORDING
+@pytest.mark.parametrize("holds", ["a foreign file", "a corrupt run.json", "another scenario's run", "a foreign tree"])
+def test_a_refused_out_names_out_not_the_option(holds: str, result: api.Result, tmp_path: Path) -> None:
+    """results.check_out_dir (through run.check_outs) and results.check_out_tree (through run.check_tree, with
+    contact_mode="both") end in "choose another --out"."""
+    out, mode = tmp_path / "r", None
+    scenario: str | dict[str, Any] = "position"
+    overrides: dict[str, Any] | None = SHORT
+    out.mkdir()
+    if holds in ("a foreign file", "a foreign tree"):
+        (out / "notes.txt").write_text("mine")
+        mode = "both" if holds == "a foreign tree" else None
+    elif holds == "a corrupt run.json":
+        (out / "run.json").write_text("{")
+    else:
+        out, overrides = result.path, None
+        scenario = {**api.load_scenario("position", SHORT).raw, "name": "other"}
+    with pytest.raises(LegbenchError) as exc:
+        legbench.run_scenario(scenario, backends="pinocchio", overrides=overrides, out=out, contact_mode=mode)
+    assert "--out" not in str(exc.value) and "choose another out" in str(exc.value)
+
+
+@_CLI_WORDING
+def test_a_bad_log_time_scale_names_the_argument(result: api.Result, tmp_path: Path) -> None:
+    """logs.load_log: "--log-time-scale 0: ...", reached by Result.compare(log=..., log_time_scale=0)."""
+    log = tmp_path / "log.csv"
+    result["mujoco"].drop(columns=["controller"]).to_csv(log, index=False)
+    with pytest.raises(LegbenchError) as exc:
+        result.compare(log=log, log_time_scale=0.0)
+    assert "--log-time-scale" not in str(exc.value) and "log_time_scale" in str(exc.value)
