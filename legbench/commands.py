@@ -70,7 +70,7 @@ def _model_gravity(args: argparse.Namespace) -> int:
 
 
 def _model_urdf(args: argparse.Namespace) -> int:
-    path = model.write_urdf(model.params_from_raw(model.load_raw(args.params), args.params), args.out)
+    path = model.write_urdf(model.read_params(args.params), args.out)
     print(f"wrote {path}")
     return 0
 
@@ -134,12 +134,13 @@ def add_model(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg
 
 def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
     """``--params`` defaults to the active model; ``--out`` to where legbench reads the URDF of ``--params``
-    (:func:`legbench.resources.urdf_target`): models/leg.urdf only for the bundled leg, another parameter file's
-    URDF goes to the cache, so ``--params other.yaml`` never replaces the bundled model's URDF."""
+    (:func:`legbench.resources.urdf_destination`): models/leg.urdf only for the bundled leg (in a source checkout
+    even when it is out of date with leg.yaml: that is how it is regenerated), another parameter file's URDF goes
+    to the cache, so ``--params other.yaml`` never replaces the bundled model's URDF."""
     if getattr(args, "params", None) is None:
         args.params = model.PARAMS_FILE
     if hasattr(args, "out") and args.out is None:
-        args.out = resources.urdf_target(args.params)
+        args.out = resources.urdf_destination(args.params)
     return args
 
 

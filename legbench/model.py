@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import re
 import tempfile
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
@@ -25,7 +26,7 @@ import pinocchio as pin
 
 from legbench import resources
 from legbench.exceptions import ModelError, ScenarioError
-from legbench.yamlfile import check_magnitude, read_bytes, read_yaml
+from legbench.yamlfile import check_magnitude, one_line, read_bytes, read_yaml
 
 #: The source checkout's root (only meaningful when running from one; data paths come from
 #: :mod:`legbench.resources`).
@@ -39,13 +40,14 @@ if TYPE_CHECKING:  # resolved by __getattr__ below
 
 
 def __getattr__(name: str) -> Path:
-    """``PARAMS_FILE`` (the active parameter file), ``URDF_FILE`` (where its URDF is written),
-    ``MODELS_DIR`` (the bundled model directory), resolved when asked for: ``--model`` and
-    ``LEGBENCH_MODEL`` can change them after import."""
+    """``PARAMS_FILE`` (the active parameter file), ``URDF_FILE`` (where ``legbench model urdf`` writes its URDF:
+    ``models/leg.urdf`` for the bundled model in a source checkout even when it is out of date,
+    :func:`legbench.resources.urdf_destination`), ``MODELS_DIR`` (the bundled model directory), resolved when
+    asked for: ``--model`` and ``LEGBENCH_MODEL`` can change them after import."""
     if name == "PARAMS_FILE":
         return resources.model_file()
     if name == "URDF_FILE":
-        return resources.urdf_target()
+        return resources.urdf_destination()
     if name == "MODELS_DIR":
         return resources.models_dir()
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
@@ -122,6 +124,14 @@ class LegParams:
     G_star: tuple[float, float, float]
     gravity: float
     scale: dict[str, float] = field(hash=False)
+    #: The parameter file the numbers were read from (:func:`read_params`, :func:`load_params`); None for
+    #: parameters built from a dict (:func:`params_from_raw`). With :attr:`digest`, what the header of the URDF
+    #: generated from them names and is stamped with (:func:`urdf_text`). Not compared: equal numbers are equal.
+    source: Path | None = field(default=None, compare=False)
+    #: :func:`legbench.resources.param_digest` of :attr:`source`, taken before the file was parsed (so a file
+    #: edited in between leaves a stamp that is not its numbers', which reads as out of date, never the reverse);
+    #: None when not read from a file.
+    digest: str | None = field(default=None, compare=False)
 
     @property
     def lower(self) -> np.ndarray:
@@ -435,8 +445,27 @@ def params_from_raw(raw: dict[str, Any], path: Path | str = "leg parameters", ch
 
 
 def load_params(path: Path | str | None = None) -> LegParams:
-    """The leg's parameters from ``path`` (default: the active parameter file) [cached per file]."""
+    """The leg's parameters from ``path`` (default: the active parameter file) [cached per file: read once per
+    process, as :func:`read_params` reads it]."""
     return _load_params(_resolved(Path(path) if path is not None else resources.model_file()))
+
+
+def read_params(path: Path | str) -> LegParams:
+    """The leg's parameters read from the file ``path`` now (not cached), with the file and its digest
+    (:attr:`LegParams.source`, :attr:`LegParams.digest`) for the stamp of the URDF generated from them.
+
+    The file is hashed first and parsed after, so an edit in between gives a stamp that is not the numbers'
+    (read as out of date, never as current). Errors are :func:`load_raw`'s and :func:`params_from_raw`'s.
+
+    Raises:
+        ModelError: the file is missing, not a regular file, too large or malformed.
+    """
+    path = Path(path)
+    try:
+        digest: str | None = resources.param_digest(path)
+    except (OSError, ModelError):  # load_raw says why, in its words
+        digest = None
+    return replace(params_from_raw(load_raw(path), path), source=path, digest=digest)
 
 
 @functools.cache
@@ -448,7 +477,7 @@ def _resolved(path: Path) -> Path:
 
 @functools.cache
 def _load_params(path: Path) -> LegParams:
-    return params_from_raw(load_raw(path), path)
+    return read_params(path)
 
 
 # --------------------------------------------------------------------------- #
@@ -535,8 +564,29 @@ def _inertial_xml(inr: Inertial) -> str:
     )
 
 
+def urdf_header(params: LegParams) -> str:
+    """The URDF's header comment: the stamp (:attr:`LegParams.digest`, which
+    :func:`legbench.resources.urdf_stamp` reads back) and the parameter file by the name outputs give it.
+
+    The bundled file is ``models/leg.yaml`` from any working directory (the committed ``models/leg.urdf`` does
+    not depend on where it was generated); another file as :func:`legbench.resources.shown` names it when that
+    is relative, else by its file name alone (no machine path). Control characters are escaped and ``--``
+    (which may not stand in an XML comment) is split. Parameters not read from a file get no stamp.
+    """
+    if params.source is None or params.digest is None:
+        return "<!-- Generated by legbench from leg parameters not read from a file (no stamp). Do not edit. -->"
+    if resources.is_bundled(params.source):
+        name = "models/leg.yaml"
+    else:
+        name = resources.shown(params.source)
+        name = params.source.name if Path(name).is_absolute() else name
+    name = re.sub(r"-(?=-)", "- ", one_line(name.encode("utf-8", "backslashreplace").decode("utf-8")))
+    fmt = resources.URDF_FORMAT.decode("ascii").strip()
+    return f"{resources.STAMP_PREFIX}{params.digest}, of {fmt} and the file's bytes) from {name}. Do not edit. -->"
+
+
 def urdf_text(params: LegParams) -> str:
-    """The URDF of the leg, generated from the parameters.
+    """The URDF of the leg, generated from the parameters, headed by :func:`urdf_header` (its stamp).
 
     Inertia products follow the URDF convention (ixy = -integral(x y dm), the
     entry of the inertia tensor); CAD printouts use the opposite sign.
@@ -545,7 +595,7 @@ def urdf_text(params: LegParams) -> str:
     origins = joint_origins(geom)
     lines = [
         '<?xml version="1.0"?>',
-        "<!-- Generated by `legbench model urdf` from models/leg.yaml. Do not edit. -->",
+        urdf_header(params),
         '<robot name="legbench_leg">',
         '  <link name="base">',
         _inertial_xml(Inertial(1.0, (0.0, 0.0, geom.H), ((1e-3, 0, 0), (0, 1e-3, 0), (0, 0, 1e-3)))).rstrip(),
@@ -595,10 +645,10 @@ def urdf_text(params: LegParams) -> str:
 
 
 def write_urdf(params: LegParams | None = None, path: Path | str | None = None) -> Path:
-    """Write the generated URDF (atomically) to ``path`` (default: the active model's, see
-    :func:`legbench.resources.urdf_target`) and return its path."""
+    """Write the generated URDF (atomically) to ``path`` (default: the active model's, where ``legbench model
+    urdf`` writes it, see :func:`legbench.resources.urdf_destination`) and return its path."""
     params = params or load_params()
-    path = Path(path) if path is not None else resources.urdf_target()
+    path = Path(path) if path is not None else resources.urdf_destination()
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")  # the name results.clean_stale knows
     try:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import re
 from collections.abc import Iterator
 from pathlib import Path
@@ -178,3 +179,146 @@ def test_the_library_refuses_a_model_variable_naming_a_fifo_on_import(tmp_path: 
     assert last == f"legbench.exceptions.ModelError: {fifo}: is a FIFO, not a regular file (a leg parameter file " \
                    "is read only from one)"  # fmt: skip
     assert not (tmp_path / "cache").exists()
+
+
+# --------------------------------------------------------------------------- #
+# The bundled leg.urdf's stamp: it is used only while it is the bundled leg.yaml's
+
+
+@pytest.fixture
+def tree(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    """A copy of the checkout's models/ (leg.yaml and the committed leg.urdf) in ``tmp_path/tree``, standing for the
+    bundled model and the source tree (resources.models_dir, resources.source_tree), so the real files are never
+    written; the cache in ``tmp_path/cache``; no other model selected; earlier warnings forgotten."""
+    tree = tmp_path / "tree"
+    models = tree / "models"
+    models.mkdir(parents=True)
+    for name in ("leg.yaml", "leg.urdf"):
+        (models / name).write_bytes((resources.models_dir() / name).read_bytes())
+    monkeypatch.setattr(resources, "models_dir", lambda: models)
+    monkeypatch.setattr(resources, "source_tree", lambda: tree)
+    monkeypatch.setattr(resources, "_warned", set(), raising=False)
+    monkeypatch.setenv(resources.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.delenv(resources.MODEL_ENV, raising=False)
+    resources.select_model(None)
+    yield tree
+    resources.select_model(None)
+
+
+def _digest(data: bytes) -> str:
+    """The digest a cached URDF's name and a URDF's stamp carry: sha256(URDF_FORMAT + the file's bytes)[:16]."""
+    return hashlib.sha256(resources.URDF_FORMAT + data).hexdigest()[:16]
+
+
+def _masses(urdf_text: str) -> dict[str, float]:
+    """Each link's <mass value> in a URDF's text."""
+    found = re.findall(r'<link name="(\w+)">\s*<inertial>.*?<mass value="([^"]+)"/>', urdf_text, re.DOTALL)
+    return {name: float(value) for name, value in found}
+
+
+def _stale_warnings(caplog: pytest.LogCaptureFixture) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.name == "legbench.resources" and r.levelname == "WARNING"]
+
+
+def test_an_edited_bundled_leg_yaml_is_simulated_from_its_own_urdf(
+    tree: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """models/leg.yaml edited (link 2's mass scale 1.48493010 -> 2.0) and models/leg.urdf not regenerated:
+    urdf_file() returned the stale leg.urdf (engines simulated the old leg) and urdf_target() (run.json's "urdf")
+    named it leg.urdf, as for the unedited leg. Now both are urdf/leg-<digest of the edited file>.urdf in the
+    cache, generated from the edited file: link 2's mass is the committed one times 2.0 / 1.48493010, links 1
+    and 3 unchanged. One warning line (however often it is asked) says leg.urdf is out of date and how to
+    regenerate it; `legbench model urdf` without --out then rewrites models/leg.urdf (not the cache), which is
+    used again, with the same text as the cached one."""
+    leg, committed = tree / "models" / "leg.yaml", tree / "models" / "leg.urdf"
+    edited, n = re.subn(r"link2: 1\.48493010\b", "link2: 2.0", leg.read_text())
+    assert n == 1
+    leg.write_text(edited)
+    cached = resources.cache_dir() / "urdf" / f"leg-{_digest(edited.encode())}.urdf"
+
+    assert resources.urdf_file() == cached
+    assert resources.urdf_target() == cached and cached.name != "leg.urdf"
+    old, new = _masses(committed.read_text()), _masses(cached.read_text())
+    assert new["link2"] == pytest.approx(old["link2"] * 2.0 / 1.48493010, rel=1e-12)
+    assert (new["link1"], new["link3"], new["foot"]) == (old["link1"], old["link3"], old["foot"])
+    assert resources.urdf_file() == cached  # asked again: the same file, no second warning
+    (warning,) = _stale_warnings(caplog)
+    assert warning.startswith("legbench: warning: models/leg.urdf is out of date with models/leg.yaml")
+    assert cached.name in warning and "`legbench model urdf` (make urdf) regenerates it" in warning
+    assert "\n" not in warning
+
+    assert cli.main(["model", "urdf"]) == 0
+    assert resources.urdf_file() == committed and resources.urdf_target() == committed
+    assert committed.read_text() == cached.read_text()
+    assert _masses(committed.read_text())["link2"] == new["link2"]
+
+
+def test_the_committed_leg_urdf_carries_the_stamp_of_leg_yaml_and_is_used_as_is(
+    tree: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The committed models/leg.urdf's header comment carries the stamp of the committed models/leg.yaml (the
+    digest a cached URDF's name uses) and names the file models/leg.yaml; with neither edited, urdf_file() is that
+    leg.urdf, urdf_target() models/leg.urdf (run.json: "leg.urdf"), nothing is generated, nothing is warned."""
+    leg, committed = tree / "models" / "leg.yaml", tree / "models" / "leg.urdf"
+    digest = _digest(leg.read_bytes())
+    header = committed.read_text().splitlines()[1]
+    assert header.startswith("<!-- ") and header.endswith(" -->")
+    assert f"stamp sha256:{digest}," in header and " from models/leg.yaml. " in header
+    assert resources.urdf_stamp(committed) == resources.param_digest(leg) == digest
+    assert resources.urdf_file() == committed
+    assert resources.urdf_target() == committed and resources.urdf_target().name == "leg.urdf"
+    assert not resources.cache_dir().exists()
+    assert _stale_warnings(caplog) == []
+
+
+def test_a_leg_urdf_without_the_stamp_or_of_another_format_counts_as_out_of_date(
+    tree: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A models/leg.urdf from a legbench before the stamp (header '... from models/leg.yaml. Do not edit.', the
+    numbers the same) cannot say what it was generated from, so it counts as out of date: urdf_file() is the
+    cache's urdf/leg-<digest>.urdf, which is what model.urdf_text makes of leg.yaml, and one warning says so. A
+    stamp made under another URDF_FORMAT (another generator) is out of date too."""
+    leg, committed = tree / "models" / "leg.yaml", tree / "models" / "leg.urdf"
+    stamped = committed.read_text()
+    lines = stamped.splitlines(keepends=True)
+    lines[1] = "<!-- Generated by `legbench model urdf` from models/leg.yaml. Do not edit. -->\n"
+    committed.write_text("".join(lines))
+
+    urdf = resources.urdf_file()
+    assert urdf != committed and urdf == resources.cache_dir() / "urdf" / f"leg-{_digest(leg.read_bytes())}.urdf"
+    assert urdf.read_text() == model.urdf_text(model.read_params(leg)) == stamped
+    assert resources.urdf_stamp(committed) is None
+    assert len(_stale_warnings(caplog)) == 1
+
+    committed.write_text(stamped)
+    assert resources.urdf_file() == committed
+    monkeypatch.setattr(resources, "URDF_FORMAT", b"legbench-urdf-3\n")
+    later = resources.urdf_file()
+    assert later != committed and later.parent == urdf.parent and later.name == f"leg-{_digest(leg.read_bytes())}.urdf"
+    assert "of legbench-urdf-3 and the file's bytes" in later.read_text()
+
+
+def test_a_generated_urdf_names_its_parameter_file_without_a_machine_path(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The header comment said 'from models/leg.yaml' for every parameter file. It names the file as outputs do
+    (resources.shown: relative to the working directory inside it), by its file name alone outside it (never
+    this machine's path), with its own stamp; a '--' in the name (not allowed in an XML comment) is split, so
+    the URDF still parses."""
+    import xml.etree.ElementTree as ET
+
+    monkeypatch.setenv(resources.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.delenv(resources.MODEL_ENV, raising=False)
+    source = resources.bundled_model().read_bytes()
+    (tmp_path / "work" / "mine").mkdir(parents=True)
+    inside, outside = tmp_path / "work" / "mine" / "heavy.yaml", tmp_path / "my--leg.yaml"
+    for path in (inside, outside):
+        path.write_bytes(source)
+    monkeypatch.chdir(tmp_path / "work")
+    digest = _digest(source)
+    for path, name in ((inside, "mine/heavy.yaml"), (outside, "my- -leg.yaml")):
+        text = resources.urdf_file(path).read_text()
+        header = text.splitlines()[1]
+        assert header.endswith(f" from {name}. Do not edit. -->") and f"stamp sha256:{digest}," in header
+        assert str(tmp_path) not in text and "models/leg.yaml" not in text
+        ET.fromstring(text.split("\n", 1)[1])  # well-formed XML after the declaration
