@@ -170,7 +170,6 @@ def _run(args: argparse.Namespace) -> int:
             if prof not in loaded:
                 loaded[prof] = scenario.load(path, {**overrides, "profile": prof})
             runs.append((loaded[prof], mode))
-    scenarios = list({id(sc): sc for sc, _ in runs}.values())
     names = backends.resolve(args.backends)
     single = len(runs) == 1
     root = Path(args.out) if args.out else Path("results") / "latest"
@@ -186,10 +185,11 @@ def _run(args: argparse.Namespace) -> int:
             available = set(backends.available())
             installed = [n for n in names if n in available]
             checked: set[str] = set()
-            for sc in scenarios:  # every engine must hold the spec's leg before anything runs
-                key = json.dumps([sc.gravity, {k: dict(v) for k, v in sc.backends.items()}], sort_keys=True)
-                if key not in checked:  # the pre-flight depends only on gravity and backend settings
-                    doctor.preflight(sc, installed)
+            for sc, mode in runs:  # every engine must hold the spec's leg, in the run's contact mode, before any run
+                mode = mode or sc.contact_mode
+                key = json.dumps([sc.gravity, mode, {k: dict(v) for k, v in sc.backends.items()}], sort_keys=True)
+                if key not in checked:  # the pre-flight depends only on gravity, contact mode and backend settings
+                    doctor.preflight(sc, installed, mode)
                     checked.add(key)
     except BaseException:
         if pool is not None:

@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
 from legbench import backends
-from legbench.backends.base import Backend
+from legbench.backends.base import Backend, Physics
+from legbench.backends.pinocchio_ import PinocchioBackend
+from legbench.exceptions import LegbenchError
 from legbench.studies import doctor
 
 EFFORT = Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml"
@@ -156,3 +159,48 @@ def test_a_mismatch_message_shows_plain_numbers() -> None:
     err = doctor.ParityError("euler", "q1_abad.torque_limit", float("inf"), np.float64(7.051408), "N m")
     assert "holds q1_abad.torque_limit = inf N m, the spec" in str(err)
     assert "says 7.051408 N m" in str(err) and "np.float64" not in str(err)
+
+
+class _ReferenceOnly(PinocchioBackend):
+    """A plug-in (the Pinocchio backend, so it holds the spec's leg) that refuses native contact mode when it loads
+    (its own rule)."""
+
+    name = "refonly"
+
+    @classmethod
+    def settings_problem(cls, settings: Mapping[str, Any], contact_mode: str) -> tuple[str, str] | None:
+        return ("contact", "refonly has no contact of its own: run it in reference contact") if contact_mode == (
+            "native") else None  # fmt: skip
+
+    def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
+        bad = self.settings_problem(settings, physics.contact_mode)
+        if bad is not None:
+            raise LegbenchError(f"backends.refonly.{bad[0]}: {bad[1]}")
+        super().load(urdf, physics, settings)
+
+
+def test_the_preflight_loads_each_backend_in_the_runs_contact_mode(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The pre-flight loaded every backend in the scenario file's contact mode, whatever --contact-mode said: a
+    backend that runs only in reference contact was refused for `--contact-mode reference` (exit 2, "has no
+    contact of its own"), and one that cannot run in reference mode was not refused up front for it (it failed
+    later, exit 3). Now it is loaded in each mode the command runs: reference runs, native is refused, both is
+    refused before anything is written."""
+    from legbench import cli
+
+    reg = backends._registry
+    monkeypatch.setattr(backends, "_registry", lambda: {**reg(), "refonly": _ReferenceOnly})
+    doc = {"name": "t", "duration": 0.02, "events": [{"t": 0.0, "position": {"joint": [0.0, -1.0, -1.0]}}],
+           "comparison": {"steady_window": 0.01}}  # fmt: skip
+    f = tmp_path / "t.yaml"
+    f.write_text(yaml.safe_dump(doc))  # native contact mode (the default)
+    run = ["run", str(f), "--backends", "refonly", "-q", "--no-compare"]
+    assert cli.main([*run, "--out", str(tmp_path / "ref"), "--contact-mode", "reference"]) == 0
+    assert (tmp_path / "ref" / "run.json").is_file()
+    capsys.readouterr()
+    for mode, out in (("native", "nat"), ("both", "both")):
+        assert cli.main([*run, "--out", str(tmp_path / out), "--contact-mode", mode]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and "backends.refonly.contact: refonly has no contact of its own" in err
+        assert not (tmp_path / out).exists()

@@ -177,12 +177,16 @@ def _same(a: Any, b: Any, tol: float) -> bool:
 _FIXED = ("group", "row", "unit", "spec", "tolerance", "status")
 
 
-def table(scenario: Scenario | str | Path, backends: Sequence[str] | None = None) -> pd.DataFrame:
+def table(
+    scenario: Scenario | str | Path, backends: Sequence[str] | None = None, contact_mode: str | None = None
+) -> pd.DataFrame:
     """Load every backend for the scenario, read back what it holds, and tabulate it against the spec.
 
     Args:
         scenario: a :class:`~legbench.scenario.Scenario` or the path of a scenario file.
         backends: backend names (default: every available backend).
+        contact_mode: the contact mode they are loaded in (default: the scenario's), the run's: a backend or
+            setting that cannot run in it is refused here, as its run would be.
 
     Returns:
         Columns ``group, row, unit, spec, tolerance, <one per backend>, status``; status is
@@ -191,11 +195,11 @@ def table(scenario: Scenario | str | Path, backends: Sequence[str] | None = None
     """
     sc = scenario if isinstance(scenario, Scenario) else scenario_mod.load(scenario)
     names = list(backends) if backends is not None else registry.available()
-    physics = physics_of(sc)
+    physics = physics_of(sc, contact_mode)
     values: dict[str, dict[str, Any]] = {}
     for name in names:
         try:
-            b = registry.load(name, physics, sc.backends.get(name, {}))
+            b = registry.load(name, physics, sc.backends.get(name, {}), sc.profile)
         except BackendNotFound:
             raise
         except LegbenchError as exc:  # a setting the engine refuses for this scenario (a dt that does not
@@ -253,16 +257,21 @@ def verdict(t: pd.DataFrame) -> str:
             f"checked: {which}")  # fmt: skip
 
 
-def doctor(scenario: Scenario | str | Path, backends: Sequence[str] | None = None) -> pd.DataFrame:
+def doctor(
+    scenario: Scenario | str | Path, backends: Sequence[str] | None = None, contact_mode: str | None = None
+) -> pd.DataFrame:
     """:func:`table` across backends (default: all available); raises :class:`ParityError` on a mismatch."""
-    t = table(scenario, backends)
+    t = table(scenario, backends, contact_mode)
     check(t)
     return t
 
 
-def preflight(scenario: Scenario | str | Path, backends: Sequence[str]) -> pd.DataFrame:
-    """The run's pre-flight: the backends about to run hold the spec's leg, limits and gravity, or an error."""
-    return doctor(scenario, backends)
+def preflight(
+    scenario: Scenario | str | Path, backends: Sequence[str], contact_mode: str | None = None
+) -> pd.DataFrame:
+    """The run's pre-flight: the backends about to run, loaded in the run's ``contact_mode`` (default: the
+    scenario's), hold the spec's leg, limits and gravity, or an error."""
+    return doctor(scenario, backends, contact_mode)
 
 
 def _cell(v: Any) -> str:
