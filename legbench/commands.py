@@ -187,8 +187,9 @@ def _run(args: argparse.Namespace) -> int:
             checked: set[str] = set()
             for sc, mode in runs:  # every engine must hold the spec's leg, in the run's contact mode, before any run
                 mode = mode or sc.contact_mode
-                key = json.dumps([sc.gravity, mode, {k: dict(v) for k, v in sc.backends.items()}], sort_keys=True)
-                if key not in checked:  # the pre-flight depends only on gravity, contact mode and backend settings
+                key = json.dumps([sc.gravity, mode, sc.profile, {k: dict(v) for k, v in sc.backends.items()}],
+                                 sort_keys=True)  # fmt: skip
+                if key not in checked:  # the pre-flight depends only on gravity, mode, profile and backend settings
                     doctor.preflight(sc, installed, mode)
                     checked.add(key)
     except BaseException:
