@@ -450,6 +450,31 @@ def _schema(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _backends(args: argparse.Namespace) -> int:
+    """Every backend legbench finds: those that can run here (built-in or plug-in, with their profiles and
+    integrators), then those that cannot, with why (the command that installs the engine)."""
+    names = backends.available()
+    missing = backends.unavailable()
+    width = max(len(n) for n in [*names, *missing])
+    for name in names:
+        cls = backends.get(name)
+        origin = "built-in" if name in backends.BUILTIN else f"plug-in {cls.__module__}:{cls.__qualname__}"
+        line = f"{name:<{width}}  {origin}; profiles: {', '.join(cls.profiles)}"
+        integrators = cls.choices.get("integrator")
+        if integrators:
+            matched = cls.resolve_settings({}, PROFILES[0]).get("integrator")
+            line += f"; integrators: {', '.join(map(str, integrators))} ({PROFILES[0]}: {matched})"
+        print(line)
+    for name, why in missing.items():
+        print(f"{name:<{width}}  not available: {why}")
+    return EXIT_OK
+
+
+def add_backends(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("backends", help="the backends legbench finds: what runs here, and how to install the rest")
+    p.set_defaults(func=_backends)
+
+
 def add_schema(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("schema", help="print the JSON Schema of the scenario format (for editors)")
     p.set_defaults(func=_schema)

@@ -547,3 +547,31 @@ def test_compare_jobs_beyond_the_pages_start_no_more_workers_than_pages(
     assert cli.main(["compare", str(tmp_path / "tree"), "--jobs", "8"]) == 0
     assert [ex.jobs for ex in made] == [2] and 1 <= len(spawned) <= 2
     assert (tmp_path / "tree" / "a" / "report.html").is_file() and (tmp_path / "tree" / "report.html").is_file()
+
+
+def test_backends_lists_what_runs_here_plug_ins_included_and_how_to_install_the_rest(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A newcomer had no command to list the backends (`legbench backends` was an invalid choice): it lists every
+    available one with its origin and profiles, a plug-in by its class, and a missing engine with its install
+    command, one line each, exit 0."""
+    from fakes import FakeBackend
+
+    from legbench import backends
+
+    reg, missing = backends._registry, dict(backends._MISSING)
+
+    def registry() -> dict[str, type[backends.Backend]]:
+        found = {k: v for k, v in reg().items() if k != "dart"} | {"fake": FakeBackend}
+        backends._MISSING["dart"] = "pip install dartpy (No module named 'dartpy')"
+        return found
+
+    monkeypatch.setattr(backends, "_registry", registry)
+    monkeypatch.setattr(backends, "_MISSING", missing)
+    assert cli.main(["backends"]) == 0
+    lines = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()}
+    assert set(lines) == {*reg(), "fake", *missing}  # missing: plug-ins whose entry point failed, e.g. another test's
+    assert "built-in; profiles: matched, engine-defaults, ode45; integrators: euler, rk4, rk45, dop853 (matched: " \
+           "euler)" in lines["pinocchio"]  # fmt: skip
+    assert "plug-in fakes:FakeBackend; profiles: matched, engine-defaults" in lines["fake"]
+    assert lines["dart"].endswith("not available: pip install dartpy (No module named 'dartpy')")

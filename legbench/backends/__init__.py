@@ -41,6 +41,7 @@ __all__ = [
     "load",
     "resolve",
     "sub_step_count",
+    "unavailable",
 ]
 
 #: Built-in backends: name -> (module, class, pip package that provides the engine, or the
@@ -92,6 +93,13 @@ def engine_packages() -> list[str]:
 def available() -> list[str]:
     """Names of the backends that can run here, built-ins first."""
     return list(_registry())
+
+
+def unavailable() -> dict[str, str]:
+    """The backends known here that cannot run, each with why: a built-in whose engine is not installed (with
+    the command that installs it) or a plug-in whose entry point failed to load."""
+    found = _registry()
+    return {n: _MISSING.get(n) or "not installed" for n in dict.fromkeys([*BUILTIN, *_MISSING]) if n not in found}
 
 
 def get(name: str) -> type[Backend]:
