@@ -18,7 +18,9 @@ from __future__ import annotations
 import logging
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,7 +33,8 @@ from legbench.exceptions import LegbenchError, ResultsError
 from legbench.results import RunResult, result_from_frame
 from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS
 
-__all__ = ["JOINT_STATE", "WRENCH", "RosOptions", "is_ros_bag", "load_log", "load_ros_bag"]
+__all__ = ["API_WORDS", "CLI_WORDS", "JOINT_STATE", "WRENCH", "LogWords", "RosOptions", "is_ros_bag", "load_log",
+           "load_ros_bag", "worded"]  # fmt: skip
 
 #: The message types read from a bag (rosbags' names, the same for ROS 1 and ROS 2).
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -40,6 +43,61 @@ WRENCH = "geometry_msgs/msg/WrenchStamped"
 DEFAULT_JOINTS = ("q1_abad", "q2_hip", "q3_knee")
 
 logger = logging.getLogger("legbench.logs")
+
+
+@dataclass(frozen=True)
+class LogWords:
+    """How this module's messages name the settings of a log, in the caller's words: by default
+    (:data:`CLI_WORDS`) the options of ``legbench compare``; :data:`API_WORDS` the arguments of
+    :func:`legbench.compare.compare` (``Result.compare`` of the Python API). Chosen with :func:`worded`.
+
+    Attributes:
+        time_scale: the time scale factor, before its value (``--log-time-scale 0.0: ...``).
+        time_scale_ms: the time scale for a log in ms.
+        pick_column: what chooses one of several header columns matching one legbench column.
+        map_columns: a mapping of header names to legbench columns, by example.
+        map_joints: a mapping of a bag's joint names to q1, q2, q3.
+        joints: a bag's joint mapping alone, by example.
+        joint_topic: what names the JointState topic of a bag.
+        wrench_topic: what names the WrenchStamped topic of a bag.
+    """
+
+    time_scale: str = "--log-time-scale"
+    time_scale_ms: str = "--log-time-scale 1e-3"
+    pick_column: str = "--log-columns (column_map in the Python API)"
+    map_columns: str = "--log-columns 'theirs=t, ...' (column_map in the Python API)"
+    map_joints: str = "--log-columns NAME=q1,NAME=q2,NAME=q3"
+    joints: str = "NAME=q1,NAME=q2,NAME=q3"
+    joint_topic: str = "--ros-joint-topic"
+    wrench_topic: str = "--ros-wrench-topic"
+
+
+#: The command line's words (``legbench compare``): the default.
+CLI_WORDS = LogWords()
+#: The Python API's words: the arguments of :func:`legbench.compare.compare`.
+API_WORDS = LogWords(
+    time_scale="log_time_scale",
+    time_scale_ms="log_time_scale=1e-3",
+    pick_column="column_map",
+    map_columns="column_map={'theirs': 't', ...}",
+    map_joints="column_map={NAME: 'q1', NAME: 'q2', NAME: 'q3'}",
+    joints="{NAME: 'q1', NAME: 'q2', NAME: 'q3'}",
+    joint_topic="ros=RosOptions(joint_topic=...)",
+    wrench_topic="ros=RosOptions(wrench_topic=...)",
+)
+_WORDS: ContextVar[LogWords] = ContextVar("legbench_log_words", default=CLI_WORDS)
+
+
+@contextmanager
+def worded(words: LogWords) -> Iterator[None]:
+    """Within the block (this thread or task), the messages of this module, raised and logged, name the log's
+    settings in ``words``: :mod:`legbench.api` calls :func:`legbench.compare.compare` (which reads the log) in
+    ``worded(API_WORDS)``, so a Python caller is told of ``log_time_scale``, not ``--log-time-scale``."""
+    token = _WORDS.set(words)
+    try:
+        yield
+    finally:
+        _WORDS.reset(token)
 
 
 #: Header names (after unit stripping, lower case) taken for legbench columns.
@@ -71,8 +129,8 @@ def _check_plausible(t: np.ndarray, data: np.ndarray, source: str, foot: np.ndar
                                    f"value (limit {PLAUSIBLE_MAX:g})")  # fmt: skip
     step = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
     if step > 0.1:
-        logger.warning("legbench: warning: %s: median time step %.4g s: is the time in ms? (--log-time-scale 1e-3)",
-                       source, step)  # fmt: skip
+        logger.warning("legbench: warning: %s: median time step %.4g s: is the time in ms? (%s)", source, step,
+                       _WORDS.get().time_scale_ms)  # fmt: skip
     qmax = float(np.nanmax(np.abs(q)))
     if qmax > 2 * np.pi + 0.1:
         logger.warning("legbench: warning: %s: joint angles reach %.4g: above 2 pi rad, are they in degrees? "
@@ -125,6 +183,7 @@ def load_log(
             numeric or time is not strictly increasing.
     """
     path = Path(path)
+    words = _WORDS.get()
     if is_ros_bag(path):
         opts = ros or RosOptions()
         if column_map:
@@ -132,7 +191,7 @@ def load_log(
                               opts.force_sign, opts.t0)  # fmt: skip
         return load_ros_bag(path, opts)
     if not (math.isfinite(time_scale) and time_scale > 0):
-        raise LegbenchError(f"--log-time-scale {time_scale!r}: must be a finite number > 0 (1e-3 for ms)")
+        raise LegbenchError(f"{words.time_scale} {time_scale!r}: must be a finite number > 0 (1e-3 for ms)")
     if not path.is_file():
         raise ResultsError(str(path), "is a directory, not a log file" if path.is_dir() else "no such log file")
     try:
@@ -157,17 +216,14 @@ def load_log(
     targets = list(rename.values())
     dupes = sorted({c for c in targets if targets.count(c) > 1})
     if dupes:
-        raise ResultsError(
-            str(path),
-            f"several header columns map to {dupes}; choose one with --log-columns (column_map in the Python API)",
-        )
+        raise ResultsError(str(path), f"several header columns map to {dupes}; choose one with {words.pick_column}")
     df = raw[list(rename)].rename(columns=rename)
     required = ["t", "q1", "q2", "q3"]
     unmatched = [c for c in required if c not in df.columns]
     if unmatched:  # name the file's own header: the usual cause is a header of other names, to be mapped
         header = list(map(str, raw.columns))
         raise ResultsError(str(path), f"no column matches {unmatched} in the header {header}; map them with "
-                                      "--log-columns 'theirs=t, ...' (column_map in the Python API)")  # fmt: skip
+                                      f"{words.map_columns}")  # fmt: skip
     trace = result_from_frame(df, path.stem, str(path), required)  # validates
     _check_plausible(trace.t * time_scale, trace.data, str(path), trace.ee)
     out = {"t": trace.t * time_scale}
@@ -221,7 +277,7 @@ def _joints_from_map(path: Path, column_map: Mapping[str, str]) -> tuple[str, st
     wrong = sorted(set(by_col) - {"q1", "q2", "q3"})
     if wrong or len(by_col) != 3 or len(column_map) != 3:
         raise ResultsError(
-            str(path), f"a bag's column map names its three joints, NAME=q1,NAME=q2,NAME=q3; got {dict(column_map)}"
+            str(path), f"a bag's column map names its three joints, {_WORDS.get().joints}; got {dict(column_map)}"
         )
     return (by_col["q1"], by_col["q2"], by_col["q3"])
 
@@ -247,7 +303,8 @@ def _pick_topic(path: Path, topics: Mapping[str, str], msgtype: str, asked: str 
         return have[0]
     if not have and not required:
         return None
-    option = "--ros-joint-topic" if msgtype == JOINT_STATE else "--ros-wrench-topic"
+    words = _WORDS.get()
+    option = words.joint_topic if msgtype == JOINT_STATE else words.wrench_topic
     if not have:
         raise ResultsError(str(path), f"no {short} topic in the bag (topics: {sorted(topics)})")
     raise ResultsError(str(path), f"several {short} topics ({', '.join(have)}); name one with {option}")
@@ -304,7 +361,7 @@ def load_ros_bag(path: str | Path, options: RosOptions | None = None) -> pd.Data
                         raise ResultsError(
                             str(path),
                             f"topic '{jt}': joints {missing} not in the message's names {list(names)}; "
-                            "map them with --log-columns NAME=q1,NAME=q2,NAME=q3",
+                            f"map them with {_WORDS.get().map_joints}",
                         )
                     idx = index[names] = [names.index(j) for j in joints]
                 row = np.full(9, np.nan)

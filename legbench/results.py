@@ -418,13 +418,16 @@ def check_out_path(path: str | Path, what: str = "--out") -> Path:
 STUDY_OUTPUTS = ("verification.json", "calibration.json", "sweep.json", "reproduce.json", "bench.json")
 
 
-def check_out_tree(root: str | Path, dirs: Collection[str], files: Collection[str], kind: str) -> None:
+def check_out_tree(
+    root: str | Path, dirs: Collection[str], files: Collection[str], kind: str, option: str = "--out"
+) -> None:
     """Refuse a results tree's root (``legbench reproduce --out``, ``legbench run`` of several runs with
     ``--out``) holding anything legbench did not put there, before any work: every entry must be a directory
     named in ``dirs`` (the tree's run directories, each checked on its own by the caller), any run directory
     (holds run.json) or study output (holds one of :data:`STUDY_OUTPUTS`), a file named in ``files`` (the
     tree's pages), or a temporary of an earlier write (:func:`clean_stale` removes it). A missing or empty
-    root is fine; ``kind`` names the tree in the message."""
+    root is fine; ``kind`` names the tree in the message, ``option`` what the caller named the root with (the
+    Python API's ``out``)."""
     root = Path(root)
     if not root.is_dir():
         return
@@ -435,7 +438,7 @@ def check_out_tree(root: str | Path, dirs: Collection[str], files: Collection[st
         if p.is_file() and p.name in files:
             continue
         raise LegbenchError(f"{root}: not empty and not a legbench {kind} directory (it holds {p.name}); "
-                            "choose another --out")  # fmt: skip
+                            f"choose another {option}")  # fmt: skip
 
 
 def check_out_file(path: str | Path, what: str = "--out") -> Path:
@@ -471,22 +474,22 @@ def _previous(out_dir: Path) -> dict[str, Any] | None:
         return {} if (out_dir / "run.json").is_file() else None
 
 
-def check_out_dir(scenario: Scenario, out_dir: Path) -> None:
-    """Refuse an output directory holding another scenario's results (or anything else)."""
+def check_out_dir(scenario: Scenario, out_dir: Path, option: str = "--out") -> None:
+    """Refuse an output directory holding another scenario's results (or anything else); the message says to
+    choose another ``option`` (what the caller named the directory with: the Python API's ``out``)."""
     out_dir = Path(out_dir)
     prev = _previous(out_dir)
     if prev is None:
         if out_dir.exists() and any(out_dir.iterdir()):
-            raise LegbenchError(f"{out_dir}: not empty and not a legbench run directory; choose another --out")
+            raise LegbenchError(f"{out_dir}: not empty and not a legbench run directory; choose another {option}")
         return
     name = (prev.get("scenario") or {}).get("name") if isinstance(prev.get("scenario"), Mapping) else None
     if name is None:
         raise LegbenchError(f"{out_dir}: its run.json is unreadable or corrupt (not written by legbench); "
-                            "choose another --out or remove it")  # fmt: skip
+                            f"choose another {option} or remove it")  # fmt: skip
     if name != scenario.name:
-        raise LegbenchError(
-            f"{out_dir}: holds results of scenario {name!r}, not {scenario.name!r}; choose another --out or remove it"
-        )
+        raise LegbenchError(f"{out_dir}: holds results of scenario {name!r}, not {scenario.name!r}; choose another "
+                            f"{option} or remove it")  # fmt: skip
 
 
 def _same_settings(prev: Mapping[str, Any], scenario: Scenario, contact_mode: str | None) -> bool:

@@ -329,17 +329,18 @@ def deferred_interrupts() -> Iterator[list[int]]:
 
 
 def check_outs(plan: Sequence[tuple[Scenario, str | None, Path]], force: bool, new_place: str,
-               replace: str = "--force") -> None:  # fmt: skip
+               replace: str = "--force", option: str = "--out") -> None:  # fmt: skip
     """Before any work, each (scenario, contact mode, output directory) of a plan: the directory holds no other
     scenario's results (:func:`legbench.results.check_out_dir`), and a finished run there, or an interrupted one
     of other settings, is replaced only with ``force`` (an interrupted run of the same settings is resumed).
 
     Raises:
         LegbenchError: one line naming the directory, what it holds, ``new_place`` (where a new one goes) and
-            ``replace`` (the option that replaces it).
+            ``replace`` (the option that replaces it); for a directory holding another scenario's results or
+            anything else, ``option``, what the caller named the directory with (the Python API's ``out``).
     """
     for sc, mode, out in plan:
-        check_out_dir(sc, out)
+        check_out_dir(sc, out, option)
         held = None if force else replaced_by_run(sc, out, mode)
         if held is not None:
             raise LegbenchError(f"{out} holds {held}; {new_place} for a new one, or {replace} to replace it")
@@ -359,7 +360,7 @@ def check_tree(root: Path, dirs: Sequence[str], option: str = "--out", foreign: 
         raise LegbenchError(f"{option} {root}: holds one run, and {len(dirs)} runs make a tree of run directories; "
                             f"choose another {option}")  # fmt: skip
     if foreign:
-        check_out_tree(root, [*dirs, ASSETS], ("report.html", "report.md"), "results tree")
+        check_out_tree(root, [*dirs, ASSETS], ("report.html", "report.md"), "results tree", option)
 
 
 def start_pool(jobs: int, tasks: int | None = None) -> LocalExecutor | None:

@@ -336,15 +336,17 @@ def parse(
     overridden: Sequence[str] = (),
     placeholders: Collection[str] = (),
     every_engine: bool = False,
+    origin: str = "--set",
 ) -> Scenario:
     """Validate a scenario document (already parsed YAML) into a :class:`Scenario`; ``overridden``: the dotted
-    keys ``--set`` replaced (their errors name the override, not the file's line); ``placeholders``: top-level
+    keys ``--set`` replaced (their errors name the override, not the file's line: ``(from ORIGIN KEY)``,
+    ``origin`` what set them in the caller's words, the Python API's ``overrides``); ``placeholders``: top-level
     keys (``duration``, ``control_rate``) whose values stand in for invalid ones (:func:`errors` looks past
     them so): the checks that compare other values with them are skipped. ``every_engine`` (``legbench
     validate``): also check that the control period suits the default (or profile) sub-step of every
     installed engine the scenario gives no ``dt`` (this imports them all); a run checks only the engines it
     loads, when it loads them."""
-    ctx = YamlContext(file, root, overridden)
+    ctx = YamlContext(file, root, overridden, origin)
     exact_d, exact_r = "duration" not in placeholders, "control_rate" not in placeholders
     if isinstance(doc, Mapping) and "events" not in doc:  # another of legbench's files, given where a scenario goes
         for key, kind, command in (("studies", "a sweep file", "legbench sweep"),
@@ -737,12 +739,13 @@ def _ranged(ctx: YamlContext, path: list[str | int], v: Any, rng: Range) -> floa
     return x
 
 
-def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
-    """Read and validate a scenario file; ``overrides`` are dotted keys set before validation."""
+def load(path: str | Path, overrides: Mapping[str, Any] | None = None, origin: str = "--set") -> Scenario:
+    """Read and validate a scenario file; ``overrides`` are dotted keys set before validation, their errors
+    naming ``origin`` (what set them in the caller's words: ``--set``, the Python API's ``overrides``)."""
     doc, root = read_yaml(path)
     for key, value in (overrides or {}).items():
-        set_key(doc, key, value)
-    return parse(doc, str(path), root, tuple(overrides or ()))
+        set_key(doc, key, value, origin)
+    return parse(doc, str(path), root, tuple(overrides or ()), origin=origin)
 
 
 def json_schema() -> dict[str, Any]:

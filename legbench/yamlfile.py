@@ -132,10 +132,13 @@ def yaml_compose(text: str) -> yaml.Node | None:
 class YamlContext:
     """File name and YAML node marks, to name lines in errors (scenario, sweep and tolerance files)."""
 
-    def __init__(self, file: str, root: yaml.Node | None, overridden: Sequence[str] = ()) -> None:
+    def __init__(
+        self, file: str, root: yaml.Node | None, overridden: Sequence[str] = (), origin: str = "--set"
+    ) -> None:
         self.file = file
         self.root = root
         self.overridden = tuple(overridden)  # dotted keys set by --set: their values are not the file's
+        self.origin = origin  # what set them, in the caller's words: --set, the Python API's overrides
 
     def line(self, path: Sequence[str | int]) -> int | None:
         """Line of the key at ``path`` in the file (1-based), or None if unknown."""
@@ -160,14 +163,14 @@ class YamlContext:
 
     def error(self, path: Sequence[str | int], problem: str) -> ScenarioError:
         """The error naming the file, the key path, its line and the problem; for a value that ``--set``
-        replaced, the override instead of the file's line (which holds the old value). A key above an
-        override's (``backends.*`` of ``--set backends.*.dt=...``) is blamed on the override too: the override
-        made or changed it, and the file's line nearest it (its parent's) would point at what the user did
-        not write."""
+        replaced, the override (``(from --set KEY)``, ``origin`` naming ``--set``) instead of the file's line
+        (which holds the old value). A key above an override's (``backends.*`` of ``--set backends.*.dt=...``)
+        is blamed on the override too: the override made or changed it, and the file's line nearest it (its
+        parent's) would point at what the user did not write."""
         dotted = ".".join(str(p) for p in path)
         for key in self.overridden:
             if dotted == key or dotted.startswith(key + ".") or (dotted and key.startswith(dotted + ".")):
-                return ScenarioError(self.file, keypath(path), f"{problem} (from --set {key})")
+                return ScenarioError(self.file, keypath(path), f"{problem} (from {self.origin} {key})")
         return ScenarioError(self.file, keypath(path), problem, self.line(path))
 
 
@@ -492,23 +495,24 @@ def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
     return out
 
 
-def set_key(doc: dict[str, Any], dotted: str, value: Any) -> None:
+def set_key(doc: dict[str, Any], dotted: str, value: Any, origin: str = "--set") -> None:
     """Set ``a.b.c`` (``events.0.t``: a list index) in a nested document, creating mappings as needed.
 
     Raises:
         ScenarioError: a part of the path is a value, not a mapping or list, an index is out of range, or the
-            key writes a list index in brackets (``events[0].t``: the error messages' notation).
+            key writes a list index in brackets (``events[0].t``: the error messages' notation); its file is
+            ``origin``, what the key came from in the caller's words (``--set``, the Python API's ``overrides``).
     """
     if re.search(r"\[\s*-?\d+\s*\]", dotted):  # events[0].t: the error messages' notation, not --set's
         dots = re.sub(r"\[\s*(-?\d+)\s*\]", r".\1", dotted)
-        raise ScenarioError("--set", dotted, f"a list item is written with a dot: {dots}")
+        raise ScenarioError(origin, dotted, f"a list item is written with a dot: {dots}")
     parts = dotted.split(".")
     d: Any = doc
     for i, k in enumerate(parts):
         last = i == len(parts) - 1
         if isinstance(d, list):
             if not k.lstrip("-").isdigit() or not -len(d) <= int(k) < len(d):
-                raise ScenarioError("--set", dotted, f"'{'.'.join(parts[:i])}' is a list of {len(d)}: "
+                raise ScenarioError(origin, dotted, f"'{'.'.join(parts[:i])}' is a list of {len(d)}: "
                                     f"'{k}' is not an index of it")  # fmt: skip
             if last:
                 d[int(k)] = value
@@ -520,7 +524,7 @@ def set_key(doc: dict[str, Any], dotted: str, value: Any) -> None:
             else:
                 d = d.setdefault(k, {})
         else:
-            raise ScenarioError("--set", dotted, f"'{'.'.join(parts[:i])}' is {d!r}, not a mapping")
+            raise ScenarioError(origin, dotted, f"'{'.'.join(parts[:i])}' is {d!r}, not a mapping")
 
 
 def finite_float(text: str) -> float:

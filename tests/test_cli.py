@@ -575,3 +575,80 @@ def test_backends_lists_what_runs_here_plug_ins_included_and_how_to_install_the_
            "euler)" in lines["pinocchio"]  # fmt: skip
     assert "plug-in fakes:FakeBackend; profiles: matched, engine-defaults" in lines["fake"]
     assert lines["dart"].endswith("not available: pip install dartpy (No module named 'dartpy')")
+
+
+# --------------------------------------------------------------------------- #
+# Errors whose wording the Python API replaces by its arguments' (test_api.py): on the command line they name the
+# options, byte for byte as before.
+
+POSITION = Path(__file__).resolve().parents[1] / "scenarios" / "position.yaml"
+
+
+@pytest.mark.parametrize("holds", ["a foreign file", "a corrupt run.json", "another scenario's run", "a foreign tree"])
+def test_a_refused_out_names_the_option(holds: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """results.check_out_dir (through run.check_outs) and results.check_out_tree (through run.check_tree, with
+    --contact-mode both), before anything runs: "choose another --out" (the API's: "choose another out")."""
+    out = tmp_path / "r"
+    out.mkdir()
+    mode = ["--contact-mode", "both"] if holds == "a foreign tree" else []
+    if holds in ("a foreign file", "a foreign tree"):
+        (out / "notes.txt").write_text("mine")
+    elif holds == "a corrupt run.json":
+        (out / "run.json").write_text("{")
+    else:
+        write_run(out, {"ref": None, "a": scale(1.01)})  # scenario 'fake'
+    argv = ["run", str(POSITION), "--backends", "pinocchio", "--out", str(out), *mode, "-q", "--no-compare"]
+    assert cli.main(argv) == 2
+    why = {
+        "a foreign file": "not empty and not a legbench run directory; choose another --out",
+        "a corrupt run.json": "its run.json is unreadable or corrupt (not written by legbench); choose another --out "
+        "or remove it",
+        "another scenario's run": "holds results of scenario 'fake', not 'position'; choose another --out or remove it",
+        "a foreign tree": "not empty and not a legbench results tree directory (it holds notes.txt); choose another "
+        "--out",
+    }[holds]
+    assert capsys.readouterr().err == f"legbench: error: {out}: {why}\n"
+
+
+@pytest.mark.parametrize(
+    ("setting", "message"),
+    [
+        ("events[0].t=0.1", "--set: events[0].t: a list item is written with a dot: events.0.t"),
+        ("events.7.t=0.1", "--set: events.7.t: 'events' is a list of 1: '7' is not an index of it"),
+        ("duration.x=0.1", "--set: duration.x: 'duration' is 3.0, not a mapping"),
+        ("duration=soon", f"{POSITION}: duration: expected a number, got 'soon' (from --set duration)"),
+    ],
+)
+def test_an_override_error_names_the_set_option(
+    setting: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """yamlfile.set_key and YamlContext.error through scenario.load: "--set" (the API's: "overrides")."""
+    argv = ["run", str(POSITION), "--backends", "pinocchio", "--set", setting, "--out", str(tmp_path / "r"), "-q"]
+    assert cli.main(argv) == 2
+    assert capsys.readouterr().err == f"legbench: error: {message}\n"
+
+
+def test_log_errors_name_the_options_of_compare(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    """legbench.logs through ``legbench compare --reference-log``: two header columns of one legbench column and none
+    for q1 name --log-columns (and the API's column_map), a log in ms is a warning naming --log-time-scale 1e-3
+    (the API's: column_map, column_map={...}, log_time_scale=1e-3)."""
+    run_dir = write_run(tmp_path / "fake", {"ref": None, "a": scale(1.02)})
+    df = pd.read_parquet(run_dir / "a.parquet").drop(columns=["controller"])
+    dup, none, ms = tmp_path / "dup.csv", tmp_path / "none.csv", tmp_path / "ms.csv"
+    df.assign(**{"q1 [rad]": df["q1"]}).to_csv(dup, index=False)
+    df.rename(columns={"q1": "hip"}).to_csv(none, index=False)
+    df.assign(t=df["t"] * 1000.0).to_csv(ms, index=False)
+    assert cli.main(["compare", str(run_dir), "--reference-log", str(dup)]) == 2
+    assert capsys.readouterr().err == f"legbench: error: {dup}: several header columns map to ['q1']; choose one " \
+                                      "with --log-columns (column_map in the Python API)\n"  # fmt: skip
+    assert cli.main(["compare", str(run_dir), "--reference-log", str(none)]) == 2
+    header = ["t", "hip", *df.columns[2:]]
+    assert capsys.readouterr().err == f"legbench: error: {none}: no column matches ['q1'] in the header {header}; " \
+                                      "map them with --log-columns 'theirs=t, ...' (column_map in the Python " \
+                                      "API)\n"  # fmt: skip
+    with caplog.at_level("WARNING", logger="legbench.logs"):
+        assert cli.main(["compare", str(run_dir), "--reference-log", str(ms)]) == 0
+    assert caplog.messages == [f"legbench: warning: {ms}: median time step 1 s: is the time in ms? (--log-time-scale "
+                               "1e-3)"]  # fmt: skip

@@ -225,3 +225,50 @@ def test_ros_options_without_a_bag_are_refused(tmp_path: Path, capsys: pytest.Ca
     write_run(run_dir, {"ref": None, "a": scale(1.02)})
     assert cli.main(["compare", str(run_dir), "--ros-joint-topic", "/js"]) == 2
     assert "need --reference-log naming a ROS bag" in capsys.readouterr().err
+
+
+def test_bag_errors_name_the_settings_in_the_callers_words(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The messages naming a setting of the bag: by default the options of ``legbench compare`` (byte for byte, also
+    through the command line), within ``logs.worded(logs.API_WORDS)`` (as Result.compare of the Python API calls
+    legbench.compare.compare) the arguments of compare: ros=RosOptions(joint_topic=...), column_map={...}."""
+    t = np.arange(0, 0.01, 1e-3)
+    bag = write_bag("ros1", tmp_path / "two.bag", t, _signals(t), ("a", "b", "c"), (0, 1, 2), extra_joint_topic="/x")
+    cli_words = {
+        "topic": "several sensor_msgs/JointState topics (/leg/joint_states, /x); name one with --ros-joint-topic",
+        "wrench": "several geometry_msgs/WrenchStamped topics (/f1, /f2); name one with --ros-wrench-topic",
+        "names": "topic '/leg/joint_states': joints ['q1_abad', 'q2_hip', 'q3_knee'] not in the message's names "
+        "['a', 'b', 'c']; map them with --log-columns NAME=q1,NAME=q2,NAME=q3",
+        "map": "a bag's column map names its three joints, NAME=q1,NAME=q2,NAME=q3; got {'a': 'q1', 'b': 'q2'}",
+    }
+    api_words = {
+        "topic": "several sensor_msgs/JointState topics (/leg/joint_states, /x); name one with "
+        "ros=RosOptions(joint_topic=...)",
+        "wrench": "several geometry_msgs/WrenchStamped topics (/f1, /f2); name one with "
+        "ros=RosOptions(wrench_topic=...)",
+        "names": "topic '/leg/joint_states': joints ['q1_abad', 'q2_hip', 'q3_knee'] not in the message's names "
+        "['a', 'b', 'c']; map them with column_map={NAME: 'q1', NAME: 'q2', NAME: 'q3'}",
+        "map": "a bag's column map names its three joints, {NAME: 'q1', NAME: 'q2', NAME: 'q3'}; got {'a': 'q1', "
+        "'b': 'q2'}",
+    }
+
+    def problems() -> dict[str, str]:
+        calls = {
+            "topic": lambda: logs.load_log(bag),
+            "wrench": lambda: logs._pick_topic(bag, {"/f1": logs.WRENCH, "/f2": logs.WRENCH}, logs.WRENCH, None, False),
+            "names": lambda: logs.load_log(bag, ros=logs.RosOptions(joint_topic="/leg/joint_states")),
+            "map": lambda: logs.load_log(bag, {"a": "q1", "b": "q2"}),
+        }
+        got = {}
+        for what, call in calls.items():
+            with pytest.raises(ResultsError) as exc:
+                call()
+            got[what] = exc.value.problem
+        return got
+
+    assert problems() == cli_words
+    with logs.worded(logs.API_WORDS):
+        assert problems() == api_words
+    assert problems() == cli_words  # the block's words end with it
+    run_dir = write_run(tmp_path / "fake", {"ref": None, "a": scale(1.02)})
+    assert cli.main(["compare", str(run_dir), "--reference-log", str(bag)]) == 2
+    assert capsys.readouterr().err == f"legbench: error: {bag}: {cli_words['topic']}\n"

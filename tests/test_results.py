@@ -152,3 +152,32 @@ def test_run_json_names_the_model_active_when_the_run_is_written(
         resources.select_model(None)
     assert want.startswith("heavy_leg-") and want.endswith(".urdf")
     assert json.loads((out / "run.json").read_text())["urdf"] == want
+
+
+def test_a_refused_output_directory_names_what_the_caller_named_it_with(tmp_path: Path) -> None:
+    """check_out_dir and check_out_tree end in "choose another OPTION": ``--out`` by default (the command line's),
+    ``out`` as the Python API passes it."""
+    from legbench import scenario
+
+    sc = scenario.load(Path(__file__).resolve().parents[1] / "scenarios" / "position.yaml")
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep")
+    other = write_run(tmp_path / "other", {"ref": None, "a": scale(1.01)})  # scenario 'fake'
+    corrupt = tmp_path / "corrupt"
+    corrupt.mkdir()
+    (corrupt / "run.json").write_text("{")
+    for option in ("--out", "out"):
+        given = () if option == "--out" else (option,)  # --out: the default
+        with pytest.raises(LegbenchError) as exc:
+            results.check_out_dir(sc, mine, *given)
+        assert str(exc.value) == f"{mine}: not empty and not a legbench run directory; choose another {option}"
+        with pytest.raises(LegbenchError) as exc:
+            results.check_out_dir(sc, other, *given)
+        assert str(exc.value).endswith(f"not 'position'; choose another {option} or remove it")
+        with pytest.raises(LegbenchError) as exc:
+            results.check_out_dir(sc, corrupt, *given)
+        assert str(exc.value).endswith(f"(not written by legbench); choose another {option} or remove it")
+        with pytest.raises(LegbenchError) as exc:
+            results.check_out_tree(mine, ["a"], (), "results tree", *given)
+        assert str(exc.value).endswith(f"(it holds notes.txt); choose another {option}")

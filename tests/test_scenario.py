@@ -194,6 +194,20 @@ def test_an_overridden_value_is_blamed_on_the_override_not_the_files_line(tmp_pa
     assert err.value.key == "gains.Kp[1]" and "(from --set gains.Kp)" in str(err.value)
 
 
+def test_an_overrides_origin_is_named_in_the_callers_words(tmp_path: Path) -> None:
+    """``origin`` names what set the keys (the Python API passes "overrides"), in both kinds of error: a key that
+    cannot be set (set_key: the error's file) and a value that does not validate (``(from ORIGIN KEY)``)."""
+    path = _write(tmp_path, BASE)
+    with pytest.raises(ScenarioError) as err:
+        scenario.load(path, {"events[0].t": 0.1}, "overrides")
+    assert str(err.value) == "overrides: events[0].t: a list item is written with a dot: events.0.t"
+    with pytest.raises(ScenarioError) as err:
+        scenario.load(path, {"duration": 0}, "overrides")
+    assert str(err.value).endswith(" (from overrides duration)") and "--set" not in str(err.value)
+    with pytest.raises(ScenarioError, match=r"^--set: events\[0\]\.t: a list item"):  # the default: the command line's
+        scenario.load(path, {"events[0].t": 0.1})
+
+
 @pytest.mark.parametrize(
     ("initial", "key"),
     [({"qd": [0, 0, 5000]}, "initial.qd[2]"), ({"qd": [-1000.5, 0, 0]}, "initial.qd[0]"), ({"qd": 2000}, "initial.qd")],
