@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from legbench import resources, yamlfile
+from legbench import logs, resources, yamlfile
 from legbench import scenario as scenario_mod
 from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import LegbenchError, ResultsError, ScenarioError
@@ -70,12 +70,12 @@ def load_scenario(source: str | Path | Mapping[str, Any], overrides: Mapping[str
     if isinstance(source, Mapping):
         doc: dict[str, Any] = copy.deepcopy(dict(source))
         for key, value in (overrides or {}).items():
-            yamlfile.set_key(doc, key, value)
-        return scenario_mod.parse(doc, "<mapping>")
+            yamlfile.set_key(doc, key, value, "overrides")
+        return scenario_mod.parse(doc, "<mapping>", overridden=tuple(overrides or ()), origin="overrides")
     path = Path(source)
     if not path.exists() and resources.scenario(str(source)).is_file():
         path = resources.scenario(str(source))
-    return scenario_mod.load(path, overrides)
+    return scenario_mod.load(path, overrides, "overrides")
 
 
 def _fmt(v: float, unit: str = "") -> str:
@@ -208,9 +208,11 @@ class Result:
 
     def compare(self, **kwargs: Any) -> Comparison:
         """Every metric of docs/metrics.md for this run (:func:`legbench.compare.compare`; its keyword arguments,
-        e.g. ``log=`` an external log, ``lag="report"``, ``all_pairs=True``). Cached when called without arguments."""
+        e.g. ``log=`` an external log, ``lag="report"``, ``all_pairs=True``). Cached when called without arguments.
+        An error about the log names these arguments (``log_time_scale``, ``column_map``, ``ros``)."""
         if kwargs:
-            return Comparison(compare(self.path, **kwargs))
+            with logs.worded(logs.API_WORDS):
+                return Comparison(compare(self.path, **kwargs))
         if self._comparison is None:
             self._comparison = Comparison(compare(self.path))
         return self._comparison
@@ -228,14 +230,24 @@ class Result:
         """
         from legbench import report  # deferred: matplotlib
 
-        target = self.path
+        target, copied = self.path, None
         if out_dir is not None and Path(out_dir).resolve() != self.path.resolve():
             target = Path(out_dir)
-            if target.exists() and any(target.iterdir()):
+            existed = target.exists()
+            if existed and any(target.iterdir()):
                 raise ResultsError(str(target), "exists and is not empty; name a new directory")
             shutil.copytree(self.path, target, dirs_exist_ok=True)
+            copied = existed
         result = None if kwargs or self._comparison is None else self._comparison.result
-        files = report.write_report(target, result, **kwargs)
+        try:
+            with logs.worded(logs.API_WORDS):  # the log's errors name compare's arguments, not the command's options
+                files = report.write_report(target, result, **kwargs)
+        except BaseException:  # a bad log= or an interrupt: out_dir goes back to how it was (absent, or empty)
+            if copied is not None:
+                shutil.rmtree(target, ignore_errors=True)
+                if copied:
+                    target.mkdir()
+            raise
         return Path(files.html)
 
     def _repr_html_(self) -> str:
@@ -350,7 +362,7 @@ def run_scenario(
     else:
         sc = load_scenario(scenario, overrides)
     if profile is not None and profile != sc.profile:  # as the CLI: a profile override is part of the scenario
-        sc = load_scenario(sc.raw, {"profile": profile})
+        sc = scenario_mod.parse({**copy.deepcopy(dict(sc.raw)), "profile": profile}, "<mapping>")  # not overrides
     names = registry.resolve(list(backends) if not isinstance(backends, str) else backends, "backends")
     if contact_mode not in (None, "native", "reference", "both"):
         raise LegbenchError(f"contact_mode {contact_mode!r}: expected 'native', 'reference' or 'both'")
@@ -364,7 +376,7 @@ def run_scenario(
         plan = [(sc, contact_mode or sc.contact_mode, root)]
     # as the command line: another scenario's run or a foreign folder is refused outright, a finished run of this
     # one is replaced only when asked
-    run_mod.check_outs(plan, force, "choose another out", "force=True")
+    run_mod.check_outs(plan, force, "choose another out", "force=True", "out")
     outcome = run_mod.run_many(plan, names, jobs=jobs, progress=progress)
     made = [Result(s, d, _traces(d, names, res), mode) for (s, mode, d), res in zip(plan, outcome, strict=True)]
     if len(made) == 2:

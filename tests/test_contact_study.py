@@ -19,7 +19,7 @@ F_MUJOCO = (5.623675303644926, -9.162420932828212, 52.50416933389686)
 Q_STEADY = (-0.00275166, -1.20399552, -1.22273677)
 
 
-def _log(force: np.ndarray) -> tuple[np.ndarray, ...]:
+def _log(force: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     n = len(force)
     t = np.arange(n) * 1e-3
     q = np.tile(Q_STEADY, (n, 1))

@@ -1162,7 +1162,7 @@ def test_any_error_of_a_backend_fails_it_alone(tmp_path: Path, monkeypatch: pyte
     assert len(got["steptypeerror"].t) == 5  # the ticks before the error are kept
     assert got["inforaises"].status == "failed" and got["inforaises"].reason == "info() failed: KeyError: 'engine'"
     assert got["infocontacttext"].status == "failed"
-    assert got["infocontacttext"].reason.startswith("infocontacttext: info() contact: expected a mapping")
+    assert (got["infocontacttext"].reason or "").startswith("infocontacttext: info() contact: expected a mapping")
     assert got["fake"].status == "ok" and len(got["fake"].t) == sc.n_ticks
     meta = results.read_meta(tmp_path / "t")
     assert {n: b["status"] for n, b in meta["backends"].items()} == {
