@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -260,9 +260,10 @@ def _validate(args: argparse.Namespace) -> int:
     (:func:`legbench.scenario.errors`, :func:`legbench.check.tolerance_errors`); exit 2 if any.
     """
     bad = 0
+    overrides = yamlfile.parse_overrides(args.set)
     for path in args.files:
         try:
-            ok, problems = _validate_one(path)
+            ok, problems = _validate_one(path, overrides)
         except LegbenchError as exc:
             ok, problems = "", [exc]
         for problem in problems:
@@ -274,11 +275,16 @@ def _validate(args: argparse.Namespace) -> int:
     return EXIT_USER_ERROR if bad else EXIT_OK
 
 
-def _validate_one(path: str) -> tuple[str, list[LegbenchError]]:
+def _validate_one(path: str, overrides: Mapping[str, Any] | None = None) -> tuple[str, list[LegbenchError]]:
     try:
         doc, _ = yamlfile.read_yaml(path)
     except LegbenchError as exc:
         return "", [exc]
+    if overrides and isinstance(doc, dict):  # --set is a scenario's, as legbench run's
+        kind = next((k for key, k in (("studies", "a sweep file"), ("frameworks", "a framework file")) if key in doc),
+                    None)  # fmt: skip
+        if kind is not None:
+            return "", [LegbenchError(f"{path}: --set applies to scenario files; this is {kind}")]
     if isinstance(doc, dict) and "studies" in doc:
         from legbench.studies import sweep
 
@@ -295,10 +301,12 @@ def _validate_one(path: str) -> tuple[str, list[LegbenchError]]:
     if isinstance(doc, dict) and doc and set(doc) & tol_keys and not set(doc) & set(scenario.TOP_KEYS):
         problems: list[LegbenchError] = list(check.tolerance_errors(path))
         return f"{path}: ok (tolerances: {', '.join(sorted(map(str, doc)))})", problems
-    problems = list(scenario.errors(path))
+    if overrides and isinstance(doc, dict) and doc and set(doc) & tol_keys and not set(doc) & set(scenario.TOP_KEYS):
+        return "", [LegbenchError(f"{path}: --set applies to scenario files; this is a tolerance file")]
+    problems = list(scenario.errors(path, overrides))
     if problems:
         return "", problems
-    sc = scenario.load(path)
+    sc = scenario.load(path, overrides)
     return f"{path}: ok ({sc.name}: {len(sc.events)} events, {sc.duration:g} s)", []
 
 
@@ -483,4 +491,6 @@ def add_schema(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 def add_validate(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("validate", help="check scenario, sweep, tolerance and framework files without running them")
     p.add_argument("files", nargs="+", help="YAML files")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a key of every scenario file first, as legbench run --set does")  # fmt: skip
     p.set_defaults(func=_validate)

@@ -489,7 +489,7 @@ def parse(
     )
     if not _known_backend(comparison.reference):
         raise ctx.error(["comparison", "reference"], f"unknown backend {comparison.reference!r}; known: "
-                        f"{', '.join(_BUILTIN)}")  # fmt: skip
+                        f"{_known_names()}")  # fmt: skip
     if not isinstance(comparison.tolerances, Mapping):
         raise ctx.error(["comparison", "tolerances"], "expected a mapping of metric -> tolerance")
     validate_tolerances(comparison.tolerances, file, "comparison.tolerances", ctx)
@@ -625,9 +625,6 @@ def validate_tolerances(tol: Any, file: str, prefix: str = "", ctx: YamlContext 
     return dict(tol)
 
 
-_BUILTIN = tuple(backends.BUILTIN)
-
-
 def _sub_step_problem(dt: Any, control_dt: float) -> str | None:
     """Why an engine's sub-step ``dt`` [s] does not fit the control period ``control_dt`` [s]: it does not divide
     it (the one rule, :func:`legbench.backends.base.dt_problem`) or more than ``limit("sub_steps")`` times; None
@@ -679,6 +676,12 @@ def _check_combination(ctx: YamlContext, name: str, given: Mapping[str, Any], pr
         raise ctx.error(["backends", name, key] if key in given else ["physics", "contact_mode"], why)
 
 
+def _known_names() -> str:
+    """Every backend name a scenario may use, for messages: the built-ins (installed or not), then the plug-ins
+    registered here."""
+    return ", ".join(dict.fromkeys([*backends.BUILTIN, *backends.available()]))
+
+
 def _known_backend(name: str) -> bool:
     """``name`` is a built-in backend (installed or not) or a registered plug-in."""
     if name in backends.BUILTIN:
@@ -699,7 +702,7 @@ def _backend_settings(ctx: YamlContext, name: str, given: Any) -> dict[str, Any]
     except BackendNotFound:
         if name in backends.BUILTIN:
             return dict(given)  # engine not installed here: keep the settings, the run reports it missing
-        raise ctx.error(path, f"unknown backend; known: {', '.join(backends.BUILTIN)}") from None
+        raise ctx.error(path, f"unknown backend; known: {_known_names()}") from None
     check_keys(ctx, path, given, [*cls.defaults, "profile"])
     out: dict[str, Any] = {}
     for k, v in given.items():
@@ -868,8 +871,9 @@ _STAND_INS: dict[str, Any] = {"name": "scenario", "duration": 1.0, "control_rate
 _DROPPABLE = ("description", "gains", "initial", "physics", "profile", "backends", "comparison")
 
 
-def errors(path: str | Path) -> list[ScenarioError]:
-    """Every independent problem of a scenario file, one :class:`ScenarioError` each (empty: valid).
+def errors(path: str | Path, overrides: Mapping[str, Any] | None = None) -> list[ScenarioError]:
+    """Every independent problem of a scenario file, with ``overrides`` (dotted keys, as ``--set``) set first,
+    one :class:`ScenarioError` each (empty: valid).
 
     After an error, the optional section it is in (or the one backend's settings) is dropped, so its
     defaults apply, and the document is validated again; an error in ``events`` replaces them by one
@@ -880,6 +884,8 @@ def errors(path: str | Path) -> list[ScenarioError]:
     """
     try:
         doc, root = read_yaml(path)
+        for key, value in (overrides or {}).items():
+            set_key(doc, key, value)
     except ScenarioError as exc:
         return [exc]
     found: list[ScenarioError] = []
@@ -887,7 +893,7 @@ def errors(path: str | Path) -> list[ScenarioError]:
     placeholders: set[str] = set()
     while len(found) < 50:
         try:
-            parse(doc, str(path), root, placeholders=placeholders, every_engine=True)
+            parse(doc, str(path), root, tuple(overrides or ()), placeholders=placeholders, every_engine=True)
             return found
         except ScenarioError as exc:
             found.append(exc)

@@ -652,3 +652,39 @@ def test_log_errors_name_the_options_of_compare(
         assert cli.main(["compare", str(run_dir), "--reference-log", str(ms)]) == 0
     assert caplog.messages == [f"legbench: warning: {ms}: median time step 1 s: is the time in ms? (--log-time-scale "
                                "1e-3)"]  # fmt: skip
+
+
+def test_validate_takes_set_as_run_does(capsys: pytest.CaptureFixture[str]) -> None:
+    """`legbench validate` had no --set (README: --set "changes a key before validation"), so what a run with --set
+    would refuse could not be checked without running: now each scenario file is validated with the overrides
+    set, every problem one line naming the file, the key and the override; a sweep file refuses --set (exit 2)."""
+    root = Path(__file__).resolve().parent.parent
+    effort, sweep = str(root / "scenarios" / "effort.yaml"), str(root / "scenarios" / "sweeps" / "timestep.yaml")
+    assert cli.main(["validate", effort, "--set", "duration=0.5", "--set", "comparison.steady_window=0.1"]) == 0
+    assert capsys.readouterr().out.strip().endswith("effort.yaml: ok (effort: 1 events, 0.5 s)")
+    assert cli.main(["validate", effort, "--set", "duration=-1", "--set", "backends.eulr.dt=1e-5"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2
+    assert err[0].endswith("effort.yaml: duration: must be > 0, got -1 (from --set duration)")
+    assert err[1].endswith("effort.yaml: backends.eulr: unknown backend; known: pinocchio, mujoco, pybullet, drake, "
+                           "dart, lagrange, ode (from --set backends.eulr.dt)")  # fmt: skip
+    assert cli.main(["validate", sweep, "--set", "duration=1"]) == 2
+    assert capsys.readouterr().err.strip().endswith("timestep.yaml: --set applies to scenario files; this is a sweep "
+                                                    "file")  # fmt: skip
+
+
+def test_an_unknown_backend_names_the_plug_ins_registered_here(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The known names in an unknown-backend error were the built-ins only: a plug-in's author, misspelling it,
+    was not shown their own backend's name."""
+    from fakes import FakeBackend
+
+    from legbench import backends, scenario
+    from legbench.exceptions import ScenarioError
+
+    reg = backends._registry
+    monkeypatch.setattr(backends, "_registry", lambda: {**reg(), "euler": FakeBackend})
+    root = Path(__file__).resolve().parent.parent
+    with pytest.raises(ScenarioError, match=r"backends\.eulr: unknown backend; known: pinocchio, .*, ode, euler "):
+        scenario.load(root / "scenarios" / "effort.yaml", {"backends.eulr.dt": 1e-5})
+    with pytest.raises(ScenarioError, match=r"comparison\.reference: unknown backend 'eulr'; known: .*, ode, euler"):
+        scenario.load(root / "scenarios" / "effort.yaml", {"comparison.reference": "eulr"})
