@@ -314,13 +314,16 @@ def _unwrap_columns(x: np.ndarray, wrap: np.ndarray) -> np.ndarray:
     return out
 
 
-def estimate_lag(a: RunResult, ref: RunResult, max_lag: float = 0.1, signals: Sequence[str] = ("q",)) -> LagEstimate:
+def estimate_lag(
+    a: RunResult, ref: RunResult, max_lag: float = 0.1, signals: Sequence[str] = ("q",), skip: float = 0.0
+) -> LagEstimate:
     """Constant time lag of ``a`` behind ``ref`` by cross-correlation.
 
     Both traces are put on one uniform grid (the finer of the two median steps)
-    over their common span. For each candidate lag k within +-``max_lag``, the
-    Pearson correlation of x_a[n + k] with x_ref[n] is taken over the samples
-    that overlap (so a longer overlap is not favoured, unlike the plain
+    over their common span from ``skip`` [s] on (the samples the deviation metrics
+    measure). For each candidate lag k within +-``max_lag``, the Pearson
+    correlation of x_a[n + k] with x_ref[n] is taken over the samples that
+    overlap (so a longer overlap is not favoured, unlike the plain
     cross-correlation sum, which biases slow signals towards zero lag); the
     per-column correlations are averaged, the best k is refined to a sub-sample
     by a parabola through the peak and its neighbours. Sums over the overlap come
@@ -332,6 +335,7 @@ def estimate_lag(a: RunResult, ref: RunResult, max_lag: float = 0.1, signals: Se
         ref: the reference trace.
         max_lag: largest lag searched, either sign [s]; at most half the common span is searched.
         signals: signals correlated (any of :data:`SIGNALS`).
+        skip: samples before this time are left out [s], as the deviation metrics leave them out.
 
     Returns:
         The lag; 0 with correlation NaN when no column varies.
@@ -339,6 +343,11 @@ def estimate_lag(a: RunResult, ref: RunResult, max_lag: float = 0.1, signals: Se
     cols = np.concatenate([np.arange(len(LABELS))[SLICE[s]] for s in signals])
     grid, xa, xr = _uniform_pair(a, ref, cols)
     dt = float(grid[1] - grid[0])
+    if skip > grid[0]:
+        sel = grid >= skip - T_EPS
+        grid, xa, xr = grid[sel], xa[sel], xr[sel]
+        if len(grid) < 3:  # nothing left to correlate after skip
+            return LagEstimate(0.0, 0.0, dt, math.nan, tuple(signals))
     keep = (
         np.isfinite(xa).all(axis=0) & np.isfinite(xr).all(axis=0) & (np.ptp(xa, axis=0) > 0) & (np.ptp(xr, axis=0) > 0)
     )
@@ -493,7 +502,7 @@ def pair_metrics(
         The metrics; see :class:`PairMetrics`.
     """
     check_lag_mode(lag)
-    est = estimate_lag(a, ref, max_lag, lag_signals) if lag != "off" else None
+    est = estimate_lag(a, ref, max_lag, lag_signals, skip) if lag != "off" else None
     shift = est.seconds if (est is not None and lag == "remove") else 0.0
     t, xa, xr = align(a, ref, shift, wrap)
     d = deviation(xa, xr, wrap)

@@ -73,3 +73,20 @@ def test_pair_metrics_against_an_independent_computation() -> None:
     np.testing.assert_array_equal(p.ref_peak[:3], peak)
     np.testing.assert_array_equal(p.t_max_abs[:3], t[sel][np.argmax(np.abs(d), axis=0)])
     assert np.isnan(p.sim_error_pct[3:]).all()  # no qd, tau, force in these traces: null, not 0
+
+
+def test_lag_is_estimated_over_the_samples_the_metrics_measure() -> None:
+    """skip excludes a log's start from the deviations; the lag was estimated over the whole span all the same. A
+    log late by 20 ms whose first 0.5 s hold a start-up glitch (the leg still at its parking pose): with skip 0.5 s
+    the lag is 20 ms within 1e-3 sample (measured 1.2e-4), correlation 1 within 1e-6; over the whole span it was
+    23.05 ms at correlation 0.41. pair_metrics passes its skip."""
+    t = np.arange(0.0, 3.0 + 1e-12, 1e-3)
+    a, ref = _hip_trace("a", t, 0.02, wrap=False), _hip_trace("ref", t, 0.0, wrap=False)
+    start = t < 0.5
+    a.q[start] = (0.3, 1.0, -0.3)  # parked, then the motion
+    whole = metrics.estimate_lag(a, ref)
+    est = metrics.estimate_lag(a, ref, skip=0.5)
+    assert abs(whole.samples - 20.0) > 1.0
+    assert abs(est.samples - 20.0) < 1e-3 and est.correlation == pytest.approx(1.0, abs=1e-6)
+    assert metrics.pair_metrics(a, ref, skip=0.5, lag="report").lag == est
+    assert np.isnan(metrics.estimate_lag(a, ref, skip=3.0).correlation)  # one sample left: nothing to correlate
