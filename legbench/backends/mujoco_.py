@@ -45,7 +45,9 @@ Ground force read-out (setting ``force_readout``): ``end`` (default) is the forc
 at the end state of the control period (one more ``mj_forward`` after the sub-steps, whose position
 and velocity stages the next period's first sub-step reuses, so it adds only one acceleration stage;
 ``efc_force`` through ``mj_contactForce``, rotated out of the contact
-frame, after the noslip pass), aligned with the logged state as the law's is;
+frame, after the noslip pass): the constraint solve at the logged end state under the period's held torque
+(MuJoCo's contact force depends on the applied torque through the unconstrained acceleration, so unlike the
+law's it is not a function of q and qd alone; at reset, before any torque, it is solved with zero control);
 ``last`` is the force the last sub-step applied (Bullet's convention, one
 sub-step behind); ``mean`` averages the applied force over the control period's
 sub-steps (impulse / period, half a period behind). With a stiff friction row
@@ -128,12 +130,12 @@ _STAGE_VEL = mujoco.mjtStage.mjSTAGE_VEL
 
 
 #: MuJoCo's own URDF import options, which this backend adds (the generated URDF carries no engine's element):
-#: angles in radians, visual geoms kept, no inertia balancing, and ``fusestatic="false"`` so that the foot,
+#: visual geoms kept, no inertia balancing, and ``fusestatic="false"`` so that the foot,
 #: welded to link 3 by a fixed joint, stays a body of its own (its contact pair and the site E need it).
 #: MuJoCo's URDF default is ``fusestatic="true"`` (the foot fused into link 3), so the ``engine-defaults``
 #: force depends on this option: its raw solref (-Kp, -Kd) is per unit of the contact body's
 #: ``body_invweight0`` (foot 2.2101 1/kg, fused link 3 0.8431), effort task Fn 59.0 N here, 75.0 N fused.
-COMPILER = '<mujoco><compiler angle="radian" discardvisual="false" fusestatic="false" balanceinertia="false"/></mujoco>'
+COMPILER = '<mujoco><compiler discardvisual="false" fusestatic="false" balanceinertia="false"/></mujoco>'
 
 
 def urdf_with_compiler(urdf: Path) -> str:
