@@ -20,13 +20,18 @@ Native point contact, mapped onto Drake's per-geometry ``ProximityProperties``
 infinite one leaves the other), their Hunt-Crossley dissipations weighted by
 the other's stiffness (an infinitely stiff partner leaves the compliant one's),
 their relaxation times by sum, and their friction by
-mu = 2 mu_A mu_B / (mu_A + mu_B); the contact point lies between the two
-witness points, weighted by stiffness. An infinitely stiff geometry makes that
-weight inf/inf (SAP then fails on NaN), so the foot is near-rigid
+mu = 2 mu_A mu_B / (mu_A + mu_B); the discrete plant puts the contact point
+between the two witness points, weighted by stiffness. An infinitely stiff
+geometry makes that weight inf/inf (the discrete solvers then fail: NaN, or
+TAMSI not converging), so the foot is near-rigid
 (``point_contact_stiffness = 1e8 Kp``, relaxation time 0) and the ground
-carries the spec's numbers: the pair's stiffness is exactly Kp and the contact
-point is the sphere's lowest point (the spec's true poc) to 1e-8 of the
-penetration. Both get the same friction and Hunt-Crossley dissipation.
+carries the spec's numbers: the pair's stiffness is exactly Kp and, in the
+discrete solvers, the contact point is the sphere's lowest point (the spec's
+true poc) to 1e-8 of the penetration. The ``continuous`` plant takes the
+plain midpoint of the witness points instead (multibody_plant.cc), y/2 above
+the true poc whatever the stiffnesses (measured: 2.02 mm above the lowest
+point at y = 4.05 mm; statics residual 6.6e-4 of Fn against SAP's 1.6e-6).
+Both get the same friction and Hunt-Crossley dissipation.
 
 - Stiffness: ground 1 / (1/Kp - 1/(1e8 Kp)), in series with the foot: Kp exactly.
 - SAP: ground ``relaxation_time = Kd / Kp``, so fn = Kp (x + tau_d xdot)_+ =
@@ -171,7 +176,10 @@ class DrakeBackend(Backend):
     """Drake (MultibodyPlant; SAP, TAMSI or continuous) simulating the leg."""
 
     name: ClassVar[str] = "drake"
-    #: Drake's discrete solvers slide with the dynamic coefficient alone, which legbench sets to mu_s.
+    #: Drake's discrete solvers slide with the dynamic coefficient alone, which the matched profile (the one the
+    #: sliding case runs) sets to mu_s. Not so elsewhere: engine-defaults sets CoulombFriction(mu_s, mu_k), so its
+    #: discrete solvers slide at mu_k, and ``continuous`` uses Stribeck friction, mu_k above 3 v_s; its contact
+    #: point is also y/2 above the true poc (module docstring), where ``contact_point_lift`` says 0.
     sliding_coefficient: ClassVar[str] = "mu_s"
     defaults: ClassVar[Mapping[str, Any]] = {
         "solver": "sap",  # one of SOLVERS
@@ -388,8 +396,9 @@ class DrakeBackend(Backend):
             self.contact_props["hydroelastic_modulus"] = E
             self.contact_props["linearised_stiffness_at_x_ref"] = k_lin
         else:
-            # near-rigid foot: Drake places the contact point between the two witness points weighted by
-            # stiffness, so this puts it on the sphere's lowest point (the spec's true poc) to 1e-8 x
+            # near-rigid foot: the discrete plant places the contact point between the two witness points
+            # weighted by stiffness, so this puts it on the sphere's lowest point (the spec's true poc) to 1e-8 x
+            # (the continuous plant uses the midpoint, y/2 higher: module docstring)
             d = c.Kd / (c.Kp * x_ref)
             AddContactMaterial(dissipation=d, point_stiffness=FOOT_STIFFNESS_RATIO * c.Kp, friction=self._friction(),
                                properties=props)  # fmt: skip
