@@ -147,3 +147,35 @@ def test_default_margins_record_and_apply_pybullets_1e5_m_slop() -> None:
         extra[margins] = y - log["F"][-1][2] / 1e4  # [m], Kp = 1e4 N/m (the rigid plane in series)
         assert info["contact_slop"] == (0.0 if margins == "zero" else 1e-5)
     assert extra["default"] - extra["zero"] == pytest.approx(1e-5, abs=1e-7), extra
+
+
+def test_own_sub_stepping_only_where_bullets_accumulator_takes_every_step() -> None:
+    """Bullet takes int(held time / (T / n)) internal steps per stepSimulation, clamped to n, keeping the rest: at
+    n = 61 (dt = 1/61 ms, which the one sub-step rule accepts) half the calls took 60 steps and the time was lost,
+    a free body at 1 m/s covering 0.99180 m in 1000 periods instead of 1 m (and the force read-out scaled by 61
+    where 60 steps ran). The backend now uses Bullet's own sub-stepping only where the accumulator comes back to
+    exactly 0 (n = 1..60 at 1 kHz) and steps n times itself elsewhere: 61 steps of the 61st of a period each."""
+    from legbench.backends.pybullet_ import bullet_substeps_exact
+
+    assert all(bullet_substeps_exact(1e-3, n) for n in range(1, 61))
+    assert not any(bullet_substeps_exact(1e-3, n) for n in (61, 105, 109, 115, 122, 123))
+    # Bullet itself, at n = 61: a free body at 1 m/s and no gravity over 1000 periods
+    cid = bullet.connect(bullet.DIRECT)
+    try:
+        bullet.setGravity(0.0, 0.0, 0.0, physicsClientId=cid)
+        bullet.setPhysicsEngineParameter(fixedTimeStep=1e-3, numSubSteps=61, physicsClientId=cid)
+        shape = bullet.createCollisionShape(bullet.GEOM_SPHERE, radius=0.1, physicsClientId=cid)
+        body = bullet.createMultiBody(1.0, shape, basePosition=[0, 0, 10], physicsClientId=cid)
+        bullet.changeDynamics(body, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=cid)
+        bullet.resetBaseVelocity(body, [1.0, 0.0, 0.0], physicsClientId=cid)
+        for _ in range(1000):
+            bullet.stepSimulation(physicsClientId=cid)
+        x = bullet.getBasePositionAndOrientation(body, physicsClientId=cid)[0][0]
+    finally:
+        bullet.disconnect(cid)
+    assert x == pytest.approx(1.0 - 500 / 61000, abs=1e-9)  # 500 steps of 1/61 ms lost
+    sc = shorten(scenario.load(ROOT / "scenarios" / "position.yaml"), 0.05)
+    own, info, _ = _run("position", {"sub_stepping": "bullet", "dt": 1e-3 / 61}, 0.05)
+    ref, info_ref, _ = _run("position", {"sub_stepping": "python", "dt": 1e-3 / 61}, 0.05)
+    assert info["step_calls_per_period"] == info_ref["step_calls_per_period"] == 61 and info["engine_sub_steps"] == 1
+    assert np.array_equal(own.q, ref.q) and len(own.t) == sc.n_ticks

@@ -46,7 +46,14 @@ n_sub``: Bullet holds the torque over its internal steps and clears it after the
 states are bit-identical to ``n_sub`` x (command + ``stepSimulation``) (``sub_stepping: python``;
 tests/test_backend_pybullet.py compares the logs). ``getContactPoints`` then reports the last
 internal step's impulse divided by the whole period, ``n_sub`` times too small: the read-out is
-multiplied by ``n_sub`` (the force of the last sub-step, as with one call per sub-step). Bullet's
+multiplied by ``n_sub`` (the force of the last sub-step, as with one call per sub-step). Bullet counts
+its internal steps from an accumulator, ``int(time / fixedTimeStep)`` per call, clamped to ``numSubSteps``
+(``btDiscreteDynamicsWorld::stepSimulation``): for some ``n_sub`` a period of n_sub steps of T / n_sub
+rounds to n_sub - 1 plus a remainder, and a later call is clamped, so time is lost (n_sub = 61 at 1 kHz:
+500 of 1000 calls one step short, the run 0.8 % slow; also 105, 109, 115, 122, 123, ...). Its own
+sub-stepping is therefore used only where that accumulator comes back to exactly 0 after one period
+(:func:`bullet_substeps_exact`: every n_sub from 1 to 60, the default 20 among them); elsewhere the
+backend steps n_sub times itself, which is bit-identical. Bullet's
 contact sticks without chatter, and the read-out matches the leg's statics over the effort task's
 last 0.5 s to 2e-7 of Fn (matched) and 3e-7 (engine-defaults). Reference contact needs the law at
 every sub-step's start state, so there the backend calls ``stepSimulation`` per sub-step
@@ -183,7 +190,9 @@ class PybulletBackend(Backend):
         self.reference = physics.contact_mode == "reference"
         # Bullet's own sub-stepping: one stepSimulation of the control period split into n_sub
         # internal steps; reference contact needs the law at every sub-step, so it steps itself
-        self.engine_sub = not self.reference and cfg["sub_stepping"] == "bullet"
+        self.engine_sub = (
+            not self.reference and cfg["sub_stepping"] == "bullet" and bullet_substeps_exact(physics.control_dt, n_sub)
+        )
         self.cid = cid = p.connect(p.DIRECT)
 
         p.setPhysicsEngineParameter(
@@ -568,6 +577,18 @@ class PybulletBackend(Backend):
         if getattr(self, "cid", None) is not None and p.isConnected(self.cid):
             p.disconnect(self.cid)
         self.cid = None  # type: ignore[assignment]
+
+
+def bullet_substeps_exact(period: float, n_sub: int) -> bool:
+    """Whether one ``stepSimulation`` of ``period`` [s] with ``numSubSteps = n_sub`` takes exactly ``n_sub``
+    internal steps every call: Bullet's accumulator (``btDiscreteDynamicsWorld::stepSimulation``, double
+    precision as PyBullet builds it) takes ``int(t / (period / n_sub))`` steps of the time ``t`` it holds and
+    keeps the rest; it holds exactly 0 after the first call only if the period rounds to ``n_sub`` steps with
+    nothing left, and then every later call starts from 0 too."""
+    step = period / n_sub
+    held = 0.0 + period
+    taken = int(held / step) if held >= step else 0
+    return taken == n_sub and held - taken * step == 0.0
 
 
 def _quat_mat(quat: Any) -> np.ndarray:
