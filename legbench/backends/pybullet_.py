@@ -23,8 +23,12 @@ spinning or rolling friction, restitution 0, and ``contactSlop = 0`` /
 penetration (PyBullet's slop is 1e-5 m, PhysicsServerCommandProcessor.cpp
 ``m_linearSlop = 0.00001``, added to the contact distance in
 btMultiBodyConstraintSolver.cpp: the foot would rest 10 um deeper; Bullet's own
-``btContactSolverInfo`` default is 0). Friction is a hard Coulomb cone: the foot
-sticks.
+``btContactSolverInfo`` default is 0). Friction is a hard Coulomb cone at the
+velocity level: the foot holds to micrometres, but with no positional correction
+(Bullet's friction anchor, which PyBullet leaves off) it drifts under a tangential
+load: 13 um/s in the calibration's 13.2 N push at 40 N, 3 um over the effort task
+(with ``frictionAnchor`` on, 5e-13 m/s, but the read-out against the statics goes
+from 2e-9 to 1.6e-3 of Fn; a reviewer's check, 27 Nov).
 
 Profiles: ``matched`` is the above (the defaults); ``engine-defaults`` keeps
 Bullet's own plane (no explicit stiffness/damping: its default contact damping
@@ -32,7 +36,7 @@ adds to Kd), PyBullet's slop (1e-5 m) and Bullet's processing threshold
 (BT_LARGE_FLOAT), PyBullet's 50 solver iterations, and takes one
 1 ms ``stepSimulation`` per control period, with Kp, Kd as the foot's
 ``contactStiffness``/``contactDamping`` and mu as its ``lateralFriction`` on a
-plane of friction 1 (pybullet_data's plane.urdf). Both stick (Coulomb cone);
+plane of friction 1 (pybullet_data's plane.urdf). Both hold the foot (Coulomb cone);
 the steady effort-task force differs by 0.04 % (docs/contact_mapping.md).
 
 Reference contact: the foot-ground collision pair is disabled and ``J_poc^T F`` of
