@@ -44,7 +44,9 @@ every sub-step ``J_poc^T F`` of :class:`~legbench.contact.ReferenceContact` at
 the sub-step's start state (hinge angles and rates) is added to the hinge
 torques.
 
-Integrator: ``dWorldStep`` (exact LCP: Dantzig pivoting) or ``dWorldQuickStep``
+Integrator: ``dWorldStep`` (direct Dantzig pivoting; with ``dContactApprox1`` the friction bounds
+are set once from the frictionless normal impulse, so the pyramid is solved approximately: docs/backends/ode.md)
+or ``dWorldQuickStep``
 (projected Gauss-Seidel with SOR), both a first-order semi-implicit step in
 maximal coordinates: body velocities v += h M^-1 (f + J^T lambda) with the
 joint constraints solved at velocity level (with ERP position correction),
@@ -53,7 +55,7 @@ Quick-step randomly reorders its constraint rows with ODE's one global random
 generator; the seed is reset before every step so that runs are deterministic
 and instances do not disturb each other.
 
-Profiles: ``matched`` (the spec's physics: exact solver, rigid joints (CFM 0),
+Profiles: ``matched`` (the spec's physics: direct solver, rigid joints (CFM 0),
 ERP 0.2, 0.05 ms sub-step), ``engine-defaults`` (ODE's documented defaults: quick step
 with 20 iterations and SOR 1.3, one 1 ms step per control period), ``gazebo``
 (Gazebo classic's ODE set-up; every value and its source line in
@@ -254,7 +256,8 @@ class OdeBackend(Backend):
         self.contacts = (ode.dContact * MAX_CONTACTS)()
         for ct in self.contacts:
             s = ct.surface
-            s.mode = ode.dContactSoftERP | ode.dContactSoftCFM | ode.dContactApprox1
+            # dContactMu2: ODE reads mu2 only with it (as Gazebo sets it); mu2 = mu, so either gives the same pyramid
+            s.mode = ode.dContactSoftERP | ode.dContactSoftCFM | ode.dContactApprox1 | ode.dContactMu2
             s.mu, s.mu2 = c.mu_s, c.mu_s
             s.soft_erp, s.soft_cfm = self.soft_erp, self.soft_cfm
             s.bounce, s.bounce_vel = 0.0, 0.0
