@@ -607,6 +607,17 @@ def test_kernel_refuses_joints_it_does_not_integrate() -> None:
         pinocchio_kernel.model_arrays(m)
 
 
+def test_kernel_refuses_a_model_with_rotor_inertia() -> None:
+    """pin.aba adds model.armature to each joint's articulated inertia; the compiled ABA read only placements,
+    inertias and gravity, so with armature (0.0049, 0.01, 0.01) kg m^2 it gave qdd (-14.8, -29.0, 86.3) where
+    pin.aba gives (-17.9, -11.4, 25.6), silently. It is refused now (the Python path, on pin.aba, runs it)."""
+    m = model.pinocchio_model().copy()
+    pinocchio_kernel.model_arrays(m)  # no armature in the leg's model: accepted
+    m.armature = np.array([0.0049, 0.01, 0.01])
+    with pytest.raises(pinocchio_kernel.KernelUnavailable, match="rotor inertia"):
+        pinocchio_kernel.model_arrays(m)
+
+
 @numba_needed
 def test_the_compiled_rk45_period_is_loaded_from_numbas_cache_in_a_later_process(tmp_path: Path) -> None:
     """The compiled rk45 period (a named copy of the shared stepper) is compiled once: a second process finds

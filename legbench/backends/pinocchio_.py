@@ -22,7 +22,8 @@ K = -J_t^T dF_t/dv_t J_t the friction's slope and M0 the mass matrix frozen over
 the control period (linearly implicit Euler in the friction, a W-method; explicit
 in the rest, and exactly ``explicit`` out of contact). ``explicit`` is plain
 semi-implicit Euler, which resolves the stick-slip law only for
-h < m v_th / (mu_s Fn) (~5.6 us at the effort task's loads with v_th = 1e-3 m/s)
+h < m v_th / (mu_s Fn) (~5.9 us at the effort task's steady 52.5 N with v_th = 1e-3 m/s, m the
+foot's apparent tangential mass 0.217 kg; 5.2 us at its 59.5 N peak)
 and chatters above it: :meth:`warnings` says so with the numbers (for ``rk4`` at 2.785 times that bound,
 RK4's stability interval). The joint-limit spring-damper is explicit in every fixed-step integrator and has a
 step bound of its own (:func:`joint_limits.step_bound`: semi-implicit Euler 4 / (c + sqrt(c^2 + 4 k/I)),

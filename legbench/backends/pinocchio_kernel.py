@@ -96,6 +96,8 @@ def model_arrays(model: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
         raise KernelUnavailable(f"joints the compiled kernel does not integrate: {', '.join(bad)}")
     if list(model.parents)[1:] != list(range(n)):
         raise KernelUnavailable("the model is not a serial chain")
+    if np.any(np.asarray(model.armature, dtype=float) != 0.0):  # pin.aba adds it to each joint's D; the kernel does not
+        raise KernelUnavailable(f"the model has rotor inertia (armature {np.asarray(model.armature).tolist()})")
     R = np.empty((n, 3, 3))
     p = np.empty((n, 3))
     inertia = np.empty((n, 6, 6))
@@ -268,7 +270,8 @@ def minverse_factored(work: np.ndarray, tmp: np.ndarray, out: np.ndarray) -> Non
     ``work`` (its transforms X_i, articulated inertias and U_i = IA_i S depend on q only): column j is ABA's
     second and third pass for the torque e_j with no velocity and no gravity, which is what a whole ABA
     call would compute, without the first pass and the articulated inertias again (as Pinocchio's
-    ``computeMinverse`` reuses them). ``tmp`` rows 0-5 and columns 0-3 are scratch."""
+    ``computeMinverse(model, data)`` reuses them after an ``aba`` in the WORLD convention). ``tmp`` rows 0-5
+    and columns 0-3 are scratch."""
     n = work.shape[0]
     for j in range(n):
         # backward: the bias forces of the children, per joint in work column 14 (pA is not needed again)
