@@ -9,8 +9,9 @@ its own: it shares no code with the Pinocchio backend beyond the contact law and
 the joint-limit law that every custom integrator uses.
 
 Per control period the torque is held and one adaptive solve covers the period
-(the report's custom simulation: ode45, i.e. Dormand-Prince 5(4), rtol 1e-8,
-atol 1e-6, max step 1e-4 s). ``rk45`` is :mod:`legbench.backends.lagrange_kernel`'s period,
+(the report's custom simulation: ode45, i.e. Dormand-Prince 5(4), max step 1e-4 s; rtol 1e-8,
+atol 1e-6, legbench's assumption: the report gives no tolerances). ``rk45`` is
+:mod:`legbench.backends.lagrange_kernel`'s period,
 scipy's ``solve_ivp(method="RK45")`` algorithm step for step (same tableau, initial step selection,
 error norm and step-size control) on preallocated arrays, compiled into one numba call per control
 period (setting ``kernel: compiled``, the default; 0.013-0.07 ms per period) or run as Python (``kernel:
@@ -63,7 +64,7 @@ class LagrangeBackend(Backend):
     name: ClassVar[str] = "lagrange"
     defaults: ClassVar[Mapping[str, Any]] = {
         "integrator": "rk45",  # scipy's RK45 algorithm, compiled (or "dop853": solve_ivp), one solve per period
-        "rtol": 1.0e-8,  # the report's custom simulation
+        "rtol": 1.0e-8,  # assumed (the report's custom simulation gives only its max step)
         "atol": 1.0e-6,
         "max_step": 1.0e-4,  # [s]
         "poc": "physics",  # "physics": as the scenario's contact parameters say; "true"; "centre"

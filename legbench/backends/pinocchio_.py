@@ -36,7 +36,8 @@ Profiles: ``matched`` and ``engine-defaults`` are the defaults above (Pinocchio 
 legbench's own integrator). ``ode45`` is the lab report's Simscape Multibody set-up,
 MATLAB's ode45 (Dormand-Prince 5(4), adaptive): ``integrator: rk45`` (scipy's RK45 is the
 same Dormand-Prince pair, its error norm RMS where ode45's is a max-norm: docs/pinocchio.md)
-with the report's Simscape tolerances rtol 1e-6, atol 1e-8 and max step 2e-4 s, one solve per
+with the report's Simscape max step 2e-4 s and rtol 1e-6, atol 1e-8 (assumed: the report gives no
+tolerances), one solve per
 control period; the contact law at the true point of contact as Simscape had it (the scenario's
 ``physics.contact.poc``, true by default: the poc is physics every backend shares, not a backend setting).
 
@@ -90,7 +91,7 @@ class PinocchioBackend(Backend):
         "kernel": ("compiled", "python"),
     }
     #: Pinocchio is legbench's own integrator: its "engine defaults" are these defaults.
-    #: ``ode45``: the lab report's Simscape solver (adaptive Dormand-Prince, its tolerances and max step).
+    #: ``ode45``: the lab report's Simscape solver (adaptive Dormand-Prince, its max step; assumed tolerances).
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "matched": {},
         "engine-defaults": {},
