@@ -445,9 +445,16 @@ def params_from_raw(raw: dict[str, Any], path: Path | str = "leg parameters", ch
 
 
 def load_params(path: Path | str | None = None) -> LegParams:
-    """The leg's parameters from ``path`` (default: the active parameter file) [cached per file: read once per
-    process, as :func:`read_params` reads it]."""
-    return _load_params(_resolved(Path(path) if path is not None else resources.model_file()))
+    """The leg's parameters from ``path`` (default: the active parameter file) [cached per file and its
+    modification time, size and inode: read again, as :func:`read_params` reads it, once the file changes, so
+    a process (a notebook, a script) that outlives an edit of the file uses the edited leg, as the URDF does]."""
+    resolved = _resolved(Path(path) if path is not None else resources.model_file())
+    try:
+        st = resolved.stat()
+        stamp: tuple[int, int, int] | None = (st.st_mtime_ns, st.st_size, st.st_ino)
+    except OSError:  # read_params says why, in its words
+        stamp = None
+    return _load_params(resolved, stamp)
 
 
 def read_params(path: Path | str) -> LegParams:
@@ -475,8 +482,8 @@ def _resolved(path: Path) -> Path:
     return path.resolve()
 
 
-@functools.cache
-def _load_params(path: Path) -> LegParams:
+@functools.lru_cache(maxsize=32)
+def _load_params(path: Path, stamp: tuple[int, int, int] | None) -> LegParams:
     return read_params(path)
 
 

@@ -335,6 +335,20 @@ def test_second_load_reads_the_cache_and_does_not_derive(make: Any, tmp_path: Pa
     assert other.derived and other.path != first.eom.path and E.derivations == before + 2
 
 
+def test_an_edited_derivation_or_another_sympy_derives_again(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The cache key held the chain's numbers and a hand-bumped GENERATOR_VERSION only: an edit of the derivation
+    without a bump (a reviewer flipped G's sign in derive()) reused the old equations. The key now holds the
+    module's source and sympy's version (DERIVATION): another value is another file, derived again."""
+    chain = E.Chain(VERTICAL_PLANE, (_planar_link(0.0, 0.5, 0.2, 1e-3),))
+    first = E.load_eom(chain, tmp_path)
+    assert not E.load_eom(chain, tmp_path).derived  # the same derivation: loaded
+    monkeypatch.setattr(E, "DERIVATION", "0" * 64)  # as an edited lagrange_eom.py or another sympy would give
+    again = E.load_eom(chain, tmp_path)
+    assert again.derived and again.path != first.path
+    assert again.module.KEY == chain.key() != first.module.KEY
+    assert oct(again.path.stat().st_mode & 0o777) == "0o644"  # readable by others sharing the cache (mkstemp: 600)
+
+
 def test_a_corrupt_cache_file_is_derived_again(tmp_path: Path) -> None:
     """A cache file that does not import is replaced by a fresh derivation (a numeric pendulum: fast)."""
     chain = E.Chain(VERTICAL_PLANE, (_planar_link(0.0, 0.5, 0.2, 1e-3),))

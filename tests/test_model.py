@@ -283,3 +283,24 @@ def test_model_check_with_a_zero_report_torque_says_inf_without_a_warning(
         resources.select_model(None)
     out, err = capsys.readouterr()
     assert err == "" and "relative error per component: [" in out and "inf" in out, (out, err)
+
+
+def test_an_edited_parameter_file_is_read_again_in_the_same_process(tmp_path: Path) -> None:
+    """load_params was cached per path for the life of the process, while the URDF is read again on every call:
+    a notebook that edited its leg file got engines on the new leg and the controllers and the lagrange model on
+    the old one. It is now cached per path and the file's modification time, size and inode."""
+    import os
+
+    src = Path(model.PARAMS_FILE)
+    mine = tmp_path / "leg.yaml"
+    mine.write_bytes(src.read_bytes())
+    before = model.load_params(mine)
+    assert model.load_params(mine) is before  # unchanged: cached
+    text = mine.read_text()
+    assert "link2: 1.48493010," in text  # the mass scale of link 2 (models/leg.yaml)
+    mine.write_text(text.replace("link2: 1.48493010,", "link2: 2.96986020,", 1))
+    st = mine.stat()
+    os.utime(mine, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000))  # a later edit, whatever the clock's grain
+    after = model.load_params(mine)
+    assert after is not before
+    assert after.scale["link2"] == pytest.approx(2.0 * before.scale["link2"], rel=1e-12)

@@ -24,8 +24,8 @@ and ``reference``, apply that same law.
 
 Profiles: ``matched`` takes the point of contact from the scenario's contact
 parameters (the true poc, the sphere's lowest point, unless the scenario says
-otherwise); ``engine-defaults`` is the report's custom simulation as it ran,
-with the poc at the sphere centre.
+otherwise); ``engine-defaults`` is the report's custom simulation as far as the report
+describes it, with the poc at the sphere centre (its tolerances are assumed).
 """
 
 from __future__ import annotations
