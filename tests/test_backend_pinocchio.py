@@ -671,3 +671,77 @@ def test_a_step_size_underflow_in_the_compiled_rk45_is_a_clear_error() -> None:
     be._dopri = (lambda *_: -1, *be._dopri[1:])
     with pytest.raises(LegbenchError, match="rk45 failed: Required step size"):
         be.step(np.zeros(3))
+
+
+# --------------------------------------------------------------------------- #
+# The bench floor (`legbench bench`: PinocchioBackend.kernels)
+
+
+def _floor_run(task: str, duration: float, settings: dict[str, Any]) -> tuple[PinocchioBackend, RunResult]:
+    sc = scenario.shorten(scenario.load(SCENARIOS / f"{task}.yaml"), duration)
+    physics = scenario.physics_of(sc)
+    be = registry_load("pinocchio", physics, settings)
+    assert isinstance(be, PinocchioBackend)
+    tr = run.simulate(sc, be, physics)
+    assert tr.status == "ok"
+    return be, tr
+
+
+@numba_needed
+@pytest.mark.parametrize(
+    ("task", "duration", "settings"),
+    [("combined", 1.5, {}), ("effort", 0.3, {"friction": "explicit", "dt": 5e-6}),
+     ("effort", 0.3, {"integrator": "rk4", "dt": 5e-6}), ("position", 0.3, {})],
+)  # fmt: skip
+def test_the_compiled_floor_is_the_backends_own_period_and_ends_where_the_run_ended(
+    task: str, duration: float, settings: dict[str, Any]
+) -> None:
+    """``period_loop`` is the backend's compiled period over the run's logged torques from the run's initial
+    state, so its end state is the run's last logged state bit for bit (over a touch-down, in contact with
+    either friction, RK4, in the air); it is per control period, declares its end-state reader, and leaves the
+    backend's own state alone. The former floor ``aba_law_tick`` (law, limits and ABA at each logged state,
+    without the integration) cost 1-2 % more than the whole period and is gone."""
+    be, tr = _floor_run(task, duration, settings)
+    before = be.read()
+    k = be.kernels(tr.q[:-1], tr.qd[:-1], tr.tau[:-1])
+    assert set(k) == {"aba", "law", "period_loop"}
+    loop = k["period_loop"]
+    assert loop.per_tick is True  # type: ignore[attr-defined]
+    for _ in range(2):  # a second pass starts again from the run's initial state
+        loop()
+        q, qd = loop.end_state()  # type: ignore[attr-defined]
+        assert np.array_equal(q, tr.q[-1]) and np.array_equal(qd, tr.qd[-1])
+    assert be.read() == before
+    if task == "combined":
+        assert tr.f[:, 2].max() > 0.0  # the touch-down was in it
+
+
+@numba_needed
+def test_the_compiled_floor_is_one_call_per_pass_with_no_python_per_tick() -> None:
+    """One pass over 50 or over 500 logged periods makes the same (small) number of Python-level calls: the
+    periods run inside one compiled call."""
+    be, tr = _floor_run("effort", 0.5, {})
+
+    def calls(rows: int) -> int:
+        loop = be.kernels(tr.q[:rows], tr.qd[:rows], tr.tau[:rows])["period_loop"]
+        loop()  # compiled and loaded before counting
+        count = 0
+
+        def profile(frame: Any, event: str, arg: Any) -> None:
+            nonlocal count
+            count += event in ("call", "c_call")
+
+        sys.setprofile(profile)
+        try:
+            loop()
+        finally:
+            sys.setprofile(None)
+        return count
+
+    assert calls(50) == calls(500) <= 5
+
+
+def test_the_python_kernel_declares_no_compiled_floor() -> None:
+    """``kernel: python``: only ``pin.aba`` and the law called from Python (no compiled period to loop)."""
+    be, tr = _floor_run("position", 0.05, {"kernel": "python"})
+    assert set(be.kernels(tr.q[:-1], tr.qd[:-1], tr.tau[:-1])) == {"aba", "law"}

@@ -330,7 +330,10 @@ class Backend(ABC):
             By default a call per row is one sub-step's call (e.g. ``{"aba": ..., "law": ...}``:
             the bench adds such kernels up and multiplies by :meth:`sub_steps`); a callable with
             the attribute ``per_tick = True``, or a name ending in ``_tick``, covers one whole
-            control period per row (e.g. ``mj_step(m, d, n)``, a compiled sub-step loop).
+            control period per row (e.g. ``mj_step(m, d, n)``, a compiled sub-step loop). A callable
+            that steps the run itself may carry ``end_state``, a function returning the pass's final
+            (q [rad], qd [rad/s]): the bench then checks it against the run's last state bit for bit, as
+            it checks the replay, so the floor is known to do the run's work.
         """
         raise NotImplementedError(f"kernels are not supported by {self.name}")
 

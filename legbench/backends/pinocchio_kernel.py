@@ -27,6 +27,8 @@ cos/sin), and refuses a model with any other (:class:`KernelUnavailable`).
   (:data:`EULER`) or ``_rk4`` (:data:`RK4`). It also keeps the joint-limit record the backend's step-bound
   warning reads (:func:`_record_limits`, :func:`limit_record`): per joint the largest (M^-1)_jj at which it
   was past its limit, one M^-1 per period and joint past its limit, three comparisons per sub-step inside.
+* :func:`period_loop` is :func:`period` over a whole run's logged torques in one compiled call, from the run's
+  initial state: ``legbench bench``'s compiled floor for this backend (its end state is the run's, bit for bit).
 
 Units: q [rad], qd [rad/s], tau [N m], F in W [N], h [s].
 """
@@ -56,11 +58,11 @@ __all__ = [
     "available",
     "dopri_data",
     "dopri_period",
-    "floor",
     "limit_record",
     "minverse",
     "model_arrays",
     "period",
+    "period_loop",
     "wrench",
     "wrench_slope",
 ]
@@ -468,37 +470,6 @@ def _rk4_arrays(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarra
     x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8] = q1, q2, q3, qd1, qd2, qd3, fx, fy, fz
 
 
-@_njit
-def floor(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: np.ndarray, lim: np.ndarray,
-          n_sub: int, implicit: bool, Q: np.ndarray, QD: np.ndarray, TAU: np.ndarray, work: np.ndarray,
-          tmp: np.ndarray, buf: np.ndarray) -> float:  # fmt: skip
-    """The bench's compiled floor: for every row (q, qd, tau) of a log, ``n_sub`` x (the law, the limits and
-    ABA at that state), in one compiled loop: the calls a run's sub-steps make, without the integration.
-    Returns a sum of the accelerations (so that nothing is optimised away)."""
-    q = buf[16:19]
-    qd = buf[19:22]
-    t = buf[22:25]
-    a = buf[25:28]
-    total = 0.0
-    for row in range(Q.shape[0]):
-        q1, q2, q3 = Q[row, 0], Q[row, 1], Q[row, 2]
-        qd1, qd2, qd3 = QD[row, 0], QD[row, 1], QD[row, 2]
-        q[0], q[1], q[2] = q1, q2, q3
-        qd[0], qd[1], qd[2] = qd1, qd2, qd3
-        for _ in range(n_sub):
-            if implicit:
-                r = wrench_slope(lc, q1, q2, q3, qd1, qd2, qd3)
-                tc1, tc2, tc3 = r[0], r[1], r[2]
-            else:
-                w = wrench(lc, q1, q2, q3, qd1, qd2, qd3)
-                tc1, tc2, tc3 = w[0], w[1], w[2]
-            tl1, tl2, tl3 = limit_torques(lim, q1, q2, q3, qd1, qd2, qd3)
-            t[0], t[1], t[2] = TAU[row, 0] + tc1 + tl1, TAU[row, 1] + tc2 + tl2, TAU[row, 2] + tc3 + tl3
-            aba(R, p, inertia, a0, q, qd, t, a, work, tmp)
-            total += a[0] + a[1] + a[2]
-    return total
-
-
 def pack(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: np.ndarray,
          lim: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """The model and law constants in one array, and the scratch space in another, for :func:`period`: a call
@@ -545,6 +516,24 @@ def period(model: np.ndarray, scratch: np.ndarray, u: np.ndarray, x: np.ndarray,
         _rk4_arrays(R, p, inertia, a0, lc, lim, h, n_sub, u, x, work, tmp, buf, rec)
     else:
         _period_arrays(R, p, inertia, a0, lc, lim, h, n_sub, method == EULER_IMPLICIT, u, x, work, tmp, buf, rec)
+
+
+@_njit
+def period_loop(model: np.ndarray, scratch: np.ndarray, x0: np.ndarray, TAU: np.ndarray, x: np.ndarray, h: float,
+                n_sub: int, method: int) -> None:  # fmt: skip
+    """A whole run's control periods in one compiled call: ``x`` (9,) set to ``x0`` (the run's initial state;
+    its force entries are not read), the joint-limit record zeroed (as the backend's ``reset``), then
+    :func:`period` once per row of ``TAU`` (N, 3) [N m], the torques the run logged, in order. Nothing but
+    the backend's own period, so the end state in ``x`` is the run's last state bit for bit: the bench's
+    compiled floor (:meth:`PinocchioBackend.kernels`), what a replay costs without its Python loop, its
+    numba dispatch per period and its read-out."""
+    for i in range(x.shape[0]):
+        x[i] = x0[i]
+    n = int(model[0])
+    for j in range(96 * n + 160, scratch.shape[0]):
+        scratch[j] = 0.0
+    for row in range(TAU.shape[0]):
+        period(model, scratch, TAU[row], x, h, n_sub, method)
 
 
 def _dopri_rhs(lc: np.ndarray, lim: np.ndarray, u: np.ndarray, g: float, y: np.ndarray, out: np.ndarray,

@@ -2,7 +2,9 @@
 
 For every task, all backends are loaded side by side and these *variants* are timed, interleaved
 repeat by repeat (each repeat goes once through every backend and variant, the backend order
-rotated from one repeat to the next, so a load drift on this shared machine hits all alike):
+rotated from one repeat to the next, and within a backend the variants' order rotated too, so
+neither a load drift on this shared machine nor a cold start after another backend's variants
+always lands on the same variant):
 
 * **full**: :func:`legbench.run.simulate`, the real run (state read, checks, events, controller,
   saturation, log);
@@ -12,29 +14,40 @@ rotated from one repeat to the next, so a load drift on this shared machine hits
   the same engine steps); if not, the backend is not deterministic or its ``reset`` is incomplete;
 * **floors**: whatever the backend declares in :meth:`~legbench.backends.base.Backend.kernels`,
   each a tight loop of the engine's own calls over the run's logged rows (e.g. ``mj_step(m, d, n)``
-  per control period, Bullet's own sub-stepping, a compiled ABA and contact law, or ``pin.aba``
-  and the law called from Python once per sub-step). A kernel is per sub-step unless its callable
-  has ``per_tick = True`` or its name ends in ``_tick`` (one call = one control period); the
-  per-sub-step kernels of a backend add up to one floor (their cost x sub-steps per period).
+  per control period, Bullet's own sub-stepping, the backend's compiled period over all rows in one
+  compiled call, or ``pin.aba`` and the law called from Python once per sub-step). A kernel is per
+  sub-step unless its callable has ``per_tick = True`` or its name ends in ``_tick`` (one call = one
+  control period); the per-sub-step kernels of a backend add up to one floor (their cost x sub-steps
+  per period). A kernel whose callable has an ``end_state`` attribute (a function returning the
+  pass's final (q, qd)) steps the run from its initial state: its end state is checked against the
+  run's last logged state bit for bit, as the replay's is.
 
 Every variant is timed in CPU time (:func:`time.process_time`, what the engines' single thread
-uses, insensitive to other processes' load) and wall time, per control period [us/tick], with
-min / median / max over the repeats. Ratios are formed per repeat from the same interleaved
-samples (full / replay, full / each floor, replay / each floor) and summarised the same way. An
-overhead is a ratio >= 1 over all repeats (reported with its spread, and its cost per tick); a
-ratio below 1 in every one of two or more repeats is "faster"; where the repeats straddle 1 it is
-"within noise": never a negative overhead.
+uses; less sensitive to other processes' load than wall time, not insensitive: on this 2-core VM
+the same floor has ranged 107-174 us/tick under other tenants) and wall time, per control period
+[us/tick], with min / median / max over the repeats. Ratios are formed per repeat from the same
+interleaved samples (full / replay, full / each floor, replay / each floor) and summarised the same
+way. With two or more repeats, an overhead is a ratio >= 1 over all repeats (reported with its
+spread, and its cost per tick); a ratio below 1 in every repeat is "faster"; where the repeats
+straddle 1 it is "within noise": never a negative overhead. A single repeat is one sample, said so.
 
 Memory (``--no-memory`` skips it): the peak RSS of one full run, measured in a fresh worker
-process per (task, backend): RSS after loading the engine and a 10 ms warm-up run is the base
-(interpreter, imports, engine); the kernel's peak-RSS mark is then reset
-(``/proc/self/clear_refs``) and the run's peak read back (``VmHWM``); the growth is compared with
-the time series the run returns. Beside it, the peak of Python allocations during a run
-(tracemalloc, in this process).
+process per (task, backend). A :data:`MEMORY_WARMUP` run of the task comes first, and where it stays
+in the air one as long from the effort task's start on the ground (:data:`CONTACT_WARMUP`), so the
+engine's contact code and buffers are in the base; the heap's free pages are then handed back to the
+system (glibc ``malloc_trim(0)``, where there is one: freed memory still resident would otherwise be
+reused by the run and not counted), and the RSS is the base (interpreter, imports, engine). The
+kernel's peak-RSS mark is reset (``/proc/self/clear_refs``) and the run's peak read back
+(``VmHWM``); beside it the growth of ``RssAnon`` (heap and other anonymous memory, at the run's end,
+its log still held) and of ``RssFile`` (file-backed pages: code and data of libraries paged in), from
+``/proc/self/status`` where it has them; both compared with the time series the run returns. Beside
+it, the peak of Python allocations during a run (tracemalloc, in this process).
 
 A backend may state targets as ``bench_targets`` (a class attribute: ``{"full/floor": 1.15}``, where
-``floor`` is its tightest floor); they are checked against the CPU-time medians. Results go to
-``<out>/bench.json`` (every sample and figure, versions, machine) and ``<out>/bench.md`` (the
+``floor`` is its tightest floor), checked per repeat on the CPU-time ratios: *met* when every
+repeat's ratio is within the limit (max <= limit), *missed* when every one is over it (min > limit),
+*inconclusive* when the repeats straddle the limit; ``--check`` fails on a missed one only. Results
+go to ``<out>/bench.json`` (every sample and figure, versions, machine) and ``<out>/bench.md`` (the
 tables the docs quote). ``--quick`` (short durations, one repeat) is what the test suite runs;
 timings belong in the benchmark, not in tests.
 """
@@ -101,8 +114,12 @@ DEFAULT_OUT = Path("results") / "bench"
 #: (combined: the touch-down at 1 s and the push from 2 s) but none lasts long.
 QUICK_DURATIONS: Mapping[str, float] = {"position": 0.5, "ellipse": 1.5, "effort": 0.5, "combined": 2.5}
 QUICK_DEFAULT_DURATION = 0.5
-#: Length of the warm-up run before the memory base is read [s].
+#: Length of the warm-up run before the memory base is read [s] (and of the contact warm-up, where needed).
 MEMORY_WARMUP = 0.01
+#: The task whose start presses the foot on the ground: where a task's own :data:`MEMORY_WARMUP` stays in the air,
+#: the memory warm-up also runs as long from this task's initial state and controller (in the task's physics), so
+#: that what an engine loads or allocates at its first contact is in the base, not in the run.
+CONTACT_WARMUP = ROOT / "scenarios" / "effort.yaml"
 
 
 @dataclass(frozen=True)
@@ -170,11 +187,12 @@ class Ratio:
     Attributes:
         num, den: variant names.
         cpu, wall: the per-repeat ratios summarised [1].
-        verdict: ``overhead`` (every repeat's CPU ratio >= 1), ``faster`` (two or more repeats, every
-            one below 1: ``num`` is the cheaper of the two) or ``within noise`` (the repeats straddle 1,
-            or a single repeat below 1): never a negative overhead.
+        verdict: with two or more repeats ``overhead`` (every repeat's CPU ratio >= 1), ``faster``
+            (every one below 1: ``num`` is the cheaper of the two) or ``within noise`` (the repeats
+            straddle 1): never a negative overhead; with a single repeat ``one sample``, whichever
+            side of 1 it fell (one sample cannot tell an overhead from the noise).
         overhead_us: median of the per-repeat CPU differences num - den [us/tick] for an
-            ``overhead`` (>= 0 then), None when within noise.
+            ``overhead`` (>= 0 then), None otherwise.
         best: min(num) / min(den) in CPU time, the two variants' fastest repeats (load on a shared
             machine only ever adds time, so the minima are each variant's least disturbed figure).
     """
@@ -197,10 +215,12 @@ def ratio(num: str, den: str, a: Timing, b: Timing) -> Ratio:
     cpu = [x / y for x, y in zip(a.cpu_samples, b.cpu_samples, strict=True)]
     wall = [x / y for x, y in zip(a.wall_samples, b.wall_samples, strict=True)]
     best = min(a.cpu_samples) / min(b.cpu_samples)
+    if len(cpu) == 1:
+        return Ratio(num, den, Spread.of(cpu), Spread.of(wall), "one sample", None, best)
     if min(cpu) >= 1.0:
         diff = [x - y for x, y in zip(a.cpu_samples, b.cpu_samples, strict=True)]
         return Ratio(num, den, Spread.of(cpu), Spread.of(wall), "overhead", max(float(np.median(diff)), 0.0), best)
-    if len(cpu) >= 2 and max(cpu) < 1.0:
+    if max(cpu) < 1.0:
         return Ratio(num, den, Spread.of(cpu), Spread.of(wall), "faster", None, best)
     return Ratio(num, den, Spread.of(cpu), Spread.of(wall), "within noise", None, best)
 
@@ -222,10 +242,13 @@ class BenchResult:
         replay_identical: the replay's final (q, qd) equalled the full run's last logged state, bit
             for bit, after every replay.
         replay_max_diff: largest absolute difference between them [rad, rad/s] (0 when identical).
+        end_state: per variant whose end state is checked (the replay, and each floor that declares
+            ``end_state``): ``{"identical": bool, "max_diff": float}`` over every execution, as above.
         series_bytes: size of the time series the run returns (t, q, qd, tau, f, controller) [bytes].
         mem_peak_bytes: peak Python allocations (tracemalloc) during one full run [bytes].
         rss: the fresh-process RSS figures of :func:`memory_of_run` [bytes], or None.
-        targets: the backend's ``bench_targets`` checked: ratio -> {limit, value, met}.
+        targets: the backend's ``bench_targets`` checked: key -> {ratio, limit, value (median), min, max,
+            best, n, verdict (``met``, ``inconclusive`` or ``missed``: :func:`target_verdict`), met}.
         info: the backend's ``info()``.
     """
 
@@ -241,6 +264,7 @@ class BenchResult:
     floor: str | None = None
     replay_identical: bool = False
     replay_max_diff: float = math.nan
+    end_state: dict[str, dict[str, Any]] = field(default_factory=dict)
     series_bytes: int = 0
     mem_peak_bytes: int = 0
     rss: dict[str, Any] | None = None
@@ -264,7 +288,8 @@ class BenchResult:
             # the summary the report's Performance table reads: CPU-time medians of full and replay
             out["full_us_per_tick"] = asdict(full.cpu)
             out["engine_us_per_tick"] = asdict(replay.cpu)
-            out["harness_us_per_tick"] = h.overhead_us if h.overhead_us is not None else "within noise"
+            noise = "one sample" if h.verdict == "one sample" else "within noise"
+            out["harness_us_per_tick"] = h.overhead_us if h.overhead_us is not None else noise
             out["overhead_ratio"] = asdict(h.cpu)
             out["rtf_full"] = self.duration / (full.wall.median * max(self.steps, 1) / 1e6)
         return out
@@ -358,30 +383,81 @@ def _max_rss() -> int:
 
 
 def _status_kb(key: str) -> int | None:
+    return _status(key)[key]
+
+
+def _status(*keys: str) -> dict[str, int | None]:
+    """The given ``/proc/self/status`` figures [bytes] (reported in kB), None for each one it lacks (or no /proc)."""
+    out: dict[str, int | None] = dict.fromkeys(keys)
     try:
         for line in Path("/proc/self/status").read_text().splitlines():
-            if line.startswith(key + ":"):
-                return int(line.split()[1]) * 1024
-    except OSError:
+            key = line.split(":", 1)[0]
+            if key in out:
+                out[key] = int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
         pass
-    return None
+    return out
+
+
+def trim_heap() -> bool:
+    """Hand the C heap's free pages back to the system: glibc's ``malloc_trim(0)`` (through ctypes), where the
+    C library has it. Returns whether it was called (False elsewhere: macOS, musl, Windows)."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+
+        fn = ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError, TypeError):
+        return False
+    fn.argtypes, fn.restype = [ctypes.c_size_t], ctypes.c_int
+    fn(0)
+    return True
+
+
+def _touched(tr: RunResult) -> bool:
+    """The run felt a ground force at some tick."""
+    return bool(len(tr.f) and np.any(np.asarray(tr.f) != 0.0))
+
+
+def _warm_up(sc: Scenario, backend: Backend, physics: Physics) -> tuple[str, bool]:
+    """The memory base's warm-up on the loaded backend: :data:`MEMORY_WARMUP` of the task; where that stays in
+    the air, as long again from :data:`CONTACT_WARMUP`'s start on the ground (its initial state and events, the
+    task's physics and settings). Returns what ran, in words, and whether the foot touched the ground in it."""
+    ms = f"{MEMORY_WARMUP * 1e3:g} ms"
+    short = shorten(sc, MEMORY_WARMUP)
+    if _touched(simulate(short, backend, physics)):
+        return f"{ms} of the task (in contact)", True
+    ground = scenario.load(CONTACT_WARMUP)
+    doc = dict(short.raw)
+    doc["initial"], doc["events"] = dict(ground.raw["initial"]), list(ground.raw["events"])
+    touched = _touched(simulate(scenario.parse(doc, sc.file), backend, physics))
+    what = f"{ms} of the task (in the air), then {ms} from the {CONTACT_WARMUP.stem} task's start on the ground"
+    return what + ("" if touched else " (no contact in it either)"), touched
 
 
 def memory_of_run(sc: Scenario, name: str, contact_mode: str | None = None) -> dict[str, Any]:
     """Peak RSS of one full run of ``name`` on ``sc`` in this process [bytes] (run it in a fresh one).
 
-    ``base``: RSS after loading the backend and a :data:`MEMORY_WARMUP` run (interpreter, imports,
-    engine, and what the engine allocates as it first steps). The peak-RSS mark is then reset
-    (Linux ``/proc/self/clear_refs``; elsewhere the mark since start is used, ``method`` says
-    which), the full run made, and ``peak`` read. ``run = peak - base`` is what the run added;
-    ``ratio`` is that over the run's time series (``series``).
+    ``base``: RSS after loading the backend, a warm-up through contact (:func:`_warm_up`: interpreter,
+    imports, engine, and what the engine loads and allocates as it first steps and first touches the
+    ground), a garbage collection and :func:`trim_heap` (free heap pages still resident would otherwise be
+    reused by the run and not counted: a run would seem to hold less than its own log). The peak-RSS mark
+    is then reset (Linux ``/proc/self/clear_refs``; elsewhere the mark since start is used, ``method`` says
+    which), the full run made, and ``peak`` read. ``run = peak - base`` is what the run added; ``ratio`` is
+    that over the run's time series (``series``). ``anon_run`` and ``file_run``: the growth of ``RssAnon``
+    (heap and other anonymous memory) and of ``RssFile`` (file-backed pages, e.g. a library's code paged in)
+    from the base to the run's end, its log still held (None where ``/proc/self/status`` has no such line,
+    ``anon_note`` says so); ``anon_ratio`` = ``anon_run / series``.
     """
     physics = physics_of(sc, contact_mode)
     backend = registry.load(name, physics, sc.backends.get(name, {}), sc.profile)
     try:
-        simulate(shorten(sc, MEMORY_WARMUP), backend, physics)
+        warmup, touched = _warm_up(sc, backend, physics)
         gc.collect()
-        base = _status_kb("VmRSS")
+        trimmed = trim_heap()
+        before = _status("VmRSS", "RssAnon", "RssFile")
+        base = before["VmRSS"]
         try:
             Path("/proc/self/clear_refs").write_text("5")
             method = "clear_refs"
@@ -392,9 +468,18 @@ def memory_of_run(sc: Scenario, name: str, contact_mode: str | None = None) -> d
         tr = simulate(sc, backend, physics)
         peak = _status_kb("VmHWM") if method == "clear_refs" else None
         peak = peak if peak is not None else _max_rss()
+        after = _status("RssAnon", "RssFile")
         series = _series_bytes(tr)
-        return {"base": base, "peak": peak, "run": max(peak - base, 0), "series": series,
-                "ratio": max(peak - base, 0) / series, "method": method, "status": tr.status}  # fmt: skip
+        out: dict[str, Any] = {"base": base, "peak": peak, "run": max(peak - base, 0), "series": series,
+                               "ratio": max(peak - base, 0) / series, "method": method, "status": tr.status,
+                               "warmup": warmup, "warmup_contact": touched, "malloc_trim": trimmed}  # fmt: skip
+        for key, tag in (("RssAnon", "anon"), ("RssFile", "file")):
+            b, a = before[key], after[key]
+            out[f"{tag}_run"] = a - b if a is not None and b is not None else None
+        out["anon_ratio"] = out["anon_run"] / series if out["anon_run"] is not None else None
+        if out["anon_run"] is None:
+            out["anon_note"] = "RssAnon unavailable (no /proc/self/status line for it on this system)"
+        return out
     finally:
         backend.close()
 
@@ -432,6 +517,8 @@ class _Loaded:
     variants: dict[str, tuple[Callable[[], Any], float]]
     q_end: np.ndarray
     qd_end: np.ndarray
+    #: variant -> its end-state reader (q, qd), for the variants that step the run from its start
+    end_states: dict[str, Callable[[], tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)
 
 
 def _load(sc: Scenario, name: str, contact_mode: str | None) -> _Loaded | BenchResult:
@@ -467,18 +554,31 @@ def _load(sc: Scenario, name: str, contact_mode: str | None) -> _Loaded | BenchR
     }
     res.timings["full"] = Timing("full", "legbench run loop: reads, checks, controller, saturation, log")
     res.timings["replay"] = Timing("replay", "backend.step() per logged torque, called from Python")
+    end_states: dict[str, Callable[[], tuple[np.ndarray, np.ndarray]]] = {"replay": backend.state}
     for kname, (fn, ticks, what) in kernel_variants(backend, tr).items():
         variants[kname] = (fn, ticks)
         res.timings[kname] = Timing("floor", what)
+        reader = getattr(fn, "end_state", None)
+        if callable(reader):
+            end_states[kname] = reader
     res.series_bytes = _series_bytes(tr)
-    return _Loaded(res, backend, physics, variants, tr.q[-1].copy(), tr.qd[-1].copy())
+    res.end_state = {k: {"identical": True, "max_diff": 0.0} for k in end_states}
+    return _Loaded(res, backend, physics, variants, tr.q[-1].copy(), tr.qd[-1].copy(), end_states)
 
 
-def _one_repeat(b: _Loaded) -> None:
-    """Time every variant of one backend once (the fastest of its ``inner`` executions); check the replay's
-    end state."""
+def variant_order(names: Sequence[str], rep: int) -> list[str]:
+    """The variants' order in pass ``rep`` (warm-up passes counted): rotated by one per pass, so that the first
+    variant after another backend's (cold caches, a frequency step) is each variant in turn."""
+    k = rep % len(names) if names else 0
+    return [*names[k:], *names[:k]]
+
+
+def _one_repeat(b: _Loaded, rep: int = 0) -> None:
+    """Time every variant of one backend once (the fastest of its ``inner`` executions), in pass ``rep``'s
+    order (:func:`variant_order`); check the end state of each variant that steps the run from its start."""
     res = b.res
-    for vname, (fn, ticks) in b.variants.items():
+    for vname in variant_order(list(b.variants), rep):
+        fn, ticks = b.variants[vname]
         cpu, wall = math.inf, math.inf
         for _ in range(res.timings[vname].inner):
             c, w, out = _timed(fn)
@@ -488,13 +588,34 @@ def _one_repeat(b: _Loaded) -> None:
                 cpu, wall = c, w
         res.timings[vname].cpu_samples.append(1e6 * cpu / ticks)
         res.timings[vname].wall_samples.append(1e6 * wall / ticks)
-        if vname == "replay":
-            q, qd = b.backend.state()
+        if vname in b.end_states:
+            q, qd = b.end_states[vname]()
             same = np.array_equal(q, b.q_end) and np.array_equal(qd, b.qd_end)
-            res.replay_identical = res.replay_identical and same
             with np.errstate(invalid="ignore"):
                 diff = float(np.max(np.abs(np.concatenate([q - b.q_end, qd - b.qd_end]))))
-            res.replay_max_diff = max(res.replay_max_diff, diff) if math.isfinite(res.replay_max_diff) else diff
+            check = res.end_state[vname]
+            check["identical"] = check["identical"] and same
+            check["max_diff"] = max(check["max_diff"], diff) if math.isfinite(check["max_diff"]) else diff
+            if vname == "replay":
+                res.replay_identical, res.replay_max_diff = check["identical"], check["max_diff"]
+
+
+#: A target's verdicts (:func:`target_verdict`), in the order the count line gives them.
+VERDICTS = ("met", "inconclusive", "missed", "not measured")
+
+
+def target_verdict(ratios: Sequence[float], limit: float) -> str:
+    """``met`` when every repeat's ratio is within ``limit`` (max <= limit), ``missed`` when every one is over
+    it (min > limit), else ``inconclusive`` (the repeats straddle the limit: more repeats, or a quieter
+    machine, may tell); ``not measured`` when there is no ratio (the target names a variant the run lacks)."""
+    x = np.asarray(ratios, float)
+    if x.size == 0:
+        return "not measured"
+    if float(x.max()) <= limit:
+        return "met"
+    if float(x.min()) > limit:
+        return "missed"
+    return "inconclusive"
 
 
 def _summarise(res: BenchResult, backend: Backend) -> None:
@@ -508,11 +629,48 @@ def _summarise(res: BenchResult, backend: Backend) -> None:
     for key, limit in dict(getattr(backend, "bench_targets", {}) or {}).items():
         num, den = key.split("/")
         den = res.floor if den == "floor" else den
+        if num == den and num in t:
+            per_repeat = [1.0] * len(t[num].cpu_samples)
+        elif num in t and den in t:
+            per_repeat = [a / b for a, b in zip(t[num].cpu_samples, t[den].cpu_samples, strict=True)]
+        else:
+            per_repeat = []
+        verdict = target_verdict(per_repeat, float(limit))
         r = res.find(f"{num} / {den}")
-        value = r.cpu.median if r is not None else (1.0 if num == den else math.nan)
-        best = r.best if r is not None else value
-        res.targets[key] = {"ratio": f"{num} / {den}", "limit": float(limit), "value": value, "best": best,
-                            "met": bool(math.isfinite(value) and value <= limit)}  # fmt: skip
+        nan = math.nan
+        res.targets[key] = {
+            "ratio": f"{num} / {den}",
+            "limit": float(limit),
+            "value": float(np.median(per_repeat)) if per_repeat else nan,
+            "min": min(per_repeat, default=nan),
+            "max": max(per_repeat, default=nan),
+            "best": r.best if r is not None else (1.0 if per_repeat else nan),
+            "n": len(per_repeat),
+            "verdict": verdict,
+            "met": verdict == "met",
+        }
+        if not per_repeat:
+            res.targets[key]["note"] = f"no variant {', '.join(v for v in (num, den) if v not in t)} in this run"
+
+
+def target_counts(results: Sequence[BenchResult]) -> dict[str, int]:
+    """How many target cells (a backend's target on a task) got each verdict (:data:`VERDICTS`); ``failed``:
+    the runs that failed (their targets were not measured)."""
+    counts = dict.fromkeys(VERDICTS, 0)
+    for r in results:
+        for tg in r.targets.values():
+            counts[tg["verdict"]] += 1
+    counts["failed"] = sum(r.status != "ok" for r in results)
+    return counts
+
+
+def count_line(counts: Mapping[str, int]) -> str:
+    """``N met, M inconclusive, K missed (of T targets)``, with the unmeasured and the failed runs if any."""
+    total = sum(counts.get(v, 0) for v in VERDICTS)
+    line = f"{counts.get('met', 0)} met, {counts.get('inconclusive', 0)} inconclusive, {counts.get('missed', 0)} missed"
+    extra = [f"{counts['not measured']} not measured"] if counts.get("not measured") else []
+    extra += [f"{counts['failed']} failed run(s), targets not measured"] if counts.get("failed") else []
+    return f"{line}{''.join(f', {e}' for e in extra)} (of {total} targets)"
 
 
 def run_bench(
@@ -556,7 +714,7 @@ def run_bench(
                     if b.res.status != "ok":
                         continue
                     try:
-                        _one_repeat(b)
+                        _one_repeat(b, rep)
                     except Exception as exc:  # a run that fails on a repeat fails that backend alone
                         b.res.status, b.res.reason = "failed", f"{type(exc).__name__}: {exc}"
                 if rep == warmup - 1:  # warm-up samples are dropped, after sizing the samples from them
@@ -615,7 +773,8 @@ def machine() -> dict[str, Any]:
 
 
 def targets_met(results: Sequence[BenchResult]) -> dict[str, bool]:
-    """Per backend: every one of its targets met on every task (a failed run misses)."""
+    """Per backend: every one of its targets met on every task, in every repeat (:func:`target_verdict`; a
+    failed run or an inconclusive cell is not met)."""
     met: dict[str, bool] = {}
     for r in results:
         if r.status != "ok":
@@ -623,6 +782,14 @@ def targets_met(results: Sequence[BenchResult]) -> dict[str, bool]:
         elif r.targets:
             met[r.backend] = met.get(r.backend, True) and all(t["met"] for t in r.targets.values())
     return met
+
+
+def _end_state_text(r: BenchResult) -> str:
+    """``replay, period_loop identical``, or the variants whose end state differed from the run's."""
+    bad = [k for k, c in r.end_state.items() if not c["identical"]]
+    if bad:
+        return f"{', '.join(bad)} DIFFER{'S' if len(bad) == 1 else ''}"
+    return f"{', '.join(r.end_state) or 'replay'} identical"
 
 
 def _ratio_cell(r: Ratio | None, bold: bool = True) -> str:
@@ -633,6 +800,8 @@ def _ratio_cell(r: Ratio | None, bold: bool = True) -> str:
         return f"{star}{r.cpu.median:.3f}{star} [{r.cpu.min:.3f}-{r.cpu.max:.3f}]"
     if r.verdict == "faster":
         return f"{r.cpu.median:.3f} [{r.cpu.min:.3f}-{r.cpu.max:.3f}] (faster)"
+    if r.verdict == "one sample":
+        return f"{r.cpu.median:.3f} (one sample)"
     return f"within noise ({r.cpu.min:.3f}-{r.cpu.max:.3f})"
 
 
@@ -651,7 +820,8 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
         f"{f', load average {load[0]:.2f} at the end' if load else ''}; "
         f"Python {v['python']}, numpy {v.get('numpy', '?')}, {engines}.  ",
         f"Settings: {s['repeats']} timed repeats after {s['warmup']} warm-up, interleaved across backends and "
-        f"variants; contact mode {s['contact_mode'] or 'from each scenario'}{', quick' if s['quick'] else ''}"
+        "variants (both orders rotated from repeat to repeat); "
+        f"contact mode {s['contact_mode'] or 'from each scenario'}{', quick' if s['quick'] else ''}"
         f"{''.join(f', {k} = {val}' for k, val in (s.get('overrides') or {}).items())}. "
         "CPU time (process_time) per control period; figures are medians, brackets min-max over the repeats"
         + (
@@ -665,9 +835,11 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
         "## Cost per control period [us/tick, CPU time]",
         "",
         "`full`: the legbench run; `replay`: backend.step() over the logged torques; the floors: the engine's own "
-        "calls in a tight loop (`Backend.kernels`). Wall-time medians are in bench.json.",
+        "calls in a tight loop (`Backend.kernels`). Wall-time medians are in bench.json. End state identical: the "
+        "replay's (and a floor's that steps the run from its start) final q, qd equal the run's last logged state "
+        "bit for bit.",
         "",
-        "| task | backend | sub-steps | full | replay | floors | replay identical |",
+        "| task | backend | sub-steps | full | replay | floors | end state identical |",
         "|---|---|---|---|---|---|---|",
     ]
     for r in results:
@@ -676,7 +848,8 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
             continue
         t = r.timings
         floors = "; ".join(f"{k} {tm.cpu.text()}" for k, tm in t.items() if tm.kind == "floor") or "-"
-        same = "yes" if r.replay_identical else f"NO (max diff {r.replay_max_diff:.3g})"
+        same = "; ".join(f"{k} {'yes' if c['identical'] else 'NO (max diff ' + format(c['max_diff'], '.3g') + ')'}"
+                         for k, c in r.end_state.items()) or ("yes" if r.replay_identical else "NO")  # fmt: skip
         lines.append(f"| {r.task} | {r.backend} | {r.sub_steps} | {t['full'].cpu.text()} | {t['replay'].cpu.text()} "
                      f"| {floors} | {same} |")  # fmt: skip
     lines += [
@@ -685,7 +858,7 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
         "",
         "Per repeat from the same interleaved samples, then median [min-max]; an overhead is a ratio >= 1 in "
         "every repeat, with its cost per tick; below 1 in every repeat it is marked faster; where the repeats "
-        "straddle 1 it is within noise. `floor` is the "
+        "straddle 1 it is within noise; a single repeat is one sample. `floor` is the "
         "backend's tightest floor; `best` is the ratio of the two variants' fastest repeats.",
         "",
         "| task | backend | full / replay | harness [us/tick] | tightest floor | full / floor | full / floor, best "
@@ -699,7 +872,8 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
         fl = r.floor or "replay"
         full_fl = h if fl == "replay" else r.find(f"full / {fl}")
         rep_fl = None if fl == "replay" else r.find(f"replay / {fl}")
-        cost = f"{h.overhead_us:.1f}" if h is not None and h.overhead_us is not None else "within noise"
+        cost = (f"{h.overhead_us:.1f}" if h is not None and h.overhead_us is not None
+                else "one sample" if h is not None and h.verdict == "one sample" else "within noise")  # fmt: skip
         best = f"{full_fl.best:.3f}" if full_fl is not None else "-"
         lines.append(f"| {r.task} | {r.backend} | {_ratio_cell(h)} | {cost} | {fl} | {_ratio_cell(full_fl)} | {best} "
                      f"| {_ratio_cell(rep_fl) if rep_fl else '-'} |")  # fmt: skip
@@ -716,35 +890,64 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
         lines += [f"| {r.task} | {r.backend} | {x.label} | {_ratio_cell(x)} | {x.wall.text('.3f')} |" for r, x in other]
     mem = [r for r in results if r.status == "ok" and (r.mem_peak_bytes or r.rss)]
     if mem:
+        trimmed = any((r.rss or {}).get("malloc_trim") for r in mem)
         lines += [
             "",
             "## Memory of one full run",
             "",
-            "RSS in a fresh worker process: `base` after loading the engine and a 10 ms warm-up run; `run` the peak "
-            "during the full run above that base. Python allocations (tracemalloc) during a run beside it. "
-            "`series`: the time series the run returns (t, q, qd, tau, f, controller).",
+            f"RSS in a fresh worker process: `base` after loading the engine, a {MEMORY_WARMUP * 1e3:g} ms warm-up "
+            f"run of the task (`+ ground`: then {MEMORY_WARMUP * 1e3:g} ms from the {CONTACT_WARMUP.stem} task's "
+            "start on the ground, where the task's own start is in the air, so the engine's first contact is in the "
+            "base)"
+            + (", a garbage collection and `malloc_trim(0)` (the heap's free pages handed back, so the run cannot "
+               "reuse resident freed memory uncounted)" if trimmed else ", a garbage collection (no malloc_trim here)")
+            + "; `run` the peak (VmHWM) during the full run above that base; `RssAnon` and `RssFile` growth: heap "
+            "(anonymous) and file-backed pages from the base to the run's end, its log still held. Python "
+            "allocations (tracemalloc) during a run beside it. `series`: the time series the run returns (t, q, "
+            "qd, tau, f, controller).",
             "",
-            "| task | backend | ticks | series [MB] | base RSS [MB] | run peak RSS - base [MB] "
-            "| (peak - base) / series | tracemalloc peak [MB] |",
-            "|---|---|---|---|---|---|---|---|",
-        ]
+            "| task | backend | ticks | series [MB] | warm-up | base RSS [MB] | run peak RSS - base [MB] "
+            "| (peak - base) / series | RssAnon growth [MB] | RssAnon / series | RssFile growth [MB] "
+            "| tracemalloc peak [MB] |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        ]  # fmt: skip
+        notes: set[str] = set()
         for r in mem:
             x = r.rss or {}
             if "run" in x:
-                rss = f"{x['base'] / 1e6:.1f} | {x['run'] / 1e6:.2f} | **{x['ratio']:.2f}**"
+                warm = ("task" if "then" not in str(x.get("warmup", "")) else "task + ground") + (
+                    "" if x.get("warmup_contact", True) else " (no contact)")  # fmt: skip
+                anon = x.get("anon_run")
+                if anon is None:
+                    notes.add(str(x.get("anon_note", "RssAnon unavailable")))
+                    anon_cells = "n/a | n/a"
+                else:
+                    anon_cells = f"{anon / 1e6:.2f} | {anon / x['series']:.2f}"
+                file = x.get("file_run")
+                file_cell = f"{file / 1e6:.2f}" if file is not None else "n/a"
+                rss = (f"{warm} | {x['base'] / 1e6:.1f} | {x['run'] / 1e6:.2f} | **{x['ratio']:.2f}** | {anon_cells} "
+                       f"| {file_cell}")  # fmt: skip
             else:
-                rss = f"- | {x.get('error', '-')} | -"
+                rss = f"- | - | {x.get('error', '-')} | - | - | - | -"
             lines.append(f"| {r.task} | {r.backend} | {r.steps + 1} | {r.series_bytes / 1e6:.3f} | {rss} "
                          f"| {r.mem_peak_bytes / 1e6:.3f} |")  # fmt: skip
+        lines += [f"\n{n}." for n in sorted(notes)]
     with_targets = [r for r in results if r.targets]
     if with_targets:
-        lines += ["", "## Targets (CPU-time medians; best beside them)", "",
-                  "| task | backend | ratio | limit | median | best | met (median) |",
+        lines += ["", "## Targets (per repeat, CPU time)", "",
+                  f"**{count_line(target_counts(results))}**. Met: every repeat's ratio within the limit (max <= "
+                  "limit); missed: every repeat over it (min > limit); inconclusive: the repeats straddle the limit "
+                  "(`--check` fails on a missed or unmeasured target, never on an inconclusive one). Median "
+                  "[min-max] over the repeats; best: the ratio of the two variants' fastest repeats."
+                  + (" One repeat: each verdict rests on one sample." if s["repeats"] == 1 else ""), "",
+                  "| task | backend | ratio | limit | median [min-max] | best | verdict |",
                   "|---|---|---|---|---|---|---|"]  # fmt: skip
         for r in with_targets:
             for tg in r.targets.values():
+                verdict = {"missed": "MISSED", "not measured": f"NOT MEASURED ({tg.get('note', '')})"}.get(
+                    tg["verdict"], tg["verdict"])  # fmt: skip
                 lines.append(f"| {r.task} | {r.backend} | {tg['ratio']} | {tg['limit']:g} | {tg['value']:.3f} "
-                             f"| {tg['best']:.3f} | {'met' if tg['met'] else 'MISSED'} |")  # fmt: skip
+                             f"[{tg['min']:.3f}-{tg['max']:.3f}] | {tg['best']:.3f} | {verdict} |")  # fmt: skip
     return "\n".join(lines) + "\n"
 
 
@@ -791,7 +994,10 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
                    help="override a scenario key, e.g. --set backends.<name>.dt=1e-4 (10 sub-steps)")  # fmt: skip
     p.add_argument("--no-memory", action="store_true", help="skip the memory runs (fresh process, tracemalloc)")
     p.add_argument("--out", default=str(DEFAULT_OUT), help=f"output directory (default {DEFAULT_OUT})")
-    p.add_argument("--check", action="store_true", help="exit 1 if a backend's target is missed")
+    p.add_argument("--check", action="store_true",
+                   help="exit 1 if a backend's target is missed (every repeat over its limit) or not measured, or "
+                   "an end state differs; an inconclusive target (the repeats straddle the limit: this run cannot "
+                   "tell) does not fail")  # fmt: skip
     p.add_argument("-q", "--quiet", action="store_true", help="no per-row progress lines")
     p.add_argument("--parallel", type=int, default=None, metavar="N",
                    help="instead: the batch of runs with --jobs N against --jobs 1 (wall time), beside this "
@@ -830,7 +1036,8 @@ def _cli(args: argparse.Namespace) -> int:
 
     Returns:
         0; 3 if a backend failed to load or run (the others are still written);
-        1 with ``--check`` if a target is missed or a replay was not bit-identical.
+        1 with ``--check`` if a target is missed or not measured (not if inconclusive), or a replay's or a
+        floor's end state was not bit-identical to the run's.
     """
     paths = args.scenarios or [str(p) for p in TASKS]
     overrides = yamlfile.parse_overrides(args.set)
@@ -852,7 +1059,7 @@ def _cli(args: argparse.Namespace) -> int:
             f"{r.task:<10} {r.backend:<10} full {r.timings['full'].cpu.median:7.1f} us/tick CPU  "
             f"full/replay {_ratio_cell(h, bold=False)}"
             f"{f'  full/{r.floor} {_ratio_cell(fl, bold=False)}' if fl else ''}"
-            f"  replay {'identical' if r.replay_identical else 'DIFFERS'}",
+            f"  end state: {_end_state_text(r)}",
             flush=True,
         )
 
@@ -871,19 +1078,23 @@ def _cli(args: argparse.Namespace) -> int:
         "clock": "time.process_time (CPU) and time.perf_counter (wall)",
     }
     met = targets_met(results)
+    counts = target_counts(results)
     meta = {
         "command": " ".join(["legbench", "bench", *sys.argv[2:]]) if sys.argv[1:2] == ["bench"] else "legbench bench",
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "settings": settings,
         "targets_met": met,
+        "targets": {**counts, "line": count_line(counts)},
         "versions": versions(),
         "machine": machine(),
     }
     js, md = write_results(results, Path(args.out), meta)
     if not args.quiet:
+        print(f"targets: {count_line(counts)}")
         print(f"wrote {js} and {md}")
     if any(r.status != "ok" for r in results):
         return 3
-    if args.check and not (all(met.values()) and all(r.replay_identical for r in results)):
+    same = all(c["identical"] for r in results for c in r.end_state.values())
+    if args.check and (counts["missed"] or counts["not measured"] or not same):
         return 1
     return 0
