@@ -4,4 +4,5 @@ import sys
 
 from legbench.cli import entry
 
-sys.exit(entry())
+if __name__ == "__main__":  # the pool's workers import the main module again: they must not run the command
+    sys.exit(entry())

@@ -230,23 +230,26 @@ class Result:
         """
         from legbench import report  # deferred: matplotlib
 
-        target, copied = self.path, None
+        target, fresh = self.path, False
         if out_dir is not None and Path(out_dir).resolve() != self.path.resolve():
             target = Path(out_dir)
-            existed = target.exists()
-            if existed and any(target.iterdir()):
+            fresh = not target.exists()
+            if not fresh and any(target.iterdir()):
                 raise ResultsError(str(target), "exists and is not empty; name a new directory")
-            shutil.copytree(self.path, target, dirs_exist_ok=True)
-            copied = existed
         result = None if kwargs or self._comparison is None else self._comparison.result
         try:
+            if target != self.path:  # the run's entries, not the directory: out_dir keeps its own mode
+                target.mkdir(parents=True, exist_ok=True)
+                for entry in self.path.iterdir():
+                    if entry.is_dir():
+                        shutil.copytree(entry, target / entry.name)
+                    else:
+                        shutil.copy2(entry, target / entry.name)
             with logs.worded(logs.API_WORDS):  # the log's errors name compare's arguments, not the command's options
                 files = report.write_report(target, result, **kwargs)
-        except BaseException:  # a bad log= or an interrupt: out_dir goes back to how it was (absent, or empty)
-            if copied is not None:
-                shutil.rmtree(target, ignore_errors=True)
-                if copied:
-                    target.mkdir()
+        except BaseException:  # a bad log=, an interrupt: out_dir goes back to how it was, absent or empty
+            if target != self.path:
+                _empty_again(target, remove=fresh)
             raise
         return Path(files.html)
 
@@ -274,6 +277,19 @@ class Result:
 
     def __repr__(self) -> str:
         return f"Result({self.scenario.name!r}, backends={self.status()}, path={str(self.path)!r})"
+
+
+def _empty_again(directory: Path, remove: bool) -> None:
+    """Undo a report into ``directory``, which was empty or absent before (``remove``): what was put in it goes,
+    the directory itself (its mode, owner, a link to it) stays unless this call made it."""
+    if remove:
+        shutil.rmtree(directory, ignore_errors=True)
+        return
+    for entry in list(directory.iterdir()):
+        if entry.is_dir() and not entry.is_symlink():
+            shutil.rmtree(entry, ignore_errors=True)
+        else:
+            entry.unlink(missing_ok=True)
 
 
 def _check_overrides(overrides: object) -> None:

@@ -299,10 +299,10 @@ def _validate_one(path: str, overrides: Mapping[str, Any] | None = None) -> tupl
 
     tol_keys = {*check.DEFAULT_TOLERANCES, "scenarios"}
     if isinstance(doc, dict) and doc and set(doc) & tol_keys and not set(doc) & set(scenario.TOP_KEYS):
+        if overrides:
+            return "", [LegbenchError(f"{path}: --set applies to scenario files; this is a tolerance file")]
         problems: list[LegbenchError] = list(check.tolerance_errors(path))
         return f"{path}: ok (tolerances: {', '.join(sorted(map(str, doc)))})", problems
-    if overrides and isinstance(doc, dict) and doc and set(doc) & tol_keys and not set(doc) & set(scenario.TOP_KEYS):
-        return "", [LegbenchError(f"{path}: --set applies to scenario files; this is a tolerance file")]
     problems = list(scenario.errors(path, overrides))
     if problems:
         return "", problems

@@ -672,14 +672,20 @@ def write_urdf(params: LegParams | None = None, path: Path | str | None = None) 
 
 
 def pinocchio_model(urdf: str | Path | None = None, gravity: float | None = None) -> Any:
-    """Pinocchio model of the URDF (default: the active model's; fixed base; gravity -g z_W) [cached]."""
+    """Pinocchio model of the URDF (default: the active model's; fixed base; gravity -g z_W) [cached per file,
+    its modification time, size and inode]."""
     path = str(urdf) if urdf is not None else str(resources.urdf_file())
     g = load_params().gravity if gravity is None else gravity
-    return _pinocchio_model(path, g)
+    try:  # the file's identity: a URDF regenerated in place (`legbench model urdf`) is a new model
+        st = os.stat(path)
+        stamp: tuple[int, int, int] | None = (st.st_mtime_ns, st.st_size, st.st_ino)
+    except OSError:
+        stamp = None
+    return _pinocchio_model(path, g, stamp)
 
 
-@functools.cache
-def _pinocchio_model(path: str, g: float) -> Any:
+@functools.lru_cache(maxsize=32)
+def _pinocchio_model(path: str, g: float, stamp: tuple[int, int, int] | None) -> Any:
     if not Path(path).exists():
         raise ModelError(f"{path}: URDF not found; run `legbench model urdf`")
     model = pin.buildModelFromUrdf(path)

@@ -213,7 +213,9 @@ _warned: set[str] = set()
 
 def _warn_stale(digest: str, target: Path) -> None:
     """Say once per process and content that the bundled leg.urdf is not the bundled leg.yaml's (one line)."""
-    if digest in _warned:
+    import multiprocessing  # deferred: only an out-of-date leg.urdf gets here, and the CLI's start-up stays light
+
+    if digest in _warned or multiprocessing.parent_process() is not None:  # once, and not again from each worker
         return
     _warned.add(digest)
     checkout = source_tree() is not None

@@ -40,6 +40,7 @@ from legbench.results import (
 )
 from legbench.scenario import MAX_JOINT_SPEED, MAX_PENETRATION, Scenario, physics_of
 from legbench.studies.executors import LocalExecutor
+from legbench.yamlfile import one_line
 
 
 def _diverged(code: int) -> str:
@@ -135,7 +136,7 @@ def simulate(
         status, reason = "failed", str(exc)
         n = k
     except Exception as exc:  # any error of the engine's (a plug-in's TypeError too) fails this backend alone
-        status, reason = "failed", f"{type(exc).__name__} at t = {k * Ts:.4f} s: {exc}"
+        status, reason = "failed", one_line(f"{type(exc).__name__} at t = {k * Ts:.4f} s: {exc}")
         n = k
     except KeyboardInterrupt:
         status, reason = "interrupted", f"interrupted at t = {k * Ts:.4f} s"
@@ -149,9 +150,11 @@ def simulate(
     try:
         info = backend_info(backend)
     except Exception as exc:  # the run is kept up to here, but a backend that cannot say what it ran failed
-        info = {}
+        info = _declared(backend)
         if status == "ok":
-            why = str(exc) if isinstance(exc, LegbenchError) else f"info() failed: {type(exc).__name__}: {exc}"
+            why = one_line(
+                str(exc) if isinstance(exc, LegbenchError) else f"info() failed: {type(exc).__name__}: {exc}"
+            )
             status, reason = "failed", why
     return RunResult(
         backend=backend.name,
@@ -166,6 +169,19 @@ def simulate(
         info=info,
         wall_time=wall,
     )
+
+
+def _declared(backend: Backend) -> dict[str, Any]:
+    """What a backend whose :meth:`~Backend.info` failed still declares (the profile, the integrator family,
+    the sub-steps, whether it has contact of its own), each only if asking for it does not fail too."""
+    out: dict[str, Any] = {"profile": backend.profile}
+    for key, ask in (("integrator_family", backend.integrator_family), ("sub_steps", backend.sub_steps),
+                     ("engine_contact", backend.engine_contact)):  # fmt: skip
+        try:
+            out[key] = ask()
+        except Exception:  # noqa: S112 - the run already failed with the reason; this is only what is known
+            continue
+    return out
 
 
 def backend_info(backend: Backend) -> dict[str, Any]:
@@ -195,7 +211,7 @@ def run_backend(scenario: Scenario, name: str, contact_mode: str | None = None, 
     except BackendNotFound as exc:
         return RunResult.empty(name, "missing", str(exc))
     except Exception as exc:  # an engine that cannot load must not stop the others
-        return RunResult.empty(name, "failed", f"load failed: {type(exc).__name__}: {exc}")
+        return RunResult.empty(name, "failed", one_line(f"load failed: {type(exc).__name__}: {exc}"))
     bar = _ProgressBar(f"{scenario.name}/{name}") if progress else None
     try:
         return simulate(scenario, backend, physics, bar)

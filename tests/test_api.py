@@ -91,7 +91,8 @@ def test_report_goes_to_a_new_directory_only(result: api.Result, tmp_path: Path)
 
 def test_a_report_that_fails_leaves_its_new_directory_as_it_was(result: api.Result, tmp_path: Path) -> None:
     """report(out_dir, log=<no such file>) copied the run into out_dir, then failed on the log, leaving a
-    half-written directory behind. Now out_dir is removed again when it did not exist, and emptied when it was."""
+    half-written directory behind. Now out_dir is removed again when it did not exist, and emptied when it was
+    (the directory itself kept: its mode, a link to it)."""
     with pytest.raises(ResultsError, match="no such log file"):
         result.report(tmp_path / "new", log=tmp_path / "missing.csv")
     assert not (tmp_path / "new").exists()
@@ -100,6 +101,15 @@ def test_a_report_that_fails_leaves_its_new_directory_as_it_was(result: api.Resu
         result.report(tmp_path / "empty", log=tmp_path / "missing.csv")
     assert (tmp_path / "empty").is_dir() and not any((tmp_path / "empty").iterdir())
     assert (result.path / "run.json").is_file()  # the run itself untouched
+    # an existing directory keeps its mode (it was removed and made again, 0o755), a link its target's contents
+    (tmp_path / "mine").mkdir(mode=0o700)
+    (tmp_path / "real").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "real")
+    for out in ("mine", "link"):
+        with pytest.raises(ResultsError, match="no such log file"):
+            result.report(tmp_path / out, log=tmp_path / "missing.csv")
+    assert (tmp_path / "mine").stat().st_mode & 0o777 == 0o700 and not any((tmp_path / "mine").iterdir())
+    assert (tmp_path / "link").is_symlink() and not any((tmp_path / "real").iterdir())
 
 
 def test_mapping_profile_and_both_contact_modes(tmp_path: Path) -> None:

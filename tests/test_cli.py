@@ -688,3 +688,16 @@ def test_an_unknown_backend_names_the_plug_ins_registered_here(monkeypatch: pyte
         scenario.load(root / "scenarios" / "effort.yaml", {"backends.eulr.dt": 1e-5})
     with pytest.raises(ScenarioError, match=r"comparison\.reference: unknown backend 'eulr'; known: .*, ode, euler"):
         scenario.load(root / "scenarios" / "effort.yaml", {"comparison.reference": "eulr"})
+
+
+def test_python_m_legbench_runs_in_a_pool(tmp_path: Path) -> None:
+    """`python -m legbench run ... --jobs 2` was refused by the pool's __main__-guard check: __main__.py called
+    the command at its top level, which each worker would run again on import. It is now under the guard."""
+    root = Path(__file__).resolve().parent.parent
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "legbench", "run", str(root / "scenarios" / "position.yaml"), "--backends",
+           "pinocchio,mujoco", "--jobs", "2", "--out", str(out), "-q", "--no-compare", "--no-preflight",
+           "--set", "duration=0.05", "--set", "comparison.steady_window=0.02"]  # fmt: skip
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert {p.stem for p in out.glob("*.parquet")} == {"pinocchio", "mujoco"}

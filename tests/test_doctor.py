@@ -204,3 +204,27 @@ def test_the_preflight_loads_each_backend_in_the_runs_contact_mode(
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and "backends.refonly.contact: refonly has no contact of its own" in err
         assert not (tmp_path / out).exists()
+
+
+def test_a_plug_in_that_raises_in_the_pre_flight_is_one_line_naming_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The pre-flight caught only legbench's errors around a backend's load and read-back: a plug-in raising
+    AttributeError there escaped cli.main as a traceback. It is one line naming the backend (exit 2)."""
+    from legbench import cli
+
+    class LoadRaises(PinocchioBackend):
+        name = "loadraises"
+
+        def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
+            raise AttributeError("'str' object has no attribute 'get'")
+
+    reg = backends._registry
+    monkeypatch.setattr(backends, "_registry", lambda: {**reg(), "loadraises": LoadRaises})
+    out = tmp_path / "run"
+    argv = ["run", str(EFFORT), "--backends", "pinocchio,loadraises", "--out", str(out), "-q", "--no-compare"]
+    assert cli.main([*argv, "--set", "duration=0.02", "--set", "comparison.steady_window=0.01"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0
+    assert "pre-flight: loadraises failed to load: AttributeError: 'str' object has no attribute 'get'" in err
+    assert not out.exists()

@@ -304,3 +304,24 @@ def test_an_edited_parameter_file_is_read_again_in_the_same_process(tmp_path: Pa
     after = model.load_params(mine)
     assert after is not before
     assert after.scale["link2"] == pytest.approx(2.0 * before.scale["link2"], rel=1e-12)
+
+
+def test_a_urdf_regenerated_in_place_is_a_new_reference_model(tmp_path: Path) -> None:
+    """pinocchio_model was cached by path only: after `legbench model urdf` rewrote models/leg.urdf in place
+    (what the out-of-date warning advises), Dynamics, kinematics and the verification's closed forms kept the
+    old leg while the engines and load_params had the new one. The cache now holds the file's mtime, size and
+    inode: the rewritten file (written atomically, a new inode) gives the new model."""
+    urdf = tmp_path / "leg.urdf"
+    urdf.write_text(model.urdf_text(model.load_params()))
+    before = model.pinocchio_model(urdf)
+    assert model.pinocchio_model(urdf) is before
+    heavier = model.load_params()
+    link2 = before.inertias[2].mass
+    text = urdf.read_text()
+    tmp = tmp_path / "new.urdf"
+    tmp.write_text(text.replace(f'<mass value="{link2!r}"/>', f'<mass value="{2.0 * link2!r}"/>', 1))
+    assert tmp.read_text() != text, "the link-2 mass element was not found"
+    tmp.replace(urdf)
+    after = model.pinocchio_model(urdf)
+    assert after is not before and after.inertias[2].mass == pytest.approx(2.0 * link2, rel=1e-15)
+    assert heavier is model.load_params()  # the parameter file itself did not change

@@ -606,3 +606,18 @@ def test_a_backend_that_raises_fails_its_own_rows_and_the_others_are_verified(mo
     assert bad["note"].str.contains("AttributeError: 'str' object has no attribute 'get'", regex=False).all()
     alone = verify.verify(None, ["pinocchio"], cases, jobs=1)
     pd.testing.assert_frame_equal(df[df["backend"] == "pinocchio"].reset_index(drop=True), alone)
+
+
+def test_a_backend_whose_info_breaks_keeps_its_reason_in_verify(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A run whose info() breaks the keys legbench reads fails with that reason; verify then read the empty info
+    for its variant and reported KeyError: 'integrator_family' instead. The declared abilities are kept and the
+    rows name the real reason."""
+    original = PinocchioBackend.info
+
+    def info(self: PinocchioBackend) -> dict[str, Any]:
+        return {**original(self), "contact": {"poc": "center"}}
+
+    monkeypatch.setattr(PinocchioBackend, "info", info)
+    rows = verify._group_checks(("energy", "pinocchio"))
+    assert rows and all(not r.passed for r in rows)
+    assert all("contact.poc: expected 'true' or 'centre', got 'center'" in r.note for r in rows), [r.note for r in rows]

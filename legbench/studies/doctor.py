@@ -39,6 +39,7 @@ from legbench import scenario as scenario_mod
 from legbench.backends.base import Backend
 from legbench.exceptions import BackendNotFound, LegbenchError
 from legbench.scenario import Scenario, physics_of
+from legbench.yamlfile import one_line
 
 __all__ = ["RTOL", "ParityError", "add_cli", "check", "doctor", "preflight", "readback", "table", "verdict"]
 
@@ -177,6 +178,11 @@ def _same(a: Any, b: Any, tol: float) -> bool:
 _FIXED = ("group", "row", "unit", "spec", "tolerance", "status")
 
 
+def _engine_error(name: str, what: str, exc: BaseException) -> str:
+    return one_line(f"pre-flight: {name} failed to {what}: {type(exc).__name__}: {exc} (run without it, or with "
+                    "--no-preflight to let its run fail alone)")  # fmt: skip
+
+
 def table(
     scenario: Scenario | str | Path, backends: Sequence[str] | None = None, contact_mode: str | None = None
 ) -> pd.DataFrame:
@@ -204,8 +210,14 @@ def table(
             raise
         except LegbenchError as exc:  # a setting the engine refuses for this scenario (a dt that does not
             raise LegbenchError(f"{sc.file}: {exc}") from exc  # divide its control period): name the file
+        except Exception as exc:  # the engine's own error (a plug-in's bug): one line naming it, not a traceback
+            raise LegbenchError(_engine_error(name, "load", exc)) from exc
         try:
             values[name] = readback(b)
+        except LegbenchError:
+            raise
+        except Exception as exc:
+            raise LegbenchError(_engine_error(name, "read back", exc)) from exc
         finally:
             b.close()
     spec = _spec(sc)

@@ -230,6 +230,8 @@ def _sub_step(info: Mapping[str, Any], control_dt: float) -> float:
 
 
 def _variant(info: Mapping[str, Any], control_dt: float) -> str:
+    if "integrator_family" not in info or "sub_steps" not in info:  # a failed run's info may lack them
+        return str(info.get("integrator", "?"))
     integ = info.get("integrator", FAMILY_TEXT.get(_family(info), "?"))
     if _family(info) == "adaptive" and "max_step" in info:  # its steps are bounded by max_step, not a sub-step
         return f"integrator={integ} max_step={float(info['max_step']):g}"
