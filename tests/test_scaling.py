@@ -246,3 +246,16 @@ def test_every_sample_recorded(study: scaling.ScalingResult) -> None:
     assert study.efficiency().values == pytest.approx(
         tuple(s / c for s, c in zip(study.speedup().values, study.ceiling_wall().values, strict=True))
     )
+
+
+def test_a_probe_process_that_crashes_is_one_error_not_a_hang(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A probe process whose engine kills it (SIGSEGV) put nothing on the queue: the parent waited the whole
+    timeout (600 s) and then raised a bare queue.Empty, and the other probe waited at the barrier. The parent now
+    waits on each probe's pipe, which the dying process closes: one LegbenchError at once, naming the exit code."""
+    from fakes import install_crashing_engine
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    crashy = install_crashing_engine(tmp_path)
+    sc = scenario.load(resources.scenario("position"), {"duration": 0.05, "comparison.steady_window": 0.02})
+    with pytest.raises(LegbenchError, match=r"a probe process ended \(exit code -11\) without its result"):
+        scaling.ceiling_sample([(sc, crashy), (sc, crashy)], 2, timeout=300.0)

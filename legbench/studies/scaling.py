@@ -57,9 +57,11 @@ import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
+from multiprocessing import connection
+from multiprocessing.connection import Connection
 from multiprocessing.managers import SyncManager
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from legbench.exceptions import LegbenchError
 from legbench.results import atomic_write_text, write_json
@@ -206,13 +208,13 @@ def _warm_runs(runs: Sequence[tuple[Scenario, str]]) -> list[tuple[Scenario, str
 
 def _probe(runs: Sequence[tuple[Scenario, str]], offset: int, passes: int, barrier: Any, out: Any) -> None:
     """In a fresh process: the warm-up, wait for the others, then ``passes`` times every run of ``runs`` from
-    ``runs[offset]`` on (wrapping round); put (CPU, wall) of it all [s] and the first failure."""
+    ``runs[offset]`` on (wrapping round); send (CPU, wall) of it all [s] and the first failure down ``out``."""
     _run_all(_warm_runs(runs))  # first uses (imports, compiled code), as a worker's warm-up
     barrier.wait(BARRIER_TIMEOUT)
     mine = [*runs[offset:], *runs[:offset]] * passes
     c0, w0 = time.process_time(), time.perf_counter()
     failed = _run_all(mine)
-    out.put((time.process_time() - c0, time.perf_counter() - w0, *failed))
+    out.send((time.process_time() - c0, time.perf_counter() - w0, *failed))
 
 
 def ceiling_sample(
@@ -221,23 +223,44 @@ def ceiling_sample(
     """(CPU, wall) time [s] of ``passes`` times ``runs`` in each of ``n`` fresh processes started together at
     a barrier, process i from run ``i len(runs) / n`` on."""
     ctx = multiprocessing.get_context("spawn")
-    barrier, out = ctx.Barrier(n), ctx.Queue()
-    procs = [ctx.Process(target=_probe, args=(list(runs), i * len(runs) // n, passes, barrier, out), daemon=True)
-             for i in range(n)]  # fmt: skip
+    barrier = ctx.Barrier(n)
+    pipes = [ctx.Pipe(duplex=False) for _ in range(n)]
+    procs = [ctx.Process(target=_probe, args=(list(runs), i * len(runs) // n, passes, barrier, pipes[i][1]),
+                         daemon=True) for i in range(n)]  # fmt: skip
     for p in procs:
         p.start()
-    got = []
+    for _, sender in pipes:
+        sender.close()  # the child holds its own end: a child that dies closes the pipe (EOF), not a hang
+    pending = {reader: p for (reader, _), p in zip(pipes, procs, strict=True)}
+    got: list[tuple[float, float]] = []
+    deadline = time.monotonic() + timeout
     try:
-        for _ in range(n):
-            cpu, wall, which, why = out.get(timeout=timeout)
-            if which:
-                raise LegbenchError(f"bench --parallel: the probe's run {which} ended {why}")
-            got.append((cpu, wall))
+        while pending:
+            # a result, or the end of a probe process (an engine that crashes its process sends nothing)
+            ready = connection.wait(list(pending), max(0.0, deadline - time.monotonic()))
+            if not ready:
+                raise LegbenchError(f"bench --parallel: the probe gave no result within {timeout:g} s")
+            for obj in ready:
+                reader = cast(Connection, obj)
+                proc = pending.pop(reader)
+                try:
+                    cpu, wall, which, why = reader.recv()
+                except EOFError:
+                    barrier.abort()  # the others would wait for it at the barrier
+                    proc.join(5.0)
+                    raise LegbenchError(f"bench --parallel: a probe process ended (exit code {proc.exitcode}) "
+                                        "without its result: the engine crashed it") from None  # fmt: skip
+                if which:
+                    raise LegbenchError(f"bench --parallel: the probe's run {which} ended {why}")
+                got.append((cpu, wall))
     finally:
         for p in procs:
             p.join(5.0)
             if p.is_alive():
                 p.kill()
+                p.join()
+        for reader, _ in pipes:
+            reader.close()
     return got
 
 
