@@ -104,7 +104,6 @@ def simulate(
     controllers: list[Controller] = [
         make_controller(e, scenario.gains, Ts, n, scenario.gravity) for e in scenario.events
     ]
-    backend.reset(np.array(scenario.q0), np.array(scenario.qd0))
     read, step, control = backend.read, backend.step, tick.tick
     active = controllers[0]
     p, s = active.params, active.state
@@ -115,8 +114,16 @@ def simulate(
     last = n - 1
     start = time.perf_counter()
     try:
+        try:
+            backend.reset(np.array(scenario.q0), np.array(scenario.qd0))
+        except Exception as exc:
+            raise _EngineError(exc) from exc
+        start = time.perf_counter()  # the loop's wall time: the reset is not part of it
         for k in range(n):
-            q1, q2, q3, qd1, qd2, qd3, f1, f2, f3 = read()
+            try:  # the engine's calls: any error of theirs fails this backend alone (a try costs nothing here)
+                q1, q2, q3, qd1, qd2, qd3, f1, f2, f3 = read()
+            except Exception as exc:
+                raise _EngineError(exc) from exc
             if k >= next_tick:
                 q, qd = np.array((q1, q2, q3)), np.array((qd1, qd2, qd3))
                 while next_event < n_events and ticks[next_event] <= k:
@@ -129,14 +136,21 @@ def simulate(
             if code:
                 raise SimulationDiverged(backend.name, k * Ts, _diverged(code))
             if k < last:
-                step(tau_out)
+                try:
+                    step(tau_out)
+                except Exception as exc:
+                    raise _EngineError(exc) from exc
             if progress is not None and k % every == 0:
                 progress(k / n)
     except SimulationDiverged as exc:
         status, reason = "failed", str(exc)
         n = k
-    except Exception as exc:  # any error of the engine's (a plug-in's TypeError too) fails this backend alone
-        status, reason = "failed", one_line(f"{type(exc).__name__} at t = {k * Ts:.4f} s: {exc}")
+    except (_EngineError, LegbenchError, FloatingPointError, RuntimeError, ValueError) as exc:
+        # the engine's own errors, whatever their type (a plug-in's TypeError too), and the failures a run may
+        # meet in the harness (an unreachable target, a non-finite state); any other error of legbench's own
+        # code propagates, a bug, not a failed engine
+        cause = exc.cause if isinstance(exc, _EngineError) else exc
+        status, reason = "failed", one_line(f"{type(cause).__name__} at t = {k * Ts:.4f} s: {cause}")
         n = k
     except KeyboardInterrupt:
         status, reason = "interrupted", f"interrupted at t = {k * Ts:.4f} s"
@@ -169,6 +183,14 @@ def simulate(
         info=info,
         wall_time=wall,
     )
+
+
+class _EngineError(Exception):
+    """An error raised by a backend's own call in the run loop (reset, read, step), carried to its handler."""
+
+    def __init__(self, cause: Exception) -> None:
+        super().__init__(str(cause))
+        self.cause = cause
 
 
 def _declared(backend: Backend) -> dict[str, Any]:

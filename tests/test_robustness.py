@@ -1195,3 +1195,36 @@ def test_info_problem_accepts_the_documented_shapes() -> None:
     assert info_problem({}) is None
     assert info_problem({"engine": "e", "contact": {"poc": "true", "Kp": None}, "max_step": 1e-4, "rtol": 1}) is None
     assert info_problem({"contact": {"poc": "centre", "Kp": 1.0e4}, "atol": np.float64(1e-9)}) is None
+
+
+class _ResetRaises(FakeBackend):
+    name = "resetraises"
+
+    def reset(self, q: Any, qd: Any) -> None:
+        raise TypeError("plug-in bug in reset")
+
+
+def test_an_engines_error_in_reset_fails_it_alone_and_a_harness_bug_is_not_an_engine_failure(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Only the engine's own calls (reset, read, step) are caught as a failed engine whatever they raise: a
+    plug-in's TypeError in reset fails it alone; a TypeError in legbench's own tick is a bug and propagates (it
+    would otherwise show as every backend 'failed', exit 3, with no traceback)."""
+    from legbench import run, tick
+
+    doc = {"name": "t", "duration": 0.02, "events": GOOD["events"][:1], "comparison": {"steady_window": 0.01}}
+    sc = scenario.parse(doc, "t.yaml")
+    physics = scenario.physics_of(sc)
+    b = _ResetRaises()
+    b.load(Path("unused.urdf"), physics, {})
+    tr = run.simulate(sc, b, physics)
+    assert tr.status == "failed" and tr.reason == "TypeError at t = 0.0000 s: plug-in bug in reset"
+
+    def broken_tick(*args: Any) -> int:
+        raise TypeError("a bug in the harness")
+
+    monkeypatch.setattr(tick, "tick", broken_tick)
+    fake = FakeBackend()
+    fake.load(Path("unused.urdf"), physics, {})
+    with pytest.raises(TypeError, match="a bug in the harness"):
+        run.simulate(sc, fake, physics)
