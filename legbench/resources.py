@@ -320,7 +320,10 @@ def urdf_file(params: str | Path | None = None) -> Path:
     if not target.is_file():
         from legbench import model  # deferred: model imports pinocchio
 
-        text = model.urdf_text(model.read_params(path))
+        leg = model.read_params(path)
+        if leg.digest is not None and leg.digest != digest:  # edited between the two reads: name it by what it holds
+            target = _cached(path, leg.digest)
+        text = model.urdf_text(leg)
         target.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=target.name, suffix=".tmp")  # unique: workers race
         with os.fdopen(fd, "w") as fh:
