@@ -746,8 +746,9 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None, origin: s
     """Read and validate a scenario file; ``overrides`` are dotted keys set before validation, their errors
     naming ``origin`` (what set them in the caller's words: ``--set``, the Python API's ``overrides``)."""
     doc, root = read_yaml(path)
-    for key, value in (overrides or {}).items():
-        set_key(doc, key, value, origin)
+    if isinstance(doc, dict):  # a document that is no mapping is refused by parse, naming the file, not the override
+        for key, value in (overrides or {}).items():
+            set_key(doc, key, value, origin)
     return parse(doc, str(path), root, tuple(overrides or ()), origin=origin)
 
 
@@ -884,8 +885,9 @@ def errors(path: str | Path, overrides: Mapping[str, Any] | None = None) -> list
     """
     try:
         doc, root = read_yaml(path)
-        for key, value in (overrides or {}).items():
-            set_key(doc, key, value)
+        if isinstance(doc, dict):  # else parse refuses the document itself, naming the file
+            for key, value in (overrides or {}).items():
+                set_key(doc, key, value)
     except ScenarioError as exc:
         return [exc]
     found: list[ScenarioError] = []

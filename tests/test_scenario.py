@@ -412,3 +412,14 @@ def test_yaml_11_numbers_that_read_as_something_else_are_refused(tmp_path: Path,
     with pytest.raises(ScenarioError, match=re.escape(says)):
         yamlfile.parse_overrides([f"{key}={text}"])
     assert yamlfile.parse_overrides([f"x='{text}'", "a=0", "b=00", "c=0.5"]) == {"x": text, "a": 0, "b": 0, "c": 0.5}
+
+
+def test_a_document_that_is_no_mapping_is_refused_as_such_with_set(tmp_path: Path) -> None:
+    """With --set, a scenario file holding a list was refused as "--set: duration: '' is a list of 2", naming
+    neither the file nor its problem; the overrides are applied only to a mapping, and parse names the file."""
+    f = tmp_path / "list.yaml"
+    f.write_text("- a\n- b\n")
+    (problem,) = scenario.errors(f, {"duration": 1})
+    assert str(problem).endswith("list.yaml: expected a mapping, got list")
+    with pytest.raises(ScenarioError, match=r"list\.yaml: expected a mapping, got list"):
+        scenario.load(f, {"duration": 1})
