@@ -544,3 +544,22 @@ def test_check_fails_when_a_floors_end_state_differs(tmp_path: Path, monkeypatch
                                  "--out", str(tmp_path)])  # fmt: skip
     assert args.func(args) == 1
     assert "period_loop NO (max diff 0.001)" in (tmp_path / "bench.md").read_text()
+
+
+def test_the_bench_records_the_load_at_its_start_and_the_stolen_cpu_time() -> None:
+    """An asv/pyperf review: the load average was taken only at the end and the hypervisor's steal time not at
+    all, so a run on a busy host could not be told from one on an idle one. during() gives both: here 10 s in
+    which other guests took 5 % of every CPU's time (in /proc/stat's jiffies), to one jiffy."""
+    import os
+
+    from legbench.studies import bench
+
+    hz = os.sysconf("SC_CLK_TCK")
+    before = {"load": [1.5, 1.0, 0.5], "time": 100.0, "steal": 1000}
+    after = {"load": [1.0, 1.0, 0.5], "time": 110.0, "steal": 1000 + int(0.05 * hz * 10 * (os.cpu_count() or 1))}
+    got = bench.during(before, after)
+    assert got["load_average_start"] == [1.5, 1.0, 0.5]
+    assert got["steal_fraction"] == pytest.approx(0.05, abs=1.0 / hz)
+    assert bench.during({**before, "steal": None}, after)["steal_fraction"] is None
+    now = bench.conditions()
+    assert set(now) == {"load", "time", "steal"}

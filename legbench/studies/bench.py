@@ -773,6 +773,35 @@ def machine() -> dict[str, Any]:
     }
 
 
+def conditions() -> dict[str, Any]:
+    """The machine's state now, for :func:`during`: load average, the time [s] and the CPU time the
+    hypervisor gave other guests (steal, /proc/stat, in USER_HZ jiffies; None where it is not reported)."""
+    steal = None
+    try:
+        fields = Path("/proc/stat").read_text().split("\n", 1)[0].split()
+        if fields[0] == "cpu" and len(fields) > 8:
+            steal = int(fields[8])
+    except (OSError, ValueError, IndexError):
+        pass
+    load = os.getloadavg() if hasattr(os, "getloadavg") else None
+    return {"load": list(load) if load else None, "time": time.monotonic(), "steal": steal}
+
+
+def during(before: Mapping[str, Any], after: Mapping[str, Any]) -> dict[str, Any]:
+    """What the machine did over the bench: the load average at its start, and the share of the machine's CPU
+    time stolen by other guests of the host (0 on bare metal or an idle host; a few per cent already moves
+    CPU-time figures on a shared VM)."""
+    out: dict[str, Any] = {"load_average_start": before.get("load")}
+    hz = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+    cpus = os.cpu_count() or 1
+    span = float(after["time"]) - float(before["time"])
+    if before.get("steal") is not None and after.get("steal") is not None and span > 0:
+        out["steal_fraction"] = (after["steal"] - before["steal"]) / hz / (span * cpus)
+    else:
+        out["steal_fraction"] = None
+    return out
+
+
 def targets_met(results: Sequence[BenchResult]) -> dict[str, bool]:
     """Per backend: every one of its targets met on every task, in every repeat (:func:`target_verdict`; a
     failed run or an inconclusive cell is not met)."""
@@ -812,13 +841,15 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
     m = meta["machine"]
     v = meta["versions"]
     engines = ", ".join(f"{k} {v[k]}" for k in registry.engine_packages() if k in v)
-    load = m.get("load_average")
+    load, start, steal = m.get("load_average"), m.get("load_average_start"), m.get("steal_fraction")
     lines = [
         "# legbench bench",
         "",
         f"Command: `{meta['command']}`  ",
         f"Machine: {m['cpu_model']}, {m['cpus_usable']} usable CPUs, {m['system']} {m['machine']}"
-        f"{f', load average {load[0]:.2f} at the end' if load else ''}; "
+        f"{f', load average {start[0]:.2f} at the start' if start else ''}"
+        f"{(', ' if start else ', load average ') + f'{load[0]:.2f} at the end' if load else ''}"
+        f"{f', CPU time stolen by other guests {100 * steal:.2f} %' if steal is not None else ''}; "
         f"Python {v['python']}, numpy {v.get('numpy', '?')}, {engines}.  ",
         f"Settings: {s['repeats']} timed repeats after {s['warmup']} warm-up, interleaved across backends and "
         "variants (both orders rotated from repeat to repeat); "
@@ -1065,7 +1096,9 @@ def _cli(args: argparse.Namespace) -> int:
         )
 
     min_sample = 0.0 if args.quick else MIN_SAMPLE
+    before = conditions()
     results = run_bench(scenarios, names, repeats, args.warmup, args.contact_mode, not args.no_memory, show, min_sample)
+    after = conditions()
     settings = {
         "repeats": repeats,
         "warmup": args.warmup,
@@ -1087,7 +1120,7 @@ def _cli(args: argparse.Namespace) -> int:
         "targets_met": met,
         "targets": {**counts, "line": count_line(counts)},
         "versions": versions(),
-        "machine": machine(),
+        "machine": {**machine(), **during(before, after)},
     }
     js, md = write_results(results, Path(args.out), meta)
     if not args.quiet:
