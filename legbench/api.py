@@ -239,8 +239,9 @@ class Result:
         result = None if kwargs or self._comparison is None else self._comparison.result
         try:
             if target != self.path:  # the run's entries, not the directory: out_dir keeps its own mode
+                entries = [e for e in self.path.iterdir() if e.resolve() != target.resolve()]  # before it exists
                 target.mkdir(parents=True, exist_ok=True)
-                for entry in self.path.iterdir():
+                for entry in entries:
                     if entry.is_dir():
                         shutil.copytree(entry, target / entry.name)
                     else:

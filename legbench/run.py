@@ -132,7 +132,14 @@ def simulate(
                     next_event += 1
                 p, s = active.params, active.state
                 next_tick = ticks[next_event] if next_event < n_events else n
-            code = control(k, q1, q2, q3, qd1, qd2, qd3, f1, f2, f3, p, s, consts, log, u)
+            try:
+                code = control(k, q1, q2, q3, qd1, qd2, qd3, f1, f2, f3, p, s, consts, log, u)
+            except Exception as exc:  # the engine's read gave what the tick cannot take (an array, a None)?
+                read_values = (q1, q2, q3, qd1, qd2, qd3, f1, f2, f3)
+                if any(type(x) is not float for x in read_values):
+                    kinds = ", ".join(sorted({type(x).__name__ for x in read_values}))
+                    raise _EngineError(TypeError(f"read() returned {kinds}, not nine floats")) from exc
+                raise  # the harness's own error: a bug, not the engine's
             if code:
                 raise SimulationDiverged(backend.name, k * Ts, _diverged(code))
             if k < last:
@@ -150,7 +157,10 @@ def simulate(
         # meet in the harness (an unreachable target, a non-finite state); any other error of legbench's own
         # code propagates, a bug, not a failed engine
         cause = exc.cause if isinstance(exc, _EngineError) else exc
-        status, reason = "failed", one_line(f"{type(cause).__name__} at t = {k * Ts:.4f} s: {cause}")
+        if isinstance(cause, SimulationDiverged):  # the engine's own divergence check: its message says it all
+            status, reason = "failed", one_line(str(cause))
+        else:
+            status, reason = "failed", one_line(f"{type(cause).__name__} at t = {k * Ts:.4f} s: {cause}")
         n = k
     except KeyboardInterrupt:
         status, reason = "interrupted", f"interrupted at t = {k * Ts:.4f} s"

@@ -112,6 +112,19 @@ def test_a_report_that_fails_leaves_its_new_directory_as_it_was(result: api.Resu
     assert (tmp_path / "link").is_symlink() and not any((tmp_path / "real").iterdir())
 
 
+def test_a_report_into_a_folder_inside_the_run_does_not_copy_the_folder_into_itself(
+    result: api.Result, tmp_path: Path
+) -> None:
+    """The run's entries were listed after out_dir was made, so out_dir = run/report was copied into itself."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(result.path, run)
+    html = api.open_run(run).report(run / "report")
+    assert html == run / "report" / "report.html" and html.is_file()
+    assert not (run / "report" / "report").exists()
+
+
 def test_mapping_profile_and_both_contact_modes(tmp_path: Path) -> None:
     """A mapping scenario, the engine-defaults profile and both contact modes: two sibling run directories, the
     profile recorded in each run.json, and the native comparison split against the reference-mode one."""

@@ -226,5 +226,5 @@ def test_a_plug_in_that_raises_in_the_pre_flight_is_one_line_naming_it(
     assert cli.main([*argv, "--set", "duration=0.02", "--set", "comparison.steady_window=0.01"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0
-    assert "pre-flight: loadraises failed to load: AttributeError: 'str' object has no attribute 'get'" in err
+    assert "parity check: loadraises failed to load: AttributeError: 'str' object has no attribute 'get'" in err
     assert not out.exists()

@@ -1228,3 +1228,47 @@ def test_an_engines_error_in_reset_fails_it_alone_and_a_harness_bug_is_not_an_en
     fake.load(Path("unused.urdf"), physics, {})
     with pytest.raises(TypeError, match="a bug in the harness"):
         run.simulate(sc, fake, physics)
+
+
+class _ColumnState(FakeBackend):
+    """A plug-in whose state() gives (3, 1) columns: read() then returns lists, which the compiled tick refuses."""
+
+    name = "columnstate"
+
+    def state(self) -> tuple[Any, Any]:
+        q, qd = super().state()
+        return q.reshape(3, 1), qd.reshape(3, 1)
+
+
+class _DivergesInStep(FakeBackend):
+    """A plug-in that checks its own state, as the built-ins do (check_finite), and raises SimulationDiverged."""
+
+    name = "divergesinstep"
+
+    def step(self, tau: Any) -> None:
+        from legbench.exceptions import SimulationDiverged
+
+        if len(self.steps) >= 3:
+            raise SimulationDiverged(self.name, 0.003, "non-finite joint state")
+        super().step(tau)
+
+
+def test_an_engine_read_of_the_wrong_types_or_its_own_divergence_fails_it_alone_with_its_reason() -> None:
+    """Two cases the narrowed catch first got wrong (a review): a read() of arrays fails only inside the tick, so
+    it propagated as the harness's error; and an engine's own SimulationDiverged, raised in step, was reported as
+    'SimulationDiverged at t = ...: div diverged at ...'. Now the first fails that backend naming what read()
+    returned, and the second keeps the engine's own sentence."""
+    from legbench import run
+
+    doc = {"name": "t", "duration": 0.02, "events": GOOD["events"][:1], "comparison": {"steady_window": 0.01}}
+    sc = scenario.parse(doc, "t.yaml")
+    physics = scenario.physics_of(sc)
+    col = _ColumnState()
+    col.load(Path("unused.urdf"), physics, {})
+    tr = run.simulate(sc, col, physics)
+    assert tr.status == "failed"
+    assert tr.reason == "TypeError at t = 0.0000 s: read() returned float, list, not nine floats"
+    div = _DivergesInStep()
+    div.load(Path("unused.urdf"), physics, {})
+    tr = run.simulate(sc, div, physics)
+    assert tr.status == "failed" and tr.reason == "divergesinstep diverged at t = 0.0030 s: non-finite joint state"

@@ -796,7 +796,8 @@ def during(before: Mapping[str, Any], after: Mapping[str, Any]) -> dict[str, Any
     cpus = os.cpu_count() or 1
     span = float(after["time"]) - float(before["time"])
     if before.get("steal") is not None and after.get("steal") is not None and span > 0:
-        out["steal_fraction"] = (after["steal"] - before["steal"]) / hz / (span * cpus)
+        # a counter that went backwards (a VM migrated) is no measurement of stealing
+        out["steal_fraction"] = max(0.0, (after["steal"] - before["steal"]) / hz / (span * cpus))
     else:
         out["steal_fraction"] = None
     return out

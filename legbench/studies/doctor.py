@@ -179,8 +179,8 @@ _FIXED = ("group", "row", "unit", "spec", "tolerance", "status")
 
 
 def _engine_error(name: str, what: str, exc: BaseException) -> str:
-    return one_line(f"pre-flight: {name} failed to {what}: {type(exc).__name__}: {exc} (run without it, or with "
-                    "--no-preflight to let its run fail alone)")  # fmt: skip
+    return one_line(f"parity check: {name} failed to {what}: {type(exc).__name__}: {exc} (leave it out; a run's "
+                    "pre-flight can be skipped with --no-preflight, so that its run fails alone)")  # fmt: skip
 
 
 def table(

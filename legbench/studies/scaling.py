@@ -210,7 +210,10 @@ def _probe(runs: Sequence[tuple[Scenario, str]], offset: int, passes: int, barri
     """In a fresh process: the warm-up, wait for the others, then ``passes`` times every run of ``runs`` from
     ``runs[offset]`` on (wrapping round); send (CPU, wall) of it all [s] and the first failure down ``out``."""
     _run_all(_warm_runs(runs))  # first uses (imports, compiled code), as a worker's warm-up
-    barrier.wait(BARRIER_TIMEOUT)
+    try:
+        barrier.wait(BARRIER_TIMEOUT)
+    except threading.BrokenBarrierError:  # another probe died and the parent gave up: end quietly
+        return
     mine = [*runs[offset:], *runs[:offset]] * passes
     c0, w0 = time.process_time(), time.perf_counter()
     failed = _run_all(mine)
@@ -248,12 +251,17 @@ def ceiling_sample(
                 except EOFError:
                     barrier.abort()  # the others would wait for it at the barrier
                     proc.join(5.0)
+                    why = "the engine crashed it" if (proc.exitcode or 0) < 0 else "an error in it"
                     raise LegbenchError(f"bench --parallel: a probe process ended (exit code {proc.exitcode}) "
-                                        "without its result: the engine crashed it") from None  # fmt: skip
+                                        f"without its result: {why}") from None  # fmt: skip
                 if which:
                     raise LegbenchError(f"bench --parallel: the probe's run {which} ended {why}")
                 got.append((cpu, wall))
     finally:
+        if len(got) < n:  # leaving on an error: the probes still running are of no use, stop them at once
+            for p in procs:
+                if p.is_alive():
+                    p.kill()
         for p in procs:
             p.join(5.0)
             if p.is_alive():
