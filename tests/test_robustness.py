@@ -1197,6 +1197,18 @@ def test_info_problem_accepts_the_documented_shapes() -> None:
     assert info_problem({"contact": {"poc": "centre", "Kp": 1.0e4}, "atol": np.float64(1e-9)}) is None
 
 
+def _short_run(cls: type[FakeBackend]) -> Any:
+    """A 20 ms hold run on a fresh ``cls`` (a fake plug-in), through run.simulate: its RunResult."""
+    from legbench import run
+
+    doc = {"name": "t", "duration": 0.02, "events": GOOD["events"][:1], "comparison": {"steady_window": 0.01}}
+    sc = scenario.parse(doc, "t.yaml")
+    physics = scenario.physics_of(sc)
+    backend = cls()
+    backend.load(Path("unused.urdf"), physics, {})
+    return run.simulate(sc, backend, physics)
+
+
 class _ResetRaises(FakeBackend):
     name = "resetraises"
 
@@ -1210,24 +1222,17 @@ def test_an_engines_error_in_reset_fails_it_alone_and_a_harness_bug_is_not_an_en
     """Only the engine's own calls (reset, read, step) are caught as a failed engine whatever they raise: a
     plug-in's TypeError in reset fails it alone; a TypeError in legbench's own tick is a bug and propagates (it
     would otherwise show as every backend 'failed', exit 3, with no traceback)."""
-    from legbench import run, tick
+    from legbench import tick
 
-    doc = {"name": "t", "duration": 0.02, "events": GOOD["events"][:1], "comparison": {"steady_window": 0.01}}
-    sc = scenario.parse(doc, "t.yaml")
-    physics = scenario.physics_of(sc)
-    b = _ResetRaises()
-    b.load(Path("unused.urdf"), physics, {})
-    tr = run.simulate(sc, b, physics)
+    tr = _short_run(_ResetRaises)
     assert tr.status == "failed" and tr.reason == "TypeError at t = 0.0000 s: plug-in bug in reset"
 
     def broken_tick(*args: Any) -> int:
         raise TypeError("a bug in the harness")
 
     monkeypatch.setattr(tick, "tick", broken_tick)
-    fake = FakeBackend()
-    fake.load(Path("unused.urdf"), physics, {})
     with pytest.raises(TypeError, match="a bug in the harness"):
-        run.simulate(sc, fake, physics)
+        _short_run(FakeBackend)
 
 
 class _ColumnState(FakeBackend):
@@ -1258,17 +1263,8 @@ def test_an_engine_read_of_the_wrong_types_or_its_own_divergence_fails_it_alone_
     it propagated as the harness's error; and an engine's own SimulationDiverged, raised in step, was reported as
     'SimulationDiverged at t = ...: div diverged at ...'. Now the first fails that backend naming what read()
     returned, and the second keeps the engine's own sentence."""
-    from legbench import run
-
-    doc = {"name": "t", "duration": 0.02, "events": GOOD["events"][:1], "comparison": {"steady_window": 0.01}}
-    sc = scenario.parse(doc, "t.yaml")
-    physics = scenario.physics_of(sc)
-    col = _ColumnState()
-    col.load(Path("unused.urdf"), physics, {})
-    tr = run.simulate(sc, col, physics)
+    tr = _short_run(_ColumnState)
     assert tr.status == "failed"
     assert tr.reason == "TypeError at t = 0.0000 s: read() returned float, list, not nine floats"
-    div = _DivergesInStep()
-    div.load(Path("unused.urdf"), physics, {})
-    tr = run.simulate(sc, div, physics)
+    tr = _short_run(_DivergesInStep)
     assert tr.status == "failed" and tr.reason == "divergesinstep diverged at t = 0.0030 s: non-finite joint state"
