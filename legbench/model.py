@@ -449,12 +449,17 @@ def load_params(path: Path | str | None = None) -> LegParams:
     modification time, size and inode: read again, as :func:`read_params` reads it, once the file changes, so
     a process (a notebook, a script) that outlives an edit of the file uses the edited leg, as the URDF does]."""
     resolved = _resolved(Path(path) if path is not None else resources.model_file())
+    return _load_params(resolved, _file_stamp(resolved))  # None if missing: read_params says why, in its words
+
+
+def _file_stamp(path: str | Path) -> tuple[int, int, int] | None:
+    """A file's identity for the caches keyed on it: (modification time [ns], size [bytes], inode); None where it
+    cannot be read (a file rewritten, or replaced atomically, is another key)."""
     try:
-        st = resolved.stat()
-        stamp: tuple[int, int, int] | None = (st.st_mtime_ns, st.st_size, st.st_ino)
-    except OSError:  # read_params says why, in its words
-        stamp = None
-    return _load_params(resolved, stamp)
+        st = os.stat(path)
+    except OSError:
+        return None
+    return (st.st_mtime_ns, st.st_size, st.st_ino)
 
 
 def read_params(path: Path | str) -> LegParams:
@@ -676,12 +681,7 @@ def pinocchio_model(urdf: str | Path | None = None, gravity: float | None = None
     its modification time, size and inode]."""
     path = str(urdf) if urdf is not None else str(resources.urdf_file())
     g = load_params().gravity if gravity is None else gravity
-    try:  # the file's identity: a URDF regenerated in place (`legbench model urdf`) is a new model
-        st = os.stat(path)
-        stamp: tuple[int, int, int] | None = (st.st_mtime_ns, st.st_size, st.st_ino)
-    except OSError:
-        stamp = None
-    return _pinocchio_model(path, g, stamp)
+    return _pinocchio_model(path, g, _file_stamp(path))  # a URDF regenerated in place is a new model
 
 
 @functools.lru_cache(maxsize=32)

@@ -203,14 +203,21 @@ class _EngineError(Exception):
         self.cause = cause
 
 
+#: What a backend declares of itself, recorded beside its info (what verification predicts and scores by).
+_DECLARED: tuple[tuple[str, Callable[[Backend], Any]], ...] = (
+    ("integrator_family", lambda b: b.integrator_family()),
+    ("sub_steps", lambda b: b.sub_steps()),
+    ("engine_contact", lambda b: bool(b.engine_contact())),
+)
+
+
 def _declared(backend: Backend) -> dict[str, Any]:
-    """What a backend whose :meth:`~Backend.info` failed still declares (the profile, the integrator family,
-    the sub-steps, whether it has contact of its own), each only if asking for it does not fail too."""
+    """What a backend whose :meth:`~Backend.info` failed still declares (the profile and :data:`_DECLARED`),
+    each only if asking for it does not fail too."""
     out: dict[str, Any] = {"profile": backend.profile}
-    for key, ask in (("integrator_family", backend.integrator_family), ("sub_steps", backend.sub_steps),
-                     ("engine_contact", backend.engine_contact)):  # fmt: skip
+    for key, ask in _DECLARED:
         try:
-            out[key] = ask()
+            out[key] = ask(backend)
         except Exception:  # noqa: S112 - the run already failed with the reason; this is only what is known
             continue
     return out
@@ -218,9 +225,8 @@ def _declared(backend: Backend) -> dict[str, Any]:
 
 def backend_info(backend: Backend) -> dict[str, Any]:
     """What run.json records of a backend: its :meth:`~Backend.info`, the ``profile`` it was loaded with,
-    its declared ``integrator_family``, ``sub_steps`` and ``engine_contact`` (what verification predicts and
-    scores by), and its :meth:`~Backend.warnings` after the run (e.g. a sub-step too coarse for the contact
-    law).
+    its declared ``integrator_family``, ``sub_steps`` and ``engine_contact`` (:data:`_DECLARED`), and its
+    :meth:`~Backend.warnings` after the run (e.g. a sub-step too coarse for the contact law).
 
     Raises:
         LegbenchError: the backend's info breaks what legbench reads of it
@@ -230,8 +236,7 @@ def backend_info(backend: Backend) -> dict[str, Any]:
     problem = info_problem(info)
     if problem is not None:
         raise LegbenchError(f"{backend.name}: info() {problem}")
-    return {**info, "profile": backend.profile, "integrator_family": backend.integrator_family(),
-            "sub_steps": backend.sub_steps(), "engine_contact": bool(backend.engine_contact()),
+    return {**info, "profile": backend.profile, **{key: ask(backend) for key, ask in _DECLARED},
             "warnings": backend.warnings()}  # fmt: skip
 
 

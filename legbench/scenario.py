@@ -746,10 +746,16 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None, origin: s
     """Read and validate a scenario file; ``overrides`` are dotted keys set before validation, their errors
     naming ``origin`` (what set them in the caller's words: ``--set``, the Python API's ``overrides``)."""
     doc, root = read_yaml(path)
-    if isinstance(doc, dict):  # a document that is no mapping is refused by parse, naming the file, not the override
+    _override(doc, overrides, origin)
+    return parse(doc, str(path), root, tuple(overrides or ()), origin=origin)
+
+
+def _override(doc: Any, overrides: Mapping[str, Any] | None, origin: str = "--set") -> None:
+    """Set the dotted ``overrides`` in the document ``doc`` (their errors naming ``origin``), if it is a mapping:
+    a document that is none is refused by :func:`parse`, naming the file, not an override."""
+    if isinstance(doc, dict):
         for key, value in (overrides or {}).items():
             set_key(doc, key, value, origin)
-    return parse(doc, str(path), root, tuple(overrides or ()), origin=origin)
 
 
 def json_schema() -> dict[str, Any]:
@@ -885,9 +891,7 @@ def errors(path: str | Path, overrides: Mapping[str, Any] | None = None) -> list
     """
     try:
         doc, root = read_yaml(path)
-        if isinstance(doc, dict):  # else parse refuses the document itself, naming the file
-            for key, value in (overrides or {}).items():
-                set_key(doc, key, value)
+        _override(doc, overrides)
     except ScenarioError as exc:
         return [exc]
     found: list[ScenarioError] = []
