@@ -69,8 +69,7 @@ def load_scenario(source: str | Path | Mapping[str, Any], overrides: Mapping[str
     """
     if isinstance(source, Mapping):
         doc: dict[str, Any] = copy.deepcopy(dict(source))
-        for key, value in (overrides or {}).items():
-            yamlfile.set_key(doc, key, value, "overrides")
+        scenario_mod.apply_overrides(doc, overrides, "overrides")
         return scenario_mod.parse(doc, "<mapping>", overridden=tuple(overrides or ()), origin="overrides")
     path = Path(source)
     if not path.exists() and resources.scenario(str(source)).is_file():

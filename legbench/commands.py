@@ -275,22 +275,25 @@ def _validate(args: argparse.Namespace) -> int:
     return EXIT_USER_ERROR if bad else EXIT_OK
 
 
+def _set_refused(path: str, kind: str) -> tuple[str, list[LegbenchError]]:
+    return "", [LegbenchError(f"{path}: --set applies to scenario files; this is {kind}")]
+
+
 def _validate_one(path: str, overrides: Mapping[str, Any] | None = None) -> tuple[str, list[LegbenchError]]:
     try:
         doc, _ = yamlfile.read_yaml(path)
     except LegbenchError as exc:
         return "", [exc]
-    if overrides and isinstance(doc, dict):  # --set is a scenario's, as legbench run's
-        kind = next((k for key, k in (("studies", "a sweep file"), ("frameworks", "a framework file")) if key in doc),
-                    None)  # fmt: skip
-        if kind is not None:
-            return "", [LegbenchError(f"{path}: --set applies to scenario files; this is {kind}")]
     if isinstance(doc, dict) and "studies" in doc:
+        if overrides:  # --set is a scenario's, as legbench run's
+            return _set_refused(path, "a sweep file")
         from legbench.studies import sweep
 
         sw = sweep.load_sweep(path)
         return f"{path}: ok (sweep {sw.name}: {len(sw.studies)} studies)", []
     if isinstance(doc, dict) and "frameworks" in doc:
+        if overrides:
+            return _set_refused(path, "a framework file")
         from legbench.studies import reproduce
 
         plan = reproduce.load_plan(path)
@@ -300,7 +303,7 @@ def _validate_one(path: str, overrides: Mapping[str, Any] | None = None) -> tupl
     tol_keys = {*check.DEFAULT_TOLERANCES, "scenarios"}
     if isinstance(doc, dict) and doc and set(doc) & tol_keys and not set(doc) & set(scenario.TOP_KEYS):
         if overrides:
-            return "", [LegbenchError(f"{path}: --set applies to scenario files; this is a tolerance file")]
+            return _set_refused(path, "a tolerance file")
         problems: list[LegbenchError] = list(check.tolerance_errors(path))
         return f"{path}: ok (tolerances: {', '.join(sorted(map(str, doc)))})", problems
     problems = list(scenario.errors(path, overrides))

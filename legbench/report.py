@@ -30,6 +30,7 @@ from typing import Any
 
 import pandas as pd
 
+from legbench.backends.base import rigid_contact
 from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import ResultsError
 from legbench.report_figures import (
@@ -444,12 +445,9 @@ def _rigid(result: ComparisonResult, name: str) -> bool:
     """The backend reports its own contact as rigid (run.json: engine contact on, ``contact.Kp`` null, as DART's
     LCP): it has no spring, so the law's penetration Fn/Kp is not what it was meant to follow."""
     b = result.run.backends.get(name)
-    contact = b.info.get("contact") if b is not None else None
-    return (
-        isinstance(contact, Mapping)
-        and contact.get("enabled") is not False
-        and ("Kp" in contact and contact["Kp"] is None)
-    )
+    if b is None or not rigid_contact(b.info):
+        return False
+    return b.info["contact"].get("enabled") is not False
 
 
 def _residual_table(result: ComparisonResult) -> Table:

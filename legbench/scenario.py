@@ -746,11 +746,11 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None, origin: s
     """Read and validate a scenario file; ``overrides`` are dotted keys set before validation, their errors
     naming ``origin`` (what set them in the caller's words: ``--set``, the Python API's ``overrides``)."""
     doc, root = read_yaml(path)
-    _override(doc, overrides, origin)
+    apply_overrides(doc, overrides, origin)
     return parse(doc, str(path), root, tuple(overrides or ()), origin=origin)
 
 
-def _override(doc: Any, overrides: Mapping[str, Any] | None, origin: str = "--set") -> None:
+def apply_overrides(doc: Any, overrides: Mapping[str, Any] | None, origin: str = "--set") -> None:
     """Set the dotted ``overrides`` in the document ``doc`` (their errors naming ``origin``), if it is a mapping:
     a document that is none is refused by :func:`parse`, naming the file, not an override."""
     if isinstance(doc, dict):
@@ -891,7 +891,7 @@ def errors(path: str | Path, overrides: Mapping[str, Any] | None = None) -> list
     """
     try:
         doc, root = read_yaml(path)
-        _override(doc, overrides)
+        apply_overrides(doc, overrides)
     except ScenarioError as exc:
         return [exc]
     found: list[ScenarioError] = []

@@ -70,6 +70,12 @@ def info_problem(info: object) -> str | None:
     return None
 
 
+def rigid_contact(info: Mapping[str, Any]) -> bool:
+    """The backend's info declares its contact rigid: ``contact.Kp`` given and null (:data:`INFO_KEYS`)."""
+    contact = info.get("contact")
+    return isinstance(contact, Mapping) and "Kp" in contact and contact["Kp"] is None
+
+
 def _is_number(v: object) -> bool:
     return isinstance(v, numbers.Real) and not isinstance(v, bool)
 

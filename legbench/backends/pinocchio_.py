@@ -170,7 +170,6 @@ class PinocchioBackend(Backend):
         R, p, inertia, a0, lc, lim = inputs
         #: state and read-out (q1..3, qd1..3, fx, fy, fz) and the kernel's arrays: all reused every period
         self._x = np.zeros(9)
-        self._floor_args = inputs
         model, scratch = pinocchio_kernel.pack(R, p, inertia, a0, lc, lim)
         self._limit_view = pinocchio_kernel.limit_record(scratch)
         if self.cfg["integrator"] == "rk4":

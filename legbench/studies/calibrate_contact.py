@@ -39,6 +39,7 @@ import pandas as pd
 from legbench import backends as registry
 from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
+from legbench.backends.base import rigid_contact
 from legbench.contact import ContactParams
 from legbench.controllers import EffortController, saturate
 from legbench.exceptions import LegbenchError
@@ -206,7 +207,7 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     creep = float(np.hypot(v[end, 0], v[end, 1]).mean())
     if saturated:
         notes.append(f"{saturated} ticks saturated a joint torque: h_d was not fully applied")
-    compliant = log.info.get("contact", {}).get("Kp", contact.Kp) is not None
+    compliant = not rigid_contact(log.info)
     if not compliant:
         notes.append("rigid contact: no Kp, Kd to match")
     return Calibration(

@@ -46,6 +46,7 @@ __all__ = [
     "DaskExecutor",
     "Executor",
     "LocalExecutor",
+    "capped",
     "make_executor",
     "warm_up",
 ]
@@ -237,7 +238,7 @@ def warm_up(preload: Sequence[str] = DEFAULT_PRELOAD) -> None:
         forkserver.ensure_running()
 
 
-def _capped(jobs: int | None, tasks: int | None) -> int:
+def capped(jobs: int | None, tasks: int | None) -> int:
     """The worker count: ``jobs`` (default: the CPU count), checked >= 1, at most ``tasks`` (and at least 1)."""
     n = int(jobs) if jobs else (os.cpu_count() or 1)
     if n < 1:
@@ -302,7 +303,7 @@ class LocalExecutor(Executor):
             than that are started (each is a process that imports the engines; ``--jobs 1000`` for two
             runs started 1000).
         """
-        self.jobs = _capped(jobs, tasks)
+        self.jobs = capped(jobs, tasks)
         self.preload = tuple(preload)
         self._pool: ProcessPoolExecutor | None = None
         self._starter: threading.Thread | None = None
@@ -506,7 +507,7 @@ class DaskExecutor(Executor):
         except ImportError as exc:
             raise LegbenchError("executor 'dask' needs Dask distributed: pip install 'legbench[dask]'") from exc
         self.scheduler = scheduler
-        self.jobs = _capped(jobs, tasks)
+        self.jobs = capped(jobs, tasks)
         self.processes = processes
         self._cluster: Any = None
         if scheduler is None:

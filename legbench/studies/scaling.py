@@ -67,6 +67,7 @@ from legbench.exceptions import LegbenchError
 from legbench.results import atomic_write_text, write_json
 from legbench.run import run_backend, run_many, start_pool
 from legbench.scenario import Scenario, shorten
+from legbench.studies.executors import capped
 
 __all__ = [
     "PoolTiming",
@@ -351,7 +352,7 @@ def _ready_pool(
 ) -> tuple[Any, float, float, int]:
     """A pool started now (:func:`legbench.run.start_pool`), every worker imported, then warmed up on ``warm``:
     (the pool, seconds until ready, seconds until warm, distinct worker processes)."""
-    n = max(1, min(jobs, tasks))  # the workers start_pool starts
+    n = capped(jobs, tasks)  # the workers start_pool starts
     b1, b2 = barriers(n), barriers(n)
     w0 = time.perf_counter()
     pool = start_pool(jobs, tasks)

@@ -104,7 +104,7 @@ from scipy.optimize import linear_sum_assignment
 from legbench import backends as registry
 from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
-from legbench.backends.base import Physics
+from legbench.backends.base import Physics, rigid_contact
 from legbench.exceptions import LegbenchError
 from legbench.results import atomic_write_text, checks_summary, platform_info, versions, write_json
 from legbench.run import backend_rates, simulate
@@ -379,7 +379,7 @@ def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO) -> 
         # rest penetration
         y_m, fn = float(y.mean()), float(f[:, 2].mean())
         tol = SOLVER_RTOL * abs(fn / c.Kp) + c.Kd * float(np.abs(ydot).max()) / c.Kp
-        if tr.info.get("contact", {}).get("Kp", c.Kp) is None:
+        if rigid_contact(tr.info):
             # rigid native contact (the backend declares no stiffness): it must not sink, to the same tolerance
             out.append(_check("rest_penetration", name, variant, "penetration R_foot - z_E", "m", y_m, 0.0, tol,
                               f"rigid contact (no Kp declared): expected no sinking; Fn = {fn:.3f} N, "
@@ -629,14 +629,18 @@ def _group_checks(task: tuple[str, str]) -> list[Check]:
     try:
         return _GROUPS[group][1]([name])
     except Exception as exc:  # a backend that cannot load or run fails its own rows, not the whole verification
-        why = f"{type(exc).__name__}: {exc}"
-        return [_failed(case, name, "", why) for case in _GROUPS[group][0]]
+        return _failed_group(task, f"{type(exc).__name__}: {exc}")
+
+
+def _failed_group(task: tuple[str, str], why: str) -> list[Check]:
+    """One failed row per case of a group, ``(group, backend)``, each saying ``why``."""
+    group, name = task
+    return [_failed(case, name, "", why) for case in _GROUPS[group][0]]
 
 
 def _crashed_group(task: tuple[str, str], why: str) -> list[Check]:
-    """The rows of a group whose worker process died under it (the engine crashed): one failed row per case."""
-    group, name = task
-    return [_failed(case, name, "", f"the engine crashed: {why}") for case in _GROUPS[group][0]]
+    """The rows of a group whose worker process died under it (the engine crashed)."""
+    return _failed_group(task, f"the engine crashed: {why}")
 
 
 def verify(
