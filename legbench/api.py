@@ -40,7 +40,7 @@ import pandas as pd
 
 from legbench import logs, resources, yamlfile
 from legbench import scenario as scenario_mod
-from legbench.compare import ComparisonResult, compare
+from legbench.compare import ComparisonResult, compare, reference_sibling
 from legbench.exceptions import LegbenchError, ResultsError, ScenarioError
 from legbench.results import (
     Run,
@@ -500,8 +500,8 @@ def open_run(path: str | Path) -> Result:
     # "." or "..": no name to find the sibling <name>__reference by, here or in Result.compare
     path = given.resolve() if given.name in ("", ".", "..") else given
     res = Result(scenario, path, {n: _trace(run, n) for n in run.backends}, run.contact_mode)
-    sibling = path.parent / f"{path.name}__reference"
-    if run.contact_mode == "native" and (sibling / "run.json").is_file():
+    sibling = reference_sibling(path, run.contact_mode)
+    if sibling is not None:
         other = open_run(sibling)
         if other.contact_mode == "reference" and other.scenario.name == res.scenario.name:
             res.reference_mode = other

@@ -41,7 +41,7 @@ from legbench.metrics import (
 from legbench.results import FRAME_COLUMNS, METRICS_SCHEMA, Run, RunResult, load_run, log_digests, result_from_frame
 from legbench.signals import JOINT_OF, LABELS, SIGNAL_OF
 
-__all__ = ["ComparisonResult", "compare"]
+__all__ = ["ComparisonResult", "compare", "reference_sibling"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -160,10 +160,12 @@ def _json_value(v: Any) -> Any:
     return v
 
 
-def _sibling(run: Run) -> Path | None:
-    if run.contact_mode != "native":
+def reference_sibling(run_dir: Path, contact_mode: str) -> Path | None:
+    """The reference-contact-mode run beside a native-mode run directory, ``<run_dir>__reference``, if it holds a
+    run (run.json); None otherwise or for a run not in native mode."""
+    if contact_mode != "native":
         return None
-    cand = run.path.parent / f"{run.path.name}__reference"
+    cand = run_dir.parent / f"{run_dir.name}__reference"
     return cand if (cand / "run.json").is_file() else None
 
 
@@ -254,7 +256,10 @@ def compare(
             notes.append(f"{s.backend}: J_poc is singular at the steady-state pose; analytic check undefined")
     split: tuple[ModeSplit, ...] = ()
     split_run = None
-    sdir = _sibling(run) if split_dir == "auto" else (Path(split_dir) if split_dir is not None else None)
+    if split_dir == "auto":
+        sdir = reference_sibling(run.path, run.contact_mode)
+    else:
+        sdir = Path(split_dir) if split_dir is not None else None
     if sdir is not None:
         split_run = load_run(sdir)
         if split_run.contact_mode != "reference":
