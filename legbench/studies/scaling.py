@@ -317,34 +317,16 @@ def _no_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-class _Barriers:
-    """Barriers a pool's tasks can be handed (a manager's proxies, picklable), from a manager started on first
-    use (a spawned process, about 0.3 s, untimed) and shut down with :meth:`close`."""
-
-    def __init__(self) -> None:
-        self._manager: Any = None
-        self._lock = threading.Lock()
-
-    def __call__(self, parties: int) -> Any:
-        with self._lock:
-            if self._manager is None:
-                self._manager = SyncManager(ctx=multiprocessing.get_context("spawn"))
-                self._manager.start(_no_sigint)
-            return self._manager.Barrier(parties)
-
-    def close(self) -> None:
-        if self._manager is not None:
-            self._manager.shutdown()
-            self._manager = None
-
-
 @contextmanager
-def _barriers() -> Iterator[_Barriers]:
-    b = _Barriers()
+def _barriers() -> Iterator[Callable[[int], Any]]:
+    """Barriers a pool's tasks can be handed (a manager's proxies, picklable): the manager's ``Barrier``, from a
+    manager process started now (spawned, about 0.3 s, untimed) and shut down on leaving."""
+    manager = SyncManager(ctx=multiprocessing.get_context("spawn"))
+    manager.start(_no_sigint)
     try:
-        yield b
+        yield manager.Barrier
     finally:
-        b.close()
+        manager.shutdown()
 
 
 def _ready_pool(
