@@ -497,10 +497,8 @@ def open_run(path: str | Path) -> Result:
     _run_dir(given)
     run = load_run(given)
     scenario = _recorded_scenario(run)
-    # "." or "..": no name to find the sibling <name>__reference by, here or in Result.compare
-    path = given.resolve() if given.name in ("", ".", "..") else given
-    res = Result(scenario, path, {n: _trace(run, n) for n in run.backends}, run.contact_mode)
-    sibling = reference_sibling(path, run.contact_mode)
+    res = Result(scenario, given, {n: _trace(run, n) for n in run.backends}, run.contact_mode)
+    sibling = reference_sibling(given, run.contact_mode)
     if sibling is not None:
         other = open_run(sibling)
         if other.contact_mode == "reference" and other.scenario.name == res.scenario.name:

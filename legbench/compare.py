@@ -165,6 +165,8 @@ def reference_sibling(run_dir: Path, contact_mode: str) -> Path | None:
     run (run.json); None otherwise or for a run not in native mode."""
     if contact_mode != "native":
         return None
+    if run_dir.name in ("", ".", ".."):  # "." or "..": no name to find the sibling by until resolved
+        run_dir = run_dir.resolve()
     cand = run_dir.parent / f"{run_dir.name}__reference"
     return cand if (cand / "run.json").is_file() else None
 

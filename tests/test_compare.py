@@ -600,6 +600,21 @@ def test_contact_mode_split_separates_the_two_causes(tmp_path: Path) -> None:
     assert ref_side.split == () and ref_side.run.label == "fake__reference"
 
 
+def test_split_found_from_inside_the_run_directory(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`legbench compare .` from inside fake/ (and `..` from a folder inside it) finds fake__reference: the name the
+    sibling is found by is the resolved directory's, "." and ".." have none."""
+    write_run(tmp_path / "fake", {"ref": None, "a": offset(0.04)})
+    write_run(tmp_path / "fake__reference", {"ref": None, "a": offset(0.01)}, contact_mode="reference")
+    monkeypatch.chdir(tmp_path / "fake")
+    for given in (".", "./"):
+        res = C.compare(given)
+        assert res.split_run is not None and res.split_run.label == "fake__reference", given
+    (tmp_path / "fake" / "sub").mkdir()
+    monkeypatch.chdir(tmp_path / "fake" / "sub")
+    res = C.compare("..")
+    assert res.split_run is not None and res.split_run.label == "fake__reference"
+
+
 def test_split_with_the_lag_removed_splits_the_deviation_reported(tmp_path: Path) -> None:
     """With lag="remove" the pair is measured after shifting a by its 20 ms lag; the split shifts a's native trace
     by the same lag, so split_native_pct equals sim_error_pct and split_native_rms equals rms (1e-12 relative),
