@@ -383,7 +383,7 @@ def run_scenario(
     if contact_mode not in (None, "native", "reference", "both"):
         raise LegbenchError(f"contact_mode {contact_mode!r}: expected 'native', 'reference' or 'both'")
     if out is not None:  # as the command line's --out: a regular file is one error, not NotADirectoryError
-        check_out_path(out, "out")
+        check_out_path(out, "out", run_dir_ok=True)
     root = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix=f"legbench-{sc.name}-"))
     if contact_mode == "both":
         plan = [(sc, m, out_dir_for(root, sc, m)) for m in ("native", "reference")]

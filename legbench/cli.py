@@ -209,17 +209,13 @@ def _check_outputs(args: argparse.Namespace) -> None:
     if out == "":
         raise LegbenchError("--out '': an empty path (give a directory, or leave --out out for the default)")
     if out is not None:
-        try:
-            if args.cmd in _OUT_DIRS:
-                if os.path.islink(out) and not os.path.exists(out):  # the result could not be moved into place
-                    raise LegbenchError(f"--out {out}: a symbolic link to {os.readlink(out)}, which does not exist; "
-                                        "choose another --out")  # fmt: skip
-                results.check_out_path(out)
-                _not_inside_a_run(Path(out), itself=args.cmd != "run")  # run resumes or replaces its own
-            else:
+        if args.cmd in _OUT_DIRS:
+            results.check_out_path(out, run_dir_ok=args.cmd == "run")  # run resumes or replaces its own
+        else:
+            try:
                 results.check_out_file(out)
-        except OSError as exc:  # a name too long, a loop of links: a place that cannot be, not a failed write
-            raise LegbenchError(f"--out {out}: {exc.strerror or exc}") from None
+            except OSError as exc:  # a name too long, a loop of links: a place that cannot be, not a failed write
+                raise LegbenchError(f"--out {out}: {exc.strerror or exc}") from None
     scheduler = getattr(args, "scheduler", None)
     if scheduler is not None:
         scheme, sep, rest = str(scheduler).rpartition("://")
@@ -240,18 +236,6 @@ def _check_outputs(args: argparse.Namespace) -> None:
     summary, junit = getattr(args, "summary", None), getattr(args, "junit", None)
     if summary is not None and junit is not None and Path(summary).resolve() == Path(junit).resolve():
         raise LegbenchError(f"--summary and --junit name the same file {summary}: the second would replace the first")
-
-
-def _not_inside_a_run(out: Path, itself: bool) -> None:
-    """Refuse an output directory inside a run directory (one holding ``run.json``), and with ``itself`` one
-    that is a run directory: a run directory holds one run's files, and what is nested in it would be taken for
-    part of that run (its report, its check), or lost with it when the run is replaced."""
-    if itself and (out / "run.json").is_file():
-        raise LegbenchError(f"--out {out}: a run directory, which holds one run; choose another --out")
-    for parent in out.absolute().parents:
-        if (parent / "run.json").is_file():
-            raise LegbenchError(f"--out {out}: inside the run directory {parent}, which holds one run; choose "
-                                "another --out")  # fmt: skip
 
 
 def _sigterm(signum: int, frame: object) -> None:

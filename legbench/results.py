@@ -403,14 +403,30 @@ def _writable_dir(d: Path, what: str) -> None:
         raise LegbenchError(f"{what} {d}: {probe} is not writable")
 
 
-def check_out_path(path: str | Path, what: str = "--out") -> Path:
-    """An output directory given on the command line, checked before any work: not a regular file, device or
-    other non-directory (the message says which), inside a writable place (missing folders are created when
-    writing)."""
+def check_out_path(path: str | Path, what: str = "--out", *, run_dir_ok: bool = False) -> Path:
+    """An output directory given on the command line (``what``: the option, or the Python API's argument), checked
+    before any work: not a regular file, device or other non-directory (the message says which), not a link to
+    nothing (the result could not be moved into place), inside a writable place (missing folders are created when
+    writing), and not inside a run directory (one holding run.json): what is nested in a run would be taken for part
+    of that run (its report, its check), or lost with it when the run is replaced. Nor a run directory itself,
+    unless ``run_dir_ok`` (``legbench run`` resumes or replaces its own). A path that cannot be (a name too long, a
+    loop of links) is one error too."""
     path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise LegbenchError(f"{what} {path}: is {_kind(path)}, not a directory")
-    _writable_dir(path, what)
+    try:
+        if path.is_symlink() and not path.exists():
+            raise LegbenchError(f"{what} {path}: a symbolic link to {os.readlink(path)}, which does not exist; "
+                                f"choose another {what}")  # fmt: skip
+        if path.exists() and not path.is_dir():
+            raise LegbenchError(f"{what} {path}: is {_kind(path)}, not a directory")
+        _writable_dir(path, what)
+        if not run_dir_ok and (path / "run.json").is_file():
+            raise LegbenchError(f"{what} {path}: a run directory, which holds one run; choose another {what}")
+        for parent in path.absolute().parents:
+            if (parent / "run.json").is_file():
+                raise LegbenchError(f"{what} {path}: inside the run directory {parent}, which holds one run; "
+                                    f"choose another {what}")  # fmt: skip
+    except OSError as exc:  # a place that cannot be, not a failed write
+        raise LegbenchError(f"{what} {path}: {exc.strerror or exc}") from None
     return path
 
 

@@ -166,6 +166,25 @@ def test_jobs_below_1_and_a_file_as_out_are_refused_before_anything_runs(tmp_pat
     assert f.read_text() == "keep me" and sorted(p.name for p in tmp_path.iterdir()) == ["file"]
 
 
+def test_an_out_inside_a_run_or_a_link_to_nothing_is_refused_as_on_the_command_line(
+    result: api.Result, tmp_path: Path
+) -> None:
+    """``out`` inside a run directory wrote a second run inside the first (taken for part of it, or lost with it),
+    and ``out`` a symbolic link to nothing ran every backend before failing to move the result into place: the
+    command line refused both before any work, the API now too, naming ``out``; nothing is written."""
+    before = sorted(p.name for p in result.path.iterdir())
+    with pytest.raises(LegbenchError) as exc:
+        legbench.run_scenario("position", backends="pinocchio", overrides=SHORT, out=result.path / "sub")
+    assert str(exc.value) == (f"out {result.path / 'sub'}: inside the run directory {result.path.absolute()}, "
+                              "which holds one run; choose another out")  # fmt: skip
+    assert sorted(p.name for p in result.path.iterdir()) == before
+    link = tmp_path / "link"
+    link.symlink_to(tmp_path / "gone")
+    with pytest.raises(LegbenchError, match=r"^out .*link: a symbolic link to .*gone, which does not exist; choose"):
+        legbench.run_scenario("position", backends="pinocchio", overrides=SHORT, out=link)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link"] and not (tmp_path / "gone").exists()
+
+
 def test_a_finished_run_in_out_is_replaced_only_with_force(tmp_path: Path) -> None:
     """As the command line: a second run_scenario into the ``out`` of a finished run raises LegbenchError naming
     force=True and leaves the run as it was; with force=True it is replaced."""
