@@ -39,7 +39,7 @@ from legbench.results import (
     write_run,
 )
 from legbench.scenario import MAX_JOINT_SPEED, MAX_PENETRATION, Scenario, physics_of
-from legbench.studies.executors import LocalExecutor
+from legbench.studies.executors import LocalExecutor, capped
 from legbench.yamlfile import one_line
 
 
@@ -473,7 +473,7 @@ def run_many(
             pool.terminate()
         raise
     # no more workers than runs left (each a process importing every engine; a resume runs fewer)
-    jobs = pool.jobs if pool is not None else max(1, min(jobs, len(plan)))
+    jobs = pool.jobs if pool is not None else capped(jobs, len(plan))
     outs = [out for _, _, out in jobs_list]
     cost = _estimates(plan, outs, cost_hints(outs) if jobs > 1 and len(plan) > jobs else {})
     first = sorted(range(len(plan)), key=lambda j: (-cost[j], j))
