@@ -470,6 +470,15 @@ def _rk4_arrays(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarra
     x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8] = q1, q2, q3, qd1, qd2, qd3, fx, fy, fz
 
 
+def _record_at(n: int) -> int:
+    """Where the joint-limit record starts in :func:`pack`'s ``scratch`` of an ``n``-body model: after work (n*96),
+    tmp (96) and buf (64)."""
+    return 96 * n + 160
+
+
+jit.jitable(_record_at)
+
+
 def pack(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: np.ndarray,
          lim: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """The model and law constants in one array, and the scratch space in another, for :func:`period`: a call
@@ -480,15 +489,15 @@ def pack(R: np.ndarray, p: np.ndarray, inertia: np.ndarray, a0: np.ndarray, lc: 
     """
     n = R.shape[0]
     model = np.concatenate([[float(n)], R.ravel(), p.ravel(), inertia.ravel(), a0, lc, lim]).astype(float)
-    scratch = np.zeros(n * 96 + 96 + 64 + n)
+    scratch = np.zeros(_record_at(n) + n)
     return model, scratch
 
 
 def limit_record(scratch: np.ndarray) -> np.ndarray:
     """The joint-limit record in :func:`pack`'s ``scratch`` (a view, length n): per joint the largest (M^-1)_jj
     [1/(kg m^2)] at which the joint was past its limit since the record was last zeroed, 0 if never."""
-    n = (scratch.shape[0] - 160) // 97
-    return scratch[96 * n + 160 :]
+    n = (scratch.shape[0] - _record_at(0)) // 97  # per body 96 before the record and 1 in it
+    return scratch[_record_at(n) :]
 
 
 @_njit
@@ -510,8 +519,8 @@ def period(model: np.ndarray, scratch: np.ndarray, u: np.ndarray, x: np.ndarray,
     lim = model[o + 20 : o + 28]
     work = scratch[: 96 * n].reshape((n, 6, 16))
     tmp = scratch[96 * n : 96 * n + 96].reshape((6, 16))
-    buf = scratch[96 * n + 96 : 96 * n + 160]
-    rec = scratch[96 * n + 160 :]
+    buf = scratch[96 * n + 96 : _record_at(n)]
+    rec = scratch[_record_at(n) :]
     if method == RK4:
         _rk4_arrays(R, p, inertia, a0, lc, lim, h, n_sub, u, x, work, tmp, buf, rec)
     else:
@@ -530,7 +539,7 @@ def period_loop(model: np.ndarray, scratch: np.ndarray, x0: np.ndarray, TAU: np.
     for i in range(x.shape[0]):
         x[i] = x0[i]
     n = int(model[0])
-    for j in range(96 * n + 160, scratch.shape[0]):
+    for j in range(_record_at(n), scratch.shape[0]):
         scratch[j] = 0.0
     for row in range(TAU.shape[0]):
         period(model, scratch, TAU[row], x, h, n_sub, method)
