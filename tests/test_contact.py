@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from legbench import kinematics as K
@@ -16,10 +17,11 @@ from legbench.contact import (
     friction_coefficient,
     friction_step_bound,
     ground_force,
+    implicit_velocity_step,
     law_step_warnings,
     tangential_mass,
 )
-from legbench.model import load_params
+from legbench.model import load_params, pinocchio_model
 
 RNG_SEED = 20261121
 
@@ -154,3 +156,119 @@ def test_law_step_warnings_default_is_eulers_and_rk4s_factor_widens_it() -> None
     (note,) = law_step_warnings("x", 3.0 * euler, fn, list(Q_SS), p, RK4_FRICTION_STABILITY)
     assert "h > 2.785 m v_th / (mu_s Fn) = 2.785 x 0.213 kg x 0.001 m/s / (0.7 x 59.1 N) = 1.43e-05 s" in note, note
     assert law_step_warnings("x", 0.99 * euler, fn, list(Q_SS), p) == []
+
+
+# --------------------------------------------------------------------------- #
+# The friction's slope K and the linearly implicit step (docs/pinocchio.md)
+
+
+def _tangential_branches(law: ReferenceContact, x: np.ndarray) -> tuple[str, float, float] | None:
+    """("stick" | "ramp" | "slide", v [m/s], fz [N]) of a state in contact whose poc rises (ydot < 0: Fn = Kp y,
+    independent of qd) and whose slip speed is 1e-6 m/s or more from the branch ends; None otherwise."""
+    p = law.p
+    out = law.wrench(*x.tolist())
+    J = K.jacobian_poc(x[:3], true_poc=p.poc == "true")
+    vx, vy, vz = J @ x[3:]
+    v = float(np.hypot(vx, vy))
+    if out[5] <= 0.0 or vz < 1e-6 or min(abs(v - p.v_th), abs(v - 1.5 * p.v_th)) < 1e-6:
+        return None
+    return ("stick" if v < p.v_th else "ramp" if v < 1.5 * p.v_th else "slide"), v, out[5]
+
+
+def _sym(k: tuple[float, ...]) -> np.ndarray:
+    """(K11, K12, K13, K22, K23, K33) as the symmetric 3x3 matrix."""
+    k11, k12, k13, k22, k23, k33 = k
+    return np.array([[k11, k12, k13], [k12, k22, k23], [k13, k23, k33]])
+
+
+@pytest.mark.parametrize("poc", ["true", "centre"])
+def test_friction_slope_is_minus_the_law_torques_derivative_in_qd(poc: str) -> None:
+    """K = -d(J_t^T F_t)/d(qd) at fixed Fn, against a central difference (1e-7 rad/s) of the law's torque
+    (``wrench``, itself checked against ground_force through the kinematics above): on the viscous branch
+    (v < v_th, F_t linear in v) and the sliding one (v >= 1.5 v_th, mu_k) to 1e-6 of |K|'s largest entry. On the
+    falling ramp K leaves out the law's negative slope along the slip, by design: K - K_fd is exactly
+    Fn (mu_s - mu_k) / (v_th / 2) w w^T with w = J_t^T v/|v| (1e-6). K is symmetric positive semi-definite
+    (eigenvalues >= -1e-12 |K|). v_th = 0.01, 0.15 and 1 m/s put the samples' slip speeds (up to about 0.3 m/s)
+    on every branch. A K scaled by 3, or with its off-diagonal sign flipped, fails by orders of magnitude."""
+    eps = 1e-7
+    seen = {"stick": 0, "ramp": 0, "slide": 0}
+    for v_th in (0.01, 0.15, 1.0):
+        p = ContactParams(poc=poc, v_th=v_th)
+        law = ReferenceContact.from_leg(p)
+        for x in _states(3000):
+            branch = _tangential_branches(law, x)
+            if branch is None:
+                continue
+            which, v, fz = branch
+            seen[which] += 1
+            Kmat = _sym(law.wrench_slope(*x.tolist())[6:])
+            Kfd = np.empty((3, 3))
+            for j in range(3):
+                xp, xm = x.copy(), x.copy()
+                xp[3 + j] += eps
+                xm[3 + j] -= eps
+                dtau = np.array(law.wrench(*xp.tolist())[:3]) - np.array(law.wrench(*xm.tolist())[:3])
+                Kfd[:, j] = -dtau / (2 * eps)
+            scale = float(np.abs(Kmat).max())
+            if which == "ramp":
+                J = K.jacobian_poc(x[:3], true_poc=poc == "true")
+                w = J[:2].T @ (J[:2] @ x[3:]) / v
+                Kfd = Kfd + fz * (p.mu_s - p.mu_k) / (0.5 * p.v_th) * np.outer(w, w)
+            np.testing.assert_allclose(Kmat, Kfd, rtol=0, atol=1e-6 * scale, err_msg=f"{which} at {x}, v_th {v_th}")
+            assert np.linalg.eigvalsh(Kmat).min() >= -1e-12 * scale
+    assert min(seen.values()) >= 20, seen
+
+
+def test_implicit_velocity_step_solves_the_linearly_implicit_system() -> None:
+    """dqd = (I + h M^-1 K)^-1 h a, Cramer's rule on floats against numpy's LU solve, to 1e-12 relative, with the
+    leg's own M^-1 and the law's K at states in contact (h = 50 us and 1 ms: the default sub-step and a stiff one)."""
+    law = ReferenceContact.from_leg(ContactParams())
+    model = pinocchio_model()
+    data = model.createData()
+    rng = np.random.default_rng(RNG_SEED)
+    checked = 0
+    for x in _states(600):
+        k = law.wrench_slope(*x.tolist())[6:]
+        if k[0] == 0.0:
+            continue
+        q1, q2, q3 = x[:3]
+        Minv = pin.computeMinverse(model, data, np.array([q1, np.cos(q2), np.sin(q2), q3]))
+        Minv = np.triu(Minv) + np.triu(Minv, 1).T
+        a = rng.normal(0.0, 50.0, 3)
+        for h in (5e-5, 1e-3):
+            m = (Minv[0, 0], Minv[0, 1], Minv[0, 2], Minv[1, 1], Minv[1, 2], Minv[2, 2])
+            got = implicit_velocity_step(h, m, k, *a.tolist())
+            want = np.linalg.solve(np.eye(3) + h * Minv @ _sym(k), h * a)
+            np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * float(np.abs(want).max()))
+        checked += 1
+    assert checked >= 100
+
+
+def test_implicit_generalized_makes_an_explicit_step_the_implicit_one() -> None:
+    """The torque J^T F - K dqd that implicit_generalized returns makes an engine's explicit velocity step
+    h M^-1 (u + tau - nle) equal the linearly implicit step dqd = (I + h M^-1 K)^-1 h a, a the explicit
+    acceleration with J^T F: to 1e-10 relative, at states in contact; out of contact it is the law's torque."""
+    g = load_params().gravity
+    law = ReferenceContact.from_leg(ContactParams(), implicit_friction_gravity=g)
+    model = pinocchio_model(gravity=g)
+    data = model.createData()
+    u = np.array([0.3, -1.2, 2.0])
+    h = 5e-5
+    checked = 0
+    for x in _states(400):
+        q, qd = x[:3], x[3:]
+        qp = np.array([q[0], np.cos(q[1]), np.sin(q[1]), q[2]])
+        r = law.wrench_slope(*x.tolist())
+        q1, q2, q3, qd1, qd2, qd3 = x.tolist()
+        tau = law.implicit_generalized(q1, q2, q3, qd1, qd2, qd3, u[0], u[1], u[2], h).copy()
+        if r[5] <= 0.0:
+            np.testing.assert_array_equal(tau, 0.0)
+            continue
+        a = pin.aba(model, data, qp, qd, u + np.array(r[:3]))
+        Minv = pin.computeMinverse(model, data, qp)
+        Minv = np.triu(Minv) + np.triu(Minv, 1).T
+        want = np.linalg.solve(np.eye(3) + h * Minv @ _sym(r[6:]), h * a)
+        got = h * pin.aba(model, data, qp, qd, u + tau)
+        np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12)
+        checked += 1
+    assert checked >= 50
