@@ -117,8 +117,9 @@ def test_engine_only_replay_reproduces_the_full_run_bit_for_bit(quick: tuple[int
 
 def test_declared_floors_and_targets(quick: tuple[int, dict[str, Any], str]) -> None:
     """MuJoCo and PyBullet declare their tightest engine loops per tick and a full/floor target of 1.15;
-    Pinocchio its compiled period over the run (``period_loop``, the tightest) beside the Python aba + law per
-    sub-step. One repeat: each target is met or missed by that one sample."""
+    Pinocchio its compiled period over the run (``period_loop``) beside the Python aba + law per sub-step, and
+    targets on replay / period_loop (1.3) and full / replay (1.2). One repeat: each target is met or missed by
+    that one sample (which floor is the cheaper is a timing, the bench's to report, not this test's)."""
     _, doc, _ = quick
     expected = {"mujoco": {"mj_step_tick"}, "pybullet": {"bullet_substeps_tick", "python_substeps_tick"},
                 "pinocchio": {"period_loop", "aba+law"}}  # fmt: skip
@@ -131,8 +132,12 @@ def test_declared_floors_and_targets(quick: tuple[int, dict[str, Any], str]) -> 
             assert tg["verdict"] == ("met" if tg["value"] <= 1.15 else "missed") and tg["n"] == 1
             assert tg["met"] == (tg["verdict"] == "met")
             assert tg["value"] == tg["min"] == tg["max"] == _ratios(r)[tg["ratio"]]["cpu"]["median"]
-        else:
-            assert r["floor"] == "period_loop"  # 2-3x cheaper than aba + law from Python
+        else:  # the targets name period_loop, whichever floor measured cheapest in this one sample
+            for key, limit in (("replay/period_loop", 1.3), ("full/replay", 1.2)):
+                tg = r["targets"][key]
+                assert tg["limit"] == limit and tg["ratio"] == key.replace("/", " / ") and tg["n"] == 1
+                assert tg["verdict"] == ("met" if tg["value"] <= limit else "missed")
+                assert tg["value"] == tg["min"] == tg["max"] == _ratios(r)[tg["ratio"]]["cpu"]["median"]
     met = doc["targets_met"]
     for name in ("mujoco", "pybullet"):
         if name in BENCHED:
@@ -374,7 +379,9 @@ def test_memory_is_measured_in_a_fresh_process_and_written(tmp_path: Path) -> No
     (row,) = json.loads((tmp_path / "bench.json").read_text())["results"]
     rss = row["rss"]
     assert rss["status"] == "ok" and rss["series"] == row["series_bytes"] == 8 * 14 * 201
-    assert rss["peak"] >= rss["base"] > 50e6  # [bytes]: a fresh interpreter with numpy and MuJoCo loaded
+    # [bytes]: the base is taken with the engine loaded: an interpreter with numpy and mujoco imported holds 49 MB
+    # (27 Nov), the bench's worker with legbench's backend loaded and warmed up 314 MB (docs/performance.md)
+    assert rss["peak"] >= rss["base"] > 49e6
     assert rss["warmup"] == "10 ms of the task (in contact)" and "anon_run" in rss and "file_run" in rss
     assert row["mem_peak_bytes"] >= row["series_bytes"]  # the log itself is allocated during the run
     assert "## Memory of one full run" in (tmp_path / "bench.md").read_text()
