@@ -248,6 +248,45 @@ def test_runs_are_ordered_longest_first_by_earlier_measured_wall_times(tmp_path:
     assert run.cost_hints([tmp_path / "missing"], roots=[]) == {}  # nothing there: no hint, no error
 
 
+class _OrderPool:
+    """A stand-in for the process pool that records the order run_many hands its tasks out in, and returns a
+    finished result per task without running anything."""
+
+    jobs = 2
+
+    def __init__(self) -> None:
+        self.order: list[tuple[str, str]] = []
+
+    def imap_unordered(self, fn: Any, tasks: list[Any], order: list[int], on_crash: Any) -> Any:
+        for j in order:
+            sc, name, *_ = tasks[j]
+            self.order.append((sc.name, name))
+            yield j, type("Done", (), {"status": "ok", "backend": name})()
+
+    def close(self) -> None:
+        pass
+
+    def terminate(self) -> None:
+        pass
+
+
+def test_run_many_hands_the_runs_out_longest_first(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The pool gets the runs in decreasing estimated cost (duration x measured s/s; runs not written anywhere
+    take their backend's median rate), ties in plan order, and the results come back in plan order whatever the
+    order they finished in."""
+    short, long_ = scenario.parse(DOC), scenario.parse({**DOC, "name": "long", "duration": 2.0})  # 0.5 s, 2 s
+    # medians: slow 2 s/s, fast 0.5 s/s, mid 0.5 s/s
+    hints = {("a", "slow"): 1.0, ("b", "slow"): 3.0, ("a", "fast"): 0.5, ("a", "mid"): 0.5}
+    monkeypatch.setattr(run, "cost_hints", lambda outs: hints)
+    pool = _OrderPool()
+    got = run.run_many([(short, None, None), (long_, None, None)], ["fast", "slow", "mid"], jobs=2, progress=False,
+                       pool=pool)  # type: ignore[arg-type]  # fmt: skip
+    # costs [s]: fake/fast 0.25, fake/slow 1, fake/mid 0.25, long/fast 1, long/slow 4, long/mid 1
+    assert pool.order == [("long", "slow"), ("fake", "slow"), ("long", "fast"), ("long", "mid"), ("fake", "fast"),
+                          ("fake", "mid")]  # fmt: skip
+    assert [[r.backend for r in rs] for rs in got] == [["fast", "slow", "mid"], ["fast", "slow", "mid"]]
+
+
 def test_backend_rates_are_each_backends_median_cost_over_a_results_tree(tmp_path: Path) -> None:
     """run.backend_rates: the median wall time per simulated second of each backend over every run directory
     under a root (the baseline), for studies that start their slowest runs first; nothing readable: empty."""
