@@ -97,6 +97,24 @@ def test_ellipse_waypoints_lie_on_the_ellipse() -> None:
     assert t[0] == 1.0 and t[-1] == pytest.approx(11.0)
 
 
+def test_ellipse_waypoints_of_a_tilted_ellipse_lie_on_it_with_a_along_dth() -> None:
+    """With dth = 0.4 rad the ellipse is turned by dth in the y-z plane: in axes turned by dth about the centre,
+    (u/a)^2 + (v/b)^2 = 1 (1e-12); the farthest of 4000 points per lap lies in the direction dth or dth + pi
+    (within the points' spacing, d = 2 pi / 4000 rad) at a from the centre, the nearest at b (within a d^2,
+    3.7e-7 m: off the axis by at most d, r falls short of a by about a d^2 / 2 (1 - b^2/a^2))."""
+    a, b, DY, DZ, dth = 0.15, 0.06, 0.11208, 0.105, 0.4
+    P, _ = ellipse_waypoints(a, b, DY, DZ, dth, 5.0, 4000, 1, 1.0)
+    y, z = P[:, 1] - DY, P[:, 2] - DZ
+    u, v = y * np.cos(dth) + z * np.sin(dth), -y * np.sin(dth) + z * np.cos(dth)
+    np.testing.assert_allclose((u / a) ** 2 + (v / b) ** 2, 1.0, atol=1e-12)
+    r = np.hypot(y, z)
+    far = int(np.argmax(r))
+    d = 2 * np.pi / 4000
+    assert r[far] == pytest.approx(a, abs=a * d**2) and r.min() == pytest.approx(b, abs=a * d**2)
+    off = np.mod(np.arctan2(z[far], y[far]) - dth + np.pi / 2, np.pi) - np.pi / 2  # dth and dth + pi alike
+    assert abs(off) <= d
+
+
 def test_effort_controller_is_jt_h_plus_gravity() -> None:
     q = np.array([-0.0025, -1.1899, -1.2599])
     ctrl = EffortController(Event(0.0, "effort", force=(0.0, 0.0, -100.0)))

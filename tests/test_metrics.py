@@ -90,3 +90,28 @@ def test_lag_is_estimated_over_the_samples_the_metrics_measure() -> None:
     assert abs(est.samples - 20.0) < 1e-3 and est.correlation == pytest.approx(1.0, abs=1e-6)
     assert metrics.pair_metrics(a, ref, skip=0.5, lag="report").lag == est
     assert np.isnan(metrics.estimate_lag(a, ref, skip=3.0).correlation)  # one sample left: nothing to correlate
+
+
+def test_signal_errors_largest_deviation_and_its_percentage_of_the_reference_peak() -> None:
+    """signal_errors (the sweeps' figure): per component max |a - ref| and 100 max |a - ref| / max |ref| over
+    the ticks both logged with t >= skip, the hip's one-turn offset wrapped away: q1 off by 0.01 rad only before
+    skip (0), q2 one turn plus 0.02 rad, q3 0.03 rad after 0.6 s; equal to the hand computation to 1e-12
+    relative. A shorter log is measured over its own span; grids that differ, or no tick after skip: NaN."""
+    t = np.arange(0.0, 1.0 + 1e-12, 1e-3)
+    ref = _hip_trace("ref", t, 0.0, wrap=False)
+    q = ref.q.copy()
+    q[:, 0] += 0.01 * (t < 0.3)
+    q[:, 1] += 2 * np.pi + 0.02
+    q[:, 2] += 0.03 * (t > 0.6)
+    df = pd.DataFrame({"t": t, "q1": q[:, 0], "q2": q[:, 1], "q3": q[:, 2]})
+    a = results.result_from_frame(df, "a", required=REQUIRED)
+    d, pct = metrics.signal_errors(a, ref, "q", skip=0.3)
+    np.testing.assert_allclose(d, [0.0, 0.02, 0.03], rtol=1e-12, atol=1e-12)
+    peak = np.max(np.abs(ref.q[t >= 0.3]), axis=0)
+    np.testing.assert_allclose(pct, 100 * np.array([0.0, 0.02, 0.03]) / peak, rtol=1e-12, atol=1e-12)
+    short = results.result_from_frame(df[t <= 0.5], "a", required=REQUIRED)  # ends before q3's step
+    d, _ = metrics.signal_errors(short, ref, "q", skip=0.3)
+    np.testing.assert_allclose(d, [0.0, 0.02, 0.0], rtol=1e-12, atol=1e-12)
+    shifted = results.result_from_frame(df.assign(t=t + 1e-4), "a", required=REQUIRED)
+    assert np.isnan(metrics.signal_errors(shifted, ref, "q")[0]).all()
+    assert np.isnan(metrics.signal_errors(a, ref, "q", skip=2.0)[1]).all()
