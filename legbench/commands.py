@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -70,7 +71,20 @@ def _model_gravity(args: argparse.Namespace) -> int:
 
 
 def _model_urdf(args: argparse.Namespace) -> int:
-    path = model.write_urdf(model.read_params(args.params), args.out)
+    """Write the URDF. An ``--out`` given is refused when it is the parameter file itself (even with ``--force``),
+    and when it holds a file legbench did not generate (no stamp in its header), unless ``--force``: a URDF
+    generated before is regenerated in place, anything else is the user's."""
+    given = args.out is not None
+    args = _with_defaults(args)
+    out = Path(args.out)
+    if given and out.exists():
+        if Path(args.params).exists() and os.path.samefile(out, args.params):
+            raise LegbenchError(f"--out {out}: is the parameter file the URDF is generated from; choose another "
+                                "file")  # fmt: skip
+        if resources.urdf_stamp(out) is None and not args.force:
+            raise LegbenchError(f"--out {out}: exists and is not a URDF legbench generated; choose another file, or "
+                                "pass --force to replace it")  # fmt: skip
+    path = model.write_urdf(model.read_params(args.params), out)
     print(f"wrote {path}")
     return 0
 
@@ -122,7 +136,9 @@ def add_model(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg
                    help="output URDF (default: where legbench reads that parameter file's URDF: models/leg.urdf "
                         "for the bundled leg, else the cache's urdf/<stem>-<hash>.urdf, never the bundled "
                         "model's)")  # fmt: skip
-    p.set_defaults(func=lambda a: _model_urdf(_with_defaults(a)))
+    p.add_argument("--force", action="store_true",
+                   help="replace an --out file legbench did not generate (never the parameter file)")  # fmt: skip
+    p.set_defaults(func=_model_urdf)
     p = msub.add_parser("calibrate", help="mass scale factors that reproduce the report's G(q*)")
     p.add_argument("--params", default=None,
                    help="parameter file to calibrate (default: the active model, models/leg.yaml unless "

@@ -465,6 +465,37 @@ def test_model_urdf_refuses_a_params_path_that_is_no_file_before_hashing_it(
                                       "file is read only from one)\n"  # fmt: skip
 
 
+LEG_YAML = Path(__file__).resolve().parents[1] / "models" / "leg.yaml"
+
+
+def test_model_urdf_never_writes_over_its_parameter_file_nor_a_file_it_did_not_generate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``model urdf --out FILE`` replaced any FILE, its own parameter file included (the leg's YAML became XML):
+    the parameter file is refused even with --force, another existing file without a legbench stamp unless
+    --force, one line, exit 2, the file untouched; a URDF generated before is regenerated in place."""
+    params = tmp_path / "mine.yaml"
+    params.write_bytes(LEG_YAML.read_bytes())
+    mine = tmp_path / "notes.urdf"
+    mine.write_text("precious")
+    for extra in ([], ["--force"]):
+        assert cli.main(["model", "urdf", "--params", str(params), "--out", str(params), *extra]) == 2
+        assert capsys.readouterr().err == (f"legbench: error: --out {params}: is the parameter file the URDF is "
+                                           "generated from; choose another file\n")  # fmt: skip
+    assert params.read_bytes() == LEG_YAML.read_bytes()
+    assert cli.main(["model", "urdf", "--params", str(params), "--out", str(mine)]) == 2
+    assert capsys.readouterr().err == (f"legbench: error: --out {mine}: exists and is not a URDF legbench generated; "
+                                       "choose another file, or pass --force to replace it\n")  # fmt: skip
+    assert mine.read_text() == "precious"
+    out = tmp_path / "leg.urdf"
+    assert cli.main(["model", "urdf", "--params", str(params), "--out", str(out)]) == 0
+    first = out.read_bytes()
+    assert cli.main(["model", "urdf", "--params", str(params), "--out", str(out)]) == 0  # its own: regenerated
+    assert out.read_bytes() == first
+    assert cli.main(["model", "urdf", "--params", str(params), "--out", str(mine), "--force"]) == 0
+    assert mine.read_bytes() == first
+
+
 def test_a_study_out_that_is_a_run_directory_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``legbench reproduce --out RUN`` (RUN an existing run directory) wrote its task runs and pages into that
     run's directory, exit 0: refused before any work, one line, exit 2, the run untouched."""
