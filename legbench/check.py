@@ -648,6 +648,28 @@ def write_junit(report: CheckReport, path: str | Path) -> Path:
     return path
 
 
+#: The files the check writes into the new results by default (into a run directory when it checks one run).
+OWN_OUTPUTS = ("check.md", "check-junit.xml")
+
+
+def _not_an_input(opt: str, path: Path, new: Path, baseline: Path, tolerance_file: str | Path | None) -> None:
+    """Refuse an output file that is or may become one of the check's inputs, even with ``--force`` (which
+    replaces an earlier summary): anything in the baseline, the tolerance file, or a file inside a run directory
+    (one holding run.json) other than the check's own (:data:`OWN_OUTPUTS`): a run's run.json or log replaced by
+    the summary was lost, and a file of another name there would be taken for part of the run."""
+    where = path.resolve()
+    if where.is_relative_to(baseline.resolve()):
+        raise LegbenchError(f"{opt} {path}: inside the baseline {baseline}, which the check reads; choose another "
+                            "file")  # fmt: skip
+    if tolerance_file is not None and Path(tolerance_file).exists() and where == Path(tolerance_file).resolve():
+        raise LegbenchError(f"{opt} {path}: is the tolerance file; choose another file")
+    if path.name not in OWN_OUTPUTS:
+        for parent in where.parents:
+            if (parent / "run.json").is_file():
+                raise LegbenchError(f"{opt} {path}: inside the run directory {parent}, whose files the check "
+                                    "reads; choose another file")  # fmt: skip
+
+
 def run_check(
     new: str | Path,
     baseline: str | Path,
@@ -683,6 +705,9 @@ def run_check(
             raise LegbenchError(f"{what}{given}: {exc.strerror or exc}") from None
     if Path(new).exists() and Path(new).resolve() == Path(baseline).resolve():  # would pass, and write into it
         raise ResultsError(str(baseline), "the baseline is the new results directory itself: nothing to check")
+    for opt, given in (("--summary", summary), ("--junit", junit)):
+        if given is not None:
+            _not_an_input(opt, Path(given), Path(new), Path(baseline), tolerance_file)
     report = check(new, baseline, tolerance_file)
     out = stream if stream is not None else sys.stdout
     print(format_table(report, all_rows), file=out)

@@ -17,7 +17,7 @@ from fakerun import Transform, add_to, offset, scale, write_run
 from legbench import check as K
 from legbench import cli, results, scenario
 from legbench import compare as C
-from legbench.exceptions import ResultsError, ScenarioError
+from legbench.exceptions import LegbenchError, ResultsError, ScenarioError
 
 BUMP = add_to("tau2", lambda t: 0.5 * np.exp(-(((t - 1.2) / 0.05) ** 2)))  # 0.5 N m pulse at t = 1.2 s
 
@@ -488,3 +488,31 @@ def test_a_path_too_long_for_the_file_system_is_bad_input(
     named = f"{which} {long}" if which != "dir" else long
     assert err.startswith(f"legbench: error: {named}: ") and "too long" in err and err.count("\n") == 1, err
     assert sorted(p.name for p in new.rglob("*")) == before
+
+
+def test_the_summary_and_junit_never_replace_an_input_of_the_check(baseline: Path, tmp_path: Path) -> None:
+    """``--summary RUN/run.json --force`` replaced the run's run.json (the next check called it corrupt), and
+    ``--junit BASE/x/a.parquet --force`` a baseline log: an output inside the baseline, the tolerance file, or a
+    file inside a run directory other than check.md and check-junit.xml is refused before the check, one line
+    naming the option, every file as it was; the check's own files, and new names outside the runs, are written
+    and rewritten."""
+    new = tree(tmp_path / "new")
+    tol = tmp_path / "tol.json"
+    tol.write_text("{}")
+    run_json = (new / "fake" / "run.json").read_bytes()
+    cases = {
+        ("--summary", new / "fake" / "run.json"): "inside the run directory",
+        ("--junit", new / "fake" / "a.parquet"): "inside the run directory",
+        ("--junit", new / "fake" / "mine.xml"): "inside the run directory",
+        ("--summary", baseline / "fake" / "notes.md"): "inside the baseline",
+        ("--junit", tol): "is the tolerance file",
+    }
+    for (opt, path), why in cases.items():
+        summary, junit = (path, None) if opt == "--summary" else (None, path)
+        with pytest.raises(LegbenchError, match=rf"^{opt} .*: {why}.*; choose another file$"):
+            K.run_check(new, baseline, tol, summary, junit, stream=io.StringIO())
+    assert (new / "fake" / "run.json").read_bytes() == run_json and tol.read_text() == "{}"
+    assert not (baseline / "fake" / "notes.md").exists() and not (new / "check.md").exists()
+    assert K.run_check(new, baseline, None, new / "check.md", new / "mine.xml", stream=io.StringIO()) == 0
+    assert K.run_check(new, baseline, None, new / "check.md", new / "mine.xml", stream=io.StringIO()) == 0
+    assert (new / "check.md").is_file() and (new / "mine.xml").is_file()
