@@ -76,7 +76,7 @@ reproduce: $(STAMP)
 
 ## harness overhead per backend and task -> results/bench/bench.{json,md}
 bench: $(STAMP)
-	$(LEGBENCH) bench $(TASKS) --out results/bench
+	$(LEGBENCH) bench $(TASKS) --out results/bench --force
 
 ## the time-step study (convergence order, speed-accuracy) -> results/sweeps/timestep/
 sweep: $(STAMP)
@@ -84,8 +84,8 @@ sweep: $(STAMP)
 
 ## verification cases and contact calibration on their own
 verify: $(STAMP)
-	$(LEGBENCH) verify --out results/latest/verification --jobs $(JOBS) || echo 'verify: some checks fail; the report lists them'
-	$(LEGBENCH) calibrate-contact --out results/latest/calibration --jobs $(JOBS)
+	$(LEGBENCH) verify --out results/latest/verification --jobs $(JOBS) --force || echo 'verify: some checks fail; the report lists them'
+	$(LEGBENCH) calibrate-contact --out results/latest/calibration --jobs $(JOBS) --force
 
 urdf: $(STAMP)
 	$(LEGBENCH) model urdf

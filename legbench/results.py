@@ -64,6 +64,7 @@ __all__ = [
     "check_out_dir",
     "check_out_file",
     "check_out_path",
+    "check_study_out",
     "check_out_tree",
     "checks_summary",
     "clean_stale",
@@ -455,6 +456,21 @@ def check_out_tree(
             continue
         raise LegbenchError(f"{root}: not empty and not a legbench {kind} directory (it holds {p.name}); "
                             f"choose another {option}")  # fmt: skip
+
+
+def check_study_out(out: str | Path, doc: str, files: Collection[str], kind: str, force: bool) -> None:
+    """A study's output directory (``legbench verify``, ``calibrate-contact``, ``bench``), before any work: it holds
+    nothing but the study's own ``files`` (:func:`check_out_tree`: a folder of someone else's is refused), and
+    its finished document ``doc`` (one of ``files``) is replaced only with ``force``.
+
+    Raises:
+        LegbenchError: one line naming the directory and what it holds.
+    """
+    out = Path(out)
+    check_out_tree(out, (), files, kind)
+    if not force and (out / doc).is_file():
+        raise LegbenchError(f"{out} holds a finished {kind} ({doc}); choose another --out for a new one, or --force "
+                            "to replace it")  # fmt: skip
 
 
 def check_out_file(path: str | Path, what: str = "--out") -> Path:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import json
 import os
 import subprocess
 import sys
@@ -1268,3 +1269,50 @@ def test_an_engine_read_of_the_wrong_types_or_its_own_divergence_fails_it_alone_
     assert tr.reason == "TypeError at t = 0.0000 s: read() returned float, list, not nine floats"
     tr = _short_run(_DivergesInStep)
     assert tr.status == "failed" and tr.reason == "divergesinstep diverged at t = 0.0030 s: non-finite joint state"
+
+
+@pytest.mark.parametrize(
+    ("cmd", "doc", "kind"),
+    [
+        (["verify", "--backends", "pinocchio", "--cases", "energy"], "verification.json", "verification"),
+        (["calibrate-contact", "--backends", "pinocchio"], "calibration.json", "calibration"),
+        (["bench", "--quick", "--backends", "pinocchio", "--no-memory"], "bench.json", "bench"),
+        (["bench", "--quick", "--backends", "pinocchio", "--parallel", "2"], "scaling.json", "bench"),
+    ],
+)
+def test_a_study_never_replaces_a_finished_one_nor_writes_into_a_foreign_folder(
+    cmd: list[str], doc: str, kind: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``verify``, ``calibrate-contact`` and ``bench`` replaced an earlier study in --out (a verify of other cases
+    lost the first one's checks) and wrote into a folder of the user's: as run, sweep and reproduce, a finished
+    study (its JSON document) is refused without --force and a folder holding anything but the study's own files
+    always, before any work: one line, exit 2, the folder as it was."""
+    done = tmp_path / "done"
+    done.mkdir()
+    (done / doc).write_text("{}")
+    assert cli.main([*cmd, "--out", str(done), "-q"] if kind == "bench" else [*cmd, "--out", str(done)]) == 2
+    assert capsys.readouterr().err == (f"legbench: error: {done} holds a finished {kind} ({doc}); choose another "
+                                       "--out for a new one, or --force to replace it\n")  # fmt: skip
+    assert [p.name for p in done.iterdir()] == [doc] and (done / doc).read_text() == "{}"
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine")
+    for extra in ([], ["--force"]):
+        assert cli.main([*cmd, "--out", str(mine), *extra]) == 2
+        assert capsys.readouterr().err == (f"legbench: error: {mine}: not empty and not a legbench {kind} directory "
+                                           "(it holds notes.txt); choose another --out\n")  # fmt: skip
+    assert [p.name for p in mine.iterdir()] == ["notes.txt"]
+
+
+def test_verify_with_force_replaces_its_own_finished_verification(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--force replaces a finished verification: the second run's cases are what verification.json holds."""
+    out = tmp_path / "v"
+    cmd = ["verify", "--backends", "pinocchio", "--out", str(out)]
+    assert cli.main([*cmd, "--cases", "energy"]) in (0, 1)
+    assert cli.main([*cmd, "--cases", "rest_penetration"]) == 2
+    assert cli.main([*cmd, "--cases", "rest_penetration", "--force"]) in (0, 1)
+    capsys.readouterr()
+    cases = {c["case"] for c in json.loads((out / "verification.json").read_text())["checks"]}
+    assert cases == {"rest_penetration"}

@@ -77,7 +77,7 @@ from legbench import backends as registry
 from legbench import resources, scenario, yamlfile
 from legbench.backends.base import Backend, Physics
 from legbench.exceptions import BackendNotFound, LegbenchError
-from legbench.results import RunResult, platform_info, versions, write_json
+from legbench.results import RunResult, check_study_out, platform_info, versions, write_json
 from legbench.run import simulate
 from legbench.scenario import Scenario, physics_of, shorten
 
@@ -111,6 +111,8 @@ DEFAULT_WARMUP = 1
 MIN_SAMPLE = 0.5
 MAX_INNER = 5
 DEFAULT_OUT = Path("results") / "bench"
+#: What ``legbench bench`` writes into its --out: the bench's pages, and with ``--parallel`` the scaling study's.
+OUTPUTS = ("bench.json", "bench.md", "scaling.json", "scaling.md")
 #: ``--quick`` durations per task [s]: each still reaches every controller of its task
 #: (combined: the touch-down at 1 s and the push from 2 s) but none lasts long.
 QUICK_DURATIONS: Mapping[str, float] = {"position": 0.5, "ellipse": 1.5, "effort": 0.5, "combined": 2.5}
@@ -1027,6 +1029,8 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
                    help="override a scenario key, e.g. --set backends.<name>.dt=1e-4 (10 sub-steps)")  # fmt: skip
     p.add_argument("--no-memory", action="store_true", help="skip the memory runs (fresh process, tracemalloc)")
     p.add_argument("--out", default=str(DEFAULT_OUT), help=f"output directory (default {DEFAULT_OUT})")
+    p.add_argument("--force", action="store_true",
+                   help="replace a finished bench (bench.json; with --parallel, scaling.json) in --out")  # fmt: skip
     p.add_argument("--check", action="store_true",
                    help="exit 1 if a backend's target is missed (every repeat over its limit) or not measured, or "
                    "an end state differs; an inconclusive target (the repeats straddle the limit: this run cannot "
@@ -1077,6 +1081,8 @@ def _cli(args: argparse.Namespace) -> int:
     scenarios = load_tasks(paths, quick=args.quick, duration=args.duration, overrides=overrides)
     names = registry.resolve(args.backends)
     repeats = args.repeats if args.repeats is not None else (1 if args.quick else DEFAULT_REPEATS)
+    doc = "scaling.json" if args.parallel is not None else "bench.json"
+    check_study_out(args.out, doc, OUTPUTS, "bench", args.force)
     if args.parallel is not None:
         return _parallel_cli(args, scenarios, names, repeats, paths)
 

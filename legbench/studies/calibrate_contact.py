@@ -43,7 +43,14 @@ from legbench.backends.base import rigid_contact
 from legbench.contact import ContactParams
 from legbench.controllers import EffortController, saturate
 from legbench.exceptions import LegbenchError
-from legbench.results import RunResult, atomic_write_text, platform_info, versions, write_json
+from legbench.results import (
+    RunResult,
+    atomic_write_text,
+    check_study_out,
+    platform_info,
+    versions,
+    write_json,
+)
 from legbench.run import backend_info, backend_rates
 from legbench.scenario import Event, physics_of
 from legbench.studies.executors import DEFAULT_PRELOAD, make_executor
@@ -301,6 +308,7 @@ def write_calibration(df: pd.DataFrame, out_dir: Path, program: Program = Progra
 
 
 def _cli(args: argparse.Namespace) -> int:
+    check_study_out(args.out, "calibration.json", ("calibration.json", "calibration.md"), "calibration", args.force)
     df = calibrate(args.out, registry.resolve(args.backends), contact_mode=args.contact_mode, jobs=args.jobs)
     print(markdown(df))
     for r in df.to_dict(orient="records"):
@@ -320,4 +328,5 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
                    help="contact of the calibration pushes: each engine's own ('native', default) or the "
                         "spec's law applied in every engine ('reference')")  # fmt: skip
     p.add_argument("--jobs", type=int, default=1, help="worker processes, one backend each (default 1)")
+    p.add_argument("--force", action="store_true", help="replace a finished calibration in --out")
     p.set_defaults(func=_cli)

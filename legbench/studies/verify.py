@@ -106,7 +106,14 @@ from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
 from legbench.backends.base import Physics, rigid_contact
 from legbench.exceptions import LegbenchError
-from legbench.results import atomic_write_text, checks_summary, platform_info, versions, write_json
+from legbench.results import (
+    atomic_write_text,
+    check_study_out,
+    checks_summary,
+    platform_info,
+    versions,
+    write_json,
+)
 from legbench.run import backend_rates, simulate
 from legbench.scenario import physics_of
 from legbench.studies.executors import DEFAULT_PRELOAD, make_executor
@@ -728,6 +735,8 @@ def _cli(args: argparse.Namespace) -> int:
     cases = list(CASES) if args.cases is None else [c.strip() for c in args.cases.split(",") if c.strip()]
     if not cases:
         raise LegbenchError(f"--cases {args.cases!r}: names no case (give some of {', '.join(CASES)})")
+    check_study_out(args.out, "verification.json", ("verification.json", "verification.md"), "verification",
+                    args.force)  # fmt: skip
     df = verify(args.out, names, cases, args.jobs)
     with pd.option_context("display.width", 200, "display.max_columns", 20, "display.max_colwidth", 40):
         print(df.drop(columns=["note"]).to_string(index=False))
@@ -742,4 +751,5 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
     p.add_argument("--backends", default="all", help="comma-separated backend names, or 'all' (default)")
     p.add_argument("--cases", default=None, help=f"comma-separated subset of {', '.join(CASES)}")
     p.add_argument("--jobs", type=int, default=1, help="worker processes, one case and backend each (default 1)")
+    p.add_argument("--force", action="store_true", help="replace a finished verification in --out")
     p.set_defaults(func=_cli)
