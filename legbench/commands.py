@@ -12,7 +12,7 @@ import argparse
 import json
 import os
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -192,7 +192,7 @@ def _run(args: argparse.Namespace) -> int:
     plan = [(sc, mode, root if (single and args.out) else results.out_dir_for(root, sc, mode)) for sc, mode in runs]
     if not single:  # a tree: not inside a run, and a --out of someone else's is refused (its index goes there)
         run.check_tree(root, [out.name for *_, out in plan], foreign=args.out is not None)
-    _check_plan(plan, args)
+    _check_plan(plan, names, args)
     # the workers (no more than the runs) import the engines while the pre-flight runs here (one run needs none)
     n_runs = len(plan) * len(names)
     pool = run.start_pool(args.jobs, tasks=n_runs) if n_runs > 1 else None
@@ -253,7 +253,9 @@ def _variant(text: str) -> tuple[str, str]:
     return prof, mode
 
 
-def _check_plan(plan: list[tuple[scenario.Scenario, str | None, Path]], args: argparse.Namespace) -> None:
+def _check_plan(
+    plan: list[tuple[scenario.Scenario, str | None, Path]], names: Sequence[str], args: argparse.Namespace
+) -> None:
     """Before any work: no two runs of the plan into one directory, and no finished result replaced that the
     user did not ask to replace: a run into a directory holding a finished run (``run.json``, not an interrupted
     run of the same scenario, which is resumed) needs ``--force``, with or without ``--out``."""
@@ -265,7 +267,8 @@ def _check_plan(plan: list[tuple[scenario.Scenario, str | None, Path]], args: ar
         seen[out] = sc.file
     from legbench import run
 
-    run.check_outs(plan, args.force, "choose another --out" if args.out is not None else "pass --out DIR")
+    run.check_outs(plan, args.force, "choose another --out" if args.out is not None else "pass --out DIR",
+                   backends=names)  # fmt: skip
 
 
 def _validate(args: argparse.Namespace) -> int:

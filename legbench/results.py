@@ -540,11 +540,14 @@ def resumable(scenario: Scenario, out_dir: Path, contact_mode: str | None) -> di
     return {name: e for name, e in prev.get("backends", {}).items() if e.get("status") == "ok"}
 
 
-def replaced_by_run(scenario: Scenario, out_dir: Path, contact_mode: str | None) -> str | None:
-    """What of ``out_dir`` a run of ``scenario`` in ``contact_mode`` would replace rather than resume, in words,
-    or None: a finished run (run.json without ``"complete": false``), or an interrupted run of other settings
-    (another scenario hash or contact mode). An interrupted run of the same settings is resumed (:func:`resumable`),
-    even with no backend finished yet."""
+def replaced_by_run(
+    scenario: Scenario, out_dir: Path, contact_mode: str | None, backends: Collection[str] | None = None
+) -> str | None:
+    """What of ``out_dir`` a run of ``scenario`` in ``contact_mode`` on ``backends`` would replace rather than
+    resume, in words, or None: a finished run (run.json without ``"complete": false``), an interrupted run of other
+    settings (another scenario hash or contact mode), or, ``backends`` given, an interrupted run of a backend not
+    among them (its log would be dropped). An interrupted run of the same settings on no other backends is resumed
+    (:func:`resumable`), even with no backend finished yet."""
     prev = _previous(Path(out_dir))
     if prev is None:
         return None
@@ -554,6 +557,12 @@ def replaced_by_run(scenario: Scenario, out_dir: Path, contact_mode: str | None)
         return "a finished run"
     if not _same_settings(prev, scenario, contact_mode):
         return "an interrupted run of other settings (it resumes only with the same scenario and options)"
+    others = sorted(set(prev.get("backends") or {}) - set(backends)) if backends is not None else []
+    if others:
+        return (
+            f"an interrupted run of other backends too ({', '.join(others)}: it resumes only with them among "
+            "the backends)"
+        )
     return None
 
 

@@ -381,11 +381,18 @@ def deferred_interrupts() -> Iterator[list[int]]:
         raise KeyboardInterrupt
 
 
-def check_outs(plan: Sequence[tuple[Scenario, str | None, Path]], force: bool, new_place: str,
-               replace: str = "--force", option: str = "--out") -> None:  # fmt: skip
+def check_outs(
+    plan: Sequence[tuple[Scenario, str | None, Path]],
+    force: bool,
+    new_place: str,
+    replace: str = "--force",
+    option: str = "--out",
+    backends: Sequence[str] | None = None,
+) -> None:
     """Before any work, each (scenario, contact mode, output directory) of a plan: the directory holds no other
     scenario's results (:func:`legbench.results.check_out_dir`), and a finished run there, or an interrupted one
-    of other settings, is replaced only with ``force`` (an interrupted run of the same settings is resumed).
+    of other settings or (``backends``: the run's) of other backends too, is replaced only with ``force`` (an
+    interrupted run of the same settings is resumed).
 
     Raises:
         LegbenchError: one line naming the directory, what it holds, ``new_place`` (where a new one goes) and
@@ -394,7 +401,7 @@ def check_outs(plan: Sequence[tuple[Scenario, str | None, Path]], force: bool, n
     """
     for sc, mode, out in plan:
         check_out_dir(sc, out, option)
-        held = None if force else replaced_by_run(sc, out, mode)
+        held = None if force else replaced_by_run(sc, out, mode, backends)
         if held is not None:
             raise LegbenchError(f"{out} holds {held}; {new_place} for a new one, or {replace} to replace it")
 

@@ -1316,3 +1316,33 @@ def test_verify_with_force_replaces_its_own_finished_verification(
     capsys.readouterr()
     cases = {c["case"] for c in json.loads((out / "verification.json").read_text())["checks"]}
     assert cases == {"rest_penetration"}
+
+
+def test_an_interrupted_run_is_not_resumed_by_a_run_that_drops_one_of_its_backends(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run of fake,fake2 interrupted in fake2 (fake finished), then a run of fake,fake3 into the same --out: it
+    was taken for a resume and dropped fake2's log without --force. Now refused, one line naming fake2, exit 2,
+    the directory as it was; the same backends (or more) resume it, --force replaces it."""
+    f = _fake_run(tmp_path, monkeypatch)
+    reg = registry._registry
+    more = {n: type(n, (FakeBackend,), {"name": n}) for n in ("fake2", "fake3")}
+    monkeypatch.setattr(registry, "_registry", lambda: {**reg(), **more})
+    out = tmp_path / "r"
+    common = [str(f), "--out", str(out), "-q", "--no-compare", "--no-preflight"]
+    assert cli.main(["run", *common, "--backends", "fake,fake2"]) == 0
+    meta = json.loads((out / "run.json").read_text())
+    meta["complete"] = False
+    meta["backends"]["fake2"]["status"] = "interrupted"
+    (out / "run.json").write_text(json.dumps(meta))
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    capsys.readouterr()
+    assert cli.main(["run", *common, "--backends", "fake,fake3"]) == 2
+    assert capsys.readouterr().err == (f"legbench: error: {out} holds an interrupted run of other backends too "
+                                       "(fake2: it resumes only with them among the backends); choose another --out "
+                                       "for a new one, or --force to replace it\n")  # fmt: skip
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert cli.main(["run", *common, "--backends", "fake2,fake,fake3"]) == 0  # a resume: fake kept, fake2 run again
+    done = json.loads((out / "run.json").read_text())
+    assert done.get("complete", True) and {k: v["status"] for k, v in done["backends"].items()} == dict.fromkeys(
+        ("fake", "fake2", "fake3"), "ok")  # fmt: skip

@@ -389,7 +389,8 @@ def page_items(plan: Plan, tabs: Sequence[Table]) -> list[report.PageItem]:
 # The command
 
 
-def check_out(scs: Sequence[Scenario], out: Path, force: bool = False, new_place: str = "choose another --out") -> None:
+def check_out(scs: Sequence[Scenario], out: Path, force: bool = False, new_place: str = "choose another --out",
+              names: Sequence[str] | None = None) -> None:  # fmt: skip
     """Before any work, as ``legbench run`` decides for its runs: ``out`` holds nothing but what a reproduce
     writes (its task run directories, any other run directory, its pages), each task's directory holds no other
     scenario's results, and nothing finished is replaced without ``force``: a task directory holding a finished
@@ -401,7 +402,7 @@ def check_out(scs: Sequence[Scenario], out: Path, force: bool = False, new_place
     """
     out = Path(out)
     results.check_out_tree(out, [sc.name for sc in scs], PAGES, "reproduce")
-    run.check_outs([(sc, None, out / sc.name) for sc in scs], force, new_place)
+    run.check_outs([(sc, None, out / sc.name) for sc in scs], force, new_place, backends=names)
     resumed = any((out / sc.name / "run.json").is_file() for sc in scs)  # left: interrupted runs of these settings
     if not force and not resumed and (out / "reproduce.json").is_file():
         raise LegbenchError(f"{out} holds a finished reproduce (reproduce.json); {new_place} for a new one, "
@@ -428,7 +429,7 @@ def reproduce(
         The tables and the run directories read back (``plan.tasks`` order).
     """
     scs = scenarios_of(plan, overrides, duration)
-    check_out(scs, out, force, new_place)
+    check_out(scs, out, force, new_place, names)
     dirs = [out / sc.name for sc in scs]
     run.run_many([(sc, None, d) for sc, d in zip(scs, dirs, strict=True)], names, jobs=jobs, progress=progress)
     if reports:
