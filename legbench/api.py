@@ -27,10 +27,12 @@ import dataclasses
 import html
 import math
 import numbers
+import os
+import reprlib
 import shutil
 import stat
 import tempfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -42,6 +44,7 @@ from legbench import logs, resources, yamlfile
 from legbench import scenario as scenario_mod
 from legbench.compare import ComparisonResult, compare, reference_sibling
 from legbench.exceptions import LegbenchError, ResultsError, ScenarioError
+from legbench.metrics import LAG_MODES
 from legbench.results import (
     Run,
     RunResult,
@@ -50,9 +53,182 @@ from legbench.results import (
     out_dir_for,
 )
 from legbench.scenario import Scenario
-from legbench.signals import RUN_COLUMNS, SLICE
+from legbench.signals import RUN_COLUMNS, SIGNALS, SLICE
 
 __all__ = ["Comparison", "Result", "load_scenario", "open_run", "run_scenario"]
+
+
+# --------------------------------------------------------------------------- #
+# The arguments of the API, checked once where they come in: a wrong one is one LegbenchError naming the argument
+# and what it expects (not a TypeError from pathlib, nor a truthy "no" taken for force=True), before any work.
+
+
+def _wrong(name: str, value: object, expected: str) -> LegbenchError:
+    """``name`` was given ``value`` of the wrong type: one line naming the argument, what it takes and the type."""
+    return LegbenchError(f"{name} {reprlib.repr(value)}: expected {expected}, not {type(value).__name__}")
+
+
+def _flag(value: object, name: str) -> bool:
+    """A switch of the API: True or False (numpy's bools too). Anything else is refused, not taken for its truth
+    value: ``force="no"`` replaced a finished run."""
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    raise _wrong(name, value, "True or False")
+
+
+def _path(value: object, name: str, what: str = "a path (str or os.PathLike)") -> Path:
+    """A path given to the API (str or os.PathLike of str, not empty: "" would be the working directory)."""
+    try:
+        text = os.fspath(value)  # type: ignore[call-overload]
+    except TypeError:
+        text = None
+    if not isinstance(text, str):
+        raise _wrong(name, value, what)
+    if not text or "\0" in text:
+        raise LegbenchError(f"{name} {text!r}: expected {what}, not an empty name or one holding a NUL character")
+    return Path(text)
+
+
+def _positive(value: object, name: str, hint: str) -> float:
+    """A finite number > 0 (not a bool)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value) or value <= 0:
+        raise LegbenchError(f"{name} {reprlib.repr(value)}: must be a finite number > 0 {hint}")
+    return float(value)
+
+
+_CONTACT_MODES = ("native", "reference", "both")
+_SCENARIO = "a bundled scenario's name, a scenario file (str or os.PathLike)"
+
+
+def _check_source(source: object, scenario_ok: bool) -> None:
+    """``scenario`` of :func:`run_scenario` (``scenario_ok``: a :class:`Scenario` too) or ``source`` of
+    :func:`load_scenario`."""
+    if isinstance(source, Mapping) or (scenario_ok and isinstance(source, Scenario)):
+        return
+    name, expected = (("scenario", f"{_SCENARIO}, a mapping in the scenario format or a Scenario") if scenario_ok
+                      else ("source", f"{_SCENARIO} or a mapping in the scenario format"))  # fmt: skip
+    _path(source, name, expected)
+
+
+def _check_backends(backends: object) -> str | list[str]:
+    """Backend names: a comma-separated string (``"all"``) or an iterable of strings; the registry checks the names."""
+    expected = "backend names: a list of strings, a comma-separated string or 'all'"
+    if isinstance(backends, str):
+        return backends
+    if not isinstance(backends, Iterable) or isinstance(backends, bytes | bytearray | Mapping):
+        raise _wrong("backends", backends, expected)
+    names = list(backends)
+    for n in names:
+        if not isinstance(n, str):
+            raise LegbenchError(f"backends {reprlib.repr(names)}: expected {expected}, not a list holding "
+                                f"{reprlib.repr(n)} ({type(n).__name__})")  # fmt: skip
+    return names
+
+
+def _check_ros(ros: object, name: str = "ros") -> None:
+    """``ros``: a :class:`legbench.logs.RosOptions` whose fields are what the command line's options can give."""
+    if not isinstance(ros, logs.RosOptions):
+        raise _wrong(name, ros, "legbench.logs.RosOptions(...)")
+    for f in ("joint_topic", "wrench_topic"):
+        topic = getattr(ros, f)
+        if topic is not None and not isinstance(topic, str):
+            raise _wrong(f"{name}.{f}", topic, "a topic name (str) or None")
+    joints = ros.joints
+    if joints is not None and not (
+        isinstance(joints, Sequence) and not isinstance(joints, str) and len(joints) == 3
+        and all(isinstance(j, str) and j for j in joints)
+    ):  # fmt: skip
+        raise LegbenchError(f"{name}.joints {reprlib.repr(joints)}: expected the names of joints 1, 2, 3 (three "
+                            "strings) or None")  # fmt: skip
+    if isinstance(ros.force_sign, bool) or ros.force_sign not in (1.0, -1.0):
+        raise LegbenchError(f"{name}.force_sign {reprlib.repr(ros.force_sign)}: expected 1.0 or -1.0")
+    t0 = ros.t0
+    if t0 is not None and (isinstance(t0, bool) or not isinstance(t0, numbers.Real) or not math.isfinite(t0)):
+        raise _wrong(f"{name}.t0", t0, "a finite bag time [s] or None")
+
+
+def _check_compare_args(kwargs: Mapping[str, Any], method: str) -> None:
+    """The keyword arguments of :meth:`Result.compare` and :meth:`Result.report` (those of
+    :func:`legbench.compare.compare`), with the rules of ``legbench compare``'s options: a log's settings need the
+    log, ``ros`` a ROS bag; ``lag`` one of three."""
+    unknown = sorted(set(kwargs) - set(_COMPARE_ARGS))
+    if unknown:
+        raise LegbenchError(f"{', '.join(unknown)}: not an argument of {method} (it takes {', '.join(_COMPARE_ARGS)})")
+    for name, value in kwargs.items():
+        _COMPARE_ARGS[name](value, name)
+    log = kwargs.get("log")
+    if log is None:  # these only shape the log: without one they would be ignored (as legbench compare refuses them)
+        given = [name for name, on in (("column_map", bool(kwargs.get("column_map"))),
+                                       ("log_is_reference", bool(kwargs.get("log_is_reference"))),
+                                       ("log_time_scale", kwargs.get("log_time_scale", 1.0) != 1.0)) if on]  # fmt: skip
+        if given:
+            raise LegbenchError(f"{', '.join(given)}: need log (they describe that log)")
+    if kwargs.get("ros") is not None and (log is None or not logs.is_ros_bag(log)):
+        raise LegbenchError("ros: needs log naming a ROS bag (a .bag file, a ROS 2 bag directory or its .db3 / "
+                            ".mcap file)")  # fmt: skip
+
+
+#: A check of one argument: its value and its name, raising LegbenchError.
+_Check = Callable[[Any, str], object]
+
+
+def _optional(check: _Check) -> _Check:
+    """``check``, or None."""
+
+    def run(value: object, name: str) -> None:
+        if value is not None:
+            check(value, name)
+
+    return run
+
+
+def _check_column_map(value: object, name: str) -> None:
+    if not isinstance(value, Mapping):
+        raise _wrong(name, value, "a mapping of the log's header names to legbench columns, e.g. {'joint1_pos': 'q1'}")
+    for src, dst in value.items():
+        if not (isinstance(src, str) and src.strip() and isinstance(dst, str) and dst.strip()):
+            raise LegbenchError(f"{name} {{{src!r}: {dst!r}}}: expected HEADER: COLUMN, two non-empty strings, "
+                                "e.g. {'joint1_pos': 'q1'}")  # fmt: skip
+
+
+def _check_log_name(value: object, name: str) -> None:
+    if not isinstance(value, str) or not value.strip():
+        raise _wrong(name, value, "a non-empty name (str)")
+
+
+def _check_lag(value: object, name: str) -> None:
+    if not isinstance(value, str) or value not in LAG_MODES:
+        raise LegbenchError(f"{name} {reprlib.repr(value)}: expected 'off', 'report' or 'remove'")
+
+
+def _check_lag_signals(value: object, name: str) -> None:
+    if (
+        isinstance(value, str) or not isinstance(value, Sequence) or not value
+        or not all(isinstance(s, str) and s in SIGNALS for s in value)
+    ):  # fmt: skip
+        raise LegbenchError(f"{name} {reprlib.repr(value)}: expected a non-empty list of signal names from "
+                            f"{', '.join(SIGNALS)}, e.g. ['q']")  # fmt: skip
+
+
+def _check_split_dir(value: object, name: str) -> None:
+    if value is not None and value != "auto":
+        _path(value, name, "a run directory (str or os.PathLike), 'auto' or None")
+
+
+#: Every keyword argument of :func:`legbench.compare.compare` the API passes on, with its check.
+_COMPARE_ARGS: dict[str, _Check] = {
+    "log": _optional(lambda v, n: _path(v, n, "a log file or ROS bag (str or os.PathLike)")),
+    "log_name": _optional(_check_log_name),
+    "column_map": _optional(_check_column_map),
+    "log_time_scale": lambda v, n: _positive(v, n, "(1e-3 for ms)"),
+    "log_is_reference": _flag,
+    "ros": _optional(_check_ros),
+    "all_pairs": _flag,
+    "lag": _check_lag,
+    "max_lag": lambda v, n: _positive(v, n, "[s] (the largest lag searched)"),
+    "lag_signals": _check_lag_signals,
+    "split_dir": _check_split_dir,
+}
 
 
 def load_scenario(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | None = None) -> Scenario:
@@ -65,8 +241,16 @@ def load_scenario(source: str | Path | Mapping[str, Any], overrides: Mapping[str
         overrides: dotted keys set before validation (``{"duration": 0.5, "backends.mujoco.dt": 5e-4}``).
 
     Raises:
-        ScenarioError: the scenario is invalid (file, key and problem).
+        ScenarioError: the scenario is invalid (file, key and problem); ``overrides`` is not a mapping of dotted keys.
+        LegbenchError: ``source`` is none of the three (``None``, a number, bytes).
     """
+    _check_source(source, scenario_ok=False)
+    _check_overrides(overrides)
+    return _load_scenario(source, overrides)
+
+
+def _load_scenario(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | None) -> Scenario:
+    """:func:`load_scenario` of arguments already checked."""
     if isinstance(source, Mapping):
         doc: dict[str, Any] = copy.deepcopy(dict(source))
         scenario_mod.apply_overrides(doc, overrides, "overrides")
@@ -196,6 +380,14 @@ class Result:
         return {name: tr.frame() for name, tr in self.traces.items() if tr.status == "ok"}
 
     def __getitem__(self, backend: str) -> pd.DataFrame:
+        """The log of one backend that ran (see :attr:`frames`).
+
+        Raises:
+            KeyError: not a backend of this run (the message lists them), or one that did not run ok (its reason).
+        """
+        if not isinstance(backend, str) or backend not in self.traces:
+            raise KeyError(f"no backend {reprlib.repr(backend)} in this run; its backends: "
+                           f"{', '.join(self.traces) or 'none'}")  # fmt: skip
         tr = self.traces[backend]
         if tr.status != "ok":
             raise KeyError(f"backend '{backend}' {tr.status}: {tr.reason}")
@@ -208,7 +400,15 @@ class Result:
     def compare(self, **kwargs: Any) -> Comparison:
         """Every metric of docs/metrics.md for this run (:func:`legbench.compare.compare`; its keyword arguments,
         e.g. ``log=`` an external log, ``lag="report"``, ``all_pairs=True``). Cached when called without arguments.
-        An error about the log names these arguments (``log_time_scale``, ``column_map``, ``ros``)."""
+        An error about the log names these arguments (``log_time_scale``, ``column_map``, ``ros``).
+
+        Raises:
+            LegbenchError: an argument compare does not take, or of the wrong type or value, named, before anything
+                is read; as ``legbench compare`` refuses them, ``column_map``, ``log_is_reference=True`` or
+                ``log_time_scale`` without ``log``, ``ros`` without ``log`` naming a ROS bag.
+            ResultsError: the run directory or the log is missing or malformed.
+        """
+        _check_compare_args(kwargs, "compare")
         if kwargs:
             with logs.worded(logs.API_WORDS):
                 return Comparison(compare(self.path, **kwargs))
@@ -221,20 +421,37 @@ class Result:
 
         Args:
             out_dir: a new or empty directory the run is copied into first (an existing non-empty one is
-                refused, so nothing is overwritten); None writes into the run directory itself.
+                refused, so nothing is overwritten); None, or the run directory itself, writes into the run
+                directory.
             **kwargs: as for :meth:`compare`.
 
         Raises:
             ResultsError: ``out_dir`` exists and is not empty.
+            LegbenchError: ``out_dir`` not a path, a regular file (or other non-directory), a link to nothing, in a
+                place that is not writable, another run directory or inside one (this run's too: the copy would be
+                taken for part of it); an argument as :meth:`compare` refuses it. All before anything is written.
         """
+        _check_compare_args(kwargs, "report")
         from legbench import report  # deferred: matplotlib
 
         target, fresh = self.path, False
-        if out_dir is not None and Path(out_dir).resolve() != self.path.resolve():
-            target = Path(out_dir)
-            fresh = not target.exists()
-            if not fresh and any(target.iterdir()):
-                raise ResultsError(str(target), "exists and is not empty; name a new directory")
+        if out_dir is not None:
+            given = _path(out_dir, "out_dir", "a directory (str or os.PathLike) or None")
+            try:
+                itself = given.resolve() == self.path.resolve()
+            except (OSError, RuntimeError):  # a loop of links: not the run, and check_out_path says what it is
+                itself = False
+            if not itself:
+                target = check_out_path(given, "out_dir")  # as legbench's --out: no file, no run, nothing in a run
+                if target.resolve() != target.absolute():  # a link into a run: the copy would land inside it
+                    check_out_path(target.resolve(), "out_dir")
+                fresh = not target.exists()
+                try:
+                    full = not fresh and any(target.iterdir())
+                except OSError as exc:
+                    raise ResultsError(str(target), f"cannot read: {exc.strerror or exc}") from None
+                if full:
+                    raise ResultsError(str(target), "exists and is not empty; name a new directory")
         result = None if kwargs or self._comparison is None else self._comparison.result
         try:
             if target != self.path:  # the run's entries, not the directory: out_dir keeps its own mode
@@ -334,8 +551,8 @@ def run_scenario(
     contact_mode: str | None = None,
     out: str | Path | None = None,
     jobs: int = 1,
-    progress: bool = False,
-    force: bool = False,
+    progress: bool | np.bool_ = False,
+    force: bool | np.bool_ = False,
 ) -> Result:
     """Run one scenario on several backends, as ``legbench run`` does, and return the :class:`Result`.
 
@@ -359,32 +576,41 @@ def run_scenario(
     Raises:
         ScenarioError: invalid scenario or override (``overrides`` not a mapping of string keys included).
         BackendNotFound: an unknown backend name.
-        LegbenchError: ``jobs`` not a whole number at least 1; ``contact_mode`` not one of the three; ``out`` a
-            regular file or in a place that is not writable; ``out`` holds another scenario's run or anything that
-            is not a legbench run (with ``"both"``: not a results tree); ``out`` holds a finished run and ``force``
-            is not set. All before anything runs.
+        LegbenchError: an argument of the wrong type, named (``scenario`` none of the four, ``backends`` not
+            strings, ``out`` not a path, ``progress`` or ``force`` not True or False: ``force="no"`` is refused,
+            not taken for true); ``jobs`` not a whole number at least 1; ``contact_mode`` not one of the three;
+            ``out`` a regular file or in a place that is not writable; ``out`` holds another scenario's run or
+            anything that is not a legbench run (with ``"both"``: not a results tree); ``out`` holds a finished run
+            and ``force`` is not set. All before anything runs.
     """
     from legbench import backends as registry
     from legbench import run as run_mod  # deferred: imports the backends
 
+    # every argument's type first, then what needs the scenario: nothing is read, made or run for a wrong one
+    _check_source(scenario, scenario_ok=True)
+    given_backends = _check_backends(backends)
+    _check_overrides(overrides)
+    if profile is not None and not isinstance(profile, str):  # its value is the scenario's to check, below
+        raise _wrong("profile", profile, "'matched' or 'engine-defaults'")
+    if contact_mode is not None and (not isinstance(contact_mode, str) or contact_mode not in _CONTACT_MODES):
+        raise LegbenchError(f"contact_mode {reprlib.repr(contact_mode)}: expected 'native', 'reference' or 'both'")
+    out_path = _path(out, "out", "a directory (str or os.PathLike) or None") if out is not None else None
     if isinstance(jobs, bool) or not isinstance(jobs, numbers.Integral):  # 1.5 ran in one process, "2" a TypeError
         raise LegbenchError(f"jobs {jobs!r}: expected a whole number of processes, at least 1")
     jobs = int(jobs)  # numpy's integers too
     if jobs < 1:  # as the command line's --jobs: 0 would still run, in one process
         raise LegbenchError(f"jobs {jobs}: must be at least 1")
-    _check_overrides(overrides)
+    progress, force = _flag(progress, "progress"), _flag(force, "force")  # force="no" replaced a finished run
     if isinstance(scenario, Scenario):
-        sc = load_scenario(scenario.raw, overrides) if overrides else scenario
+        sc = _load_scenario(scenario.raw, overrides) if overrides else scenario
     else:
-        sc = load_scenario(scenario, overrides)
+        sc = _load_scenario(scenario, overrides)
     if profile is not None and profile != sc.profile:  # as the CLI: a profile override is part of the scenario
         sc = scenario_mod.parse({**copy.deepcopy(dict(sc.raw)), "profile": profile}, "<mapping>")  # not overrides
-    names = registry.resolve(list(backends) if not isinstance(backends, str) else backends, "backends")
-    if contact_mode not in (None, "native", "reference", "both"):
-        raise LegbenchError(f"contact_mode {contact_mode!r}: expected 'native', 'reference' or 'both'")
-    if out is not None:  # as the command line's --out: a regular file is one error, not NotADirectoryError
-        check_out_path(out, "out", run_dir_ok=True)
-    root = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix=f"legbench-{sc.name}-"))
+    names = registry.resolve(given_backends, "backends")
+    if out_path is not None:  # as the command line's --out: a regular file is one error, not NotADirectoryError
+        check_out_path(out_path, "out", run_dir_ok=True)
+    root = out_path if out_path is not None else Path(tempfile.mkdtemp(prefix=f"legbench-{sc.name}-"))
     if contact_mode == "both":
         plan = [(sc, m, out_dir_for(root, sc, m)) for m in ("native", "reference")]
         run_mod.check_tree(root, [d.name for *_, d in plan], "out")
@@ -392,7 +618,7 @@ def run_scenario(
         plan = [(sc, contact_mode or sc.contact_mode, root)]
     # as the command line: another scenario's run or a foreign folder is refused outright, a finished run of this
     # one is replaced only when asked
-    run_mod.check_outs(plan, force, "choose another out", "force=True", "out")
+    run_mod.check_outs(plan, force, "choose another out", "force=True", "out", backends=names)
     outcome = run_mod.run_many(plan, names, jobs=jobs, progress=progress)
     made = [Result(s, d, _traces(d, names, res), mode) for (s, mode, d), res in zip(plan, outcome, strict=True)]
     if len(made) == 2:
@@ -488,12 +714,13 @@ def open_run(path: str | Path) -> Result:
         path: the run directory (the folder holding run.json).
 
     Raises:
+        LegbenchError: ``path`` is not a path (str or os.PathLike: not None, bytes or a number).
         ResultsError: one line naming the path: it is missing, a file, a folder without run.json or a
             results tree's root (naming one of its runs); or run.json, a log or the sibling reference-mode run
             is malformed; or the recorded scenario no longer validates here (another leg model, a plug-in
             backend not installed) or is not the one that ran (see :func:`legbench.results.load_run`).
     """
-    given = Path(path)
+    given = _path(path, "path", "a run directory (str or os.PathLike)")
     _run_dir(given)
     run = load_run(given)
     scenario = _recorded_scenario(run)

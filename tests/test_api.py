@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 
 import legbench
-from legbench import api, resources
+from legbench import api, logs, resources
 from legbench.compare import compare
 from legbench.exceptions import LegbenchError, ResultsError, ScenarioError
 from legbench.signals import RUN_COLUMNS
@@ -112,17 +112,27 @@ def test_a_report_that_fails_leaves_its_new_directory_as_it_was(result: api.Resu
     assert (tmp_path / "link").is_symlink() and not any((tmp_path / "real").iterdir())
 
 
-def test_a_report_into_a_folder_inside_the_run_does_not_copy_the_folder_into_itself(
+def test_a_report_into_a_folder_inside_the_run_is_refused_as_on_the_command_line(
     result: api.Result, tmp_path: Path
 ) -> None:
-    """The run's entries were listed after out_dir was made, so out_dir = run/report was copied into itself."""
-    import shutil
-
+    """report(run/sub) wrote a copy of the run inside the run (taken for part of it, lost with it), where
+    ``legbench compare`` refuses an --out inside a run: now refused before anything is written, naming ``out_dir``;
+    so is a link that leads inside the run. report(out_dir=the run itself) still writes into the run."""
     run = tmp_path / "run"
     shutil.copytree(result.path, run)
-    html = api.open_run(run).report(run / "report")
-    assert html == run / "report" / "report.html" and html.is_file()
-    assert not (run / "report" / "report").exists()
+    opened = api.open_run(run)
+    before = sorted(p.name for p in run.iterdir())
+    with pytest.raises(LegbenchError) as exc:
+        opened.report(run / "sub")
+    assert str(exc.value) == f"out_dir {run / 'sub'}: inside the run directory {run}, which holds one run; choose " \
+                             "another out_dir"  # fmt: skip
+    (run / "empty").mkdir()
+    (tmp_path / "link").symlink_to(run / "empty")
+    with pytest.raises(LegbenchError, match=r"^out_dir .*empty: inside the run directory .*run, which holds one run"):
+        opened.report(tmp_path / "link")
+    assert sorted(p.name for p in run.iterdir()) == sorted([*before, "empty"]) and not any((run / "empty").iterdir())
+    html = opened.report(run)
+    assert html == run / "report.html" and html.is_file()
 
 
 def test_mapping_profile_and_both_contact_modes(tmp_path: Path) -> None:
@@ -553,3 +563,215 @@ def test_log_errors_name_the_arguments_of_compare(
     assert f"{ms}: median time step 1 s: is the time in ms? (log_time_scale=1e-3)" in caplog.text
     with pytest.raises(ResultsError, match=r"choose one with --log-columns \(column_map in the Python API\)$"):
         logs.load_log(dup)
+
+
+# --------------------------------------------------------------------------- #
+# Arguments of the wrong type or value: one LegbenchError naming the argument and what it takes, before anything is
+# read, written or run (they were TypeErrors from pathlib, AttributeErrors, KeyErrors, or taken for their truth).
+
+
+def _tree(path: Path) -> dict[str, bytes]:
+    """Every file under ``path``, by relative name, with its bytes."""
+    return {str(p.relative_to(path)): p.read_bytes() for p in sorted(path.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.parametrize(
+    ("flag", "value", "message"),
+    [
+        ("force", "no", "force 'no': expected True or False, not str"),
+        ("force", 1, "force 1: expected True or False, not int"),
+        ("force", None, "force None: expected True or False, not NoneType"),
+        ("progress", "yes", "progress 'yes': expected True or False, not str"),
+    ],
+)
+def test_a_flag_not_a_bool_is_refused_and_a_finished_run_left_byte_for_byte(
+    flag: str, value: Any, message: str, result: api.Result
+) -> None:
+    """force="no" replaced the finished run in ``out`` ("no" is truthy): a flag must be True or False, else one
+    LegbenchError naming it, and the run is left as it was, every file byte for byte."""
+    before = _tree(result.path)
+    with pytest.raises(LegbenchError) as exc:
+        legbench.run_scenario("position", backends=["pinocchio", "mujoco"], overrides=SHORT, out=result.path,
+                              **{flag: value})  # fmt: skip
+    assert str(exc.value) == message
+    assert _tree(result.path) == before
+
+
+def test_numpy_bools_are_flags(result: api.Result) -> None:
+    """np.False_ is False: the finished run is refused without force, not replaced."""
+    before = _tree(result.path)
+    with pytest.raises(LegbenchError, match="holds a finished run; choose another out for a new one, or force=True"):
+        legbench.run_scenario("position", backends=["pinocchio", "mujoco"], overrides=SHORT, out=result.path,
+                              force=np.False_, progress=np.False_)  # fmt: skip
+    assert _tree(result.path) == before
+
+
+_SCENARIO_TYPES = "expected a bundled scenario's name, a scenario file (str or os.PathLike)"
+
+
+@pytest.mark.parametrize(
+    ("scenario", "shown"),
+    [
+        (123, "123 ... int"),
+        (None, "None ... NoneType"),
+        (["a"], "['a'] ... list"),
+        (b"position", "b'position' ... bytes"),
+    ],  # fmt: skip
+)
+def test_a_scenario_of_another_type_is_refused(scenario: Any, shown: str, tmp_path: Path) -> None:
+    """run_scenario(123 | None | ["a"] | b"position") and load_scenario(...) raised pathlib's TypeError."""
+    value, kind = shown.split(" ... ")
+    with pytest.raises(LegbenchError) as exc:
+        legbench.run_scenario(scenario, backends="pinocchio", overrides=SHORT, out=tmp_path / "r")
+    assert str(exc.value) == (f"scenario {value}: {_SCENARIO_TYPES}, a mapping in the scenario format or a Scenario, "
+                              f"not {kind}")  # fmt: skip
+    with pytest.raises(LegbenchError) as exc:
+        legbench.load_scenario(scenario)
+    assert str(exc.value) == f"source {value}: {_SCENARIO_TYPES} or a mapping in the scenario format, not {kind}"
+    assert not (tmp_path / "r").exists()
+
+
+def test_load_scenario_refuses_overrides_not_a_mapping() -> None:
+    """load_scenario("position", [1]) was an AttributeError from the loader, as run_scenario's overrides once were."""
+    with pytest.raises(ScenarioError) as exc:
+        legbench.load_scenario("position", [1])  # type: ignore[arg-type]
+    assert str(exc.value) == "<overrides>: expected a mapping of dotted keys to values, got list"
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"out": 5}, "out 5: expected a directory (str or os.PathLike) or None, not int"),
+        (
+            {"out": ""},
+            "out '': expected a directory (str or os.PathLike) or None, not an empty name or one holding "
+            "a NUL character",
+        ),  # fmt: skip
+        (
+            {"backends": 5},
+            "backends 5: expected backend names: a list of strings, a comma-separated string or 'all', not int",
+        ),  # fmt: skip
+        (
+            {"backends": [1, 2]},
+            "backends [1, 2]: expected backend names: a list of strings, a comma-separated string "
+            "or 'all', not a list holding 1 (int)",
+        ),  # fmt: skip
+        ({"profile": 5}, "profile 5: expected 'matched' or 'engine-defaults', not int"),
+        ({"contact_mode": ["both"]}, "contact_mode ['both']: expected 'native', 'reference' or 'both'"),
+    ],
+)
+def test_run_scenario_arguments_of_the_wrong_type_are_refused(kwargs: dict[str, Any], message: str) -> None:
+    """out=5 was pathlib's TypeError, ``out=""`` the working directory; backends=5 "'int' object is not iterable",
+    backends=[1, 2] an AttributeError."""
+    args: dict[str, Any] = {"backends": "pinocchio", "overrides": SHORT} | kwargs
+    with pytest.raises(LegbenchError) as exc:
+        legbench.run_scenario("position", **args)
+    assert str(exc.value) == message
+
+
+@pytest.mark.parametrize("path", [5, None, b"/tmp"])
+def test_open_run_of_a_path_of_another_type_is_refused(path: Any) -> None:
+    """open_run(5 | None | b"...") was pathlib's TypeError."""
+    with pytest.raises(LegbenchError) as exc:
+        legbench.open_run(path)
+    assert str(exc.value) == f"path {path!r}: expected a run directory (str or os.PathLike), not {type(path).__name__}"
+
+
+_LAG_SIGNALS = "expected a non-empty list of signal names from q, qd, tau, force, e.g. ['q']"
+_NEED_LOG = "need log (they describe that log)"
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"lag": "x"}, "lag 'x': expected 'off', 'report' or 'remove'"),
+        ({"max_lag": float("nan")}, "max_lag nan: must be a finite number > 0 [s] (the largest lag searched)"),
+        ({"max_lag": "x"}, "max_lag 'x': must be a finite number > 0 [s] (the largest lag searched)"),
+        ({"max_lag": -1}, "max_lag -1: must be a finite number > 0 [s] (the largest lag searched)"),
+        ({"max_lag": 0}, "max_lag 0: must be a finite number > 0 [s] (the largest lag searched)"),
+        ({"lag_signals": ("zz",)}, f"lag_signals ('zz',): {_LAG_SIGNALS}"),
+        ({"lag_signals": "qd"}, f"lag_signals 'qd': {_LAG_SIGNALS}"),
+        (
+            {"column_map": ["a"]},
+            "column_map ['a']: expected a mapping of the log's header names to legbench columns, "
+            "e.g. {'joint1_pos': 'q1'}, not list",
+        ),  # fmt: skip
+        (
+            {"log": "x.csv", "column_map": {"a": " "}},
+            "column_map {'a': ' '}: expected HEADER: COLUMN, two non-empty strings, e.g. {'joint1_pos': 'q1'}",
+        ),  # fmt: skip
+        ({"log": 5}, "log 5: expected a log file or ROS bag (str or os.PathLike), not int"),
+        ({"log_time_scale": "x"}, "log_time_scale 'x': must be a finite number > 0 (1e-3 for ms)"),
+        ({"log_is_reference": True}, f"log_is_reference: {_NEED_LOG}"),
+        ({"column_map": {"a": "q1"}, "log_time_scale": 1e-3}, f"column_map, log_time_scale: {_NEED_LOG}"),
+        ({"log_is_reference": "yes"}, "log_is_reference 'yes': expected True or False, not str"),
+        ({"all_pairs": "no"}, "all_pairs 'no': expected True or False, not str"),
+        ({"ros": "x"}, "ros 'x': expected legbench.logs.RosOptions(...), not str"),
+        (
+            {"log": "x.csv", "ros": logs.RosOptions()},
+            "ros: needs log naming a ROS bag (a .bag file, a ROS 2 bag directory or its .db3 / .mcap file)",
+        ),  # fmt: skip
+        ({"log": "x.bag", "ros": logs.RosOptions(force_sign=2.0)}, "ros.force_sign 2.0: expected 1.0 or -1.0"),
+        ({"log_name": 5}, "log_name 5: expected a non-empty name (str), not int"),
+        ({"split_dir": 5}, "split_dir 5: expected a run directory (str or os.PathLike), 'auto' or None, not int"),
+        (
+            {"bogus": 1},
+            "bogus: not an argument of {method} (it takes log, log_name, column_map, log_time_scale, "
+            "log_is_reference, ros, all_pairs, lag, max_lag, lag_signals, split_dir)",
+        ),  # fmt: skip
+    ],
+)
+def test_compare_and_report_refuse_a_bad_argument_by_name(
+    kwargs: dict[str, Any], message: str, result: api.Result, tmp_path: Path
+) -> None:
+    """Result.compare raised ValueError (lag="x", max_lag=nan), TypeError (max_lag="x", log=5, log_time_scale="x"),
+    KeyError (lag_signals=("zz",)), or took max_lag=-1, ros="x" and log_is_reference=True without a log (which
+    ``legbench compare`` refuses: its options that describe the log need the log, its ROS options a ROS bag, as
+    here). Result.report, taking the same arguments, refuses them the same, before its out_dir is made."""
+    for method in ("compare", "report"):
+        with pytest.raises(LegbenchError) as exc:
+            if method == "compare":
+                result.compare(**kwargs)
+            else:
+                result.report(tmp_path / "rep", **kwargs)
+        assert str(exc.value) == message.replace("{method}", method)
+    assert not (tmp_path / "rep").exists()
+
+
+def test_the_api_checks_every_argument_of_compare() -> None:
+    """Result.compare passes on the keyword arguments of legbench.compare.compare: each has its check."""
+    import inspect
+
+    kw_only = [p.name for p in inspect.signature(compare).parameters.values() if p.kind is p.KEYWORD_ONLY]
+    assert list(api._COMPARE_ARGS) == kw_only
+
+
+@pytest.mark.parametrize("kind", ["a regular file", "a link to nothing"])
+def test_a_report_into_a_file_or_a_link_to_nothing_is_refused(kind: str, result: api.Result, tmp_path: Path) -> None:
+    """report(<a file>) was NotADirectoryError, report(<a link to nothing>) FileExistsError: as --out of the command
+    line, a LegbenchError naming out_dir; the file and the link stay as they were."""
+    out = tmp_path / "out"
+    if kind == "a regular file":
+        out.write_text("keep")
+        expected = f"out_dir {out}: is a regular file, not a directory"
+    else:
+        out.symlink_to(tmp_path / "gone")
+        expected = (
+            f"out_dir {out}: a symbolic link to {tmp_path / 'gone'}, which does not exist; choose another out_dir"
+        )
+    with pytest.raises(LegbenchError) as exc:
+        result.report(out)
+    assert str(exc.value) == expected
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    assert out.read_text() == "keep" if kind == "a regular file" else out.is_symlink() and not out.exists()
+    with pytest.raises(LegbenchError) as exc:
+        result.report(5)  # type: ignore[arg-type]
+    assert str(exc.value) == "out_dir 5: expected a directory (str or os.PathLike) or None, not int"
+
+
+def test_an_unknown_backend_key_lists_the_backends_it_has(result: api.Result) -> None:
+    """res["nosuch"] was a bare KeyError('nosuch'): still a KeyError (a mapping's), saying which backends there are."""
+    for key, shown in (("nosuch", "'nosuch'"), (5, "5")):
+        with pytest.raises(KeyError) as exc:
+            result[key]  # type: ignore[index]
+        assert exc.value.args[0] == f"no backend {shown} in this run; its backends: pinocchio, mujoco"
