@@ -501,7 +501,11 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
             rows.append(CheckRow(key, "-", "", "-", "-", "status", nan, nan, nan, "MISSING", msg))
             continue
         ndir = nd[key]
-        bmeta, bdf, _ = _metrics(bdir)
+        bmeta, bdf, brun = _metrics(bdir)
+        lost = [b for b in (brun.backends.values() if brun is not None else ()) if b.status == "missing"]
+        if lost:  # its numbers would be n/a, and every new row of that backend would pass unchecked
+            raise ResultsError(str(bdir), f"a baseline with a log missing (backend '{lost[0].name}': {lost[0].reason});"
+                                          " restore it, or choose another --baseline")  # fmt: skip
         nmeta, ndf, nrun = _metrics(ndir)
         nmeta = _with_run_statuses(nmeta, nrun)
         bname, nname = str(bmeta.get("scenario", key)), str(nmeta.get("scenario", key))

@@ -198,6 +198,8 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
     value = {(b, r, s, j, m): float(v) for b, r, s, j, m, v in zip(*cols, strict=True)}
     sim = {k: v for k, v in value.items() if k[4] == "sim_error_pct" and k[1] == ref and math.isfinite(v)}
     if not sim:
+        if ((meta.get("backends") or {}).get(ref) or {}).get("status") == "ok":  # the others have none
+            return f"No deviation measured: no backend but the reference '{ref}' has data."
         return f"No deviation measured: the reference backend '{ref}' has no data."
     nan = math.nan
     peaks: dict[tuple[str, str], float] = {}

@@ -400,6 +400,25 @@ def test_a_new_run_whose_log_was_deleted_fails_as_missing(baseline: Path, tmp_pa
     assert "FAIL" in out.getvalue().splitlines()[-1]
 
 
+def test_a_baseline_whose_log_was_deleted_is_refused(baseline: Path, tmp_path: Path) -> None:
+    """The baseline's run.json says a is ok but a.parquet is gone: its numbers for a were n/a and every new row of
+    a passed unchecked (exit 0). Now a ResultsError naming the baseline, the backend and the file (exit 2); a
+    baseline of run.json and metrics.json alone (the committed layout, no logs) is still used as is."""
+    damaged, _ = _broken_copy(baseline, tmp_path, "deleted", metrics_newer=True)
+    new = tree(tmp_path / "latest")
+    with pytest.raises(ResultsError) as exc:
+        K.check(new, damaged)
+    where = damaged / "fake"
+    assert str(exc.value) == (f"{where}: a baseline with a log missing (backend 'a': run.json says ok but "
+                              f"a.parquet is not in {where}); restore it, or choose another --baseline")  # fmt: skip
+    committed = tmp_path / "committed"
+    for d in baseline.iterdir():
+        (committed / d.name).mkdir(parents=True)
+        for f in ("run.json", "metrics.json"):
+            shutil.copy2(d / f, committed / d.name / f)
+    assert K.check(new, committed).exit_status == 0
+
+
 def test_a_metrics_json_computed_from_other_logs_is_measured_again_whatever_the_file_times(
     baseline: Path, tmp_path: Path
 ) -> None:

@@ -981,3 +981,13 @@ def test_the_split_says_mostly_only_for_a_clear_ratio(tmp_path: Path) -> None:
         write_run(root / "s__reference", {"ref": None, "a": scale(ref_scale)}, name="s", contact_mode="reference")
         res = compare(root / "s")
         assert says in R.sentence(res.to_json(), res.frame()), R.sentence(res.to_json(), res.frame())
+
+
+def test_the_headline_of_a_run_with_only_the_reference_left_says_so() -> None:
+    """Every other backend's log gone or failed, the reference's there: the headline said the reference had no
+    data; it now says no other backend has any. A reference without data is still named as such."""
+    empty = pd.DataFrame(columns=["backend", "reference", "signal", "joint", "metric", "value"])
+    ok = {"reference": "ref", "backends": {"ref": {"status": "ok"}, "a": {"status": "missing"}}}
+    assert R.sentence(ok, empty) == "No deviation measured: no backend but the reference 'ref' has data."
+    gone = {"reference": "ref", "backends": {"ref": {"status": "missing"}, "a": {"status": "ok"}}}
+    assert R.sentence(gone, empty) == "No deviation measured: the reference backend 'ref' has no data."
