@@ -370,6 +370,8 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 def _compare(args: argparse.Namespace) -> int:
     from legbench import logs, report
 
+    if not args.dir:  # Path("") is the working directory
+        raise LegbenchError("'': an empty path; give a run directory or a results tree")
     try:
         a_file = Path(args.dir).exists() and not Path(args.dir).is_dir()
     except OSError as exc:  # a name too long: no such directory can exist

@@ -875,6 +875,32 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
     return blocks
 
 
+#: The title of a results tree's index, its first line in Markdown and its <title> in HTML.
+INDEX_TITLE = "legbench: comparison summary"
+
+
+def _our_index(page: Path) -> bool:
+    """Whether ``page`` (a tree's report.md or report.html) is an index legbench wrote: its title where
+    :func:`write_all` puts it (read from its first 1 kB; an unreadable file is not ours to replace)."""
+    try:
+        with page.open("rb") as fh:
+            head = fh.read(1024).decode("utf-8", "replace")
+    except OSError:
+        return False
+    if page.suffix == ".md":
+        return head.startswith(f"# {INDEX_TITLE}\n")
+    return f"<title>{INDEX_TITLE}</title>" in head
+
+
+def _check_index_pages(root: Path) -> None:
+    """Refuse, before any work, a tree whose report.md or report.html is not an index legbench wrote (a page of
+    the user's there was replaced by the index)."""
+    for page in (root / "report.md", root / "report.html"):
+        if page.exists() and not _our_index(page):
+            raise ResultsError(str(page), "not an index legbench wrote, and the tree's index goes there; move it "
+                                          "away, or compare the run directories one by one")  # fmt: skip
+
+
 def write_index(root: str | Path) -> IndexFiles:
     """Write ROOT/report.html and ROOT/report.md for a tree of run directories.
 
@@ -891,10 +917,11 @@ def write_index(root: str | Path) -> IndexFiles:
     """
     root = Path(root)
     blocks, dirs = _index_blocks(root)
+    _check_index_pages(root)
     md = root / "report.md"
     atomic_write_text(md, to_markdown(blocks))
     page = root / "report.html"
-    atomic_write_text(page, to_html(blocks, "legbench: comparison summary"))
+    atomic_write_text(page, to_html(blocks, INDEX_TITLE))
     return IndexFiles(page, md, tuple(dirs))
 
 
@@ -912,7 +939,7 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
     tasks = list(dict.fromkeys(e.name for e in entries))
     legend = "; ".join(why for _, _, why in BANDS)
     blocks: list[Block] = [
-        Heading(1, "legbench: comparison summary"),
+        Heading(1, INDEX_TITLE),
         Nav(tuple((t, f"#task-{t}") for t in tasks)),
         Para(
             "Simulation error % = max_t |x_a - x_ref| / max_t |x_ref| x 100 per signal component, each backend "
@@ -1231,6 +1258,7 @@ def write_all(
     if compare_kwargs.get("log") is not None:
         raise ResultsError(str(root), "an imported log belongs to one scenario: pass that scenario's run directory")
     dirs = list(run_dirs(root).values())
+    _check_index_pages(root)
     tag = _tag()
     tasks = [(str(d), str(root / ASSETS), dict(compare_kwargs), tag) for d in dirs]
     staged: list[_Staged] = []
@@ -1241,7 +1269,7 @@ def write_all(
         metrics_files = {st.files.html.parent: tmp for st in staged for tmp, final in st.moves
                          if final.name == "metrics.json"}  # fmt: skip
         blocks, _ = _index_blocks(root, metrics_files, [st.files.html.parent for st in staged])
-        html = to_html(blocks, "legbench: comparison summary")
+        html = to_html(blocks, INDEX_TITLE)
         index_moves = (stage_text(root / "report.md", to_markdown(blocks), tag),
                        stage_text(root / "report.html", html, tag))  # fmt: skip
     except BaseException:

@@ -732,3 +732,9 @@ def test_python_m_legbench_runs_in_a_pool(tmp_path: Path) -> None:
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False)
     assert proc.returncode == 0, proc.stderr
     assert {p.stem for p in out.glob("*.parquet")} == {"pinocchio", "mujoco"}
+
+
+def test_compare_of_an_empty_path_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    """``legbench compare ''`` compared the working directory (Path("") is "."): one line, exit 2."""
+    assert cli.main(["compare", ""]) == 2
+    assert capsys.readouterr().err == "legbench: error: '': an empty path; give a run directory or a results tree\n"

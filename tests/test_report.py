@@ -991,3 +991,23 @@ def test_the_headline_of_a_run_with_only_the_reference_left_says_so() -> None:
     assert R.sentence(ok, empty) == "No deviation measured: no backend but the reference 'ref' has data."
     gone = {"reference": "ref", "backends": {"ref": {"status": "missing"}, "a": {"status": "ok"}}}
     assert R.sentence(gone, empty) == "No deviation measured: the reference backend 'ref' has no data."
+
+
+@pytest.mark.parametrize("page", ["report.md", "report.html"])
+def test_the_index_never_replaces_a_page_legbench_did_not_write(page: str, tmp_path: Path) -> None:
+    """``legbench compare TREE`` with the user's own report.md (or .html) at TREE's root replaced it by the index:
+    refused before anything is written, one ResultsError naming the file, the page as it was and no run's report
+    written; legbench's own index there is rewritten (written twice here)."""
+    root = tmp_path / "tree"
+    write_run(root / "one", {"ref": None, "a": scale(1.01)})
+    (root / page).write_text("# my notes\n")
+    for write in (R.write_all, R.write_index):
+        with pytest.raises(ResultsError) as exc:
+            write(root)
+        assert str(exc.value) == (f"{root / page}: not an index legbench wrote, and the tree's index goes there; "
+                                  "move it away, or compare the run directories one by one")  # fmt: skip
+    assert (root / page).read_text() == "# my notes\n" and not (root / "one" / "report.html").exists()
+    (root / page).unlink()
+    R.write_all(root)
+    R.write_all(root)
+    assert R.write_index(root).markdown.read_text().startswith("# legbench: comparison summary\n")
