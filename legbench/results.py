@@ -640,7 +640,8 @@ def log_digests(run_dir: str | Path) -> dict[str, str]:
     """SHA-256 of each backend log (``*.parquet``) of a run directory, by file name: what its metrics.json
     was computed from (``logs`` in metrics.json; :func:`legbench.check.check` measures the logs again when
     they no longer match, whatever the files' times say). Hashing a run's logs takes about 1 ms per MB."""
-    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(Path(run_dir).glob("*.parquet"))}
+    logs = sorted(p for p in Path(run_dir).glob("*.parquet") if p.is_file())
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in logs}
 
 
 def metrics_text(doc: Mapping[str, Any]) -> str:
@@ -1072,6 +1073,8 @@ def load_run(run_dir: str | Path) -> Run:
         status, reason = str(b["status"]), b.get("reason")
         fname = str(b.get("file") or f"{bname}.parquet")
         fpath = path / fname
+        if status == "ok" and fpath.exists() and not fpath.is_file():  # a folder or a device: not a log to read
+            raise ResultsError(str(fpath), f"is {_kind(fpath)}, not a backend log (run.json says {bname} ran ok)")
         if status == "ok" and not fpath.is_file():
             status, reason = "missing", f"run.json says ok but {fname} is not in {path}"
         if status == "ok":

@@ -181,3 +181,18 @@ def test_a_refused_output_directory_names_what_the_caller_named_it_with(tmp_path
         with pytest.raises(LegbenchError) as exc:
             results.check_out_tree(mine, ["a"], (), "results tree", *given)
         assert str(exc.value).endswith(f"(it holds notes.txt); choose another {option}")
+
+
+def test_a_log_that_is_a_folder_is_one_results_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """a.parquet replaced by a folder: load_run read it as missing while the metrics' log digests tried to read
+    the folder, an I/O error (exit 4) from compare, "missing" from open_run. Now one ResultsError naming the file
+    (exit 2 from compare), and log_digests hashes only files."""
+    run = write_run(tmp_path / "one", {"ref": None, "a": scale(1.1)}, name="one")
+    (run / "a.parquet").unlink()
+    (run / "a.parquet").mkdir()
+    with pytest.raises(ResultsError) as exc:
+        results.load_run(run)
+    assert str(exc.value) == f"{run / 'a.parquet'}: is a directory, not a backend log (run.json says a ran ok)"
+    assert list(results.log_digests(run)) == ["ref.parquet"]
+    assert cli.main(["compare", str(run)]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
