@@ -902,6 +902,8 @@ def errors(path: str | Path, overrides: Mapping[str, Any] | None = None) -> list
             parse(doc, str(path), root, tuple(overrides or ()), placeholders=placeholders, every_engine=True)
             return found
         except ScenarioError as exc:
+            if any(str(e) == str(exc) for e in found):  # the section's defaults refused as the file's: said once
+                return found
             found.append(exc)
             top = re.split(r"[.\[]", exc.key, maxsplit=1)[0] if exc.key else ""
             if not isinstance(doc, dict) or top not in doc:

@@ -423,3 +423,10 @@ def test_a_document_that_is_no_mapping_is_refused_as_such_with_set(tmp_path: Pat
     assert str(problem).endswith("list.yaml: expected a mapping, got list")
     with pytest.raises(ScenarioError, match=r"list\.yaml: expected a mapping, got list"):
         scenario.load(f, {"duration": 1})
+
+
+def test_a_problem_the_sections_defaults_share_is_said_once() -> None:
+    """position.yaml with duration 0.2 s: its steady_window (1 s) is longer than the run, and so is the default
+    that replaced the dropped comparison section: the same line was printed twice; now once."""
+    (problem,) = scenario.errors(SCENARIOS / "position.yaml", {"duration": 0.2})
+    assert str(problem).endswith("comparison.steady_window: longer than the run (0.2 s)")
