@@ -329,7 +329,8 @@ def _validate_one(path: str, overrides: Mapping[str, Any] | None = None) -> tupl
     if problems:
         return "", problems
     sc = scenario.load(path, overrides)
-    return f"{path}: ok ({sc.name}: {len(sc.events)} events, {sc.duration:g} s)", []
+    n = len(sc.events)
+    return f"{path}: ok ({sc.name}: {n} event{'' if n == 1 else 's'}, {sc.duration:g} s)", []
 
 
 def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

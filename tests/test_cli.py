@@ -692,7 +692,7 @@ def test_validate_takes_set_as_run_does(capsys: pytest.CaptureFixture[str]) -> N
     root = Path(__file__).resolve().parent.parent
     effort, sweep = str(root / "scenarios" / "effort.yaml"), str(root / "scenarios" / "sweeps" / "timestep.yaml")
     assert cli.main(["validate", effort, "--set", "duration=0.5", "--set", "comparison.steady_window=0.1"]) == 0
-    assert capsys.readouterr().out.strip().endswith("effort.yaml: ok (effort: 1 events, 0.5 s)")
+    assert capsys.readouterr().out.strip().endswith("effort.yaml: ok (effort: 1 event, 0.5 s)")
     assert cli.main(["validate", effort, "--set", "duration=-1", "--set", "backends.eulr.dt=1e-5"]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 2

@@ -109,3 +109,20 @@ def test_bench_times_the_plugin_with_its_kernel_floors(plugin: str) -> None:
     floors = [t for t in res.timings.values() if t.kind == "floor"]
     assert floors and all(math.isfinite(v) and v > 0 for t in floors for v in t.cpu_samples)
     assert res.floor in res.timings
+
+
+def test_the_install_command_of_a_missing_built_in_engine_carries_pyproject_s_pin() -> None:
+    """``legbench backends`` and a refused --backends name the pip requirement of a missing engine: each is the
+    one pyproject.toml declares (its dependencies or extras), pin included (`pip install drake` gave no pin)."""
+    import tomllib
+
+    from legbench import backends
+
+    doc = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())
+    reqs = {*doc["project"]["dependencies"], *(r for extra in doc["project"]["optional-dependencies"].values()
+                                              for r in extra)}  # fmt: skip
+    for name, (_, _, package) in backends.BUILTIN.items():
+        if package.startswith("apt-get "):
+            assert package.endswith("pip install ode-python") and any(r.startswith("ode-python") for r in reqs)
+            continue
+        assert package.startswith("'") and package.endswith("'") and package.strip("'") in reqs, (name, package)

@@ -44,15 +44,16 @@ __all__ = [
     "unavailable",
 ]
 
-#: Built-in backends: name -> (module, class, pip package that provides the engine, or the
-#: whole install command where a pip package is not enough, e.g. a system library too).
+#: Built-in backends: name -> (module, class, pip requirement that provides the engine, with pyproject.toml's
+#: pin (tests/test_registry.py keeps them equal), or the whole install command where a pip package is not enough,
+#: e.g. a system library too).
 BUILTIN: dict[str, tuple[str, str, str]] = {
-    "pinocchio": ("legbench.backends.pinocchio_", "PinocchioBackend", "pin"),
-    "mujoco": ("legbench.backends.mujoco_", "MujocoBackend", "mujoco"),
-    "pybullet": ("legbench.backends.pybullet_", "PybulletBackend", "pybullet"),
-    "drake": ("legbench.backends.drake_", "DrakeBackend", "drake"),
-    "dart": ("legbench.backends.dart_", "DartBackend", "dartpy"),
-    "lagrange": ("legbench.backends.lagrange_", "LagrangeBackend", "sympy"),
+    "pinocchio": ("legbench.backends.pinocchio_", "PinocchioBackend", "'pin>=3.0'"),
+    "mujoco": ("legbench.backends.mujoco_", "MujocoBackend", "'mujoco>=3.1'"),
+    "pybullet": ("legbench.backends.pybullet_", "PybulletBackend", "'pybullet>=3.2.6'"),
+    "drake": ("legbench.backends.drake_", "DrakeBackend", "'drake>=1.51,<2'"),
+    "dart": ("legbench.backends.dart_", "DartBackend", "'dartpy>=6.20,<7'"),
+    "lagrange": ("legbench.backends.lagrange_", "LagrangeBackend", "'sympy>=1.12,<2'"),
     "ode": ("legbench.backends.ode_", "OdeBackend", "apt-get install -y libode8 && pip install ode-python"),
 }
 
@@ -64,7 +65,7 @@ def _load_builtin(name: str) -> type[Backend] | None:
     try:
         return getattr(importlib.import_module(module), cls)  # type: ignore[no-any-return]
     except ImportError as exc:
-        command = package if " " in package else f"pip install {package}"
+        command = package if package.startswith("apt-get ") else f"pip install {package}"
         _MISSING[name] = f"{command} ({exc})"
         return None
 
