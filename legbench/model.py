@@ -17,7 +17,7 @@ import math
 import os
 import re
 import tempfile
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -204,8 +204,9 @@ def _holed_sphere(rho: float, R: float, r: float, axis: str) -> tuple[float, np.
     return mass, np.diag(diag)
 
 
-def part_inertial(part: dict[str, Any], density: float) -> Inertial:
-    """Mass properties of one CAD primitive of the parameter file."""
+def part_inertial(part: dict[str, Any], density: float, where: str = "part") -> Inertial:
+    """Mass properties of one CAD primitive of the parameter file (``where``: how an error names it, the file and
+    the key path; :func:`check_physical` has refused any other shape before)."""
     shape = part["shape"]
     if shape == "box":
         sx, sy, sz = part["size"]
@@ -219,7 +220,7 @@ def part_inertial(part: dict[str, Any], density: float) -> Inertial:
     elif shape == "sphere":
         m, I = _holed_sphere(density, part["r"], part.get("hole_r", 0.0), part.get("axis", "z"))
     else:
-        raise ModelError(f"{resources.model_file()}: part '{part.get('name')}': unknown shape '{shape}'")
+        raise ModelError(one_line(f"{where}.shape: unknown shape {_value(shape)} (known: {_listing(_PART_KEYS)})"))
     pos = tuple(float(v) for v in part["pos"])
     return Inertial(m, pos, tuple(map(tuple, I)))  # type: ignore[arg-type]
 
@@ -240,11 +241,15 @@ def scaled(inertial: Inertial, k: float) -> Inertial:
     return Inertial(inertial.mass * k, inertial.com, tuple(tuple(k * v for v in row) for row in inertial.inertia))
 
 
-def cad_estimate(raw: dict[str, Any]) -> dict[str, Inertial]:
-    """Unscaled mass properties per URDF link from the CAD primitives."""
+def cad_estimate(raw: dict[str, Any], path: Path | str = "leg parameters") -> dict[str, Inertial]:
+    """Unscaled mass properties per URDF link from the CAD primitives (of a file :func:`check_physical` passed;
+    ``path`` names it in an error)."""
     out = {}
     for link, spec in raw["links"].items():
-        parts = [part_inertial(p, raw["materials"][p["material"]]) for p in spec["parts"]]
+        parts = [
+            part_inertial(p, raw["materials"][p["material"]], f"{path}: links.{link}.parts[{i}]")
+            for i, p in enumerate(spec["parts"])
+        ]
         out[link] = combine(parts)
     return out
 
@@ -253,9 +258,15 @@ def cad_estimate(raw: dict[str, Any]) -> dict[str, Inertial]:
 # Loading
 
 
-def load_raw(path: Path | str | None = None) -> dict[str, Any]:
+def load_raw(path: Path | str | None = None, check: bool = True) -> dict[str, Any]:
     """The parameter file (default: the active one, :func:`legbench.resources.model_file`) as a dict,
-    read through the guarded YAML reader (size, nesting, duplicate keys)."""
+    read through the guarded YAML reader (size, nesting, duplicate keys) and checked by :func:`check_physical`
+    (unless ``check`` is false), so an error names this file and the key.
+
+    Raises:
+        ModelError: the file is missing, not a regular file, or malformed (one line: the file, the key, why).
+        ScenarioError: the YAML itself is malformed or beyond the reader's limits (one line, with the line).
+    """
     path = Path(path) if path is not None else resources.model_file()
     if path.is_dir():
         raise ModelError(f"{path}: is a directory, not a parameter file")
@@ -264,6 +275,8 @@ def load_raw(path: Path | str | None = None) -> dict[str, Any]:
     raw, _ = read_yaml(path)
     if not isinstance(raw, dict):
         raise ModelError(f"{path}: expected a mapping at the top level")
+    if check:
+        check_physical(raw, path)
     return raw
 
 
@@ -283,8 +296,38 @@ def param_bytes(path: Path) -> bytes:
         raise ModelError(str(exc)) from None
 
 
-#: Dimensions of CAD parts and collision primitives that must be > 0 [m] or [kg].
-_POSITIVE_DIMS = ("r", "r_out", "length", "mass", "a", "b", "c", "size")
+#: The sections of a leg parameter file, in the order they are checked.
+_SECTIONS = ("geometry", "joints", "materials", "links", "calibration", "collision", "contact")
+
+#: The bodies with CAD parts (``links``) and collision primitives (``collision``): the moving links and the foot.
+_BODIES = (*LINK_NAMES, "foot")
+
+#: The roles of the joints, and their types, in the order of ``joints`` (and of :data:`JOINT_NAMES`): the URDF,
+#: every backend and the Pinocchio configuration (the hip's (cos, sin), :func:`q_to_pin`) are built on these.
+_JOINT_ROLES = ("ab/ad", "hip", "knee")
+_JOINT_TYPES = ("revolute", "continuous", "revolute")
+
+#: The CAD primitives of ``links.<body>.parts``: the keys each takes beside ``material``, ``shape``, ``pos``
+#: (required) and ``name`` (optional), as (required, optional).
+_PART_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "box": (("size",), ()),
+    "tube": (("r_out", "r_in", "length", "axis"), ()),
+    "cylinder": (("r", "length", "axis"), ()),
+    "sphere": (("r",), ("hole_r", "axis")),
+}
+
+#: The collision primitives of ``collision.<body>`` (what the URDF's <geometry> takes): the keys each takes beside
+#: ``shape`` (required) and ``pos`` (optional), as (required, optional). The foot's is a sphere.
+_COLLISION_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "sphere": (("r",), ()),
+    "cylinder": (("r", "length", "axis"), ()),
+}
+
+#: Lengths and radii of CAD parts and collision primitives, which must be > 0 [m].
+_POSITIVE_DIMS = ("r", "r_out", "length")
+
+#: The axes a cylinder, a tube or a sphere's hole can lie along (of its link frame).
+_AXES = ("x", "y", "z")
 
 #: The geometry entries (docs/spec.md section 1) that are lengths, so > 0, with what each is. The others
 #: (``L_B0``, ``L_01``) are positions of the base and the chain along a line they can move on without changing
@@ -300,25 +343,43 @@ _GEOMETRY_LENGTHS = {
 }
 
 
-def check_physical(raw: dict[str, Any], path: Path | str = "leg parameters") -> None:
-    """Refuse physically meaningless parameters: the geometry (every entry finite, the lengths and H > 0, the
-    positions ``L_B0`` and ``L_01`` of any sign: :data:`_GEOMETRY_LENGTHS`), lengths, radii and positions of the
-    CAD parts and collision primitives, densities, masses, scale factors, q*, G(q*), gravity, joint limits, the
-    contact law's constants (Kp > 0, Kd >= 0, 0 <= mu_k <= mu_s, v_th > 0). Every number must be finite and
-    within ``limit("float_abs")``: a NaN or inf reached the URDF, which no parser reads.
+def _value(v: Any) -> str:
+    """A value as an error message quotes it: ``repr``, cut to 60 characters (a section given as a long list)."""
+    text = repr(v)
+    return text if len(text) <= 60 else text[:57] + "..."
 
-    Raises:
-        ModelError: naming the file, the key and the value.
-    """
+
+def _listing(names: Any) -> str:
+    """Names as an error message lists them: ``a, b, c``; ``none`` for none (a file with no materials)."""
+    return ", ".join(str(n) for n in names) or "none"
+
+
+def _check_physical(raw: Any, path: Path | str) -> None:
+    """:func:`check_physical`'s checks, in the order of the file's sections."""
+
+    def fail(key: str, problem: str) -> ModelError:
+        return ModelError(one_line(f"{path}: {key}: {problem}"))
 
     def bad(key: str, v: Any, why: str) -> ModelError:
-        return ModelError(f"{path}: {key}: {v!r} {why}")
+        return fail(key, f"{_value(v)} {why}")
 
     def num(key: str, v: Any) -> float:
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        if isinstance(v, bool) or not isinstance(v, int | float):
             raise bad(key, v, "is not a finite number")
-        check_magnitude(float(v), lambda why: ModelError(f"{path}: {key}: {why}"))
-        return float(v)
+        try:
+            x = float(v)
+        except OverflowError:  # an integer of hundreds of digits
+            raise bad(key, v, "is not a finite number (too large for a float)") from None
+        if not math.isfinite(x):
+            raise bad(key, v, "is not a finite number")
+        check_magnitude(x, lambda why: fail(key, why))
+        return x
+
+    def positive(key: str, v: Any, why: str = "must be > 0") -> float:
+        x = num(key, v)
+        if x <= 0:
+            raise bad(key, v, why)
+        return x
 
     def three(key: str, v: Any, what: str = "a position (a list of three numbers [m])") -> None:
         """Three finite numbers of any sign (a position [m], one value per joint)."""
@@ -327,80 +388,207 @@ def check_physical(raw: dict[str, Any], path: Path | str = "leg parameters") -> 
         for i, x in enumerate(v):
             num(f"{key}[{i}]", x)
 
+    def mapping(key: str, v: Any, what: str) -> dict[Any, Any]:
+        if not isinstance(v, dict):
+            raise bad(key, v, f"is not {what}")
+        return v
+
+    def keys(key: str, d: dict[Any, Any], required: tuple[str, ...], optional: tuple[str, ...] = (), *,
+             unknown: str = "", missing: str = "") -> None:  # fmt: skip
+        """``d`` (at ``key``, "" for the top level) has every ``required`` key and no key but those and the
+        ``optional`` ones; ``unknown`` and ``missing`` say what is wrong otherwise (default: the keys it takes)."""
+        known = (*required, *optional)
+        for k in d:
+            if k not in known:
+                raise fail(f"{key}.{k}" if key else str(k), unknown or f"unknown key (known: {_listing(known)})")
+        for k in required:
+            if k not in d:
+                raise fail(f"{key}.{k}" if key else k, missing or f"missing (required: {_listing(required)})")
+
+    def axis(key: str, v: Any) -> None:
+        if not isinstance(v, str) or v not in _AXES:
+            raise fail(key, f"expected one of {_listing(_AXES)}, got {_value(v)}")
+
+    def dims(key: str, d: dict[Any, Any]) -> None:
+        """The lengths and radii of a part or collision primitive > 0, its axis one of x, y, z."""
+        for k in _POSITIVE_DIMS:
+            if k in d:
+                positive(f"{key}.{k}", d[k])
+        if "axis" in d:
+            axis(f"{key}.axis", d["axis"])
+
+    if not isinstance(raw, dict):
+        raise ModelError(one_line(f"{path}: expected a mapping at the top level, got {_value(raw)}"))
+    sections = f"a leg parameter file has {_listing(_SECTIONS)}"
+    keys("", raw, _SECTIONS, unknown=f"unknown section ({sections})", missing=f"missing ({sections})")
+
+    # geometry: the lengths and offsets of docs/spec.md section 1
+    lengths = [f.name for f in fields(Geometry)]
+    geometry = raw["geometry"]
+    if not isinstance(geometry, dict):
+        raise bad("geometry", geometry, f"is not a mapping of the leg's lengths ({', '.join(lengths)})")
+    for k in geometry:
+        if k not in lengths:
+            raise bad(f"geometry.{k}", geometry[k], f"is not a length of the leg ({', '.join(lengths)})")
+    for k in lengths:  # every entry finite (NaN or inf made a URDF no parser reads), the lengths > 0
+        if k not in geometry:
+            raise fail(f"geometry.{k}", f"missing (the leg's geometry is {', '.join(lengths)})")
+        if num(f"geometry.{k}", geometry[k]) <= 0 and k in _GEOMETRY_LENGTHS:
+            raise bad(f"geometry.{k}", geometry[k], f"must be > 0 ({_GEOMETRY_LENGTHS[k]})")
+
+    # joints: the three of the leg, by name and type in this order (the URDF and every backend are built on them)
+    joints = raw["joints"]
+    order = ", ".join(f"{n} ({t})" for n, t in zip(JOINT_NAMES, _JOINT_TYPES, strict=True))
+    if not isinstance(joints, list):
+        raise bad("joints", joints, f"is not a list of the leg's three joints: {order}")
+    if len(joints) != 3:
+        raise bad("joints", len(joints), "joints: the leg has three (ab/ad, hip, knee)")
+    for i, j in enumerate(joints):
+        key = f"joints[{i}]"
+        mapping(key, j, "a joint (a mapping: name, type, reduction, effort, velocity, and lower, upper if revolute)")
+        if "type" not in j:
+            raise fail(f"{key}.type", f"missing (the {_JOINT_ROLES[i]} joint is {_JOINT_TYPES[i]})")
+        if j["type"] not in ("revolute", "continuous"):
+            raise bad(f"{key}.type", j["type"], "is not a rotary joint (revolute or continuous)")
+        if j["type"] != _JOINT_TYPES[i]:
+            raise bad(f"{key}.type", j["type"], f"is not the {_JOINT_ROLES[i]} joint's type: the joints are {order}")
+        limits = ("lower", "upper") if j["type"] == "revolute" else ()
+        for k in ("lower", "upper"):
+            if k in j and not limits:
+                raise fail(f"{key}.{k}", "a continuous joint has no position limits (lower, upper: revolute only)")
+        keys(key, j, ("name", "type", *limits, "reduction", "effort", "velocity"))
+        name = j["name"]
+        earlier = [n for n in range(i) if joints[n]["name"] == name]
+        if earlier:
+            raise bad(f"{key}.name", name, f"is not unique (joints[{earlier[0]}].name too): the joints are {order}")
+        if name != JOINT_NAMES[i]:
+            raise bad(f"{key}.name", name, f"is not the {_JOINT_ROLES[i]} joint's name: the joints are {order}")
+        for k in ("reduction", "effort", "velocity"):
+            positive(f"{key}.{k}", j[k])
+        if limits and num(f"{key}.lower", j["lower"]) >= num(f"{key}.upper", j["upper"]):
+            raise bad(f"{key}.lower", j["lower"], f"must be below upper ({j['upper']!r})")
+
+    # materials: densities by name
+    materials = mapping("materials", raw["materials"], "a mapping of material names to densities [kg/m^3]")
+    for name, rho in materials.items():
+        positive(f"materials.{name}", rho, "must be > 0 (a density [kg/m^3])")
+
+    # links: the CAD parts of each body
+    links = mapping("links", raw["links"], f"a mapping of the leg's bodies ({_listing(_BODIES)}) to their parts")
+    bodies = f"the leg's bodies {_listing(LINK_NAMES)} and foot each have their parts"
+    keys("links", links, _BODIES, unknown=f"not a body of the leg ({bodies})", missing=f"missing ({bodies})")
+    for link, spec in links.items():
+        mapping(f"links.{link}", spec, "a body (a mapping with its list of parts)")
+        keys(f"links.{link}", spec, ("parts",))
+        parts = spec["parts"]
+        if not isinstance(parts, list) or not parts:
+            raise fail(f"links.{link}.parts", f"expected a non-empty list of parts, got {_value(parts)}")
+        names: dict[str, int] = {}
+        for i, part in enumerate(parts):
+            key = f"links.{link}.parts[{i}]"
+            mapping(key, part, "a part (a mapping: name, material, shape, pos and the shape's sizes)")
+            shape = part.get("shape")
+            if "shape" not in part:
+                raise fail(f"{key}.shape", f"missing (one of {_listing(_PART_KEYS)})")
+            if not isinstance(shape, str) or shape not in _PART_KEYS:
+                raise fail(f"{key}.shape", f"unknown shape {_value(shape)} (known: {_listing(_PART_KEYS)})")
+            required, optional = _PART_KEYS[shape]
+            known = _listing(("name", "material", "shape", "pos", *required, *optional))
+            keys(key, part, ("material", "shape", "pos", *required), ("name", *optional),
+                 unknown=f"unknown key of a {shape} (known: {known})")  # fmt: skip
+            if "name" in part:
+                name = part["name"]
+                if not isinstance(name, str):
+                    raise bad(f"{key}.name", name, "is not a name (a string)")
+                if name in names:
+                    raise bad(f"{key}.name", name, f"is not unique (links.{link}.parts[{names[name]}].name too)")
+                names[name] = i
+            material = part["material"]
+            if not isinstance(material, str) or material not in materials:
+                raise fail(f"{key}.material", f"unknown material {_value(material)} (known: {_listing(materials)})")
+            dims(key, part)
+            if "size" in part:
+                if not isinstance(part["size"], list) or len(part["size"]) != 3:
+                    raise bad(f"{key}.size", part["size"], "is not a size (a list of three lengths [m])")
+                for n, v in enumerate(part["size"]):
+                    positive(f"{key}.size[{n}]", v)
+            if "r_in" in part and not 0 <= num(f"{key}.r_in", part["r_in"]) < part["r_out"]:
+                raise bad(f"{key}.r_in", part["r_in"], "must be in [0, r_out)")
+            if "hole_r" in part and not 0 <= num(f"{key}.hole_r", part["hole_r"]) < part["r"]:
+                raise bad(f"{key}.hole_r", part["hole_r"], "must be in [0, r)")
+            three(f"{key}.pos", part["pos"])  # the part's centre in its link frame
+
+    # calibration: q*, G(q*), gravity and the mass scale factor of each link
+    cal = mapping("calibration", raw["calibration"], "a mapping: q_star, G_star, gravity, scale")
+    keys("calibration", cal, ("q_star", "G_star", "gravity", "scale"))
+    for k in ("q_star", "G_star"):
+        three(f"calibration.{k}", cal[k], "a list of three numbers (one per joint)")
+    # calibrate's solve is singular at 0; metrics divide by it
+    positive("calibration.gravity", cal["gravity"], "must be > 0 (the gravity G_star is for [m/s^2])")
+    scale = mapping("calibration.scale", cal["scale"], f"a mapping of mass scale factors ({_listing(LINK_NAMES)})")
+    links_known = f"known: {_listing(LINK_NAMES)}; the foot is scaled with link3"
+    keys("calibration.scale", scale, LINK_NAMES, unknown=f"unknown key ({links_known})",
+         missing=f"missing ({links_known})")  # fmt: skip
+    for k, v in scale.items():
+        positive(f"calibration.scale.{k}", v, "must be > 0 (a mass scale factor)")
+
+    # collision: primitives by body, the foot's sphere among them
+    collision = mapping("collision", raw["collision"], "a mapping of collision primitives by body, with the foot's")
+    keys("collision", collision, ("foot",), LINK_NAMES,
+         unknown=f"not a body of the leg (known: {_listing(_BODIES)})",
+         missing="missing (the foot's collision sphere, what touches the ground)")  # fmt: skip
+    for link, prim in collision.items():
+        key = f"collision.{link}"
+        mapping(key, prim, "a collision primitive (a mapping: shape, r, ...)")
+        shape = prim.get("shape")
+        if "shape" not in prim:
+            raise fail(f"{key}.shape", f"missing (one of {_listing(_COLLISION_KEYS)})")
+        if not isinstance(shape, str) or shape not in _COLLISION_KEYS:
+            raise fail(f"{key}.shape", f"unknown shape {_value(shape)} (known: {_listing(_COLLISION_KEYS)})")
+        if link == "foot" and shape != "sphere":
+            raise fail(f"{key}.shape", f"expected sphere (the foot touches the ground as a sphere), got {shape!r}")
+        required, optional = _COLLISION_KEYS[shape]
+        known = _listing(("shape", "pos", *required, *optional))
+        keys(key, prim, ("shape", *required), ("pos", *optional), unknown=f"unknown key of a {shape} (known: {known})")
+        dims(key, prim)
+        if "pos" in prim:
+            three(f"{key}.pos", prim["pos"])
+
+    # contact: the law's constants (docs/spec.md section 4)
+    c = mapping("contact", raw["contact"], "a mapping of the contact law's constants")
+    keys("contact", c, tuple(f.name for f in fields(Contact) if f.default is MISSING),
+         tuple(f.name for f in fields(Contact) if f.default is not MISSING))  # fmt: skip
+    for k in c:
+        if num(f"contact.{k}", c[k]) < 0:
+            raise bad(f"contact.{k}", c[k], "must be >= 0 (negative damping, stiffness or friction)")
+    for k in ("Kp", "v_th"):
+        if c[k] <= 0:
+            raise bad(f"contact.{k}", c[k], "must be > 0")
+    if c["mu_k"] > c["mu_s"]:
+        raise bad("contact.mu_k", c["mu_k"], f"above the static coefficient mu_s = {c['mu_s']!r}")
+
+
+def check_physical(raw: dict[str, Any], path: Path | str = "leg parameters") -> None:
+    """Refuse a malformed or physically meaningless parameter file, naming the file, the key path
+    (``links.link2.parts[1].axis``) and the problem in one line, before anything is built from it.
+
+    The shape of the file: the sections :data:`_SECTIONS`, each with its keys and no others (the three joints
+    by their names and types, :data:`JOINT_NAMES`; the bodies link1, link2, link3, foot in ``links``, each with
+    a non-empty list of ``parts``, every part one of :data:`_PART_KEYS` of a known material; ``collision`` by
+    body, the foot's a sphere; ``calibration``'s q*, G(q*), gravity and a scale factor per link;
+    the contact law's constants). The physics: the geometry (every entry finite, the lengths and H > 0, the
+    positions ``L_B0`` and ``L_01`` of any sign: :data:`_GEOMETRY_LENGTHS`), lengths, radii and positions of the
+    CAD parts and collision primitives, densities, scale factors, q*, G(q*), gravity, joint limits, the
+    contact law's constants (Kp > 0, Kd >= 0, 0 <= mu_k <= mu_s, v_th > 0). Every number must be finite and
+    within ``limit("float_abs")``: a NaN or inf reached the URDF, which no parser reads.
+
+    Raises:
+        ModelError: naming the file, the key and the problem.
+    """
     try:
-        lengths = [f.name for f in fields(Geometry)]
-        geometry = raw["geometry"]
-        if not isinstance(geometry, dict):
-            raise bad("geometry", geometry, f"is not a mapping of the leg's lengths ({', '.join(lengths)})")
-        for k in geometry:
-            if k not in lengths:
-                raise bad(f"geometry.{k}", geometry[k], f"is not a length of the leg ({', '.join(lengths)})")
-        joints = raw["joints"]
-        if not isinstance(joints, list) or len(joints) != 3:
-            n = len(joints) if isinstance(joints, list) else type(joints).__name__
-            raise bad("joints", n, "joints: the leg has three (ab/ad, hip, knee)")
-        for i, j in enumerate(joints):
-            if j.get("type") not in ("revolute", "continuous"):
-                raise bad(f"joints[{i}].type", j.get("type"), "is not a rotary joint (revolute or continuous)")
-        for k in lengths:  # every entry finite (NaN or inf made a URDF no parser reads), the lengths > 0
-            if k not in geometry:
-                raise ModelError(f"{path}: geometry.{k}: missing (the leg's geometry is {', '.join(lengths)})")
-            if num(f"geometry.{k}", geometry[k]) <= 0 and k in _GEOMETRY_LENGTHS:
-                raise bad(f"geometry.{k}", geometry[k], f"must be > 0 ({_GEOMETRY_LENGTHS[k]})")
-        for name, rho in (raw.get("materials") or {}).items():
-            if num(f"materials.{name}", rho) <= 0:
-                raise bad(f"materials.{name}", rho, "must be > 0 (a density [kg/m^3])")
-        for link, spec in (raw.get("links") or {}).items():
-            for i, part in enumerate(spec.get("parts") or []):
-                for k in _POSITIVE_DIMS:
-                    for v in part[k] if isinstance(part.get(k), list) else [part.get(k)] if k in part else []:
-                        if num(f"links.{link}.parts[{i}].{k}", v) <= 0:
-                            raise bad(f"links.{link}.parts[{i}].{k}", part[k], "must be > 0")
-                if "r_in" in part and not 0 <= num(f"links.{link}.parts[{i}].r_in", part["r_in"]) < part["r_out"]:
-                    raise bad(f"links.{link}.parts[{i}].r_in", part["r_in"], "must be in [0, r_out)")
-                if "hole_r" in part and not 0 <= num(f"links.{link}.parts[{i}].hole_r", part["hole_r"]) < part["r"]:
-                    raise bad(f"links.{link}.parts[{i}].hole_r", part["hole_r"], "must be in [0, r)")
-                three(f"links.{link}.parts[{i}].pos", part["pos"])  # the part's centre in its link frame
-        collision = raw["collision"]
-        if not isinstance(collision, dict) or not isinstance(collision.get("foot"), dict):
-            raise bad("collision", collision, "is not a mapping of collision primitives by link, with the foot's")
-        for link, shape in collision.items():
-            if not isinstance(shape, dict):
-                raise bad(f"collision.{link}", shape, "is not a collision primitive (a mapping: shape, r, ...)")
-            for k in ("r", "length"):
-                if k in shape and num(f"collision.{link}.{k}", shape[k]) <= 0:
-                    raise bad(f"collision.{link}.{k}", shape[k], "must be > 0 (a length)")
-            if "pos" in shape:
-                three(f"collision.{link}.pos", shape["pos"])
-        cal = raw["calibration"]
-        for k in ("q_star", "G_star"):
-            three(f"calibration.{k}", cal[k], "a list of three numbers (one per joint)")
-        if num("calibration.gravity", cal["gravity"]) <= 0:  # calibrate's solve is singular at 0; metrics divide by it
-            raise bad("calibration.gravity", cal["gravity"], "must be > 0 (the gravity G_star is for [m/s^2])")
-        for k, v in (raw.get("calibration", {}).get("scale") or {}).items():
-            if num(f"calibration.scale.{k}", v) <= 0:
-                raise bad(f"calibration.scale.{k}", v, "must be > 0 (a mass scale factor)")
-        for i, j in enumerate(raw.get("joints") or []):
-            for k in ("reduction", "effort", "velocity"):
-                if k in j and num(f"joints[{i}].{k}", j[k]) <= 0:
-                    raise bad(f"joints[{i}].{k}", j[k], "must be > 0")
-            if (
-                "lower" in j
-                and "upper" in j
-                and num(f"joints[{i}].lower", j["lower"]) >= num(f"joints[{i}].upper", j["upper"])
-            ):
-                raise bad(f"joints[{i}].lower", j["lower"], f"must be below upper ({j['upper']!r})")
-        c = raw.get("contact") or {}
-        for k in c:
-            if num(f"contact.{k}", c[k]) < 0:
-                raise bad(f"contact.{k}", c[k], "must be >= 0 (negative damping, stiffness or friction)")
-        for k in ("Kp", "v_th"):
-            if k in c and c[k] <= 0:
-                raise bad(f"contact.{k}", c[k], "must be > 0")
-        if "mu_k" in c and "mu_s" in c and c["mu_k"] > c["mu_s"]:
-            raise bad("contact.mu_k", c["mu_k"], f"above the static coefficient mu_s = {c['mu_s']!r}")
-    except (KeyError, TypeError, AttributeError) as exc:
-        raise ModelError(f"{path}: missing or malformed entry: {exc}") from exc
+        _check_physical(raw, path)
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError, OverflowError) as exc:  # a check missed
+        raise ModelError(one_line(f"{path}: missing or malformed entry: {exc!r}")) from exc
 
 
 def params_from_raw(raw: dict[str, Any], path: Path | str = "leg parameters", check: bool = True) -> LegParams:
@@ -426,7 +614,7 @@ def params_from_raw(raw: dict[str, Any], path: Path | str = "leg parameters", ch
             )
         cal = raw["calibration"]
         scale = {k: float(v) for k, v in cal["scale"].items()}
-        est = cad_estimate(raw)
+        est = cad_estimate(raw, path)
         inertials = {name: scaled(inr, scale["link3" if name == "foot" else name]) for name, inr in est.items()}
         contact = Contact(**{k: float(v) for k, v in raw["contact"].items()})
         return LegParams(
@@ -440,8 +628,8 @@ def params_from_raw(raw: dict[str, Any], path: Path | str = "leg parameters", ch
             gravity=float(cal["gravity"]),
             scale=scale,
         )
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ModelError(f"{path}: missing or malformed entry: {exc}") from exc
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:  # unchecked (check=False) only
+        raise ModelError(one_line(f"{path}: missing or malformed entry: {exc}")) from exc
 
 
 def load_params(path: Path | str | None = None) -> LegParams:
@@ -477,7 +665,7 @@ def read_params(path: Path | str) -> LegParams:
         digest: str | None = resources.param_digest(path)
     except (OSError, ModelError):  # load_raw says why, in its words
         digest = None
-    return replace(params_from_raw(load_raw(path), path), source=path, digest=digest)
+    return replace(params_from_raw(load_raw(path), path, check=False), source=path, digest=digest)  # load_raw checks
 
 
 @functools.cache
@@ -550,8 +738,9 @@ def _origin(T: np.ndarray) -> str:
     return f'<origin xyz="{_vec(T[:3, 3])}" rpy="{_vec(_rpy(T[:3, :3]))}"/>'
 
 
-def _geometry_xml(shape: dict[str, Any]) -> tuple[str, np.ndarray]:
-    """URDF <geometry> of a collision primitive and its pose in the link frame."""
+def _geometry_xml(shape: dict[str, Any], where: str = "collision") -> tuple[str, np.ndarray]:
+    """URDF <geometry> of a collision primitive and its pose in the link frame (``where``: how an error names it,
+    the file and the key path; :func:`check_physical` has refused any other shape before)."""
     T = np.eye(4)
     T[:3, 3] = shape.get("pos", [0.0, 0.0, 0.0])
     if shape["shape"] == "sphere":
@@ -563,7 +752,8 @@ def _geometry_xml(shape: dict[str, Any]) -> tuple[str, np.ndarray]:
         elif axis == "y":
             T[:3, :3] = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]])
         return f'<cylinder radius="{_fmt(shape["r"])}" length="{_fmt(shape["length"])}"/>', T
-    raise ModelError(f"{resources.model_file()}: collision: unknown shape '{shape['shape']}'")
+    known = _listing(_COLLISION_KEYS)
+    raise ModelError(one_line(f"{where}.shape: unknown shape {_value(shape['shape'])} (known: {known})"))
 
 
 def _inertial_xml(inr: Inertial) -> str:
@@ -605,6 +795,7 @@ def urdf_text(params: LegParams) -> str:
     """
     geom = params.geometry
     origins = joint_origins(geom)
+    source = params.source if params.source is not None else "leg parameters"
     lines = [
         '<?xml version="1.0"?>',
         urdf_header(params),
@@ -636,10 +827,10 @@ def urdf_text(params: LegParams) -> str:
         lines.append(f'  <link name="{child}">')
         lines.append(_inertial_xml(params.inertials[child]).rstrip())
         if child in params.collision:
-            geo, T = _geometry_xml(params.collision[child])
+            geo, T = _geometry_xml(params.collision[child], f"{source}: collision.{child}")
             lines.append(f"    <collision>\n      {_origin(T)}\n      <geometry>{geo}</geometry>\n    </collision>")
         lines.append("  </link>")
-    geo, T = _geometry_xml(params.collision["foot"])
+    geo, T = _geometry_xml(params.collision["foot"], f"{source}: collision.foot")
     lines += [
         '  <joint name="foot_joint" type="fixed">',
         '    <parent link="link3"/>',

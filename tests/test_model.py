@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pybullet
@@ -231,7 +232,7 @@ def test_the_offsets_l_b0_and_l_01_may_be_zero_or_negative(tmp_path: Path, key: 
         (lambda raw: raw["collision"]["foot"].update(r=float("nan")), "collision.foot.r: nan is not a finite number"),
         (lambda raw: raw["collision"]["link2"]["pos"].__setitem__(2, float("-inf")),
          "collision.link2.pos[2]: -inf is not a finite number"),
-        (lambda raw: raw["collision"].pop("foot"), "collision: "),
+        (lambda raw: raw["collision"].pop("foot"), "collision.foot: missing (the foot's collision sphere"),
         (lambda raw: raw["calibration"]["q_star"].__setitem__(1, float("nan")),
          "calibration.q_star[1]: nan is not a finite number"),
         (lambda raw: raw["calibration"]["G_star"].__setitem__(0, float("inf")),
@@ -325,3 +326,292 @@ def test_a_urdf_regenerated_in_place_is_a_new_reference_model(tmp_path: Path) ->
     after = model.pinocchio_model(urdf)
     assert after is not before and after.inertias[2].mass == pytest.approx(2.0 * link2, rel=1e-15)
     assert heavier is model.load_params()  # the parameter file itself did not change
+
+
+def _edited(tmp_path: Path, pattern: str, new: str, name: str = "bad.yaml") -> Path:
+    """The bundled parameter file with the first match of the regex ``pattern`` replaced by ``new``."""
+    import re
+
+    from legbench import resources
+
+    text, n = re.subn(pattern, new, resources.bundled_model().read_text(), count=1, flags=re.DOTALL)
+    assert n == 1, pattern
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+_BODIES_HAVE_PARTS = "missing (the leg's bodies link1, link2, link3 and foot each have their parts)"
+_JOINT_ORDER = "the joints are q1_abad (revolute), q2_hip (continuous), q3_knee (revolute)"
+
+
+@pytest.mark.parametrize(
+    ("pattern", "new", "message"),
+    [
+        (r"  link3:   # shank.*?\n(?=  foot:)", "", f"links.link3: {_BODIES_HAVE_PARTS}"),
+        (r"  link1:   # ab/ad.*?\n(?=  link2:)", "", f"links.link1: {_BODIES_HAVE_PARTS}"),
+        (r"  foot:    # fixed.*?\n(?=\n# Calibration)", "", f"links.foot: {_BODIES_HAVE_PARTS}"),
+        ("name: q2_hip", "name: q1_abad",
+         f"joints[1].name: 'q1_abad' is not unique (joints[0].name too): {_JOINT_ORDER}"),
+        ("shape: sphere, r: 0.0225, hole_r", "shape: cone, r: 0.0225, hole_r",
+         "links.foot.parts[0].shape: unknown shape 'cone' (known: box, tube, cylinder, sphere)"),
+        (r"(  link2:[^\n]*\n    parts:)\n.*?\n(?=  link3:)", r"\1 []\n",
+         "links.link2.parts: expected a non-empty list of parts, got []"),
+        (r"(  link2:[^\n]*\n    parts:)\n.*?\n(?=  link3:)", r"\1 5\n",
+         "links.link2.parts: expected a non-empty list of parts, got 5"),
+        ("length: 0.105, axis: x", "length: 0.105, axis: w",
+         "links.link2.parts[1].axis: expected one of x, y, z, got 'w'"),
+        ("material: cfrp, shape: tube, r_out: 0.019, r_in: 0.017, length: 0.105",
+         "material: unobtainium, shape: tube, r_out: 0.019, r_in: 0.017, length: 0.105",
+         "links.link2.parts[1].material: unknown material 'unobtainium' (known: al7075, cfrp)"),
+        ("link3: 1.27669764}", "link3: 1.27669764, linkX: 1.0}",
+         "calibration.scale.linkX: unknown key (known: link1, link2, link3; the foot is scaled with link3)"),
+    ],
+    ids=["no-link3", "no-link1", "no-foot", "same-joint-name", "cone", "parts-empty", "parts-5", "axis-w",
+         "unobtainium", "scale-linkX"],
+)  # fmt: skip
+def test_a_malformed_parameter_file_is_one_line_naming_it_and_the_key(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], pattern: str, new: str,
+    message: str,
+) -> None:  # fmt: skip
+    """The error audit's leg files: a body deleted from `links` (a KeyError traceback out of the URDF writer, exit 1,
+    and in `legbench run` the parity check's "pinocchio failed to load: KeyError: 'link3'"), two joints of one name
+    (urdfdom's "not unique" and a ValueError traceback), a part of an unknown shape (the error named the bundled
+    leg.yaml, not the file read), `parts: []` (numpy's RuntimeWarning, then "'float' object is not iterable"),
+    `parts: 5`, `axis: w` ("substring not found"), an unknown material ("missing or malformed entry:
+    'unobtainium'") and an unknown link's scale factor (accepted silently). Each is now one line naming the file
+    given, the key path and what was expected, exit 2, with no warning, before any URDF is written."""
+    import warnings
+
+    from legbench import cli, resources
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv(resources.CACHE_ENV, str(cache))
+    monkeypatch.delenv(resources.MODEL_ENV, raising=False)
+    bad = _edited(tmp_path, pattern, new)
+    out = tmp_path / "x.urdf"
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # a RuntimeWarning fails the command
+            for argv in (["model", "check"], ["model", "urdf", "--out", str(out)]):
+                assert cli.main(["--model", str(bad), *argv]) == 2
+                assert capsys.readouterr().err == f"legbench: error: {bad}: {message}\n"
+            assert cli.main(["model", "calibrate", "--params", str(bad)]) == 2  # named "leg parameters" before
+            assert capsys.readouterr().err == f"legbench: error: {bad}: {message}\n"
+    finally:
+        resources.select_model(None)
+    assert not out.exists()
+    assert not cache.exists() or not any(cache.rglob("*")), sorted(cache.rglob("*"))
+
+
+def test_a_run_with_a_malformed_model_stops_before_any_backend_loads(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """LEGBENCH_MODEL naming a file without link3: `legbench run` reported it as the parity check's "pinocchio
+    failed to load: KeyError: 'link3'". It is the reader's one line, exit 2, and no run directory."""
+    from legbench import cli, resources
+
+    monkeypatch.setenv(resources.CACHE_ENV, str(tmp_path / "cache"))
+    bad = _edited(tmp_path, r"  link3:   # shank.*?\n(?=  foot:)", "")
+    monkeypatch.setenv(resources.MODEL_ENV, str(bad))
+    out = tmp_path / "out"
+    argv = ["run", str(resources.scenario("effort")), "--backends", "pinocchio", "--out", str(out)]
+    assert cli.main(argv) == 2
+    assert capsys.readouterr().err == f"legbench: error: {bad}: links.link3: {_BODIES_HAVE_PARTS}\n"
+    assert not out.exists()
+
+
+_SECTIONS = "a leg parameter file has geometry, joints, materials, links, calibration, collision, contact"
+_TUBE = "material, shape, pos, r_out, r_in, length, axis"
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda raw: raw.update(bogus=1), f"bogus: unknown section ({_SECTIONS})"),
+        (lambda raw: raw.pop("contact"), f"contact: missing ({_SECTIONS})"),
+        (lambda raw: raw.update(joints={"q1_abad": 1}),
+         "joints: {'q1_abad': 1} is not a list of the leg's three joints: q1_abad (revolute), q2_hip (continuous), "
+         "q3_knee (revolute)"),
+        (lambda raw: raw["joints"].__setitem__(0, "q1_abad"),
+         "joints[0]: 'q1_abad' is not a joint (a mapping: name, type, reduction, effort, velocity, and lower, upper if "
+         "revolute)"),
+        (lambda raw: raw["joints"][2].pop("type"), "joints[2].type: missing (the knee joint is revolute)"),
+        (lambda raw: raw["joints"][1].update(type="revolute", lower=-3.0, upper=3.0),
+         f"joints[1].type: 'revolute' is not the hip joint's type: {_JOINT_ORDER}"),
+        (lambda raw: raw["joints"][2].update(type="continuous"),
+         f"joints[2].type: 'continuous' is not the knee joint's type: {_JOINT_ORDER}"),
+        (lambda raw: raw["joints"][2].update(name="knee"),
+         f"joints[2].name: 'knee' is not the knee joint's name: {_JOINT_ORDER}"),
+        (lambda raw: raw["joints"][0].pop("effort"),
+         "joints[0].effort: missing (required: name, type, lower, upper, reduction, effort, velocity)"),
+        (lambda raw: raw["joints"][0].update(damping=0.1),
+         "joints[0].damping: unknown key (known: name, type, lower, upper, reduction, effort, velocity)"),
+        (lambda raw: raw["joints"][1].update(lower=-1.0),
+         "joints[1].lower: a continuous joint has no position limits (lower, upper: revolute only)"),
+        (lambda raw: raw["joints"][0].update(effort="7"), "joints[0].effort: '7' is not a finite number"),
+        (lambda raw: raw["joints"][2].update(velocity=0), "joints[2].velocity: 0 must be > 0"),
+        (lambda raw: raw["geometry"].update(H=10**400),
+         f"geometry.H: 1{'0' * 56}... is not a finite number (too large for a float)"),  # cut to 60 characters
+        (lambda raw: raw.update(materials=["al7075"]),
+         "materials: ['al7075'] is not a mapping of material names to densities [kg/m^3]"),
+        (lambda raw: raw.update(links=[{"parts": []}] * 9),
+         f"links: {str([{'parts': []}] * 9)[:57]}... is not a mapping of the leg's bodies (link1, link2, link3, foot) "
+         "to their parts"),
+        (lambda raw: raw["links"].update(link4=raw["links"]["link3"]),
+         "links.link4: not a body of the leg (the leg's bodies link1, link2, link3 and foot each have their parts)"),
+        (lambda raw: raw["links"].update(link1=[]), "links.link1: [] is not a body (a mapping with its list of parts)"),
+        (lambda raw: raw["links"]["link1"].update(mass=1.0), "links.link1.mass: unknown key (known: parts)"),
+        (lambda raw: raw["links"]["link2"]["parts"].__setitem__(0, "hip_flange"),
+         "links.link2.parts[0]: 'hip_flange' is not a part (a mapping: name, material, shape, pos and the shape's "
+         "sizes)"),
+        (lambda raw: raw["links"]["link2"]["parts"][0].pop("shape"),
+         "links.link2.parts[0].shape: missing (one of box, tube, cylinder, sphere)"),
+        (lambda raw: raw["links"]["link2"]["parts"][0].update(shape=["box"]),
+         "links.link2.parts[0].shape: unknown shape ['box'] (known: box, tube, cylinder, sphere)"),
+        (lambda raw: raw["links"]["link2"]["parts"][1].pop("r_in"),
+         f"links.link2.parts[1].r_in: missing (required: {_TUBE})"),
+        (lambda raw: raw["links"]["link1"]["parts"][0].update(r=0.1),
+         "links.link1.parts[0].r: unknown key of a box (known: name, material, shape, pos, size)"),
+        (lambda raw: raw["links"]["link1"]["parts"][0].update(size=0.06),
+         "links.link1.parts[0].size: 0.06 is not a size (a list of three lengths [m])"),
+        (lambda raw: raw["links"]["link1"]["parts"][0]["size"].__setitem__(1, 0),
+         "links.link1.parts[0].size[1]: 0 must be > 0"),
+        (lambda raw: raw["links"]["link2"]["parts"][2].update(name="hip_flange"),
+         "links.link2.parts[2].name: 'hip_flange' is not unique (links.link2.parts[0].name too)"),
+        (lambda raw: raw["links"]["link2"]["parts"][2].update(name=3),
+         "links.link2.parts[2].name: 3 is not a name (a string)"),
+        (lambda raw: raw["links"]["link2"]["parts"][0].update(material=["al7075"]),
+         "links.link2.parts[0].material: unknown material ['al7075'] (known: al7075, cfrp)"),
+        (lambda raw: raw.update(materials={}),
+         "links.link1.parts[0].material: unknown material 'al7075' (known: none)"),
+        (lambda raw: raw.update(calibration=[1.0]),
+         "calibration: [1.0] is not a mapping: q_star, G_star, gravity, scale"),
+        (lambda raw: raw["calibration"].update(bogus=1),
+         "calibration.bogus: unknown key (known: q_star, G_star, gravity, scale)"),
+        (lambda raw: raw["calibration"]["scale"].pop("link2"),
+         "calibration.scale.link2: missing (known: link1, link2, link3; the foot is scaled with link3)"),
+        (lambda raw: raw["calibration"].update(scale=2.0),
+         "calibration.scale: 2.0 is not a mapping of mass scale factors (link1, link2, link3)"),
+        (lambda raw: raw["collision"].update(base={"shape": "sphere", "r": 0.01}),
+         "collision.base: not a body of the leg (known: link1, link2, link3, foot)"),
+        (lambda raw: raw["collision"].update(foot={"shape": "cylinder", "r": 0.0225, "length": 0.01, "axis": "x"}),
+         "collision.foot.shape: expected sphere (the foot touches the ground as a sphere), got 'cylinder'"),
+        (lambda raw: raw["collision"]["link3"].update(shape="box"),
+         "collision.link3.shape: unknown shape 'box' (known: sphere, cylinder)"),
+        (lambda raw: raw["collision"]["link2"].update(axis="w"),
+         "collision.link2.axis: expected one of x, y, z, got 'w'"),
+        (lambda raw: raw["collision"]["foot"].update(length=0.01),
+         "collision.foot.length: unknown key of a sphere (known: shape, pos, r)"),
+        (lambda raw: raw.update(contact=None), "contact: None is not a mapping of the contact law's constants"),
+        (lambda raw: raw["contact"].update(mu=0.5),
+         "contact.mu: unknown key (known: Kp, Kd, mu_s, mu_k, v_th, restitution, torsional_friction)"),
+        (lambda raw: raw["contact"].pop("Kp"), "contact.Kp: missing (required: Kp, Kd, mu_s, mu_k, v_th)"),
+        (lambda raw: raw["contact"].update({"a\nb": 1}),
+         "contact.a\\nb: unknown key (known: Kp, Kd, mu_s, mu_k, v_th, restitution, torsional_friction)"),
+    ],
+    ids=["unknown-section", "no-contact", "joints-mapping", "joint-string", "no-type", "hip-revolute",
+         "knee-continuous", "joint-renamed", "no-effort", "joint-unknown-key", "continuous-limits", "effort-string",
+         "velocity-0", "huge-integer", "materials-list", "links-list", "link4", "link-list", "link-unknown-key",
+         "part-string", "no-shape", "shape-list", "tube-no-r_in", "box-r", "size-number", "size-0", "part-name-twice",
+         "part-name-int", "material-list", "no-materials", "calibration-list", "calibration-unknown",
+         "scale-no-link2", "scale-number", "collision-base", "foot-cylinder", "collision-box", "collision-axis-w",
+         "sphere-length", "contact-none", "contact-unknown", "no-Kp", "newline-key"],
+)  # fmt: skip
+def test_every_malformed_entry_is_named_by_its_key_path(edit: Any, message: str) -> None:
+    """Wrong types, missing and unknown keys in every section: each was a KeyError, TypeError, AttributeError or
+    ValueError (a traceback, or "missing or malformed entry: <the exception's text>"), or was accepted and then
+    failed in the URDF, Pinocchio or a backend (a renamed joint: KeyError; the hip revolute or the knee continuous:
+    Pinocchio's "wrong argument size"; a foot cylinder: no contact sphere), or was ignored (an unknown key). Now one
+    line: the file, the key path, what was expected."""
+    import copy
+
+    from legbench.exceptions import ModelError
+
+    raw = copy.deepcopy(model.load_raw())
+    edit(raw)
+    with pytest.raises(ModelError) as exc:
+        model.params_from_raw(raw, "p.yaml")
+    assert str(exc.value) == f"p.yaml: {message}"
+
+
+def test_no_wrong_value_anywhere_in_the_file_escapes_as_a_python_error() -> None:
+    """Every entry of the bundled file replaced by each of a few values of the wrong kind, every key deleted and an
+    unknown key added to every mapping: the outcome is the parameters (a value that is valid there, such as a part
+    named "w", an optional key deleted) or a ModelError of one line naming a key at or under the edited entry's
+    parent, never a Python exception or the catch-all "missing or malformed entry"."""
+    import copy
+
+    from legbench.exceptions import ModelError
+    from legbench.yamlfile import keypath
+
+    base = model.load_raw()
+
+    def entries(node: Any, at: tuple[Any, ...] = ()) -> Any:
+        items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+        for k, v in items:
+            yield (*at, k)
+            yield from entries(v, (*at, k))
+
+    def parent(raw: Any, at: tuple[Any, ...]) -> Any:
+        for k in at[:-1]:
+            raw = raw[k]
+        return raw
+
+    def outcome(raw: Any) -> str | None:
+        try:
+            model.params_from_raw(raw, "p.yaml")
+        except ModelError as exc:
+            msg = str(exc)
+            assert msg.startswith("p.yaml: ") and "\n" not in msg and "malformed" not in msg, msg
+            return msg.removeprefix("p.yaml: ")
+        return None
+
+    accepted = set()
+    for at in entries(base):
+        above = keypath(list(at[:-1]))
+        for value in (None, True, "w", [], {}, ["x"], 10**400):
+            raw = copy.deepcopy(base)
+            parent(raw, at)[at[-1]] = value
+            msg = outcome(raw)
+            if msg is None:
+                accepted.add((keypath(list(at)), repr(value)))
+            else:
+                assert msg.startswith(above), (at, value, msg)
+        raw = copy.deepcopy(base)
+        del parent(raw, at)[at[-1]]
+        if outcome(raw) is None:
+            accepted.add((keypath(list(at)), "deleted"))
+        if isinstance(parent(base, at), dict) and at[-1] == next(iter(parent(base, at))) and above != "materials":
+            raw = copy.deepcopy(base)
+            parent(raw, at)["zz"] = 1.0
+            assert (outcome(raw) or "").startswith(f"{above}.zz: " if above else "zz: "), at  # a new material is not
+    deletable = {  # optional entries, and a part of a body with more than one
+        *(f"links.{link}.parts[{i}]" for link, n in (("link1", 4), ("link2", 3), ("link3", 2)) for i in range(n)),
+        *(f"links.{link}.parts[{i}].name" for link, n in (("link1", 4), ("link2", 3), ("link3", 2)) for i in range(n)),
+        "links.foot.parts[0].name", "links.foot.parts[0].hole_r", "links.foot.parts[0].axis", "collision.link2",
+        "collision.link3", "collision.link2.pos", "collision.link3.pos", "contact.restitution",
+        "contact.torsional_friction",
+    }  # fmt: skip
+    assert {k for k, v in accepted if v == "deleted"} == deletable
+    names = {k for k in deletable if k.endswith(".name")}
+    assert {(k, v) for k, v in accepted if v != "deleted"} == {(k, "'w'") for k in names}  # any string names a part
+
+
+def test_a_shape_refused_past_the_reader_names_the_file_it_came_from() -> None:
+    """part_inertial and the URDF writer named the active parameter file (the bundled leg.yaml unless --model) in
+    their unknown-shape errors, whatever file the part came from: they name the place they are given, the file
+    and the key path (the reader refuses such a file first; these are for parameters built by hand)."""
+    from dataclasses import replace
+
+    from legbench.exceptions import ModelError
+
+    cone = {"shape": "cone", "r": 0.01, "pos": [0.0, 0.0, 0.0]}
+    with pytest.raises(ModelError) as exc:
+        model.part_inertial(cone, 1000.0, "mine.yaml: links.foot.parts[0]")
+    known = "box, tube, cylinder, sphere"
+    assert str(exc.value) == f"mine.yaml: links.foot.parts[0].shape: unknown shape 'cone' (known: {known})"
+    params = replace(model.load_params(), collision={"foot": cone}, source=Path("mine.yaml"), digest="0" * 16)
+    with pytest.raises(ModelError) as exc:
+        model.urdf_text(params)
+    assert str(exc.value) == "mine.yaml: collision.foot.shape: unknown shape 'cone' (known: sphere, cylinder)"

@@ -723,7 +723,7 @@ import resource, sys
 from pathlib import Path
 from legbench import cli
 resource.setrlimit(resource.RLIMIT_FSIZE, (2000, 2000))
-sys.exit(cli.main(["model", "urdf", "--out", sys.argv[1]]))
+sys.exit(cli.main(["model", "urdf", "--out", sys.argv[1], "--force"]))  # "previous" is not a generated URDF
 """
 
 
