@@ -606,7 +606,8 @@ def run_scenario(
     else:
         sc = _load_scenario(scenario, overrides)
     if profile is not None and profile != sc.profile:  # as the CLI: a profile override is part of the scenario
-        sc = scenario_mod.parse({**copy.deepcopy(dict(sc.raw)), "profile": profile}, "<mapping>")  # not overrides
+        doc = {**copy.deepcopy(dict(sc.raw)), "profile": profile}
+        sc = scenario_mod.parse(doc, sc.file or "<mapping>")  # not overrides: a bad profile names the file
     names = registry.resolve(given_backends, "backends")
     if out_path is not None:  # as the command line's --out: a regular file is one error, not NotADirectoryError
         check_out_path(out_path, "out", run_dir_ok=True)

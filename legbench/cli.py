@@ -145,6 +145,8 @@ def _select_model(path: str) -> None:
     """Make ``path`` the active leg model after checking it reads (a bad file is one line, exit 2)."""
     from legbench import model
 
+    if not path:  # Path("") is the working directory
+        raise ModelError("--model '': an empty path (give a leg parameter file)")
     file = Path(path)
     kind = _not_a_model_file(file)
     if kind:

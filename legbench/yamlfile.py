@@ -233,7 +233,8 @@ def vector(ctx: YamlContext, path: list[str | int], v: Any, n: int = 3) -> tuple
     if isinstance(v, int | float) and not isinstance(v, bool) and n == 3:
         return (number(ctx, path, v),) * n
     if not isinstance(v, list) or len(v) != n:
-        raise ctx.error(path, f"expected a list of {n} numbers, got {v!r}")
+        what = f"a number or a list of {n} numbers" if n == 3 else f"a list of {n} numbers"
+        raise ctx.error(path, f"expected {what}, got {v!r}")
     return tuple(number(ctx, [*path, i], x) for i, x in enumerate(v))
 
 

@@ -430,3 +430,11 @@ def test_a_problem_the_sections_defaults_share_is_said_once() -> None:
     that replaced the dropped comparison section: the same line was printed twice; now once."""
     (problem,) = scenario.errors(SCENARIOS / "position.yaml", {"duration": 0.2})
     assert str(problem).endswith("comparison.steady_window: longer than the run (0.2 s)")
+
+
+def test_a_gain_that_is_no_number_says_a_single_number_is_allowed() -> None:
+    """gains.Kp: 'nan' (a --set value that is no number) said "expected a list of 3 numbers" though one number
+    stands for all three joints: the message names both forms."""
+    problems = scenario.errors(SCENARIOS / "position.yaml", {"gains.Kp": "nan"})
+    assert [str(p).split(": ", 1)[1] for p in problems] == ["gains.Kp: expected a number or a list of 3 numbers, got "
+                                                             "'nan' (from --set gains.Kp)"]  # fmt: skip
