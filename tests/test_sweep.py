@@ -336,3 +336,21 @@ def test_a_sweep_starts_no_more_workers_than_its_runs(tmp_path: Path, monkeypatc
     res = sweep.run_sweep(_write(tmp_path, GOOD), None, "local", jobs=8)
     assert len(res.table) == 3 and (res.table["status"] == "ok").all()
     assert len(spawned) == 3
+
+
+def test_a_grid_value_s_error_names_the_study_and_a_folder_as_scenario_is_called_one(tmp_path: Path) -> None:
+    """A grid value a scenario refuses named it "(from --set gains)", an option the user never gave: it names the
+    study's key; ``scenario: .`` (a folder) was "no such scenario file"."""
+    text = (ROOT / "scenarios" / "sweeps" / "gains.yaml").read_text()
+    text = text.replace("../verification/", str(ROOT / "scenarios/verification") + "/")
+    f = tmp_path / "g.yaml"
+    f.write_text(text.replace("{Kp: 5, Kd: 0.5}", "{Kp: abc, Kd: 0.5}", 1))
+    with pytest.raises(ScenarioError) as exc:
+        sweep.load_sweep(f)
+    assert exc.value.key == "studies[0].grid.gains" and str(exc.value).endswith(
+        "with mujoco: gains.Kp: expected a number or a list of 3 numbers, got 'abc' (from the study's gains)"
+    )
+    f.write_text(text.replace(f"scenario: {ROOT / 'scenarios/verification'}/free_space.yaml", "scenario: ."))
+    with pytest.raises(ScenarioError) as exc:
+        sweep.load_sweep(f)
+    assert exc.value.key == "scenario" and str(exc.value).endswith(f"is a directory, not a scenario file: {tmp_path}")

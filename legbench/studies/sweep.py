@@ -212,7 +212,8 @@ def load_sweep(path: str | Path) -> Sweep:
     except OSError as exc:  # a name too long, a loop of links: no file can be there
         raise doc.error(["scenario"], f"cannot be a scenario file: {exc.strerror or exc}") from None
     if not found:
-        raise doc.error(["scenario"], f"no such scenario file: {scenario}")
+        what = "is a directory, not a scenario file" if scenario.is_dir() else "no such scenario file"
+        raise doc.error(["scenario"], f"{what}: {scenario}")
     try:  # the scenario on its own first, so its own problems name its file, not a study's override
         base_scenario = scenario_mod.load(scenario)
     except ScenarioError as exc:
@@ -290,7 +291,7 @@ def _check_values(doc: YamlContext, scenario: Path, common: Mapping[str, Any], s
                         checks.append((["studies", i, "grid", key], {**base, _fill(key, backend): v}))
             for path, overrides in checks:
                 try:
-                    scenario_mod.load(scenario, overrides)
+                    scenario_mod.load(scenario, overrides, origin="the study's")
                 except ScenarioError as exc:
                     where = f"{exc.key}: " if exc.key else ""
                     raise doc.error(path, f"with {backend}: {where}{exc.problem}") from None
@@ -444,7 +445,7 @@ def plan(sweep: Sweep) -> Plan:
         if key in index:
             return index[key]
         try:
-            scenario_mod.load(sweep.scenario, overrides)
+            scenario_mod.load(sweep.scenario, overrides, origin="the study's")
         except ScenarioError as exc:
             for concrete, where in origin.items():
                 if exc.key == concrete or exc.key.startswith(concrete + ".") or concrete.startswith(exc.key + "."):
