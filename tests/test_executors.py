@@ -110,8 +110,8 @@ def test_workers_ignore_sigint_import_once_and_are_reused() -> None:
     with executors.LocalExecutor(2) as ex:
         first = ex.map(_worker_state, list(range(4)))
         second = ex.map(_worker_state, list(range(4)))
-    pids = {pid for pid, _, _ in first}
-    assert 1 <= len(pids) <= 2 and {pid for pid, _, _ in second} <= pids  # the second map: no new process
+    pids = {pid for pid, _, _ in first + second}
+    assert 1 <= len(pids) <= 2  # new processes per map would be up to four (which worker takes a task is not fixed)
     assert all(ign for _, ign, _ in first) and all(pre for _, _, pre in first)
 
 
