@@ -42,7 +42,7 @@ import pandas as pd
 
 from legbench import logs, resources, yamlfile
 from legbench import scenario as scenario_mod
-from legbench.compare import ComparisonResult, compare, reference_sibling
+from legbench.compare import ComparisonResult, compare, log_settings_problem, reference_sibling
 from legbench.exceptions import LegbenchError, ResultsError, ScenarioError
 from legbench.metrics import LAG_MODES
 from legbench.results import (
@@ -156,16 +156,10 @@ def _check_compare_args(kwargs: Mapping[str, Any], method: str) -> None:
         raise LegbenchError(f"{', '.join(unknown)}: not an argument of {method} (it takes {', '.join(_COMPARE_ARGS)})")
     for name, value in kwargs.items():
         _COMPARE_ARGS[name](value, name)
-    log = kwargs.get("log")
-    if log is None:  # these only shape the log: without one they would be ignored (as legbench compare refuses them)
-        given = [name for name, on in (("column_map", bool(kwargs.get("column_map"))),
-                                       ("log_is_reference", bool(kwargs.get("log_is_reference"))),
-                                       ("log_time_scale", kwargs.get("log_time_scale", 1.0) != 1.0)) if on]  # fmt: skip
-        if given:
-            raise LegbenchError(f"{', '.join(given)}: need log (they describe that log)")
-    if kwargs.get("ros") is not None and (log is None or not logs.is_ros_bag(log)):
-        raise LegbenchError("ros: needs log naming a ROS bag (a .bag file, a ROS 2 bag directory or its .db3 / "
-                            ".mcap file)")  # fmt: skip
+    problem = log_settings_problem(kwargs.get("log"), kwargs.get("column_map"), bool(kwargs.get("log_is_reference")),
+                                   kwargs.get("log_time_scale", 1.0), kwargs.get("ros") is not None)  # fmt: skip
+    if problem is not None:  # as legbench compare refuses them
+        raise LegbenchError(problem)
 
 
 #: A check of one argument: its value and its name, raising LegbenchError.
@@ -198,7 +192,7 @@ def _check_log_name(value: object, name: str) -> None:
 
 def _check_lag(value: object, name: str) -> None:
     if not isinstance(value, str) or value not in LAG_MODES:
-        raise LegbenchError(f"{name} {reprlib.repr(value)}: expected 'off', 'report' or 'remove'")
+        raise LegbenchError(f"{name} {reprlib.repr(value)}: expected one of {', '.join(map(repr, LAG_MODES))}")
 
 
 def _check_lag_signals(value: object, name: str) -> None:
@@ -443,8 +437,6 @@ class Result:
                 itself = False
             if not itself:
                 target = check_out_path(given, "out_dir")  # as legbench's --out: no file, no run, nothing in a run
-                if target.resolve() != target.absolute():  # a link into a run: the copy would land inside it
-                    check_out_path(target.resolve(), "out_dir")
                 fresh = not target.exists()
                 try:
                     full = not fresh and any(target.iterdir())

@@ -49,9 +49,11 @@ from legbench import yamlfile
 from legbench.compare import compare
 from legbench.exceptions import LegbenchError, ResultsError, ScenarioError
 from legbench.results import (
+    CHECK_OUTPUTS,
     Run,
     atomic_write_bytes,
     atomic_write_text,
+    enclosing_run,
     load_run,
     log_digests,
     read_log,
@@ -652,14 +654,10 @@ def write_junit(report: CheckReport, path: str | Path) -> Path:
     return path
 
 
-#: The files the check writes into the new results by default (into a run directory when it checks one run).
-OWN_OUTPUTS = ("check.md", "check-junit.xml")
-
-
 def _not_an_input(opt: str, path: Path, new: Path, baseline: Path, tolerance_file: str | Path | None) -> None:
     """Refuse an output file that is or may become one of the check's inputs, even with ``--force`` (which
     replaces an earlier summary): anything in the baseline, the tolerance file, or a file inside a run directory
-    (one holding run.json) other than the check's own (:data:`OWN_OUTPUTS`): a run's run.json or log replaced by
+    (one holding run.json) other than the check's own (:data:`CHECK_OUTPUTS`): a run's run.json or log replaced by
     the summary was lost, and a file of another name there would be taken for part of the run."""
     where = path.resolve()
     if where.is_relative_to(baseline.resolve()):
@@ -667,11 +665,10 @@ def _not_an_input(opt: str, path: Path, new: Path, baseline: Path, tolerance_fil
                             "file")  # fmt: skip
     if tolerance_file is not None and Path(tolerance_file).exists() and where == Path(tolerance_file).resolve():
         raise LegbenchError(f"{opt} {path}: is the tolerance file; choose another file")
-    if path.name not in OWN_OUTPUTS:
-        for parent in where.parents:
-            if (parent / "run.json").is_file():
-                raise LegbenchError(f"{opt} {path}: inside the run directory {parent}, whose files the check "
-                                    "reads; choose another file")  # fmt: skip
+    parent = enclosing_run(path) if path.name not in CHECK_OUTPUTS else None
+    if parent is not None:
+        raise LegbenchError(f"{opt} {path}: inside the run directory {parent}, whose files the check reads; choose "
+                            "another file")  # fmt: skip
 
 
 def run_check(
@@ -712,9 +709,13 @@ def run_check(
     for opt, given in (("--summary", summary), ("--junit", junit)):
         if given is not None:
             _not_an_input(opt, Path(given), Path(new), Path(baseline), tolerance_file)
+    summary = summary if summary is not None else Path(new) / CHECK_OUTPUTS[0]
+    junit = junit if junit is not None else Path(new) / CHECK_OUTPUTS[1]
+    if Path(summary).resolve() == Path(junit).resolve():  # the second would replace the first
+        raise LegbenchError(f"--summary and --junit name the same file {summary}: the second would replace the first")
     report = check(new, baseline, tolerance_file)
     out = stream if stream is not None else sys.stdout
     print(format_table(report, all_rows), file=out)
-    write_markdown(report, summary if summary is not None else Path(new) / "check.md")
-    write_junit(report, junit if junit is not None else Path(new) / "check-junit.xml")
+    write_markdown(report, summary)
+    write_junit(report, junit)
     return report.exit_status

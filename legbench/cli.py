@@ -235,9 +235,6 @@ def _check_outputs(args: argparse.Namespace) -> None:
                 raise LegbenchError(f"--{opt} {getattr(args, opt)}: {exc.strerror or exc}") from None
             if exists and not getattr(args, "force", False):
                 raise LegbenchError(f"--{opt} {path}: exists; choose another file, or pass --force to replace it")
-    summary, junit = getattr(args, "summary", None), getattr(args, "junit", None)
-    if summary is not None and junit is not None and Path(summary).resolve() == Path(junit).resolve():
-        raise LegbenchError(f"--summary and --junit name the same file {summary}: the second would replace the first")
 
 
 def _sigterm(signum: int, frame: object) -> None:

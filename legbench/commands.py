@@ -368,8 +368,14 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.set_defaults(func=_run)
 
 
+#: compare's log arguments as ``legbench compare`` names them (:func:`legbench.compare.log_settings_problem`).
+_LOG_WORDS = {"log": "--reference-log", "column_map": "--log-columns", "log_is_reference": "--log-is-reference",
+              "log_time_scale": "--log-time-scale", "ros": "--ros-joint-topic / --ros-wrench-topic"}  # fmt: skip
+
+
 def _compare(args: argparse.Namespace) -> int:
     from legbench import logs, report
+    from legbench.compare import log_settings_problem
 
     if not args.dir:  # Path("") is the working directory
         raise LegbenchError("'': an empty path; give a run directory or a results tree")
@@ -379,11 +385,11 @@ def _compare(args: argparse.Namespace) -> int:
         raise LegbenchError(f"{args.dir}: {exc.strerror or exc}") from None
     if a_file:
         raise LegbenchError(f"{args.dir}: is a file, not a results directory (give a run directory or a tree)")
-    if args.reference_log is None:  # these only shape the reference log: without one they would be ignored
-        given = [f for f, on in (("--log-columns", args.log_columns), ("--log-is-reference", args.log_is_reference),
-                                 ("--log-time-scale", args.log_time_scale != 1.0)) if on]  # fmt: skip
-        if given:
-            raise LegbenchError(f"{', '.join(given)}: need --reference-log (they describe that log)")
+    ros_given = args.ros_joint_topic is not None or args.ros_wrench_topic is not None
+    problem = log_settings_problem(args.reference_log, args.log_columns, args.log_is_reference, args.log_time_scale,
+                                   ros_given, _LOG_WORDS)  # fmt: skip
+    if problem is not None:
+        raise LegbenchError(problem)
     column_map: dict[str, str] = {}
     for item in args.log_columns.split(",") if args.log_columns else []:
         src, sep, dst = item.partition("=")
@@ -395,8 +401,6 @@ def _compare(args: argparse.Namespace) -> int:
         ros = logs.RosOptions(
             joint_topic=args.ros_joint_topic, wrench_topic=args.ros_wrench_topic, force_sign=args.ros_force_sign
         )
-    elif args.ros_joint_topic is not None or args.ros_wrench_topic is not None:
-        raise LegbenchError("--ros-joint-topic / --ros-wrench-topic need --reference-log naming a ROS bag")
     report.write_all(
         args.dir,
         log=args.reference_log,

@@ -27,7 +27,7 @@ import pandas as pd
 from legbench.contact import ContactParams
 from legbench.contact_residuals import ContactResiduals, residuals
 from legbench.exceptions import ResultsError
-from legbench.logs import RosOptions, load_log
+from legbench.logs import RosOptions, is_ros_bag, load_log
 from legbench.metrics import (
     COND_MAX,
     ModeSplit,
@@ -41,7 +41,7 @@ from legbench.metrics import (
 from legbench.results import FRAME_COLUMNS, METRICS_SCHEMA, Run, RunResult, load_run, log_digests, result_from_frame
 from legbench.signals import JOINT_OF, LABELS, SIGNAL_OF
 
-__all__ = ["ComparisonResult", "compare", "reference_sibling"]
+__all__ = ["ComparisonResult", "compare", "log_settings_problem", "reference_sibling"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -176,6 +176,32 @@ def _contact_law(run: Run) -> ContactParams | None:
     :func:`legbench.results.load_run` has checked), None where it names none."""
     contact = (run.meta.get("scenario") or {}).get("contact")
     return ContactParams(**contact) if contact else None
+
+
+def log_settings_problem(
+    log: str | Path | None,
+    column_map: object,
+    log_is_reference: bool,
+    log_time_scale: float,
+    ros_given: bool,
+    words: Mapping[str, str] | None = None,
+) -> str | None:
+    """Why :func:`compare`'s log settings cannot apply, or None: settings that shape a log given without one (they
+    would be ignored), or ROS options without a log that is a ROS bag. ``column_map`` counts as given when truthy
+    (the mapping, or the command line's text); ``words``: the caller's names for the arguments (the command line's
+    options), the others named as :func:`compare` names them."""
+    w = dict(words or {})
+    if log is None:
+        given = [w.get(n, n) for n, on in (("column_map", bool(column_map)), ("log_is_reference", log_is_reference),
+                                          ("log_time_scale", log_time_scale != 1.0)) if on]  # fmt: skip
+        if given:
+            return f"{', '.join(given)}: need {w.get('log', 'log')} (they describe that log)"
+    if ros_given and (log is None or not is_ros_bag(log)):
+        return (
+            f"{w.get('ros', 'ros')}: need {w.get('log', 'log')} naming a ROS bag (a .bag file, a ROS 2 bag "
+            "directory or its .db3 / .mcap file)"
+        )
+    return None
 
 
 def compare(

@@ -47,7 +47,9 @@ from legbench.report_figures import (
 )
 from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num, relpath, to_html, to_markdown
 from legbench.results import (
+    INDEX_TITLE,
     atomic_write_text,
+    check_index_pages,
     checks_summary,
     commit_staged,
     discard_staged,
@@ -875,32 +877,6 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
     return blocks
 
 
-#: The title of a results tree's index, its first line in Markdown and its <title> in HTML.
-INDEX_TITLE = "legbench: comparison summary"
-
-
-def _our_index(page: Path) -> bool:
-    """Whether ``page`` (a tree's report.md or report.html) is an index legbench wrote: its title where
-    :func:`write_all` puts it (read from its first 1 kB; an unreadable file is not ours to replace)."""
-    try:
-        with page.open("rb") as fh:
-            head = fh.read(1024).decode("utf-8", "replace")
-    except OSError:
-        return False
-    if page.suffix == ".md":
-        return head.startswith(f"# {INDEX_TITLE}\n")
-    return f"<title>{INDEX_TITLE}</title>" in head
-
-
-def _check_index_pages(root: Path) -> None:
-    """Refuse, before any work, a tree whose report.md or report.html is not an index legbench wrote (a page of
-    the user's there was replaced by the index)."""
-    for page in (root / "report.md", root / "report.html"):
-        if page.exists() and not _our_index(page):
-            raise ResultsError(str(page), "not an index legbench wrote, and the tree's index goes there; move it "
-                                          "away, or compare the run directories one by one")  # fmt: skip
-
-
 def write_index(root: str | Path) -> IndexFiles:
     """Write ROOT/report.html and ROOT/report.md for a tree of run directories.
 
@@ -917,7 +893,7 @@ def write_index(root: str | Path) -> IndexFiles:
     """
     root = Path(root)
     blocks, dirs = _index_blocks(root)
-    _check_index_pages(root)
+    check_index_pages(root)
     md = root / "report.md"
     atomic_write_text(md, to_markdown(blocks))
     page = root / "report.html"
@@ -1258,7 +1234,7 @@ def write_all(
     if compare_kwargs.get("log") is not None:
         raise ResultsError(str(root), "an imported log belongs to one scenario: pass that scenario's run directory")
     dirs = list(run_dirs(root).values())
-    _check_index_pages(root)
+    check_index_pages(root)
     tag = _tag()
     tasks = [(str(d), str(root / ASSETS), dict(compare_kwargs), tag) for d in dirs]
     staged: list[_Staged] = []

@@ -53,6 +53,8 @@ __all__ = [
     "FRAME_COLUMNS",
     "METRICS_SCHEMA",
     "STATUSES",
+    "CHECK_OUTPUTS",
+    "INDEX_TITLE",
     "STUDY_OUTPUTS",
     "BackendStatus",
     "EventMark",
@@ -62,9 +64,12 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_text",
     "check_out_dir",
+    "check_index_pages",
     "check_out_file",
     "check_out_path",
     "check_study_out",
+    "enclosing_run",
+    "is_index",
     "check_out_tree",
     "checks_summary",
     "clean_stale",
@@ -422,17 +427,61 @@ def check_out_path(path: str | Path, what: str = "--out", *, run_dir_ok: bool = 
         _writable_dir(path, what)
         if not run_dir_ok and (path / "run.json").is_file():
             raise LegbenchError(f"{what} {path}: a run directory, which holds one run; choose another {what}")
-        for parent in path.absolute().parents:
-            if (parent / "run.json").is_file():
-                raise LegbenchError(f"{what} {path}: inside the run directory {parent}, which holds one run; "
-                                    f"choose another {what}")  # fmt: skip
-    except OSError as exc:  # a place that cannot be, not a failed write
-        raise LegbenchError(f"{what} {path}: {exc.strerror or exc}") from None
+        parent = enclosing_run(path)
+        if parent is not None:
+            raise LegbenchError(f"{what} {path}: inside the run directory {parent}, which holds one run; "
+                                f"choose another {what}")  # fmt: skip
+    except (OSError, RuntimeError) as exc:  # a place that cannot be (a name too long, a loop of links)
+        raise LegbenchError(f"{what} {path}: {getattr(exc, 'strerror', None) or exc}") from None
     return path
 
 
+def enclosing_run(path: str | Path) -> Path | None:
+    """The nearest directory above ``path`` (not ``path`` itself) that is a run directory (holds run.json), or
+    None. The path is resolved first: links followed and ``..`` taken after them, so ``RUN/../x`` is not inside
+    RUN and a link into a run is.
+
+    Raises:
+        OSError, RuntimeError: a path that cannot be resolved (a name too long; a loop of links).
+    """
+    for parent in Path(path).resolve().parents:
+        if (parent / "run.json").is_file():
+            return parent
+    return None
+
+
 #: The JSON document each study writes into its output directory: a directory holding one is legbench's.
-STUDY_OUTPUTS = ("verification.json", "calibration.json", "sweep.json", "reproduce.json", "bench.json")
+STUDY_OUTPUTS = ("verification.json", "calibration.json", "sweep.json", "reproduce.json", "bench.json", "scaling.json")
+#: What ``legbench check`` writes by default into the results it checks (a tree's root, or a run directory).
+CHECK_OUTPUTS = ("check.md", "check-junit.xml")
+#: The title of a results tree's index: the first line of its report.md, the <title> of its report.html.
+INDEX_TITLE = "legbench: comparison summary"
+
+
+def is_index(page: Path) -> bool:
+    """Whether ``page`` (a tree's report.md or report.html) is an index legbench wrote: :data:`INDEX_TITLE` where
+    the index puts it, read from its first 1 kB (an unreadable file is not legbench's to replace)."""
+    try:
+        with page.open("rb") as fh:
+            head = fh.read(1024).decode("utf-8", "replace")
+    except OSError:
+        return False
+    if page.suffix == ".md":
+        return head.startswith(f"# {INDEX_TITLE}\n")
+    return f"<title>{INDEX_TITLE}</title>" in head
+
+
+def check_index_pages(root: str | Path) -> None:
+    """Refuse, before any work, a results tree whose report.md or report.html is not an index legbench wrote: the
+    tree's index goes there, and a page of the user's was replaced by it.
+
+    Raises:
+        ResultsError: naming the page.
+    """
+    for page in (Path(root) / "report.md", Path(root) / "report.html"):
+        if page.exists() and not is_index(page):
+            raise ResultsError(str(page), "not an index legbench wrote, and this results tree's index goes there; "
+                                          "move it away first")  # fmt: skip
 
 
 def check_out_tree(
@@ -545,9 +594,9 @@ def replaced_by_run(
 ) -> str | None:
     """What of ``out_dir`` a run of ``scenario`` in ``contact_mode`` on ``backends`` would replace rather than
     resume, in words, or None: a finished run (run.json without ``"complete": false``), an interrupted run of other
-    settings (another scenario hash or contact mode), or, ``backends`` given, an interrupted run of a backend not
-    among them (its log would be dropped). An interrupted run of the same settings on no other backends is resumed
-    (:func:`resumable`), even with no backend finished yet."""
+    settings (another scenario hash or contact mode), or, ``backends`` given, an interrupted run holding the log
+    of a backend not among them (finished or cut short: it would be dropped). An interrupted run of the same
+    settings on no other logged backends is resumed (:func:`resumable`), even with no backend finished yet."""
     prev = _previous(Path(out_dir))
     if prev is None:
         return None
@@ -557,7 +606,9 @@ def replaced_by_run(
         return "a finished run"
     if not _same_settings(prev, scenario, contact_mode):
         return "an interrupted run of other settings (it resumes only with the same scenario and options)"
-    others = sorted(set(prev.get("backends") or {}) - set(backends)) if backends is not None else []
+    logged = {n for n, e in (prev.get("backends") or {}).items()  # a backend not run has no log to lose
+              if isinstance(e, dict) and (Path(out_dir) / str(e.get("file") or f"{n}.parquet")).is_file()}  # fmt: skip
+    others = sorted(logged - set(backends)) if backends is not None else []
     if others:
         return (
             f"an interrupted run of other backends too ({', '.join(others)}: it resumes only with them among "

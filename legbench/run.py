@@ -29,7 +29,9 @@ from legbench.controllers import Controller, make_controller
 from legbench.exceptions import BackendNotFound, LegbenchError, SimulationDiverged
 from legbench.model import load_params
 from legbench.results import (
+    CHECK_OUTPUTS,
     RunResult,
+    check_index_pages,
     check_out_dir,
     check_out_tree,
     read_meta,
@@ -408,8 +410,9 @@ def check_outs(
 
 def check_tree(root: Path, dirs: Sequence[str], option: str = "--out", foreign: bool = True) -> None:
     """Before any work, ``root`` as the root of a results tree whose run directories are ``dirs`` (several runs,
-    or one run in both contact modes): not itself a run directory (its pages would be rewritten), and, with
-    ``foreign``, holding nothing legbench did not put there (the tree's index pages go into it).
+    or one run in both contact modes): not itself a run directory (its pages would be rewritten), no report.md or
+    report.html there but an index legbench wrote, and, with ``foreign``, holding nothing legbench did not put
+    there (the tree's index pages and a regression check's summaries may be).
 
     Raises:
         LegbenchError: one line naming ``option`` and the root.
@@ -420,7 +423,8 @@ def check_tree(root: Path, dirs: Sequence[str], option: str = "--out", foreign: 
         raise LegbenchError(f"{option} {root}: holds one run, and {len(dirs)} runs make a tree of run directories; "
                             f"choose another {option}")  # fmt: skip
     if foreign:
-        check_out_tree(root, [*dirs, ASSETS], ("report.html", "report.md"), "results tree", option)
+        check_out_tree(root, [*dirs, ASSETS], ("report.html", "report.md", *CHECK_OUTPUTS), "results tree", option)
+    check_index_pages(root)  # the tree's index is written at the end: a page of the user's there is refused now
 
 
 def start_pool(jobs: int, tasks: int | None = None) -> LocalExecutor | None:

@@ -128,11 +128,24 @@ def test_a_report_into_a_folder_inside_the_run_is_refused_as_on_the_command_line
                              "another out_dir"  # fmt: skip
     (run / "empty").mkdir()
     (tmp_path / "link").symlink_to(run / "empty")
-    with pytest.raises(LegbenchError, match=r"^out_dir .*empty: inside the run directory .*run, which holds one run"):
+    with pytest.raises(LegbenchError, match=r"^out_dir .*link: inside the run directory .*run, which holds one run"):
         opened.report(tmp_path / "link")
     assert sorted(p.name for p in run.iterdir()) == sorted([*before, "empty"]) and not any((run / "empty").iterdir())
     html = opened.report(run)
     assert html == run / "report.html" and html.is_file()
+
+
+def test_a_report_beside_the_run_named_from_inside_it_is_written(
+    result: api.Result, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """From inside the run directory, report("../copy") goes beside the run, not inside it: the path is taken
+    after its ``..`` (it was refused as inside the run, whose name the unresolved path still held)."""
+    run = tmp_path / "run"
+    shutil.copytree(result.path, run)
+    monkeypatch.chdir(run)
+    html = api.open_run(".").report("../copy")
+    assert (tmp_path / "copy" / "report.html").is_file() and html == Path("../copy/report.html")
+    assert not (run / "copy").exists()
 
 
 def test_mapping_profile_and_both_contact_modes(tmp_path: Path) -> None:
@@ -685,7 +698,7 @@ _NEED_LOG = "need log (they describe that log)"
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"lag": "x"}, "lag 'x': expected 'off', 'report' or 'remove'"),
+        ({"lag": "x"}, "lag 'x': expected one of 'off', 'report', 'remove'"),
         ({"max_lag": float("nan")}, "max_lag nan: must be a finite number > 0 [s] (the largest lag searched)"),
         ({"max_lag": "x"}, "max_lag 'x': must be a finite number > 0 [s] (the largest lag searched)"),
         ({"max_lag": -1}, "max_lag -1: must be a finite number > 0 [s] (the largest lag searched)"),
@@ -710,7 +723,7 @@ _NEED_LOG = "need log (they describe that log)"
         ({"ros": "x"}, "ros 'x': expected legbench.logs.RosOptions(...), not str"),
         (
             {"log": "x.csv", "ros": logs.RosOptions()},
-            "ros: needs log naming a ROS bag (a .bag file, a ROS 2 bag directory or its .db3 / .mcap file)",
+            "ros: need log naming a ROS bag (a .bag file, a ROS 2 bag directory or its .db3 / .mcap file)",
         ),  # fmt: skip
         ({"log": "x.bag", "ros": logs.RosOptions(force_sign=2.0)}, "ros.force_sign 2.0: expected 1.0 or -1.0"),
         ({"log_name": 5}, "log_name 5: expected a non-empty name (str), not int"),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import io
 import json
 import os
@@ -193,7 +194,7 @@ def test_a_steady_state_change_either_way_fails(baseline: Path, tmp_path: Path) 
     """Backend b's Fn 2 N lower, then 2 N higher, over the final window: steady_mean fz moves 2 N, over the
     default allowance (max(0.01 N, 0.5 % of the baseline's 22.2 N): 0.11 N) either way."""
     for step in (-2.0, 2.0):
-        drop = add_to("fz", lambda t, step=step: np.where(t > 1.4, step, 0.0))
+        drop = add_to("fz", functools.partial(lambda t, s: np.where(t > 1.4, s, 0.0), s=step))
         new = tmp_path / f"new{step:+g}"
         write_run(new / "fake", {"ref": None, "a": scale(1.02), "b": then(offset(0.01), drop)})
         write_run(new / "other", {"ref": None, "a": scale(1.01)}, name="other")

@@ -570,7 +570,8 @@ def test_no_wrong_value_anywhere_in_the_file_escapes_as_a_python_error() -> None
     accepted = set()
     for at in entries(base):
         above = keypath(list(at[:-1]))
-        for value in (None, True, "w", [], {}, ["x"], 10**400):
+        values: tuple[Any, ...] = (None, True, "w", [], {}, ["x"], 10**400)
+        for value in values:
             raw = copy.deepcopy(base)
             parent(raw, at)[at[-1]] = value
             msg = outcome(raw)

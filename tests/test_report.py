@@ -1004,8 +1004,8 @@ def test_the_index_never_replaces_a_page_legbench_did_not_write(page: str, tmp_p
     for write in (R.write_all, R.write_index):
         with pytest.raises(ResultsError) as exc:
             write(root)
-        assert str(exc.value) == (f"{root / page}: not an index legbench wrote, and the tree's index goes there; "
-                                  "move it away, or compare the run directories one by one")  # fmt: skip
+        assert str(exc.value) == (f"{root / page}: not an index legbench wrote, and this results tree's index goes "
+                                  "there; move it away first")  # fmt: skip
     assert (root / page).read_text() == "# my notes\n" and not (root / "one" / "report.html").exists()
     (root / page).unlink()
     R.write_all(root)

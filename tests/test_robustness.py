@@ -1028,9 +1028,17 @@ def test_a_tree_into_a_folder_of_someone_elses_is_refused_and_legbench_s_own_is_
     (tree / "verification").mkdir(parents=True)
     (tree / "verification" / "verification.json").write_text("{}")
     (tree / "assets").mkdir()
-    (tree / "report.html").write_text("an index legbench wrote")
+    (tree / "report.html").write_text("<title>legbench: comparison summary</title>")  # an index legbench wrote
+    (tree / "check.md").write_text("# legbench check")  # a regression check's default summary
     assert cli.main(["run", str(a), str(b), *common, "--out", str(tree)]) == 0
-    assert {"a", "b", "verification"} <= {p.name for p in tree.iterdir()}
+    assert {"a", "b", "verification", "check.md"} <= {p.name for p in tree.iterdir()}
+    # a report.md of the user's is refused before the runs (the index replaced it only after them)
+    (tree / "report.md").write_text("# my notes\n")
+    capsys.readouterr()
+    assert cli.main(["run", str(a), str(b), *common, "--out", str(tree), "--force"]) == 2
+    assert capsys.readouterr().err == (f"legbench: error: {tree / 'report.md'}: not an index legbench wrote, and this "
+                                       "results tree's index goes there; move it away first\n")  # fmt: skip
+    assert (tree / "report.md").read_text() == "# my notes\n"
 
 
 def test_an_out_that_is_a_dangling_link_is_refused_before_any_work(
@@ -1346,3 +1354,28 @@ def test_an_interrupted_run_is_not_resumed_by_a_run_that_drops_one_of_its_backen
     done = json.loads((out / "run.json").read_text())
     assert done.get("complete", True) and {k: v["status"] for k, v in done["backends"].items()} == dict.fromkeys(
         ("fake", "fake2", "fake3"), "ok")  # fmt: skip
+
+
+def test_an_interrupted_run_resumes_without_a_backend_that_had_not_started(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """fake2 interrupted before it ran (no log): a run of fake alone resumes the directory (nothing is lost: it was
+    refused as "of other backends too"), fake's log as it was, fake2 gone from run.json."""
+    f = _fake_run(tmp_path, monkeypatch)
+    reg = registry._registry
+    monkeypatch.setattr(
+        registry, "_registry", lambda: {**reg(), "fake2": type("fake2", (FakeBackend,), {"name": "fake2"})}
+    )
+    out = tmp_path / "r"
+    common = [str(f), "--out", str(out), "-q", "--no-compare", "--no-preflight"]
+    assert cli.main(["run", *common, "--backends", "fake,fake2"]) == 0
+    meta = json.loads((out / "run.json").read_text())
+    meta["complete"] = False
+    meta["backends"]["fake2"].update(status="interrupted", reason="not run")
+    (out / "run.json").write_text(json.dumps(meta))
+    (out / "fake2.parquet").unlink()
+    log = (out / "fake.parquet").read_bytes()
+    assert cli.main(["run", *common, "--backends", "fake"]) == 0
+    assert (out / "fake.parquet").read_bytes() == log and list(
+        json.loads((out / "run.json").read_text())["backends"]
+    ) == ["fake"]
