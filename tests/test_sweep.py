@@ -185,13 +185,19 @@ def test_run_metrics_are_zero_for_identical_runs_and_wrap_the_hip() -> None:
     assert math.isnan(sweep.run_metrics(dataclasses.replace(ref, status="failed"), ref, ["q"])["q_max"])
 
 
-def test_write_refuses_a_foreign_directory(tmp_path: Path) -> None:
+def test_a_foreign_directory_is_refused_before_any_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """An --out holding a file of the user's was refused only when writing, after every run: now before any."""
     out = tmp_path / "out"
     out.mkdir()
     (out / "precious.txt").write_text("keep")
+
+    def ran(*args: Any) -> None:
+        raise AssertionError("a run started")
+
+    monkeypatch.setattr(sweep, "execute", ran)
     with pytest.raises(LegbenchError, match="not a legbench sweep directory"):
         sweep.run_sweep(_write(tmp_path, GOOD), out, jobs=1)
-    assert (out / "precious.txt").exists()
+    assert [p.name for p in out.iterdir()] == ["precious.txt"]
 
 
 def test_cli_replaces_a_finished_sweep_in_its_out_directory_only_with_force(

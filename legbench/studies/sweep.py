@@ -85,6 +85,7 @@ __all__ = [
     "Sweep",
     "SweepResult",
     "add_cli",
+    "check_out",
     "fit_slopes",
     "load_sweep",
     "plan",
@@ -891,6 +892,26 @@ def _plot(figure: tuple[str, Any]) -> str | None:
     return str(path) if path is not None else None
 
 
+def check_out(out_dir: Path, name: str) -> None:
+    """Refuse an output directory holding another sweep's results or anything else (empty or missing: fine; a
+    sweep of this name: replaced). Checked before the runs and again before writing.
+
+    Raises:
+        LegbenchError: one line naming the directory and what it holds.
+    """
+    old = out_dir / "sweep.json"
+    if old.exists():
+        try:
+            prev = json.loads(old.read_text()).get("name")
+        except (ValueError, AttributeError):
+            prev = None
+        if prev != name:
+            raise LegbenchError(f"{out_dir}: holds results of sweep {prev!r}, not {name!r}; choose another --out or "
+                                "remove it")  # fmt: skip
+    elif out_dir.is_dir() and any(out_dir.iterdir()):
+        raise LegbenchError(f"{out_dir}: not empty and not a legbench sweep directory; choose another --out")
+
+
 def write_sweep(
     result: SweepResult,
     out_dir: Path,
@@ -905,17 +926,7 @@ def write_sweep(
     Refuses to replace a directory holding another sweep or anything else.
     """
     out_dir = Path(out_dir)
-    old = out_dir / "sweep.json"
-    if old.exists():
-        try:
-            prev = json.loads(old.read_text()).get("name")
-        except (ValueError, AttributeError):
-            prev = None
-        if prev != result.sweep.name:
-            raise LegbenchError(f"{out_dir}: holds results of sweep {prev!r}, not {result.sweep.name!r}; "
-                                "choose another --out or remove it")  # fmt: skip
-    elif out_dir.exists() and any(out_dir.iterdir()):
-        raise LegbenchError(f"{out_dir}: not empty and not a legbench sweep directory; choose another --out")
+    check_out(out_dir, result.sweep.name)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = out_dir.parent / f".{out_dir.name}.tmp-{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)
@@ -994,6 +1005,8 @@ def run_sweep(
     if executor == "local" and (jobs or os.cpu_count() or 1) > 1:
         warm_up(preload)  # the fork server imports the engines while the sweep is read and planned here
     sw = load_sweep(sweep_file)
+    if out_dir is not None:  # before any run: a folder of someone else's was refused only when writing
+        check_out(Path(out_dir), sw.name)
     p = plan(sw)
     # no more workers than runs (each is a process holding every engine; --jobs 1000 started 1000)
     ex = executor if isinstance(executor, Executor) else make_executor(executor, jobs, scheduler, preload,
