@@ -361,9 +361,9 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--no-preflight", action="store_true",
                    help="skip the parity pre-flight (legbench doctor) before running")  # fmt: skip
     p.add_argument("--force", action="store_true",
-                   help="replace a finished run (or an interrupted one of other settings) in the output "
-                        "directory, --out or results/latest/<name>; refused otherwise (an interrupted run of "
-                        "the same command is resumed)")  # fmt: skip
+                   help="replace a finished run (or an interrupted one of other settings, or holding the log "
+                        "of a backend not asked for) in the output directory, --out or results/latest/<name>; "
+                        "refused otherwise (an interrupted run of the same command is resumed)")  # fmt: skip
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
