@@ -583,6 +583,20 @@ def test_compiled_rk45_agrees_with_solve_ivp_over_a_task(task: str, duration: fl
         assert a.f[:, 2].max() > 50.0  # the touch-down and push were in it
 
 
+def test_the_compiled_floor_s_target_applies_only_where_the_compiled_period_runs() -> None:
+    """``replay/period_loop`` (bench) needs the compiled fixed-step period, the floor it names: euler and rk4
+    compiled state it; the Python path, rk45 and dop853 state only full/replay (they read "not measured", and
+    ``bench --check`` failed on a target that cannot apply). Each configuration's floors agree with its targets."""
+    both = {"replay/period_loop": 1.3, "full/replay": 1.2}
+    q, qd, tau = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3))
+    for settings, targets in (({}, both), ({"integrator": "rk4"}, both), ({"kernel": "python"}, {"full/replay": 1.2}),
+                              ({"integrator": "rk45"}, {"full/replay": 1.2}),
+                              ({"integrator": "dop853"}, {"full/replay": 1.2})):  # fmt: skip
+        be = _backend(settings)
+        assert dict(be.bench_targets) == targets, settings
+        assert ("period_loop" in be.kernels(q, qd, tau)) == ("replay/period_loop" in targets), settings
+
+
 def test_kernel_falls_back_to_python_and_says_why(monkeypatch: pytest.MonkeyPatch) -> None:
     """``kernel: python`` runs the Python path silently; a missing numba runs it with a warning naming the
     fix; dop853 never uses the kernel (solve_ivp), rk45 only unless ``kernel: python``."""

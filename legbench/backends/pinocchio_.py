@@ -98,10 +98,16 @@ class PinocchioBackend(Backend):
         "ode45": {"integrator": "rk45", "rtol": 1.0e-6, "atol": 1.0e-8, "max_step": 2.0e-4},
     }
 
-    #: `legbench bench` targets (CPU time): the engine-only replay within 1.3x the floor, the compiled period
-    #: over the whole run (ABA, law, limits and integration in one numba call), the full run within 1.2x the
-    #: replay (the harness's share).
-    bench_targets: ClassVar[Mapping[str, float]] = {"replay/period_loop": 1.3, "full/replay": 1.2}
+    @property
+    def bench_targets(self) -> Mapping[str, float]:
+        """`legbench bench` targets (CPU time): the full run within 1.2x the engine-only replay (the harness's
+        share); with the compiled fixed-step period (``kernel: compiled``, euler or rk4) also the replay within
+        1.3x ``period_loop``, that period over the whole run in one numba call (ABA, law, limits and integration).
+        The Python path and the adaptive integrators have no compiled floor to hold their replay to: that target
+        does not apply to them (it read "not measured", and ``bench --check`` failed)."""
+        if getattr(self, "_compiled", None) is not None:
+            return {"replay/period_loop": 1.3, "full/replay": 1.2}
+        return {"full/replay": 1.2}
 
     # ----------------------------------------------------------------- load
     def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:

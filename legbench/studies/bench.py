@@ -43,9 +43,10 @@ its log still held) and of ``RssFile`` (file-backed pages: code and data of libr
 ``/proc/self/status`` where it has them; both compared with the time series the run returns. Beside
 it, the peak of Python allocations during a run (tracemalloc, in this process).
 
-A backend may state targets as ``bench_targets`` (a class attribute: ``{"full/floor": 1.15}``, where
-``floor`` is its tightest floor), checked per repeat on the CPU-time ratios: *met* when every
-repeat's ratio is within the limit (max <= limit), *missed* when every one is over it (min > limit),
+A backend may state targets as ``bench_targets`` (a class attribute, ``{"full/floor": 1.15}`` where
+``floor`` is its tightest floor, or a property where they depend on its settings), checked per repeat on
+the CPU-time ratios: *met* when every repeat's ratio is within the limit (max <= limit), *missed* when
+every one is over it (min > limit),
 *inconclusive* when the repeats straddle the limit; ``--check`` fails on a missed one (and on a target
 not measured, or an end state that differs), never on an inconclusive one. Results go to
 ``<out>/bench.json`` (every sample and figure, versions, machine) and ``<out>/bench.md`` (the
