@@ -738,3 +738,30 @@ def test_compare_of_an_empty_path_is_refused(capsys: pytest.CaptureFixture[str])
     """``legbench compare ''`` compared the working directory (Path("") is "."): one line, exit 2."""
     assert cli.main(["compare", ""]) == 2
     assert capsys.readouterr().err == "legbench: error: '': an empty path; give a run directory or a results tree\n"
+
+
+def test_an_engine_whose_import_breaks_fails_alone(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An engine whose import raises something other than ImportError (a bad build, a shared library that fails
+    to load: a RuntimeError, an OSError) took every command down, those not using it too (a traceback, or an
+    "I/O error"). It is now unavailable with the reason, and the others run."""
+    from legbench import backends
+
+    (tmp_path / "brokenengine_mod.py").write_text("raise RuntimeError('engine broken')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setitem(backends.BUILTIN, "brokenengine", ("brokenengine_mod", "B", "'brokenengine'"))
+    assert "brokenengine" not in backends.available()
+    assert cli.main(["backends"]) == 0
+    out = capsys.readouterr().out
+    assert "its engine failed to import: RuntimeError: engine broken" in out, out
+    effort = Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml"
+    short = ["--set", "duration=0.05", "--set", "comparison.steady_window=0.02"]
+    args = ["run", str(effort), *short, "--no-compare", "-q", "--out", str(tmp_path / "r")]
+    assert cli.main([*args, "--backends", "pinocchio"]) == 0
+    assert cli.main([*args, "--backends", "all", "--force"]) == 0
+    capsys.readouterr()
+    assert cli.main([*args, "--backends", "pinocchio,brokenengine", "--force"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("legbench: error: --backends brokenengine: not installed here (its engine failed to import: "
+                          "RuntimeError: engine broken)") and err.count("\n") == 1  # fmt: skip

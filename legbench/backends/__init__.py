@@ -25,6 +25,7 @@ from legbench.backends.base import (
     sub_step_count,
 )
 from legbench.exceptions import BackendNotFound, LegbenchError, UnknownBackend
+from legbench.yamlfile import one_line
 
 __all__ = [
     "INTEGRATOR_FAMILIES",
@@ -67,6 +68,9 @@ def _load_builtin(name: str) -> type[Backend] | None:
     except ImportError as exc:
         command = package if package.startswith("apt-get ") else f"pip install {package}"
         _MISSING[name] = f"{command} ({exc})"
+        return None
+    except Exception as exc:  # an engine whose import breaks (a bad build, a missing shared library) fails alone
+        _MISSING[name] = one_line(f"its engine failed to import: {type(exc).__name__}: {exc}")
         return None
 
 
