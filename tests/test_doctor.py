@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -206,11 +207,16 @@ def test_the_preflight_loads_each_backend_in_the_runs_contact_mode(
         assert not (tmp_path / out).exists()
 
 
-def test_a_plug_in_that_raises_in_the_pre_flight_is_one_line_naming_it(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+def test_a_plug_in_that_raises_in_the_pre_flight_fails_alone(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    caplog: pytest.LogCaptureFixture,
 ) -> None:
-    """The pre-flight caught only legbench's errors around a backend's load and read-back: a plug-in raising
-    AttributeError there escaped cli.main as a traceback. It is one line naming the backend (exit 2)."""
+    """A plug-in raising AttributeError in its load: the pre-flight escaped as a traceback, then refused the whole
+    run (exit 2, pinocchio not run either). It is one warning line naming the backend, the others are checked and
+    run, and the failing backend's run fails alone (exit 3, run.json naming its error). ``legbench doctor`` prints
+    the table of the others and the failure (exit 3)."""
     from legbench import cli
 
     class LoadRaises(PinocchioBackend):
@@ -223,8 +229,18 @@ def test_a_plug_in_that_raises_in_the_pre_flight_is_one_line_naming_it(
     monkeypatch.setattr(backends, "_registry", lambda: {**reg(), "loadraises": LoadRaises})
     out = tmp_path / "run"
     argv = ["run", str(EFFORT), "--backends", "pinocchio,loadraises", "--out", str(out), "-q", "--no-compare"]
-    assert cli.main([*argv, "--set", "duration=0.02", "--set", "comparison.steady_window=0.01"]) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0
-    assert "parity check: loadraises failed to load: AttributeError: 'str' object has no attribute 'get'" in err
-    assert not out.exists()
+    with caplog.at_level("WARNING", logger="legbench.studies.doctor"):
+        assert cli.main([*argv, "--set", "duration=0.02", "--set", "comparison.steady_window=0.01"]) == 3
+    warning = (
+        "legbench: warning: parity check: loadraises failed to load: AttributeError: 'str' object has no "
+        "attribute 'get'; not checked, its run fails alone"
+    )
+    assert [r.getMessage() for r in caplog.records] == [warning]
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["backends"]["pinocchio"]["status"] == "ok" and meta["backends"]["loadraises"]["status"] == "failed"
+    assert "AttributeError" in meta["backends"]["loadraises"]["reason"]
+    capsys.readouterr()
+    assert cli.main(["doctor", str(EFFORT), "--backends", "pinocchio,loadraises"]) == 3
+    shown = capsys.readouterr().out
+    assert "legbench: error: parity check: loadraises failed to load: AttributeError" in shown
+    assert "pinocchio" in shown.splitlines()[0] and "loadraises" not in shown.splitlines()[0]

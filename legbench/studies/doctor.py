@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import math
 import numbers
 from collections.abc import Mapping, Sequence
@@ -38,8 +39,11 @@ from legbench import model
 from legbench import scenario as scenario_mod
 from legbench.backends.base import Backend
 from legbench.exceptions import BackendNotFound, LegbenchError
+from legbench.exitcodes import EXIT_BACKEND_FAILED
 from legbench.scenario import Scenario, physics_of
 from legbench.yamlfile import one_line
+
+logger = logging.getLogger(__name__)
 
 __all__ = ["RTOL", "ParityError", "add_cli", "check", "doctor", "preflight", "readback", "table", "verdict"]
 
@@ -179,12 +183,14 @@ _FIXED = ("group", "row", "unit", "spec", "tolerance", "status")
 
 
 def _engine_error(name: str, what: str, exc: BaseException) -> str:
-    return one_line(f"parity check: {name} failed to {what}: {type(exc).__name__}: {exc} (leave it out; a run's "
-                    "pre-flight can be skipped with --no-preflight, so that its run fails alone)")  # fmt: skip
+    return one_line(f"parity check: {name} failed to {what}: {type(exc).__name__}: {exc}")
 
 
 def table(
-    scenario: Scenario | str | Path, backends: Sequence[str] | None = None, contact_mode: str | None = None
+    scenario: Scenario | str | Path,
+    backends: Sequence[str] | None = None,
+    contact_mode: str | None = None,
+    failed: dict[str, str] | None = None,
 ) -> pd.DataFrame:
     """Load every backend for the scenario, read back what it holds, and tabulate it against the spec.
 
@@ -193,6 +199,8 @@ def table(
         backends: backend names (default: every available backend).
         contact_mode: the contact mode they are loaded in (default: the scenario's), the run's: a backend or
             setting that cannot run in it is refused here, as its run would be.
+        failed: where an engine's own error while loading or reading back goes (name -> one line), that backend
+            left out of the table: one engine failing does not stop the others. None: it is raised.
 
     Returns:
         Columns ``group, row, unit, spec, tolerance, <one per backend>, status``; status is
@@ -211,15 +219,21 @@ def table(
         except LegbenchError as exc:  # a setting the engine refuses for this scenario (a dt that does not
             raise LegbenchError(f"{sc.file}: {exc}") from exc  # divide its control period): name the file
         except Exception as exc:  # the engine's own error (a plug-in's bug): one line naming it, not a traceback
-            raise LegbenchError(_engine_error(name, "load", exc)) from exc
+            if failed is None:
+                raise LegbenchError(_engine_error(name, "load", exc)) from exc
+            failed[name] = _engine_error(name, "load", exc)
+            continue
         try:
             values[name] = readback(b)
         except LegbenchError:
             raise
         except Exception as exc:
-            raise LegbenchError(_engine_error(name, "read back", exc)) from exc
+            if failed is None:
+                raise LegbenchError(_engine_error(name, "read back", exc)) from exc
+            failed[name] = _engine_error(name, "read back", exc)
         finally:
             b.close()
+    names = [n for n in names if n in values]
     spec = _spec(sc)
     rows: list[dict[str, Any]] = []
     for row, (expected, unit, scale) in spec.items():
@@ -282,8 +296,15 @@ def preflight(
     scenario: Scenario | str | Path, backends: Sequence[str], contact_mode: str | None = None
 ) -> pd.DataFrame:
     """The run's pre-flight: the backends about to run, loaded in the run's ``contact_mode`` (default: the
-    scenario's), hold the spec's leg, limits and gravity, or an error."""
-    return doctor(scenario, backends, contact_mode)
+    scenario's), hold the spec's leg, limits and gravity, or an error (:class:`ParityError`). A backend whose
+    engine fails to load or read back is left to fail its own run: a warning line says so, the others are
+    checked (a failing engine never takes the others down)."""
+    failed: dict[str, str] = {}
+    t = table(scenario, backends, contact_mode, failed)
+    for line in failed.values():
+        logger.warning("legbench: warning: %s; not checked, its run fails alone", line)
+    check(t)
+    return t
 
 
 def _cell(v: Any) -> str:
@@ -296,7 +317,8 @@ def _cell(v: Any) -> str:
 
 def _cli(args: argparse.Namespace) -> int:
     names = registry.resolve(args.backends)
-    t = table(args.scenario, names)
+    failed: dict[str, str] = {}
+    t = table(args.scenario, names, failed=failed)
     shown = t if args.all else t[t["status"] != "info"]
     width = {c: max(len(c), *(len(_cell(v)) for v in shown[c])) for c in shown.columns}
     print("  ".join(c.ljust(width[c]) for c in shown.columns))
@@ -304,11 +326,15 @@ def _cli(args: argparse.Namespace) -> int:
         print("  ".join(_cell(v).ljust(width[c]) for c, v in zip(shown.columns, r, strict=True)))
     if not args.all:
         print(f"({int((t['status'] == 'info').sum())} settings rows not shown; --all shows them)")
+    for line in failed.values():
+        print(f"legbench: error: {line}")
     try:
         check(t)
     except ParityError as exc:
         print(f"legbench: error: {exc}")
         return 1
+    if failed:
+        return EXIT_BACKEND_FAILED
     print(verdict(t))
     return 0
 
