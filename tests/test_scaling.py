@@ -259,3 +259,18 @@ def test_a_probe_process_that_crashes_is_one_error_not_a_hang(tmp_path: Path, mo
     sc = scenario.load(resources.scenario("position"), {"duration": 0.05, "comparison.steady_window": 0.02})
     with pytest.raises(LegbenchError, match=r"a probe process ended \(exit code -11\) without its result"):
         scaling.ceiling_sample([(sc, crashy), (sc, crashy)], 2, timeout=300.0)
+
+
+def test_a_failed_run_of_the_batch_is_refused_naming_it_and_why() -> None:
+    """A backend whose runs fail made ``bench --parallel`` end with "runs failed on pybullet", no reason: the
+    message names each failed backend with its status and first reason, and what to do, on one line."""
+    from legbench.results import RunResult
+
+    ok = RunResult.empty("pinocchio", "ok", None)
+    bad = RunResult.empty("pybullet", "failed", "load failed: RuntimeError: engine broken\nsecond line")
+    with pytest.raises(LegbenchError) as exc:
+        scaling._check([[ok, bad], [ok, bad]])
+    why = "failed: load failed: RuntimeError: engine broken\\nsecond line"
+    assert str(exc.value) == (f"bench --parallel: runs failed on pybullet ({why}); a batch is timed whole: leave "
+                              "them out of --backends")  # fmt: skip
+    scaling._check([[ok], [ok]])

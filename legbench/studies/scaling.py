@@ -68,6 +68,7 @@ from legbench.results import atomic_write_text, write_json
 from legbench.run import run_backend, run_many, start_pool
 from legbench.scenario import Scenario, shorten
 from legbench.studies.executors import capped
+from legbench.yamlfile import one_line
 
 __all__ = [
     "PoolTiming",
@@ -287,9 +288,15 @@ def time_serial(batch: Sequence[tuple[Scenario, str | None, Path | None]], backe
 
 
 def _check(results: Sequence[Sequence[Any]]) -> None:
-    bad = [tr.backend for rs in results for tr in rs if tr.status != "ok"]
+    """Refuse a batch with a failed run: its timings would not be of the same work. One line naming each failed
+    backend with its first reason (the batch's timing needs every run; leave that backend out)."""
+    bad: dict[str, str] = {}
+    for tr in (tr for rs in results for tr in rs if tr.status != "ok"):
+        bad.setdefault(tr.backend, f"{tr.status}: {tr.reason or 'no reason given'}")
     if bad:
-        raise LegbenchError(f"bench --parallel: runs failed on {', '.join(sorted(set(bad)))}")
+        which = "; ".join(f"{name} ({why})" for name, why in sorted(bad.items()))
+        raise LegbenchError(one_line(f"bench --parallel: runs failed on {which}; a batch is timed whole: leave "
+                                     "them out of --backends"))  # fmt: skip
 
 
 @dataclass(frozen=True)
