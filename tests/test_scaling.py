@@ -266,7 +266,7 @@ def test_a_failed_run_of_the_batch_is_refused_naming_it_and_why() -> None:
     message names each failed backend with its status and first reason, and what to do, on one line."""
     from legbench.results import RunResult
 
-    ok = RunResult.empty("pinocchio", "ok", None)
+    ok = RunResult.empty("pinocchio", "ok", "")
     bad = RunResult.empty("pybullet", "failed", "load failed: RuntimeError: engine broken\nsecond line")
     with pytest.raises(LegbenchError) as exc:
         scaling._check([[ok, bad], [ok, bad]])
