@@ -661,19 +661,44 @@ def _check_default_sub_steps(ctx: YamlContext, settings: Mapping[str, Mapping[st
                         "control_rate")  # fmt: skip
 
 
-def _check_combination(ctx: YamlContext, name: str, given: Mapping[str, Any], profile: str, mode: str) -> None:
-    """Refuse settings of an installed backend that cannot run in the scenario's contact ``mode`` (the backend's
-    own rule, :meth:`Backend.settings_problem`, as its load asks it), naming the setting."""
+def _mode_problem(name: str, given: Mapping[str, Any], profile: str, mode: str) -> tuple[list[str | int], str] | None:
+    """The key path and why, when the settings ``given`` to an installed backend (with the scenario's ``profile``)
+    cannot run in contact ``mode`` (the backend's own rule, :meth:`Backend.settings_problem`, as its load asks
+    it): the setting where it is given, else ``physics.contact_mode``; None otherwise or when not installed."""
     try:
         cls = backends.get(name)
     except BackendNotFound:
-        return  # not installed here: the run reports it missing
+        return None  # not installed here: the run reports it missing
     settings = dict(given)
     resolved = cls.resolve_settings(settings, str(settings.pop("profile", profile)))
     bad = cls.settings_problem(resolved, mode)
+    if bad is None:
+        return None
+    key, why = bad
+    return (["backends", name, key] if key in given else ["physics", "contact_mode"]), why
+
+
+def _check_combination(ctx: YamlContext, name: str, given: Mapping[str, Any], profile: str, mode: str) -> None:
+    """Refuse settings of an installed backend that cannot run in the scenario's contact ``mode``, naming the
+    setting (:func:`_mode_problem`)."""
+    bad = _mode_problem(name, given, profile, mode)
     if bad is not None:
-        key, why = bad
-        raise ctx.error(["backends", name, key] if key in given else ["physics", "contact_mode"], why)
+        raise ctx.error(*bad)
+
+
+def check_contact_mode(sc: Scenario, names: Sequence[str], mode: str, option: str = "--contact-mode") -> None:
+    """Refuse, before any work, running ``sc`` on the backends ``names`` in another contact ``mode`` than its own
+    (``option`` set it) where a backend's settings cannot run in it, as the scenario file would be refused with that
+    mode in it (a study that overrides the mode without a pre-flight: ``legbench bench``).
+
+    Raises:
+        ScenarioError: naming the scenario's file, the setting and why.
+    """
+    for name in names:
+        bad = _mode_problem(name, sc.backends.get(name, {}), sc.profile, mode)
+        if bad is not None:
+            path, why = bad
+            raise ScenarioError(sc.file, keypath(path), f"{why} (with {option} {mode})")
 
 
 def _known_names() -> str:

@@ -20,7 +20,7 @@ from fakes import FakeBackend
 
 from legbench import backends, scenario
 from legbench.backends.base import Physics
-from legbench.exceptions import LegbenchError
+from legbench.exceptions import LegbenchError, ScenarioError
 from legbench.run import simulate
 from legbench.studies import bench
 
@@ -570,3 +570,19 @@ def test_the_bench_records_the_load_at_its_start_and_the_stolen_cpu_time() -> No
     assert bench.during({**before, "steal": None}, after)["steal_fraction"] is None
     now = bench.conditions()
     assert set(now) == {"load", "time", "steal"}
+
+
+@pytest.mark.skipif("drake" not in backends.available(), reason="drake backend not installed")
+def test_a_contact_mode_the_settings_cannot_run_is_refused_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``bench --contact-mode reference`` with Drake's continuous plant (which cannot take the law as an external
+    force): Drake failed at load, exit 3, bench.json written; ``legbench run`` refuses the same before any work.
+    Now the bench does too: one line naming the file, the setting and the option, exit 2, nothing written."""
+    args = _parser().parse_args(["bench", str(bench.TASKS[0]), "--backends", "drake,pinocchio", "--quick",
+                                 "--no-memory", "-q", "--set", "backends.drake.solver=continuous",
+                                 "--contact-mode", "reference", "--out", str(tmp_path / "b")])  # fmt: skip
+    with pytest.raises(ScenarioError) as exc:
+        args.func(args)
+    assert exc.value.key == "backends.drake.solver" and str(exc.value).endswith("(with --contact-mode reference)")
+    assert "\n" not in str(exc.value) and not (tmp_path / "b").exists()

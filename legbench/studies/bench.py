@@ -1081,6 +1081,9 @@ def _cli(args: argparse.Namespace) -> int:
     overrides = yamlfile.parse_overrides(args.set)
     scenarios = load_tasks(paths, quick=args.quick, duration=args.duration, overrides=overrides)
     names = registry.resolve(args.backends)
+    if args.contact_mode is not None:  # as the scenario would be refused with that mode in it, before any work
+        for sc in scenarios:
+            scenario.check_contact_mode(sc, names, args.contact_mode)
     repeats = args.repeats if args.repeats is not None else (1 if args.quick else DEFAULT_REPEATS)
     doc = "scaling.json" if args.parallel is not None else "bench.json"
     check_study_out(args.out, doc, OUTPUTS, "bench", args.force)
