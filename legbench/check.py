@@ -232,8 +232,9 @@ def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[st
     if not path.is_file() and not path.is_dir():
         raise ScenarioError(str(path), "", "no such tolerance file")
     doc = yamlfile.parse_text(yamlfile.read_text(path, "tolerance file"), str(path))[0]
-    if doc is None:  # empty, or comments only: the defaults (a list, 0 or '' is no mapping and refused)
-        doc = {}
+    if doc is None:  # empty, or comments only: a file given for nothing (legbench validate says so too)
+        raise ScenarioError(str(path), "", "empty tolerance file: it names no metric and no scenarios section (leave "
+                                           "--tolerances out for the defaults)")  # fmt: skip
     if not isinstance(doc, Mapping):
         raise ScenarioError(str(path), "", "top level must be a mapping")
     doc = dict(doc)

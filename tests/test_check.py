@@ -536,3 +536,14 @@ def test_the_summary_and_junit_never_replace_an_input_of_the_check(baseline: Pat
     assert K.run_check(new, baseline, None, new / "check.md", new / "mine.xml", stream=io.StringIO()) == 0
     assert K.run_check(new, baseline, None, new / "check.md", new / "mine.xml", stream=io.StringIO()) == 0
     assert (new / "check.md").is_file() and (new / "mine.xml").is_file()
+
+
+@pytest.mark.parametrize("text", ["", "# my tolerances, to do\n"])
+def test_an_empty_tolerance_file_is_refused(tmp_path: Path, text: str) -> None:
+    """An empty (or comments-only) --tolerances file checked with the defaults, silently, while legbench validate
+    refuses it: a file given for nothing is a mistake (a truncated file, the wrong path). One ScenarioError. (An
+    explicit {} still means "the defaults".)"""
+    f = tmp_path / "tol.yaml"
+    f.write_text(text)
+    with pytest.raises(ScenarioError, match=r"tol\.yaml: empty tolerance file: it names no metric and no scenarios"):
+        K.load_tolerances(f)
