@@ -126,3 +126,23 @@ def test_the_install_command_of_a_missing_built_in_engine_carries_pyproject_s_pi
             assert package.endswith("pip install ode-python") and any(r.startswith("ode-python") for r in reqs)
             continue
         assert package.startswith("'") and package.endswith("'") and package.strip("'") in reqs, (name, package)
+
+
+def test_all_says_once_which_known_engines_are_not_installed(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """``--backends all`` left out the engines not installed here without a word (the README says "reported and
+    skipped"): one note names each with its install command, once per process; 'all' beside names is refused."""
+    from legbench import backends
+    from legbench.exceptions import LegbenchError
+
+    monkeypatch.setitem(backends.BUILTIN, "ghostengine", ("legbench.backends.ghostengine_", "G", "'ghostengine>=1'"))
+    monkeypatch.setattr(backends, "_SAID_MISSING", set())
+    with caplog.at_level("WARNING", logger="legbench.backends"):
+        names = backends.resolve("all")
+        assert backends.resolve("all") == names and "ghostengine" not in names
+    (note,) = [r.getMessage() for r in caplog.records]
+    assert note.startswith("legbench: note: --backends all: the backends installed here; not installed, so not run: "
+                           "ghostengine (pip install 'ghostengine>=1' (No module named")  # fmt: skip
+    with pytest.raises(LegbenchError, match=r"^--backends all,mujoco: 'all' stands alone"):
+        backends.resolve("all,mujoco")

@@ -9,6 +9,7 @@ Other packages add backends through the ``legbench.backends`` entry-point group
 from __future__ import annotations
 
 import importlib
+import logging
 from collections.abc import Mapping
 from importlib import metadata
 from typing import Any
@@ -59,6 +60,9 @@ BUILTIN: dict[str, tuple[str, str, str]] = {
 }
 
 _MISSING: dict[str, str] = {}
+#: The backends :func:`resolve` has said are not installed (each is said once per process).
+_SAID_MISSING: set[str] = set()
+logger = logging.getLogger(__name__)
 
 
 def _load_builtin(name: str) -> type[Backend] | None:
@@ -166,7 +170,15 @@ def resolve(names: str | list[str], option: str = "--backends") -> list[str]:
     if not names:
         raise LegbenchError(f"{option} {given!r}: names no backend (give names, or 'all')")
     if names == ["all"]:
+        missing = {n: why for n, why in unavailable().items() if n not in _SAID_MISSING}
+        if missing:  # "reported and skipped": once per process, not at every resolve of a command
+            _SAID_MISSING.update(missing)
+            logger.warning("legbench: note: %s all: the backends installed here; not installed, so not run: %s",
+                           option, "; ".join(f"{n} ({why})" for n, why in missing.items()))  # fmt: skip
         return available()
+    if "all" in names:
+        raise LegbenchError(f"{option} {','.join(names)}: 'all' stands alone (every backend installed here); give "
+                            "either it or names")  # fmt: skip
     for n in names:
         try:
             get(n)
