@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 import math
 import re
+import stat
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -32,6 +33,7 @@ from legbench import kinematics
 from legbench.exceptions import LegbenchError, ResultsError
 from legbench.results import RunResult, result_from_frame
 from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS
+from legbench.yamlfile import file_kind
 
 __all__ = ["API_WORDS", "CLI_WORDS", "JOINT_STATE", "WRENCH", "LogWords", "RosOptions", "is_ros_bag", "load_log",
            "load_ros_bag", "worded"]  # fmt: skip
@@ -147,6 +149,43 @@ def _foot(trace: RunResult) -> np.ndarray:
     return np.where(logged, foot, kinematics.fk(trace.q))
 
 
+def _check_regular(path: Path) -> None:
+    """Refuse a CSV log path that is not a regular file, saying what it is, without opening it (a FIFO would block
+    until a writer comes, a device such as ``/dev/zero`` has no end)."""
+    try:
+        mode = path.stat().st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        raise ResultsError(str(path), "no such log file") from None
+    except OSError as exc:  # a name too long, a loop of links, a directory on the way not searchable
+        raise ResultsError(str(path), f"cannot be read ({exc.strerror or exc})") from None
+    if stat.S_ISDIR(mode):  # not a ROS 2 bag either (is_ros_bag): no metadata.yaml
+        raise ResultsError(str(path), "is a directory, not a log file (a ROS 2 bag directory holds metadata.yaml; "
+                                      "this one has none)")  # fmt: skip
+    if not stat.S_ISREG(mode):
+        raise ResultsError(str(path), f"is {file_kind(mode)}, not a regular file (a CSV log is read only from one)")
+
+
+def _written_header(path: Path) -> list[str]:
+    """The CSV's header row as written, read by the same parser as the data (quotes, a BOM, blank lines before
+    it): ``pd.read_csv`` renames a repeated name (``q2``, ``q2.1``) and an empty one (``Unnamed: 4``)."""
+    row = pd.read_csv(path, header=None, nrows=1, dtype=str, keep_default_na=False, na_filter=False)
+    return [str(v) for v in row.iloc[0]] if len(row) else []
+
+
+def _check_unique_header(path: Path, header: list[str]) -> None:
+    """Refuse a header that names two columns alike (as written; empty names, unnamed columns, aside): pandas
+    would keep the first under that name and call the other ``q2.1``, a name that is not in the file."""
+    where: dict[str, list[int]] = {}
+    for i, name in enumerate(header, start=1):
+        if name.strip():
+            where.setdefault(name, []).append(i)
+    repeated = [(name, cols) for name, cols in where.items() if len(cols) > 1]
+    if repeated:
+        said = ", ".join(f"{name!r} names columns {', '.join(map(str, cols[:-1]))} and {cols[-1]}"
+                         for name, cols in repeated)  # fmt: skip
+        raise ResultsError(str(path), f"header {said}: each column needs a name of its own")
+
+
 def load_log(
     path: str | Path,
     column_map: Mapping[str, str] | None = None,
@@ -165,7 +204,10 @@ def load_log(
     ``time`` is ``t``). ``column_map`` maps other names, ``{"their name": "q1"}``,
     and wins over the automatic match: a header column whose automatic match is a column the map
     already targets is ignored. Only ``t`` and ``q1..q3`` are required;
-    other missing signals become NaN and are left out of the metrics. The foot centre
+    other missing signals become NaN and are left out of the metrics. A missing value in some rows
+    (an empty cell, ``NaN``, ``n/a``: what ``pd.read_csv`` reads as NaN) is a missing sample, left out
+    of the metrics that need it (docs/metrics.md), as a ROS bag's force outside the wrench's span is;
+    ``inf`` is refused. The foot centre
     (``ee_x..ee_z`` [m]) is taken as logged, or computed from q (:func:`legbench.kinematics.fk`)
     where the log has none.
 
@@ -178,9 +220,10 @@ def load_log(
         DataFrame with the columns of :data:`RUN_COLUMNS` (controller "" if absent).
 
     Raises:
-        ResultsError: the file is missing or unreadable, a mapped column is absent,
-            two columns map to one name, a required column is missing, a value is not
-            numeric or time is not strictly increasing.
+        ResultsError: the file is missing, not a regular file or unreadable, a header name
+            names two columns, a mapped column is absent, two columns map to one name, a
+            required column is missing, a value is not numeric or infinite, or time is not
+            strictly increasing.
     """
     path = Path(path)
     words = _WORDS.get()
@@ -192,12 +235,13 @@ def load_log(
         return load_ros_bag(path, opts)
     if not (math.isfinite(time_scale) and time_scale > 0):
         raise LegbenchError(f"{words.time_scale} {time_scale!r}: must be a finite number > 0 (1e-3 for ms)")
-    if not path.is_file():
-        raise ResultsError(str(path), "is a directory, not a log file" if path.is_dir() else "no such log file")
+    _check_regular(path)
     try:
         raw = pd.read_csv(path)
+        written = _written_header(path)
     except Exception as exc:  # parser errors come in several types
         raise ResultsError(str(path), f"not a readable CSV file ({type(exc).__name__}: {exc})") from exc
+    _check_unique_header(path, written if len(written) == raw.shape[1] else list(map(str, raw.columns)))
     cmap = dict(column_map or {})
     unknown_targets = sorted(set(cmap.values()) - set(RUN_COLUMNS))
     if unknown_targets:

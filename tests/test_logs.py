@@ -272,3 +272,95 @@ def test_bag_errors_name_the_settings_in_the_callers_words(tmp_path: Path, capsy
     run_dir = write_run(tmp_path / "fake", {"ref": None, "a": scale(1.02)})
     assert cli.main(["compare", str(run_dir), "--reference-log", str(bag)]) == 2
     assert capsys.readouterr().err == f"legbench: error: {bag}: {cli_words['topic']}\n"
+
+
+# --------------------------------------------------------------------------- #
+# CSV logs
+
+CSV_ROWS = "0,0.1,0.2,0.3\n0.001,0.11,0.21,0.31\n0.002,0.12,0.22,0.32\n"
+
+
+@pytest.mark.parametrize(
+    ("header", "column_map", "problem"),
+    [  # a second q2 of 999s was read silently (the first one used); one hiding q2 was named 'q1.1', not in the file
+        ("t,q1,q2,q3,q2", {"q2": "q2"}, "header 'q2' names columns 3 and 5"),
+        ("t,q1,q1,q3", {"q1": "q1"}, "header 'q1' names columns 2 and 3"),
+        ('t,q1,"q2",q3,q2,fz,fz', {"fz": "fz"}, "header 'q2' names columns 3 and 5, 'fz' names columns 6 and 7"),
+        ("t,q1,q2,q3,note,note,note", {"note": "tau1"}, "header 'note' names columns 5, 6 and 7"),
+    ],
+)
+def test_a_header_name_given_to_two_columns_is_refused_naming_it_and_its_columns(
+    tmp_path: Path, header: str, column_map: dict[str, str], problem: str
+) -> None:
+    """A header naming two columns alike (as written, quotes read as the data's parser reads them; names alike only
+    once normalised, q2 and 'Q2 [rad]', are 'several header columns map to') is refused in one line naming the name
+    and its columns (1-based), also when the map names it; not read on under pandas' invented names (q2.1)."""
+    log = tmp_path / "dup.csv"
+    width = header.count(",") + 1
+    log.write_text(header + "\n" + "".join(f"{k * 1e-3}" + ",0.5" * (width - 1) + "\n" for k in range(3)))
+    for cmap in (None, column_map):
+        with pytest.raises(ResultsError) as err:
+            logs.load_log(log, cmap)
+        assert str(err.value) == f"{log}: {problem}: each column needs a name of its own"
+
+
+def test_a_repeated_header_is_refused_from_the_command_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The audit's case: a run's log written to CSV with a second q2 column of 999s compared with rc 0; now rc 2 and
+    the one line, and nothing written into the run directory."""
+    run_dir = write_run(tmp_path / "fake", {"ref": None, "a": scale(1.02)})
+    df = pd.read_parquet(run_dir / "a.parquet")
+    df.insert(4, "q2 ", 999.0)
+    log = tmp_path / "dup.csv"
+    df.rename(columns={"q2 ": "q2"}).to_csv(log, index=False)
+    assert log.read_text().startswith("t,q1,q2,q3,q2,qd1")
+    before = {f.name: f.read_bytes() for f in run_dir.iterdir() if f.is_file()}
+    assert cli.main(["compare", str(run_dir), "--reference-log", str(log)]) == 2
+    assert capsys.readouterr().err == (
+        f"legbench: error: {log}: header 'q2' names columns 3 and 5: each column needs a name of its own\n"
+    )
+    assert {f.name: f.read_bytes() for f in run_dir.iterdir() if f.is_file()} == before
+
+
+def test_unnamed_csv_columns_are_not_a_repeated_header(tmp_path: Path) -> None:
+    """Empty header cells (a spreadsheet's trailing columns) name nothing: two of them are no clash, and the log
+    reads as without them."""
+    plain, padded = tmp_path / "plain.csv", tmp_path / "padded.csv"
+    plain.write_text("t,q1,q2,q3\n" + CSV_ROWS)
+    padded.write_text("t,q1,q2,q3,,\n" + "".join(line + ",,\n" for line in CSV_ROWS.splitlines()))
+    pd.testing.assert_frame_equal(logs.load_log(padded), logs.load_log(plain))
+
+
+@pytest.mark.parametrize("cell", ["", "NaN", "n/a"])
+def test_a_missing_value_in_a_csv_log_is_a_missing_sample_not_an_error(tmp_path: Path, cell: str) -> None:
+    """Deliberate (docs/metrics.md: a NaN sample is an imported log's missing value, left out of the metrics that
+    need it; tests/test_compare.py measures such a log): what pandas reads as missing in some rows is NaN there,
+    every other value as logged; inf stays refused."""
+    log = tmp_path / "gap.csv"
+    lines = CSV_ROWS.splitlines()
+    lines[1] = f"0.001,0.11,{cell},0.31"
+    log.write_text("t,q1,q2,q3\n" + "\n".join(lines) + "\n")
+    df = logs.load_log(log)
+    np.testing.assert_array_equal(df["q2"], [0.2, np.nan, 0.22])
+    np.testing.assert_array_equal(df["q1"], [0.1, 0.11, 0.12])
+    log.write_text(log.read_text().replace(f",{cell},", ",inf,"))
+    with pytest.raises(ResultsError, match=r"column 'q2' holds inf at row 1 \(t = 0\.001 s\)"):
+        logs.load_log(log)
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "mkfifo"), reason="no FIFOs here")
+def test_a_log_path_that_is_no_regular_file_says_what_it_is(tmp_path: Path) -> None:
+    """A FIFO given as the log was reported 'no such log file'; now what it is, without opening it (no writer comes:
+    opening would block). A directory that is no ROS 2 bag says what a bag directory holds."""
+    fifo = tmp_path / "live.csv"
+    __import__("os").mkfifo(fifo)
+    with pytest.raises(ResultsError) as err:
+        logs.load_log(fifo)
+    assert str(err.value) == f"{fifo}: is a FIFO, not a regular file (a CSV log is read only from one)"
+    with pytest.raises(ResultsError) as err:
+        logs.load_log(tmp_path)
+    assert str(err.value) == (
+        f"{tmp_path}: is a directory, not a log file (a ROS 2 bag directory holds metadata.yaml; this one has none)"
+    )
+    with pytest.raises(ResultsError) as err:
+        logs.load_log(tmp_path / "nope.csv")
+    assert str(err.value) == f"{tmp_path / 'nope.csv'}: no such log file"
