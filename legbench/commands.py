@@ -370,7 +370,7 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 #: compare's log arguments as ``legbench compare`` names them (:func:`legbench.compare.log_settings_problem`).
 _LOG_WORDS = {"log": "--reference-log", "column_map": "--log-columns", "log_is_reference": "--log-is-reference",
-              "log_time_scale": "--log-time-scale", "ros": "--ros-joint-topic / --ros-wrench-topic"}  # fmt: skip
+              "log_time_scale": "--log-time-scale"}  # fmt: skip
 
 
 def _compare(args: argparse.Namespace) -> int:
@@ -385,9 +385,11 @@ def _compare(args: argparse.Namespace) -> int:
         raise LegbenchError(f"{args.dir}: {exc.strerror or exc}") from None
     if a_file:
         raise LegbenchError(f"{args.dir}: is a file, not a results directory (give a run directory or a tree)")
-    ros_given = args.ros_joint_topic is not None or args.ros_wrench_topic is not None
+    ros_given = [opt for opt, value in (("--ros-joint-topic", args.ros_joint_topic),
+                                        ("--ros-wrench-topic", args.ros_wrench_topic),
+                                        ("--ros-force-sign", args.ros_force_sign)) if value is not None]  # fmt: skip
     problem = log_settings_problem(args.reference_log, args.log_columns, args.log_is_reference, args.log_time_scale,
-                                   ros_given, _LOG_WORDS)  # fmt: skip
+                                   bool(ros_given), {**_LOG_WORDS, "ros": " / ".join(ros_given)})  # fmt: skip
     if problem is not None:
         raise LegbenchError(problem)
     column_map: dict[str, str] = {}
@@ -395,11 +397,16 @@ def _compare(args: argparse.Namespace) -> int:
         src, sep, dst = item.partition("=")
         if not sep or not src.strip() or not dst.strip():
             raise LegbenchError(f"--log-columns {item!r}: expected HEADER=COLUMN, e.g. joint1_pos=q1")
+        if src.strip() in column_map:
+            raise LegbenchError(f"--log-columns {args.log_columns!r}: header {src.strip()!r} is mapped twice "
+                                f"({column_map[src.strip()]} and {dst.strip()}); map each header once")  # fmt: skip
         column_map[src.strip()] = dst.strip()
     ros = None
     if args.reference_log is not None and logs.is_ros_bag(args.reference_log):
         ros = logs.RosOptions(
-            joint_topic=args.ros_joint_topic, wrench_topic=args.ros_wrench_topic, force_sign=args.ros_force_sign
+            joint_topic=args.ros_joint_topic,
+            wrench_topic=args.ros_wrench_topic,
+            force_sign=args.ros_force_sign if args.ros_force_sign is not None else 1.0,
         )
     report.write_all(
         args.dir,
@@ -431,7 +438,7 @@ def add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     p.add_argument("--ros-wrench-topic", default=None, metavar="TOPIC",
                    help="the bag's geometry_msgs/WrenchStamped topic of the ground force on the foot in W "
                         "(default: its only one, if any; '' for none)")  # fmt: skip
-    p.add_argument("--ros-force-sign", type=float, choices=(1.0, -1.0), default=1.0,
+    p.add_argument("--ros-force-sign", type=float, choices=(1.0, -1.0), default=None,
                    help="-1 if the wrench is the force the foot exerts on the ground (default +1: the ground "
                         "on the foot)")  # fmt: skip
     p.add_argument(
