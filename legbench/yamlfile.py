@@ -74,8 +74,9 @@ def limit(name: str) -> int:
     Every item of ``LEGBENCH_LIMITS`` is checked whichever limit is asked for, so a bad one is refused at once.
 
     Raises:
-        ScenarioError: ``LEGBENCH_LIMITS`` names a limit that does not exist, or its value is not a whole
-            number >= 1 (a limit of 0 or below would refuse everything, and its message would make no sense).
+        ScenarioError: ``LEGBENCH_LIMITS`` names a limit that does not exist or one twice, or its value is not a
+            whole number >= 1 (a limit of 0 or below would refuse everything, and its message would make no
+            sense), or raises ``integer`` past the engines' C int.
     """
     given: dict[str, int] = {}
     for item in os.environ.get("LEGBENCH_LIMITS", "").split(","):
@@ -85,11 +86,17 @@ def limit(name: str) -> int:
         if not sep or key.strip() not in LIMITS:  # a typo would leave the limit as it was
             raise ScenarioError("LEGBENCH_LIMITS", item.strip(), f"unknown limit; known: {', '.join(LIMITS)}")
         try:
-            n = int(float(value))
+            x = float(value)
+            n = int(x)
         except (ValueError, OverflowError):
             raise ScenarioError("LEGBENCH_LIMITS", key.strip(), f"expected a number, got {value!r}") from None
-        if n < 1:
+        if n < 1 or x != n:  # 1.5 was taken for 1
             raise ScenarioError("LEGBENCH_LIMITS", key.strip(), f"must be a whole number >= 1, got {value!r}")
+        if key.strip() in given:  # the last one won
+            raise ScenarioError("LEGBENCH_LIMITS", key.strip(), "given twice")
+        if key.strip() == "integer" and n > LIMITS["integer"]:  # an iteration count past it wrapped to -1294967296
+            raise ScenarioError("LEGBENCH_LIMITS", "integer", f"at most {LIMITS['integer']}, the engines' C int "
+                                                              f"(it may only be lowered), got {value!r}")  # fmt: skip
         given[key.strip()] = n
     return given.get(name, LIMITS[name])
 

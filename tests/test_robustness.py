@@ -313,6 +313,25 @@ def test_tick_limit_can_be_raised(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
 
 
 @pytest.mark.parametrize(
+    ("value", "words"),
+    [
+        ("ticks=1.5", "ticks: must be a whole number >= 1, got '1.5'"),  # was taken for 1
+        ("ticks=3e7,ticks=4e7", "ticks: given twice"),  # the last one won
+        ("integer=1e12", "integer: at most 2147483647, the engines' C int (it may only be lowered), got '1e12'"),
+    ],
+)
+def test_a_limit_that_cannot_be_is_refused(monkeypatch: pytest.MonkeyPatch, value: str, words: str) -> None:
+    """LEGBENCH_LIMITS: a fraction was truncated, a name given twice took the last value, and ``integer`` raised
+    past a C int let an ODE iteration count of 3e9 wrap to -1294967296 in run.json: each one ScenarioError."""
+    monkeypatch.setenv("LEGBENCH_LIMITS", value)
+    with pytest.raises(ScenarioError) as exc:
+        yamlfile.limit("ticks")
+    assert str(exc.value) == f"LEGBENCH_LIMITS: {words}"
+    monkeypatch.setenv("LEGBENCH_LIMITS", "integer=1000")  # lowering it is fine
+    assert yamlfile.limit("integer") == 1000
+
+
+@pytest.mark.parametrize(
     ("setting", "words"),
     [
         ("duration=[0.3", "malformed YAML"),
