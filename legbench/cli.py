@@ -173,11 +173,11 @@ def _check_model_env() -> None:
     variable's name: the library refuses it too where it reads the file (``legbench.model.param_bytes`` for the
     URDF's name, the YAML reader), but naming the file only; a device or a FIFO there was once read without end
     (/dev/zero until the process was killed) or blocked for ever."""
-    env = os.environ.get(resources.MODEL_ENV)
-    if env:
-        kind = _not_a_model_file(Path(env).expanduser())
+    path = resources.env_path(resources.MODEL_ENV)  # a ~user that cannot be expanded: one line naming the variable
+    if path is not None:
+        kind = _not_a_model_file(path)
         if kind:
-            raise ModelError(f"{resources.MODEL_ENV}={env}: {kind}")
+            raise ModelError(f"{resources.MODEL_ENV}={os.environ[resources.MODEL_ENV]}: {kind}")
 
 
 _KEPT = "what finished is kept (lines above), rerun the same command to finish"
@@ -190,6 +190,8 @@ _INTERRUPTED: dict[str, str] = {
 }
 
 
+#: Subcommands that load engines (each loads the active model's URDF, from the cache for another model).
+_LOADS_ENGINES = ("run", "doctor", "sweep", "verify", "calibrate-contact", "bench", "reproduce")
 #: Subcommands whose ``--out`` is a directory (``model urdf --out`` is a file).
 _OUT_DIRS = ("run", "sweep", "bench", "verify", "calibrate-contact", "reproduce")
 
@@ -254,6 +256,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.model is not None:
             _select_model(args.model)
         _check_outputs(args)
+        if args.cmd in _LOADS_ENGINES:  # the URDF now: a bad cache directory is one line, not every engine's failure
+            resources.urdf_file()
         return int(args.func(args))
     except LegbenchError as exc:
         print(f"legbench: error: {_one_line(exc)}", file=sys.stderr)

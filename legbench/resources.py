@@ -18,10 +18,15 @@ the bundled ``leg.yaml``'s digest now; a source checkout (re)writes it in place 
 (``leg.yaml`` edited and not regenerated, or a ``leg.urdf`` with no stamp or another generator's), gets its URDF
 generated into the cache directory (:func:`cache_dir`), named by that digest, so an installed package never
 writes into site-packages and a run of an edited leg names another URDF than ``leg.urdf``.
+
+A path an environment variable gives (``LEGBENCH_MODEL``, ``LEGBENCH_CACHE_DIR``, ``XDG_CACHE_HOME``) that cannot
+be used (a ``~user`` with no such user, a loop of links, a cache that is a file or cannot be created) is a one-line
+:class:`~legbench.exceptions.ModelError` naming the variable and its value, raised where it is resolved.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import logging
@@ -38,7 +43,9 @@ __all__ = [
     "bundled_model",
     "bundled_urdf",
     "cache_dir",
+    "cache_subdir",
     "data_dir",
+    "env_path",
     "is_bundled",
     "model_file",
     "models_dir",
@@ -75,7 +82,7 @@ def shown(path: str | Path) -> str:
     p = Path(path)
     try:
         cwd, real, plain = Path.cwd().resolve(), p.resolve(), p.absolute()
-    except OSError:
+    except (OSError, RuntimeError):  # RuntimeError: a loop of symbolic links (Python 3.11)
         return str(path)
     for file, base, prefix in ((real, cwd, ""), (plain, data_dir(), "legbench/data/")):
         if file.is_relative_to(base):
@@ -117,37 +124,164 @@ def source_tree() -> Path | None:
     return None
 
 
+def _error(message: str) -> Exception:
+    """The one-line error for a path an environment variable (or the caller) gave that cannot be used: a
+    :class:`legbench.exceptions.ModelError`, reached through :mod:`legbench.model` (this module's one upward
+    import, docs/architecture.md), imported only when there is an error to raise."""
+    from legbench import model  # deferred, as in urdf_file: model imports pinocchio
+
+    return model.ModelError(message)
+
+
+def _expanded(value: str, label: str) -> Path:
+    """``value`` as a path with a leading ``~`` or ``~user`` expanded, as :meth:`pathlib.Path.expanduser`.
+
+    Raises:
+        ModelError: ``~user`` names no user, or ``~`` has no home directory (HOME unset and none in the password
+            database), in one line beginning with ``label`` (``LEGBENCH_MODEL=~nouser/x.yaml``), instead of
+            pathlib's ``RuntimeError: Could not determine home directory.``
+    """
+    try:
+        return Path(value).expanduser()
+    except RuntimeError:
+        head = value.split("/", 1)[0]
+        why = "no home directory (HOME is not set)" if head == "~" else "no such user"
+        raise _error(f"{label}: cannot expand {head}: {why}") from None
+
+
+def _resolved(path: Path, label: str) -> Path:
+    """``path`` made absolute with its links resolved; a loop of links is a one-line ModelError beginning with
+    ``label`` (Python 3.11 raises RuntimeError for it)."""
+    try:
+        return path.resolve()
+    except RuntimeError:
+        raise _error(f"{label}: a loop of symbolic links") from None
+    except OSError as exc:
+        raise _error(f"{label}: {exc.strerror or exc}") from None
+
+
+def env_path(name: str) -> Path | None:
+    """The path the environment variable ``name`` holds, ``~`` expanded; None when it is unset or empty.
+
+    Raises:
+        ModelError: the ``~`` cannot be expanded; one line naming the variable and its value
+            (``LEGBENCH_MODEL=~nouser/x.yaml: cannot expand ~nouser: no such user``).
+    """
+    value = os.environ.get(name)
+    return _expanded(value, f"{name}={value}") if value else None
+
+
 _selected: Path | None = None
 
 
 def select_model(path: str | Path | None) -> None:
-    """Make ``path`` the active leg parameter file for this process and its workers (None: back to the default)."""
+    """Make ``path`` the active leg parameter file for this process and its workers (None: back to the default).
+
+    Raises:
+        ModelError: ``~`` in ``path`` cannot be expanded, or its links loop (one line naming ``path``).
+    """
     global _selected
     if path is None:
         _selected = None
         os.environ.pop(MODEL_ENV, None)
         return
-    _selected = Path(path).expanduser().resolve()
+    _selected = _resolved(_expanded(str(path), str(path)), str(path))
     os.environ[MODEL_ENV] = str(_selected)
 
 
 def model_file() -> Path:
-    """The active leg parameter file (see the module docstring for the order)."""
+    """The active leg parameter file (see the module docstring for the order).
+
+    Raises:
+        ModelError: ``LEGBENCH_MODEL``'s ``~`` cannot be expanded or its links loop, in one line naming the
+            variable and its value.
+    """
     if _selected is not None:
         return _selected
-    env = os.environ.get(MODEL_ENV)
-    if env:
-        return Path(env).expanduser().resolve()
+    env = env_path(MODEL_ENV)
+    if env is not None:
+        return _resolved(env, f"{MODEL_ENV}={os.environ[MODEL_ENV]}")
     return bundled_model()
 
 
+def _cache_origin() -> tuple[Path, str]:
+    """The cache directory and how an error names it: ``LEGBENCH_CACHE_DIR=<value>``, ``cache directory <path>
+    (from XDG_CACHE_HOME=<value>)`` or ``cache directory <path>`` (the default under the home directory).
+
+    Raises:
+        ModelError: a ``~`` that cannot be expanded, or no home directory for the default (see :func:`cache_dir`).
+    """
+    env = env_path(CACHE_ENV)
+    if env is not None:
+        return env, f"{CACHE_ENV}={os.environ[CACHE_ENV]}"
+    xdg = env_path("XDG_CACHE_HOME")
+    if xdg is not None:
+        path = xdg / "legbench"
+        return path, f"cache directory {path} (from XDG_CACHE_HOME={os.environ['XDG_CACHE_HOME']})"
+    default = _expanded("~", f"cache directory ~/.cache/legbench ({CACHE_ENV} chooses another)")
+    path = default / ".cache" / "legbench"
+    return path, f"cache directory {path}"
+
+
+def _dir_problem(path: Path) -> str:
+    """Why ``path`` cannot be a directory ('' if it is one, or if its nearest existing ancestor is one, so it can be
+    created as far as can be told without creating it), without creating anything: a few ``stat`` calls."""
+    try:
+        if path.is_dir():
+            return ""
+        if path.exists():
+            return "not a directory"
+        if path.is_symlink():
+            return "not a directory (a symbolic link to nothing)"
+        for parent in path.parents:
+            if parent.is_dir():
+                return ""
+            if parent.exists() or parent.is_symlink():
+                return f"cannot be created: {parent} is not a directory"
+    except OSError as exc:  # a name too long
+        return f"cannot be used: {exc.strerror or exc}"
+    return ""
+
+
 def cache_dir() -> Path:
-    """Derived files: ``$LEGBENCH_CACHE_DIR``, else ``$XDG_CACHE_HOME/legbench``, else ``~/.cache/legbench``."""
-    env = os.environ.get(CACHE_ENV)
-    if env:
-        return Path(env).expanduser()
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg).expanduser() if xdg else Path.home() / ".cache") / "legbench"
+    """Derived files: ``$LEGBENCH_CACHE_DIR``, else ``$XDG_CACHE_HOME/legbench``, else ``~/.cache/legbench``.
+
+    Nothing is created (:func:`cache_subdir` creates); a path that cannot be a directory is refused here, before
+    any work, so a bad cache is one line naming where it came from, not each engine's failure to load.
+
+    Raises:
+        ModelError: in one line naming the variable and its value (``LEGBENCH_CACHE_DIR=/tmp/f: not a
+            directory``): the path is a file or lies under one (``cannot be created: /tmp/f is not a
+            directory``), a ``~`` in it cannot be expanded, or there is no home directory for the default.
+    """
+    path, origin = _cache_origin()
+    problem = _dir_problem(path)
+    if problem:
+        raise _error(f"{origin}: {problem}")
+    return path
+
+
+def cache_subdir(name: str) -> Path:
+    """The directory ``name`` (``urdf``) in :func:`cache_dir`, created with the cache directory if missing.
+
+    Raises:
+        ModelError: as :func:`cache_dir`, or either directory cannot be created (``LEGBENCH_CACHE_DIR=/proc/x:
+            cannot be created: No such file or directory``), in one line naming the variable and its value.
+    """
+    root = cache_dir()
+    origin = _cache_origin()[1]
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _error(f"{origin}: cannot be created: {exc.strerror or exc}") from None
+    sub = root / name
+    try:
+        sub.mkdir(exist_ok=True)
+    except FileExistsError:
+        raise _error(f"{origin}: {sub}: not a directory") from None
+    except OSError as exc:
+        raise _error(f"{origin}: {sub}: cannot be created: {exc.strerror or exc}") from None
+    return sub
 
 
 def is_bundled(params: str | Path) -> bool:
@@ -160,7 +294,7 @@ def is_bundled(params: str | Path) -> bool:
         pass
     try:
         return Path(params).resolve() == bundled_model().resolve()
-    except OSError:
+    except (OSError, RuntimeError):  # RuntimeError: a loop of symbolic links (Python 3.11)
         return False
 
 
@@ -276,7 +410,8 @@ def urdf_target(params: str | Path | None = None) -> Path:
 
     Raises:
         ModelError: the parameter file is not a regular file (a device, a FIFO, a directory) or is larger than
-            ``limit("file_bytes")``; it is not read.
+            ``limit("file_bytes")``; it is not read. A URDF in the cache: the cache directory cannot be one
+            (:func:`cache_dir`).
     """
     path = Path(params) if params is not None else model_file()
     current, digest = _bundled_is_current(path)
@@ -310,7 +445,8 @@ def urdf_file(params: str | Path | None = None) -> Path:
     the cache (see :func:`urdf_target`). Each call reads the parameter file and the URDF's first bytes again.
 
     Raises:
-        ModelError: the parameter file is missing or malformed.
+        ModelError: the parameter file is missing or malformed; or the cache directory cannot be used, in one line
+            naming the variable that chose it and its value (:func:`cache_dir`, :func:`cache_subdir`).
     """
     path = Path(params) if params is not None else model_file()
     current, digest = _bundled_is_current(path)
@@ -324,9 +460,17 @@ def urdf_file(params: str | Path | None = None) -> Path:
         if leg.digest is not None and leg.digest != digest:  # edited between the two reads: name it by what it holds
             target = _cached(path, leg.digest)
         text = model.urdf_text(leg)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=target.name, suffix=".tmp")  # unique: workers race
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, target)
+        directory = cache_subdir("urdf")  # target's directory; a cache that cannot be made is one line
+        try:
+            fd, tmp = tempfile.mkstemp(dir=directory, prefix=target.name, suffix=".tmp")  # unique: workers race
+        except OSError as exc:  # a read-only file system
+            raise _error(f"{_cache_origin()[1]}: cannot write in it: {exc.strerror or exc}") from None
+        try:
+            with os.fdopen(fd, "w") as fh:
+                fh.write(text)
+            os.replace(tmp, target)
+        except BaseException:  # a full disk, an interrupt: no half-written temporary left behind
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+            raise
     return target

@@ -323,3 +323,204 @@ def test_a_generated_urdf_names_its_parameter_file_without_a_machine_path(
         assert header.endswith(f" from {name}. Do not edit. -->") and f"stamp sha256:{digest}," in header
         assert str(tmp_path) not in text and "models/leg.yaml" not in text
         ET.fromstring(text.split("\n", 1)[1])  # well-formed XML after the declaration
+
+
+# --------------------------------------------------------------------------- #
+# Paths from environment variables: one line naming the variable and its value
+
+
+def _no_such_user() -> str:
+    """A ``~user`` no password entry has (pathlib cannot expand it)."""
+    import pwd
+
+    name = "legbench_no_such_user"
+    with pytest.raises(KeyError):
+        pwd.getpwnam(name)
+    return f"~{name}"
+
+
+def test_a_model_variable_whose_tilde_cannot_be_expanded_is_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
+    """LEGBENCH_MODEL=~nouser/x.yaml raised pathlib's 'RuntimeError: Could not determine home directory.' from
+    model_file (a traceback); now a ModelError naming the variable, its value and why. A loop of links
+    (RuntimeError on Python 3.11) likewise; select_model names the path it was given."""
+    from legbench.exceptions import ModelError
+
+    user = _no_such_user()
+    monkeypatch.delenv(resources.MODEL_ENV, raising=False)
+    resources.select_model(None)
+    monkeypatch.setenv(resources.MODEL_ENV, f"{user}/x.yaml")
+    with pytest.raises(ModelError) as exc:
+        resources.model_file()
+    assert str(exc.value) == f"LEGBENCH_MODEL={user}/x.yaml: cannot expand {user}: no such user"
+    with pytest.raises(ModelError) as exc:
+        resources.env_path(resources.MODEL_ENV)
+    assert str(exc.value) == f"LEGBENCH_MODEL={user}/x.yaml: cannot expand {user}: no such user"
+    with pytest.raises(ModelError) as exc:
+        resources.select_model(f"{user}/y.yaml")
+    assert str(exc.value) == f"{user}/y.yaml: cannot expand {user}: no such user"
+    assert resources.MODEL_ENV in __import__("os").environ  # select_model changed nothing
+    monkeypatch.delenv(resources.MODEL_ENV)
+    assert resources.env_path(resources.MODEL_ENV) is None and resources.model_file() == resources.bundled_model()
+
+
+def test_a_model_variable_naming_a_loop_of_links_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from legbench.exceptions import ModelError
+
+    (tmp_path / "a").symlink_to(tmp_path / "b")
+    (tmp_path / "b").symlink_to(tmp_path / "a")
+    loop = tmp_path / "a" / "leg.yaml"
+    resources.select_model(None)
+    monkeypatch.setenv(resources.MODEL_ENV, str(loop))
+    with pytest.raises(ModelError) as exc:
+        resources.model_file()
+    assert str(exc.value) == f"LEGBENCH_MODEL={loop}: a loop of symbolic links"
+
+
+def test_the_cli_refuses_a_model_variable_whose_tilde_cannot_be_expanded(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`LEGBENCH_MODEL=~nouser/x.yaml legbench validate ...` exited 1 with a traceback (cli._check_model_env's own
+    expanduser); it is one line, exit 2."""
+    user = _no_such_user()
+    resources.select_model(None)
+    monkeypatch.setenv(resources.MODEL_ENV, f"{user}/x.yaml")
+    try:
+        status = cli.main(["validate", str(resources.scenario("position"))])
+    except RuntimeError:
+        status = 1
+    assert status == 2
+    says = f"LEGBENCH_MODEL={user}/x.yaml: cannot expand {user}: no such user"
+    assert capsys.readouterr().err == f"legbench: error: {says}\n"
+
+
+def test_a_cache_variable_naming_a_file_is_one_line_naming_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """LEGBENCH_CACHE_DIR naming a regular file (or a path under one) failed as NotADirectoryError inside each
+    engine's load; ~nouser as a RuntimeError. Now cache_dir(), and urdf_file() of a model whose URDF goes to the
+    cache, raise one ModelError naming the variable, its value and the problem, before the model is read, and
+    nothing is written."""
+    from legbench.exceptions import ModelError
+
+    leg = tmp_path / "leg2.yaml"
+    leg.write_bytes(resources.bundled_model().read_bytes())
+    file = tmp_path / "cachefile"
+    file.write_text("")
+    user = _no_such_user()
+    cases = [
+        (str(file), f"LEGBENCH_CACHE_DIR={file}: not a directory"),
+        (f"{file}/sub", f"LEGBENCH_CACHE_DIR={file}/sub: cannot be created: {file} is not a directory"),
+        (f"{user}/c", f"LEGBENCH_CACHE_DIR={user}/c: cannot expand {user}: no such user"),
+    ]
+    for value, says in cases:
+        monkeypatch.setenv(resources.CACHE_ENV, value)
+        for call in (resources.cache_dir, lambda: resources.urdf_file(leg), lambda: resources.cache_subdir("urdf")):
+            with pytest.raises(ModelError) as exc:
+                call()
+            assert str(exc.value) == says
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cachefile", "leg2.yaml"] and file.read_text() == ""
+
+
+def test_the_xdg_and_home_defaults_of_the_cache_are_one_line_too(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Without LEGBENCH_CACHE_DIR: XDG_CACHE_HOME naming a file, or ~nouser, and no home directory at all (HOME
+    unset and no password entry: pathlib's RuntimeError) are one line naming where the cache came from."""
+    import os
+
+    from legbench.exceptions import ModelError
+
+    monkeypatch.delenv(resources.CACHE_ENV, raising=False)
+    file = tmp_path / "xdgfile"
+    file.write_text("")
+    user = _no_such_user()
+    for value, says in [
+        (
+            str(file),
+            f"cache directory {file}/legbench (from XDG_CACHE_HOME={file}): cannot be created: {file} is "
+            "not a directory",
+        ),  # fmt: skip
+        (user, f"XDG_CACHE_HOME={user}: cannot expand {user}: no such user"),
+    ]:
+        monkeypatch.setenv("XDG_CACHE_HOME", value)
+        with pytest.raises(ModelError) as exc:
+            resources.cache_dir()
+        assert str(exc.value) == says
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert resources.cache_dir() == tmp_path / "xdg" / "legbench" and not (tmp_path / "xdg").exists()
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    monkeypatch.setattr(os.path, "expanduser", lambda p: p)  # as with HOME unset and no password entry
+    with pytest.raises(ModelError) as exc:
+        resources.cache_dir()
+    assert str(exc.value) == ("cache directory ~/.cache/legbench (LEGBENCH_CACHE_DIR chooses another): cannot "
+                              "expand ~: no home directory (HOME is not set)")  # fmt: skip
+
+
+def test_a_cache_that_cannot_be_created_or_written_is_one_line_and_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A cache directory that passes the look (its parent a directory) but cannot be made (/proc/legbench: the
+    kernel refuses), whose urdf/ is a file, or in which no file can be made (a read-only file system) is one line
+    naming the variable, where the directory is made; a write that fails part-way leaves no temporary."""
+    import errno
+    import os
+    import tempfile
+
+    from legbench.exceptions import ModelError
+
+    leg = tmp_path / "leg2.yaml"
+    leg.write_bytes(resources.bundled_model().read_bytes())
+    if Path("/proc/self").is_dir():
+        monkeypatch.setenv(resources.CACHE_ENV, "/proc/legbench")
+        assert resources.cache_dir() == Path("/proc/legbench")  # nothing is made by looking
+        with pytest.raises(ModelError) as exc:
+            resources.urdf_file(leg)
+        assert str(exc.value) == "LEGBENCH_CACHE_DIR=/proc/legbench: cannot be created: No such file or directory"
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    (cache / "urdf").write_text("")
+    monkeypatch.setenv(resources.CACHE_ENV, str(cache))
+    with pytest.raises(ModelError) as exc:
+        resources.urdf_file(leg)
+    assert str(exc.value) == f"LEGBENCH_CACHE_DIR={cache}: {cache}/urdf: not a directory"
+    (cache / "urdf").unlink()
+
+    def read_only(*args: object, **kwargs: object) -> tuple[int, str]:
+        raise OSError(errno.EROFS, os.strerror(errno.EROFS))
+
+    with monkeypatch.context() as m:
+        m.setattr(tempfile, "mkstemp", read_only)
+        with pytest.raises(ModelError) as exc:
+            resources.urdf_file(leg)
+    assert str(exc.value) == f"LEGBENCH_CACHE_DIR={cache}: cannot write in it: Read-only file system"
+
+    def full(src: object, dst: object) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    with monkeypatch.context() as m:
+        m.setattr(os, "replace", full)
+        with pytest.raises(OSError, match="No space left on device"):
+            resources.urdf_file(leg)
+    assert list((cache / "urdf").iterdir()) == []
+    assert resources.urdf_file(leg).parent == cache / "urdf"
+
+
+def test_run_refuses_a_bad_cache_directory_before_any_engine(
+    other_model: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`LEGBENCH_CACHE_DIR=<a file> legbench --model leg2.yaml run ...` blamed one engine ('parity check: pinocchio
+    failed to load: NotADirectoryError'), with --no-preflight failed every backend and wrote a run.json of
+    failures. The cache is every backend's: one line, exit 2, no output directory (the CLI resolves the URDF
+    before any engine loads)."""
+    file = tmp_path / "cachefile"
+    file.write_text("")
+    for value, says in [(str(file), "not a directory"),
+                        ("/proc/legbench", "cannot be created: No such file or directory")]:  # fmt: skip
+        if value.startswith("/proc") and not Path("/proc/self").is_dir():
+            continue
+        monkeypatch.setenv(resources.CACHE_ENV, value)
+        for extra in ([], ["--no-preflight"]):
+            out = tmp_path / "r"
+            argv = ["--model", str(other_model), "run", str(resources.scenario("position")), "--backends",
+                    "pinocchio", "--set", "duration=0.6", "--out", str(out), "--no-compare", *extra]  # fmt: skip
+            assert cli.main(argv) == 2
+            assert capsys.readouterr().err == f"legbench: error: LEGBENCH_CACHE_DIR={value}: {says}\n"
+            assert not out.exists()

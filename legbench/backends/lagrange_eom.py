@@ -41,6 +41,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, TypeAlias
 
+from legbench import resources
 from legbench.model import W_T_0, LegParams
 
 if TYPE_CHECKING:
@@ -420,12 +421,9 @@ def generate(chain: Chain, d: Derivation | None = None) -> str:
 
 
 def default_cache_dir() -> Path:
-    """``$LEGBENCH_CACHE_DIR``, else ``$XDG_CACHE_HOME/legbench``, else ``~/.cache/legbench``; then ``/lagrange``."""
-    env = os.environ.get("LEGBENCH_CACHE_DIR")
-    if env:
-        return Path(env) / "lagrange"
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "legbench" / "lagrange"
+    """``lagrange`` in legbench's cache directory (:func:`legbench.resources.cache_dir`: ``$LEGBENCH_CACHE_DIR``,
+    else ``$XDG_CACHE_HOME/legbench``, else ``~/.cache/legbench``); not created here."""
+    return resources.cache_dir() / "lagrange"
 
 
 @dataclass(frozen=True)
@@ -475,6 +473,8 @@ def load_eom(chain: Chain, cache_dir: Path | str | None = None) -> Loaded:
         except (ImportError, SyntaxError, OSError):  # damaged, or unreadable here (another user's file): derive
             pass
     text = generate(chain)
+    if cache_dir is None:  # a cache that cannot be made is one line naming where it came from
+        directory = resources.cache_subdir("lagrange")
     directory.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=directory, prefix=".eom_", suffix=".py")
     with os.fdopen(fd, "w") as f:
