@@ -30,6 +30,7 @@ from legbench.exceptions import ResultsError
 from legbench.logs import RosOptions, is_ros_bag, load_log
 from legbench.metrics import (
     COND_MAX,
+    T_EPS,
     ModeSplit,
     PairMetrics,
     SteadyState,
@@ -171,6 +172,23 @@ def reference_sibling(run_dir: Path, contact_mode: str) -> Path | None:
     return cand if (cand / "run.json").is_file() else None
 
 
+def _coverage_notes(log: RunResult, run_end: float, window: float) -> list[str]:
+    """What an imported log leaves out of the run it is measured against: a span that starts after the run's
+    start or ends before its end by more than one of its samples (its deviations are measured over the overlap
+    only), and a steady window the log does not reach (no steady state for it)."""
+    t0, t1 = float(log.t[0]), float(log.t[-1])
+    slack = float(np.median(np.diff(log.t))) + T_EPS if len(log.t) > 1 else T_EPS  # one of its own samples
+    notes: list[str] = []
+    if t0 > slack or t1 < run_end - slack:
+        share = 100 * max(min(t1, run_end) - max(t0, 0.0), 0.0) / run_end if run_end > 0 else math.nan
+        notes.append(f"{log.backend} covers {t0:.3f}..{t1:.3f} s of the run's 0..{run_end:g} s ({share:.0f} %): its "
+                     "deviations are measured over that span only")  # fmt: skip
+    if t1 < run_end - window - T_EPS:
+        notes.append(f"{log.backend} ends at {t1:.3f} s, before the steady window {run_end - window:.3f}.."
+                     f"{run_end:.3f} s: no steady state for it")  # fmt: skip
+    return notes
+
+
 def _contact_law(run: Run) -> ContactParams | None:
     """The contact law the run was meant to follow (run.json ``scenario.contact``, whose keys
     :func:`legbench.results.load_run` has checked), None where it names none."""
@@ -253,8 +271,9 @@ def compare(
         if st.status != "ok":
             notes.append(f"backend '{st.name}' {st.status}: {st.reason or 'no reason given'}")
     reference = run.reference
+    log_key: str | None = None
     if log is not None:
-        name = log_name or f"log:{Path(log).stem}"
+        name = log_key = log_name or f"log:{Path(log).stem}"
         if name in traces:
             raise ResultsError(str(log), f"log name '{name}' is already a backend of {run.path}; pass another name")
         traces[name] = result_from_frame(load_log(log, column_map, log_time_scale, ros), name, str(log))
@@ -273,8 +292,15 @@ def compare(
             for b in traces:
                 if a != b and b != reference:
                     pairs.append(pair_metrics(traces[a], traces[b], run.skip, lag, max_lag, lag_signals))
-    steady = tuple(steady_state(tr, run.steady_window, run.poc, run.gravity) for tr in traces.values())
+    # an imported log is measured over the run's steady window, not its own last seconds (which may be elsewhere)
+    run_end = float(traces[run.reference].t[-1]) if run.reference in traces else run.duration
+    ends = {name: run_end if name not in run.traces else None for name in traces}
+    if log_key is not None:
+        notes += _coverage_notes(traces[log_key], run_end, run.steady_window)
+    steady = tuple(steady_state(tr, run.steady_window, run.poc, run.gravity, ends[n]) for n, tr in traces.items())
     for s in steady:
+        if not np.isfinite(s.q).any() and not np.isfinite(s.tau).any() and ends[s.backend] is not None:
+            continue  # no sample in the window: said by the coverage note
         if math.isnan(s.cond):
             notes.append(
                 f"{s.backend}: the analytic force check needs tau and q, and the log has no finite tau or q "

@@ -531,11 +531,15 @@ def pair_metrics(
     )
 
 
-def steady_state(trace: RunResult, window: float, poc: str = "true", gravity: float | None = None) -> SteadyState:
+def steady_state(
+    trace: RunResult, window: float, poc: str = "true", gravity: float | None = None, end: float | None = None
+) -> SteadyState:
     """Means over the final ``window`` [s] of ``trace``, and the analytic force check.
 
     The window is the closed interval [t_end - window, t_end] (both ends included: 501 ticks for
-    0.5 s at 1 kHz); each column's mean is over its samples there that are not NaN (:func:`mean`).
+    0.5 s at 1 kHz); each column's mean is over its samples there that are not NaN (:func:`mean`). ``end``
+    [s]: t_end where it is not the trace's own last time (an imported log measured against a run: the run's
+    end); a trace with no sample in that window has every mean NaN (no steady state to report).
 
     The check solves J_poc(q)^T h = tau - G(q) at the window's mean q and tau
     (valid when the leg is static: qd ~ 0 and no acceleration) and reports the
@@ -546,7 +550,12 @@ def steady_state(trace: RunResult, window: float, poc: str = "true", gravity: fl
     """
     g_file = load_params().gravity
     g_scale = 1.0 if gravity is None or gravity == g_file else gravity / g_file
-    sel = trace.t >= trace.t[-1] - window - T_EPS
+    t_end = float(trace.t[-1]) if end is None else float(end)
+    sel = (trace.t >= t_end - window - T_EPS) & (trace.t <= t_end + T_EPS)
+    if not sel.any():
+        nan3 = np.full(3, np.nan)
+        return SteadyState(trace.backend, t_end - window, t_end, nan3, nan3, nan3, nan3, nan3, None, math.nan,
+                           math.nan)  # fmt: skip
     avg = mean(trace.data[sel])
     q, qd, tau, force = (avg[SLICE[s]] for s in SIGNALS)
 

@@ -755,3 +755,24 @@ def test_a_run_json_without_a_usable_contact_law(tmp_path: Path, contact: object
     res = C.compare(d)
     assert res.residuals == {}
     assert "no contact-law residuals: run.json's scenario names no contact law" in res.notes
+
+
+def test_a_log_that_covers_part_of_the_run_says_so_and_has_no_steady_state_outside_it(tmp_path: Path) -> None:
+    """A log of the run's first 0.5 s of 2 s: its deviations are over that span (0 here: the same data), and its
+    steady state was the mean over its own last 0.5 s (0..0.5 s) shown as the run's steady window. Now a note says
+    what it covers, its steady state is NaN (the window 1.5..2 s has none of its samples), and no note claims a
+    missing tau. A log covering the run to within one of its samples gets no note."""
+    d = write_run(tmp_path / "fake", {"ref": None, "a": None})
+    df = pd.read_parquet(d / "ref.parquet")
+    part = tmp_path / "part.csv"
+    df[df["t"] <= 0.5][["t", "q1", "q2", "q3"]].to_csv(part, index=False)
+    res = C.compare(d, log=part)
+    assert "log:part covers 0.000..0.500 s of the run's 0..2 s (25 %): its deviations are measured over that span " \
+           "only" in res.notes  # fmt: skip
+    assert "log:part ends at 0.500 s, before the steady window 1.500..2.000 s: no steady state for it" in res.notes
+    (s,) = [s for s in res.steady if s.backend == "log:part"]
+    assert np.isnan(s.q).all() and (s.t0, s.t1) == (1.5, 2.0)
+    assert not any("log:part: the analytic force check" in n for n in res.notes)
+    whole = tmp_path / "whole.csv"
+    df[df["t"] < 2.0 - 1e-6][["t", "q1", "q2", "q3"]].to_csv(whole, index=False)  # the last sample left out
+    assert not any("covers" in n for n in C.compare(d, log=whole).notes)
