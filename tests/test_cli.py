@@ -232,10 +232,14 @@ def test_an_interrupted_study_says_nothing_was_written(monkeypatch: pytest.Monke
         (["bench", "x.yaml", "--duration", "inf"], "argument --duration: 'inf' is not a finite number"),
         (["compare", "d", "--log-time-scale", "-1"], "argument --log-time-scale: '-1' must be > 0"),
         (["compare", "d", "--log-columns", "a=q1"], "--log-columns: need --reference-log"),  # was ignored
-        (["compare", "d", "--reference-log", "h.csv", "--ros-force-sign", "-1"],
-         "--ros-force-sign: need --reference-log naming a ROS bag"),  # ignored for a CSV
-        (["compare", "d", "--reference-log", "h.csv", "--log-columns", "a=q1,a=q2"],
-         "--log-columns 'a=q1,a=q2': header 'a' is mapped twice (q1 and q2); map each header once"),  # q2 won
+        (
+            ["compare", "d", "--reference-log", "h.csv", "--ros-force-sign", "-1"],
+            "--ros-force-sign: need --reference-log naming a ROS bag",
+        ),  # ignored for a CSV
+        (
+            ["compare", "d", "--reference-log", "h.csv", "--log-columns", "a=q1,a=q2"],
+            "--log-columns 'a=q1,a=q2': header 'a' is mapped twice (q1 and q2); map each header once",
+        ),  # q2 won
         (["check", "d", "--baseline", "b", "--summary", "s.md", "--junit", "s.md"], "name the same file"),
     ],
 )
