@@ -405,6 +405,15 @@ def _check_physical(raw: Any, path: Path | str) -> None:
             if k not in d:
                 raise fail(f"{key}.{k}" if key else k, missing or f"missing (required: {_listing(required)})")
 
+    def shape_of(key: str, d: dict[Any, Any], known: dict[str, Any]) -> str:
+        """The ``shape`` of a part or collision primitive at ``key``: given, and one of ``known``."""
+        if "shape" not in d:
+            raise fail(f"{key}.shape", f"missing (one of {_listing(known)})")
+        shape = d["shape"]
+        if not isinstance(shape, str) or shape not in known:
+            raise fail(f"{key}.shape", f"unknown shape {_value(shape)} (known: {_listing(known)})")
+        return shape
+
     def axis(key: str, v: Any) -> None:
         if not isinstance(v, str) or v not in _AXES:
             raise fail(key, f"expected one of {_listing(_AXES)}, got {_value(v)}")
@@ -487,11 +496,7 @@ def _check_physical(raw: Any, path: Path | str) -> None:
         for i, part in enumerate(parts):
             key = f"links.{link}.parts[{i}]"
             mapping(key, part, "a part (a mapping: name, material, shape, pos and the shape's sizes)")
-            shape = part.get("shape")
-            if "shape" not in part:
-                raise fail(f"{key}.shape", f"missing (one of {_listing(_PART_KEYS)})")
-            if not isinstance(shape, str) or shape not in _PART_KEYS:
-                raise fail(f"{key}.shape", f"unknown shape {_value(shape)} (known: {_listing(_PART_KEYS)})")
+            shape = shape_of(key, part, _PART_KEYS)
             required, optional = _PART_KEYS[shape]
             known = _listing(("name", "material", "shape", "pos", *required, *optional))
             keys(key, part, ("material", "shape", "pos", *required), ("name", *optional),
@@ -540,11 +545,7 @@ def _check_physical(raw: Any, path: Path | str) -> None:
     for link, prim in collision.items():
         key = f"collision.{link}"
         mapping(key, prim, "a collision primitive (a mapping: shape, r, ...)")
-        shape = prim.get("shape")
-        if "shape" not in prim:
-            raise fail(f"{key}.shape", f"missing (one of {_listing(_COLLISION_KEYS)})")
-        if not isinstance(shape, str) or shape not in _COLLISION_KEYS:
-            raise fail(f"{key}.shape", f"unknown shape {_value(shape)} (known: {_listing(_COLLISION_KEYS)})")
+        shape = shape_of(key, prim, _COLLISION_KEYS)
         if link == "foot" and shape != "sphere":
             raise fail(f"{key}.shape", f"expected sphere (the foot touches the ground as a sphere), got {shape!r}")
         required, optional = _COLLISION_KEYS[shape]

@@ -23,6 +23,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from legbench.backends.base import Backend
 from legbench.backends.mujoco_ import MujocoBackend
 from legbench.backends.pinocchio_ import PinocchioBackend
 
@@ -61,38 +62,33 @@ def wait_at_gate(backend: str) -> None:
         time.sleep(POLL)  # a signal ends the sleep with its handler's exception
 
 
-class GatedPinocchio(PinocchioBackend):
+class _Gated(Backend):
+    """A backend stopping at step :data:`AT` while a gate directory is set (mixed in before the engine's class,
+    whose reset and step it calls)."""
+
+    _steps = 0
+
+    def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
+        super().reset(q, qd)  # type: ignore[safe-super]  # the engine's, next in the MRO
+        self._steps = 0
+
+    def step(self, tau: np.ndarray) -> None:
+        if self._steps == AT:
+            wait_at_gate(self.name)
+        self._steps += 1
+        super().step(tau)  # type: ignore[safe-super]  # the engine's, next in the MRO
+
+
+class GatedPinocchio(_Gated, PinocchioBackend):
     """The Pinocchio backend, stopping at step :data:`AT` while a gate directory is set."""
 
     name: ClassVar[str] = "gated-pinocchio"
-    _steps = 0
-
-    def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
-        super().reset(q, qd)
-        self._steps = 0
-
-    def step(self, tau: np.ndarray) -> None:
-        if self._steps == AT:
-            wait_at_gate(self.name)
-        self._steps += 1
-        super().step(tau)
 
 
-class GatedMujoco(MujocoBackend):
+class GatedMujoco(_Gated, MujocoBackend):
     """The MuJoCo backend, stopping at step :data:`AT` while a gate directory is set."""
 
     name: ClassVar[str] = "gated-mujoco"
-    _steps = 0
-
-    def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
-        super().reset(q, qd)
-        self._steps = 0
-
-    def step(self, tau: np.ndarray) -> None:
-        if self._steps == AT:
-            wait_at_gate(self.name)
-        self._steps += 1
-        super().step(tau)
 
 
 def install(site: Path) -> dict[str, str]:
