@@ -575,8 +575,9 @@ def steady_state(
     speeds = max_abs(trace.data[sel][:, SLICE["qd"]])
     qd_max = float(np.nanmax(speeds)) if np.isfinite(speeds).any() else math.nan
     return SteadyState(
-        trace.backend, float(trace.t[sel][0]), float(trace.t[-1]), q, qd, tau, force, f_poc, f_centre, cond, qd_max
-    )
+        trace.backend, float(trace.t[sel][0]), float(trace.t[sel][-1]), q, qd, tau, force, f_poc, f_centre, cond,
+        qd_max,
+    )  # fmt: skip
 
 
 def contact_split(

@@ -46,7 +46,7 @@ import numpy as np
 
 from legbench import kinematics
 from legbench.compare import ComparisonResult
-from legbench.resources import bundled_urdf, urdf_target
+from legbench.resources import bundled_urdf, urdf_name
 from legbench.resources import shown as shown_file
 from legbench.results import Run, RunResult, atomic_write_text
 from legbench.signals import JOINTS, SIGNALS, SLICE, UNITS
@@ -229,7 +229,7 @@ def model_match(run: Run) -> ModelMatch:
     leg): every figure or check drawn through :mod:`legbench.kinematics` uses the active model's geometry."""
     urdf = run.meta.get("urdf")
     name = Path(urdf).name if isinstance(urdf, str) and urdf.strip() else None
-    return ModelMatch(name or None, urdf_target().name)
+    return ModelMatch(name or None, urdf_name())
 
 
 def model_advice(match: ModelMatch, run: Run) -> str:

@@ -57,6 +57,7 @@ __all__ = [
     "source_tree",
     "urdf_destination",
     "urdf_file",
+    "urdf_name",
     "urdf_stamp",
     "urdf_target",
 ]
@@ -345,7 +346,7 @@ def urdf_stamp(urdf: str | Path) -> str | None:
 _warned: set[str] = set()
 
 
-def _warn_stale(digest: str, target: Path) -> None:
+def _warn_stale(digest: str, name: str) -> None:
     """Say once per process and content that the bundled leg.urdf is not the bundled leg.yaml's (one line)."""
     import multiprocessing  # deferred: only an out-of-date leg.urdf gets here, and the CLI's start-up stays light
 
@@ -366,7 +367,7 @@ def _warn_stale(digest: str, target: Path) -> None:
         "legbench: warning: %s %s: engines load urdf/%s, generated from %s into the cache directory, instead%s",
         urdf,
         state,
-        target.name,
+        name,
         params,
         advice,
     )
@@ -387,12 +388,29 @@ def _bundled_is_current(path: Path) -> tuple[bool, str]:
         return False, digest
     current = urdf_stamp(bundled_urdf()) == digest
     if not current and digest != "missing":
-        _warn_stale(digest, _cached(path, digest))
+        _warn_stale(digest, _cached_name(path, digest))
     return current, digest
 
 
+def _cached_name(path: Path, digest: str) -> str:
+    return f"{path.stem}-{digest}.urdf"
+
+
 def _cached(path: Path, digest: str) -> Path:
-    return cache_dir() / "urdf" / f"{path.stem}-{digest}.urdf"
+    return cache_dir() / "urdf" / _cached_name(path, digest)
+
+
+def urdf_name(params: str | Path | None = None) -> str:
+    """The file name of :func:`urdf_target` (``leg.urdf``, or ``<stem>-<param_digest>.urdf``), what run.json
+    records and a report compares: found without the cache directory, so a cache that cannot be used does not
+    stop a run that never needed it (the bundled leg) at its end, nor a comparison.
+
+    Raises:
+        ModelError: as :func:`urdf_target`, the cache directory aside.
+    """
+    path = Path(params) if params is not None else model_file()
+    current, digest = _bundled_is_current(path)
+    return "leg.urdf" if current else _cached_name(path, digest)
 
 
 def urdf_target(params: str | Path | None = None) -> Path:

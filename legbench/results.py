@@ -672,7 +672,7 @@ def write_run(scenario: Scenario, results: Sequence[RunResult], out_dir: Path, c
             "versions": vers,
             "platform": platform_info(),
             "legbench_version": vers.get("legbench", "unknown"),
-            "urdf": resources.urdf_target().name,  # the model active now (--model selects it after import)
+            "urdf": resources.urdf_name(),  # the model active now (--model selects it after import)
         }
         write_json(meta, tmp / "run.json")
     return out_dir

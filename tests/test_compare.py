@@ -776,3 +776,20 @@ def test_a_log_that_covers_part_of_the_run_says_so_and_has_no_steady_state_outsi
     whole = tmp_path / "whole.csv"
     df[df["t"] < 2.0 - 1e-6][["t", "q1", "q2", "q3"]].to_csv(whole, index=False)  # the last sample left out
     assert not any("covers" in n for n in C.compare(d, log=whole).notes)
+
+
+def test_a_log_longer_than_the_run_is_measured_over_the_run_s_steady_window_and_says_so(tmp_path: Path) -> None:
+    """A log running 0.5 s past a 2 s run: its steady state is the run's window 1.5..2.0 s (the mean was right,
+    the window shown read 1.5..2.5 s); a log over the whole run with no q or tau in the window keeps the note
+    that its analytic check is undefined (only a log ending before the window is left to the coverage note)."""
+    d = write_run(tmp_path / "fake", {"ref": None, "a": None})
+    df = pd.read_parquet(d / "ref.parquet")[["t", "q1", "q2", "q3"]]
+    tail = df[df["t"] > 1.5].assign(t=lambda x: x["t"] + 0.5)
+    longer = tmp_path / "longer.csv"
+    pd.concat([df, tail[tail["t"] > 2.0]]).to_csv(longer, index=False)
+    (s,) = [s for s in C.compare(d, log=longer).steady if s.backend == "log:longer"]
+    assert (s.t0, s.t1) == (1.5, 2.0)
+    dropout = tmp_path / "dropout.csv"
+    df.assign(q1=df["q1"].where(df["t"] < 1.0)).to_csv(dropout, index=False)
+    notes = C.compare(d, log=dropout).notes
+    assert any(n.startswith("log:dropout: the analytic force check needs tau and q") for n in notes), notes

@@ -244,3 +244,22 @@ def test_a_plug_in_that_raises_in_the_pre_flight_fails_alone(
     shown = capsys.readouterr().out
     assert "legbench: error: parity check: loadraises failed to load: AttributeError" in shown
     assert "pinocchio" in shown.splitlines()[0] and "loadraises" not in shown.splitlines()[0]
+
+
+def test_a_cache_every_engine_needs_is_named_as_it_is(monkeypatch: pytest.MonkeyPatch) -> None:
+    """An engine's load that meets the unusable cache directory (lagrange's generated equations) raised a
+    ModelError the pre-flight prefixed with the scenario's file, as if the scenario were wrong: it is passed on
+    as it is, naming the variable."""
+    from legbench.exceptions import ModelError
+
+    class CacheBound(PinocchioBackend):
+        name = "cachebound"
+
+        def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
+            raise ModelError("LEGBENCH_CACHE_DIR=/tmp/f: not a directory")
+
+    reg = backends._registry
+    monkeypatch.setattr(backends, "_registry", lambda: {**reg(), "cachebound": CacheBound})
+    with pytest.raises(ModelError) as exc:
+        doctor.preflight(EFFORT, ["pinocchio", "cachebound"])
+    assert str(exc.value) == "LEGBENCH_CACHE_DIR=/tmp/f: not a directory"

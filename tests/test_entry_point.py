@@ -142,7 +142,21 @@ def test_all_says_once_which_known_engines_are_not_installed(
         names = backends.resolve("all")
         assert backends.resolve("all") == names and "ghostengine" not in names
     (note,) = [r.getMessage() for r in caplog.records]
-    assert note.startswith("legbench: note: --backends all: the backends installed here; not installed, so not run: "
+    assert note.startswith("legbench: note: --backends all: the backends that can run here; not available, so not run: "
                            "ghostengine (pip install 'ghostengine>=1' (No module named")  # fmt: skip
     with pytest.raises(LegbenchError, match=r"^--backends all,mujoco: 'all' stands alone"):
         backends.resolve("all,mujoco")
+
+
+def test_a_missing_engine_s_multi_line_import_error_is_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An engine whose ImportError spans lines (numpy's "C-extensions failed" text does): its reason, as
+    ``legbench backends`` and the --backends all note give it, is one line."""
+    from legbench import backends
+
+    (tmp_path / "multiline_engine_.py").write_text("raise ImportError('C-extensions failed.\\n\\nIMPORTANT: read')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setitem(backends.BUILTIN, "multiline", ("multiline_engine_", "M", "'multiline>=1'"))
+    why = backends.unavailable()["multiline"]
+    assert "\n" not in why and why.startswith("pip install 'multiline>=1' (C-extensions failed.")

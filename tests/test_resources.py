@@ -524,3 +524,18 @@ def test_run_refuses_a_bad_cache_directory_before_any_engine(
             assert cli.main(argv) == 2
             assert capsys.readouterr().err == f"legbench: error: LEGBENCH_CACHE_DIR={value}: {says}\n"
             assert not out.exists()
+
+
+def test_the_urdf_s_name_needs_no_cache_directory(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """What run.json records and a report compares is the URDF's file name: installed (no source tree), the
+    bundled leg's target lies in the cache, and a cache that could not be used stopped a run of the bundled leg
+    after it had run (exit 2, nothing written), and every comparison. The name is found without it."""
+    from legbench.exceptions import ModelError
+
+    file = tmp_path / "cachefile"
+    file.write_text("")
+    monkeypatch.setenv(resources.CACHE_ENV, str(file))
+    monkeypatch.setattr(resources, "source_tree", lambda: None)
+    with pytest.raises(ModelError, match="not a directory"):
+        resources.urdf_target()
+    assert resources.urdf_name() == "leg.urdf"

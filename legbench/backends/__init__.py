@@ -71,7 +71,7 @@ def _load_builtin(name: str) -> type[Backend] | None:
         return getattr(importlib.import_module(module), cls)  # type: ignore[no-any-return]
     except ImportError as exc:
         command = package if package.startswith("apt-get ") else f"pip install {package}"
-        _MISSING[name] = f"{command} ({exc})"
+        _MISSING[name] = one_line(f"{command} ({exc})")  # numpy's ImportError spans lines
         return None
     except Exception as exc:  # an engine whose import breaks (a bad build, a missing shared library) fails alone
         _MISSING[name] = one_line(f"its engine failed to import: {type(exc).__name__}: {exc}")
@@ -90,7 +90,7 @@ def _registry() -> dict[str, type[Backend]]:
         try:
             found[ep.name] = ep.load()
         except Exception as exc:  # a broken plug-in must not take the others down
-            _MISSING[ep.name] = f"entry point {ep.value} failed to load: {exc}"
+            _MISSING[ep.name] = one_line(f"entry point {ep.value} failed to load: {exc}")
     return found
 
 
@@ -173,7 +173,7 @@ def resolve(names: str | list[str], option: str = "--backends") -> list[str]:
         missing = {n: why for n, why in unavailable().items() if n not in _SAID_MISSING}
         if missing:  # "reported and skipped": once per process, not at every resolve of a command
             _SAID_MISSING.update(missing)
-            logger.warning("legbench: note: %s all: the backends installed here; not installed, so not run: %s",
+            logger.warning("legbench: note: %s all: the backends that can run here; not available, so not run: %s",
                            option, "; ".join(f"{n} ({why})" for n, why in missing.items()))  # fmt: skip
         return available()
     if "all" in names:

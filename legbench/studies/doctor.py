@@ -38,12 +38,14 @@ from legbench import backends as registry
 from legbench import model
 from legbench import scenario as scenario_mod
 from legbench.backends.base import Backend
-from legbench.exceptions import BackendNotFound, LegbenchError
+from legbench.exceptions import BackendNotFound, LegbenchError, ModelError
 from legbench.exitcodes import EXIT_BACKEND_FAILED
 from legbench.scenario import Scenario, physics_of
 from legbench.yamlfile import one_line
 
 logger = logging.getLogger(__name__)
+#: The pre-flight's warnings given in this process (each once).
+_WARNED: set[str] = set()
 
 __all__ = ["RTOL", "ParityError", "add_cli", "check", "doctor", "preflight", "readback", "table", "verdict"]
 
@@ -214,7 +216,7 @@ def table(
     for name in names:
         try:
             b = registry.load(name, physics, sc.backends.get(name, {}), sc.profile)
-        except BackendNotFound:
+        except (BackendNotFound, ModelError):  # the leg or the cache every engine needs: named as it is
             raise
         except LegbenchError as exc:  # a setting the engine refuses for this scenario (a dt that does not
             raise LegbenchError(f"{sc.file}: {exc}") from exc  # divide its control period): name the file
@@ -302,7 +304,9 @@ def preflight(
     failed: dict[str, str] = {}
     t = table(scenario, backends, contact_mode, failed)
     for line in failed.values():
-        logger.warning("legbench: warning: %s; not checked, its run fails alone", line)
+        if line not in _WARNED:  # once per process: a run of several scenarios pre-flights each
+            _WARNED.add(line)
+            logger.warning("legbench: warning: %s; not checked, its run fails alone", line)
     check(t)
     return t
 
