@@ -136,7 +136,6 @@ def test_all_says_once_which_known_engines_are_not_installed(
     from legbench import backends
     from legbench.exceptions import LegbenchError
 
-    monkeypatch.setattr(backends, "_MISSING", dict(backends._MISSING))  # the reason it records goes with it
     monkeypatch.setitem(backends.BUILTIN, "ghostengine", ("legbench.backends.ghostengine_", "G", "'ghostengine>=1'"))
     monkeypatch.setattr(backends, "_SAID_MISSING", set())
     with caplog.at_level("WARNING", logger="legbench.backends"):
@@ -158,7 +157,17 @@ def test_a_missing_engine_s_multi_line_import_error_is_one_line(
 
     (tmp_path / "multiline_engine_.py").write_text("raise ImportError('C-extensions failed.\\n\\nIMPORTANT: read')\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(backends, "_MISSING", dict(backends._MISSING))  # the reason it records goes with it
     monkeypatch.setitem(backends.BUILTIN, "multiline", ("multiline_engine_", "M", "'multiline>=1'"))
     why = backends.unavailable()["multiline"]
     assert "\n" not in why and why.startswith("pip install 'multiline>=1' (C-extensions failed.")
+
+
+def test_a_missing_engine_no_longer_registered_is_not_listed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The registry records why an engine is missing; an engine no longer known (a built-in entry removed, a
+    plug-in uninstalled) kept its record, and ``--backends all`` noted it: only known engines are listed."""
+    from legbench import backends
+
+    with monkeypatch.context() as mp:
+        mp.setitem(backends.BUILTIN, "ghostengine", ("legbench.backends.ghostengine_", "G", "'ghostengine>=1'"))
+        assert "ghostengine" in backends.unavailable()
+    assert "ghostengine" in backends._MISSING and "ghostengine" not in backends.unavailable()

@@ -108,7 +108,9 @@ def unavailable() -> dict[str, str]:
     """The backends known here that cannot run, each with why: a built-in whose engine is not installed (with
     the command that installs it) or a plug-in whose entry point failed to load."""
     found = _registry()
-    return {n: _MISSING.get(n) or "not installed" for n in dict.fromkeys([*BUILTIN, *_MISSING]) if n not in found}
+    plugins = {ep.name for ep in metadata.entry_points(group="legbench.backends")}
+    known = [n for n in dict.fromkeys([*BUILTIN, *_MISSING]) if n in BUILTIN or n in plugins]  # a record may be stale
+    return {n: _MISSING.get(n) or "not installed" for n in known if n not in found}
 
 
 def get(name: str) -> type[Backend]:
