@@ -953,11 +953,15 @@ def errors(path: str | Path, overrides: Mapping[str, Any] | None = None) -> list
     return found
 
 
-def shorten(sc: Scenario, duration: float) -> Scenario:
+def shorten(sc: Scenario, duration: float, option: str = "--duration") -> Scenario:
     """The scenario cut to ``duration`` [s].
 
     Events that switch (``t + delay``) at or after the new end are dropped, and the
     comparison windows (``skip``, ``steady_window``) are shrunk to fit, so the result validates.
+
+    Raises:
+        ScenarioError: ``duration`` cannot be this scenario's (not a whole number of its control periods),
+            naming ``option`` (what gave it), not the file's ``duration:`` key.
     """
     if duration >= sc.duration:
         return sc
@@ -971,7 +975,12 @@ def shorten(sc: Scenario, duration: float) -> Scenario:
         cmp["steady_window"] = duration
     if cmp:
         doc["comparison"] = cmp
-    return parse(doc, sc.file)
+    try:
+        return parse(doc, sc.file)
+    except ScenarioError as exc:
+        if exc.key != "duration":
+            raise
+        raise ScenarioError(option, "", f"{exc.problem} ({sc.name}, {sc.file})") from None
 
 
 def physics_of(scenario: Scenario, contact_mode: str | None = None) -> Physics:

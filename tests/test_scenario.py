@@ -438,3 +438,14 @@ def test_a_gain_that_is_no_number_says_a_single_number_is_allowed() -> None:
     problems = scenario.errors(SCENARIOS / "position.yaml", {"gains.Kp": "nan"})
     assert [str(p).split(": ", 1)[1] for p in problems] == ["gains.Kp: expected a number or a list of 3 numbers, got "
                                                              "'nan' (from --set gains.Kp)"]  # fmt: skip
+
+
+def test_a_duration_that_cuts_off_the_control_grid_names_the_option() -> None:
+    """``reproduce --duration=1e-9`` (or bench's) was blamed on the scenario file's ``duration:`` key, which the user
+    did not write: the error names the option that gave it, and the scenario."""
+    sc = scenario.load(SCENARIOS / "position.yaml")
+    with pytest.raises(ScenarioError) as exc:
+        scenario.shorten(sc, 1e-9)
+    assert str(exc.value) == (f"--duration: 1e-09 s is not a whole number of control periods at 1000.0 Hz (position, "
+                              f"{sc.file})")  # fmt: skip
+    assert scenario.shorten(sc, 0.5).duration == 0.5
