@@ -23,6 +23,7 @@ import argparse
 import gc
 import importlib
 import os
+import select
 import signal
 import sys
 from collections.abc import Sequence
@@ -31,7 +32,7 @@ from typing import NoReturn
 
 from legbench import __version__, resources
 from legbench.exceptions import LegbenchError, ModelError
-from legbench.exitcodes import EXIT_INTERRUPTED, EXIT_IO_ERROR, EXIT_USER_ERROR
+from legbench.exitcodes import EXIT_INTERRUPTED, EXIT_IO_ERROR, EXIT_OUTPUT_CLOSED, EXIT_USER_ERROR
 
 #: subcommand -> registrar ``module:function``, in help order.
 COMMANDS: dict[str, str] = {
@@ -239,6 +240,21 @@ def _check_outputs(args: argparse.Namespace) -> None:
                 raise LegbenchError(f"--{opt} {path}: exists; choose another file, or pass --force to replace it")
 
 
+def _stdout_closed() -> bool:
+    """Whether stdout is a pipe whose reader is gone (``poll`` reports an error on its write end); if so stdout
+    goes to /dev/null from here, so the interpreter's last flush at exit prints no traceback of its own."""
+    try:
+        fd = sys.stdout.fileno()
+        poller = select.poll()
+        poller.register(fd, select.POLLOUT)
+        closed = any(events & select.POLLERR for _, events in poller.poll(0))
+    except (OSError, ValueError, AttributeError):  # no file descriptor (a test's captured stdout)
+        return False
+    if closed:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), fd)
+    return closed
+
+
 def _sigterm(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
@@ -262,6 +278,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except LegbenchError as exc:
         print(f"legbench: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_USER_ERROR
+    except BrokenPipeError as exc:  # stdout's reader went away (| head): quiet, with the shell's SIGPIPE status
+        if _stdout_closed():
+            return EXIT_OUTPUT_CLOSED
+        print(_one_line(f"legbench: I/O error: {exc.strerror or exc}; nothing was replaced"), file=sys.stderr)
+        return EXIT_IO_ERROR
     except OSError as exc:  # full disk, read-only or vanished output: one line, the previous result is intact
         where = f" {exc.filename}:" if exc.filename else ""
         print(_one_line(f"legbench: I/O error:{where} {exc.strerror or exc}; nothing was replaced"), file=sys.stderr)

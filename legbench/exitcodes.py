@@ -8,3 +8,4 @@ EXIT_IO_ERROR = (
     4  # a write or read of the file system failed (full disk, read-only, permissions); the previous result is intact
 )
 EXIT_INTERRUPTED = 130
+EXIT_OUTPUT_CLOSED = 141  # 128 + SIGPIPE: the reader of stdout went away (`legbench ... | head`), quietly

@@ -6,6 +6,7 @@ import argparse
 import gc
 import importlib.metadata
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -775,3 +776,17 @@ def test_an_engine_whose_import_breaks_fails_alone(
     err = capsys.readouterr().err
     assert err.startswith("legbench: error: --backends brokenengine: not installed here (its engine failed to import: "
                           "RuntimeError: engine broken)") and err.count("\n") == 1  # fmt: skip
+
+
+def test_a_reader_that_went_away_ends_the_command_quietly() -> None:
+    """``legbench doctor ... | head -1``: the write to the closed pipe was an "I/O error: Broken pipe; nothing was
+    replaced", exit 4. A command whose stdout's reader is gone ends quietly with the shell's SIGPIPE status 141 (the
+    pipe's read end is closed before the command starts, so its first write fails)."""
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        proc = subprocess.run([sys.executable, "-m", "legbench", "schema"], stdout=write, stderr=subprocess.PIPE,
+                              text=True, timeout=120)  # fmt: skip
+    finally:
+        os.close(write)
+    assert proc.returncode == 141 and proc.stderr == "", proc.stderr
