@@ -376,6 +376,9 @@ def load_ros_bag(path: str | Path, options: RosOptions | None = None) -> pd.Data
     bag = path.parent if path.suffix in (".db3", ".mcap") and (path.parent / "metadata.yaml").is_file() else path
     if not bag.exists():
         raise ResultsError(str(path), "no such bag")
+    mode = bag.stat().st_mode
+    if not (stat.S_ISDIR(mode) or stat.S_ISREG(mode)):  # a FIFO would block the reader until a writer came
+        raise ResultsError(str(path), f"is {file_kind(mode)}, not a regular file (a bag is read only from one)")
     joints = opts.joints or DEFAULT_JOINTS
     try:
         reader = AnyReader([bag])

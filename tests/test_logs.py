@@ -4,6 +4,7 @@ columns, and compared from the command line."""
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -364,3 +365,13 @@ def test_a_log_path_that_is_no_regular_file_says_what_it_is(tmp_path: Path) -> N
     with pytest.raises(ResultsError) as err:
         logs.load_log(tmp_path / "nope.csv")
     assert str(err.value) == f"{tmp_path / 'nope.csv'}: no such log file"
+
+
+def test_a_bag_path_that_is_a_fifo_is_refused_unopened(tmp_path: Path) -> None:
+    """A FIFO named like a bag (``x.bag``) went to rosbags, whose open blocks until a writer comes: refused, saying
+    what it is, without opening it."""
+    fifo = tmp_path / "x.bag"
+    os.mkfifo(fifo)
+    with pytest.raises(ResultsError) as exc:
+        logs.load_log(fifo)
+    assert str(exc.value) == f"{fifo}: is a FIFO, not a regular file (a bag is read only from one)"
