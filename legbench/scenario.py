@@ -56,6 +56,7 @@ from legbench.yamlfile import (
     LIMITS,
     YamlContext,
     check_keys,
+    check_magnitude,
     integer,
     keypath,
     limit,
@@ -595,6 +596,7 @@ def validate_tolerances(tol: Any, file: str, prefix: str = "", ctx: YamlContext 
             finite = False
         if not finite:  # run.json would hold Infinity, which is not JSON
             raise error(path, f"must be a finite number >= 0, not {x!r}")
+        check_magnitude(float(x), lambda why: error(path, why))  # as every other number: no 1e-40, no 1e300
 
     def component(lab: Any, path: list[str | int]) -> None:
         if lab not in TOLERANCE_KEYS:

@@ -6,6 +6,7 @@ import functools
 import io
 import json
 import os
+import re
 import shutil
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -546,4 +547,16 @@ def test_an_empty_tolerance_file_is_refused(tmp_path: Path, text: str) -> None:
     f = tmp_path / "tol.yaml"
     f.write_text(text)
     with pytest.raises(ScenarioError, match=r"tol\.yaml: empty tolerance file: it names no metric and no scenarios"):
+        K.load_tolerances(f)
+
+
+@pytest.mark.parametrize(("value", "words"), [(1e-40, "below 1e-30 in magnitude"), (1e300, "beyond +-1e+12")])
+def test_a_tolerance_of_a_magnitude_no_other_number_may_have_is_refused(
+    tmp_path: Path, value: float, words: str
+) -> None:
+    """A tolerance of 1e-40 (round-off) or 1e300 passed, while every other number of a scenario is held within
+    [1e-30, 1e12] in magnitude (or 0): the same limits, one ScenarioError naming the key."""
+    f = tmp_path / "tol.yaml"
+    f.write_text(f"rms: {{abs: {value!r}}}\n")
+    with pytest.raises(ScenarioError, match=rf"tol\.yaml: rms\.abs: .*{re.escape(words)}"):
         K.load_tolerances(f)
