@@ -208,9 +208,10 @@ class CheckReport:
 # Tolerances
 
 
-def _validate(tol: Any, file: str, prefix: str) -> dict[str, Any]:
-    """Tolerances checked by the rules a scenario's own are (:func:`legbench.scenario.validate_tolerances`)."""
-    return validate_tolerances(tol, file, prefix)
+def _validate(tol: Any, file: str, prefix: str, ctx: yamlfile.YamlContext | None = None) -> dict[str, Any]:
+    """Tolerances checked by the rules a scenario's own are (:func:`legbench.scenario.validate_tolerances`); with
+    ``ctx`` (the file's node tree) an error names the line."""
+    return validate_tolerances(tol, file, prefix, ctx)
 
 
 def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
@@ -231,7 +232,8 @@ def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[st
     path = Path(path)
     if not path.is_file() and not path.is_dir():
         raise ScenarioError(str(path), "", "no such tolerance file")
-    doc = yamlfile.parse_text(yamlfile.read_text(path, "tolerance file"), str(path))[0]
+    doc, root = yamlfile.parse_text(yamlfile.read_text(path, "tolerance file"), str(path))
+    ctx = yamlfile.YamlContext(str(path), root)  # errors name the line
     if doc is None:  # empty, or comments only: a file given for nothing (legbench validate says so too)
         raise ScenarioError(str(path), "", "empty tolerance file: it names no metric and no scenarios section (leave "
                                            "--tolerances out for the defaults)")  # fmt: skip
@@ -243,8 +245,8 @@ def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[st
         per = {}
     if not isinstance(per, Mapping):
         raise ScenarioError(str(path), "scenarios", "must be a mapping of scenario name or run label to tolerances")
-    common = _validate(doc, str(path), "")
-    return common, {str(k): _validate(v, str(path), f"scenarios.{k}") for k, v in per.items()}
+    common = _validate(doc, str(path), "", ctx)
+    return common, {str(k): _validate(v, str(path), f"scenarios.{k}", ctx) for k, v in per.items()}
 
 
 def tolerance_errors(path: str | Path) -> list[ScenarioError]:

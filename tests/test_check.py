@@ -264,7 +264,7 @@ def test_malformed_tolerances_raise_naming_the_key(baseline: Path, tmp_path: Pat
         tol.write_text(text)
         with pytest.raises(ScenarioError) as err:
             K.check(baseline, baseline, tol)
-        assert f"{tol}: {key}:" in str(err.value)
+        assert f"{tol}:1: {key}:" in str(err.value)  # one line of YAML: line 1
 
 
 def test_tolerance_files_and_scenarios_share_one_list_of_names_and_one_set_of_rules(tmp_path: Path) -> None:
@@ -558,5 +558,19 @@ def test_a_tolerance_of_a_magnitude_no_other_number_may_have_is_refused(
     [1e-30, 1e12] in magnitude (or 0): the same limits, one ScenarioError naming the key."""
     f = tmp_path / "tol.yaml"
     f.write_text(f"rms: {{abs: {value!r}}}\n")
-    with pytest.raises(ScenarioError, match=rf"tol\.yaml: rms\.abs: .*{re.escape(words)}"):
+    with pytest.raises(ScenarioError, match=rf"tol\.yaml:1: rms\.abs: .*{re.escape(words)}"):
         K.load_tolerances(f)
+
+
+def test_a_tolerance_file_s_error_names_its_line(tmp_path: Path) -> None:
+    """A tolerance file's errors named the key but not the line (a scenario's name both): the line too, in the
+    common part and in a scenario's section."""
+    f = tmp_path / "tol.yaml"
+    f.write_text("rms:\n  abs: -1\n")
+    with pytest.raises(ScenarioError) as exc:
+        K.load_tolerances(f)
+    assert str(exc.value) == f"{f}:2: rms.abs: must be a number >= 0, not -1"
+    f.write_text("# mine\nscenarios:\n  effort:\n    rms: {rel: -2}\n")
+    with pytest.raises(ScenarioError) as exc:
+        K.load_tolerances(f)
+    assert str(exc.value) == f"{f}:4: scenarios.effort.rms.rel: must be a number >= 0, not -2"
