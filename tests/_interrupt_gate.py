@@ -2,11 +2,11 @@
 
 ``gated-pinocchio`` and ``gated-mujoco`` are the Pinocchio and MuJoCo backends under other names. When the
 environment variable :data:`ENV` names a directory, each run's step call number :data:`AT` first creates a
-marker file ``<dir>/<backend>-*.blocked`` and then waits there until the file ``<marker>.go`` exists (the test
-released it) or a signal ends the wait (Ctrl-C: KeyboardInterrupt; SIGTERM: the CLI's handler, or a worker's
-death). So a test that has seen the marker knows the run is in progress, :data:`AT` ticks simulated, and that
-it stays so until the test acts: no run is ever assumed to last long enough to be interrupted. Without
-:data:`ENV` they run as their engines do.
+marker file ``<dir>/<backend>-*.blocked`` and then waits there until the test writes to the named pipe
+``<marker>.go`` (:func:`release`) or a signal ends the wait (Ctrl-C: KeyboardInterrupt; SIGTERM: the CLI's
+handler, or a worker's death). So a test that has seen the marker knows the run is in progress, :data:`AT`
+ticks simulated, and that it stays so until the test acts: no run is ever assumed to last long enough to be
+interrupted. Without :data:`ENV` they run as their engines do.
 
 A gate nobody opens or interrupts for :data:`TIMEOUT` seconds (or whose process was orphaned) fails its run with
 a RuntimeError, loudly, instead of blocking for ever. The tests register the classes as a plug-in distribution
@@ -16,6 +16,7 @@ would (``tests/test_interrupt.py``: a ``*.dist-info`` with the ``legbench.backen
 from __future__ import annotations
 
 import os
+import select
 import tempfile
 import time
 from pathlib import Path
@@ -31,13 +32,14 @@ from legbench.backends.pinocchio_ import PinocchioBackend
 ENV = "LEGBENCH_TEST_GATE"
 #: The step call (0-based) that waits: ticks 0 .. AT - 1 are simulated and logged before it.
 AT = 500
-#: Suffix of the marker a waiting run creates; the test creates ``<marker>`` + :data:`RELEASE` to let it go on.
+#: Suffix of the marker a waiting run creates; ``<marker>`` + :data:`RELEASE` is the named pipe it waits on,
+#: which the test writes to let it go on (:func:`release`).
 BLOCKED = ".blocked"
 RELEASE = ".go"
 #: Longest wait [s] before the run fails (a test that neither released nor interrupted it is broken).
 TIMEOUT = 600.0
-#: How often a waiting run looks for its release file [s] (a poll of the test's event, not a duration).
-POLL = 0.01
+#: How often a waiting run wakes, between the release's events, to check it was not orphaned or timed out [s].
+CHECK = 1.0
 
 ENTRY_POINTS = {
     "gated-pinocchio": f"{__name__}:GatedPinocchio",
@@ -46,20 +48,39 @@ ENTRY_POINTS = {
 
 
 def wait_at_gate(backend: str) -> None:
-    """Create this run's marker in the gate directory and wait until it is released (see the module doc)."""
+    """Create this run's marker in the gate directory and wait until it is released (see the module doc).
+
+    The release is a named pipe, ``<marker>.go``, made and opened before the marker appears: the wait is a
+    ``select`` on it, woken by the test's write (or a signal); every :data:`CHECK` s it also wakes to see whether
+    it was orphaned or waited past :data:`TIMEOUT`, the safety net only."""
     gate = os.environ.get(ENV)
     if not gate:
         return
-    fd, marker = tempfile.mkstemp(prefix=f"{backend}-", suffix=BLOCKED, dir=gate)
+    fd, pending = tempfile.mkstemp(prefix=f"{backend}-", suffix=".pending", dir=gate)
     os.close(fd)
-    release = Path(marker + RELEASE)
+    marker = pending.removesuffix(".pending") + BLOCKED
+    os.mkfifo(marker + RELEASE)
+    pipe = os.open(marker + RELEASE, os.O_RDONLY | os.O_NONBLOCK)  # no writer yet: select waits for one
+    os.rename(pending, marker)  # now the test sees the run waiting, and may release it
     parent, deadline = os.getppid(), time.monotonic() + TIMEOUT
-    while not release.exists():
-        if os.getppid() != parent:
-            raise RuntimeError(f"gate {marker}: orphaned while waiting (the command that ran it is gone)")
-        if time.monotonic() > deadline:
-            raise RuntimeError(f"gate {marker}: neither released nor interrupted within {TIMEOUT:g} s")
-        time.sleep(POLL)  # a signal ends the sleep with its handler's exception
+    try:
+        while not select.select([pipe], [], [], CHECK)[0]:  # a signal ends the wait with its handler's exception
+            if os.getppid() != parent:
+                raise RuntimeError(f"gate {marker}: orphaned while waiting (the command that ran it is gone)")
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"gate {marker}: neither released nor interrupted within {TIMEOUT:g} s")
+    finally:
+        os.close(pipe)
+
+
+def release(marker: str | Path) -> None:
+    """Let the run waiting at ``marker`` go on: one byte into its release pipe (refused at once, ENXIO, if the run
+    no longer waits there)."""
+    pipe = os.open(f"{marker}{RELEASE}", os.O_WRONLY | os.O_NONBLOCK)
+    try:
+        os.write(pipe, b"1")
+    finally:
+        os.close(pipe)
 
 
 class _Gated(Backend):
