@@ -36,6 +36,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import logging
 import math
 import re
 from collections.abc import Collection, Mapping, Sequence
@@ -65,6 +66,8 @@ from legbench.yamlfile import (
     set_key,
     vector,
 )
+
+logger = logging.getLogger("legbench.scenario")
 
 CONTROLLERS = ("position", "trajectory", "ellipse", "effort", "torque")
 #: Keys of each controller's event body: (allowed, required). The validator and :func:`json_schema` use them.
@@ -983,6 +986,21 @@ def shorten(sc: Scenario, duration: float, option: str = "--duration") -> Scenar
         if exc.key != "duration":
             raise
         raise ScenarioError(option, "", f"{exc.problem} ({sc.name}, {sc.file})") from None
+
+
+def shorten_each(scs: Sequence[Scenario], duration: float, option: str = "--duration") -> list[Scenario]:
+    """Each scenario cut to ``duration`` [s] (:func:`shorten`); one note names those ``duration`` does not
+    shorten (they run whole), so a ``--duration`` above a task's length is not mistaken for that length."""
+    whole = [f"{sc.name} ({sc.duration:g} s)" for sc in scs if duration >= sc.duration]
+    if whole:
+        logger.warning(
+            "legbench: note: %s %g s is not shorter than %s: %s whole",
+            option,
+            duration,
+            ", ".join(whole),
+            "it runs" if len(whole) == 1 else "they run",
+        )
+    return [shorten(sc, duration, option) for sc in scs]
 
 
 def physics_of(scenario: Scenario, contact_mode: str | None = None) -> Physics:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import re
 from pathlib import Path
 
@@ -449,3 +450,22 @@ def test_a_duration_that_cuts_off_the_control_grid_names_the_option() -> None:
     assert str(exc.value) == (f"--duration: 1e-09 s is not a whole number of control periods at 1000.0 Hz (position, "
                               f"{sc.file})")  # fmt: skip
     assert scenario.shorten(sc, 0.5).duration == 0.5
+
+
+def test_shorten_each_says_which_scenarios_a_longer_duration_leaves_whole(caplog: pytest.LogCaptureFixture) -> None:
+    """``bench --duration 6`` over the position (3 s) and ellipse (11.5 s) tasks: position runs whole, which one
+    note says (before, nothing did, and its 3 s could be read as the 6 asked for); the ellipse is cut to 6 s. A
+    duration that cuts them all says nothing."""
+    pos, comb = scenario.load(SCENARIOS / "position.yaml"), scenario.load(SCENARIOS / "ellipse.yaml")
+    assert pos.duration < 6.0 < comb.duration
+    with caplog.at_level(logging.WARNING, logger="legbench"):
+        out = scenario.shorten_each([pos, comb], 6.0, "--duration")
+    assert [sc.duration for sc in out] == [pos.duration, 6.0]
+    assert out[0] is pos
+    assert [r.getMessage() for r in caplog.records] == [
+        f"legbench: note: --duration 6 s is not shorter than position ({pos.duration:g} s): it runs whole"
+    ]
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="legbench"):
+        assert [sc.duration for sc in scenario.shorten_each([pos, comb], 0.5)] == [0.5, 0.5]
+    assert caplog.records == []

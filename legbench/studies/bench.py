@@ -318,14 +318,11 @@ def load_tasks(
         duration: shorten each to this [s] instead.
         overrides: dotted scenario keys set before validation, as ``legbench run --set``.
     """
-    out = []
-    for path in paths:
-        sc = scenario.load(path, overrides)
-        if duration is not None:
-            sc = shorten(sc, duration)
-        elif quick and "duration" not in (overrides or {}):
-            sc = shorten(sc, QUICK_DURATIONS.get(sc.name, QUICK_DEFAULT_DURATION))
-        out.append(sc)
+    out = [scenario.load(path, overrides) for path in paths]
+    if duration is not None:
+        return scenario.shorten_each(out, duration)
+    if quick and "duration" not in (overrides or {}):
+        return [shorten(sc, QUICK_DURATIONS.get(sc.name, QUICK_DEFAULT_DURATION)) for sc in out]
     return out
 
 
@@ -1023,7 +1020,7 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
                    help="short durations (later events dropped; a --set duration is kept), one repeat: "
                    "a smoke test, not figures")  # fmt: skip
     p.add_argument("--duration", type=yamlfile.positive_float, default=None,
-                   help="cut every scenario to this many seconds")  # fmt: skip
+                   help="cut every scenario to at most this many seconds (a shorter one runs whole)")  # fmt: skip
     p.add_argument("--contact-mode", choices=("native", "reference"), default=None,
                    help="override the scenarios' contact mode")  # fmt: skip
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",

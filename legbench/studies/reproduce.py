@@ -191,11 +191,8 @@ def scenarios_of(
     the others' profile as the scenario's ``profile``, ``overrides`` applied, cut to ``duration`` [s]."""
     sets: dict[str, Any] = {"profile": plan.others}
     sets |= {f"backends.{fw.backend}.profile": fw.profile for fw in plan.frameworks}
-    out = []
-    for task in plan.tasks:
-        sc = scenario.load(task.file, {**sets, **(overrides or {})})
-        out.append(scenario.shorten(sc, duration) if duration is not None else sc)
-    return out
+    out = [scenario.load(task.file, {**sets, **(overrides or {})}) for task in plan.tasks]
+    return scenario.shorten_each(out, duration) if duration is not None else out
 
 
 def backend_names(plan: Plan, others: str | Sequence[str] = "all") -> list[str]:
@@ -473,7 +470,7 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
                         "resumed)")  # fmt: skip
     p.add_argument("--jobs", type=int, default=1, help="parallel runs (default 1)")
     p.add_argument("--duration", type=yamlfile.positive_float, default=None,
-                   help="cut every task to this many seconds (a smoke test; later events dropped)")  # fmt: skip
+                   help="cut every task to at most this many seconds (a smoke test; later events dropped)")  # fmt: skip
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key of every task, e.g. --set physics.contact.v_th=0.01")  # fmt: skip
     p.add_argument("--no-report", action="store_true", help="skip each run directory's report and figures")
