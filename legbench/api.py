@@ -601,6 +601,9 @@ def run_scenario(
         doc = {**copy.deepcopy(dict(sc.raw)), "profile": profile}
         sc = scenario_mod.parse(doc, sc.file or "<mapping>")  # not overrides: a bad profile names the file
     names = registry.resolve(given_backends, "backends")
+    for mode in ("native", "reference") if contact_mode == "both" else (contact_mode,):
+        if mode is not None and mode != sc.contact_mode:  # as the command line: the mode checked as if the file gave it
+            scenario_mod.check_contact_mode(sc, names, mode, f"contact_mode={contact_mode!r}")
     if out_path is not None:  # as the command line's --out: a regular file is one error, not NotADirectoryError
         check_out_path(out_path, "out", run_dir_ok=True)
     root = out_path if out_path is not None else Path(tempfile.mkdtemp(prefix=f"legbench-{sc.name}-"))

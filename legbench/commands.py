@@ -193,6 +193,10 @@ def _run(args: argparse.Namespace) -> int:
     if not single:  # a tree: not inside a run, and a --out of someone else's is refused (its index goes there)
         run.check_tree(root, [out.name for *_, out in plan], foreign=args.out is not None)
     _check_plan(plan, names, args)
+    for sc, mode in runs:  # a mode the file does not give, checked as if it did (with or without the pre-flight)
+        if mode is not None and mode != sc.contact_mode:
+            given = f"--variant {sc.profile}:{mode}" if args.variant else f"--contact-mode {args.contact_mode}"
+            scenario.check_contact_mode(sc, names, mode, given)
     # the workers (no more than the runs) import the engines while the pre-flight runs here (one run needs none)
     n_runs = len(plan) * len(names)
     pool = run.start_pool(args.jobs, tasks=n_runs) if n_runs > 1 else None

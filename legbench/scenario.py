@@ -691,10 +691,11 @@ def _check_combination(ctx: YamlContext, name: str, given: Mapping[str, Any], pr
         raise ctx.error(*bad)
 
 
-def check_contact_mode(sc: Scenario, names: Sequence[str], mode: str, option: str = "--contact-mode") -> None:
+def check_contact_mode(sc: Scenario, names: Sequence[str], mode: str, option: str | None = None) -> None:
     """Refuse, before any work, running ``sc`` on the backends ``names`` in another contact ``mode`` than its own
-    (``option`` set it) where a backend's settings cannot run in it, as the scenario file would be refused with that
-    mode in it (a study that overrides the mode without a pre-flight: ``legbench bench``).
+    where a backend's settings cannot run in it, as the scenario file would be refused with that mode in it
+    (``legbench bench``, ``legbench run`` with or without its pre-flight). ``option``: what set the mode, as the
+    user wrote it (default ``--contact-mode <mode>``).
 
     Raises:
         ScenarioError: naming the scenario's file, the setting and why.
@@ -703,7 +704,7 @@ def check_contact_mode(sc: Scenario, names: Sequence[str], mode: str, option: st
         bad = _mode_problem(name, sc.backends.get(name, {}), sc.profile, mode)
         if bad is not None:
             path, why = bad
-            raise ScenarioError(sc.file, keypath(path), f"{why} (with {option} {mode})")
+            raise ScenarioError(sc.file, keypath(path), f"{why} (with {option or '--contact-mode ' + mode})")
 
 
 def _known_names() -> str:

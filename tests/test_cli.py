@@ -14,9 +14,12 @@ from typing import Any
 
 import pandas as pd
 import pytest
+import yaml
 from fakerun import scale, write_run
 
-from legbench import cli
+from legbench import backends, cli
+
+SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 
 
 def test_compare_imports_a_log_with_mapped_headers_in_milliseconds(tmp_path: Path) -> None:
@@ -790,3 +793,39 @@ def test_a_reader_that_went_away_ends_the_command_quietly() -> None:
     finally:
         os.close(write)
     assert proc.returncode == 141 and proc.stderr == "", proc.stderr
+
+
+@pytest.mark.skipif("drake" not in backends.available(), reason="drake backend not installed")
+@pytest.mark.parametrize(
+    ("mode_args", "given"),
+    [
+        (["--contact-mode", "reference", "--no-preflight"], "--contact-mode reference"),
+        (["--contact-mode", "both"], "--contact-mode both"),
+        (["--variant", "matched:reference", "--no-preflight"], "--variant matched:reference"),
+    ],
+)
+def test_a_contact_mode_the_settings_cannot_run_is_refused_with_or_without_the_preflight(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], mode_args: list[str], given: str
+) -> None:
+    """Drake's continuous plant in reference contact: ``run --no-preflight --contact-mode reference`` ran Pinocchio
+    and failed Drake at load (exit 3, a run directory written), where the same mode in the file is refused. Now
+    the mode given on the command line is checked as the file's would be, before any work: one line naming the
+    file, the setting and the option as given, exit 2, nothing written. The API's ``contact_mode`` likewise."""
+    import legbench
+    from legbench.exceptions import ScenarioError
+
+    doc = yaml.safe_load((SCENARIOS / "position.yaml").read_text())
+    doc |= {"duration": 0.2, "comparison": {"reference": "pinocchio", "steady_window": 0.1},
+            "backends": {"drake": {"solver": "continuous"}}}  # fmt: skip
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    out = tmp_path / "out"
+    assert cli.main(["run", str(path), "--backends", "drake,pinocchio", *mode_args, "--out", str(out), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"legbench: error: {path}: backends.drake.solver: 'continuous' cannot run reference contact")
+    assert err.endswith(f"(with {given})\n") and err.count("\n") == 1
+    assert not out.exists()
+    with pytest.raises(ScenarioError, match=r"\(with contact_mode='reference'\)$"):
+        legbench.run_scenario(path, backends=["drake", "pinocchio"], contact_mode="reference", out=out)
+    assert not out.exists()
+    assert cli.main(["run", str(path), "--backends", "drake,pinocchio", "--no-preflight", "--out", str(out), "-q"]) == 0
