@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from legbench.backends.base import contact_point
 from legbench.contact import ContactParams
 from legbench.contact_residuals import ContactResiduals, residuals
 from legbench.exceptions import ResultsError
@@ -124,6 +125,8 @@ class ComparisonResult:
         for name in self.traces:
             if name not in run.backends:
                 backends[name] = {"status": "ok", "reason": None, "source": "log"}
+        for s in self.steady:  # where its force acted, as the force check and the residuals took it
+            backends[s.backend]["contact_lift"] = s.lift
         return {
             "schema": METRICS_SCHEMA,
             "scenario": run.label,
@@ -300,7 +303,10 @@ def compare(
         notes += _coverage_notes(traces[log_key], run_end, run.steady_window)
         if float(traces[log_key].t[-1]) < run_end - run.steady_window - T_EPS:
             unreached.add(log_key)
-    steady = tuple(steady_state(tr, run.steady_window, run.poc, run.gravity, ends[n]) for n, tr in traces.items())
+    infos = {n: b.info for n, b in run.backends.items()}
+    points = {n: contact_point(infos.get(n), run.poc) for n in traces}  # where each force acted
+    steady = tuple(steady_state(tr, run.steady_window, points[n][0], run.gravity, ends[n], points[n][1])
+                   for n, tr in traces.items())  # fmt: skip
     for s in steady:
         if s.backend in unreached:
             continue
@@ -336,5 +342,5 @@ def compare(
     law = _contact_law(run)
     if law is None:
         notes.append("no contact-law residuals: run.json's scenario names no contact law")
-    res = {} if law is None else {name: residuals(tr.t, tr.q, tr.qd, tr.f, law) for name, tr in traces.items()}
+    res = {} if law is None else {n: residuals(tr.t, tr.q, tr.qd, tr.f, law, points[n]) for n, tr in traces.items()}
     return ComparisonResult(run, reference, traces, tuple(pairs), steady, split, split_run, tuple(notes), res)

@@ -14,9 +14,13 @@ ground force alone:
   is not counted): the measured slip speed
   against the law's v_th |F_t| / (mu_s Fn) [m/s].
 
-The point of contact is the true poc (the sphere's lowest point) or the
-centre, as the law's ``poc`` says; velocities are J_poc(q) qd from
-:mod:`legbench.kinematics`.
+The slip is taken where the backend's force acted, as its info declares
+(:func:`legbench.backends.base.contact_point`): the law's poc (the sphere's
+lowest point, or the centre, as the law's ``poc`` says) where legbench applies
+the law, an engine's own point in native contact (the sphere's lowest point, or
+halfway through the penetration); velocities are J(q) qd from
+:func:`legbench.kinematics.jacobian_at`. The penetration rate is the same at
+every point on the vertical through E.
 """
 
 from __future__ import annotations
@@ -82,7 +86,12 @@ def _median(x: np.ndarray) -> float:
 
 
 def residuals(
-    t: np.ndarray, q: np.ndarray, qd: np.ndarray, force: np.ndarray, params: ContactParams
+    t: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    force: np.ndarray,
+    params: ContactParams,
+    point: tuple[str, float] | None = None,
 ) -> ContactResiduals:
     """The law's residuals over a run.
 
@@ -92,6 +101,9 @@ def residuals(
         qd: joint velocities [rad/s] (n, 3).
         force: ground force on the foot in W [N] (n, 3), as the backend reported it.
         params: the contact law the run was meant to follow.
+        point: where the backend's force acted, ``(poc, lift)`` (:func:`legbench.backends.base.contact_point`:
+            its info's ``contact.poc`` and ``contact.lift``); the slip is that point's velocity. Default: the
+            law's poc.
     """
     q = np.asarray(q, float).reshape(len(t), 3)
     qd = np.asarray(qd, float).reshape(len(t), 3)
@@ -99,7 +111,7 @@ def residuals(
     R = load_params().geometry.R_foot
     z_E = kinematics.fk(q)[:, 2]
     y = R - z_E
-    J = kinematics.jacobian_poc(q, true_poc=params.poc == "true")
+    J = kinematics.jacobian_at(q, *(point or (params.poc, 0.0)))
     v = np.einsum("nij,nj->ni", J, qd)
     ydot = -v[:, 2]
     fn = f[:, 2]

@@ -190,6 +190,36 @@ def jacobian_poc(q: np.ndarray, params: LegParams | None = None, true_poc: bool 
     return Jv - r_cross @ angular_jacobian(q)
 
 
+def contact_depth(q: np.ndarray, lift: float = 0.0, params: LegParams | None = None) -> np.ndarray:
+    """Depth [m] below E, along -z_W, of the point where an engine's contact force acts: ``lift`` [1] of the
+    penetration y = R_foot - z_E above the sphere's lowest point (0: the true poc; 0.5: halfway between the two
+    surfaces; 1: on the ground plane), per configuration of ``q`` [rad] (shape () for one, (N,) for a batch); out
+    of the ground (y <= 0), the lowest point."""
+    R = _params(params).geometry.R_foot
+    q = np.asarray(q, float)
+    if lift == 0.0:
+        return np.full(q.shape[:-1], R)
+    y = R - fk(q, params)[..., 2]
+    return R - lift * np.maximum(y, 0.0)
+
+
+def jacobian_at(q: np.ndarray, poc: str = "true", lift: float = 0.0, params: LegParams | None = None) -> np.ndarray:
+    """Linear Jacobian in W [m/rad] of the shank's material point where the contact force acts: the law's poc
+    (``poc``: ``"true"``, the sphere's lowest point, or ``"centre"``, E), raised by ``lift`` of the penetration
+    where an engine's own contact acts above the lowest point (:func:`contact_depth`; only with ``"true"``):
+    r = -d z_W from E, v = v_E + omega x r. With ``lift`` 0 the numbers of :func:`jacobian_poc`."""
+    if poc == "centre":
+        return jacobian(q, params)
+    if lift == 0.0:
+        return jacobian_poc(q, params, true_poc=True)
+    d = contact_depth(q, lift, params)[..., None]
+    Jw = angular_jacobian(q)
+    J = jacobian(q, params).copy()
+    J[..., 0, :] -= d * Jw[..., 1, :]  # omega x (-d z_W) = (-d w_y, d w_x, 0)
+    J[..., 1, :] += d * Jw[..., 0, :]
+    return J
+
+
 def is_singular(q: np.ndarray, params: LegParams | None = None, tol: float = 1e-6) -> np.ndarray:
     """True where the Jacobian loses rank: straight knee (s3 = 0) or E on the ab/ad axis.
 

@@ -143,13 +143,16 @@ class SteadyState:
         tau: mean joint torques [N m].
         force: mean ground force on the foot in W (Fx, Fy, Fn) [N].
         analytic_poc: ground force on the foot in W from the mean state and torques,
-            -(J_poc(q)^T)^-1 (tau - G(q)), J_poc the true point of contact's Jacobian [N].
+            -(J_poc(q)^T)^-1 (tau - G(q)), J_poc the Jacobian of the point the force acted at: the true point
+            of contact, raised by ``lift`` of the penetration where the backend declares its contact there [N].
         analytic_centre: the same with the foot centre's Jacobian J_E; only for runs
             whose contact law takes the poc at the sphere centre, else None [N].
         cond: condition number of J_poc at the mean state (inf if singular; NaN if the window has
             no finite q or tau, as in a log without torques: no check possible).
         qd_max: the largest |qd| of any joint over the window [rad/s] (NaN without a finite qd): the check
             holds only at rest, where it is near 0.
+        lift: where the backend's force acted, as the check took it: that fraction of the penetration above the
+            sphere's lowest point (:func:`~legbench.backends.base.contact_point`; 0: the true poc).
     """
 
     backend: str
@@ -163,6 +166,7 @@ class SteadyState:
     analytic_centre: np.ndarray | None
     cond: float
     qd_max: float = math.nan
+    lift: float = 0.0
 
     @property
     def residual(self) -> np.ndarray:
@@ -532,7 +536,12 @@ def pair_metrics(
 
 
 def steady_state(
-    trace: RunResult, window: float, poc: str = "true", gravity: float | None = None, end: float | None = None
+    trace: RunResult,
+    window: float,
+    poc: str = "true",
+    gravity: float | None = None,
+    end: float | None = None,
+    lift: float = 0.0,
 ) -> SteadyState:
     """Means over the final ``window`` [s] of ``trace``, and the analytic force check.
 
@@ -543,7 +552,10 @@ def steady_state(
 
     The check solves J_poc(q)^T h = tau - G(q) at the window's mean q and tau
     (valid when the leg is static: qd ~ 0 and no acceleration) and reports the
-    ground force on the foot, -h. With ``poc == "centre"`` it also does so with
+    ground force on the foot, -h. ``poc`` and ``lift``: where the backend's force acted
+    (:func:`~legbench.backends.base.contact_point`): J_poc is the Jacobian of the sphere's lowest point,
+    raised by ``lift`` of the penetration where an engine's own contact acts above it
+    (:func:`~legbench.kinematics.jacobian_at`); with ``poc == "centre"`` the check is also done with
     J_E, the foot centre's Jacobian, which is what a contact law taking the poc
     at the sphere centre applies. G(q) is for the run's ``gravity`` [m/s^2] along
     -z_W (None: the leg parameter file's; G is linear in it).
@@ -555,14 +567,14 @@ def steady_state(
     if not sel.any():
         nan3 = np.full(3, np.nan)
         return SteadyState(trace.backend, t_end - window, t_end, nan3, nan3, nan3, nan3, nan3, None, math.nan,
-                           math.nan)  # fmt: skip
+                           math.nan, lift)  # fmt: skip
     avg = mean(trace.data[sel])
     q, qd, tau, force = (avg[SLICE[s]] for s in SIGNALS)
 
-    def ground_force(true_poc: bool) -> tuple[np.ndarray, float]:
+    def ground_force(point: str) -> tuple[np.ndarray, float]:
         if not np.isfinite(q).all() or not np.isfinite(tau).all():
             return np.full(3, np.nan), math.nan
-        J = kinematics.jacobian_poc(q, true_poc=true_poc)
+        J = kinematics.jacobian_at(q, point, lift if point == "true" else 0.0)
         cond = float(np.linalg.cond(J))
         if not cond < COND_MAX:
             return np.full(3, np.nan), cond
@@ -570,13 +582,13 @@ def steady_state(
         h = np.linalg.solve(J.T, tau - G)
         return -h, cond
 
-    f_poc, cond = ground_force(True)
-    f_centre = ground_force(False)[0] if poc == "centre" else None
+    f_poc, cond = ground_force("true")
+    f_centre = ground_force("centre")[0] if poc == "centre" else None
     speeds = max_abs(trace.data[sel][:, SLICE["qd"]])
     qd_max = float(np.nanmax(speeds)) if np.isfinite(speeds).any() else math.nan
     return SteadyState(
         trace.backend, float(trace.t[sel][0]), float(trace.t[sel][-1]), q, qd, tau, force, f_poc, f_centre, cond,
-        qd_max,
+        qd_max, lift,
     )  # fmt: skip
 
 

@@ -347,9 +347,10 @@ def _steady_table(result: ComparisonResult) -> Table:
             for c in range(5, 8):
                 classes[(r, c)], titles[(r, c)] = "na", why
             continue
-        check = "analytic check, J_poc" + (" (no qd logged: static not checked)" if math.isnan(speed) else "")
+        at = "J_poc" if s.lift == 0.0 else f"J at {num(s.lift, 3)} y above the poc"  # where its own contact acts
+        check = f"analytic check, {at}" + (" (no qd logged: static not checked)" if math.isnan(speed) else "")
         rows.append((s.backend, check, *blank, *(num(v) for v in s.analytic_poc)))
-        rows.append((s.backend, "measured - analytic (J_poc)", *blank, *(num(v) for v in s.residual)))
+        rows.append((s.backend, f"measured - analytic ({at})", *blank, *(num(v) for v in s.residual)))
         if s.analytic_centre is not None and s.poc_compensation is not None:
             rows.append(
                 (s.backend, "analytic check, J_E (poc at centre)", *blank, *(num(v) for v in s.analytic_centre))
@@ -367,7 +368,13 @@ def _steady_table(result: ComparisonResult) -> Table:
         tuple(rows),
         "Steady state over the final window; analytic check F = -(J^T)^-1 (tau - G(q)) at the mean q and tau "
         f"(ground force on the foot; valid when the leg is static: n/a where max |qd| over the window reaches "
-        f"{num(STATIC_QD)} rad/s)",
+        f"{num(STATIC_QD)} rad/s); J_poc: the Jacobian of the sphere's lowest point"
+        + (
+            "; J at a fraction of the penetration y above it: where that engine's own contact applies the force "
+            "(0.5: halfway between the surfaces)"
+            if any(s.lift != 0.0 for s in result.steady)
+            else ""
+        ),  # fmt: skip
         classes=classes,
         titles=titles,
     )

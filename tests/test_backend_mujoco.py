@@ -17,6 +17,7 @@ mujoco = pytest.importorskip("mujoco")
 
 from legbench import backends as registry  # noqa: E402
 from legbench import scenario  # noqa: E402
+from legbench.results import write_run  # noqa: E402
 from legbench.run import simulate  # noqa: E402
 from legbench.scenario import physics_of, shorten  # noqa: E402
 
@@ -125,3 +126,33 @@ def test_rk4_last_and_mean_read_the_last_stage_solve(readout: str) -> None:
     assert fn_start > 5.0  # [N]: in contact
     assert abs(fn_start - fn_stage4) > 0.5  # [N]: the stages differ enough to be told apart
     assert abs(fn_read - fn_stage4) <= 1e-9 * fn_stage4
+
+
+def test_the_force_acts_halfway_through_the_penetration_as_info_declares(tmp_path: Path) -> None:
+    """MuJoCo places a contact between the two surfaces (mjContact.pos), so its force acts, and its slip is
+    taken, y/2 above the sphere's lowest point; info() declares that (contact.lift 0.5; 0 in reference contact,
+    where legbench applies the law at its poc). Effort task, last 0.5 s: the statics at that point hold to round-off
+    (measured 5e-13 N of 52.5), where at the true poc they are 0.2 % of Fn off (measured 0.10 N); the compare's
+    force check and its metrics.json take the declared point."""
+    from legbench import compare, metrics, run
+
+    sc = scenario.load(ROOT / "scenarios" / "effort.yaml")
+    tr = run.run_backend(sc, "mujoco")
+    assert tr.status == "ok" and tr.info["contact"]["poc"] == "true" and tr.info["contact"]["lift"] == 0.5
+    at_own = metrics.steady_state(tr, 0.5, "true", lift=0.5)
+    at_poc = metrics.steady_state(tr, 0.5, "true")
+    fn = float(at_own.force[2])
+    assert fn > 50.0  # [N]: pressing
+    assert np.abs(at_own.residual).max() < 1e-9 * fn
+    assert np.abs(at_poc.residual).max() > 1e-3 * fn
+    ref = registry.load("mujoco", physics_of(sc, "reference"), {})
+    try:
+        assert ref.info()["contact"]["lift"] == 0.0
+    finally:
+        ref.close()
+    write_run(sc, [tr], tmp_path)
+    res = compare.compare(tmp_path)
+    assert res.to_json()["backends"]["mujoco"]["contact_lift"] == 0.5
+    (steady,) = res.steady
+    np.testing.assert_array_equal(steady.residual, at_own.residual)
+    assert res.residuals["mujoco"].angle_max < 1.0  # [deg]: at its own point the friction opposes the slip

@@ -202,3 +202,21 @@ def test_sliding_case_engine_defaults(backend: str) -> None:
         assert rows["angle"]["measured"] > 5.0 and not rows["angle"]["passed"], rows["angle"]
     else:
         assert all(r["passed"] for r in rows.values()), rows
+
+
+def test_the_slip_is_taken_where_the_backend_says_its_force_acts() -> None:
+    """A foot 4 mm in the ground rolling about the point halfway through its penetration (where MuJoCo's
+    contact acts, lift 0.5): that point does not slip, the sphere's lowest point does (omega x 2 mm). Read at the
+    declared point every sample is a creep sample at 0 m/s (to round-off); read at the true poc, as every
+    engine was before, the same samples slip at 0.11-1.1 mm/s, and a sticking Coulomb engine would seem to
+    violate the law."""
+    t, q, _, _ = _synthetic(np.array([1.0, 0.0, 0.0]), np.zeros(20))
+    J_mid = kinematics.jacobian_at(q[0], "true", 0.5)
+    direction = np.linalg.svd(J_mid[:2])[2][-1]  # joint motion that leaves the mid point's horizontal velocity 0
+    qd = np.linspace(0.1, 1.0, 20)[:, None] * direction[None, :]  # [rad/s]
+    f = np.tile([1.0, 0.0, 40.0], (20, 1))  # [N]: a sub-limit tangential load, 40 N down
+    at_mid = residuals(t, q, qd, f, P, ("true", 0.5))
+    at_poc = residuals(t, q, qd, f, P)
+    assert at_mid.n_creep == 20 and at_mid.creep_speed < 1e-15
+    v_poc = np.hypot(*(kinematics.jacobian_poc(q) @ qd[..., None])[:, :2, 0].T)
+    assert at_poc.creep_speed == pytest.approx(float(np.median(v_poc)), rel=1e-12) and at_poc.creep_speed > 1e-4

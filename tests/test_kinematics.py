@@ -215,3 +215,25 @@ def test_chain_points_are_pinocchio_joint_origins_and_end_at_fk() -> None:
         pin.forwardKinematics(m, d, model.q_to_pin(q))
         for k, jid in enumerate(ids):
             np.testing.assert_allclose(d.oMi[jid].translation, p[k + 1], atol=1e-9)
+
+
+def test_jacobian_at_a_lifted_point_is_the_shank_point_at_that_depth() -> None:
+    """The material point d = R_foot - lift y below E (y = R_foot - z_E the penetration): J = J_E + (d / R_foot)
+    (J_poc - J_E), since omega x (-d z_W) is linear in d; lift 0 is J_poc exactly, poc 'centre' is J_E, and a foot
+    out of the ground (y < 0) has its point at the lowest point whatever the lift. Round-off only (1e-15)."""
+    R = model.load_params().geometry.R_foot
+    q_ground = K.ik(np.array([0.1667, 0.0, R - 0.005])).solutions  # E 5 mm into the ground
+    q = np.vstack([q_ground, [[0.2, -0.7, 1.1]]])  # and one in the air
+    y = R - K.fk(q)[:, 2]
+    assert np.allclose(y[:-1], 0.005) and y[-1] < 0
+    J_E, J_poc = K.jacobian(q), K.jacobian_poc(q)
+    for lift in (0.0, 0.5, 1.0):
+        d = R - lift * np.maximum(y, 0.0)
+        want = J_E + (d / R)[:, None, None] * (J_poc - J_E)
+        np.testing.assert_allclose(K.jacobian_at(q, "true", lift), want, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(K.contact_depth(q, lift), d, rtol=0, atol=1e-17)
+    assert np.array_equal(K.jacobian_at(q, "true"), J_poc)
+    assert np.array_equal(K.jacobian_at(q, "centre", 0.5), J_E)
+    half = K.jacobian_at(q, "true", 0.5)
+    assert np.abs(half[:-1] - J_poc[:-1]).max() > 1e-4  # [m/rad]: 2.5 mm of lever makes a difference
+    np.testing.assert_array_equal(half[-1], J_poc[-1])  # out of the ground: the lowest point

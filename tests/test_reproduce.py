@@ -189,9 +189,10 @@ def test_table10_published_rows_and_steady_qd_equal_the_metrics(with_metrics: Pa
 def test_table11_force_check_and_compensation_equal_the_metrics(with_metrics: Path, repro: Any) -> None:
     rows = {r[0]: r[1:] for r in repro[1]["table11"].rows}
     run_ = results.load_run(with_metrics / "effort")
-    for label, name in (("Simscape: pinocchio (matched)", "pinocchio"), ("Gazebo: mujoco (engine-defaults)", "mujoco")):
+    for label, name, at in (("Simscape: pinocchio (matched)", "pinocchio", "true"),
+                            ("Gazebo: mujoco (engine-defaults)", "mujoco", "true, 0.5 y above")):  # fmt: skip
         poc, *vals = rows[label]
-        assert poc == "true"
+        assert poc == at  # MuJoCo's own contact acts halfway through the penetration
         np.testing.assert_allclose(vals[0:3], _metric(with_metrics / "effort", name, "force", "steady_mean"), rtol=RTOL)
         np.testing.assert_allclose(
             vals[3:6], _metric(with_metrics / "effort", name, "force", "analytic_poc"), rtol=RTOL

@@ -38,8 +38,11 @@ INFO_KEYS = {
     "engine": "the engine's name (text)",
     "version": "the engine's version (text)",
     "integrator": "the integrator's name as the backend's settings call it (text)",
-    "contact": "the contact as loaded: a mapping; its 'poc' ('true' or 'centre') is where a law backend applies "
-    "the force, its 'Kp' the normal stiffness [N/m], null for rigid contact (no stiffness declared)",
+    "contact": "the contact as loaded: a mapping; its 'poc' ('true' or 'centre') is the point the force acts at "
+    "(the law's poc where legbench applies the law; 'true' for an engine's own contact), its 'lift' (0..1, default "
+    "0) raises that point by that fraction of the penetration y, where an engine's own contact acts above the "
+    "sphere's lowest point (0.5: halfway between the two surfaces; 1: on the ground plane), its 'Kp' the normal "
+    "stiffness [N/m], null for rigid contact (no stiffness declared)",
     "max_step": "an adaptive solver's largest step [s] (a number)",
     "rtol": "an adaptive solver's relative tolerance (a number)",
     "atol": "an adaptive solver's absolute tolerance (a number)",
@@ -61,6 +64,9 @@ def info_problem(info: object) -> str | None:
             return f"contact: expected a mapping ({INFO_KEYS['contact']}), got {contact!r}"
         if contact.get("poc", "true") not in ("true", "centre"):
             return f"contact.poc: expected 'true' or 'centre', got {contact['poc']!r}"
+        lift = contact.get("lift", 0.0)
+        if not _is_number(lift) or not 0.0 <= lift <= 1.0:
+            return f"contact.lift: expected a fraction of the penetration in [0, 1], got {lift!r}"
         kp = contact.get("Kp")
         if kp is not None and not _is_number(kp):
             return f"contact.Kp: expected a stiffness [N/m] or null (rigid contact), got {kp!r}"
@@ -68,6 +74,19 @@ def info_problem(info: object) -> str | None:
         if key in info and not _is_number(info[key]):
             return f"{key}: expected a number, got {info[key]!r}"
     return None
+
+
+def contact_point(info: Mapping[str, Any] | None, law_poc: str) -> tuple[str, float]:
+    """Where a backend's contact force acted on the foot, ``(poc, lift)`` for
+    :func:`~legbench.kinematics.jacobian_at`: its info's ``contact.poc`` (else ``law_poc``, the scenario's: a
+    backend or log that declares none) and ``contact.lift`` (else 0). Every check that maps the force to joint
+    torques or takes the slip at the contact (the steady-state force check, the contact-law residuals, the
+    studies) evaluates there."""
+    contact = (info or {}).get("contact")
+    if not isinstance(contact, Mapping):
+        return law_poc, 0.0
+    poc, lift = contact.get("poc"), contact.get("lift", 0.0)
+    return (poc if poc in ("true", "centre") else law_poc), (float(lift) if _is_number(lift) else 0.0)
 
 
 def rigid_contact(info: Mapping[str, Any]) -> bool:
@@ -224,9 +243,6 @@ class Backend(ABC):
     #: the sliding verification's closed form assume) or ``pyramid`` (each tangent axis of the contact
     #: frame limited on its own, so |F_t| reaches sqrt(2) mu Fn on the diagonal).
     friction_cone: ClassVar[str] = "cone"
-    #: Where the native contact applies its force, as the fraction of the penetration y above the
-    #: sphere's lowest point (0: the true poc; MuJoCo: 0.5, the middle of the penetration).
-    contact_point_lift: ClassVar[float] = 0.0
     #: One command that installs the engine where it is missing (shown by the registry).
     install: ClassVar[str] = ""
     #: The profile this instance was loaded with (set by the registry's ``load``).

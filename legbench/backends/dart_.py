@@ -334,6 +334,8 @@ class DartBackend(Backend):
             "contact_mode": self.physics.contact_mode,
             "contact": {
                 "enabled": not self.reference,
+                "poc": c.poc if self.reference else "true",  # rigid: the sphere's lowest point, on the ground
+                "lift": 0.0,
                 "model": "rigid (boxed LCP), Coulomb friction pyramid",
                 "lcp_solver": solver.getBoxedLcpSolver().getType(),
                 "secondary_lcp_solver": (

@@ -178,8 +178,7 @@ class DrakeBackend(Backend):
     name: ClassVar[str] = "drake"
     #: Drake's discrete solvers slide with the dynamic coefficient alone, which the matched profile (the one the
     #: sliding case runs) sets to mu_s. Not so elsewhere: engine-defaults sets CoulombFriction(mu_s, mu_k), so its
-    #: discrete solvers slide at mu_k, and ``continuous`` uses Stribeck friction, mu_k above 3 v_s; its contact
-    #: point is also y/2 above the true poc (module docstring), where ``contact_point_lift`` says 0.
+    #: discrete solvers slide at mu_k, and ``continuous`` uses Stribeck friction, mu_k above 3 v_s.
     sliding_coefficient: ClassVar[str] = "mu_s"
     defaults: ClassVar[Mapping[str, Any]] = {
         "solver": "sap",  # one of SOLVERS
@@ -521,6 +520,8 @@ class DrakeBackend(Backend):
             "contact_mode": self.physics.contact_mode,
             "contact": {
                 "enabled": not self.reference,
+                "poc": c.poc if self.reference else "true",
+                "lift": 0.0 if self.reference else self._lift(),
                 "model": str(plant.get_contact_model()),
                 "discrete_contact_approximation": (
                     str(plant.get_discrete_contact_approximation()) if not self.continuous else None
@@ -543,6 +544,25 @@ class DrakeBackend(Backend):
             integ = self.simulator.get_integrator()
             out["target_accuracy"] = integ.get_target_accuracy()
         return out
+
+    def _lift(self) -> float:
+        """Where Drake's own contact force acts, as the fraction of the penetration above the sphere's lowest
+        point (``info()['contact']['lift']``): the continuous plant takes the plain midpoint of the two witness
+        points (0.5); the discrete plant weights them by stiffness, p_WC = (k_foot p_foot + k_ground p_ground) /
+        (k_foot + k_ground) (``compliant_contact_manager.cc``), so k_ground / (k_foot + k_ground), with the
+        stiffnesses as Drake applied them (mapped: 1e-8; engine-defaults, Kp against the default 1e6 N/m: 0.99);
+        hydroelastic, the compliant foot on the rigid ground: the contact surface lies on the ground plane (1)."""
+        if self.cfg["contact_model"] == "hydroelastic":
+            return 1.0
+        if self.continuous:
+            return 0.5
+        sg = self.scene_graph
+        inspector = sg.get_query_output_port().Eval(sg.GetMyContextFromRoot(self.root)).inspector()
+        k_foot, k_ground = (
+            float(inspector.GetProximityProperties(g).GetProperty("material", "point_contact_stiffness"))
+            for g in (min(self.foot_geoms), self.ground)
+        )
+        return k_ground / (k_foot + k_ground)
 
     def _unused_settings(self) -> set[str]:
         """Settings the configured solver and contact model do not read, left out of :meth:`info` so the

@@ -61,7 +61,7 @@ the leg's statics F = -(J_poc^T)^-1 (tau - G(q)) (the ground's force on the foot
 spec's h, the force the foot exerts, is -F) over the effort task's last
 0.5 s: 0.2 % of Fn (matched), 0.01 % (engine-defaults); the 0.2 % is MuJoCo's
 contact point, which sits in the middle of the penetration, y/2 above the true
-poc (``contact_point_lift``). With ``rk4``, ``last`` and ``mean`` read a step's last (4th)
+poc (``info()['contact']['lift']`` 0.5). With ``rk4``, ``last`` and ``mean`` read a step's last (4th)
 stage's solve (``mj_RungeKutta`` runs stages 2-4 with ``mj_forwardSkip`` and restores only
 qpos, qvel and act), not its first stage's; ``end`` solves again at the end state.
 
@@ -171,8 +171,6 @@ class MujocoBackend(Backend):
     sliding_coefficient: ClassVar[str] = "mu_s"
     #: ``legbench bench`` targets (CPU-time medians): the full run within 1.15x ``mj_step(m, d, n)``.
     bench_targets: ClassVar[Mapping[str, float]] = {"full/floor": 1.15}
-    #: MuJoCo's sphere-plane contact point is the middle of the penetration, y/2 above the lowest point.
-    contact_point_lift: ClassVar[float] = 0.5
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "integrator": tuple(_INTEGRATORS),
         "cone": tuple(_CONES),
@@ -498,6 +496,10 @@ class MujocoBackend(Backend):
             "contact": {
                 "method": "explicit foot-ground pair, direct solref",
                 "enabled": not self.reference,
+                "poc": c.poc if self.reference else "true",
+                # MuJoCo places a contact halfway between the two surfaces (mjContact.pos): its force acts, and its
+                # slip is taken, y/2 above the sphere's lowest point
+                "lift": 0.0 if self.reference else 0.5,
                 "solref": m.pair_solref[0].tolist() if m.npair else None,
                 "solreffriction": m.pair_solreffriction[0].tolist() if m.npair else None,
                 "solimp": m.pair_solimp[0].tolist() if m.npair else None,

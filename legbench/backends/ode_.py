@@ -560,6 +560,9 @@ class OdeBackend(Backend):
             "contact_mode": self.physics.contact_mode,
             "contact": {
                 "enabled": self._collide_on,
+                # dCollideSpherePlane puts the contact at the sphere's lowest point (centre - R n)
+                "poc": self.physics.contact.poc if self.reference else "true",
+                "lift": 0.0,
                 "Kp": self.physics.contact.Kp,
                 "Kd": self.physics.contact.Kd,
                 "kp_effective": self.kp,

@@ -436,6 +436,9 @@ class PybulletBackend(Backend):
             "contact_mode": self.physics.contact_mode,
             "contact": {
                 "enabled": not self.reference,
+                # Bullet applies and reports the impulse at the foot's witness point, the sphere's lowest
+                "poc": c.poc if self.reference else "true",
+                "lift": 0.0,  # measured: the statics hold there to 1e-7 N (docs/metrics.md)
                 "foot_stiffness": foot[9],
                 "foot_damping": foot[8],
                 "plane_stiffness": ground[9],

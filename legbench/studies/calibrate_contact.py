@@ -39,7 +39,7 @@ import pandas as pd
 from legbench import backends as registry
 from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
-from legbench.backends.base import rigid_contact
+from legbench.backends.base import contact_point, rigid_contact
 from legbench.contact import ContactParams
 from legbench.controllers import EffortController, saturate
 from legbench.exceptions import LegbenchError
@@ -189,7 +189,7 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     """
     R = model.load_params().geometry.R_foot
     y = R - kinematics.fk(log.q)[:, 2]
-    J = kinematics.jacobian_poc(log.q, true_poc=contact.poc == "true")
+    J = kinematics.jacobian_at(log.q, *contact_point(log.info, contact.poc))  # the slip where the force acts
     v = np.einsum("nij,nj->ni", J, log.qd)
     ydot = -v[:, 2]
     t, f = log.t, log.f

@@ -27,6 +27,7 @@ import yaml
 from legbench import backends as registry
 from legbench import kinematics
 from legbench import scenario as scenario_mod
+from legbench.backends.base import contact_point
 from legbench.run import physics_of, simulate
 
 #: Motion of the foot centre counted from this time on [s] (the first 50 ms settle the contact).
@@ -63,24 +64,26 @@ class SteadyContact:
         return float(np.linalg.norm(self.qd))
 
 
-def statics_force(q: np.ndarray, tau: np.ndarray, true_poc: bool = True) -> np.ndarray:
-    """F = -(J_poc(q)^T)^-1 (tau - G(q)) per row: the ground force on the foot in W [N] that balances
-    the joint torques tau [N m] at rest at q [rad] (N x 3 in, N x 3 out)."""
+def statics_force(q: np.ndarray, tau: np.ndarray, point: tuple[str, float] = ("true", 0.0)) -> np.ndarray:
+    """F = -(J(q)^T)^-1 (tau - G(q)) per row: the ground force on the foot in W [N] that balances
+    the joint torques tau [N m] at rest at q [rad] (N x 3 in, N x 3 out), J the Jacobian of ``point``, where
+    the force acts (``(poc, lift)``, :func:`~legbench.backends.base.contact_point`)."""
     q = np.atleast_2d(np.asarray(q, float))
     tau = np.atleast_2d(np.asarray(tau, float))
     out = np.empty_like(q)
     for k in range(len(q)):
-        J = kinematics.jacobian_poc(q[k], true_poc=true_poc)
+        J = kinematics.jacobian_at(q[k], *point)
         out[k] = -np.linalg.solve(J.T, tau[k] - kinematics.gravity(q[k]))
     return out
 
 
 def steady_contact(t: np.ndarray, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force: np.ndarray,
-                   window: float = 0.5, true_poc: bool = True) -> SteadyContact:  # fmt: skip
+                   window: float = 0.5, point: tuple[str, float] = ("true", 0.0)) -> SteadyContact:  # fmt: skip
     """Summarise a run's final ``window`` [s]; arrays as logged (t [s], q [rad], qd [rad/s], tau [N m],
-    force in W [N])."""
+    force in W [N]); the statics at ``point``, where the backend's force acts
+    (:func:`~legbench.backends.base.contact_point`)."""
     sel = t >= t[-1] - window - 1e-9
-    h = statics_force(q[sel], tau[sel], true_poc)
+    h = statics_force(q[sel], tau[sel], point)
     f = force[sel]
     # deviations from the window's first sample: numpy's mean over axis 0 of an N x 3 log sums row
     # by row, so mean and std of the raw samples carry round-off of the force's size (a bit-constant
@@ -125,7 +128,7 @@ def run_case(scenario: str | Path, backend: str, profile: str = "matched", setti
     if tr.status != "ok":
         raise RuntimeError(f"{backend} {profile} {settings}: {tr.status}: {tr.reason}")
     w = window if window is not None else sc.comparison.steady_window
-    return steady_contact(tr.t, tr.q, tr.qd, tr.tau, tr.f, w, physics.contact.poc == "true")
+    return steady_contact(tr.t, tr.q, tr.qd, tr.tau, tr.f, w, contact_point(tr.info, physics.contact.poc))
 
 
 def table(rows: Sequence[tuple[str, SteadyContact]]) -> str:

@@ -40,7 +40,7 @@ import numpy as np
 
 from legbench import backends as registry
 from legbench import report, resources, results, run, scenario, yamlfile
-from legbench.backends.base import PROFILES
+from legbench.backends.base import PROFILES, contact_point
 from legbench.exceptions import BackendNotFound, LegbenchError, ScenarioError
 from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK
 from legbench.metrics import SteadyState, pair_metrics, steady_state
@@ -256,17 +256,17 @@ def _profile(run_: Run, name: str) -> str | None:
     return info.get("profile") if isinstance(info, Mapping) else None
 
 
-def backend_poc(run_: Run, name: str) -> str:
-    """The point of contact a backend's contact law used: its info's ``contact.poc``, else the scenario's."""
+def backend_poc(run_: Run, name: str) -> tuple[str, float]:
+    """Where a backend's contact force acted, ``(poc, lift)`` (:func:`~legbench.backends.base.contact_point`): its
+    info's ``contact.poc`` and ``contact.lift``, else the scenario's poc."""
     st = run_.backends.get(name)
-    contact = ((st.info if st is not None else None) or {}).get("contact") or {}
-    poc = contact.get("poc") if isinstance(contact, Mapping) else None
-    return poc if poc in ("true", "centre") else run_.poc
+    return contact_point(st.info if st is not None else None, run_.poc)
 
 
 def steady_of(run_: Run, name: str) -> SteadyState:
     """The steady state of one backend over the scenario's window, its check at its own poc."""
-    return steady_state(run_.traces[name], run_.steady_window, backend_poc(run_, name), run_.gravity)
+    poc, lift = backend_poc(run_, name)
+    return steady_state(run_.traces[name], run_.steady_window, poc, run_.gravity, lift=lift)
 
 
 def table10(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
@@ -299,13 +299,17 @@ def table11(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
             continue
         s = steady_of(run_, n)
         comp = s.force + s.poc_compensation if s.poc_compensation is not None else np.full(3, np.nan)
-        rows.append((label, backend_poc(run_, n), *s.force.tolist(), *s.analytic_poc.tolist(), *comp.tolist()))
+        poc, lift = backend_poc(run_, n)
+        at = poc if lift == 0.0 else f"{poc}, {lift:.3g} y above"
+        rows.append((label, at, *s.force.tolist(), *s.analytic_poc.tolist(), *comp.tolist()))
     return Table(
         "table11",
         f"Table 11: steady ground force, task {run_.name}",
         f"means over the last {run_.steady_window:g} s, ground force on the foot in W [N]: measured F; the "
-        "analytic check -h with h = (J_poc^T)^-1 (tau - G(q)) at the true poc; for a backend whose law takes "
-        "the poc at the sphere centre, its F compensated to the true poc: F + (-h(J_poc)) - (-h(J_E))",
+        "analytic check -h with h = (J_poc^T)^-1 (tau - G(q)) at the true poc (raised by the fraction of the "
+        "penetration y the poc column says, where an engine's own contact acts above the lowest point); for a "
+        "backend whose law takes the poc at the sphere centre, its F compensated to the true poc: "
+        "F + (-h(J_poc)) - (-h(J_E))",
         ("backend", "poc", "Fx", "Fy", "Fn", "check Fx", "check Fy", "check Fn", "comp. Fx", "comp. Fy", "comp. Fn"),
         tuple(rows),
     )

@@ -11,7 +11,7 @@ sample (q, qd, tau, Fn):
   mu_s for a Coulomb engine, which has no other);
 * the slip acceleration: qdd = M(q)^-1 (tau - nle(q, qd) + J_poc^T F), F = (-mu Fn v_t/|v_t|, Fn),
   and a_t = (J_poc qdd + Jdot_poc qd)_t, the poc's horizontal acceleration, along the slip
-  (F applied where the backend applies it: ``contact_point_lift``; a point y/2 above the lowest
+  (F applied where the backend applies it: its info's ``contact.lift``; a point y/2 above the lowest
   point alone moves the acceleration by 4 % here);
   M and nle from the leg's model (``model.Dynamics`` on the generated URDF), the same for every
   backend.
@@ -36,7 +36,7 @@ import numpy as np
 from legbench import backends as registry
 from legbench import kinematics, resources
 from legbench import scenario as scenario_mod
-from legbench.backends.base import Backend, Physics
+from legbench.backends.base import Backend, Physics, contact_point
 from legbench.model import Dynamics, load_params
 from legbench.results import RunResult
 from legbench.run import physics_of, simulate
@@ -72,7 +72,7 @@ def predicted_acceleration(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force
     """Horizontal acceleration of the poc in W [m/s^2] (n x 2) under tau [N m] and the ground force in W [N].
 
     The force acts at ``lift`` times the penetration y above the sphere's lowest point (the
-    backend's ``contact_point_lift``; 0: the true poc).
+    backend's info's ``contact.lift``, :func:`~legbench.backends.base.contact_point`; 0: the true poc).
     """
     R = load_params().geometry.R_foot
     dyn = Dynamics()
@@ -145,7 +145,8 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     p = physics.contact
     mu = float(getattr(p, cls.sliding_coefficient))
     Ts = physics.control_dt
-    J = kinematics.jacobian_poc(tr.q, true_poc=p.poc == "true")
+    poc, lift = contact_point(tr.info, p.poc)
+    J = kinematics.jacobian_at(tr.q, poc, lift)  # the slip where the force acted
     v = np.einsum("nij,nj->ni", J, tr.qd)[:, :2]
     k = np.flatnonzero((tr.t >= window[0] - 1e-9) & (tr.t <= window[1] + 1e-9))
     k = k[(k > 0) & (k < len(tr.t) - 1)]
@@ -153,7 +154,7 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     # samples in contact only (an engine's foot may hop: the closed form is for sliding contact)
     k = k[tr.f[k, 2] > FN_MIN]
     if cls.friction_cone == "pyramid" and len(k):
-        return _score_pyramid(tr, physics, cls, mu, v, k, n_window)
+        return _score_pyramid(tr, physics, cls, mu, v, k, n_window, lift)
     k = k[np.linalg.norm(v[k], axis=1) > 0.0]
     if len(k) == 0:
         return [dict(zip(ROW_KEYS, (case, backend, "run", "", math.nan, math.nan, math.nan, 0.0, False,
@@ -168,7 +169,7 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     angle = float(np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0))).max())
     a_meas = (v[k + 1] - v[k - 1]) / (2 * Ts)
     f_pred = np.column_stack([-mu * fn[:, None] * u, fn])
-    a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, cls.contact_point_lift)
+    a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift)
     am, ap = float(np.mean(np.sum(a_meas * u, axis=1))), float(np.mean(np.sum(a_pred * u, axis=1)))
     slip = (f"slip {1e3 * speed.min():.3g}-{1e3 * speed.max():.3g} mm/s, Fn {fn.mean():.3g} N, "
             f"{len(k)} of {n_window} samples in contact")  # fmt: skip
@@ -245,13 +246,14 @@ def pyramid_friction(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, fn: np.ndar
 
 
 def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], mu: float, v: np.ndarray, k: np.ndarray,
-                   n_window: int) -> list[dict[str, Any]]:  # fmt: skip
+                   n_window: int, lift: float = 0.0) -> list[dict[str, Any]]:  # fmt: skip
     """The drag scored against the friction pyramid's closed form (:func:`pyramid_friction`): the force along
-    the drag (W y) at mu Fn, the force across it (W x) within mu Fn, the slip acceleration along W y."""
+    the drag (W y) at mu Fn, the force across it (W x) within mu Fn, the slip acceleration along W y; ``lift``:
+    where the backend's force acts (:func:`~legbench.backends.base.contact_point`)."""
     case, backend = "sliding", tr.backend
     Ts = physics.control_dt
     fn = tr.f[k, 2]
-    ft_pred, a_pred = pyramid_friction(tr.q[k], tr.qd[k], tr.tau[k], fn, mu, cls.contact_point_lift)
+    ft_pred, a_pred = pyramid_friction(tr.q[k], tr.qd[k], tr.tau[k], fn, mu, lift)
     slides = np.abs(ft_pred[:, 1]) >= mu * fn * (1.0 - 1e-12)  # the closed form's W y at its bound
     along = float(np.mean(np.abs(tr.f[k, 1]) / fn))
     across = float(np.max(np.abs(tr.f[k, 0]) / fn))
@@ -271,7 +273,7 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], mu: floa
     else:  # the closed form holds both axes: the scale is the acceleration the drag gives without friction
         free = np.column_stack([np.zeros((len(k), 2)), fn])
         scale = float(np.mean(np.abs(predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], free,
-                                                            cls.contact_point_lift)[:, 1])))  # fmt: skip
+                                                            lift)[:, 1])))  # fmt: skip
         acc_row = (case, backend, "slip acceleration along the drag (mean; pyramid)", "m/s^2", am, 0.0, abs(am),
                    TOL_ACC * scale, abs(am) <= TOL_ACC * scale,
                    f"{acc}; tolerance {100 * TOL_ACC:g} % of the frictionless acceleration")  # fmt: skip

@@ -51,10 +51,13 @@ answer computed here from the leg's reference model (:class:`legbench.model.Dyna
     step at the sample, |(J_poc^T)^-1| |tau_k - tau_{k-1}| (the central
     difference averages the step out, the contact's slow normal mode does not
     follow it within the period: 2e-4 N here, Pinocchio's whole 5e-5 N). An
-    engine's own contact adds the lever of the force's application point
-    (anywhere between the undeformed sphere's lowest point and the ground
-    surface, a band of height y): |(J_poc^T)^-1| y |F_t| (0.48 N here), plus
-    0.1 % of |F| (its contact solver). A law backend applies the force at the
+    engine's own contact is checked at the point it declares (its info's
+    ``contact.lift``: MuJoCo halfway through the penetration, Drake's discrete
+    plant by the two stiffnesses, the others the sphere's lowest point), plus
+    0.1 % of |F| (its contact solver); one that declares no point adds the lever
+    of the force's application point (anywhere between the undeformed sphere's
+    lowest point and the ground surface, a band of height y):
+    |(J_poc^T)^-1| y |F_t| (0.48 N here). A law backend applies the force at the
     point its law declares (J_poc of its ``poc``), exactly, with no contact
     solver: no lever term (a lever error of y moves F by 0.02-0.2 N, which it
     must catch) and round-off 8 eps (|F| + |(J_poc^T)^-1| (|tau| + |G|))
@@ -104,7 +107,7 @@ from scipy.optimize import linear_sum_assignment
 from legbench import backends as registry
 from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
-from legbench.backends.base import Physics, rigid_contact
+from legbench.backends.base import Physics, contact_point, rigid_contact
 from legbench.exceptions import LegbenchError
 from legbench.results import (
     atomic_write_text,
@@ -374,14 +377,17 @@ def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO) -> 
                                                                                       "static_balance")]  # fmt: skip
             continue
         law = applies_law(tr.info, physics)
-        # a law backend applies the force at the point its law declares (the scenario's unless its settings say)
-        poc = str(tr.info.get("contact", {}).get("poc", c.poc)) if law else c.poc
+        # where the force acted, as the backend declares: a law backend's law's poc (the scenario's unless its
+        # settings say), an engine's own contact point (the sphere's lowest point, or halfway through the penetration)
+        poc, lift = contact_point(tr.info, c.poc)
+        contact_info = tr.info.get("contact")
+        declared = isinstance(contact_info, Mapping) and "lift" in contact_info  # an engine's own point, known
         idx = np.flatnonzero(tr.t >= tr.t[-1] - sc.comparison.steady_window - 1e-9)
         q, qd, tau, f = tr.q[idx], tr.qd[idx], tr.tau[idx], tr.f[idx]
         tau_step = tau - tr.tau[np.maximum(idx - 1, 0)]  # the held torque's step at each sample
         qdd = np.gradient(tr.qd, tr.t, axis=0)[idx]
         y = R - kinematics.fk(q)[:, 2]
-        J = kinematics.jacobian_poc(q, true_poc=poc == "true")
+        J = kinematics.jacobian_at(q, poc, lift)
         ydot = -np.einsum("nj,nj->n", J[:, 2, :], qd)
         # rest penetration
         y_m, fn = float(y.mean()), float(f[:, 2].mean())
@@ -415,7 +421,7 @@ def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO) -> 
             norm_JTinv = np.linalg.norm(JTinv, 2)
             step[k] = norm_JTinv * np.linalg.norm(tau_step[k])
             roundoff[k] = 8 * EPS * (np.linalg.norm(f[k]) + norm_JTinv * (np.linalg.norm(tau[k]) + np.linalg.norm(G)))
-            if not law:
+            if not law and not declared:
                 lever[k] = norm_JTinv * max(y[k], 0.0) * math.hypot(f[k, 0], f[k, 1])
             elif adaptive_law:
                 # the law's slopes times the state error one step of the solver admits (scipy's RMS norm <= 1:
@@ -436,6 +442,9 @@ def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO) -> 
                 note = (f"law backend (the law's force at its known point of contact, poc {poc}): no lever term; "
                         f"{terms}, solver tolerance up to {solver.max():.2e} N, "
                         f"round-off {roundoff.max():.1e} N")  # fmt: skip
+            elif declared:
+                note = (f"engine contact at its declared point ({lift:.3g} of the penetration above the lowest point): "
+                        f"no lever term; {terms}, solver {SOLVER_RTOL:g} |F|")  # fmt: skip
             else:
                 note = f"{terms}, lever term up to {lever.max():.2e} N, solver {SOLVER_RTOL:g} |F|"
             out.append(_check("static_balance", name, variant, quantity, "N", float(f[k, j]), float(F_exp[k, j]),
