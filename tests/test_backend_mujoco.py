@@ -156,3 +156,43 @@ def test_the_force_acts_halfway_through_the_penetration_as_info_declares(tmp_pat
     (steady,) = res.steady
     np.testing.assert_array_equal(steady.residual, at_own.residual)
     assert res.residuals["mujoco"].angle_max < 1.0  # [deg]: at its own point the friction opposes the slip
+
+
+def test_the_scaled_solref_gives_kp_and_kd_on_the_pyramidal_cone_too(tmp_path: Path) -> None:
+    """The pyramid's rows share 2 mu^2 (1 + mu^2) times the elliptic normal row's regulariser, so the same solref
+    made the foot 2.74 times stiffer on it (measured 27,402 N/m for Kp 10,000); scaled back by that factor, the
+    calibration push measures the elliptic cone's stiffness and damping on the pyramid (measured k 10,001.06 against
+    10,001.00 N/m, c 94.22 against 94.27 N s/m): within 0.1 %."""
+    import yaml
+
+    from legbench.studies import calibrate_contact as cc
+
+    base = yaml.safe_load(Path(cc.SCENARIO).read_text())
+    est = {}
+    for cone, friction in (("elliptic", "deadbeat"), ("pyramidal", "contact")):
+        path = tmp_path / f"{cone}.yaml"
+        path.write_text(yaml.safe_dump({**base, "backends": {"mujoco": {"cone": cone, "friction_solref": friction,
+                                                                         "force_readout": "mean"}}}))  # fmt: skip
+        log, saturated = cc.push("mujoco", cc.Program(), path)
+        est[cone] = cc.estimate(log, cc.Program(), scenario.load(path).contact, saturated)
+    assert est["elliptic"].k_eff == pytest.approx(scenario.load(path).contact.Kp, rel=1e-3)
+    assert est["pyramidal"].k_eff == pytest.approx(est["elliptic"].k_eff, rel=1e-3)
+    assert est["pyramidal"].c_eff == pytest.approx(est["elliptic"].c_eff, rel=1e-3)
+
+
+def test_deadbeat_friction_on_the_pyramidal_cone_is_refused() -> None:
+    """MuJoCo applies solreffriction to an elliptic cone's friction rows only: on the pyramid the deadbeat
+    reference was dropped without a word (bit-identical to friction_solref: contact). The scenario loader and
+    the backend's load refuse the pair in native contact, naming the cone; reference contact (no engine contact)
+    and the pyramid with the contact's own friction reference load."""
+    from legbench.exceptions import LegbenchError, ScenarioError
+
+    sc = ROOT / "scenarios" / "effort.yaml"
+    with pytest.raises(ScenarioError, match=r"backends\.mujoco\.cone: 'pyramidal' ignores friction_solref 'deadbeat'"):
+        scenario.load(sc, {"backends.mujoco.cone": "pyramidal"})
+    physics = physics_of(scenario.load(sc), None)
+    with pytest.raises(LegbenchError, match=r"^backends\.mujoco\.cone: 'pyramidal' ignores"):
+        registry.load("mujoco", physics, {"cone": "pyramidal"})
+    for mode, settings in (("reference", {"cone": "pyramidal"}), (None, {"cone": "pyramidal", "friction_solref":
+                                                                              "contact"})):  # fmt: skip
+        registry.load("mujoco", physics_of(scenario.load(sc), mode), settings).close()

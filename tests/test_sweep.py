@@ -360,3 +360,21 @@ def test_a_grid_value_s_error_names_the_study_and_a_folder_as_scenario_is_called
     with pytest.raises(ScenarioError) as exc:
         sweep.load_sweep(f)
     assert exc.value.key == "scenario" and str(exc.value).endswith(f"is a directory, not a scenario file: {tmp_path}")
+
+
+@pytest.mark.skipif("mujoco" not in backends.available(), reason="mujoco backend not installed")
+def test_fixed_values_valid_only_together_pass_and_a_pair_that_fails_is_named(tmp_path: Path) -> None:
+    """MuJoCo's pyramidal cone runs only with the contact's own friction reference: a study's ``set`` giving both
+    was refused at its ``cone`` key, checked alone against the default deadbeat friction. The fixed values are
+    checked together; where together they fail, the one that fails alone is named, else the ``set``."""
+    study = ("name: pyr\nscenario: {s}\nstudies:\n  - label: x\n    backends: [mujoco]\n    set: {{{set}}}\n"
+             "    grid: {{backends.*.solver: [newton, cg]}}\n    reference: {{backend: mujoco}}\n")  # fmt: skip
+    scenario_file = ROOT / "scenarios" / "effort.yaml"
+    ok = _write(tmp_path, study.format(s=scenario_file, set="backends.*.cone: pyramidal, "
+                                                           "backends.*.friction_solref: contact"))  # fmt: skip
+    assert len(sweep.plan(sweep.load_sweep(ok)).tasks) == 2  # the reference is the newton run itself
+    bad = _write(tmp_path, study.format(s=scenario_file, set="backends.*.cone: pyramidal"))
+    with pytest.raises(ScenarioError) as exc:
+        sweep.load_sweep(bad)
+    assert exc.value.key == "studies[0].set.backends.*.cone"
+    assert "'pyramidal' ignores friction_solref 'deadbeat'" in exc.value.problem

@@ -275,13 +275,17 @@ def _check_values(doc: YamlContext, scenario: Path, common: Mapping[str, Any], s
         for backend in st.backends:
             base = {_fill(k, backend): v for k, v in {**common, **st.set}.items() if _applies(_fill(k, backend),
                                                                                                backend)}  # fmt: skip
-            # each fixed value on its own first, so the message names its key; then all of them together
-            checks: list[tuple[list[str | int], dict[str, Any]]] = [
-                (["studies", i, "set", key], {_fill(key, backend): v})
-                for key, v in st.set.items()
-                if _applies(_fill(key, backend), backend)
-            ]
-            checks.append((["studies", i, "set"], base))
+            # the fixed values together (a pair of settings may be valid only together: MuJoCo's pyramidal cone
+            # with the contact's friction reference); where they fail, each on its own names its key if it fails
+            try:
+                scenario_mod.load(scenario, base, origin="the study's")
+            except ScenarioError as together:
+                for key, v in st.set.items():
+                    if _applies(_fill(key, backend), backend):
+                        _check_point(doc, scenario, ["studies", i, "set", key], {_fill(key, backend): v}, backend)
+                where = f"{together.key}: " if together.key else ""
+                raise doc.error(["studies", i, "set"], f"with {backend}: {where}{together.problem}") from None
+            checks: list[tuple[list[str | int], dict[str, Any]]] = []
             ref_set = {_fill(k, backend): v for k, v in st.reference_set.items()}
             ref_set = {k: v for k, v in ref_set.items() if _applies(k, backend)}
             if ref_set:
@@ -291,11 +295,17 @@ def _check_values(doc: YamlContext, scenario: Path, common: Mapping[str, Any], s
                     if _applies(_fill(key, backend), backend):
                         checks.append((["studies", i, "grid", key], {**base, _fill(key, backend): v}))
             for path, overrides in checks:
-                try:
-                    scenario_mod.load(scenario, overrides, origin="the study's")
-                except ScenarioError as exc:
-                    where = f"{exc.key}: " if exc.key else ""
-                    raise doc.error(path, f"with {backend}: {where}{exc.problem}") from None
+                _check_point(doc, scenario, path, overrides, backend)
+
+
+def _check_point(doc: YamlContext, scenario: Path, path: list[str | int], overrides: Mapping[str, Any],
+                 backend: str) -> None:  # fmt: skip
+    """The scenario with ``overrides`` loads, else the sweep's error at ``path`` (the key that gave them)."""
+    try:
+        scenario_mod.load(scenario, overrides, origin="the study's")
+    except ScenarioError as exc:
+        where = f"{exc.key}: " if exc.key else ""
+        raise doc.error(path, f"with {backend}: {where}{exc.problem}") from None
 
 
 def _study(doc: YamlContext, i: int, d: Any) -> Study:
