@@ -371,3 +371,28 @@ def test_the_declared_contact_point_is_where_the_statics_hold(
     assert np.abs(own.residual).max() < 5e-5 * fn
     at_poc = np.abs(metrics.steady_state(tr, 0.5, "true").residual).max()
     assert (at_poc > 1e-3 * fn) == off_at_poc, at_poc
+
+
+def test_a_setting_the_solver_does_not_read_is_a_warning() -> None:
+    """SAP regularises friction itself: a stiction_tolerance given to it had no effect (measured: 1e-3 and 1e-1 m/s
+    bit-identical), and info() leaves it out, so nothing said so. warnings() names it, the solver and the contact
+    mode; the profiles' own values (engine-defaults' 1e-4 under lagged, which reads it) warn nothing."""
+    backend = load("drake", Physics(), {"stiction_tolerance": 1e-3}, "matched")
+    try:
+        assert backend.warnings() == [
+            "drake: stiction_tolerance 0.001: not read by solver 'sap' with point contact in native contact mode, "
+            "so without effect"
+        ]
+        assert "stiction_tolerance" not in backend.info()
+    finally:
+        backend.close()
+    for profile, settings in (
+        ("matched", {}),
+        ("engine-defaults", {}),
+        ("matched", {"solver": "tamsi", "stiction_tolerance": 1e-3}),
+    ):
+        backend = load("drake", Physics(), settings, profile)
+        try:
+            assert backend.warnings() == [], (profile, settings)
+        finally:
+            backend.close()

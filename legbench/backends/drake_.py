@@ -587,6 +587,18 @@ class DrakeBackend(Backend):
             return "runge_kutta3 (error-controlled)"
         return f"discrete {self.cfg['solver']} (semi-implicit Euler in free space)"
 
+    def warnings(self) -> list[str]:
+        """A setting given (it differs from the profile's) that the configured solver or contact model does not
+        read (:meth:`_unused_settings`): it had no effect, which :meth:`info` alone (it leaves such settings out)
+        did not say."""
+        base = {**self.defaults, **self.profiles.get(self.profile, {})}
+        given = sorted(k for k in self._unused_settings() if k in base and self.cfg.get(k) != base[k])
+        if not given:
+            return []
+        what = ", ".join(f"{k} {self.cfg[k]!r}" for k in given)
+        return [f"drake: {what}: not read by solver '{self.cfg['solver']}' with {self.cfg['contact_model']} "
+                f"contact in {self.physics.contact_mode} contact mode, so without effect"]  # fmt: skip
+
     # ------------------------------------------------------- declared abilities
     def integrator_family(self) -> str:
         """``adaptive`` (continuous), ``euler`` (discrete: symplectic Euler in free space, see the docs)."""
