@@ -396,3 +396,19 @@ def test_a_setting_the_solver_does_not_read_is_a_warning() -> None:
             assert backend.warnings() == [], (profile, settings)
         finally:
             backend.close()
+
+
+@pytest.mark.parametrize(("profile", "dynamic"), [("matched", "mu_s"), ("engine-defaults", "mu_k")])
+def test_info_reports_the_friction_drake_uses(profile: str, dynamic: str) -> None:
+    """The settings table showed the scenario's mu_k 0.6 beside Drake's own coulomb_friction.dynamic 0.7 in the
+    matched profile (the discrete solvers slide with the dynamic coefficient alone, which matched sets to mu_s):
+    info() now reports the pair's coefficients as Drake combines them from the geometries', read back."""
+    physics = Physics()
+    backend = load("drake", physics, {}, profile)
+    try:
+        contact = backend.info()["contact"]
+    finally:
+        backend.close()
+    assert "mu_k" not in contact and "mu_s" not in contact
+    assert contact["mu_static"] == pytest.approx(physics.contact.mu_s, rel=1e-15)
+    assert contact["mu_dynamic"] == pytest.approx(getattr(physics.contact, dynamic), rel=1e-15)

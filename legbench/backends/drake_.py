@@ -529,8 +529,9 @@ class DrakeBackend(Backend):
                 "stiction_tolerance": self.v_s if "stiction_tolerance" not in unused else None,
                 "Kp": c.Kp,
                 "Kd": c.Kd,
-                "mu_s": c.mu_s,
-                "mu_k": c.mu_k,
+                # the pair's friction as Drake combines the two geometries' (2 a b / (a + b)), read back: the
+                # discrete solvers slide with the dynamic one alone (matched sets it to mu_s)
+                **self._pair_friction(),
                 "normal_law": "linear Kelvin-Voigt Kp (x + tau_d xdot)_+"
                 if self.cfg["solver"] == "sap"
                 else "Hunt-Crossley k x (1 + d xdot)_+",
@@ -543,6 +544,16 @@ class DrakeBackend(Backend):
         if self.continuous:
             integ = self.simulator.get_integrator()
             out["target_accuracy"] = integ.get_target_accuracy()
+        return out
+
+    def _pair_friction(self) -> dict[str, float | None]:
+        """``mu_static``, ``mu_dynamic``: the foot-ground pair's Coulomb friction as Drake combines the two
+        geometries' registered coefficients, 2 a b / (a + b) (None where one is missing)."""
+        out: dict[str, float | None] = {}
+        for key, part in (("mu_static", "static"), ("mu_dynamic", "dynamic")):
+            a, b = ((self.contact_props.get(g) or {}).get("material.coulomb_friction", {}).get(part)
+                    for g in ("foot", "ground"))  # fmt: skip
+            out[key] = None if a is None or b is None else (2.0 * a * b / (a + b) if a + b > 0 else 0.0)
         return out
 
     def _lift(self) -> float:
