@@ -360,9 +360,10 @@ def _steady_table(result: ComparisonResult) -> Table:
     for row in published:  # the lab report's numbers for this task, as the scenario file gives them
         qd = [num(v) for v in row["qd_abs"]] if "qd_abs" in row else list(blank)
         force = [num(v) for v in row["force"]] if "force" in row else list(blank)
-        rows.append(
-            (str(row["source"]), "published (|qd| magnitudes)" if "qd_abs" in row else "published", *qd, *force)
-        )
+        what = "published (|qd| magnitudes)" if "qd_abs" in row else "published"
+        if row.get("note"):
+            what = f"{what}; caveat: {row['note']}"
+        rows.append((str(row["source"]), what, *qd, *force))
     return Table(
         header,
         tuple(rows),

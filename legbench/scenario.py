@@ -168,7 +168,8 @@ class Comparison:
     steady_window: float = 0.5  # [s] at the end, for steady-state means
     tolerances: Mapping[str, Any] = field(default_factory=dict, hash=False)
     #: Published steady states to show beside the backends' (the lab report's rows): each
-    #: ``{source: text, qd_abs: [3 magnitudes, rad/s]}`` and/or ``force: [fx, fy, fz in W, N]``.
+    #: ``{source: text, qd_abs: [3 magnitudes, rad/s]}`` and/or ``force: [fx, fy, fz in W, N]``, and an optional
+    #: ``note``: a caveat the report prints beside the row.
     published: tuple[Mapping[str, Any], ...] = ()
 
 
@@ -550,16 +551,21 @@ def _check_speed(ctx: YamlContext, path: list[str | int], ev: Event, q_start: tu
 
 
 def _published(ctx: YamlContext, rows: Any) -> tuple[dict[str, Any], ...]:
-    """``comparison.published``: a list of ``{source, qd_abs?, force?}`` rows, each vector of 3 numbers."""
+    """``comparison.published``: a list of ``{source, qd_abs?, force?, note?}`` rows, each vector of 3 numbers,
+    ``note`` a caveat the report prints beside the row (e.g. the source's own doubt about it)."""
     path: list[str | int] = ["comparison", "published"]
     if not isinstance(rows, list):
         raise ctx.error(path, "expected a list of {source, qd_abs, force} rows")
     out = []
     for i, row in enumerate(rows):
-        check_keys(ctx, [*path, i], row, ["source", "qd_abs", "force"], ["source"])
+        check_keys(ctx, [*path, i], row, ["source", "qd_abs", "force", "note"], ["source"])
         if not isinstance(row["source"], str):
             raise ctx.error([*path, i, "source"], "expected text naming the source")
         item: dict[str, Any] = {"source": row["source"]}
+        if "note" in row:
+            if not isinstance(row["note"], str) or not row["note"].strip():
+                raise ctx.error([*path, i, "note"], "expected text: the caveat shown beside the row")
+            item["note"] = row["note"]
         for key in ("qd_abs", "force"):
             if key in row:
                 vec = row[key]

@@ -1011,3 +1011,19 @@ def test_the_index_never_replaces_a_page_legbench_did_not_write(page: str, tmp_p
     R.write_all(root)
     R.write_all(root)
     assert R.write_index(root).markdown.read_text().startswith("# legbench: comparison summary\n")
+
+
+def test_a_published_row_shows_its_caveat(tmp_path: Path) -> None:
+    """The lab report's Gazebo row of table 10 is, by the report's own account, misreported: the caveat was only a
+    comment in the scenario file, and the page showed the row beside legbench's ODE without a word. A published
+    row's ``note`` is printed with it; a row without one is unchanged."""
+    d = write_run(tmp_path / "fake", {"ref": None, "a": scale(1.01)}, base=_still(0.5 * R.STATIC_QD))
+    meta = json.loads((d / "run.json").read_text())
+    meta["scenario"].setdefault("comparison", {})["published"] = [
+        {"source": "lab, table 10: A", "qd_abs": [1e-4, 2e-4, 3e-4]},
+        {"source": "lab, table 10: B", "qd_abs": [2.3e-5, 3.6e-3, 8.6e-3], "note": "the lab says B misreported these"},
+    ]
+    (d / "run.json").write_text(json.dumps(meta))
+    md = R.write_report(d).markdown.read_text()
+    assert "| lab, table 10: A | published (\\|qd\\| magnitudes) |" in md
+    assert "| lab, table 10: B | published (\\|qd\\| magnitudes); caveat: the lab says B misreported these |" in md

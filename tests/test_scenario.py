@@ -469,3 +469,15 @@ def test_shorten_each_says_which_scenarios_a_longer_duration_leaves_whole(caplog
     with caplog.at_level(logging.WARNING, logger="legbench"):
         assert [sc.duration for sc in scenario.shorten_each([pos, comb], 0.5)] == [0.5, 0.5]
     assert caplog.records == []
+
+
+def test_a_published_row_takes_a_caveat_as_text() -> None:
+    """``comparison.published[i].note``: text the report prints beside the row; anything else is one error naming
+    the key."""
+    row = {"source": "lab", "qd_abs": [1e-4, 2e-4, 3e-4]}
+    sc = scenario.parse({**BASE, "comparison": {"published": [{**row, "note": "misreported"}]}}, "s.yaml")
+    assert sc.comparison.published[0]["note"] == "misreported"
+    for bad in ("", 3):
+        with pytest.raises(ScenarioError) as err:
+            scenario.parse({**BASE, "comparison": {"published": [{**row, "note": bad}]}}, "s.yaml")
+        assert err.value.key == "comparison.published[0].note"
