@@ -89,6 +89,8 @@ class ComparisonResult:
         for p in self.pairs:
             for metric in ("sim_error_pct", "rms", "max_abs", "t_max_abs", "ref_peak"):
                 add(p.backend, p.reference, metric, getattr(p, metric))
+            # a component both runs hold at one constant value (a torque at its limit throughout): its 0 is the clamp's
+            add(p.backend, p.reference, "held", p.held.astype(float), np.flatnonzero(p.held).tolist())
             if p.lag is not None:
                 rows.append(_row(sc, p.backend, p.reference, "t", "-", "lag", p.lag.seconds))
                 rows.append(_row(sc, p.backend, p.reference, "t", "-", "lag_correlation", p.lag.correlation))

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -114,6 +114,8 @@ class PairMetrics:
         skip: start of the measured window [s].
         lag: the lag estimate, if one was asked for.
         lag_removed: lag taken out of the backend before measuring [s] (0 if none).
+        held: per column, True where both runs hold the same constant value at every sample from ``skip`` on
+            (a torque at its limit throughout): a deviation of 0 there is the clamp's, not the engines'.
     """
 
     backend: str
@@ -128,6 +130,7 @@ class PairMetrics:
     skip: float
     lag: LagEstimate | None = None
     lag_removed: float = 0.0
+    held: np.ndarray = field(default_factory=lambda: np.zeros(len(LABELS), bool))
 
 
 @dataclass(frozen=True, eq=False)
@@ -532,7 +535,19 @@ def pair_metrics(
         skip=skip,
         lag=est,
         lag_removed=shift,
+        held=held(rs, ds),
     )
+
+
+def held(ref: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Per column of a measured window (the reference's values ``ref`` and the deviation ``d``, (M, k)): True
+    where the reference is one constant value at every sample (no NaN) and the other run equals it at every
+    sample, as for a torque both runs hold at its limit throughout; False for an empty window."""
+    if not len(ref):
+        return np.zeros(ref.shape[1], bool)
+    with np.errstate(invalid="ignore"):
+        constant = np.all(ref == ref[0], axis=0) & np.isfinite(ref[0])
+    return constant & np.all(d == 0.0, axis=0)
 
 
 def steady_state(

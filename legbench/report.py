@@ -138,9 +138,19 @@ class IndexFiles:
 # Colours and sentences
 
 
-def sim_class(value: float, signal: str, joint: str, tolerances: Mapping[str, Any]) -> tuple[str, str]:
+#: Why a component both runs hold at one constant value is not coloured as agreement (the cell is n/a-grey).
+HELD = ("held constant and equal in both runs over the window (a torque at its limit throughout): the 0 is the "
+        "clamp's, not a measure of the engines")  # fmt: skip
+
+
+def sim_class(
+    value: float, signal: str, joint: str, tolerances: Mapping[str, Any], held: bool = False
+) -> tuple[str, str]:
     """(CSS class, why) of one simulation error % against the scenario's ceiling
-    (``comparison.tolerances.max_sim_error_pct``), else against :data:`BANDS`."""
+    (``comparison.tolerances.max_sim_error_pct``), else against :data:`BANDS`; ``held`` (the pair's ``held``
+    metric): n/a, :data:`HELD`."""
+    if held:
+        return "na", HELD
     if not math.isfinite(value):
         return "", ""
     ceiling = keyed([tolerances.get("max_sim_error_pct")], signal, joint, math.inf)
@@ -297,7 +307,7 @@ def _pair_table(result: ComparisonResult, metric: str, caption: str, unit: bool)
         tol = result.run.tolerances
         for r, p in enumerate(result.pairs):
             for i, v in enumerate(p.sim_error_pct):
-                cls, why = sim_class(float(v), SIGNAL_OF[i], LABELS[i][-1], tol)
+                cls, why = sim_class(float(v), SIGNAL_OF[i], LABELS[i][-1], tol, bool(p.held[i]))
                 if cls:
                     classes[(r, i + 2)], titles[(r, i + 2)] = cls, why
     return Table(header, rows, caption, classes=classes, titles=titles)
@@ -849,6 +859,8 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
             blocks.append(Para(f"{e.label} ({e.profile} profile, {e.mode} contact): {sentence(e.meta, e.df)}"))
             groups[len(rows)] = f"{e.profile} profile, {e.mode} contact"
             sim = e.df[e.df["metric"] == "sim_error_pct"]
+            kept = e.df[(e.df["metric"] == "held") & (e.df["value"] == 1.0)]
+            held = set(zip(kept["backend"], kept["reference"], kept["signal"], kept["joint"], strict=True))
             first = len(rows)
             for (backend, ref), g in sim.groupby(["backend", "reference"], sort=False):
                 vals = {
@@ -860,7 +872,7 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
                 for c, lab in enumerate(LABELS):
                     s, j, v = vals.get(lab, (SIGNAL_OF[c], lab[-1], math.nan))
                     cells.append(num(v, 3))
-                    cls, why = sim_class(v, s, j, e.tolerances)
+                    cls, why = sim_class(v, s, j, e.tolerances, (backend, ref, s, j) in held)
                     if cls:
                         classes[(r, 5 + c)], titles[(r, 5 + c)] = cls, why
                 rows.append((e.label, e.profile, e.mode, str(backend), str(ref), *cells))

@@ -4,6 +4,7 @@ settings, colours and sentences shown; the index grouped by task; parallel rende
 from __future__ import annotations
 
 import base64
+import html
 import json
 import math
 import re
@@ -1027,3 +1028,26 @@ def test_a_published_row_shows_its_caveat(tmp_path: Path) -> None:
     md = R.write_report(d).markdown.read_text()
     assert "| lab, table 10: A | published (\\|qd\\| magnitudes) |" in md
     assert "| lab, table 10: B | published (\\|qd\\| magnitudes); caveat: the lab says B misreported these |" in md
+
+
+def test_a_component_both_runs_hold_constant_is_not_coloured_as_agreement(tmp_path: Path) -> None:
+    """The effort task's tau1 and tau3 sit at their limits in every backend at every sample: 0 % simulation error,
+    which the pages coloured "the same to round-off", as if the engines agreed. metrics.json marks such a pair
+    component ``held`` (1) and both pages grey it with the reason; a component that only agrees is still green."""
+
+    def clamp(t: np.ndarray, data: np.ndarray) -> np.ndarray:
+        out = data.copy()
+        out[:, 6] = -7.051408  # tau1 held at its limit
+        return out
+
+    d = write_run(tmp_path / "fake", {"ref": clamp, "a": clamp, "b": lambda t, x: clamp(t, x) * 1.0})
+    res = compare(d)
+    for p in res.pairs:
+        assert p.held.tolist() == [i == 6 for i in range(12)]
+    files = R.write_report(d, res)
+    rows = res.frame()
+    held = rows[rows["metric"] == "held"]
+    assert set(zip(held["backend"], held["joint"], held["value"], strict=True)) == {("a", "1", 1.0), ("b", "1", 1.0)}
+    cell = f'<td class="na" title="{html.escape(R.HELD)}">'
+    assert files.html.read_text().count(cell) == 2  # tau1 of a and b
+    assert R.write_index(tmp_path).html.read_text().count(cell) == 2
