@@ -435,7 +435,7 @@ def _settings(info: Mapping[str, Any]) -> dict[str, str]:
 
 
 def _backend_tables(result: ComparisonResult) -> list[Block]:
-    header = ("backend", "status", "reason", "engine", "version", "wall time [s]", "RTF")
+    header = ("backend", "status", "reason", "engine", "version", "dynamics", "wall time [s]", "RTF")
     rows = []
     for b in result.run.backends.values():
         rows.append(
@@ -445,13 +445,14 @@ def _backend_tables(result: ComparisonResult) -> list[Block]:
                 b.reason or "",
                 str(b.info.get("engine", "")),
                 str(b.info.get("version", "")),
+                str(b.info.get("dynamics", "the engine's")),
                 num(b.wall_time, 3),
                 num(b.rtf, 3),
             )
         )
     for name, tr in result.traces.items():
         if name not in result.run.backends:
-            rows.append((name, "ok", "", "imported log", tr.source, "", ""))
+            rows.append((name, "ok", "", "imported log", tr.source, "", "", ""))
     blocks: list[Block] = [Table(header, tuple(rows), "Backends: status, engine and version (from run.json)")]
     per = {b.name: _settings(b.info) for b in result.run.backends.values()}
     keys = list(dict.fromkeys(k for s in per.values() for k in s))

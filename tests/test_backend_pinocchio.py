@@ -760,3 +760,17 @@ def test_the_python_kernel_declares_no_compiled_floor() -> None:
     """``kernel: python``: only ``pin.aba`` and the law called from Python (no compiled period to loop)."""
     be, tr = _floor_run("position", 0.05, {"kernel": "python"})
     assert set(be.kernels(tr.q[:-1], tr.qd[:-1], tr.tau[:-1])) == {"aba", "law"}
+
+
+@pytest.mark.parametrize(("kernel", "start"), [("compiled", "legbench's ABA compiled with numba"), ("python", "pin.aba")])
+def test_info_says_what_computes_the_dynamics(kernel: str, start: str) -> None:
+    """The backend named "pinocchio" runs legbench's own ABA, compiled with numba, on Pinocchio's model (pin.aba is
+    the Python path): info()'s ``dynamics``, which the report's backend table shows beside the engine, says which,
+    so a timing or a deviation is not credited to Pinocchio's code where it is legbench's."""
+    if kernel == "compiled" and not pinocchio_kernel.available():
+        pytest.skip("numba not installed")
+    be = registry_load("pinocchio", Physics(), {"kernel": kernel})
+    try:
+        assert be.info()["dynamics"].startswith(start)
+    finally:
+        be.close()

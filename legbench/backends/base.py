@@ -38,6 +38,8 @@ INFO_KEYS = {
     "engine": "the engine's name (text)",
     "version": "the engine's version (text)",
     "integrator": "the integrator's name as the backend's settings call it (text)",
+    "dynamics": "what computes the dynamics, where it is not the engine's own stepper alone (text): the report's "
+    "backend table shows it beside the engine, so a backend that runs legbench's code on an engine's model says so",
     "contact": "the contact as loaded: a mapping; its 'poc' ('true' or 'centre') is the point the force acts at "
     "(the law's poc where legbench applies the law; 'true' for an engine's own contact), its 'lift' (0..1, default "
     "0) raises that point by that fraction of the penetration y, where an engine's own contact acts above the "
@@ -70,6 +72,8 @@ def info_problem(info: object) -> str | None:
         kp = contact.get("Kp")
         if kp is not None and not _is_number(kp):
             return f"contact.Kp: expected a stiffness [N/m] or null (rigid contact), got {kp!r}"
+    if "dynamics" in info and not isinstance(info["dynamics"], str):
+        return f"dynamics: expected text ({INFO_KEYS['dynamics']}), got {info['dynamics']!r}"
     for key in ("max_step", "rtol", "atol"):
         if key in info and not _is_number(info[key]):
             return f"{key}: expected a number, got {info[key]!r}"

@@ -210,6 +210,7 @@ class LagrangeBackend(Backend):
         return {
             "engine": "lagrange",
             "version": f"sympy {metadata.version('sympy')}, generator {GENERATOR_VERSION}",
+            "dynamics": "legbench's Euler-Lagrange equations derived with sympy; legbench's integrator and contact law",
             **{k: self.cfg[k] for k in self.defaults if k != "kernel" or self._solve["method"] == "RK45"},
             "sub_steps": 1,
             "kernel_used": "compiled (numba)" if self._compiled else "python",
