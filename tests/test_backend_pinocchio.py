@@ -762,7 +762,9 @@ def test_the_python_kernel_declares_no_compiled_floor() -> None:
     assert set(be.kernels(tr.q[:-1], tr.qd[:-1], tr.tau[:-1])) == {"aba", "law"}
 
 
-@pytest.mark.parametrize(("kernel", "start"), [("compiled", "legbench's ABA compiled with numba"), ("python", "pin.aba")])
+@pytest.mark.parametrize(
+    ("kernel", "start"), [("compiled", "legbench's ABA compiled with numba"), ("python", "pin.aba")]
+)
 def test_info_says_what_computes_the_dynamics(kernel: str, start: str) -> None:
     """The backend named "pinocchio" runs legbench's own ABA, compiled with numba, on Pinocchio's model (pin.aba is
     the Python path): info()'s ``dynamics``, which the report's backend table shows beside the engine, says which,
