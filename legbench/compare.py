@@ -124,6 +124,8 @@ class ComparisonResult:
         backends: dict[str, Any] = {}
         for name, b in run.backends.items():
             backends[name] = {"status": b.status, "reason": b.reason, "source": "run"}
+            if b.info.get("integrator_family"):  # what the headline says of a deviation's cause
+                backends[name]["integrator_family"] = b.info["integrator_family"]
         for name in self.traces:
             if name not in run.backends:
                 backends[name] = {"status": "ok", "reason": None, "source": "log"}
