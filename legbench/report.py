@@ -244,7 +244,7 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
         )
         if tied:
             text += f"; {_names(tied)} deviate as much (within {num(TIE * 100.0)} %)"
-        text += f"; every other backend stays within {at_most(max(others))} %." if others else "."
+        text += f"; every other backend stays at or below {at_most(max(others))} %." if others else "."
     contact = value.get((b, ref, s, j, "split_contact_pct"), nan)
     integ = value.get((b, ref, s, j, "split_integration_pct"), nan)
     n_contact = [x for k, x in value.items() if k[4] == "residual_n_contact"]
@@ -531,6 +531,10 @@ def _residual_table(result: ComparisonResult) -> Table:
     )
 
 
+#: Units of the contact law's parameters in the scenario table (docs/spec.md section 4).
+_CONTACT_UNITS = {"Kp": " [N/m]", "Kd": " [N s/m]", "v_th": " [m/s]"}
+
+
 def _scenario_table(result: ComparisonResult) -> Table:
     run = result.run
     sc = run.meta.get("scenario", {})
@@ -542,9 +546,12 @@ def _scenario_table(result: ComparisonResult) -> Table:
         ("control rate [Hz]", num(sc.get("control_rate", math.nan))),
         ("contact mode", run.contact_mode),
         *(
-            (f"contact {k}", num(v) if isinstance(v, int | float) and not isinstance(v, bool) else str(v))
+            (
+                f"contact {k}{_CONTACT_UNITS.get(k, '')}",
+                num(v) if isinstance(v, int | float) and not isinstance(v, bool) else str(v),
+            )
             for k, v in contact.items()
-        ),
+        ),  # fmt: skip
         ("reference", result.reference),
         ("skip [s]", num(run.skip)),
         ("steady window [s]", num(run.steady_window)),
@@ -906,7 +913,17 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
             Table(
                 header,
                 tuple(rows),
-                f"{name}: simulation error % (backend x signal component)",
+                f"{name}: simulation error % (backend x signal component"
+                + "".join(
+                    sorted(
+                        {
+                            f"; from t = {num(float(e.meta['skip']))} s (the scenario's skip)"
+                            for e in runs
+                            if float(e.meta.get("skip") or 0.0) > 0.0
+                        }
+                    )
+                )  # fmt: skip
+                + ")",
                 links,
                 classes,
                 titles,

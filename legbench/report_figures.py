@@ -677,7 +677,7 @@ def _leg_view(result: ComparisonResult, arrays: Arrays) -> Figure | None:
     return Figure(
         "leg",
         "The leg of every backend, drawn from its logged joint angles through the forward "
-        "kinematics (frame 0, ab/ad, hip, knee, foot centre); thin lines are each foot's path, the "
+        "kinematics in W (the base point, ab/ad, hip, knee, foot centre); thin lines are each foot's path, the "
         "plane is the ground. Drag the slider or press play; drag the view to turn it."
         + (
             ""

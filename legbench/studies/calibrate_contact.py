@@ -300,8 +300,10 @@ def write_calibration(df: pd.DataFrame, out_dir: Path, program: Program = Progra
             "rows": df.to_dict(orient="records"), "versions": versions(), "platform": platform_info()}  # fmt: skip
     write_json(meta, out_dir / "calibration.json")
     notes = [f"- {r['backend']}: {r['note']}" for r in df.to_dict(orient="records") if r["note"]]
+    units = {"F1": "N", "F2": "N", "ratio": "of mu_s F2"}
+    spec = ", ".join(f"{k} {v:g} {units.get(k, 's')}" for k, v in dataclasses.asdict(program).items())
     text = ["# Contact calibration\n",
-            f"Program: {dataclasses.asdict(program)} (legbench/studies/calibrate_contact.py).\n", markdown(df),
+            f"Program (legbench/studies/calibrate_contact.py, `Program`): {spec}.\n", markdown(df),
             *notes]  # fmt: skip
     atomic_write_text(out_dir / "calibration.md", "\n".join(text) + "\n")
     return out_dir
