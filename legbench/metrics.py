@@ -541,12 +541,13 @@ def pair_metrics(
 
 def held(ref: np.ndarray, d: np.ndarray) -> np.ndarray:
     """Per column of a measured window (the reference's values ``ref`` and the deviation ``d``, (M, k)): True
-    where the reference is one constant value at every sample (no NaN) and the other run equals it at every
-    sample, as for a torque both runs hold at its limit throughout; False for an empty window."""
+    where the reference is one constant value above :data:`PEAK_FLOOR` at every sample (no NaN) and the other run
+    equals it at every sample, as for a torque both runs hold at its limit throughout; False for an empty window
+    and for a component that is 0 throughout (a ground force in free space: no percentage at all)."""
     if not len(ref):
         return np.zeros(ref.shape[1], bool)
     with np.errstate(invalid="ignore"):
-        constant = np.all(ref == ref[0], axis=0) & np.isfinite(ref[0])
+        constant = np.all(ref == ref[0], axis=0) & np.isfinite(ref[0]) & (np.abs(ref[0]) > PEAK_FLOOR)
     return constant & np.all(d == 0.0, axis=0)
 
 

@@ -685,8 +685,9 @@ def _mode_problem(name: str, given: Mapping[str, Any], profile: str, mode: str) 
     bad = cls.settings_problem(resolved, mode)
     if bad is None:
         return None
-    key, why = bad
-    return (["backends", name, key] if key in given else ["physics", "contact_mode"]), why
+    keys, why = bad
+    named = [k for k in ((keys,) if isinstance(keys, str) else keys) if k in given]
+    return (["backends", name, named[0]] if named else ["physics", "contact_mode"]), why
 
 
 def _check_combination(ctx: YamlContext, name: str, given: Mapping[str, Any], profile: str, mode: str) -> None:

@@ -375,13 +375,13 @@ def test_the_declared_contact_point_is_where_the_statics_hold(
 
 def test_a_setting_the_solver_does_not_read_is_a_warning() -> None:
     """SAP regularises friction itself: a stiction_tolerance given to it had no effect (measured: 1e-3 and 1e-1 m/s
-    bit-identical), and info() leaves it out, so nothing said so. warnings() names it, the solver and the contact
-    mode; the profiles' own values (engine-defaults' 1e-4 under lagged, which reads it) warn nothing."""
+    bit-identical), and info() leaves it out, so nothing said so. warnings() names it and the solver; the profiles'
+    own values (engine-defaults' 1e-4 under lagged, which reads it) and a reference-mode setting given for a
+    native run (a scenario run in both modes) warn nothing."""
     backend = load("drake", Physics(), {"stiction_tolerance": 1e-3}, "matched")
     try:
         assert backend.warnings() == [
-            "drake: stiction_tolerance 0.001: not read by solver 'sap' with point contact in native contact mode, "
-            "so without effect"
+            "drake: stiction_tolerance 0.001: not read by solver 'sap' with point contact, so without effect"
         ]
         assert "stiction_tolerance" not in backend.info()
     finally:
@@ -390,6 +390,7 @@ def test_a_setting_the_solver_does_not_read_is_a_warning() -> None:
         ("matched", {}),
         ("engine-defaults", {}),
         ("matched", {"solver": "tamsi", "stiction_tolerance": 1e-3}),
+        ("matched", {"reference_friction": "explicit"}),
     ):
         backend = load("drake", Physics(), settings, profile)
         try:

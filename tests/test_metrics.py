@@ -119,9 +119,10 @@ def test_signal_errors_largest_deviation_and_its_percentage_of_the_reference_pea
 
 def test_held_marks_only_a_component_both_runs_hold_at_one_value() -> None:
     """``held``: constant in the reference and equal in the other run at every sample; a constant reference the
-    other run leaves once, a varying pair that agrees exactly, a NaN reference and an empty window are not."""
-    ref = np.array([[-7.05, 1.0, 2.0, np.nan], [-7.05, 1.0, 3.0, np.nan], [-7.05, 1.0, 4.0, np.nan]])
+    other run leaves once, a varying pair that agrees exactly, a NaN reference, a component 0 throughout (a
+    ground force in free space, which has no percentage) and an empty window are not."""
+    ref = np.array([[-7.05, 1.0, 2.0, np.nan, 0.0], [-7.05, 1.0, 3.0, np.nan, 0.0], [-7.05, 1.0, 4.0, np.nan, 0.0]])
     d = np.zeros_like(ref)
     d[1, 1] = 1e-15  # the other run leaves the constant once
-    assert metrics.held(ref, d).tolist() == [True, False, False, False]
-    assert metrics.held(ref[:0], d[:0]).tolist() == [False] * 4
+    assert metrics.held(ref, d).tolist() == [True, False, False, False, False]
+    assert metrics.held(ref[:0], d[:0]).tolist() == [False] * 5

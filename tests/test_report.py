@@ -1078,7 +1078,7 @@ def test_a_higher_order_backend_s_free_space_deviation_is_put_on_the_first_order
         text = R.sentence(doc, res.frame())
         assert text.startswith("Largest difference: a's")
         assert "The foot never touches the ground" in text
-        note = "a integrates at a higher order (adaptive) than the first-order reference ref (euler), so this "
+        note = "a integrates at a higher order (adaptive) than the first-order reference ref (euler): in free space"
         assert (note in text) == (family == "adaptive"), text
 
 

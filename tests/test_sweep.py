@@ -377,4 +377,11 @@ def test_fixed_values_valid_only_together_pass_and_a_pair_that_fails_is_named(tm
     with pytest.raises(ScenarioError) as exc:
         sweep.load_sweep(bad)
     assert exc.value.key == "studies[0].set.backends.*.cone"
-    assert "'pyramidal' ignores friction_solref 'deadbeat'" in exc.value.problem
+    assert "cone 'pyramidal' ignores friction_solref 'deadbeat'" in exc.value.problem
+    # a valid pair beside a bad value: the bad value is named, not the cone (which fails alone, for another reason)
+    other = _write(tmp_path, study.format(s=scenario_file, set="backends.*.cone: pyramidal, "
+                                                              "backends.*.friction_solref: contact, "
+                                                              "backends.*.iterations: -5"))  # fmt: skip
+    with pytest.raises(ScenarioError) as exc:
+        sweep.load_sweep(other)
+    assert exc.value.key == "studies[0].set.backends.*.iterations", exc.value

@@ -274,10 +274,14 @@ class Backend(ABC):
         return {**cls.defaults, **cls.profiles[profile], **given}
 
     @classmethod
-    def settings_problem(cls, settings: Mapping[str, Any], contact_mode: str) -> tuple[str, str] | None:
+    def settings_problem(
+        cls, settings: Mapping[str, Any], contact_mode: str
+    ) -> tuple[str | tuple[str, ...], str] | None:
         """A combination of resolved ``settings`` (:meth:`resolve_settings`) that cannot run in ``contact_mode``:
-        (the setting's key, why, one phrase), or None. The one rule the scenario loader (``legbench validate``
-        and every run's load of the file) and the backend's :meth:`load` both ask."""
+        (the setting's key, or the keys of the settings that cannot go together, the first the one to name when
+        the scenario gives several; why, one phrase), or None. The one rule the scenario loader (``legbench
+        validate`` and every run's load of the file, which names the key the scenario gave) and the backend's
+        :meth:`load` both ask."""
         return None
 
     @abstractmethod

@@ -219,7 +219,9 @@ class DrakeBackend(Backend):
 
     # ----------------------------------------------------------------- load
     @classmethod
-    def settings_problem(cls, settings: Mapping[str, Any], contact_mode: str) -> tuple[str, str] | None:
+    def settings_problem(
+        cls, settings: Mapping[str, Any], contact_mode: str
+    ) -> tuple[str | tuple[str, ...], str] | None:
         """``solver: continuous`` in reference contact: the law is applied at each sub-step's start state, and the
         continuous plant has no sub-steps (it ran with a step of 0: every AdvanceTo(0) left the leg where it
         started)."""
@@ -529,8 +531,8 @@ class DrakeBackend(Backend):
                 "stiction_tolerance": self.v_s if "stiction_tolerance" not in unused else None,
                 "Kp": c.Kp,
                 "Kd": c.Kd,
-                # the pair's friction as Drake combines the two geometries' (2 a b / (a + b)), read back: the
-                # discrete solvers slide with the dynamic one alone (matched sets it to mu_s)
+                # the pair's friction, read back from the scene graph and combined as Drake does: the discrete
+                # solvers slide with the dynamic one alone (matched sets it to mu_s)
                 **self._pair_friction(),
                 "normal_law": "linear Kelvin-Voigt Kp (x + tau_d xdot)_+"
                 if self.cfg["solver"] == "sap"
@@ -547,13 +549,20 @@ class DrakeBackend(Backend):
         return out
 
     def _pair_friction(self) -> dict[str, float | None]:
-        """``mu_static``, ``mu_dynamic``: the foot-ground pair's Coulomb friction as Drake combines the two
-        geometries' registered coefficients, 2 a b / (a + b) (None where one is missing)."""
-        out: dict[str, float | None] = {}
-        for key, part in (("mu_static", "static"), ("mu_dynamic", "dynamic")):
-            a, b = ((self.contact_props.get(g) or {}).get("material.coulomb_friction", {}).get(part)
-                    for g in ("foot", "ground"))  # fmt: skip
-            out[key] = None if a is None or b is None else (2.0 * a * b / (a + b) if a + b > 0 else 0.0)
+        """``mu_static``, ``mu_dynamic``: the foot-ground pair's Coulomb friction, the two geometries' coefficients
+        as the scene graph holds them, combined as Drake combines them, 2 a b / (a + b) (None where one has none)."""
+        sg = self.scene_graph
+        inspector = sg.get_query_output_port().Eval(sg.GetMyContextFromRoot(self.root)).inspector()
+        pair = []
+        for g in (min(self.foot_geoms), self.ground):
+            props = inspector.GetProximityProperties(g)
+            has = props is not None and props.HasProperty("material", "coulomb_friction")
+            pair.append(props.GetProperty("material", "coulomb_friction") if has else None)
+        out: dict[str, float | None] = {"mu_static": None, "mu_dynamic": None}
+        if pair[0] is not None and pair[1] is not None:
+            for key, part in (("mu_static", "static_friction"), ("mu_dynamic", "dynamic_friction")):
+                a, b = (float(getattr(f, part)()) for f in pair)
+                out[key] = 2.0 * a * b / (a + b) if a + b > 0 else 0.0
         return out
 
     def _lift(self) -> float:
@@ -603,12 +612,14 @@ class DrakeBackend(Backend):
         read (:meth:`_unused_settings`): it had no effect, which :meth:`info` alone (it leaves such settings out)
         did not say."""
         base = {**self.defaults, **self.profiles.get(self.profile, {})}
-        given = sorted(k for k in self._unused_settings() if k in base and self.cfg.get(k) != base[k])
+        # reference_friction is the contact mode's business (a scenario run in both modes gives it for one)
+        unused = self._unused_settings() - {"reference_friction"}
+        given = sorted(k for k in unused if k in base and self.cfg.get(k) != base[k])
         if not given:
             return []
         what = ", ".join(f"{k} {self.cfg[k]!r}" for k in given)
         return [f"drake: {what}: not read by solver '{self.cfg['solver']}' with {self.cfg['contact_model']} "
-                f"contact in {self.physics.contact_mode} contact mode, so without effect"]  # fmt: skip
+                "contact, so without effect"]  # fmt: skip
 
     # ------------------------------------------------------- declared abilities
     def integrator_family(self) -> str:

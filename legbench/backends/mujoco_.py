@@ -20,8 +20,8 @@ other geom collides). Profiles (docs/contact_mapping.md has the study):
   makes the normal force ``Kp pen + Kd pen_rate`` in newtons, where
   ``A = body_invweight0[foot, 0]`` is the inverse inertia MuJoCo uses for the
   contact's regulariser (frozen at qpos0); on the pyramidal cone, whose rows
-  share 2 mu^2 (1 + mu^2) times that regulariser, the solref is scaled by that
-  factor over 2 as well, so the law is the same on either cone. Friction: elliptic cone with
+  share 2 (mu^2 / impratio) (1 + mu^2) times that regulariser, the solref is
+  scaled by that factor over 2 as well, so the law is the same on either cone. Friction: elliptic cone with
   ``mu_s`` (condim 3), the noslip post-pass (``noslip``, 10 iterations) and
   "deadbeat" friction rows, ``solreffriction = (-1, -dmax / h)``: the friction
   rows' reference acceleration -v_t / h asks the unregularised noslip pass to
@@ -205,7 +205,9 @@ class MujocoBackend(Backend):
     }
 
     @classmethod
-    def settings_problem(cls, settings: Mapping[str, Any], contact_mode: str) -> tuple[str, str] | None:
+    def settings_problem(
+        cls, settings: Mapping[str, Any], contact_mode: str
+    ) -> tuple[str | tuple[str, ...], str] | None:
         """``cone: pyramidal`` with ``friction_solref: deadbeat`` in native contact: MuJoCo applies a pair's
         ``solreffriction`` to an elliptic cone's friction rows only (a pyramid's rows, each mixing the normal and a
         friction direction, take the contact's ``solref``), so the deadbeat reference was silently dropped (the
@@ -215,9 +217,10 @@ class MujocoBackend(Backend):
             and settings.get("cone") == "pyramidal"
             and settings.get("friction_solref") == "deadbeat"
         ):
-            return "cone", ("'pyramidal' ignores friction_solref 'deadbeat' (MuJoCo applies solreffriction to an "
-                            "elliptic cone's friction rows only); set friction_solref: contact with it, or keep the "
-                            "elliptic cone")  # fmt: skip
+            return ("cone", "friction_solref"), (
+                "cone 'pyramidal' ignores friction_solref 'deadbeat' (MuJoCo applies solreffriction to an elliptic "
+                "cone's friction rows only); set friction_solref: contact with it, or keep the elliptic cone"
+            )
         return None
 
     # ----------------------------------------------------------------- load
@@ -238,7 +241,8 @@ class MujocoBackend(Backend):
             raise LegbenchError(f"mujoco: unknown integrator '{cfg['integrator']}'; choose one of {list(_INTEGRATORS)}")
         bad = self.settings_problem(cfg, physics.contact_mode)
         if bad is not None:
-            raise LegbenchError(f"backends.mujoco.{bad[0]}: {bad[1]}")
+            key = bad[0] if isinstance(bad[0], str) else bad[0][0]
+            raise LegbenchError(f"backends.mujoco.{key}: {bad[1]}")
         n_sub = sub_step_count(self.name, cfg["dt"], physics.control_dt)
         self.cfg, self.physics, self.n_sub = cfg, physics, n_sub
         self.reference = physics.contact_mode == "reference"
@@ -297,10 +301,11 @@ class MujocoBackend(Backend):
         self.A = float(m.body_invweight0[self.foot_body, 0])
         scale = self.A if cfg["contact_solref"] == "scaled" else 1.0
         if cfg["contact_solref"] == "scaled" and cfg["cone"] == "pyramidal":
-            # the pyramid's rows share R = 2 mu^2 (1 + mu^2) times the elliptic normal row's regulariser, so the
-            # same solref gives 2 / (mu^2 (1 + mu^2)) times the stiffness and damping (2.74 at mu 0.7): scaled
-            # back, Fn = Kp y + Kd ydot in newtons on either cone (docs/contact_mapping.md)
-            scale *= 0.5 * c.mu_s**2 * (1.0 + c.mu_s**2)
+            # the pyramid's rows share R = 2 mu_r^2 (1 + mu^2) times the elliptic normal row's regulariser, mu_r^2
+            # = mu^2 / impratio the regularised cone's (engine_core_constraint.c: Rpy = 2 mu_r^2 R, R from the
+            # edge rows' diagA, (1 + mu^2) A), so the same solref gives 2 / (mu_r^2 (1 + mu^2)) times the stiffness
+            # and damping (2.74 at mu 0.7, impratio 1): scaled back, Fn = Kp y + Kd ydot in newtons on either cone
+            scale *= 0.5 * c.mu_s**2 * (1.0 + c.mu_s**2) / float(cfg["impratio"])
         solimp = _SOLIMPS[cfg["contact_solimp"]]
         if cfg["friction_solref"] == "deadbeat":
             # friction rows' reference acceleration aref = -B v_t with B = -solreffriction[1] / dmax:

@@ -289,7 +289,8 @@ def table10(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
 
 
 def table11(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
-    """Steady ground force, the analytic check h at the true poc, and the centre-poc compensated force."""
+    """Steady ground force, the analytic check h at the point each backend's force acts (the true poc, raised by
+    its declared ``contact.lift``), and the centre-poc compensated force."""
     rows: list[tuple[Any, ...]] = []
     for n in names:
         label = plan.label(n, _profile(run_, n))

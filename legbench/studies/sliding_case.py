@@ -69,26 +69,29 @@ def _scenario(duration: float = WINDOW[1] + 0.01, overrides: Mapping[str, Any] |
 
 def predicted_acceleration(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force: np.ndarray,
                            lift: float = 0.0) -> np.ndarray:  # fmt: skip
-    """Horizontal acceleration of the poc in W [m/s^2] (n x 2) under tau [N m] and the ground force in W [N].
-
-    The force acts at ``lift`` times the penetration y above the sphere's lowest point (the
-    backend's info's ``contact.lift``, :func:`~legbench.backends.base.contact_point`; 0: the true poc).
+    """Horizontal acceleration in W [m/s^2] (n x 2), under tau [N m] and the ground force in W [N], of the shank's
+    point where the force acts: ``lift`` times the penetration y above the sphere's lowest point (the backend's
+    info's ``contact.lift``, :func:`~legbench.backends.base.contact_point`; 0: the true poc), the point whose slip
+    the sliding case measures. Its acceleration is J qdd + Jdot qd with the material point (its depth d below E)
+    held: Jdot qd by a difference of J at q + eps qd and the same d.
     """
     R = load_params().geometry.R_foot
     dyn = Dynamics()
     out = np.empty((len(q), 2))
     eps = 1e-7
     zero = np.zeros(3)
+
+    def jacobian(qk: np.ndarray, d: float) -> np.ndarray:  # E plus omega x r, r = -d z_W
+        r_cross = np.array([[0.0, d, 0.0], [-d, 0.0, 0.0], [0.0, 0.0, 0.0]])
+        return kinematics.jacobian(qk) - r_cross @ kinematics.angular_jacobian(qk)  # type: ignore[no-any-return]
+
     for k in range(len(q)):
         M = dyn.mass_matrix(q[k])
         nle = dyn.inverse_dynamics(q[k], qd[k], zero)
-        J = kinematics.jacobian_poc(q[k])
-        # the application point's Jacobian: E plus omega x r, r = -(R - lift y) z_W
-        d = R - lift * (R - float(kinematics.fk(q[k])[2]))
-        r_cross = np.array([[0.0, d, 0.0], [-d, 0.0, 0.0], [0.0, 0.0, 0.0]])
-        J_app = kinematics.jacobian(q[k]) - r_cross @ kinematics.angular_jacobian(q[k])
-        qdd = np.linalg.solve(M, tau[k] - nle + J_app.T @ force[k])
-        Jdot_qd = (kinematics.jacobian_poc(q[k] + eps * qd[k]) - J) / eps @ qd[k]
+        d = R - lift * max(R - float(kinematics.fk(q[k])[2]), 0.0)
+        J = jacobian(q[k], d)
+        qdd = np.linalg.solve(M, tau[k] - nle + J.T @ force[k])
+        Jdot_qd = (jacobian(q[k] + eps * qd[k], d) - J) / eps @ qd[k]
         out[k] = (J @ qdd + Jdot_qd)[:2]
     return out
 

@@ -276,13 +276,20 @@ def _check_values(doc: YamlContext, scenario: Path, common: Mapping[str, Any], s
             base = {_fill(k, backend): v for k, v in {**common, **st.set}.items() if _applies(_fill(k, backend),
                                                                                                backend)}  # fmt: skip
             # the fixed values together (a pair of settings may be valid only together: MuJoCo's pyramidal cone
-            # with the contact's friction reference); where they fail, each on its own names its key if it fails
+            # with the contact's friction reference); where they fail, the one value that fails alone with the same
+            # problem is named (not one that fails alone only against the defaults the others replace)
             try:
                 scenario_mod.load(scenario, base, origin="the study's")
             except ScenarioError as together:
                 for key, v in st.set.items():
-                    if _applies(_fill(key, backend), backend):
-                        _check_point(doc, scenario, ["studies", i, "set", key], {_fill(key, backend): v}, backend)
+                    if not _applies(_fill(key, backend), backend):
+                        continue
+                    try:
+                        scenario_mod.load(scenario, {_fill(key, backend): v}, origin="the study's")
+                    except ScenarioError as alone:
+                        if (alone.key, alone.problem) == (together.key, together.problem):
+                            raise doc.error(["studies", i, "set", key], f"with {backend}: {alone.key}: "
+                                                                        f"{alone.problem}") from None  # fmt: skip
                 where = f"{together.key}: " if together.key else ""
                 raise doc.error(["studies", i, "set"], f"with {backend}: {where}{together.problem}") from None
             checks: list[tuple[list[str | int], dict[str, Any]]] = []
