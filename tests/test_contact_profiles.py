@@ -94,10 +94,13 @@ def test_mujoco_matched_holds_the_foot() -> None:
 @pytest.mark.parametrize("profile", PROFILES)
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_readout_matches_the_legs_statics(backend: str, profile: str) -> None:
-    """|F_reported - h| <= 0.5 % of Fn over the effort task's final 0.5 s, h = -(J_poc^T)^-1 (tau - G)."""
+    """|F_reported - h| <= 0.02 % of Fn over the effort task's final 0.5 s, h = -(J^T)^-1 (tau - G) with J at the
+    point where the backend's force acts (its info's contact.lift: MuJoCo's y/2 above the lowest point). Measured
+    27 Nov: 4e-16 (MuJoCo matched) to 9.7e-5 (MuJoCo's engine defaults, whose regularised cone lets the foot walk);
+    at the true poc MuJoCo was 0.2 % off, which the former 0.5 % let pass."""
     _need(backend)
     s = _run("effort", backend, profile)
-    assert s.readout_error <= 0.005, (s.force, s.statics)
+    assert s.readout_error <= 2e-4, (s.force, s.statics)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
