@@ -413,3 +413,15 @@ def test_info_reports_the_friction_drake_uses(profile: str, dynamic: str) -> Non
     assert "mu_k" not in contact and "mu_s" not in contact
     assert contact["mu_static"] == pytest.approx(physics.contact.mu_s, rel=1e-15)
     assert contact["mu_dynamic"] == pytest.approx(getattr(physics.contact, dynamic), rel=1e-15)
+
+
+def test_reference_contact_reports_no_engine_friction_and_no_lift() -> None:
+    """Reference contact registers no ground (legbench applies the law): info() has no engine friction pair to
+    read back (None: the law's mu_s, mu_k apply) and the law's poc, lift 0. It failed there with a TypeError,
+    which failed every reference-mode Drake run."""
+    backend = load("drake", Physics(contact_mode="reference"), {}, "matched")
+    try:
+        contact = backend.info()["contact"]
+    finally:
+        backend.close()
+    assert (contact["mu_static"], contact["mu_dynamic"], contact["poc"], contact["lift"]) == (None, None, "true", 0.0)

@@ -550,7 +550,10 @@ class DrakeBackend(Backend):
 
     def _pair_friction(self) -> dict[str, float | None]:
         """``mu_static``, ``mu_dynamic``: the foot-ground pair's Coulomb friction, the two geometries' coefficients
-        as the scene graph holds them, combined as Drake combines them, 2 a b / (a + b) (None where one has none)."""
+        as the scene graph holds them, combined as Drake combines them, 2 a b / (a + b) (None where one has none, and
+        in reference contact, which registers no ground: the law's mu_s and mu_k apply)."""
+        if self.ground is None or not self.foot_geoms:
+            return {"mu_static": None, "mu_dynamic": None}
         sg = self.scene_graph
         inspector = sg.get_query_output_port().Eval(sg.GetMyContextFromRoot(self.root)).inspector()
         pair = []
