@@ -281,15 +281,18 @@ def align(
     before interpolating (default: :func:`wrap_mask`).
 
     Returns:
-        (t, x_a, x_ref): grid (M,) [s] and the two (M, 12) data blocks.
+        (t, x_a, x_ref): grid (M,) [s] and the two (M, 12) data blocks; the reference's ``wrap`` columns
+        unwrapped too, so its peak (the percentages' denominator) is the same for a wrapped and an unwrapped log.
 
     Raises:
         ResultsError: the two spans do not overlap by two reference ticks.
     """
     ta = a.t - shift
     grid = _common_grid(ref.t, ta, source=a.source or a.backend)
-    xr = ref.data if len(grid) == len(ref.t) else ref.data[np.searchsorted(ref.t, grid[0] - T_EPS) :][: len(grid)]
-    return grid, _resample(ta, a.data, grid, wrap_mask() if wrap is None else wrap), xr
+    w = wrap_mask() if wrap is None else np.asarray(wrap, dtype=bool)
+    xr = _unwrap_columns(ref.data, w)
+    xr = xr if len(grid) == len(ref.t) else xr[np.searchsorted(ref.t, grid[0] - T_EPS) :][: len(grid)]
+    return grid, _resample(ta, a.data, grid, w), xr
 
 
 def _uniform_pair(a: RunResult, ref: RunResult, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -473,8 +476,9 @@ def signal_errors(a: RunResult, ref: RunResult, signal: str, skip: float = 0.0) 
     keep = t >= skip - T_EPS
     if n == 0 or not np.array_equal(a.t[:n], t) or not keep.any():
         return np.full(3, np.nan), np.full(3, np.nan)
-    xa, xr = a.signal(signal)[:n][keep], ref.signal(signal)[:n][keep]
-    d = max_abs(deviation(xa, xr, wrapped(signal)))
+    xa, xr = a.signal(signal)[:n], ref.signal(signal)[:n]
+    xr = _unwrap_columns(xr, wrapped(signal))[keep]  # the peak of a wrapped log's hip is the unwrapped one's
+    d = max_abs(deviation(xa[keep], xr, wrapped(signal)))
     return d, peak_pct(d, max_abs(xr))
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -126,3 +128,20 @@ def test_held_marks_only_a_component_both_runs_hold_at_one_value() -> None:
     d[1, 1] = 1e-15  # the other run leaves the constant once
     assert metrics.held(ref, d).tolist() == [True, False, False, False, False]
     assert metrics.held(ref[:0], d[:0]).tolist() == [False] * 5
+
+
+def test_a_wrapped_reference_hip_has_the_unwrapped_peak() -> None:
+    """The hip swings 1.8..3.4 rad (through pi): its deviations are taken on the circle, but the percentage's
+    denominator, max |x_ref|, was taken on the raw reference, 3.4 unwrapped against 3.14 wrapped (0.0294 against
+    0.0318 % for the same 1e-3 rad). The reference's hip is unwrapped before its peak in pair_metrics and
+    signal_errors: the figures of a wrapped and an unwrapped reference log are equal."""
+    t = np.arange(0.0, 2.0 + 1e-12, 1e-3)
+    a = _hip_trace("a", t, 0.0, wrap=False)
+    a = dataclasses.replace(a, q=a.q + np.array([0.0, 1e-3, 0.0]))
+    plain, wrapped = (metrics.pair_metrics(a, _hip_trace("ref", t, 0.0, wrap=w)) for w in (False, True))
+    assert plain.ref_peak[I_Q2] == pytest.approx(3.4, rel=1e-6)
+    assert wrapped.ref_peak[I_Q2] == plain.ref_peak[I_Q2]
+    assert wrapped.sim_error_pct[I_Q2] == pytest.approx(plain.sim_error_pct[I_Q2], rel=1e-12)
+    for w in (False, True):
+        d, pct = metrics.signal_errors(a, _hip_trace("ref", t, 0.0, wrap=w), "q")
+        assert pct[1] == pytest.approx(plain.sim_error_pct[I_Q2], rel=1e-12)
