@@ -349,6 +349,17 @@ def test_an_edited_derivation_or_another_sympy_derives_again(tmp_path: Path, mon
     assert oct(again.path.stat().st_mode & 0o777) == "0o644"  # readable by others sharing the cache (mkstemp: 600)
 
 
+@pytest.mark.parametrize("mass", [math.pi, math.pi / 2])
+def test_a_number_equal_to_a_multiple_of_pi_over_2_is_a_number(tmp_path: Path, mass: float) -> None:
+    """Only DH twists and offsets are taken as exact multiples of pi/2: a mass of exactly pi [kg] became sympy's
+    pi, printed as ``pi`` into a module that imports only cos, sin and sqrt, and its first call raised NameError
+    (and the cache kept the file, as it imports). Now it is the number: G = m lc cos q per unit g."""
+    chain = E.Chain(VERTICAL_PLANE, (_planar_link(0.0, mass, 0.2, 1e-3),))
+    eom = E.load_eom(chain, tmp_path).module
+    assert eom.gravity(0.3)[0] == pytest.approx(mass * 0.2 * math.cos(0.3), rel=1e-15)
+    assert eom.mass_matrix(0.3)[0] == pytest.approx(1e-3 + mass * 0.2**2, rel=1e-15)
+
+
 def test_a_corrupt_cache_file_is_derived_again(tmp_path: Path) -> None:
     """A cache file that does not import is replaced by a fresh derivation (a numeric pendulum: fast)."""
     chain = E.Chain(VERTICAL_PLANE, (_planar_link(0.0, 0.5, 0.2, 1e-3),))

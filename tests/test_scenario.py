@@ -481,3 +481,18 @@ def test_a_published_row_takes_a_caveat_as_text() -> None:
         with pytest.raises(ScenarioError) as err:
             scenario.parse({**BASE, "comparison": {"published": [{**row, "note": bad}]}}, "s.yaml")
         assert err.value.key == "comparison.published[0].note"
+
+
+@pytest.mark.parametrize("backend", ["lagrange", "pinocchio"])
+def test_an_rtol_below_scipy_s_floor_is_refused(backend: str) -> None:
+    """scipy's RK45 raises an rtol below 100 eps (2.2e-14) to it, with a warning; the compiled Dormand-Prince took
+    it as given, so at 1e-15 it made 20 right-hand-side calls where scipy made 14, no longer "scipy's RK45, step
+    for step". Such an rtol is refused at load, naming the key; the floor itself passes."""
+    if backend not in backends.available():
+        pytest.skip(f"{backend} not installed")
+    from legbench.backends.dopri import RTOL_MIN
+
+    with pytest.raises(ScenarioError) as err:
+        scenario.load(SCENARIOS / "effort.yaml", {f"backends.{backend}.rtol": 1e-15})
+    assert err.value.key == f"backends.{backend}.rtol" and "must be >= 2.22045e-14" in err.value.problem
+    assert scenario.load(SCENARIOS / "effort.yaml", {f"backends.{backend}.rtol": RTOL_MIN}).backends[backend]

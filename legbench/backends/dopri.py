@@ -24,6 +24,10 @@ import numpy as np
 
 from legbench import jit
 
+#: The smallest relative tolerance [1] scipy's RK45 and DOP853 take (``validate_tol`` raises a smaller one to it,
+#: with a warning): the backends that solve adaptively refuse less, so that "scipy's RK45, step for step" holds.
+RTOL_MIN = 100 * float(np.finfo(float).eps)
+
 __all__ = ["bind", "rms", "stepper"]
 
 # Dormand-Prince 5(4), the tableau of scipy.integrate.RK45 (and of MATLAB's ode45); b2 = e2 = 0.

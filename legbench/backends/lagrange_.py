@@ -39,8 +39,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from legbench.backends import joint_limits, lagrange_kernel
-from legbench.backends.base import Backend, Limits, Physics
+from legbench.backends import dopri, joint_limits, lagrange_kernel
+from legbench.backends.base import Backend, Limits, Physics, Range
 from legbench.backends.joint_limits import JointLimitLaw
 from legbench.backends.lagrange_eom import GENERATOR_VERSION, Loaded, leg_chain, load_eom
 from legbench.contact import ReferenceContact
@@ -62,6 +62,8 @@ class LagrangeBackend(Backend):
     (compiled; solve_ivp for dop853)."""
 
     name: ClassVar[str] = "lagrange"
+    #: rtol at or above scipy's floor (:data:`~legbench.backends.dopri.RTOL_MIN`, 2.2e-14): below it scipy raises it.
+    ranges: ClassVar[Mapping[str, Range]] = {"rtol": Range(low=dopri.RTOL_MIN)}
     defaults: ClassVar[Mapping[str, Any]] = {
         "integrator": "rk45",  # scipy's RK45 algorithm, compiled (or "dop853": solve_ivp), one solve per period
         "rtol": 1.0e-8,  # assumed (the report's custom simulation gives only its max step)

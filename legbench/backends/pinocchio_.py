@@ -56,8 +56,8 @@ from typing import Any, ClassVar
 import numpy as np
 import pinocchio as pin
 
-from legbench.backends import joint_limits, pinocchio_kernel
-from legbench.backends.base import Backend, Limits, Physics, sub_step_count
+from legbench.backends import dopri, joint_limits, pinocchio_kernel
+from legbench.backends.base import Backend, Limits, Physics, Range, sub_step_count
 from legbench.backends.joint_limits import JointLimitLaw
 from legbench.contact import (
     EULER_FRICTION_STABILITY,
@@ -74,6 +74,8 @@ class PinocchioBackend(Backend):
     """Pinocchio ABA + the analytic contact law, integrated by legbench."""
 
     name: ClassVar[str] = "pinocchio"
+    #: rtol at or above scipy's floor (:data:`~legbench.backends.dopri.RTOL_MIN`, 2.2e-14): below it scipy raises it.
+    ranges: ClassVar[Mapping[str, Range]] = {"rtol": Range(low=dopri.RTOL_MIN)}
     defaults: ClassVar[Mapping[str, Any]] = {
         "dt": 5.0e-5,  # sub-step [s]; docs/pinocchio.md: convergence check
         "integrator": "euler",
