@@ -113,6 +113,16 @@ studies:
     ("text", "key", "problem"),
     [
         (GOOD + "foo: 1\n", "foo", "unknown key"),
+        # a fit over dt in a study that also sweeps the integrator: one slope over Euler's and RK4's points (-1.22)
+        (
+            GOOD.replace(
+                "grid: {backends.*.dt: [1.0e-3, 5.0e-4]}",
+                "grid: {backends.*.dt: [1.0e-3, 5.0e-4], backends.*.integrator: [euler, rk4]}",
+            )
+            + "fit: {x: dt}\n",
+            "studies[0].grid",
+            "would mix their lines",
+        ),  # fmt: skip
         (GOOD.replace("name: t", "name: a/b"), "name", "plain name"),
         (GOOD + "signals: [q, bogus]\n", "signals[1]", "unknown signal"),
         (GOOD + "metric: zz_max\n", "metric", "unknown metric"),

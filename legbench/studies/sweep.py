@@ -252,6 +252,13 @@ def load_sweep(path: str | Path) -> Sweep:
     studies = tuple(_study(doc, i, s) for i, s in enumerate(studies_raw))
     if fit is not None and not any(_column(k) == fit.x for st in studies for k in st.grid):
         raise doc.error(["fit", "x"], f"no study sweeps a column named {fit.x!r}")
+    for i, st in enumerate(studies):  # one slope per study and backend: over one swept key, or it mixes lines
+        others = [k for k in st.grid if _column(k) != fit.x] if fit is not None else []
+        if fit is not None and others and len(others) < len(st.grid):
+            raise doc.error(["studies", i, "grid"], f"the fit over {fit.x!r} takes one slope per study and backend, "
+                                                    f"but this study also sweeps {', '.join(others)}: that slope "
+                                                    "would mix their lines; give each value its own study (as "
+                                                    "scenarios/sweeps/timestep.yaml does per integrator)")  # fmt: skip
     _check_values(doc, scenario, common, studies)
     duration = float(common.get("duration", base_scenario.duration))  # the runs' (the sweep's own set may change it)
     if skip >= duration:  # every error metric would be undefined (NaN), and the sweep would still pass
