@@ -84,6 +84,7 @@ class LagEstimate:
         dt: grid spacing of the correlation [s].
         correlation: normalised cross-correlation at the peak, in [-1, 1].
         signals: the signals correlated.
+        note: why no lag was identified (seconds and samples NaN) or why it was not removed; "" otherwise.
     """
 
     seconds: float
@@ -91,6 +92,7 @@ class LagEstimate:
     dt: float
     correlation: float
     signals: tuple[str, ...]
+    note: str = ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -324,6 +326,21 @@ def _unwrap_columns(x: np.ndarray, wrap: np.ndarray) -> np.ndarray:
     return out
 
 
+def _moving(x: np.ndarray, signals: Sequence[str]) -> np.ndarray:
+    """Per column of ``x`` (the components of ``signals``, in order): True where it moves, its span above 0 and
+    above 1e-9 of the largest span of its signal's components (round-off on a joint at rest does not)."""
+    with np.errstate(invalid="ignore"):
+        span = np.ptp(x, axis=0) if len(x) else np.zeros(x.shape[1])
+    out = np.zeros(len(span), dtype=bool)
+    start = 0
+    for s in signals:
+        n = SLICE[s].stop - SLICE[s].start
+        part = span[start : start + n]
+        out[start : start + n] = (part > 0) & (part > 1e-9 * np.nanmax(np.append(part, 0.0)))
+        start += n
+    return out
+
+
 def estimate_lag(
     a: RunResult, ref: RunResult, max_lag: float = 0.1, signals: Sequence[str] = ("q",), skip: float = 0.0
 ) -> LagEstimate:
@@ -338,7 +355,12 @@ def estimate_lag(
     per-column correlations are averaged, the best k is refined to a sub-sample
     by a parabola through the peak and its neighbours. Sums over the overlap come
     from prefix sums and one FFT per column, so the cost is O(M log M).
-    Constant or missing columns are left out.
+    Constant or missing columns are left out, and so is a component that moves
+    less than 1e-9 of its signal's largest (round-off on a joint at rest, whose
+    correlation is noise). No lag is identified (NaN, with a
+    note) where the peak is at the search limit or the correlation is flat over
+    the window (the peak within 1e-3 of both ends: slow ramps or creep correlate
+    at any lag).
 
     Args:
         a: the trace that may lag.
@@ -348,7 +370,7 @@ def estimate_lag(
         skip: samples before this time are left out [s], as the deviation metrics leave them out.
 
     Returns:
-        The lag; 0 with correlation NaN when no column varies.
+        The lag; 0 with correlation NaN when no column varies; NaN with a note when none is identified.
     """
     cols = np.concatenate([np.arange(len(LABELS))[SLICE[s]] for s in signals])
     grid, xa, xr = _uniform_pair(a, ref, cols)
@@ -358,9 +380,9 @@ def estimate_lag(
         grid, xa, xr = grid[sel], xa[sel], xr[sel]
         if len(grid) < 3:  # nothing left to correlate after skip
             return LagEstimate(0.0, 0.0, dt, math.nan, tuple(signals))
-    keep = (
-        np.isfinite(xa).all(axis=0) & np.isfinite(xr).all(axis=0) & (np.ptp(xa, axis=0) > 0) & (np.ptp(xr, axis=0) > 0)
-    )
+    # a component that moves less than 1e-9 of its signal's largest (round-off on a joint at rest) is noise whose
+    # correlation would weigh as much as a swinging joint's
+    keep = np.isfinite(xa).all(axis=0) & np.isfinite(xr).all(axis=0) & _moving(xr, signals) & _moving(xa, signals)
     if not keep.any():
         return LagEstimate(0.0, 0.0, dt, math.nan, tuple(signals))
     x = xa[:, keep] - xa[:, keep].mean(axis=0)
@@ -385,6 +407,14 @@ def estimate_lag(
     with np.errstate(invalid="ignore", divide="ignore"):
         rho = np.where(var > 0, cov / np.sqrt(np.where(var > 0, var, 1.0)), 0.0).mean(axis=1)
     i = int(np.argmax(rho))
+    if i in (0, len(rho) - 1):
+        return LagEstimate(math.nan, math.nan, dt, float(rho[i]), tuple(signals),
+                           f"the correlation peaks at the search limit ({kmax * dt * 1e3:g} ms): no lag "
+                           "identified within it")  # fmt: skip
+    if rho[i] - max(rho[0], rho[-1]) < 1e-3:
+        return LagEstimate(math.nan, math.nan, dt, float(rho[i]), tuple(signals),
+                           f"the correlation is flat over the search window (peak {rho[i]:.4f}, within 1e-3 of "
+                           "its ends): no lag identified")  # fmt: skip
     k = float(lags[i])
     if 0 < i < len(rho) - 1:
         y0, y1, y2 = rho[i - 1], rho[i], rho[i + 1]
@@ -514,9 +544,21 @@ def pair_metrics(
     """
     check_lag_mode(lag)
     est = estimate_lag(a, ref, max_lag, lag_signals, skip) if lag != "off" else None
-    shift = est.seconds if (est is not None and lag == "remove") else 0.0
+    shift = est.seconds if (est is not None and lag == "remove" and math.isfinite(est.seconds)) else 0.0
     t, xa, xr = align(a, ref, shift, wrap)
     d = deviation(xa, xr, wrap)
+    if shift and est is not None:  # removed only where it lowers the RMS deviation of every component it came from
+        t0, xa0, xr0 = align(a, ref, 0.0, wrap)
+        d0 = deviation(xa0, xr0, wrap)
+        cols = np.concatenate([np.arange(len(LABELS))[SLICE[s]] for s in lag_signals])
+        sel0 = t0 >= skip - T_EPS
+        after, before = rms(d[t >= skip - T_EPS][:, cols]), rms(d0[sel0][:, cols])
+        moving = _moving(xr0[sel0][:, cols], lag_signals) & np.isfinite(before) & np.isfinite(after)
+        if not (np.all(after[moving] <= before[moving]) and np.any(after[moving] < before[moving])):
+            est = LagEstimate(est.seconds, est.samples, est.dt, est.correlation, est.signals,
+                              "not removed: shifting by it did not lower the RMS deviation of every component it "
+                              "was estimated from")  # fmt: skip
+            shift, t, xa, xr, d = 0.0, t0, xa0, xr0, d0
     sel = t >= skip - T_EPS
     ds, rs, ts = d[sel], xr[sel], t[sel]
     largest = max_abs(ds)

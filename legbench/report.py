@@ -623,7 +623,7 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
         if lags:
             b.append(
                 Table(
-                    ("backend", "vs", "lag [ms]", "samples", "correlation", "removed [ms]"),
+                    ("backend", "vs", "lag [ms]", "samples", "correlation", "removed [ms]", "note"),
                     tuple(
                         (
                             p.backend,
@@ -632,6 +632,7 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
                             num(p.lag.samples),
                             num(p.lag.correlation),
                             num(p.lag_removed * 1e3),
+                            p.lag.note,
                         )
                         for p in lags
                         if p.lag is not None

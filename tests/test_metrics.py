@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pandas as pd
@@ -145,3 +146,52 @@ def test_a_wrapped_reference_hip_has_the_unwrapped_peak() -> None:
     for w in (False, True):
         d, pct = metrics.signal_errors(a, _hip_trace("ref", t, 0.0, wrap=w), "q")
         assert pct[1] == pytest.approx(plain.sim_error_pct[I_Q2], rel=1e-12)
+
+
+def _trace(name: str, t: np.ndarray, q: np.ndarray) -> results.RunResult:
+    return results.result_from_frame(pd.DataFrame({"t": t, "q1": q[:, 0], "q2": q[:, 1], "q3": q[:, 2]}), name,
+                                     required=REQUIRED)  # fmt: skip
+
+
+def test_a_lag_at_the_search_limit_or_on_a_flat_correlation_is_not_identified() -> None:
+    """A 150 ms lag searched within 100 ms came back as 100 ms at correlation 0.88, and two slow ramps (which
+    correlate at any lag) as the search limit at correlation 1: both now give no lag (NaN) with a note, and
+    ``remove`` removes nothing. A 20 ms lag inside the window is still found (to 1e-3 sample)."""
+    t = np.arange(0.0, 2.0 + 1e-12, 1e-3)
+
+    def swing(lag: float) -> np.ndarray:
+        s = t - lag
+        return np.column_stack([0.1 * np.sin(np.pi * s), 2.6 + 0.8 * np.sin(2 * np.pi * s), np.cos(3 * np.pi * s)])
+
+    ref = _trace("ref", t, swing(0.0))
+    far = metrics.estimate_lag(_trace("a", t, swing(0.15)), ref, max_lag=0.1)
+    assert math.isnan(far.seconds) and "search limit" in far.note
+    ramp = np.column_stack([0.1 * t, 0.2 * t, -0.3 * t])
+    flat = metrics.estimate_lag(_trace("a", t, ramp + 1e-4), _trace("ref", t, ramp))
+    assert math.isnan(flat.seconds) and flat.note
+    p = metrics.pair_metrics(_trace("a", t, swing(0.15)), ref, lag="remove", max_lag=0.1)
+    assert p.lag_removed == 0.0
+    near = metrics.estimate_lag(_trace("a", t, swing(0.02)), ref)
+    assert abs(near.samples - 20.0) < 1e-3 and near.note == ""
+
+
+def test_a_component_at_rest_does_not_steer_the_lag_and_a_lag_that_hurts_is_not_removed() -> None:
+    """q1 at rest but for 1e-17 rad of round-off: its Pearson correlation is noise and weighed as much as a
+    swinging joint's (a planted 20 ms lag came back as 5.3 ms). It is left out: 20 ms. And where shifting by the
+    estimate makes any component's RMS deviation worse (the engines' spurious 12-76 ms lags on the effort task,
+    which made q3 twelve times worse), the lag is reported but not removed."""
+    t = np.arange(0.0, 2.0 + 1e-12, 1e-3)
+    rng = np.random.default_rng(0)
+
+    def legs(lag: float) -> np.ndarray:
+        s = t - lag
+        return np.column_stack([1e-17 * rng.standard_normal(len(t)), 2.6 + 0.8 * np.sin(2 * np.pi * s),
+                                -1.2 + 0.2 * np.cos(3 * np.pi * s)])  # fmt: skip
+
+    est = metrics.estimate_lag(_trace("a", t, legs(0.02)), _trace("ref", t, legs(0.0)))
+    assert abs(est.samples - 20.0) < 1e-3
+    base = legs(0.0)
+    worse = base.copy()
+    worse[:, 1] = 2.6 + 0.8 * np.sin(2 * np.pi * (t - 0.02))  # q2 late by 20 ms, q3 on time: a shift hurts q3
+    p = metrics.pair_metrics(_trace("a", t, worse), _trace("ref", t, base), lag="remove")
+    assert p.lag is not None and p.lag_removed == 0.0 and p.lag.note.startswith("not removed")
