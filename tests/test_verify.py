@@ -77,6 +77,7 @@ KNOWN_DISCREPANCIES = {
     ("sliding", "drake", "slip acceleration along the slip (mean)"),
     ("sliding", "ode", "slip acceleration along the drag (mean; pyramid)"),
     ("sliding", "dart", "friction along the drag |F_y| / Fn (pyramid)"),
+    ("sliding", "dart", "friction across the drag F_x / Fn (mean; pyramid)"),
     ("sliding", "dart", "slip acceleration along the drag (mean; pyramid)"),
 }
 
@@ -676,3 +677,21 @@ def test_the_small_oscillation_poles_do_not_depend_on_a_tiny_static_offset(monke
     assert plain and all(r.passed for r in plain) and all(r.passed for r in moved)
     for a, b in zip(plain, moved, strict=True):
         assert b.measured == pytest.approx(a.measured, rel=1e-6)
+
+
+@pytest.mark.skipif("ode" not in backends.available(), reason="ode backend not installed")
+def test_a_pyramid_engine_without_friction_across_the_drag_fails() -> None:
+    """ODE's drag: the pyramid's closed form holds the foot across the drag (W x) with F_x = 0.014 Fn, and ODE
+    reads 0.0147 Fn (within 1 % of mu). An engine with no friction along W x at all (F_x = 0) passed every row:
+    the old row only bounded |F_x| <= mu Fn, and the W y acceleration moved by 1.6 %, inside 2 %. The row now
+    compares F_x with the closed form's and fails it."""
+    from legbench.studies import sliding_case
+
+    tr, physics = sliding_case.drag("ode")
+    rows = {r["quantity"]: r for r in sliding_case.score(tr, physics)}
+    across = rows["friction across the drag F_x / Fn (mean; pyramid)"]
+    assert across["passed"] and across["expected"] > 0.01
+    f = tr.f.copy()
+    f[:, 0] = 0.0
+    wrong = {r["quantity"]: r for r in sliding_case.score(dataclasses.replace(tr, f=f), physics)}
+    assert not wrong["friction across the drag F_x / Fn (mean; pyramid)"]["passed"]

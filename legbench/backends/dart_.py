@@ -103,10 +103,11 @@ class DartBackend(Backend):
     @classmethod
     def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any]) -> str | None:
         """The Dantzig solver's friction bound: the sliding drag sticks (docs/backends/dart.md)."""
-        if case == "sliding" and info.get("lcp_solver") == "dantzig" and not quantity.startswith("friction across"):
+        if case == "sliding" and info.get("lcp_solver") == "dantzig":
             return ("known: DART's Dantzig LCP (ODE's lcp.cpp) sets each friction row's bound once, mu times the "
                     "normal impulse solved before any friction row, not mu times the final normal force; on this "
-                    "rigid contact the drag's W y then holds 0.83 Fn (mu_s 0.7) and the foot does not slide "
+                    "rigid contact the drag's W y then holds 0.83 Fn (mu_s 0.7) and the foot does not slide, so "
+                    "its W x force is not the sliding pyramid's either "
                     "(lcp_solver: pgs slides at 0.700 Fn, within 0.1 % of the closed form; "
                     "docs/backends/dart.md)")  # fmt: skip
         return None
