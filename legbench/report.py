@@ -404,7 +404,7 @@ def _steady_table(result: ComparisonResult) -> Table:
         + (
             "; J at a fraction of the penetration y above it: where that engine's own contact applies the force "
             "(0.5: halfway between the surfaces)"
-            if any(s.lift != 0.0 for s in result.steady)
+            if any(s.lift >= 1e-6 for s in result.steady)
             else ""
         ),  # fmt: skip
         classes=classes,
