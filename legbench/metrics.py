@@ -157,7 +157,10 @@ class SteadyState:
         qd_max: the largest |qd| of any joint over the window [rad/s] (NaN without a finite qd): the check
             holds only at rest, where it is near 0.
         lift: where the backend's force acted, as the check took it: that fraction of the penetration above the
-            sphere's lowest point (:func:`~legbench.backends.base.contact_point`; 0: the true poc).
+            sphere's lowest point (:func:`~legbench.backends.base.contact_point`; 0: the true poc, and 0 where
+            the foot is out of the ground at the window's mean q).
+        poc: the backend's point of contact, ``"true"`` or ``"centre"`` (a law taking the poc at the sphere
+            centre): :attr:`residual` is against the analytic force at that point.
     """
 
     backend: str
@@ -172,10 +175,14 @@ class SteadyState:
     cond: float
     qd_max: float = math.nan
     lift: float = 0.0
+    poc: str = "true"
 
     @property
     def residual(self) -> np.ndarray:
-        """Measured minus analytic (J_poc) ground force [N]."""
+        """Measured minus analytic ground force at the backend's point of contact [N]: with J_E for a law taking
+        the poc at the sphere centre (its force acts there: 0.89 N of Fn off with J_poc), else J_poc."""
+        if self.poc == "centre" and self.analytic_centre is not None:
+            return self.force - self.analytic_centre
         return self.force - self.analytic_poc
 
     @property
@@ -629,7 +636,7 @@ def steady_state(
     if not sel.any():
         nan3 = np.full(3, np.nan)
         return SteadyState(trace.backend, t_end - window, t_end, nan3, nan3, nan3, nan3, nan3, None, math.nan,
-                           math.nan, lift)  # fmt: skip
+                           math.nan, lift, poc)  # fmt: skip
     avg = mean(trace.data[sel])
     q, qd, tau, force = (avg[SLICE[s]] for s in SIGNALS)
 
@@ -644,13 +651,15 @@ def steady_state(
         h = np.linalg.solve(J.T, tau - G)
         return -h, cond
 
+    # the lifted point is the lowest point where the foot is out of the ground (kinematics.contact_depth)
+    in_ground = bool(np.isfinite(q).all() and float(kinematics.fk(q)[2]) < load_params().geometry.R_foot)
     f_poc, cond = ground_force("true")
     f_centre = ground_force("centre")[0] if poc == "centre" else None
     speeds = max_abs(trace.data[sel][:, SLICE["qd"]])
     qd_max = float(np.nanmax(speeds)) if np.isfinite(speeds).any() else math.nan
     return SteadyState(
         trace.backend, float(trace.t[sel][0]), float(trace.t[sel][-1]), q, qd, tau, force, f_poc, f_centre, cond,
-        qd_max, lift,
+        qd_max, lift if in_ground else 0.0, poc,
     )  # fmt: skip
 
 

@@ -379,8 +379,16 @@ def _steady_table(result: ComparisonResult) -> Table:
             continue
         # where its own contact acts; a lift under 1e-6 of y (Drake's matched point, 1e-8) is the lowest point
         at = "J_poc" if s.lift < 1e-6 else f"J at {num(s.lift, 3)} y above the poc"
-        check = f"analytic check, {at}" + (" (no qd logged: static not checked)" if math.isnan(speed) else "")
-        rows.append((s.backend, check, *blank, *(num(v) for v in s.analytic_poc)))
+        unchecked = " (no qd logged: static not checked)" if math.isnan(speed) else ""
+        if s.poc == "centre" and s.analytic_centre is not None and s.poc_compensation is not None:
+            # a law taking the poc at the sphere centre applies its force there: the check is J_E's
+            rows.append((s.backend, f"analytic check, J_E (its law's poc, the centre){unchecked}", *blank,
+                         *(num(v) for v in s.analytic_centre)))  # fmt: skip
+            rows.append((s.backend, "measured - analytic (J_E)", *blank, *(num(v) for v in s.residual)))
+            rows.append((s.backend, "analytic check, J_poc (the true poc)", *blank, *(num(v) for v in s.analytic_poc)))
+            rows.append((s.backend, "poc compensation (J_poc - J_E)", *blank, *(num(v) for v in s.poc_compensation)))
+            continue
+        rows.append((s.backend, f"analytic check, {at}{unchecked}", *blank, *(num(v) for v in s.analytic_poc)))
         rows.append((s.backend, f"measured - analytic ({at})", *blank, *(num(v) for v in s.residual)))
         if s.analytic_centre is not None and s.poc_compensation is not None:
             rows.append(

@@ -793,3 +793,21 @@ def test_a_log_longer_than_the_run_is_measured_over_the_run_s_steady_window_and_
     df.assign(q1=df["q1"].where(df["t"] < 1.0)).to_csv(dropout, index=False)
     notes = C.compare(d, log=dropout).notes
     assert any(n.startswith("log:dropout: the analytic force check needs tau and q") for n in notes), notes
+
+
+def test_a_centre_poc_backend_is_checked_at_the_centre() -> None:
+    """The symbolic model's engine-defaults takes the lab's poc at the sphere centre (info contact.poc 'centre'):
+    its force acts through J_E, so the steady check's residual is against J_E (measured 4e-3 N) where against
+    J_poc it was 0.89 N of Fn, which read as a broken read-out; the J_poc force and the compensation stay."""
+    pytest.importorskip("sympy")
+    from legbench import run, scenario
+
+    root = Path(__file__).resolve().parents[1]
+    sc = scenario.load(root / "scenarios" / "effort.yaml", {"backends.lagrange.profile": "engine-defaults"})
+    tr = run.run_backend(sc, "lagrange")
+    assert tr.status == "ok" and tr.info["contact"]["poc"] == "centre"
+    s = metrics.steady_state(tr, 0.5, "centre")
+    assert s.poc == "centre" and s.analytic_centre is not None and s.poc_compensation is not None
+    assert np.abs(s.residual).max() < 0.02  # [N]
+    np.testing.assert_allclose(s.residual, s.force - s.analytic_centre, rtol=0, atol=0)
+    assert np.abs(s.force - s.analytic_poc).max() > 0.5  # what the J_poc check showed
