@@ -346,5 +346,7 @@ def compare(
     law = _contact_law(run)
     if law is None:
         notes.append("no contact-law residuals: run.json's scenario names no contact law")
-    res = {} if law is None else {n: residuals(tr.t, tr.q, tr.qd, tr.f, law, points[n]) for n, tr in traces.items()}
+    slide = {n: str((infos.get(n) or {}).get("sliding_coefficient", "mu_k")) for n in traces}  # mu_s: a Coulomb engine
+    res = {} if law is None else {n: residuals(tr.t, tr.q, tr.qd, tr.f, law, points[n], slide[n])
+                                  for n, tr in traces.items()}  # fmt: skip
     return ComparisonResult(run, reference, traces, tuple(pairs), steady, split, split_run, tuple(notes), res)

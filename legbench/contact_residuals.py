@@ -7,7 +7,8 @@ ground force alone:
 * penetration against the spring: y - (Fn - Kd max(ydot, 0)) / Kp while in
   contact, y = R_foot - z_E the foot's penetration [m];
 * friction against mu Fn while sliding (slip speed >= 1.5 v_th, where the law
-  gives mu_k): |F_t| / (mu_k Fn);
+  gives mu_k): |F_t| / (mu Fn), mu the coefficient the backend slides with (mu_k
+  for the law, mu_s for a single-coefficient Coulomb engine);
 * the angle between the friction force and the slip direction (the law puts
   it exactly opposite the slip) [deg];
 * creep under a sub-limit load (|F_t| < 0.9 min(mu_s, mu_k) Fn, so that kinetic sliding
@@ -54,7 +55,8 @@ class ContactResiduals:
         penetration_rms: its RMS [m].
         penetration_rel: median |y Kp / Fn_spring - 1| over contact samples [1].
         n_sliding: contact samples slipping at >= 1.5 v_th.
-        friction_ratio: median |F_t| / (mu_k Fn) over sliding samples [1] (1 for the law).
+        friction_ratio: median |F_t| / (mu Fn) over sliding samples [1], mu the coefficient the backend slides
+            with (``sliding``): 1 for the law and for a Coulomb engine that slides as it should.
         n_direction: contact samples slipping at >= :data:`V_DIRECTION` with friction.
         angle_max: max angle between F_t and -v_t over those samples [deg].
         angle_median: its median [deg].
@@ -92,6 +94,7 @@ def residuals(
     force: np.ndarray,
     params: ContactParams,
     point: tuple[str, float] | None = None,
+    sliding: str = "mu_k",
 ) -> ContactResiduals:
     """The law's residuals over a run.
 
@@ -104,6 +107,9 @@ def residuals(
         point: where the backend's force acted, ``(poc, lift)`` (:func:`legbench.backends.base.contact_point`:
             its info's ``contact.poc`` and ``contact.lift``); the slip is that point's velocity. Default: the
             law's poc.
+        sliding: the coefficient the backend slides with (its declared ``sliding_coefficient``): ``mu_k`` for
+            the law, ``mu_s`` for a single-coefficient Coulomb engine, so that the friction ratio is 1 for both
+            (it read 1.167 = mu_s / mu_k for MuJoCo, Bullet and Drake, as if their friction were 17 % high).
     """
     q = np.asarray(q, float).reshape(len(t), 3)
     qd = np.asarray(qd, float).reshape(len(t), 3)
@@ -127,8 +133,9 @@ def residuals(
 
     vt = np.hypot(v[:, 0], v[:, 1])
     ft = np.hypot(f[:, 0], f[:, 1])
-    sliding = contact & (vt >= 1.5 * params.v_th) & np.isfinite(ft)
-    ratio = ft[sliding] / (params.mu_k * fn[sliding])
+    slides = contact & (vt >= 1.5 * params.v_th) & np.isfinite(ft)
+    mu_slide = params.mu_s if sliding == "mu_s" else params.mu_k
+    ratio = ft[slides] / (mu_slide * fn[slides])
 
     scored = contact & (vt >= V_DIRECTION) & (ft > 1e-9)
     cosang = -(f[scored, 0] * v[scored, 0] + f[scored, 1] * v[scored, 1]) / (ft[scored] * vt[scored])
@@ -141,7 +148,7 @@ def residuals(
         penetration_max=float(np.abs(pen).max()) if pen.size else math.nan,
         penetration_rms=float(np.sqrt(np.mean(pen**2))) if pen.size else math.nan,
         penetration_rel=_median(rel),
-        n_sliding=int(sliding.sum()),
+        n_sliding=int(slides.sum()),
         friction_ratio=_median(ratio),
         n_direction=int(scored.sum()),
         angle_max=float(angle.max()) if angle.size else math.nan,

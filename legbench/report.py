@@ -527,7 +527,7 @@ def _residual_table(result: ComparisonResult) -> Table:
             "max |y - Fn_spring/Kp| [mm]",
             "median |y Kp/Fn_spring - 1|",
             "sliding samples",
-            "|F_t| / (mu_k Fn) sliding",
+            "|F_t| / (mu Fn) sliding",
             "max angle F_t vs -v [deg]",
             "sub-limit samples",
             "creep [mm/s]",
@@ -536,9 +536,11 @@ def _residual_table(result: ComparisonResult) -> Table:
         tuple(rows),
         "Each backend against the contact law it was meant to follow (docs/metrics.md, section Contact-law "
         "residuals): penetration against the spring, Fn_spring = Fn - Kd max(ydot, 0), friction magnitude while "
-        "sliding (1 for the law), friction direction against the slip, and creep under a sub-limit load beside "
-        "the law's v_th |F_t| / (mu_s Fn); n/a where no sample qualifies; n/a (rigid) for a backend whose "
-        "contact reports no stiffness (run.json: contact.Kp null), which has no spring to compare",
+        "sliding against mu Fn, mu the coefficient the backend slides with (mu_k for the law, mu_s for a "
+        "single-coefficient Coulomb engine: 1 for both when they slide as they should), friction direction against "
+        "the slip, and creep under a sub-limit load beside the law's v_th |F_t| / (mu_s Fn); the slip taken where "
+        "each engine applies its force (run.json: contact.lift); n/a where no sample qualifies; n/a (rigid) for a "
+        "backend whose contact reports no stiffness (run.json: contact.Kp null), which has no spring to compare",
     )
 
 

@@ -5,7 +5,8 @@ A run directory holds, per scenario (and contact mode):
 * ``<backend>.parquet`` (and optionally ``.csv``): one row per control tick,
   columns :data:`~legbench.signals.RUN_COLUMNS`;
 * ``run.json``: the scenario as run, every backend's status, reason, settings
-  (``info``, with its declared ``integrator_family``, ``sub_steps`` and ``engine_contact``), wall
+  (``info``, with its declared ``integrator_family``, ``sub_steps``, ``engine_contact`` and
+  ``sliding_coefficient``), wall
   time and real-time factor, versions and platform;
 * ``metrics.json``: what :mod:`legbench.compare` measured (schema
   :data:`METRICS_SCHEMA`, keys in docs/metrics.md).

@@ -210,6 +210,7 @@ _DECLARED: tuple[tuple[str, Callable[[Backend], Any]], ...] = (
     ("integrator_family", lambda b: b.integrator_family()),
     ("sub_steps", lambda b: b.sub_steps()),
     ("engine_contact", lambda b: bool(b.engine_contact())),
+    ("sliding_coefficient", lambda b: b.slides_with()),
 )
 
 
@@ -227,7 +228,8 @@ def _declared(backend: Backend) -> dict[str, Any]:
 
 def backend_info(backend: Backend) -> dict[str, Any]:
     """What run.json records of a backend: its :meth:`~Backend.info`, the ``profile`` it was loaded with,
-    its declared ``integrator_family``, ``sub_steps`` and ``engine_contact`` (:data:`_DECLARED`), and its
+    its declared ``integrator_family``, ``sub_steps``, ``engine_contact`` and ``sliding_coefficient``
+    (:data:`_DECLARED`), and its
     :meth:`~Backend.warnings` after the run (e.g. a sub-step too coarse for the contact law).
 
     Raises:

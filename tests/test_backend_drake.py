@@ -425,3 +425,23 @@ def test_reference_contact_reports_no_engine_friction_and_no_lift() -> None:
     finally:
         backend.close()
     assert (contact["mu_static"], contact["mu_dynamic"], contact["poc"], contact["lift"]) == (None, None, "true", 0.0)
+
+
+@pytest.mark.parametrize(
+    ("profile", "settings", "coefficient"),
+    [("matched", {}, "mu_s"), ("engine-defaults", {}, "mu_k"), ("matched", {"solver": "continuous"}, "mu_k")],
+)
+def test_drake_declares_the_coefficient_it_slides_with(
+    profile: str, settings: dict[str, str], coefficient: str
+) -> None:
+    """The discrete solvers slide with the dynamic coefficient, which the mapped profile sets to mu_s and the usual
+    parameters (engine-defaults) to mu_k; the continuous plant's Stribeck friction reaches mu_k: slides_with()
+    says which, and run.json records it, so the residuals' friction ratio is 1 for a correct slide."""
+    from legbench.run import backend_info
+
+    backend = load("drake", Physics(), settings, profile)
+    try:
+        assert backend.slides_with() == coefficient
+        assert backend_info(backend)["sliding_coefficient"] == coefficient
+    finally:
+        backend.close()

@@ -63,6 +63,9 @@ def test_residuals_see_a_wrong_law() -> None:
     r = residuals(t, q, qd, f, P)
     assert r.friction_ratio == pytest.approx(P.mu_s / P.mu_k, rel=1e-9)
     assert r.penetration_rel == pytest.approx(0.25, rel=0.05)  # y Kp / Fn - 1 = 1/0.8 - 1 (damping is small here)
+    # the same force from a Coulomb engine that declares it slides with mu_s is what it should be: ratio 1 (the
+    # report showed MuJoCo's, Bullet's and Drake's 1.167 = mu_s / mu_k as if their friction were 17 % high)
+    assert residuals(t, q, qd, f, P, sliding="mu_s").friction_ratio == pytest.approx(1.0, rel=1e-9)
 
 
 def test_a_missing_sample_leaves_out_only_that_sample() -> None:

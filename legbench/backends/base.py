@@ -330,6 +330,12 @@ class Backend(ABC):
     def sub_steps(self) -> int:
         """Engine steps per control period (1 for an adaptive solve per period)."""
 
+    def slides_with(self) -> str:
+        """The ContactParams coefficient this loaded backend's native contact slides with (``mu_k`` or ``mu_s``):
+        :attr:`sliding_coefficient`, unless its settings change it (recorded in run.json; the contact residuals'
+        friction ratio is taken against it)."""
+        return self.sliding_coefficient
+
     def engine_contact(self) -> bool:
         """True if the engine has a contact model of its own, which ``native`` mode uses; False if it has
         none and both contact modes apply the analytic law of :mod:`legbench.contact`."""

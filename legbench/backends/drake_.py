@@ -625,6 +625,12 @@ class DrakeBackend(Backend):
                 "contact, so without effect"]  # fmt: skip
 
     # ------------------------------------------------------- declared abilities
+    def slides_with(self) -> str:
+        """``mu_s`` for the discrete solvers in the mapped profile (the dynamic coefficient set to mu_s), ``mu_k``
+        where the dynamic coefficient is mu_k (the usual parameters, engine-defaults) or for the continuous
+        plant's Stribeck friction above 3 v_s."""
+        return "mu_s" if not self.continuous and self.cfg["contact_params"] == "mapped" else "mu_k"
+
     def integrator_family(self) -> str:
         """``adaptive`` (continuous), ``euler`` (discrete: symplectic Euler in free space, see the docs)."""
         return "adaptive" if self.continuous else "euler"
