@@ -139,8 +139,8 @@ class IndexFiles:
 
 
 #: Why a component both runs hold at one constant value is not coloured as agreement (the cell is n/a-grey).
-HELD = ("held constant and equal in both runs over the window (a torque at its limit throughout): the 0 is the "
-        "clamp's, not a measure of the engines")  # fmt: skip
+HELD = ("held: constant and equal in both runs at every sample measured (from the scenario's skip on; a torque "
+        "at its limit throughout): the 0 is the clamp's, not a measure of the engines")  # fmt: skip
 
 
 def sim_class(
@@ -183,7 +183,7 @@ def time_text(t: float) -> str:
     return num(t, max(4, math.floor(math.log10(abs(t))) + 4))
 
 
-def at_most(x: float, digits: int = 3) -> str:
+def at_most(x: float, digits: int = 4) -> str:
     """``x`` rounded up to ``digits`` significant digits, so that "within X" holds as printed (100.04 is
     ``101``, not ``100``); an x within 1e-9 of a printed value is that value."""
     if not math.isfinite(x) or x <= 0.0:
@@ -243,7 +243,7 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
             f"{UNITS[s]})"
         )
         if tied:
-            text += f"; {_names(tied)} deviate as much (within {num(TIE * 100.0)} %)"
+            text += f"; {_names(tied)} deviate as much (within {num(TIE * 100.0)} % of it)"
         text += f"; every other backend stays at or below {at_most(max(others))} %." if others else "."
     contact = value.get((b, ref, s, j, "split_contact_pct"), nan)
     integ = value.get((b, ref, s, j, "split_integration_pct"), nan)
@@ -290,9 +290,11 @@ def _higher_order_note(meta: Mapping[str, Any], b: str, ref: str) -> str:
     fam_b, fam_r = (str((entries.get(n) or {}).get("integrator_family", "")) for n in (b, ref))
     if _ORDER.get(fam_r) != 1 or _ORDER.get(fam_b, 0) <= 1:
         return ""
-    return (f" {b} integrates at a higher order ({fam_b}) than the first-order reference {ref} ({fam_r}): in free "
-            f"space, with the same dynamics (the verification checks them), such a deviation is {ref}'s own step "
-            f"error rather than {b}'s (the time-step sweep measures each backend's).")  # fmt: skip
+    return (
+        f" {b} integrates at a higher order ({fam_b}) than the first-order reference {ref} ({fam_r} "
+        "integration): in free space, with the same dynamics (the verification checks them), such a deviation "
+        f"is the reference's own step error rather than {b}'s (the time-step sweep measures each backend's)."
+    )
 
 
 def _order(c: tuple[str, str]) -> int:
@@ -303,9 +305,10 @@ def _order(c: tuple[str, str]) -> int:
 
 def colour_key() -> Table:
     """One row showing every colour of a simulation error % and what it means."""
-    header = (*(why.split(": ")[0] for _, _, why in BANDS), "<= scenario limit", "> scenario limit")
-    row = (*(why.split(": ")[1] for _, _, why in BANDS), "within the limit", "exceeds the limit")
-    classes = {(0, j): c for j, c in enumerate(("agree", "close", "differ", "far", "within", "over"))}
+    header = (*(why.split(": ")[0] for _, _, why in BANDS), "<= scenario limit", "> scenario limit", "grey")
+    row = (*(why.split(": ")[1] for _, _, why in BANDS), "within the limit", "exceeds the limit",
+           "held (both runs at one constant value: the 0 is the clamp's), or n/a")  # fmt: skip
+    classes = {(0, j): c for j, c in enumerate(("agree", "close", "differ", "far", "within", "over", "na"))}
     return Table(header, (row,), "Colour key of the simulation error % (a scenario's own limit overrides the bands)",
                  classes=classes)  # fmt: skip
 
@@ -320,7 +323,11 @@ def _col_header(i: int) -> str:
 
 def _pair_table(result: ComparisonResult, metric: str, caption: str, unit: bool) -> Table:
     header = ("backend", "vs", *(_col_header(i) if unit else LABELS[i] for i in range(12)))
-    rows = tuple((p.backend, p.reference, *(num(v) for v in getattr(p, metric))) for p in result.pairs)
+    rows = tuple(
+        (p.backend, p.reference, *(f"{num(v)} (held)" if h and metric == "sim_error_pct" else num(v)
+                                   for v, h in zip(getattr(p, metric), p.held, strict=True)))
+        for p in result.pairs
+    )  # fmt: skip
     classes: dict[tuple[int, int], str] = {}
     titles: dict[tuple[int, int], str] = {}
     if metric == "sim_error_pct":
@@ -344,7 +351,8 @@ def _maxdev_table(result: ComparisonResult) -> Table:
         (p.backend, p.reference, *(_at_time(float(m), float(t)) for m, t in zip(p.max_abs, p.t_max_abs, strict=True)))
         for p in result.pairs
     )
-    return Table(header, rows, "Largest deviation |x - x_ref| and the time it happens")
+    skip = f" for t >= {num(result.run.skip)} s" if result.run.skip > 0 else ""
+    return Table(header, rows, f"Largest deviation |x - x_ref| and the time it happens{skip}")
 
 
 #: Largest joint speed [rad/s] in the steady window at which the analytic force check is shown; at or above it
@@ -430,7 +438,9 @@ def _split_table(result: ComparisonResult, kind: str) -> Table:
     return Table(
         header,
         tuple(rows),
-        f"Contact-mode split ({what}): native = contact (a_native - a_reference-mode) + integration "
+        f"Contact-mode split ({what}"
+        + (f", for t >= {num(result.run.skip)} s" if result.run.skip > 0 else "")
+        + "): native = contact (a_native - a_reference-mode) + integration "
         "(a_reference-mode - ref_reference-mode) + drift (ref_reference-mode - ref_native), sample by sample",
     )
 
@@ -653,6 +663,12 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
     b.append(Heading(2, "Steady state and analytic force check"))
     if checks_note is not None:
         b.append(checks_note)
+    saturated = [LABELS[i] for i in range(6, 9) if result.pairs and all(p.held[i] for p in result.pairs)]
+    if saturated:  # a commanded force the torque limits cannot give: the ground force is what they hold
+        verb = "sits at its torque limit" if len(saturated) == 1 else "sit at their torque limits"
+        b.append(Para(f"{_names(saturated)} {verb} throughout in every backend compared (held): "
+                      "the controller asks for more than the limits give, so the ground force below is what the "
+                      "saturated torques hold at the leg's pose, not the commanded one."))  # fmt: skip
     b.append(_steady_table(result))
     if any(r.n_contact for r in result.residuals.values()):
         b.append(Heading(2, "Contact-law residuals"))
@@ -911,8 +927,9 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
                 cells = []
                 for c, lab in enumerate(LABELS):
                     s, j, v = vals.get(lab, (SIGNAL_OF[c], lab[-1], math.nan))
-                    cells.append(num(v, 3))
-                    cls, why = sim_class(v, s, j, e.tolerances, (backend, ref, s, j) in held)
+                    kept_here = (backend, ref, s, j) in held
+                    cells.append(f"{num(v, 3)} (held)" if kept_here else num(v, 3))
+                    cls, why = sim_class(v, s, j, e.tolerances, kept_here)
                     if cls:
                         classes[(r, 5 + c)], titles[(r, 5 + c)] = cls, why
                 rows.append((e.label, e.profile, e.mode, str(backend), str(ref), *cells))
