@@ -131,6 +131,7 @@ class ComparisonResult:
                 backends[name] = {"status": "ok", "reason": None, "source": "log"}
         for s in self.steady:  # where its force acted, as the force check and the residuals took it
             backends[s.backend]["contact_lift"] = s.lift
+            backends[s.backend]["contact_poc"] = s.poc
         return {
             "schema": METRICS_SCHEMA,
             "scenario": run.label,

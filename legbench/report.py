@@ -1091,12 +1091,23 @@ def _profile_blocks(entries: Sequence[_Entry]) -> list[Block]:
         for b, c in _steps(entries).items()
         if "matched" in c and c["matched"] == c.get("engine-defaults") and "varies by task" not in c["matched"]
     ]
+    pocs: dict[str, dict[str, str]] = {}  # backend -> profile -> its point of contact (metrics.json)
+    for en in entries:
+        if en.mode == "native":
+            for b, entry in (en.meta.get("backends") or {}).items():
+                if isinstance(entry, Mapping) and entry.get("contact_poc"):
+                    pocs.setdefault(str(b), {})[en.profile] = str(entry["contact_poc"])
+    moved = [b for b in kept if len(set(pocs.get(b, {}).values())) > 1]
     same = (
         f" Here {_names(kept)} {'keeps' if len(kept) == 1 else 'keep'} the same step and integrator in both "
-        "profiles (see the step table above)."
+        "profiles (see the step table above)"
+        + (f"; {_names(moved)} {'takes' if len(moved) == 1 else 'take'} the point of contact at the sphere centre "
+           "in engine-defaults (the lab's own simplification in its custom model), which moves its contact tasks' "
+           "numbers" if moved else "")
+        + "."
         if kept
         else ""
-    )
+    )  # fmt: skip
     rows: list[tuple[str, ...]] = []
     for name in names:
         cells: dict[str, dict[str, tuple[float, float]]] = {}

@@ -831,6 +831,26 @@ def test_the_profile_paragraph_names_the_backends_that_keep_their_step(tmp_path:
     md = R.write_index(root).markdown.read_text()
     para = next(line for line in md.splitlines() if line.startswith("Native contact. 'matched'"))
     assert "ref keeps the same step and integrator in both profiles" in para, para
+    assert "point of contact at the sphere centre" not in para
+
+
+def test_the_profile_paragraph_says_when_a_backend_moves_its_point_of_contact(tmp_path: Path) -> None:
+    """The symbolic model keeps its step and integrator in engine-defaults but takes the lab's centre poc, which
+    moves its effort numbers (q error 0.058 -> 1.79 %, Fn 52.53 -> 53.54 N): the paragraph says so."""
+    root = tmp_path / "tree"
+    for label, prof, poc in (("one", "matched", "true"), ("one__engine-defaults", "engine-defaults", "centre")):
+        d = write_run(root / label, {"ref": None, "a": scale(1.01)}, name="one")
+        meta = json.loads((d / "run.json").read_text())
+        meta["scenario"]["profile"] = prof
+        meta["backends"]["ref"]["info"] |= {"dt": 5e-5, "sub_steps": 20, "integrator": "euler",
+                                            "contact": {"poc": poc}}  # fmt: skip
+        meta["backends"]["a"]["info"] |= {"dt": 5e-5 if prof == "matched" else 1e-3, "integrator": "euler",
+                                          "sub_steps": 20 if prof == "matched" else 1}  # fmt: skip
+        (d / "run.json").write_text(json.dumps(meta))
+    R.write_all(root)  # metrics.json first: the paragraph reads each backend's contact_poc there
+    md = (root / "report.md").read_text()
+    para = next(line for line in md.splitlines() if line.startswith("Native contact. 'matched'"))
+    assert "; ref takes the point of contact at the sphere centre in engine-defaults" in para, para
 
 
 def test_a_backend_keeps_its_colour_in_every_figure(tmp_path: Path) -> None:
