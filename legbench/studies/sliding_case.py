@@ -174,7 +174,7 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     f_pred = np.column_stack([-mu * fn[:, None] * u, fn])
     a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift)
     am, ap = float(np.mean(np.sum(a_meas * u, axis=1))), float(np.mean(np.sum(a_pred * u, axis=1)))
-    slip = (f"slip {1e3 * speed.min():.3g}-{1e3 * speed.max():.3g} mm/s, Fn {fn.mean():.3g} N, "
+    slip = (f"slip {_span(1e3 * speed)} mm/s, Fn {fn.mean():.3g} N, "
             f"{len(k)} of {n_window} samples in contact")  # fmt: skip
     # a law backend's force is the law evaluated at the logged state: its ratio and angle are the law read back
     law = ("the law read back (the force is the law at the logged state): checks the read-out, not an engine; "
@@ -188,6 +188,12 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
                   f"closed form M^-1 (tau - nle + J_poc^T F), F = mu Fn vs the slip; {slip}"),
     ]  # fmt: skip
     return _with_known(cls, tr, [dict(zip(ROW_KEYS, r, strict=True)) for r in rows])
+
+
+def _span(x: np.ndarray) -> str:
+    """``min-max`` of ``x`` to 3 digits, or the one value where they print the same (a stuck foot's slip)."""
+    lo, hi = f"{float(x.min()):.3g}", f"{float(x.max()):.3g}"
+    return lo if lo == hi else f"{lo}-{hi}"
 
 
 def _with_known(cls: type[Backend], tr: RunResult, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -266,8 +272,8 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], mu: floa
     am, ap = float(np.mean(a_meas)), float(np.mean(a_pred[:, 1]))
     speed = np.abs(v[k, 1])
     ctx = (f"pyramid along W x and W y, {cls.sliding_coefficient} = {mu:g}; the closed form slides W y at "
-           f"{int(slides.sum())} of {len(k)} samples; slip along W y {1e3 * speed.min():.3g}-"
-           f"{1e3 * speed.max():.3g} mm/s, Fn {fn.mean():.3g} N, {len(k)} of {n_window} samples in "
+           f"{int(slides.sum())} of {len(k)} samples; slip along W y {_span(1e3 * speed)} mm/s, "
+           f"Fn {fn.mean():.3g} N, {len(k)} of {n_window} samples in "
            "contact")  # fmt: skip
     expected_along = mu if slides.all() else float(np.mean(np.abs(ft_pred[:, 1]) / fn))
     acc = f"closed form M^-1 (tau - nle + J_poc^T F), F the pyramid's; {ctx}"
