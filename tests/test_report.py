@@ -767,7 +767,7 @@ def test_colour_key_names_each_colour_once() -> None:
     limit'); the grey of a held component (and n/a) has its column too: it was not in the key."""
     key = R.colour_key()
     assert len(set(key.header)) == len(key.header) == len(key.rows[0]) == 7
-    assert key.classes[(0, 6)] == "na" and "held" in key.rows[0][6]
+    assert key.classes is not None and key.classes[(0, 6)] == "na" and "held" in key.rows[0][6]
     assert R.sim_class(5.0, "q", "1", {"max_sim_error_pct": 5.0})[0] == "within"  # <= limit is within
 
 
