@@ -466,6 +466,15 @@ def _flat(d: Mapping[str, Any], prefix: str = "") -> dict[str, str]:
     return out
 
 
+#: Units of the settings keys legbench itself defines (base.INFO_KEYS and the shared settings), for the settings
+#: table; an engine's own parameters keep the engine's units (its docs/backends page).
+_SETTING_UNITS = {
+    "dt": " [s]", "timestep": " [s]", "max_step": " [s]", "gravity": " [m/s^2]", "contact.Kp": " [N/m]",
+    "contact.Kd": " [N s/m]", "contact.v_th": " [m/s]", "stiction_tolerance": " [m/s]",
+    "hc_reference_depth": " [m]", "contact.lift": " [1 of y]",
+}  # fmt: skip
+
+
 def _settings(info: Mapping[str, Any]) -> dict[str, str]:
     rest = {k: v for k, v in info.items() if k not in ("engine", "version", "warnings")}
     if set(rest) == {"settings"} and isinstance(rest["settings"], Mapping):
@@ -497,8 +506,9 @@ def _backend_tables(result: ComparisonResult) -> list[Block]:
     keys = list(dict.fromkeys(k for s in per.values() for k in s))
     if keys:
         names = list(per)
-        srows = tuple((k, *(per[n].get(k, "") for n in names)) for k in keys)
-        table = Table(("setting", *names), srows, "Settings each backend reports it used (run.json)")
+        srows = tuple((f"{k}{_SETTING_UNITS.get(k, '')}", *(per[n].get(k, "") for n in names)) for k in keys)
+        table = Table(("setting", *names), srows, "Settings each backend reports it used (run.json); units where "
+                      "legbench defines the key, an engine's own parameters in the engine's units")  # fmt: skip
         blocks.append(Details(f"Settings of every backend ({len(keys)} rows)", (table,)))
     return blocks
 
