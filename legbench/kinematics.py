@@ -27,8 +27,6 @@ from legbench.model import LegParams, gravity_torque, load_params, pinocchio_mod
 #: Rotation W_R_0 of the base frame (frame 0 x is up, y0 = -x_W, z0 = -y_W).
 W_R_0 = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
 
-_Z_W = np.array([0.0, 0.0, 1.0])
-
 
 def _params(params: LegParams | None) -> LegParams:
     return params if params is not None else load_params()
@@ -170,11 +168,6 @@ def angular_jacobian(q: np.ndarray) -> np.ndarray:
     return W_R_0 @ J0
 
 
-def poc_offset(params: LegParams | None = None) -> np.ndarray:
-    """Vector from E to the true point of contact (the sphere's lowest point) in W [m]."""
-    return -_params(params).geometry.R_foot * _Z_W
-
-
 def jacobian_poc(q: np.ndarray, params: LegParams | None = None, true_poc: bool = True) -> np.ndarray:
     """Linear Jacobian of the point of contact in W [m/rad].
 
@@ -182,12 +175,20 @@ def jacobian_poc(q: np.ndarray, params: LegParams | None = None, true_poc: bool 
     point of the shank at r = -R_foot z_W from E, so v_poc = v_E + omega x r.
     Without it, the poc is the sphere centre (the report's simplification).
     """
-    Jv = jacobian(q, params)
     if not true_poc:
-        return Jv
-    r = poc_offset(params)
-    r_cross = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
-    return Jv - r_cross @ angular_jacobian(q)
+        return jacobian(q, params)
+    return jacobian_below(q, _params(params).geometry.R_foot, params)
+
+
+def jacobian_below(q: np.ndarray, depth: float | np.ndarray, params: LegParams | None = None) -> np.ndarray:
+    """Linear Jacobian in W [m/rad] of the shank's material point ``depth`` [m] below E along -z_W (a number, or
+    one per configuration of ``q``): r = -d z_W, v = v_E + omega x r = v_E + (-d w_y, d w_x, 0)."""
+    d = np.asarray(depth, float)[..., None]
+    Jw = angular_jacobian(q)
+    J = jacobian(q, params).copy()
+    J[..., 0, :] -= d * Jw[..., 1, :]
+    J[..., 1, :] += d * Jw[..., 0, :]
+    return J
 
 
 def contact_depth(q: np.ndarray, lift: float = 0.0, params: LegParams | None = None) -> np.ndarray:
@@ -210,14 +211,7 @@ def jacobian_at(q: np.ndarray, poc: str = "true", lift: float = 0.0, params: Leg
     r = -d z_W from E, v = v_E + omega x r. With ``lift`` 0 the numbers of :func:`jacobian_poc`."""
     if poc == "centre":
         return jacobian(q, params)
-    if lift == 0.0:
-        return jacobian_poc(q, params, true_poc=True)
-    d = contact_depth(q, lift, params)[..., None]
-    Jw = angular_jacobian(q)
-    J = jacobian(q, params).copy()
-    J[..., 0, :] -= d * Jw[..., 1, :]  # omega x (-d z_W) = (-d w_y, d w_x, 0)
-    J[..., 1, :] += d * Jw[..., 0, :]
-    return J
+    return jacobian_below(q, contact_depth(q, lift, params), params)
 
 
 def is_singular(q: np.ndarray, params: LegParams | None = None, tol: float = 1e-6) -> np.ndarray:

@@ -80,18 +80,13 @@ def predicted_acceleration(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force
     out = np.empty((len(q), 2))
     eps = 1e-7
     zero = np.zeros(3)
-
-    def jacobian(qk: np.ndarray, d: float) -> np.ndarray:  # E plus omega x r, r = -d z_W
-        r_cross = np.array([[0.0, d, 0.0], [-d, 0.0, 0.0], [0.0, 0.0, 0.0]])
-        return kinematics.jacobian(qk) - r_cross @ kinematics.angular_jacobian(qk)  # type: ignore[no-any-return]
-
     for k in range(len(q)):
         M = dyn.mass_matrix(q[k])
         nle = dyn.inverse_dynamics(q[k], qd[k], zero)
         d = R - lift * max(R - float(kinematics.fk(q[k])[2]), 0.0)
-        J = jacobian(q[k], d)
+        J = kinematics.jacobian_below(q[k], d)
         qdd = np.linalg.solve(M, tau[k] - nle + J.T @ force[k])
-        Jdot_qd = (jacobian(q[k] + eps * qd[k], d) - J) / eps @ qd[k]
+        Jdot_qd = (kinematics.jacobian_below(q[k] + eps * qd[k], d) - J) / eps @ qd[k]
         out[k] = (J @ qdd + Jdot_qd)[:2]
     return out
 
