@@ -333,6 +333,11 @@ def _unwrap_columns(x: np.ndarray, wrap: np.ndarray) -> np.ndarray:
     return out
 
 
+def _columns(signals: Sequence[str]) -> np.ndarray:
+    """The data columns of ``signals``, in order (:data:`LABELS`)."""
+    return np.concatenate([np.arange(len(LABELS))[SLICE[s]] for s in signals])
+
+
 def _moving(x: np.ndarray, signals: Sequence[str]) -> np.ndarray:
     """Per column of ``x`` (the components of ``signals``, in order): True where it moves, its span above 0 and
     above 1e-9 of the largest span of its signal's components (round-off on a joint at rest does not)."""
@@ -379,7 +384,7 @@ def estimate_lag(
     Returns:
         The lag; 0 with correlation NaN when no column varies; NaN with a note when none is identified.
     """
-    cols = np.concatenate([np.arange(len(LABELS))[SLICE[s]] for s in signals])
+    cols = _columns(signals)
     grid, xa, xr = _uniform_pair(a, ref, cols)
     dt = float(grid[1] - grid[0])
     if skip > grid[0]:
@@ -423,11 +428,10 @@ def estimate_lag(
                            f"the correlation is flat over the search window (peak {rho[i]:.4f}, within 1e-3 of "
                            "its ends): no lag identified")  # fmt: skip
     k = float(lags[i])
-    if 0 < i < len(rho) - 1:
-        y0, y1, y2 = rho[i - 1], rho[i], rho[i + 1]
-        den = y0 - 2 * y1 + y2
-        if den < 0:
-            k += 0.5 * (y0 - y2) / den
+    y0, y1, y2 = rho[i - 1], rho[i], rho[i + 1]  # inside the window: the limits were refused above
+    den = y0 - 2 * y1 + y2
+    if den < 0:
+        k += 0.5 * (y0 - y2) / den
     return LagEstimate(k * dt, k, dt, float(rho[i]), tuple(signals))
 
 
@@ -557,7 +561,7 @@ def pair_metrics(
     if shift and est is not None:  # removed only where it lowers the RMS deviation of every component it came from
         t0, xa0, xr0 = align(a, ref, 0.0, wrap)
         d0 = deviation(xa0, xr0, wrap)
-        cols = np.concatenate([np.arange(len(LABELS))[SLICE[s]] for s in lag_signals])
+        cols = _columns(lag_signals)
         sel0 = t0 >= skip - T_EPS
         after, before = rms(d[t >= skip - T_EPS][:, cols]), rms(d0[sel0][:, cols])
         moving = _moving(xr0[sel0][:, cols], lag_signals) & np.isfinite(before) & np.isfinite(after)
