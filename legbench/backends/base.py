@@ -281,8 +281,20 @@ class Backend(ABC):
         (the setting's key, or the keys of the settings that cannot go together, the first the one to name when
         the scenario gives several; why, one phrase), or None. The one rule the scenario loader (``legbench
         validate`` and every run's load of the file, which names the key the scenario gave) and the backend's
-        :meth:`load` both ask."""
+        :meth:`load` both ask (:meth:`refuse_settings`)."""
         return None
+
+    @classmethod
+    def refuse_settings(cls, settings: Mapping[str, Any], contact_mode: str) -> None:
+        """Raise what :meth:`settings_problem` finds, for a backend's :meth:`load`.
+
+        Raises:
+            LegbenchError: ``backends.<name>.<key>: why``, the first key of a combination.
+        """
+        bad = cls.settings_problem(settings, contact_mode)
+        if bad is not None:
+            key = bad[0] if isinstance(bad[0], str) else bad[0][0]
+            raise LegbenchError(f"backends.{cls.name}.{key}: {bad[1]}")
 
     @abstractmethod
     def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:

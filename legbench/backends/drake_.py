@@ -250,9 +250,7 @@ class DrakeBackend(Backend):
         self.cfg, self.physics = cfg, physics
         self.reference = physics.contact_mode == "reference"
         self.continuous = cfg["solver"] == "continuous"
-        bad = self.settings_problem(cfg, physics.contact_mode)
-        if bad is not None:
-            raise LegbenchError(f"backends.drake.{bad[0]}: {bad[1]}")
+        self.refuse_settings(cfg, physics.contact_mode)
         self.n_sub = 1 if self.continuous else sub_step_count(self.name, cfg["dt"], physics.control_dt)
         c = physics.contact
         self.v_s = float(
@@ -552,21 +550,26 @@ class DrakeBackend(Backend):
         """``mu_static``, ``mu_dynamic``: the foot-ground pair's Coulomb friction, the two geometries' coefficients
         as the scene graph holds them, combined as Drake combines them, 2 a b / (a + b) (None where one has none, and
         in reference contact, which registers no ground: the law's mu_s and mu_k apply)."""
-        if self.ground is None or not self.foot_geoms:
-            return {"mu_static": None, "mu_dynamic": None}
-        sg = self.scene_graph
-        inspector = sg.get_query_output_port().Eval(sg.GetMyContextFromRoot(self.root)).inspector()
-        pair = []
-        for g in (min(self.foot_geoms), self.ground):
-            props = inspector.GetProximityProperties(g)
-            has = props is not None and props.HasProperty("material", "coulomb_friction")
-            pair.append(props.GetProperty("material", "coulomb_friction") if has else None)
         out: dict[str, float | None] = {"mu_static": None, "mu_dynamic": None}
+        if self.ground is None or not self.foot_geoms:
+            return out
+
+        def friction(props: Any) -> Any:
+            has = props is not None and props.HasProperty("material", "coulomb_friction")
+            return props.GetProperty("material", "coulomb_friction") if has else None
+
+        pair = [friction(props) for props in self._pair_properties()]
         if pair[0] is not None and pair[1] is not None:
             for key, part in (("mu_static", "static_friction"), ("mu_dynamic", "dynamic_friction")):
                 a, b = (float(getattr(f, part)()) for f in pair)
                 out[key] = 2.0 * a * b / (a + b) if a + b > 0 else 0.0
         return out
+
+    def _pair_properties(self) -> tuple[Any, Any]:
+        """The foot's and the ground's ProximityProperties as the scene graph holds them (defaults filled in)."""
+        sg = self.scene_graph
+        inspector = sg.get_query_output_port().Eval(sg.GetMyContextFromRoot(self.root)).inspector()
+        return inspector.GetProximityProperties(min(self.foot_geoms)), inspector.GetProximityProperties(self.ground)
 
     def _lift(self) -> float:
         """Where Drake's own contact force acts, as the fraction of the penetration above the sphere's lowest
@@ -579,11 +582,8 @@ class DrakeBackend(Backend):
             return 1.0
         if self.continuous:
             return 0.5
-        sg = self.scene_graph
-        inspector = sg.get_query_output_port().Eval(sg.GetMyContextFromRoot(self.root)).inspector()
         k_foot, k_ground = (
-            float(inspector.GetProximityProperties(g).GetProperty("material", "point_contact_stiffness"))
-            for g in (min(self.foot_geoms), self.ground)
+            float(p.GetProperty("material", "point_contact_stiffness")) for p in self._pair_properties()
         )
         return k_ground / (k_foot + k_ground)
 

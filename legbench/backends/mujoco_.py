@@ -239,10 +239,7 @@ class MujocoBackend(Backend):
         cfg = self.settings(settings)
         if cfg["integrator"] not in _INTEGRATORS:
             raise LegbenchError(f"mujoco: unknown integrator '{cfg['integrator']}'; choose one of {list(_INTEGRATORS)}")
-        bad = self.settings_problem(cfg, physics.contact_mode)
-        if bad is not None:
-            key = bad[0] if isinstance(bad[0], str) else bad[0][0]
-            raise LegbenchError(f"backends.mujoco.{key}: {bad[1]}")
+        self.refuse_settings(cfg, physics.contact_mode)
         n_sub = sub_step_count(self.name, cfg["dt"], physics.control_dt)
         self.cfg, self.physics, self.n_sub = cfg, physics, n_sub
         self.reference = physics.contact_mode == "reference"

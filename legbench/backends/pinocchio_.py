@@ -437,18 +437,19 @@ class PinocchioBackend(Backend):
             unused |= {"kernel"}
         if self.cfg["integrator"] != "euler":
             unused |= {"friction"}
+        compiled = self._compiled is not None or self._dopri is not None
         return {
             "engine": "pinocchio",
             "version": pin.__version__,
             "dynamics": (
                 "legbench's ABA compiled with numba on Pinocchio's model (agrees with pin.aba to 1e-12 rad); "
                 "legbench's integrator and contact law"
-                if self._compiled is not None or self._dopri is not None
+                if compiled
                 else "pin.aba (Pinocchio); legbench's integrator and contact law"
             ),
             **{k: self.cfg[k] for k in self.defaults if k not in unused},
             "sub_steps": self.sub_steps(),
-            "kernel_used": "compiled (numba)" if self._compiled is not None or self._dopri is not None else "python",
+            "kernel_used": "compiled (numba)" if compiled else "python",
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
             "contact": {
