@@ -48,6 +48,7 @@ from legbench.report_figures import (
 from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num, relpath, to_html, to_markdown
 from legbench.results import (
     INDEX_TITLE,
+    Run,
     atomic_write_text,
     check_index_pages,
     checks_summary,
@@ -345,14 +346,18 @@ def _at_time(m: float, t: float) -> str:
     return f"{num(m, 3)} @ {time_text(t)} s" if math.isfinite(m) and m != 0.0 and math.isfinite(t) else num(m, 3)
 
 
+def _from_skip(run: Run) -> str:
+    """`` for t >= <skip> s`` where the run's metrics leave a start out, for a caption; empty otherwise."""
+    return f" for t >= {num(run.skip)} s" if run.skip > 0 else ""
+
+
 def _maxdev_table(result: ComparisonResult) -> Table:
     header = ("backend", "vs", *(_col_header(i) for i in range(12)))
     rows = tuple(
         (p.backend, p.reference, *(_at_time(float(m), float(t)) for m, t in zip(p.max_abs, p.t_max_abs, strict=True)))
         for p in result.pairs
     )
-    skip = f" for t >= {num(result.run.skip)} s" if result.run.skip > 0 else ""
-    return Table(header, rows, f"Largest deviation |x - x_ref| and the time it happens{skip}")
+    return Table(header, rows, f"Largest deviation |x - x_ref| and the time it happens{_from_skip(result.run)}")
 
 
 #: Largest joint speed [rad/s] in the steady window at which the analytic force check is shown; at or above it
@@ -439,7 +444,7 @@ def _split_table(result: ComparisonResult, kind: str) -> Table:
         header,
         tuple(rows),
         f"Contact-mode split ({what}"
-        + (f", for t >= {num(result.run.skip)} s" if result.run.skip > 0 else "")
+        + (f",{_from_skip(result.run)}" if result.run.skip > 0 else "")
         + "): native = contact (a_native - a_reference-mode) + integration "
         "(a_reference-mode - ref_reference-mode) + drift (ref_reference-mode - ref_native), sample by sample",
     )
@@ -466,12 +471,15 @@ def _flat(d: Mapping[str, Any], prefix: str = "") -> dict[str, str]:
     return out
 
 
+#: Units of the contact law's parameters in the scenario table (docs/spec.md section 4).
+_CONTACT_UNITS = {"Kp": " [N/m]", "Kd": " [N s/m]", "v_th": " [m/s]"}
+
+
 #: Units of the settings keys legbench itself defines (base.INFO_KEYS and the shared settings), for the settings
 #: table; an engine's own parameters keep the engine's units (its docs/backends page).
 _SETTING_UNITS = {
-    "dt": " [s]", "timestep": " [s]", "max_step": " [s]", "gravity": " [m/s^2]", "contact.Kp": " [N/m]",
-    "contact.Kd": " [N s/m]", "contact.v_th": " [m/s]", "stiction_tolerance": " [m/s]",
-    "hc_reference_depth": " [m]", "contact.lift": " [1 of y]",
+    "dt": " [s]", "timestep": " [s]", "max_step": " [s]", "gravity": " [m/s^2]", "stiction_tolerance": " [m/s]",
+    "hc_reference_depth": " [m]", "contact.lift": " [1 of y]", **{f"contact.{k}": u for k, u in _CONTACT_UNITS.items()},
 }  # fmt: skip
 
 
@@ -564,10 +572,6 @@ def _residual_table(result: ComparisonResult) -> Table:
     )
 
 
-#: Units of the contact law's parameters in the scenario table (docs/spec.md section 4).
-_CONTACT_UNITS = {"Kp": " [N/m]", "Kd": " [N s/m]", "v_th": " [m/s]"}
-
-
 def _scenario_table(result: ComparisonResult) -> Table:
     run = result.run
     sc = run.meta.get("scenario", {})
@@ -636,7 +640,7 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
     b += _backend_tables(result)
     if result.pairs:
         b.append(Heading(2, "Deviation from the reference"))
-        skip = f" for t >= {num(run.skip)} s" if run.skip > 0 else ""
+        skip = _from_skip(run)
         legend = "; ".join(why for _, _, why in BANDS)
         b.append(
             _pair_table(
