@@ -252,10 +252,11 @@ def load_sweep(path: str | Path) -> Sweep:
     studies = tuple(_study(doc, i, s) for i, s in enumerate(studies_raw))
     if fit is not None and not any(_column(k) == fit.x for st in studies for k in st.grid):
         raise doc.error(["fit", "x"], f"no study sweeps a column named {fit.x!r}")
-    for i, st in enumerate(studies):  # one slope per study and backend: over one swept key, or it mixes lines
-        others = [k for k in st.grid if _column(k) != fit.x] if fit is not None else []
-        if fit is not None and others and len(others) < len(st.grid):
-            raise doc.error(["studies", i, "grid"], f"the fit over {fit.x!r} takes one slope per study and backend, "
+    fit_x = fit.x if fit is not None else None
+    for i, st in enumerate(studies if fit_x is not None else ()):  # one slope per study and backend, over one key
+        others = [k for k in st.grid if _column(k) != fit_x]
+        if others and len(others) < len(st.grid):
+            raise doc.error(["studies", i, "grid"], f"the fit over {fit_x!r} takes one slope per study and backend, "
                                                     f"but this study also sweeps {', '.join(others)}: that slope "
                                                     "would mix their lines; give each value its own study (as "
                                                     "scenarios/sweeps/timestep.yaml does per integrator)")  # fmt: skip
@@ -295,10 +296,8 @@ def _check_values(doc: YamlContext, scenario: Path, common: Mapping[str, Any], s
                         scenario_mod.load(scenario, {_fill(key, backend): v}, origin="the study's")
                     except ScenarioError as alone:
                         if (alone.key, alone.problem) == (together.key, together.problem):
-                            raise doc.error(["studies", i, "set", key], f"with {backend}: {alone.key}: "
-                                                                        f"{alone.problem}") from None  # fmt: skip
-                where = f"{together.key}: " if together.key else ""
-                raise doc.error(["studies", i, "set"], f"with {backend}: {where}{together.problem}") from None
+                            raise _study_error(doc, ["studies", i, "set", key], backend, alone) from None
+                raise _study_error(doc, ["studies", i, "set"], backend, together) from None
             checks: list[tuple[list[str | int], dict[str, Any]]] = []
             ref_set = {_fill(k, backend): v for k, v in st.reference_set.items()}
             ref_set = {k: v for k, v in ref_set.items() if _applies(k, backend)}
@@ -318,8 +317,13 @@ def _check_point(doc: YamlContext, scenario: Path, path: list[str | int], overri
     try:
         scenario_mod.load(scenario, overrides, origin="the study's")
     except ScenarioError as exc:
-        where = f"{exc.key}: " if exc.key else ""
-        raise doc.error(path, f"with {backend}: {where}{exc.problem}") from None
+        raise _study_error(doc, path, backend, exc) from None
+
+
+def _study_error(doc: YamlContext, path: list[str | int], backend: str, exc: ScenarioError) -> ScenarioError:
+    """The sweep file's error at ``path`` for the scenario's ``exc`` with ``backend``'s settings."""
+    where = f"{exc.key}: " if exc.key else ""
+    return doc.error(path, f"with {backend}: {where}{exc.problem}")
 
 
 def _study(doc: YamlContext, i: int, d: Any) -> Study:
