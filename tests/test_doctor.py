@@ -207,6 +207,18 @@ def test_the_preflight_loads_each_backend_in_the_runs_contact_mode(
         assert not (tmp_path / out).exists()
 
 
+def _plant_failing_load(monkeypatch: pytest.MonkeyPatch, name: str, error: Exception) -> None:
+    """Register a plug-in backend ``name`` (Pinocchio's) whose load raises ``error``."""
+
+    class FailingLoad(PinocchioBackend):
+        def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
+            raise error
+
+    FailingLoad.name = name
+    reg = backends._registry
+    monkeypatch.setattr(backends, "_registry", lambda: {**reg(), name: FailingLoad})
+
+
 def test_a_plug_in_that_raises_in_the_pre_flight_fails_alone(
     tmp_path: Path,
     monkeypatch: pytest.MonkeyPatch,
@@ -219,14 +231,7 @@ def test_a_plug_in_that_raises_in_the_pre_flight_fails_alone(
     the table of the others and the failure (exit 3)."""
     from legbench import cli
 
-    class LoadRaises(PinocchioBackend):
-        name = "loadraises"
-
-        def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
-            raise AttributeError("'str' object has no attribute 'get'")
-
-    reg = backends._registry
-    monkeypatch.setattr(backends, "_registry", lambda: {**reg(), "loadraises": LoadRaises})
+    _plant_failing_load(monkeypatch, "loadraises", AttributeError("'str' object has no attribute 'get'"))
     out = tmp_path / "run"
     argv = ["run", str(EFFORT), "--backends", "pinocchio,loadraises", "--out", str(out), "-q", "--no-compare"]
     with caplog.at_level("WARNING", logger="legbench.studies.doctor"):
@@ -252,14 +257,7 @@ def test_a_cache_every_engine_needs_is_named_as_it_is(monkeypatch: pytest.Monkey
     as it is, naming the variable."""
     from legbench.exceptions import ModelError
 
-    class CacheBound(PinocchioBackend):
-        name = "cachebound"
-
-        def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
-            raise ModelError("LEGBENCH_CACHE_DIR=/tmp/f: not a directory")
-
-    reg = backends._registry
-    monkeypatch.setattr(backends, "_registry", lambda: {**reg(), "cachebound": CacheBound})
+    _plant_failing_load(monkeypatch, "cachebound", ModelError("LEGBENCH_CACHE_DIR=/tmp/f: not a directory"))
     with pytest.raises(ModelError) as exc:
         doctor.preflight(EFFORT, ["pinocchio", "cachebound"])
     assert str(exc.value) == "LEGBENCH_CACHE_DIR=/tmp/f: not a directory"
