@@ -102,6 +102,8 @@ class ComparisonResult:
             forces = {"analytic_poc": s.analytic_poc, "analytic_residual": s.residual}
             if s.analytic_centre is not None and s.poc_compensation is not None:
                 forces |= {"analytic_centre": s.analytic_centre, "poc_compensation": s.poc_compensation}
+            if s.analytic_lowest is not None and s.lift_compensation is not None:
+                forces |= {"analytic_lowest": s.analytic_lowest, "lift_compensation": s.lift_compensation}
             for metric, v in forces.items():
                 add(s.backend, "", metric, np.concatenate([np.zeros(9), v]), range(9, 12))
         for m in self.split:

@@ -161,6 +161,8 @@ class SteadyState:
             the foot is out of the ground at the window's mean q).
         poc: the backend's point of contact, ``"true"`` or ``"centre"`` (a law taking the poc at the sphere
             centre): :attr:`residual` is against the analytic force at that point.
+        analytic_lowest: the spec's check, with the Jacobian of the sphere's lowest point, where the force acted
+            above it (``lift`` > 0), else None [N]: :attr:`lift_compensation` is the lever between the two.
     """
 
     backend: str
@@ -176,6 +178,7 @@ class SteadyState:
     qd_max: float = math.nan
     lift: float = 0.0
     poc: str = "true"
+    analytic_lowest: np.ndarray | None = None
 
     @property
     def residual(self) -> np.ndarray:
@@ -189,6 +192,12 @@ class SteadyState:
     def poc_compensation(self) -> np.ndarray | None:
         """Analytic force with J_poc minus with J_E [N] (None unless the run's poc is the centre)."""
         return None if self.analytic_centre is None else self.analytic_poc - self.analytic_centre
+
+    @property
+    def lift_compensation(self) -> np.ndarray | None:
+        """Analytic force at the backend's lifted point minus at the sphere's lowest point [N]: what the lever
+        between where its force acts and the spec's true poc accounts for (None where ``lift`` is 0)."""
+        return None if self.analytic_lowest is None else self.analytic_poc - self.analytic_lowest
 
 
 @dataclass(frozen=True, eq=False)
@@ -628,7 +637,8 @@ def steady_state(
     ground force on the foot, -h. ``poc`` and ``lift``: where the backend's force acted
     (:func:`~legbench.backends.base.contact_point`): J_poc is the Jacobian of the sphere's lowest point,
     raised by ``lift`` of the penetration where an engine's own contact acts above it
-    (:func:`~legbench.kinematics.jacobian_at`); with ``poc == "centre"`` the check is also done with
+    (:func:`~legbench.kinematics.jacobian_at`), and the check is also done at the lowest point, the spec's
+    J_poc, where the force acted above it; with ``poc == "centre"`` the check is also done with
     J_E, the foot centre's Jacobian, which is what a contact law taking the poc
     at the sphere centre applies. G(q) is for the run's ``gravity`` [m/s^2] along
     -z_W (None: the leg parameter file's; G is linear in it).
@@ -644,10 +654,10 @@ def steady_state(
     avg = mean(trace.data[sel])
     q, qd, tau, force = (avg[SLICE[s]] for s in SIGNALS)
 
-    def ground_force(point: str) -> tuple[np.ndarray, float]:
+    def ground_force(point: str, raised: float = 0.0) -> tuple[np.ndarray, float]:
         if not np.isfinite(q).all() or not np.isfinite(tau).all():
             return np.full(3, np.nan), math.nan
-        J = kinematics.jacobian_at(q, point, lift if point == "true" else 0.0)
+        J = kinematics.jacobian_at(q, point, raised)
         cond = float(np.linalg.cond(J))
         if not cond < COND_MAX:
             return np.full(3, np.nan), cond
@@ -657,13 +667,14 @@ def steady_state(
 
     # the lifted point is the lowest point where the foot is out of the ground (kinematics.contact_depth)
     in_ground = bool(np.isfinite(q).all() and float(kinematics.fk(q)[2]) < load_params().geometry.R_foot)
-    f_poc, cond = ground_force("true")
+    f_poc, cond = ground_force("true", lift)
     f_centre = ground_force("centre")[0] if poc == "centre" else None
+    f_lowest = ground_force("true")[0] if in_ground and lift > 0.0 else None  # the spec's J_poc, for the lever
     speeds = max_abs(trace.data[sel][:, SLICE["qd"]])
     qd_max = float(np.nanmax(speeds)) if np.isfinite(speeds).any() else math.nan
     return SteadyState(
         trace.backend, float(trace.t[sel][0]), float(trace.t[sel][-1]), q, qd, tau, force, f_poc, f_centre, cond,
-        qd_max, lift if in_ground else 0.0, poc,
+        qd_max, lift if in_ground else 0.0, poc, f_lowest,
     )  # fmt: skip
 
 

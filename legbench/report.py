@@ -368,6 +368,9 @@ def _maxdev_table(result: ComparisonResult) -> Table:
 #: over it (ellipse 0.40 rad/s, where the check reads -0.1 N of a force that is 0; MuJoCo's engine defaults let
 #: the pressed foot creep at 0.047-0.052 rad/s on effort and combined: a slide, not statics).
 STATIC_QD = 0.01
+#: A backend's declared contact lift [1 of y] at or above which the check names its lifted point and shows the
+#: spec's J_poc check beside it; below, the point is the lowest one (Drake's matched profile declares 1e-8).
+LIFT_SHOWN = 1e-6
 
 
 def _steady_table(result: ComparisonResult) -> Table:
@@ -390,8 +393,8 @@ def _steady_table(result: ComparisonResult) -> Table:
             for c in range(5, 8):
                 classes[(r, c)], titles[(r, c)] = "na", why
             continue
-        # where its own contact acts; a lift under 1e-6 of y (Drake's matched point, 1e-8) is the lowest point
-        at = "J_poc" if s.lift < 1e-6 else f"J at {num(s.lift, 3)} y above the poc"
+        # where its own contact acts
+        at = "J_poc" if s.lift < LIFT_SHOWN else f"J at {num(s.lift, 3)} y above the poc"
         unchecked = " (no qd logged: static not checked)" if math.isnan(speed) else ""
         if s.poc == "centre" and s.analytic_centre is not None and s.poc_compensation is not None:
             # a law taking the poc at the sphere centre applies its force there: the check is J_E's
@@ -403,6 +406,12 @@ def _steady_table(result: ComparisonResult) -> Table:
             continue
         rows.append((s.backend, f"analytic check, {at}{unchecked}", *blank, *(num(v) for v in s.analytic_poc)))
         rows.append((s.backend, f"measured - analytic ({at})", *blank, *(num(v) for v in s.residual)))
+        if s.lift >= LIFT_SHOWN and s.analytic_lowest is not None and s.lift_compensation is not None:
+            # the spec's check at the lowest point, and the lever between the two
+            rows.append((s.backend, "analytic check, J_poc (the spec's: the sphere's lowest point)", *blank,
+                         *(num(v) for v in s.analytic_lowest)))  # fmt: skip
+            rows.append((s.backend, f"lever compensation ({at} - J_poc)", *blank,
+                         *(num(v) for v in s.lift_compensation)))  # fmt: skip
         if s.analytic_centre is not None and s.poc_compensation is not None:
             rows.append(
                 (s.backend, "analytic check, J_E (poc at centre)", *blank, *(num(v) for v in s.analytic_centre))
@@ -424,8 +433,9 @@ def _steady_table(result: ComparisonResult) -> Table:
         f"{num(STATIC_QD)} rad/s); J_poc: the Jacobian of the sphere's lowest point"
         + (
             "; J at a fraction of the penetration y above it: where that engine's own contact applies the force "
-            "(0.5: halfway between the surfaces)"
-            if any(s.lift >= 1e-6 for s in result.steady)
+            "(0.5: halfway between the surfaces), followed by the spec's check with J_poc and the lever between the "
+            "two"
+            if any(s.lift >= LIFT_SHOWN for s in result.steady)
             else ""
         ),  # fmt: skip
         classes=classes,

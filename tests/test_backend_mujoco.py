@@ -145,6 +145,9 @@ def test_the_force_acts_halfway_through_the_penetration_as_info_declares(tmp_pat
     assert fn > 50.0  # [N]: pressing
     assert np.abs(at_own.residual).max() < 1e-9 * fn
     assert np.abs(at_poc.residual).max() > 1e-3 * fn
+    # the spec's check at the lowest point stays beside it, with the lever between the two
+    assert at_own.analytic_lowest is not None and at_poc.analytic_lowest is None
+    np.testing.assert_array_equal(at_own.analytic_lowest, at_poc.analytic_poc)
     ref = registry.load("mujoco", physics_of(sc, "reference"), {})
     try:
         assert ref.info()["contact"]["lift"] == 0.0
@@ -155,6 +158,8 @@ def test_the_force_acts_halfway_through_the_penetration_as_info_declares(tmp_pat
     assert res.to_json()["backends"]["mujoco"]["contact_lift"] == 0.5
     (steady,) = res.steady
     np.testing.assert_array_equal(steady.residual, at_own.residual)
+    shown = set(res.frame()["metric"])
+    assert {"analytic_lowest", "lift_compensation"} <= shown
     assert res.residuals["mujoco"].angle_max < 1.0  # [deg]: at its own point the friction opposes the slip
 
 

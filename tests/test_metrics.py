@@ -195,3 +195,42 @@ def test_a_component_at_rest_does_not_steer_the_lag_and_a_lag_that_hurts_is_not_
     worse[:, 1] = 2.6 + 0.8 * np.sin(2 * np.pi * (t - 0.02))  # q2 late by 20 ms, q3 on time: a shift hurts q3
     p = metrics.pair_metrics(_trace("a", t, worse), _trace("ref", t, base), lag="remove")
     assert p.lag is not None and p.lag_removed == 0.0 and p.lag.note.startswith("not removed")
+
+
+def _pressing(lift: float, depth: float = 0.005) -> tuple[results.RunResult, np.ndarray]:
+    """The leg at rest with its foot ``depth`` [m] in the ground, the ground force F on the foot acting ``lift``
+    of that depth above the sphere's lowest point: tau = G(q) - J_lift^T F."""
+    from legbench import kinematics
+    from legbench.model import load_params
+
+    r_foot = load_params().geometry.R_foot
+    q = kinematics.ik_nearest(np.array([0.1667, 0.0, r_foot - depth]), np.array([0.0, -1.0, -1.2]))
+    F = np.array([4.0, -3.0, 50.0])  # ground force on the foot, in W [N]; 5 N of friction
+    tau = kinematics.gravity(q) - kinematics.jacobian_at(q, "true", lift).T @ F
+    t = np.arange(0.0, 1.0 + 1e-12, 1e-3)
+    row = dict(zip(["q1", "q2", "q3", "qd1", "qd2", "qd3", "tau1", "tau2", "tau3", "fx", "fy", "fz"],
+                   [*q, 0.0, 0.0, 0.0, *tau, *F], strict=True))  # fmt: skip
+    df = pd.DataFrame({"t": t, **{k: np.full(t.size, v) for k, v in row.items()}})
+    return results.result_from_frame(df, "a", required=REQUIRED), F
+
+
+def test_a_force_acting_above_the_lowest_point_is_checked_there_and_at_the_spec_s_j_poc() -> None:
+    """An engine whose force acts y/2 above the sphere's lowest point (MuJoCo's contact.lift 0.5), at rest 5 mm in
+    the ground with 5 N of friction: the check at its point gives the force back (1e-9 N); the spec's check at the
+    lowest point (``analytic_lowest``) is off by the lever, which ``lift_compensation`` gives exactly
+    (analytic_poc - analytic_lowest, and more than 1e-3 N here). Where the force acts at the lowest point (lift 0),
+    there is no second check."""
+    from legbench import kinematics
+
+    trace, F = _pressing(0.5)
+    s = metrics.steady_state(trace, 0.5, "true", lift=0.5)
+    np.testing.assert_allclose(s.residual, 0.0, atol=1e-9)
+    assert s.analytic_lowest is not None and s.lift_compensation is not None
+    J_poc = kinematics.jacobian_at(s.q, "true")
+    want = -np.linalg.solve(J_poc.T, s.tau - kinematics.gravity(s.q))
+    np.testing.assert_allclose(s.analytic_lowest, want, atol=1e-9)
+    np.testing.assert_array_equal(s.lift_compensation, s.analytic_poc - s.analytic_lowest)
+    assert np.abs(s.force - s.analytic_lowest).max() > 1e-3  # [N]: the lever the spec's point does not see
+    plain = metrics.steady_state(_pressing(0.0)[0], 0.5, "true")
+    np.testing.assert_allclose(plain.residual, 0.0, atol=1e-9)
+    assert plain.analytic_lowest is None and plain.lift_compensation is None

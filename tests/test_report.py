@@ -993,6 +993,41 @@ def test_the_analytic_force_check_is_na_where_the_leg_moves_in_the_steady_window
             assert all("analytic check: n/a (the leg moves" in r for r in rows)
 
 
+def test_a_force_acting_above_the_lowest_point_shows_the_spec_s_check_and_the_lever(tmp_path: Path) -> None:
+    """A backend that declares its force acting halfway through the penetration (contact.lift 0.5, as MuJoCo) is
+    checked at that point, and the spec's check at the lowest point and the lever between the two follow it as
+    their own rows (the lever sum: the check at its point is the spec's plus the compensation, to 1e-12 N)."""
+    from legbench.model import load_params
+
+    q = kinematics.ik_nearest(np.array([0.1667, 0.0, load_params().geometry.R_foot - 0.005]), np.array([0, -1, -1.2]))
+    F = np.array([4.0, -3.0, 50.0])  # ground force on the foot [N], acting y/2 above the lowest point
+    tau = kinematics.gravity(q) - kinematics.jacobian_at(q, "true", 0.5).T @ F
+
+    def pressing(t: np.ndarray) -> np.ndarray:
+        return np.tile(np.concatenate([q, np.zeros(3), tau, F]), (len(t), 1))
+
+    d = write_run(tmp_path / "lift", {"ref": None}, base=pressing)
+    meta = json.loads((d / "run.json").read_text())
+    meta["backends"]["ref"]["info"]["contact"] = {"poc": "true", "lift": 0.5}
+    (d / "run.json").write_text(json.dumps(meta))
+    res = compare(d)
+    (s,) = res.steady
+    assert s.lift == 0.5 and s.analytic_lowest is not None and s.lift_compensation is not None
+    np.testing.assert_allclose(s.analytic_lowest + s.lift_compensation, s.analytic_poc, rtol=0, atol=1e-12)
+    md = R.write_report(d, res).markdown.read_text()
+    steady = md[md.index("## Steady state") :].split("\n## ")[0]
+    rows = [line for line in steady.splitlines() if line.startswith("| ref | ")]
+    labels = [r.split(" | ")[1] for r in rows]
+    assert labels == [
+        "measured (mean over 1.500..2.000 s)",
+        "analytic check, J at 0.5 y above the poc",
+        "measured - analytic (J at 0.5 y above the poc)",
+        "analytic check, J_poc (the spec's: the sphere's lowest point)",
+        "lever compensation (J at 0.5 y above the poc - J_poc)",
+    ]
+    assert f"| {num(s.analytic_lowest[0])} | {num(s.analytic_lowest[1])} | {num(s.analytic_lowest[2])} |" in rows[3]
+
+
 def test_the_split_says_mostly_only_for_a_clear_ratio(tmp_path: Path) -> None:
     """The contact-mode split's two peaks are taken at their own times: the sentence calls one part 'mostly' the
     cause only when it is at least MOSTLY = 3 times the other (native 5 % off, reference mode 0.01 %: contact
