@@ -547,6 +547,23 @@ def test_poc_compensation_vanishes_for_a_vertical_force_and_not_with_friction(tm
         assert {"analytic_poc", "analytic_centre", "poc_compensation", "analytic_residual"} <= set(rows["metric"])
 
 
+def test_the_check_at_a_singular_j_poc_is_undefined_with_a_note(tmp_path: Path) -> None:
+    """At a pose where J_poc loses rank (found by minimising det(J_poc)^2 over q2, q3 with q1 = 0; condition number
+    3.8e16, at least COND_MAX = 1e8; a straight knee is not one: J_poc's cond there is 61, the sphere's lowest point
+    being off the shank's line) the check gives NaN with one note naming the singular J_poc, not a force made of
+    (J^T)^-1's round-off."""
+    q = np.array([0.0, 1.8298834292396862, 2.969711102182886])
+    tau = kinematics.gravity(q)
+
+    def straight(t: np.ndarray) -> np.ndarray:
+        return np.tile(np.concatenate([q, np.zeros(3), tau, np.zeros(3)]), (len(t), 1))
+
+    res = C.compare(write_run(tmp_path / "s", {"ref": None}, base=straight))
+    (s,) = res.steady
+    assert not s.cond < metrics.COND_MAX and np.isnan(s.analytic_poc).all()
+    assert res.notes.count("ref: J_poc is singular at the steady-state pose; analytic check undefined") == 1
+
+
 def test_a_log_without_torques_gets_a_note_that_the_check_needs_tau_and_q(tmp_path: Path) -> None:
     """A CSV log with t, q and the force only, at the regular static pose q* (cond(J_poc) ~ 10, far below 1e8): its
     analytic force is undefined (NaN) and the one note about it says the check needs tau and q, not that J_poc is
@@ -598,6 +615,22 @@ def test_contact_mode_split_separates_the_two_causes(tmp_path: Path) -> None:
     assert res.to_json()["split_with"] == "fake__reference"
     ref_side = C.compare(tmp_path / "fake__reference")
     assert ref_side.split == () and ref_side.run.label == "fake__reference"
+
+
+def test_contact_mode_split_with_a_drifting_reference_adds_up_sample_by_sample(tmp_path: Path) -> None:
+    """The reference backend differs between the modes (r_R = x + 0.02: its own contact is not the law), a_n = x +
+    0.06, a_R = x + 0.05: contact a_n - a_R is 0.01, integration a_R - r_R 0.03 (against the reference-mode
+    reference, not the native one: 0.05), drift r_R - r_n 0.02, and they add up to native 0.06 (RMS, 1e-9). Every
+    part's % is over the native reference's peak max |r_n| (1e-9 relative), not the reference-mode one's."""
+    write_run(tmp_path / "fake", {"ref": None, "a": offset(0.06)})
+    write_run(tmp_path / "fake__reference", {"ref": offset(0.02), "a": offset(0.05)}, contact_mode="reference")
+    res = C.compare(tmp_path / "fake")
+    (m,) = res.split
+    for part, want in (("native", 0.06), ("contact", 0.01), ("integration", 0.03), ("drift", 0.02)):
+        np.testing.assert_allclose(getattr(m, f"{part}_rms"), want, rtol=1e-9, err_msg=part)
+        peak = np.abs(res.run.traces["ref"].data).max(axis=0)
+        np.testing.assert_allclose(getattr(m, f"{part}_pct"), want / peak * 100, rtol=1e-9, err_msg=part)
+    np.testing.assert_allclose(m.contact_rms + m.integration_rms + m.drift_rms, m.native_rms, rtol=1e-9)
 
 
 def test_split_found_from_inside_the_run_directory(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

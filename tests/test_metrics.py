@@ -156,7 +156,8 @@ def _trace(name: str, t: np.ndarray, q: np.ndarray) -> results.RunResult:
 def test_a_lag_at_the_search_limit_or_on_a_flat_correlation_is_not_identified() -> None:
     """A 150 ms lag searched within 100 ms came back as 100 ms at correlation 0.88, and two slow ramps (which
     correlate at any lag) as the search limit at correlation 1: both now give no lag (NaN) with a note, and
-    ``remove`` removes nothing. A 20 ms lag inside the window is still found (to 1e-3 sample)."""
+    ``remove`` removes nothing. A 20 ms lag inside the window is still found (to 1e-3 sample), and so are 20.4 and
+    20.7 ms, between samples (measured within 1.1e-4 sample; without the sub-sample step 0.4 and 0.3 sample off)."""
     t = np.arange(0.0, 2.0 + 1e-12, 1e-3)
 
     def swing(lag: float) -> np.ndarray:
@@ -173,6 +174,9 @@ def test_a_lag_at_the_search_limit_or_on_a_flat_correlation_is_not_identified() 
     assert p.lag_removed == 0.0
     near = metrics.estimate_lag(_trace("a", t, swing(0.02)), ref)
     assert abs(near.samples - 20.0) < 1e-3 and near.note == ""
+    for lag in (0.0204, 0.0207):  # between samples: the parabola through the peak's neighbours finds it
+        between = metrics.estimate_lag(_trace("a", t, swing(lag)), ref)
+        assert abs(between.samples - lag / 1e-3) < 1e-3, (lag, between.samples)
 
 
 def test_a_component_at_rest_does_not_steer_the_lag_and_a_lag_that_hurts_is_not_removed() -> None:
@@ -219,7 +223,8 @@ def test_a_force_acting_above_the_lowest_point_is_checked_there_and_at_the_spec_
     the ground with 5 N of friction: the check at its point gives the force back (1e-9 N); the spec's check at the
     lowest point (``analytic_lowest``) is off by the lever, which ``lift_compensation`` gives exactly
     (analytic_poc - analytic_lowest, and more than 1e-3 N here). Where the force acts at the lowest point (lift 0),
-    there is no second check."""
+    there is no second check, nor where the foot is out of the ground (the lifted point is the lowest point: the
+    reported lift is 0)."""
     from legbench import kinematics
 
     trace, F = _pressing(0.5)
@@ -234,3 +239,5 @@ def test_a_force_acting_above_the_lowest_point_is_checked_there_and_at_the_spec_
     plain = metrics.steady_state(_pressing(0.0)[0], 0.5, "true")
     np.testing.assert_allclose(plain.residual, 0.0, atol=1e-9)
     assert plain.analytic_lowest is None and plain.lift_compensation is None
+    airborne = metrics.steady_state(_pressing(0.0, depth=-0.01)[0], 0.5, "true", lift=0.5)  # the foot 10 mm up
+    assert airborne.lift == 0.0 and airborne.analytic_lowest is None  # no penetration to lift the point into
