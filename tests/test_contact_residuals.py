@@ -12,7 +12,7 @@ from legbench import backends as registry
 from legbench import kinematics
 from legbench.contact import ContactParams, ReferenceContact
 from legbench.contact_residuals import residuals
-from legbench.model import ROOT
+from legbench.model import ROOT, load_params
 
 P = ContactParams()
 Q_STAR = np.array([-0.0025, -1.1899, -1.2599])
@@ -37,18 +37,59 @@ def _synthetic(qd_dir: np.ndarray, speeds: np.ndarray, depth: float = 0.004) -> 
 
 
 def test_law_data_has_zero_residuals() -> None:
-    """Data made by the law: penetration, friction ratio, angle and creep all match it to rounding."""
-    # a slip along the ground only (no vertical poc velocity): joint 1 moves the foot almost purely along x
+    """Data made by the law: penetration, friction ratio, angle and creep all match it to rounding (penetration
+    below 1e-15 m, a few ulp of the 0.2 m links; measured 0.0 m)."""
+    # joint 1 alone: the poc slips along x (v_t = 0.404 m/rad qd1, vy = 0) and rises (vz = 0.111 m/rad qd1), so
+    # ydot < 0 and the law adds no damping here (pressing in: test_pressing_in_damping_is_not_the_springs)
     qd_dir = np.array([1.0, 0.0, 0.0])
     speeds = np.concatenate([np.linspace(1e-5, 0.9 * P.v_th, 20), np.linspace(2 * P.v_th, 0.1, 20)]) / 0.4
     t, q, qd, f = _synthetic(qd_dir, speeds)
     r = residuals(t, q, qd, f, P)
     assert r.n_contact == 40
-    assert r.penetration_max < 1e-4 * 0.004 + 1e-12  # pressing-in damping removed exactly; rounding only
+    assert r.penetration_max < 1e-15  # Fn = Kp y exactly: y - Fn / Kp is round-off only
     assert r.n_sliding == 20 and r.friction_ratio == pytest.approx(1.0, abs=1e-12)
     assert r.angle_max < 1e-6
     # creep samples: those with mu(v) < 0.9 mu_k, i.e. v < 0.77 v_th: 17 of the 20 below v_th
     assert r.n_creep == 17 and r.creep_speed == pytest.approx(r.creep_law, rel=1e-9)
+
+
+def test_pressing_in_damping_is_not_the_springs() -> None:
+    """A foot pressing in (ydot > 0) carries Fn = Kp y + Kd ydot: the spring's share is Fn - Kd ydot, so the
+    penetration residual is round-off only (below 1e-15 m, measured 0.0 m; penetration_rel below 1e-12), where
+    counting the damping as spring would read Kd ydot / Kp, up to 2.8e-4 m here (ydot up to 0.028 m/s, Kd / Kp =
+    0.01 s). Friction ratio 1 (1e-12) and the same sliding and creep samples as the rising foot."""
+    qd_dir = np.array([-1.0, 0.0, 0.0])  # joint 1 backwards: the poc slips along -x and sinks (ydot = 0.275 v_t)
+    speeds = np.concatenate([np.linspace(1e-5, 0.9 * P.v_th, 20), np.linspace(2 * P.v_th, 0.1, 20)]) / 0.4
+    t, q, qd, f = _synthetic(qd_dir, speeds)
+    ydot = -(kinematics.jacobian_poc(q) @ qd[..., None])[:, 2, 0]
+    assert ydot.min() > 0 and P.Kd * ydot.max() / P.Kp > 2.7e-4  # [m]: every sample presses in, visibly
+    y = load_params().geometry.R_foot - kinematics.fk(q)[:, 2]
+    np.testing.assert_allclose(f[:, 2], P.Kp * y + P.Kd * ydot, rtol=1e-12)  # the law's force includes Kd ydot
+    r = residuals(t, q, qd, f, P)
+    assert r.n_contact == 40
+    assert r.penetration_max < 1e-15 and r.penetration_rms < 1e-15 and r.penetration_rel < 1e-12
+    assert r.n_sliding == 20 and r.friction_ratio == pytest.approx(1.0, abs=1e-12)
+    assert r.n_creep == 17
+
+
+def _slip_gain(qd_dir: np.ndarray) -> float:
+    """Slip speed [m/s] of the poc per unit joint speed along ``qd_dir`` at :func:`_synthetic`'s pose."""
+    q0 = _synthetic(qd_dir, np.zeros(1))[1][0]
+    return float(np.hypot(*(kinematics.jacobian_poc(q0) @ qd_dir)[:2]))
+
+
+def test_sliding_starts_at_the_end_of_the_falling_ramp() -> None:
+    """Only a slip at or above 1.5 v_th counts as sliding (the law's mu_k): on the ramp v_th..1.5 v_th mu falls
+    from mu_s to mu_k, and those samples (1.05-1.49 v_th, |F_t| / (mu_k Fn) = 1.15-1.0033) are not scored, so the
+    friction ratio of the law's own data is 1 (1e-12) over the four samples at 1.51-50 v_th."""
+    qd_dir = np.array([1.0, 0.0, 0.0])
+    ramp, beyond = np.array([1.05, 1.2, 1.35, 1.49]), np.array([1.51, 2.0, 5.0, 50.0])
+    t, q, qd, f = _synthetic(qd_dir, np.concatenate([ramp, beyond]) * P.v_th / _slip_gain(qd_dir))
+    r = residuals(t, q, qd, f, P)
+    assert r.n_contact == 8
+    assert r.n_sliding == 4 and r.friction_ratio == pytest.approx(1.0, abs=1e-12)
+    ramp_ratio = np.hypot(f[:4, 0], f[:4, 1]) / (P.mu_k * f[:4, 2])
+    assert ramp_ratio.min() > 1.003  # what counting the ramp would have scored: friction above mu_k
 
 
 def test_residuals_see_a_wrong_law() -> None:
@@ -62,7 +103,9 @@ def test_residuals_see_a_wrong_law() -> None:
     f[:, :2] *= 0.8
     r = residuals(t, q, qd, f, P)
     assert r.friction_ratio == pytest.approx(P.mu_s / P.mu_k, rel=1e-9)
-    assert r.penetration_rel == pytest.approx(0.25, rel=0.05)  # y Kp / Fn - 1 = 1/0.8 - 1 (damping is small here)
+    # the poc rises (ydot < 0): no damping, Fn = 0.8 Kp y, so y Kp / Fn - 1 = 1/0.8 - 1 = 0.25 up to round-off (a few
+    # ulp of 1.25, 2.2e-16 each; measured 0.0): 1e-14
+    assert r.penetration_rel == pytest.approx(0.25, rel=0, abs=1e-14)
     # the same force from a Coulomb engine that declares it slides with mu_s is what it should be: ratio 1 (the
     # report showed MuJoCo's, Bullet's and Drake's 1.167 = mu_s / mu_k as if their friction were 17 % high)
     assert residuals(t, q, qd, f, P, sliding="mu_s").friction_ratio == pytest.approx(1.0, rel=1e-9)
@@ -96,6 +139,7 @@ def test_a_missing_sample_leaves_out_only_that_sample() -> None:
 
 
 def test_rotated_friction_gives_its_angle() -> None:
+    """Friction turned 10 deg from opposite the slip at every sliding sample reads angle_max 10 deg (1e-6 deg)."""
     qd_dir = np.array([1.0, 0.0, 0.0])
     t, q, qd, f = _synthetic(qd_dir, np.linspace(2 * P.v_th, 0.1, 5) / 0.4)
     c, s = math.cos(math.radians(10)), math.sin(math.radians(10))
@@ -103,6 +147,21 @@ def test_rotated_friction_gives_its_angle() -> None:
     f[:, 0], f[:, 1] = c * f[:, 0] - s * f[:, 1], s * f[:, 0] + c * f[:, 1]
     r = residuals(t, q, qd, f, P)
     assert r.angle_max == pytest.approx(10.0, abs=1e-6)
+
+
+def test_angle_scores_are_the_largest_and_the_median_angle() -> None:
+    """Friction turned by a different angle at each sample (3, 25, 10, 7 and 15 deg from opposite the slip):
+    angle_max is the largest, 25 deg, and angle_median the middle one, 10 deg (1e-9 deg: arccos of a rotation
+    by cos and sin, round-off ~1e-14 deg)."""
+    qd_dir = np.array([1.0, 0.0, 0.0])
+    t, q, qd, f = _synthetic(qd_dir, np.linspace(2 * P.v_th, 0.1, 5) / 0.4)
+    a = np.radians([3.0, 25.0, 10.0, 7.0, 15.0])
+    f = f.copy()
+    f[:, 0], f[:, 1] = np.cos(a) * f[:, 0] - np.sin(a) * f[:, 1], np.sin(a) * f[:, 0] + np.cos(a) * f[:, 1]
+    r = residuals(t, q, qd, f, P)
+    assert r.n_direction == 5
+    assert r.angle_max == pytest.approx(25.0, abs=1e-9)
+    assert r.angle_median == pytest.approx(10.0, abs=1e-9)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

@@ -186,6 +186,37 @@ def test_trajectory_desired_state_is_the_scipy_spline_on_the_control_grid_bit_fo
         np.testing.assert_array_equal(_bits(d), _bits(np.concatenate([P[k - 200], V[k - 200]])), err_msg=f"tick {k}")
 
 
+def test_trajectory_feedback_law_by_hand() -> None:
+    """u = Kp d(q, q_d) + Kd (qd_d - qd) + Ki sum(d Ts) with the measured state off the desired one (position
+    by 0.02-0.3 rad, the hip a full turn plus 0.03 rad away: the short way round; velocity by 0.1-0.8 rad/s) at
+    six ticks, on the spline, at a knot and after the hold, q_d and qd_d from scipy's spline: 1e-12 N m (|u| up to
+    ~4 N m)."""
+    pts = [[0.1667, 0.05, 0.10], [0.1667, 0.10, 0.12], [0.1667, 0.15, 0.10]]
+    times = (0.5, 1.0, 1.5)
+    ev = Event(0.2, "trajectory", waypoints=tuple(map(tuple, pts)), times=times)
+    gains = Gains(Kp=(10.0, 12.0, 9.0), Kd=(1.0, 0.7, 1.3), Ki=(50.0, 40.0, 30.0))
+    ctrl = TrajectoryController(ev, gains, TS, n_ticks=2500)
+    q0, qd0 = np.array([0.0, -0.6, -1.2]), np.array([0.1, -0.2, 0.3])
+    ctrl.start(0.2, q0, qd0)
+    Q = np.vstack([q0, joint_waypoints(np.array(pts), q0)])
+    knots = np.array([0.0, *times])
+    spline = CubicHermiteSpline(knots, Q, waypoint_velocities(Q, knots, qd0), axis=0)
+    Kp, Kd, Ki = np.array(gains.Kp), np.array(gains.Kd), np.array(gains.Ki)
+    dq = np.array([[0.02, -0.05, 0.1], [-0.3, 0.03 + 2 * np.pi, -0.02], [0.1, -0.1, 0.25]])
+    dqd = np.array([[0.5, -0.3, 0.1], [-0.8, 0.2, 0.4], [0.3, 0.6, -0.5]])
+    integral = np.zeros(3)
+    for n, k in enumerate((200, 201, 202, 650, 1200, 2400)):  # 1200: the knot at 1.0 s; 2400: held since 1700
+        t = min((k - 200) * TS, knots[-1])
+        q_d, qd_d = spline(t), (spline(t, 1) if (k - 200) * TS < knots[-1] else np.zeros(3))
+        q, qd = q_d + dq[n % 3], qd_d + dqd[n % 3]
+        e = K.joint_error(q, q_d)  # hip: +-0.03 rad the short way, not 6.3 rad
+        assert np.abs(e).max() < 0.31
+        integral += e * TS
+        want = Kp * e + Kd * (qd_d - qd) + Ki * integral
+        np.testing.assert_allclose(ctrl(k, q, qd), want, rtol=0, atol=1e-12, err_msg=f"tick {k}")
+        np.testing.assert_allclose(ctrl.integral, integral, rtol=0, atol=1e-15)
+
+
 def test_pid_float_path_equals_the_numpy_formula_bit_for_bit() -> None:
     """u = Kp e + Kd (e - e_prev)/Ts + Ki I in numpy arrays, tick by tick, against the controller's floats."""
     gains = Gains(Kp=(10.0, 12.0, 9.0), Kd=(1.0, 0.7, 1.3), Ki=(2.0, 0.5, 1.0))

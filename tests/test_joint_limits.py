@@ -1,5 +1,6 @@
-"""The joint-limit spring-damper's step bound (:func:`legbench.backends.joint_limits.step_bound`) against the
-linear dynamics it bounds, integrated step by step."""
+"""The joint-limit spring-damper (:class:`legbench.backends.joint_limits.JointLimitLaw`) by hand on each side of
+each limit, and its step bound (:func:`legbench.backends.joint_limits.step_bound`) against the linear dynamics it
+bounds, integrated step by step."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ import math
 
 import pytest
 
-from legbench.backends.joint_limits import DAMPING, STIFFNESS, step_bound
+from legbench.backends.joint_limits import DAMPING, STIFFNESS, JointLimitLaw, step_bound
+from legbench.model import load_params
 
 #: The knee's effective inertia 1/(M^-1)_33 with the knee at its limit [kg m^2] (0.0064-0.0075 over the hip angle).
 I_KNEE = 0.0065
@@ -90,3 +92,50 @@ def test_rk4_bound_of_a_lightly_damped_limit_is_the_undamped_phases() -> None:
     assert h == pytest.approx(2.0 * math.sqrt(2.0) / w, rel=1e-9)
     assert _rk4_amplitude(0.97 * h, 0.0, w * w) < 1e-2
     assert _rk4_amplitude(1.03 * h, 0.0, w * w) > 1e2
+
+
+@pytest.mark.parametrize(
+    ("joint", "side", "qd", "want"),
+    [
+        # 0.01 rad past the limit: the spring's k 0.01 rad = 100 N m back in; moving out at 0.5 rad/s adds the
+        # damper's b 0.5 rad/s = 10 N m; moving back in, the damper is off
+        (0, "upper", 0.5, -110.0),
+        (0, "upper", -0.5, -100.0),
+        (0, "upper", 0.0, -100.0),
+        (0, "lower", -0.5, 110.0),
+        (0, "lower", 0.5, 100.0),
+        (0, "lower", 0.0, 100.0),
+        (2, "upper", 0.5, -110.0),
+        (2, "upper", -0.5, -100.0),
+        (2, "upper", 0.0, -100.0),
+        (2, "lower", -0.5, 110.0),
+        (2, "lower", 0.5, 100.0),
+        (2, "lower", 0.0, 100.0),
+    ],
+)
+def test_limit_torque_is_a_one_sided_spring_damper(joint: int, side: str, qd: float, want: float) -> None:
+    """0.01 rad past the ab/ad's or the knee's limit (+-pi/2, +-2.229 rad), k = 1e4 N m/rad, b = 20 N m s/rad:
+    tau = -k (q - q_lim) - b qd while moving further out, -k (q - q_lim) while at rest or moving back in, on that
+    joint only (the others 0 exactly); 1e-9 N m (q - q_lim is 0.01 rad to a few ulp of 2.229 rad: 1e-12 N m)."""
+    leg = load_params()
+    law = JointLimitLaw(leg.lower.tolist(), leg.upper.tolist(), STIFFNESS, DAMPING)
+    q = [0.0, 0.3, -1.2]
+    v = [0.0, 0.0, 0.0]
+    q[joint] = leg.upper[joint] + 0.01 if side == "upper" else leg.lower[joint] - 0.01
+    v[joint] = qd
+    tau = law(*q, *v)
+    assert tau[joint] == pytest.approx(want, rel=0, abs=1e-9)
+    assert all(t == 0.0 for i, t in enumerate(tau) if i != joint)
+
+
+def test_limit_torque_is_zero_inside_the_limits_and_on_the_continuous_hip() -> None:
+    """Inside the limits (1e-3 rad in from each side of the ab/ad and the knee, at +-5 rad/s either way) and on the
+    continuous hip at any angle (here +-100 rad, moving at 5 rad/s) the limit torque is 0 N m exactly."""
+    leg = load_params()
+    law = JointLimitLaw(leg.lower.tolist(), leg.upper.tolist(), STIFFNESS, DAMPING)
+    assert math.isinf(leg.lower[1]) and math.isinf(leg.upper[1])  # the hip has no position limit
+    for q1 in (leg.lower[0] + 1e-3, leg.upper[0] - 1e-3):
+        for q3 in (leg.lower[2] + 1e-3, leg.upper[2] - 1e-3):
+            for q2 in (-100.0, 0.0, 100.0):
+                for v in (-5.0, 5.0):
+                    assert law(q1, q2, q3, v, v, -v) == (0.0, 0.0, 0.0)

@@ -99,6 +99,18 @@ def test_random_points_outside_the_workspace_have_no_solution() -> None:
         assert not K.ik(pt)
 
 
+def test_ik_nearest_unwraps_the_hip_across_the_pi_seam() -> None:
+    """A foot at fk(0, 3.2, -1) seen from (0, 3.1, -1): IK lists the hip wrapped into [-pi, pi) (hip -3.0832 rad,
+    knee -1) and the knee-flipped (hip 2.2690, knee +1). By angular distance on the hip the first is 0.1 rad from
+    the reference, the flipped one 2.17 rad (0.83 hip, 2 knee); by the plain difference the first would be 6.18 rad
+    away and lose. ik_nearest returns the first, unwrapped to be continuous with the reference: (0, 3.2, -1) to
+    1e-9 rad (measured 4.4e-16)."""
+    q = np.array([0.0, 3.2, -1.0])
+    sols = K.ik(K.fk(q)).solutions
+    assert sorted(np.round(sols[:, 1], 4).tolist()) == [-3.0832, 2.269]  # wrapped: no solution at 3.2 itself
+    np.testing.assert_allclose(K.ik_nearest(K.fk(q), np.array([0.0, 3.1, -1.0])), q, rtol=0, atol=1e-9)
+
+
 def test_jacobian_is_the_derivative_of_fk() -> None:
     """Central differences, h = 1e-6 rad: truncation error ~ h^2 * 0.5 m = 5e-13, tolerance 1e-8."""
     h = 1e-6
