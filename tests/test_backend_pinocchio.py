@@ -357,6 +357,9 @@ def test_effort_rest_penetration_is_fn_over_kp() -> None:
 
 
 def test_combined_task_touches_down_and_settles() -> None:
+    """The combined task: no ground force over 0.5-1 s (hanging at the first target), more than 5 N at 1.9 s
+    (standing after the 1 s touch-down), and over the last 0.5 s at rest (max |qd| below 5e-3 rad/s; measured
+    9.3e-4, the law's creep) pushing with Fn within 45-55 N (measured 50.58-50.60 N: the saturated push)."""
     sc = scenario.load(SCENARIOS / "combined.yaml")
     (tr,) = run.run(sc, ["pinocchio"], None, progress=False)
     assert tr.status == "ok"
@@ -365,8 +368,8 @@ def test_combined_task_touches_down_and_settles() -> None:
     assert np.all(tr.f[500:1000, 2] == 0.0)
     assert tr.f[1900, 2] > 5.0  # standing at touch-down before the push
     last = tr.t >= tr.t[-1] - 0.5
-    assert np.abs(tr.qd[last]).max() < 0.05  # settled [rad/s]
-    assert 20.0 < tr.f[last, 2].mean() < 100.0
+    assert np.abs(tr.qd[last]).max() < 5e-3  # settled [rad/s]
+    assert 45.0 < tr.f[last, 2].min() and tr.f[last, 2].max() < 55.0  # [N]
 
 
 def test_ode45_profile_is_the_reports_simscape_solver() -> None:
