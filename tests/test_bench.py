@@ -77,6 +77,14 @@ def test_every_variant_is_timed_in_cpu_and_wall_time(quick: tuple[int, dict[str,
         assert r["steps"] == int(round(r["duration"] * 1000)) and r["sub_steps"] >= 1
 
 
+def _ratio_table(md: str) -> list[dict[str, str]]:
+    """The rows of bench.md's Ratios table (the first table under "## Ratios"), each cell by its column's header."""
+    section = md.split("## Ratios [CPU time]\n", 1)[1]
+    table = next(p for p in section.split("\n\n") if p.startswith("| task |"))
+    header, _, *rows = ([c.strip() for c in line.split("|")[1:-1]] for line in table.splitlines())
+    return [dict(zip(header, r, strict=True)) for r in rows]
+
+
 def test_ratios_come_from_the_same_samples_and_never_show_a_negative_overhead(
     quick: tuple[int, dict[str, Any], str],
 ) -> None:
@@ -96,8 +104,9 @@ def test_ratios_come_from_the_same_samples_and_never_show_a_negative_overhead(
             assert x["verdict"] == "one sample" and x["overhead_us"] is None
         assert r["harness_us_per_tick"] == "one sample"
         assert r["floor"] == (min(floors, key=lambda f: t[f]["cpu"]["median"]) if floors else "replay")
-    harness = [line.split("|")[4].strip() for line in md.split("## Ratios")[1].splitlines() if line.startswith("| ")]
-    assert all(not h.startswith("-") for h in harness[2:])  # header and rule skipped: no negative cost
+    table = _ratio_table(md)
+    assert [(x["task"], x["backend"]) for x in table] == [(r["task"], r["backend"]) for r in doc["results"]]
+    assert {x["harness [us/tick]"] for x in table} == {"one sample"}  # no cost from one sample, so no negative one
     assert "(one sample)" in md and "**" not in md.split("## Ratios")[1].split("\n## ")[0]  # nothing bold
 
 
@@ -586,3 +595,43 @@ def test_a_contact_mode_the_settings_cannot_run_is_refused_before_any_work(
         args.func(args)
     assert exc.value.key == "backends.drake.solver" and str(exc.value).endswith("(with --contact-mode reference)")
     assert "\n" not in str(exc.value) and not (tmp_path / "b").exists()
+
+
+@pytest.mark.parametrize(
+    ("full", "verdict", "cell"),
+    [
+        ([99.5, 99.8, 100.3], "within noise", "within noise (0.995-1.003)"),
+        ([99.8, 100.2, 100.3], "within noise", "within noise (0.998-1.003)"),
+        ([99.0, 99.5, 99.8], "faster", "0.995 [0.990-0.998] (faster)"),
+        ([110.0, 111.0, 112.0], "overhead", "**1.110** [1.100-1.120]"),
+    ],
+)
+def test_a_full_run_measured_faster_than_its_replay_never_shows_a_negative_overhead(
+    full: list[float], verdict: str, cell: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Three repeats, the replay 100 us/tick CPU in each: a full run measured at 99.5, 99.8, 100.3 us/tick (cheaper
+    than its replay in two repeats, by noise: the median difference is -0.2 us/tick) or at 99.8, 100.2, 100.3
+    (ratios 0.998-1.003, median 1.002) is within noise: bench.json's harness_us_per_tick and bench.md's harness
+    column say so, with no figure (neither -0.2 nor a clamped 0.0). Cheaper in every repeat (99.0-99.8) it is
+    faster, and there is still no harness figure. Only at 110, 111, 112 (every ratio >= 1) is there a cost, the
+    median difference: 11.0 us/tick."""
+    r = bench.BenchResult(task="position", backend="pinocchio", replay_identical=True,
+                          end_state={"replay": {"identical": True, "max_diff": 0.0}})  # fmt: skip
+    r.timings = {"full": bench.Timing("full", "full", full, full),
+                 "replay": bench.Timing("replay", "replay", [100.0] * 3, [100.0] * 3)}  # fmt: skip
+    r.ratios = [bench.ratio("full", "replay", r.timings["full"], r.timings["replay"])]
+    r.floor = "replay"
+    monkeypatch.setattr(bench, "run_bench", lambda *a, **k: [r])
+    args = _parser().parse_args(["bench", str(bench.TASKS[0]), "--backends", "pinocchio", "--repeats", "3",
+                                 "--quiet", "--out", str(tmp_path)])  # fmt: skip
+    assert args.func(args) == 0
+    (row,) = json.loads((tmp_path / "bench.json").read_text())["results"]
+    (line,) = _ratio_table((tmp_path / "bench.md").read_text())
+    harness = line["harness [us/tick]"]
+    if verdict == "overhead":
+        assert row["harness_us_per_tick"] == 11.0 and harness == "11.0"
+    else:  # no figure at all, so no negative one (nor a clamped 0.0)
+        assert row["harness_us_per_tick"] == harness and not any(c.isdigit() for c in harness), harness
+    if verdict == "within noise":
+        assert harness == "within noise"
+    assert _ratios(row)["full / replay"]["verdict"] == verdict and line["full / replay"] == cell

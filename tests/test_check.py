@@ -5,10 +5,12 @@ from __future__ import annotations
 import functools
 import io
 import json
+import math
 import os
 import re
 import shutil
 import xml.etree.ElementTree as ET
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +22,7 @@ from legbench import check as K
 from legbench import cli, results, scenario
 from legbench import compare as C
 from legbench.exceptions import LegbenchError, ResultsError, ScenarioError
+from legbench.signals import label as column_label
 
 BUMP = add_to("tau2", lambda t: 0.5 * np.exp(-(((t - 1.2) / 0.05) ** 2)))  # 0.5 N m pulse at t = 1.2 s
 
@@ -203,6 +206,122 @@ def test_a_steady_state_change_either_way_fails(baseline: Path, tmp_path: Path) 
         steady = [r for r in report.regressions if r.metric == "steady_mean"]
         assert [(r.backend, r.label) for r in steady] == [("b", "fz")], step
         assert steady[0].change == pytest.approx(step, rel=1e-9)
+
+
+@pytest.fixture(scope="module")
+def twin(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A run directory whose backend a is its reference's copy: a's sim errors and RMS are 0, its steady fx (the
+    mean of cos(2 pi t) over the last 0.5 s) -3.8e-16 N; so every allowance of a is the abs tolerance alone."""
+    d = write_run(tmp_path_factory.mktemp("twin") / "fake", {"ref": None, "a": None})
+    results.write_metrics(C.compare(d).to_json(), d / "metrics.json")
+    return d
+
+
+def _committed(src: Path, dest: Path, change: Mapping[tuple[str, str, str], Callable[[float], float]]) -> Path:
+    """The run directory ``src`` as a baseline is committed (run.json and metrics.json, no logs: check takes its
+    metrics as they are), each row (backend, label, metric) of ``change`` set to change(its value) (NaN: null)."""
+    dest.mkdir(parents=True)
+    shutil.copy(src / "run.json", dest / "run.json")
+    doc = json.loads((src / "metrics.json").read_text())
+    todo = dict(change)
+    for row in doc["metrics"]:
+        key = (row["backend"], column_label(row["signal"], row["joint"]), row["metric"])
+        if key in todo:
+            value = todo.pop(key)(float(row["value"]))
+            row["value"] = value if math.isfinite(value) else None
+    assert not todo, f"no such metrics rows: {sorted(todo)}"
+    results.write_metrics(doc, dest / "metrics.json")
+    return dest
+
+
+def _row(report: K.CheckReport, backend: str, label: str, metric: str) -> K.CheckRow:
+    return next(r for r in report.rows if (r.backend, r.label, r.metric) == (backend, label, metric))
+
+
+@pytest.mark.parametrize(
+    ("label", "metric", "tol"), [("q1", "sim_error_pct", 0.01), ("q1", "rms", 1e-5), ("fz", "steady_mean", 0.01)]
+)
+def test_a_change_just_over_the_allowance_is_a_regression_and_just_under_it_moves(
+    baseline: Path, tmp_path: Path, label: str, metric: str, tol: float
+) -> None:
+    """Where the rel term dominates, the allowance is 0.5 % of |baseline|: b's q1 sim error 10 % may grow 0.05 point
+    (abs 0.01), its q1 RMS 0.01 rad 5e-5 rad (abs 1e-5), its steady fz 22.23 N move 0.111 N (abs 0.01 N). Growth of
+    1.1 x the allowance is a REGRESSION, of 0.9 x it moves and passes; a fall of 0.9 x or 1.1 x is 'improved' for
+    the one-sided sim error and RMS, and 'moved' then a REGRESSION for the two-sided steady mean."""
+    two_sided = metric not in K.ONE_SIDED
+    expected = {
+        0.9: "moved",
+        1.1: "REGRESSION",
+        -0.9: "moved" if two_sided else "improved",
+        -1.1: "REGRESSION" if two_sided else "improved",
+    }
+    for k, status in expected.items():
+        plant = functools.partial(lambda v, k: v + k * 0.005 * abs(v), k=k)
+        new = _committed(baseline / "fake", tmp_path / f"new{k:+g}", {("b", label, metric): plant})
+        report = K.check(new, baseline / "fake")
+        row = _row(report, "b", label, metric)
+        assert row.allowed == pytest.approx(0.005 * abs(row.baseline), rel=1e-12) and row.allowed > 4 * tol, k
+        assert row.change == pytest.approx(k * row.allowed, rel=1e-9), k
+        assert row.status == status, (k, row.message)
+        assert [r.status for r in report.regressions] == (["REGRESSION"] if status == "REGRESSION" else []), k
+
+
+@pytest.mark.parametrize(
+    ("label", "metric", "tol"),
+    [
+        ("q1", "sim_error_pct", 0.01),
+        ("q1", "rms", 1e-5),
+        ("qd2", "rms", 1e-4),
+        ("tau3", "rms", 1e-4),
+        ("fz", "rms", 1e-3),
+        ("fx", "steady_mean", 1e-2),
+    ],
+)
+def test_from_a_baseline_of_zero_the_allowance_is_the_abs_tolerance(
+    twin: Path, tmp_path: Path, label: str, metric: str, tol: float
+) -> None:
+    """The defaults' abs parts: 0.01 point (sim_error_pct), 1e-5 rad, 1e-4 rad/s, 1e-4 N m, 1e-3 N (rms of q, qd,
+    tau, force), 0.01 N (steady_mean of the force). From backend a's baseline of 0 (steady fx -3.8e-16 N), where
+    0.5 % of it is nil, growth of 0.9 x the abs tolerance moves and passes, of 1.1 x it is a REGRESSION; for the
+    two-sided steady mean a fall of 0.9 x moves, of 1.1 x is a REGRESSION."""
+    moves = [0.9, 1.1] + ([-0.9, -1.1] if metric == "steady_mean" else [])
+    for k in moves:
+        plant = functools.partial(lambda v, d: v + d, d=k * tol)
+        report = K.check(_committed(twin, tmp_path / f"new{k:+g}", {("a", label, metric): plant}), twin)
+        row = _row(report, "a", label, metric)
+        assert abs(row.baseline) < 1e-15 and row.allowed == tol, (k, row.allowed)
+        assert row.change == pytest.approx(k * tol, rel=1e-9), k
+        assert row.status == ("moved" if abs(k) < 1 else "REGRESSION"), (k, row.message)
+
+
+def test_growth_of_exactly_the_allowance_passes(twin: Path, tmp_path: Path) -> None:
+    """docs/metrics.md: sim_error_pct and rms may grow by *at most* max(abs, rel x |baseline|). From a's baseline of
+    exactly 0 to exactly the abs tolerance (0.01 point, 1e-5 rad), growth and allowance are the same double
+    (x - 0.0 == x == max(x, 0.005 x 0.0)), so the boundary is exact in floating point: 'moved', not a regression."""
+    at = {("a", "q1", "sim_error_pct"): 0.01, ("a", "q1", "rms"): 1e-5}
+    new = _committed(twin, tmp_path / "new", {k: functools.partial(lambda v, x: x, x=x) for k, x in at.items()})
+    report = K.check(new, twin)
+    for key, x in at.items():
+        row = _row(report, *key)
+        assert row.baseline == 0.0 and row.change == row.allowed == x and row.status == "moved", row.message
+    assert report.passed
+
+
+@pytest.mark.parametrize(
+    ("label", "metric", "was"), [("q1", "sim_error_pct", "10"), ("q1", "rms", "0.01"), ("fz", "steady_mean", "22.23")]
+)
+def test_a_metric_that_becomes_undefined_is_a_regression(
+    baseline: Path, tmp_path: Path, label: str, metric: str, was: str
+) -> None:
+    """b's q1 sim error (10 %), q1 RMS (0.01 rad) or steady fz (22.23 N) undefined in the new metrics.json (null,
+    NaN: a reference gone flat, a window with no samples): a number that can no longer be checked is a REGRESSION
+    'became undefined (baseline <its value>)', the one failing row, exit status 1."""
+    new = _committed(baseline / "fake", tmp_path / "new", {("b", label, metric): lambda v: math.nan})
+    report = K.check(new, baseline / "fake")
+    (row,) = report.regressions
+    assert (row.backend, row.label, row.metric, row.status) == ("b", label, metric, "REGRESSION")
+    assert math.isnan(row.new) and row.message == f"fake/b {label} {metric}: became undefined (baseline {was})"
+    assert report.exit_status == 1
 
 
 def test_a_backend_that_stopped_working_is_a_regression(baseline: Path, tmp_path: Path) -> None:
