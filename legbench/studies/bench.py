@@ -292,8 +292,7 @@ class BenchResult:
             # the summary the report's Performance table reads: CPU-time medians of full and replay
             out["full_us_per_tick"] = asdict(full.cpu)
             out["engine_us_per_tick"] = asdict(replay.cpu)
-            noise = "one sample" if h.verdict == "one sample" else "within noise"
-            out["harness_us_per_tick"] = h.overhead_us if h.overhead_us is not None else noise
+            out["harness_us_per_tick"] = harness_cost(h)
             out["overhead_ratio"] = asdict(h.cpu)
             out["rtf_full"] = self.duration / (full.wall.median * max(self.steps, 1) / 1e6)
         return out
@@ -823,6 +822,15 @@ def _end_state_text(r: BenchResult) -> str:
     return f"{', '.join(r.end_state) or 'replay'} identical"
 
 
+def harness_cost(full_replay: Ratio) -> float | str:
+    """The harness's cost from the full run's ratio to its replay: [us/tick] where it is an overhead in every
+    repeat, else what the repeats say instead (``one sample``, ``none (faster)``: the full run the cheaper in every
+    repeat, ``within noise``): never a negative cost."""
+    if full_replay.overhead_us is not None:
+        return full_replay.overhead_us
+    return {"one sample": "one sample", "faster": "none (faster)"}.get(full_replay.verdict, "within noise")
+
+
 def _ratio_cell(r: Ratio | None, bold: bool = True) -> str:
     if r is None:
         return "-"
@@ -905,8 +913,7 @@ def markdown(results: Sequence[BenchResult], meta: Mapping[str, Any]) -> str:
         fl = r.floor or "replay"
         full_fl = h if fl == "replay" else r.find(f"full / {fl}")
         rep_fl = None if fl == "replay" else r.find(f"replay / {fl}")
-        cost = (f"{h.overhead_us:.1f}" if h is not None and h.overhead_us is not None
-                else "one sample" if h is not None and h.verdict == "one sample" else "within noise")  # fmt: skip
+        cost = "-" if h is None else (f"{c:.1f}" if isinstance(c := harness_cost(h), float) else c)
         best = f"{full_fl.best:.3f}" if full_fl is not None else "-"
         lines.append(f"| {r.task} | {r.backend} | {_ratio_cell(h)} | {cost} | {fl} | {_ratio_cell(full_fl)} | {best} "
                      f"| {_ratio_cell(rep_fl) if rep_fl else '-'} |")  # fmt: skip
