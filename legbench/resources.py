@@ -454,13 +454,32 @@ def urdf_destination(params: str | Path | None = None) -> Path:
     return urdf_target(path)
 
 
+#: How every URDF legbench writes ends (``model.urdf_text``): a cached one that does not end so is incomplete.
+URDF_END = b"</robot>\n"
+
+
+def _complete(urdf: Path) -> bool:
+    """``urdf`` is a file that ends as a whole generated URDF does (:data:`URDF_END`; its last bytes only)."""
+    try:
+        with urdf.open("rb") as fh:
+            fh.seek(0, os.SEEK_END)
+            size = fh.tell()
+            if size < len(URDF_END):
+                return False
+            fh.seek(size - len(URDF_END))
+            return fh.read() == URDF_END
+    except OSError:  # missing, or not a file
+        return False
+
+
 def urdf_file(params: str | Path | None = None) -> Path:
     """The URDF of ``params`` (default: the active model), generated into the cache on first use if needed.
 
     The bundled model's shipped ``leg.urdf`` only while its stamp is the bundled ``leg.yaml``'s
     :func:`param_digest` now; otherwise (``leg.yaml`` edited and not regenerated, a ``leg.urdf`` with no stamp or
     another generator's) the bundled parameters are treated as any other file's: ``urdf/leg-<digest>.urdf`` in
-    the cache (see :func:`urdf_target`). Each call reads the parameter file and the URDF's first bytes again.
+    the cache (see :func:`urdf_target`); a cached URDF cut short (not ending as :data:`URDF_END`) is generated
+    again. Each call reads the parameter file and the URDF's first and last bytes again.
 
     Raises:
         ModelError: the parameter file is missing or malformed; or the cache directory cannot be used, in one line
@@ -471,7 +490,7 @@ def urdf_file(params: str | Path | None = None) -> Path:
     if current:
         return bundled_urdf()
     target = _cached(path, digest)
-    if not target.is_file():
+    if not _complete(target):  # missing, or cut short (a full disk, a hand edit): generated again
         from legbench import model  # deferred: model imports pinocchio
 
         leg = model.read_params(path)

@@ -64,6 +64,19 @@ def test_environment_variable_and_urdf_in_the_cache(other_model: Path, monkeypat
     assert model.load_params().gravity == 9.81
 
 
+def test_a_cached_urdf_cut_short_is_generated_again(other_model: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A cached URDF cut short (a full disk, a hand edit: half of its bytes, or the last one missing) no longer ends
+    in </robot> and is generated again, whole (what model.urdf_text writes); before, every engine failed on it."""
+    monkeypatch.setenv(resources.MODEL_ENV, str(other_model))
+    urdf = resources.urdf_file()
+    whole = urdf.read_bytes()
+    assert whole.endswith(resources.URDF_END)
+    for cut in (whole[: len(whole) // 2], whole[:-1], b""):
+        urdf.write_bytes(cut)
+        assert resources.urdf_file() == urdf and urdf.read_bytes() == whole
+    assert whole.decode() == model.urdf_text(model.load_params(other_model))
+
+
 def test_a_urdf_cached_by_another_generator_version_is_not_reused(
     other_model: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
