@@ -316,6 +316,22 @@ def _metrics(d: Path) -> tuple[dict[str, Any], pd.DataFrame, Run | None]:
     return doc, res.frame(), res.run
 
 
+def _check_baseline_rows(bdir: Path, meta: Mapping[str, Any], df: pd.DataFrame) -> None:
+    """A baseline's metrics hold rows for every backend they call ok (a comparison measures each one it ran:
+    its steady state at least). One without (``"metrics": []``, rows deleted) checked nothing of that backend:
+    every new row passed as "new", and the check passed on an empty baseline.
+
+    Raises:
+        ResultsError: naming the baseline's metrics.json and the first such backend.
+    """
+    measured = set(df["backend"]) if "backend" in df.columns else set()
+    bare = [n for n, b in (meta.get("backends") or {}).items() if b.get("status") == "ok" and n not in measured]
+    if bare:
+        raise ResultsError(str(bdir / "metrics.json"), f"no metric rows for backend '{bare[0]}', which it says ran "
+                           "ok: a baseline that checks nothing of it; restore it, or choose another "
+                           "--baseline")  # fmt: skip
+
+
 def _with_run_statuses(doc: dict[str, Any], run: Run | None) -> dict[str, Any]:
     """metrics.json's header with each run backend's status as run.json and the logs on disk say now.
 
@@ -511,6 +527,7 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
         if lost:  # its numbers would be n/a, and every new row of that backend would pass unchecked
             raise ResultsError(str(bdir), f"a baseline with a log missing (backend '{lost[0].name}': {lost[0].reason});"
                                           " restore it, or choose another --baseline")  # fmt: skip
+        _check_baseline_rows(bdir, bmeta, bdf)
         nmeta, ndf, nrun = _metrics(ndir)
         nmeta = _with_run_statuses(nmeta, nrun)
         bname, nname = str(bmeta.get("scenario", key)), str(nmeta.get("scenario", key))

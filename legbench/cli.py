@@ -203,8 +203,10 @@ _SCHEMES = ("tcp", "tls", "inproc", "ws", "wss", "ucx")
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Options every writing subcommand shares, checked before any work: ``--jobs`` >= 1, ``--out`` a usable
-    directory (or file for ``model urdf``), ``--summary``/``--junit`` files in an existing folder that replace
-    an existing file only with ``--force`` (the defaults in the results directory are rewritten freely)."""
+    directory (or file for ``model urdf``: :func:`legbench.results.check_out_file`, a regular file or none, not in a
+    run directory), ``--summary``/``--junit`` files in an existing folder, regular files or none (never a link or a
+    device, even with ``--force``), that replace an existing file only with ``--force`` (the defaults in the results
+    directory are rewritten freely)."""
     from legbench import results  # the subcommand's module has imported it already
 
     jobs = getattr(args, "jobs", None)
@@ -219,8 +221,8 @@ def _check_outputs(args: argparse.Namespace) -> None:
         else:
             try:
                 results.check_out_file(out)
-            except OSError as exc:  # a name too long, a loop of links: a place that cannot be, not a failed write
-                raise LegbenchError(f"--out {out}: {exc.strerror or exc}") from None
+            except (OSError, RuntimeError) as exc:  # a name too long, a loop of links: a place that cannot be
+                raise LegbenchError(f"--out {out}: {getattr(exc, 'strerror', None) or exc}") from None
     scheduler = getattr(args, "scheduler", None)
     if scheduler is not None:
         scheme, sep, rest = str(scheduler).rpartition("://")
@@ -232,10 +234,11 @@ def _check_outputs(args: argparse.Namespace) -> None:
     for opt in ("summary", "junit"):
         if getattr(args, opt, None) is not None:
             try:
-                path = results.check_out_file(getattr(args, opt), f"--{opt}")
+                # inside a run directory: legbench.check's rule (its own summaries may go there)
+                path = results.check_out_file(getattr(args, opt), f"--{opt}", in_run_ok=True)
                 exists = path.exists()
-            except OSError as exc:
-                raise LegbenchError(f"--{opt} {getattr(args, opt)}: {exc.strerror or exc}") from None
+            except (OSError, RuntimeError) as exc:
+                raise LegbenchError(f"--{opt} {getattr(args, opt)}: {getattr(exc, 'strerror', None) or exc}") from None
             if exists and not getattr(args, "force", False):
                 raise LegbenchError(f"--{opt} {path}: exists; choose another file, or pass --force to replace it")
 

@@ -56,6 +56,7 @@ __all__ = [
     "STATUSES",
     "CHECK_OUTPUTS",
     "INDEX_TITLE",
+    "RUN_FILES",
     "STUDY_OUTPUTS",
     "BackendStatus",
     "EventMark",
@@ -356,9 +357,12 @@ def atomic_dir(path: str | Path, keep: Sequence[str] = ()) -> Iterator[Path]:
     replaces ``path`` (the old one is moved aside, the new one renamed in, the old one removed); on an
     exception the temporary directory is removed and ``path`` is left as it was. Files named in ``keep``
     that exist in the old ``path`` and were not written anew are carried over. Stale temporaries of
-    killed runs beside ``path`` are cleaned first (:func:`clean_stale`).
+    killed runs beside ``path`` are cleaned first (:func:`clean_stale`). A ``path`` that is a symbolic link is
+    followed: the directory it names is the one replaced (beside it), the link stays (as a tree's root or a
+    study's output directory given as a link is written through it); the link itself was once replaced by a new
+    directory, the old one left as it was.
     """
-    path = Path(path)
+    path = Path(os.path.realpath(path)) if Path(path).is_symlink() else Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     clean_stale(path.parent)
     tmp = _tmp_name(path)
@@ -410,6 +414,29 @@ def _writable_dir(d: Path, what: str) -> None:
         raise LegbenchError(f"{what} {d}: {probe} is not writable")
 
 
+#: Decimal digits of the largest process ID (Linux's pid_max is at most 4194304): the PID ends every temporary name.
+_PID_DIGITS = 7
+
+
+def _check_temp_names(path: Path, what: str) -> None:
+    """The temporary siblings the writers make of ``path`` (``.<name>.tmp-<pid>``, ``.<name>.old-<pid>``,
+    ``.<name>.out.tmp-<pid>``; :func:`atomic_dir`, :func:`atomic_write_bytes`, :func:`staged_name`) fit the file
+    system's longest name (NAME_MAX of the nearest existing folder, else 255): a name that fits but whose temporary
+    does not failed only when the results were written, after all the work."""
+    probe = path.parent
+    while not probe.exists() and probe.parent != probe:
+        probe = probe.parent
+    try:
+        name_max = os.pathconf(probe, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    longest = len(f".{path.name}.out.tmp-") + _PID_DIGITS
+    if path.name and longest > name_max:
+        raise LegbenchError(f"{what} {path}: a name of {len(path.name)} characters; the temporary names legbench "
+                            f"writes beside it must fit {name_max}, so at most {name_max - longest + len(path.name)} "
+                            "characters")  # fmt: skip
+
+
 def check_out_path(path: str | Path, what: str = "--out", *, run_dir_ok: bool = False) -> Path:
     """An output directory given on the command line (``what``: the option, or the Python API's argument), checked
     before any work: not a regular file, device or other non-directory (the message says which), not a link to
@@ -417,7 +444,8 @@ def check_out_path(path: str | Path, what: str = "--out", *, run_dir_ok: bool = 
     writing), and not inside a run directory (one holding run.json): what is nested in a run would be taken for part
     of that run (its report, its check), or lost with it when the run is replaced. Nor a run directory itself,
     unless ``run_dir_ok`` (``legbench run`` resumes or replaces its own). A path that cannot be (a name too long, a
-    loop of links) is one error too."""
+    loop of links) is one error too, and so is a name whose temporary siblings would not fit
+    (:func:`_check_temp_names`)."""
     path = Path(path)
     try:
         if path.is_symlink() and not path.exists():
@@ -426,6 +454,7 @@ def check_out_path(path: str | Path, what: str = "--out", *, run_dir_ok: bool = 
         if path.exists() and not path.is_dir():
             raise LegbenchError(f"{what} {path}: is {_kind(path)}, not a directory")
         _writable_dir(path, what)
+        _check_temp_names(path, what)
         if not run_dir_ok and (path / "run.json").is_file():
             raise LegbenchError(f"{what} {path}: a run directory, which holds one run; choose another {what}")
         parent = enclosing_run(path)
@@ -523,16 +552,35 @@ def check_study_out(out: str | Path, doc: str, files: Collection[str], kind: str
                             "to replace it")  # fmt: skip
 
 
-def check_out_file(path: str | Path, what: str = "--out") -> Path:
-    """An output file given on the command line, checked before any work: not a directory, its folder exists
-    and is writable."""
+def check_out_file(path: str | Path, what: str = "--out", *, in_run_ok: bool = False) -> Path:
+    """An output file given on the command line, checked before any work: not a directory, not a symbolic link
+    (the file is written beside it and renamed over it, so the link itself was replaced, whatever it named), nor
+    anything else but a regular file if it exists (a device, a FIFO, a socket: with ``--force`` one was replaced
+    by a plain file); its folder exists and is writable, its temporary sibling fits (:func:`_check_temp_names`),
+    and, unless ``in_run_ok`` (a caller with a rule of its own: ``legbench check``'s summaries), it is not inside
+    a run directory (:func:`enclosing_run`: a run's run.json or log replaced by it was lost).
+
+    Raises:
+        LegbenchError: one line naming ``what``, the path and the problem.
+        OSError, RuntimeError: a path that cannot be (a name too long, a loop of links).
+    """
     path = Path(path)
+    if path.is_symlink():
+        raise LegbenchError(f"{what} {path}: a symbolic link (to {os.readlink(path)}); legbench would replace the "
+                            "link, not write through it: give the file itself, or another name")  # fmt: skip
     if path.is_dir():
         raise LegbenchError(f"{what} {path}: is a directory, not a file")
+    if path.exists() and not path.is_file():
+        raise LegbenchError(f"{what} {path}: is {_kind(path)}, not a regular file; choose another file")
     if not path.parent.is_dir():
         raise LegbenchError(f"{what} {path}: no such folder {path.parent}")
     if not os.access(path.parent, os.W_OK | os.X_OK):
         raise LegbenchError(f"{what} {path}: {path.parent} is not writable")
+    _check_temp_names(path, what)
+    parent = None if in_run_ok else enclosing_run(path)
+    if parent is not None:
+        raise LegbenchError(f"{what} {path}: inside the run directory {parent}, which holds one run; choose another "
+                            "file")  # fmt: skip
     return path
 
 
@@ -556,9 +604,30 @@ def _previous(out_dir: Path) -> dict[str, Any] | None:
         return {} if (out_dir / "run.json").is_file() else None
 
 
+#: What legbench puts in a run directory besides its backends' logs: run.json, the report (metrics.json, its
+#: pages, their assets, the figures of earlier versions) and a regression check's default summaries.
+RUN_FILES = ("run.json", "metrics.json", "report.md", "report.html", "assets", "figures", *CHECK_OUTPUTS)
+
+
+def _foreign_in_run(out_dir: Path, prev: Mapping[str, Any]) -> str | None:
+    """The first entry of the run directory ``out_dir`` (its run.json ``prev``) that legbench did not put there:
+    not one of :data:`RUN_FILES`, a log (``.parquet``, ``.csv``) of a backend run.json lists, or a temporary of an
+    earlier write. A run is written whole into a new directory swapped in place of the old one
+    (:func:`atomic_dir`), so whatever else is there would be lost with it."""
+    listed: Mapping[str, Any] = prev["backends"] if isinstance(prev.get("backends"), Mapping) else {}
+    logs = {f"{n}{ext}" for n in listed for ext in (".parquet", ".csv")}
+    logs |= {str(b["file"]) for b in listed.values() if isinstance(b, Mapping) and isinstance(b.get("file"), str)}
+    for p in sorted(out_dir.iterdir()):
+        if p.name not in RUN_FILES and p.name not in logs and not _TEMP_RE.match(p.name):
+            return p.name
+    return None
+
+
 def check_out_dir(scenario: Scenario, out_dir: Path, option: str = "--out") -> None:
-    """Refuse an output directory holding another scenario's results (or anything else); the message says to
-    choose another ``option`` (what the caller named the directory with: the Python API's ``out``)."""
+    """Refuse an output directory holding another scenario's results (or anything else: a run directory holding
+    files legbench does not put in one, :func:`_foreign_in_run`, whatever ``--force`` says, since the run replaces
+    the whole directory); the message says to choose another ``option`` (what the caller named the directory
+    with: the Python API's ``out``)."""
     out_dir = Path(out_dir)
     prev = _previous(out_dir)
     if prev is None:
@@ -572,6 +641,10 @@ def check_out_dir(scenario: Scenario, out_dir: Path, option: str = "--out") -> N
     if name != scenario.name:
         raise LegbenchError(f"{out_dir}: holds results of scenario {name!r}, not {scenario.name!r}; choose another "
                             f"{option} or remove it")  # fmt: skip
+    foreign = _foreign_in_run(out_dir, prev)
+    if foreign is not None:
+        raise LegbenchError(f"{out_dir}: not only a legbench run directory (it holds {foreign}), and a run replaces "
+                            f"the whole directory; move it away, or choose another {option}")  # fmt: skip
 
 
 def _same_settings(prev: Mapping[str, Any], scenario: Scenario, contact_mode: str | None) -> bool:
@@ -1197,10 +1270,13 @@ def read_metrics(path: str | Path) -> tuple[dict[str, Any], pd.DataFrame]:
 
     The header fields its readers use are checked like run.json's: ``scenario``, ``name``, ``reference``
     text, ``contact_mode`` native or reference, ``backends`` an object of name -> {status (one of
-    :data:`STATUSES`), reason, source}.
+    :data:`STATUSES`), reason, source}. Each row's ``value`` is a finite number or null (:func:`metrics_text`
+    writes nothing else; a text, a list or a non-finite number was read as n/a, which a check passes as "new"),
+    and no two rows share their key columns (which of them counted was an accident of the table's order).
 
     Raises:
-        ResultsError: missing file, wrong schema, a malformed header field (naming its key) or malformed rows.
+        ResultsError: missing file, wrong schema, a malformed header field (naming its key) or malformed rows
+            (naming ``metrics[i]`` and the bad value or the row it repeats).
     """
     path = Path(path)
     if not path.is_file():
@@ -1223,6 +1299,16 @@ def read_metrics(path: str | Path) -> tuple[dict[str, Any], pd.DataFrame]:
     rows = doc.pop("metrics", None)
     if not isinstance(rows, list) or any(not isinstance(r, dict) or set(r) != set(FRAME_COLUMNS) for r in rows):
         raise ResultsError(str(path), f"'metrics' must be a list of objects with keys {list(FRAME_COLUMNS)}")
+    seen: dict[tuple[str, ...], int] = {}
+    for i, r in enumerate(rows):
+        v, row = r["value"], tuple(str(r[c]) for c in FRAME_COLUMNS[:-1])
+        if v is not None and not (_is_number(v) and math.isfinite(v)):  # "corrupt", [1], "NaN", NaN, Infinity
+            raise ResultsError(str(path), f"must be a finite number or null (n/a), not {v!r:.40} (row "
+                                          f"{'/'.join(row)})", f"metrics[{i}].value")  # fmt: skip
+        if row in seen:
+            raise ResultsError(str(path), f"the same row as metrics[{seen[row]}] ({'/'.join(row)}): a metric is given "
+                                          "once", f"metrics[{i}]")  # fmt: skip
+        seen[row] = i
     df = pd.DataFrame(rows, columns=list(FRAME_COLUMNS))
     df["value"] = pd.to_numeric(df["value"], errors="coerce").astype(float)
     for c in FRAME_COLUMNS[:-1]:

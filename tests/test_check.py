@@ -693,3 +693,36 @@ def test_a_tolerance_file_s_error_names_its_line(tmp_path: Path) -> None:
     with pytest.raises(ScenarioError) as exc:
         K.load_tolerances(f)
     assert str(exc.value) == f"{f}:4: scenarios.effort.rms.rel: must be a number >= 0, not -2"
+
+
+@pytest.mark.parametrize("damage", ["corrupt values", "no rows", "rows of one backend gone", "a row twice"])
+def test_a_corrupt_or_empty_baseline_never_passes(
+    twin: Path, tmp_path: Path, damage: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A committed baseline whose every value was "corrupt", or with ``metrics: []``, passed (PASS, exit 0, every
+    row "new"); one row given twice was read twice: each is bad input, one line naming the baseline's
+    metrics.json, exit 2, and nothing written into the new results."""
+    base = tmp_path / "base" / "fake"
+    base.mkdir(parents=True)
+    shutil.copy(twin / "run.json", base / "run.json")
+    doc = json.loads((twin / "metrics.json").read_text())
+    if damage == "corrupt values":
+        doc["metrics"] = [{**r, "value": "corrupt"} for r in doc["metrics"]]
+    elif damage == "no rows":
+        doc["metrics"] = []
+    elif damage == "rows of one backend gone":
+        doc["metrics"] = [r for r in doc["metrics"] if r["backend"] != "a"]
+    else:
+        doc["metrics"].append(doc["metrics"][3])
+    (base / "metrics.json").write_text(json.dumps(doc))
+    new = tmp_path / "new"
+    shutil.copytree(twin, new)
+    before = sorted(p.name for p in new.iterdir())
+    assert cli.main(["check", str(new), "--baseline", str(base)]) == 2
+    err = capsys.readouterr().err
+    words = {"corrupt values": r"metrics\[0\]\.value: must be a finite number or null \(n/a\), not 'corrupt'",
+             "no rows": "no metric rows for backend 'ref', which it says ran ok",
+             "rows of one backend gone": "no metric rows for backend 'a', which it says ran ok",
+             "a row twice": rf"metrics\[{len(doc['metrics']) - 1}\]: the same row as metrics\[3\]"}[damage]  # fmt: skip
+    assert re.match(rf"^legbench: error: {re.escape(str(base / 'metrics.json'))}: {words}", err), err
+    assert err.count("\n") == 1 and sorted(p.name for p in new.iterdir()) == before

@@ -7,6 +7,7 @@ import gc
 import importlib.metadata
 import json
 import os
+import stat
 import subprocess
 import sys
 from pathlib import Path
@@ -829,3 +830,97 @@ def test_a_contact_mode_the_settings_cannot_run_is_refused_with_or_without_the_p
         legbench.run_scenario(path, backends=["drake", "pinocchio"], contact_mode="reference", out=out)
     assert not out.exists()
     assert cli.main(["run", str(path), "--backends", "drake,pinocchio", "--no-preflight", "--out", str(out), "-q"]) == 0
+
+
+# --------------------------------------------------------------------------- #
+# Output files and directories: devices, links, files of the user's, names too long
+
+
+def test_summary_junit_and_urdf_out_never_replace_a_device_a_fifo_or_a_link(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``check --summary DEVICE --force`` exited 0 and the device became a regular file (the same for a link to
+    /proc/self/fd/1 with --junit, and ``model urdf --out DEVICE --force``); a dangling link as --summary was
+    replaced without --force: refused before any work, one line, exit 2, each left as it was. Only nodes made
+    here (a FIFO, links, as root a device under tmp_path), never a real /dev node."""
+    new = write_run(tmp_path / "new", {"ref": None})
+    base = write_run(tmp_path / "base", {"ref": None})
+    targets = {"fifo": tmp_path / "fifo", "link": tmp_path / "link", "dangling": tmp_path / "dangling"}
+    os.mkfifo(targets["fifo"])
+    targets["link"].symlink_to(tmp_path / "fifo")
+    targets["dangling"].symlink_to(tmp_path / "nowhere")
+    if os.geteuid() == 0:
+        targets["dev"] = tmp_path / "dev"
+        os.mknod(targets["dev"], stat.S_IFCHR | 0o644, os.makedev(1, 7))
+    for path in targets.values():
+        for argv in (["check", str(new), "--baseline", str(base), "--summary", str(path), "--force"],
+                     ["check", str(new), "--baseline", str(base), "--junit", str(path)],
+                     ["model", "urdf", "--out", str(path), "--force"]):  # fmt: skip
+            assert cli.main(argv) == 2, argv
+            err = capsys.readouterr().err
+            assert err.count("\n") == 1 and f" {path}: " in err, err
+            assert "a symbolic link" in err if path.is_symlink() else "not a regular file" in err, err
+    assert not (new / "check.md").exists()
+    assert stat.S_ISFIFO(targets["fifo"].lstat().st_mode)
+    assert targets["link"].is_symlink() and targets["dangling"].is_symlink()
+    assert "dev" not in targets or stat.S_ISCHR(targets["dev"].lstat().st_mode)
+
+
+def test_model_urdf_out_inside_a_run_directory_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``model urdf --out RUN/run.json --force`` replaced the run's run.json with the URDF (compare then called it
+    invalid JSON): an --out inside a run directory is refused, as --summary and --junit are, one line, exit 2."""
+    run = write_run(tmp_path / "r", {"ref": None})
+    before = (run / "run.json").read_bytes()
+    for out in (run / "run.json", run / "leg.urdf"):
+        assert cli.main(["model", "urdf", "--out", str(out), "--force"]) == 2
+        assert capsys.readouterr().err == (f"legbench: error: --out {out}: inside the run directory {run}, which "
+                                           "holds one run; choose another file\n")  # fmt: skip
+    assert (run / "run.json").read_bytes() == before and not (run / "leg.urdf").exists()
+
+
+def test_a_single_run_with_force_never_deletes_the_users_files(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``run good.yaml --out keep --force`` into a run directory holding notes.txt and myplots/ exited 0 and both
+    were gone (a run replaces its whole directory), while a tree's run and verify refuse such a folder: refused
+    before anything runs, with --force too, one line naming the entry, exit 2, everything kept."""
+    out = write_run(tmp_path / "keep", {"pinocchio": None}, name="position")
+    (out / "notes.txt").write_text("mine")
+    (out / "myplots").mkdir()
+    before = sorted(p.name for p in out.iterdir())
+    assert cli.main(["run", str(POSITION), "--backends", "pinocchio", "--out", str(out), "--force", "-q"]) == 2
+    assert capsys.readouterr().err == (f"legbench: error: {out}: not only a legbench run directory (it holds "
+                                       "myplots), and a run replaces the whole directory; move it away, or choose "
+                                       "another --out\n")  # fmt: skip
+    assert sorted(p.name for p in out.iterdir()) == before and (out / "notes.txt").read_text() == "mine"
+
+
+def test_a_single_run_into_a_linked_out_writes_through_the_link(tmp_path: Path) -> None:
+    """``run --out LINK`` (a link to a folder) replaced the link by a new folder and left the folder empty; with
+    --force on a link to an old run, that run stayed stale: the run goes into the folder the link names, as a
+    tree's run, verify and bench do, and the link stays."""
+    target = tmp_path / "target"
+    target.mkdir()
+    link = tmp_path / "link"
+    link.symlink_to(target)
+    argv = ["run", str(POSITION), "--backends", "pinocchio", "--set", "duration=0.05", "--set",
+            "comparison.steady_window=0.01", "--out", str(link), "-q", "--no-compare", "--no-preflight"]  # fmt: skip
+    assert cli.main(argv) == 0
+    assert link.is_symlink() and (target / "run.json").is_file() and (target / "pinocchio.parquet").is_file()
+    first = (target / "run.json").read_text()
+    assert cli.main([*argv, "--force"]) == 0
+    assert link.is_symlink() and (target / "run.json").read_text() != first  # replaced (its wall time differs)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link", "target"]
+
+
+def test_a_run_out_whose_temporary_would_not_fit_is_refused_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``run --out`` a name of 250 characters ran everything, then exited 4 ("File name too long") writing its
+    temporary sibling: exit 2 before any work, one line."""
+    monkeypatch.chdir(tmp_path)
+    long = "a" * 250
+    assert cli.main(["run", str(POSITION), "--backends", "pinocchio", "--out", long, "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"legbench: error: --out {long}: a name of 250 characters;") and err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []

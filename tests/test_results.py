@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import stat
 from pathlib import Path
 from typing import Any
 
@@ -196,3 +198,115 @@ def test_a_log_that_is_a_folder_is_one_results_error(tmp_path: Path, capsys: pyt
     assert list(results.log_digests(run)) == ["ref.parquet"]
     assert cli.main(["compare", str(run)]) == 2
     assert capsys.readouterr().err.count("\n") == 1
+
+
+# --------------------------------------------------------------------------- #
+# Output paths: links, devices, files of the user's, names too long for the temporaries
+
+
+def _special_files(tmp_path: Path) -> dict[str, Path]:
+    """A FIFO, a link to a regular file, a link to nothing and (as root) a character device, all under tmp_path
+    (never a real /dev node)."""
+    target = tmp_path / "target.md"
+    target.write_text("mine")
+    found = {"a FIFO": tmp_path / "fifo", "a link": tmp_path / "link", "a dangling link": tmp_path / "dangling"}
+    os.mkfifo(found["a FIFO"])
+    found["a link"].symlink_to(target)
+    found["a dangling link"].symlink_to(tmp_path / "nowhere")
+    if os.geteuid() == 0:
+        found["a character device"] = tmp_path / "dev"
+        os.mknod(found["a character device"], stat.S_IFCHR | 0o644, os.makedev(1, 7))
+    return found
+
+
+def test_an_output_file_that_is_a_link_or_no_regular_file_is_refused(tmp_path: Path) -> None:
+    """check_out_file passed a FIFO, a device and a symbolic link (to a file, or to nothing): the writers rename
+    a new file over the name, so ``--summary DEVICE --force`` turned the device into a plain file and a link to
+    /proc/self/fd/1 into one; each is refused, naming what it is, and left as it was."""
+    found = _special_files(tmp_path)
+    for kind, path in found.items():
+        words = "a symbolic link" if "link" in kind else f"is {kind}, not a regular file"
+        with pytest.raises(LegbenchError, match=rf"^--summary {path}: {words}"):
+            results.check_out_file(path, "--summary")
+    assert (tmp_path / "link").is_symlink() and (tmp_path / "target.md").read_text() == "mine"
+    assert stat.S_ISFIFO((tmp_path / "fifo").lstat().st_mode)
+    assert results.check_out_file(tmp_path / "target.md") == tmp_path / "target.md"
+
+
+def test_an_output_file_inside_a_run_directory_is_refused(tmp_path: Path) -> None:
+    """check_out_file let ``model urdf --out RUN/run.json --force`` replace a run's run.json: a file inside a run
+    directory is refused (the rule of check_out_path), unless the caller has its own rule (``in_run_ok``)."""
+    run = write_run(tmp_path / "r", {"ref": None})
+    for path in (run / "run.json", run / "leg.urdf"):
+        with pytest.raises(LegbenchError, match=rf"^--out {path}: inside the run directory {run}, which holds one"):
+            results.check_out_file(path)
+        assert results.check_out_file(path, in_run_ok=True) == path
+
+
+def test_an_out_whose_temporary_names_would_not_fit_is_refused(tmp_path: Path) -> None:
+    """An --out of 250 characters passed (the name fits 255), the whole run ran, then writing its temporary
+    sibling ``.<name>.tmp-<pid>`` failed, exit 4: check_out_path and check_out_file refuse a name whose temporaries
+    do not fit, before any work; 238 characters (the longest temporary at 255) still pass."""
+    for check in (results.check_out_path, results.check_out_file):
+        with pytest.raises(LegbenchError, match=r"a name of 250 characters; .* must fit 255, so at most 238 "):
+            check(tmp_path / ("a" * 250))
+        assert check(tmp_path / ("a" * 238)) == tmp_path / ("a" * 238)
+
+
+def test_a_run_directory_holding_the_users_files_is_refused(tmp_path: Path) -> None:
+    """A single-scenario ``run --out DIR --force`` of a run directory holding notes.txt and a folder of the
+    user's deleted both (the run replaces the whole directory): check_out_dir refuses it, naming the entry,
+    --force or not (as check_out_tree does for a tree); what legbench writes into a run directory passes."""
+    from legbench import scenario
+
+    sc = scenario.load(Path(__file__).resolve().parents[1] / "scenarios" / "position.yaml")
+    run = write_run(tmp_path / "r", {"ref": None}, name=sc.name)
+    for name in {*results.RUN_FILES, "ref.csv", ".x.tmp-1"} - {"run.json"}:
+        (run / name).write_text("")
+    results.check_out_dir(sc, run)
+    (run / "myplots").mkdir()
+    with pytest.raises(LegbenchError, match=rf"^{run}: not only a legbench run directory \(it holds myplots\)"):
+        results.check_out_dir(sc, run)
+    assert (run / "myplots").is_dir()
+
+
+def test_atomic_dir_writes_through_a_link(tmp_path: Path) -> None:
+    """atomic_dir of a symbolic link to a folder replaced the link by a new folder (the folder it named kept the
+    old contents); now the folder the link names is replaced, and the link stays."""
+    target = tmp_path / "target"
+    target.mkdir()
+    (target / "old.txt").write_text("old")
+    link = tmp_path / "link"
+    link.symlink_to(target)
+    with results.atomic_dir(link) as tmp:
+        (tmp / "new.txt").write_text("new")
+    assert link.is_symlink() and sorted(p.name for p in target.iterdir()) == ["new.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link", "target"]
+
+
+@pytest.mark.parametrize(
+    ("value", "words"),
+    [("corrupt", "'corrupt'"), ([1], r"\[1\]"), ("NaN", "'NaN'"), (True, "True"), (math.inf, "inf")],
+)
+def test_a_metrics_value_that_is_no_number_is_refused(tmp_path: Path, value: Any, words: str) -> None:
+    """read_metrics turned a row's value "corrupt", [1] or "NaN" into NaN (n/a), so a corrupt baseline passed
+    ``legbench check`` with every row "new": a value not a finite number or null is refused, naming the row."""
+    d = write_run(tmp_path / "r", {"ref": None})
+    results.write_metrics({"schema": results.METRICS_SCHEMA, "backends": {}, "metrics": []}, d / "metrics.json")
+    doc = json.loads((d / "metrics.json").read_text())
+    row = dict(zip(results.FRAME_COLUMNS, ("fake", "ref", "", "qd", "1", "steady_mean", 0.5), strict=True))
+    doc["metrics"] = [row, {**row, "joint": "2", "value": value}]
+    (d / "metrics.json").write_text(json.dumps(doc))
+    with pytest.raises(ResultsError, match=rf"metrics\.json: metrics\[1\]\.value: must be a finite number or null "
+                                           rf"\(n/a\), not {words} \(row fake/ref//qd/2/steady_mean\)$"):  # fmt: skip
+        results.read_metrics(d / "metrics.json")
+
+
+def test_a_metrics_row_given_twice_is_refused(tmp_path: Path) -> None:
+    """Two rows of one metric (same key columns) were both read, and which one a check compared depended on the
+    table's order: the second is refused, naming the first."""
+    d = tmp_path / "metrics.json"
+    row = dict(zip(results.FRAME_COLUMNS, ("fake", "ref", "", "qd", "1", "steady_mean", 0.5), strict=True))
+    results.write_metrics({"schema": results.METRICS_SCHEMA, "backends": {}, "metrics": [row, row]}, d)
+    with pytest.raises(ResultsError, match=r"metrics\[1\]: the same row as metrics\[0\] \(fake/ref//qd/1/"):
+        results.read_metrics(d)

@@ -623,7 +623,8 @@ def test_run_with_out_never_replaces_a_finished_run_without_force(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A run into an --out that holds a finished run of the same scenario is refused in one line naming --force
-    (exit 2, the run untouched; it was silently replaced), replaced with --force. An interrupted run there
+    (exit 2, the run untouched; it was silently replaced), replaced with --force, but not while it holds a file of
+    the user's (refused even with --force, naming it: the replacement would delete it). An interrupted run there
     (``"complete": false``, no backend finished) is resumed without --force; one of other settings (another
     --set) is not, and needs --force as well."""
     import json
@@ -632,14 +633,18 @@ def test_run_with_out_never_replaces_a_finished_run_without_force(
     out = tmp_path / "r"
     argv = ["run", str(f), "--backends", "fake", "--out", str(out), "-q", "--no-compare", "--no-preflight"]
     assert cli.main(argv) == 0
-    (out / "mine.txt").write_text("kept")  # what a replacement would lose
     before = (out / "run.json").read_bytes()
     capsys.readouterr()
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
     assert f"{out} holds a finished run; choose another --out for a new one, or --force" in err  # --out given
     assert err.count("\n") == 1
-    assert (out / "run.json").read_bytes() == before and (out / "mine.txt").read_text() == "kept"
+    assert (out / "run.json").read_bytes() == before
+    (out / "mine.txt").write_text("kept")  # what a replacement would lose
+    assert cli.main([*argv, "--force"]) == 2  # a file of the user's in it: not replaced even with --force
+    err = capsys.readouterr().err
+    assert "holds mine.txt" in err and err.count("\n") == 1 and (out / "mine.txt").read_text() == "kept"
+    (out / "mine.txt").unlink()
     assert cli.main([*argv, "--force"]) == 0
     meta = json.loads((out / "run.json").read_text())
     meta["backends"]["fake"] |= {"status": "interrupted", "reason": "interrupted at t = 0.0000 s"}
