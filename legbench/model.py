@@ -323,6 +323,16 @@ _COLLISION_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "cylinder": (("r", "length", "axis"), ()),
 }
 
+#: The least mass [kg] of a body of the URDF (link1, link2, link3 and the foot, each after its scale factor): MuJoCo
+#: refuses a moving body lighter than its mjMINVAL (1e-15) and Pinocchio, which merges the fixed foot into link3,
+#: divides the sum by max(m, 2.2e-16), so a lighter link3 gets a wrong COM (1e-21 m for 0.127 m).
+MIN_MASS = 1e-15
+
+#: The least principal moment of inertia [kg m^2] of a body of the URDF about its COM, each after its scale factor:
+#: MuJoCo refuses an inertia tensor whose smallest eigenvalue is below its mjEPS (1e-14), "inertia must have
+#: positive eigenvalues", for every URDF link (the foot too). The bundled leg's smallest is 2.6e-5 kg m^2 (the foot's).
+MIN_INERTIA = 1e-14
+
 #: Lengths and radii of CAD parts and collision primitives, which must be > 0 [m].
 _POSITIVE_DIMS = ("r", "r_out", "length")
 
@@ -536,6 +546,20 @@ def _check_physical(raw: Any, path: Path | str) -> None:
          missing=f"missing ({links_known})")  # fmt: skip
     for k, v in scale.items():
         positive(f"calibration.scale.{k}", v, "must be > 0 (a mass scale factor)")
+    # each body of the URDF, as scaled, heavy enough for every engine to hold it (:data:`MIN_MASS`,
+    # :data:`MIN_INERTIA`); the key named is the factor that scales it (the parts are checked above)
+    for body, inr in cad_estimate(raw, path).items():
+        factor = "link3" if body == "foot" else body
+        k = scale[factor]
+        mass, smallest = inr.mass * k, float(np.linalg.eigvalsh(inr.I).min()) * k
+        which = f"the {body} (scaled with link3)" if body == "foot" else body
+        if mass < MIN_MASS:
+            why = "the least mass the engines hold (MuJoCo's mjMINVAL; Pinocchio divides by max(m, 2.2e-16))"
+            raise bad(f"calibration.scale.{factor}", k, f"leaves {which} {mass:.3g} kg, below {MIN_MASS:g} kg, {why}")
+        if smallest < MIN_INERTIA:
+            why = "the least MuJoCo holds (its mjEPS: 'inertia must have positive eigenvalues')"
+            raise bad(f"calibration.scale.{factor}", k, f"leaves {which} a principal moment of inertia of "
+                      f"{smallest:.3g} kg m^2, below {MIN_INERTIA:g} kg m^2, {why}")  # fmt: skip
 
     # collision: primitives by body, the foot's sphere among them
     collision = mapping("collision", raw["collision"], "a mapping of collision primitives by body, with the foot's")
@@ -554,6 +578,17 @@ def _check_physical(raw: Any, path: Path | str) -> None:
         dims(key, prim)
         if "pos" in prim:
             three(f"{key}.pos", prim["pos"])
+    # the foot's sphere is the spec's foot (docs/spec.md section 1): radius R_foot, centred at E, the foot frame's
+    # origin. The engines collide this sphere and the contact law (and every metric of the penetration) uses
+    # geometry.R_foot about E: two feet made the backends simulate different legs, and no parity row sees it.
+    foot, r_foot = collision["foot"], geometry["R_foot"]
+    if foot["r"] != r_foot:
+        raise bad("collision.foot.r", foot["r"], f"is not the foot's radius geometry.R_foot = {r_foot!r} "
+                  "(the engines' contact sphere is the spec's foot: give both the same value)")  # fmt: skip
+    if "pos" in foot and any(x != 0 for x in foot["pos"]):
+        why = "the foot frame's origin, where the contact law puts it with geometry.L_3E"
+        raise bad("collision.foot.pos", foot["pos"], f"is not E, the foot sphere's centre ({why}): leave pos out or "
+                  "give [0, 0, 0]")  # fmt: skip
 
     # contact: the law's constants (docs/spec.md section 4)
     c = mapping("contact", raw["contact"], "a mapping of the contact law's constants")
@@ -579,8 +614,10 @@ def check_physical(raw: dict[str, Any], path: Path | str = "leg parameters") -> 
     body, the foot's a sphere; ``calibration``'s q*, G(q*), gravity and a scale factor per link;
     the contact law's constants). The physics: the geometry (every entry finite, the lengths and H > 0, the
     positions ``L_B0`` and ``L_01`` of any sign: :data:`_GEOMETRY_LENGTHS`), lengths, radii and positions of the
-    CAD parts and collision primitives, densities, scale factors, q*, G(q*), gravity, joint limits, the
-    contact law's constants (Kp > 0, Kd >= 0, 0 <= mu_k <= mu_s, v_th > 0). Every number must be finite and
+    CAD parts and collision primitives, densities, scale factors (each body of the URDF, scaled, at least
+    :data:`MIN_MASS` and :data:`MIN_INERTIA`, what every engine holds), the foot's collision sphere (the spec's
+    foot: radius ``geometry.R_foot``, centred at E), q*, G(q*), gravity, joint limits, the contact law's
+    constants (Kp > 0, Kd >= 0, 0 <= mu_k <= mu_s, v_th > 0). Every number must be finite and
     within ``limit("float_abs")``: a NaN or inf reached the URDF, which no parser reads.
 
     Raises:

@@ -261,3 +261,37 @@ def test_a_cache_every_engine_needs_is_named_as_it_is(monkeypatch: pytest.Monkey
     with pytest.raises(ModelError) as exc:
         doctor.preflight(EFFORT, ["pinocchio", "cachebound"])
     assert str(exc.value) == "LEGBENCH_CACHE_DIR=/tmp/f: not a directory"
+
+
+def test_a_mismatch_names_the_active_parameter_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """With `--model copy.yaml` the parity error said "the spec (models/leg.yaml and the scenario)", the bundled
+    file, which was not in use. It names the active parameter file (as outputs show a path); the bundled file by
+    its checkout path."""
+    from legbench import cli, resources
+
+    monkeypatch.setenv(resources.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.delenv(resources.MODEL_ENV, raising=False)
+    monkeypatch.chdir(tmp_path)
+    copy = tmp_path / "copy.yaml"
+    copy.write_text(resources.bundled_model().read_text())
+    original = backends.get("pinocchio").load
+
+    def load(self: Any, *a: Any, **k: Any) -> None:
+        original(self, *a, **k)
+        self.lower = [x - 0.1 for x in self.lower]  # a wider joint limit than the spec
+
+    monkeypatch.setattr(backends.get("pinocchio"), "load", load)
+    try:
+        resources.select_model(copy)
+        with pytest.raises(doctor.ParityError) as err:
+            doctor.preflight(EFFORT, ["pinocchio"])
+        assert "the spec (copy.yaml and the scenario) says" in str(err.value)
+        assert "models/leg.yaml" not in str(err.value)
+        assert cli.main(["--model", str(copy), "doctor", str(EFFORT), "--backends", "pinocchio"]) == 1
+        assert "the spec (copy.yaml and the scenario) says" in capsys.readouterr().out
+    finally:
+        resources.select_model(None)
+    err_bundled = doctor.ParityError("pinocchio", "q1_abad.lower", 0.0, 1.0, "rad")
+    assert f"the spec ({resources.shown(resources.bundled_model())} and the scenario)" in str(err_bundled)

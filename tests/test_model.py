@@ -616,3 +616,82 @@ def test_a_shape_refused_past_the_reader_names_the_file_it_came_from() -> None:
     with pytest.raises(ModelError) as exc:
         model.urdf_text(params)
     assert str(exc.value) == "mine.yaml: collision.foot.shape: unknown shape 'cone' (known: sphere, cylinder)"
+
+
+_FOOT_R = "is not the foot's radius geometry.R_foot"
+_FOOT_POS = "is not E, the foot sphere's centre"
+
+
+@pytest.mark.parametrize(
+    ("pattern", "new", "message"),
+    [
+        ("R_foot: 0.0225 ", "R_foot: 0.05 ", f"collision.foot.r: 0.0225 {_FOOT_R} = 0.05"),
+        ("foot: {shape: sphere, r: 0.0225}", "foot: {shape: sphere, r: 0.03}", f"collision.foot.r: 0.03 {_FOOT_R}"),
+        ("foot: {shape: sphere, r: 0.0225}", "foot: {shape: sphere, r: 0.0225, pos: [0.1, 0, 0]}",
+         f"collision.foot.pos: [0.1, 0, 0] {_FOOT_POS}"),
+    ],
+    ids=["R_foot-0.05", "collision-r-0.03", "collision-pos"],
+)  # fmt: skip
+def test_a_foot_collision_sphere_that_is_not_the_spec_foot_is_refused(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], pattern: str, new: str,
+    message: str,
+) -> None:  # fmt: skip
+    """geometry.R_foot (the contact law's radius, about E) and collision.foot (the sphere the engines collide, in
+    the URDF) were independent: R_foot 0.05 beside r 0.0225, or the sphere moved off E, was accepted, and
+    `legbench run --backends pinocchio,mujoco` exited 0 with the engines simulating different feet (doctor has no
+    foot row). The collision sphere is the spec's foot; any other is one line naming the file and both keys,
+    exit 2, before any URDF is written; pos [0, 0, 0] written out is the same sphere and accepted."""
+    from legbench import cli, resources
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv(resources.CACHE_ENV, str(cache))
+    monkeypatch.delenv(resources.MODEL_ENV, raising=False)
+    bad = _edited(tmp_path, pattern, new)
+    try:
+        assert cli.main(["--model", str(bad), "model", "check"]) == 2
+    finally:
+        resources.select_model(None)
+    err = capsys.readouterr().err
+    assert err.startswith(f"legbench: error: {bad}: {message}") and err.count("\n") == 1, err
+    assert ("geometry.R_foot" if ".r:" in message else "geometry.L_3E") in err  # the spec's key beside it
+    assert not cache.exists() or not any(cache.rglob("*")), sorted(cache.rglob("*"))
+    at_e = _edited(tmp_path, "foot: {shape: sphere, r: 0.0225}", "foot: {shape: sphere, r: 0.0225, pos: [0, 0, 0]}",
+                   "at_e.yaml")  # fmt: skip
+    assert model.read_params(at_e).collision["foot"]["pos"] == [0, 0, 0]
+
+
+@pytest.mark.parametrize(
+    ("factor", "body", "words"),
+    [
+        ("link3", "1e-25", "leaves link3 1.49e-26 kg, below 1e-15 kg, the least mass the engines hold"),
+        ("link3", "1e-10", "leaves link3 a principal moment of inertia of 3.6e-15 kg m^2, below 1e-14 kg m^2"),
+        ("link1", "1e-20", "leaves link1 2.8e-21 kg, below 1e-15 kg"),
+    ],
+    ids=["link3-mass", "link3-inertia", "link1-mass"],
+)
+def test_a_link_too_light_for_the_engines_is_refused_naming_its_scale_factor(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], factor: str, body: str,
+    words: str,
+) -> None:  # fmt: skip
+    """calibration.scale.link3: 1e-25 was accepted; `legbench --model that.yaml run scenarios/position.yaml` then
+    stopped at the parity check ("pinocchio holds link3.com.x = 1.04e-21 m, the spec (models/leg.yaml ...) says
+    0.1268": Pinocchio merges the foot into link3 dividing by max(m, 2.2e-16)) after MuJoCo failed to load
+    ("inertia must have positive eigenvalues", below 1e-14). The reader refuses a body of the URDF lighter than
+    model.MIN_MASS or with a principal moment below model.MIN_INERTIA, naming the scale factor, exit 2. The
+    bundled leg is far above both (its lightest body 0.12 kg, smallest moment 2.6e-5 kg m^2); 1e-9 on link3, which
+    every engine holds, is accepted."""
+    from legbench import cli, resources
+
+    monkeypatch.setenv(resources.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.delenv(resources.MODEL_ENV, raising=False)
+    value = {"link1": "2.24287369", "link3": "1.27669764"}[factor]
+    bad = _edited(tmp_path, f"{factor}: {value}", f"{factor}: {body}")
+    try:
+        assert cli.main(["--model", str(bad), "model", "check"]) == 2
+    finally:
+        resources.select_model(None)
+    err = capsys.readouterr().err
+    assert err.startswith(f"legbench: error: {bad}: calibration.scale.{factor}: {body} {words}"), err
+    assert err.count("\n") == 1, err
+    held = _edited(tmp_path, "link3: 1.27669764", "link3: 1e-9", "held.yaml")
+    assert model.read_params(held).scale["link3"] == 1e-9

@@ -378,11 +378,11 @@ def test_fixed_values_valid_only_together_pass_and_a_pair_that_fails_is_named(tm
     was refused at its ``cone`` key, checked alone against the default deadbeat friction. The fixed values are
     checked together; where together they fail, the one that fails alone is named, else the ``set``."""
     study = ("name: pyr\nscenario: {s}\nstudies:\n  - label: x\n    backends: [mujoco]\n    set: {{{set}}}\n"
-             "    grid: {{backends.*.solver: [newton, cg]}}\n    reference: {{backend: mujoco}}\n")  # fmt: skip
+             "    grid: {{backends.*.solver: [newton, cg]}}\n    reference: {{backend: pinocchio}}\n")  # fmt: skip
     scenario_file = ROOT / "scenarios" / "effort.yaml"
     ok = _write(tmp_path, study.format(s=scenario_file, set="backends.*.cone: pyramidal, "
                                                            "backends.*.friction_solref: contact"))  # fmt: skip
-    assert len(sweep.plan(sweep.load_sweep(ok)).tasks) == 2  # the reference is the newton run itself
+    assert len(sweep.plan(sweep.load_sweep(ok)).tasks) == 3  # newton, cg and one Pinocchio reference
     bad = _write(tmp_path, study.format(s=scenario_file, set="backends.*.cone: pyramidal"))
     with pytest.raises(ScenarioError) as exc:
         sweep.load_sweep(bad)
@@ -395,3 +395,60 @@ def test_fixed_values_valid_only_together_pass_and_a_pair_that_fails_is_named(tm
     with pytest.raises(ScenarioError) as exc:
         sweep.load_sweep(other)
     assert exc.value.key == "studies[0].set.backends.*.iterations", exc.value
+
+
+@pytest.mark.parametrize(
+    ("reference", "at"),
+    [
+        ("{backend: pinocchio}", "at dt=0.001"),  # the fuzzing review's case: "2 runs + 0 references", errors 0
+        ("{set: {backends.mujoco.dt: 1.0e-4}}", "at dt=0.001"),  # another backend's setting: none of pinocchio's
+        ("{backend: pinocchio, set: {backends.*.dt: 5.0e-4}}", "at dt=0.0005"),  # the run's own value at one point
+        ("{set: {duration: 0.1}}", "at dt=0.001"),  # the sweep's own set already gives it
+    ],
+    ids=["same-backend", "other-backends-setting", "same-value-at-a-point", "same-as-the-common-set"],
+)
+def test_a_reference_that_is_the_run_itself_is_refused_at_load(tmp_path: Path, reference: str, at: str) -> None:
+    """docs/studies.md: "A reference that would be the run itself is an error". Only `reference: {}` was refused;
+    `backends: [pinocchio]` with `reference: {backend: pinocchio}` (same settings) was accepted, planned as 2 runs +
+    0 references, every error 0.0, exit 0. Any reference on the run's backend that leaves a grid point's settings as
+    the run has them is refused when the file is read, naming studies[0].reference, the backend and the point."""
+    path = _write(tmp_path, GOOD.replace("{set: {backends.*.dt: 1.0e-4}}", reference))
+    with pytest.raises(ScenarioError) as err:
+        sweep.load_sweep(path)
+    assert err.value.file == str(path) and err.value.key == "studies[0].reference" and err.value.line is not None
+    assert err.value.problem.startswith(f"with pinocchio {at}, the reference is the run itself"), err.value.problem
+    assert "\n" not in str(err.value)
+    # another backend, or a setting that differs, is a reference of its own
+    other = _write(tmp_path, GOOD.replace("{set: {backends.*.dt: 1.0e-4}}", "{backend: mujoco}"), "o.yaml")
+    assert len(sweep.plan(sweep.load_sweep(other)).tasks) == 3
+
+
+@pytest.mark.parametrize(
+    ("grid", "value"),
+    [
+        ("{backends.*.integrator: [euler, rk4]}", "'euler'"),
+        ("{gains: [{Kp: 5, Kd: 0.5}, {Kp: 10, Kd: 1}]}", "{'Kp': 5, 'Kd': 0.5}"),
+    ],
+    ids=["integrator", "gains-mapping"],
+)
+def test_a_fit_over_a_column_that_is_not_numeric_is_refused_at_load(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], grid: str, value: str
+) -> None:
+    """`fit: {x: integrator}` (a text column) was accepted: the sweep ran, matplotlib's UserWarning ("No artists
+    with labels found to put in legend") reached stderr from sweep.py and the slope was NaN (0 points), exit 0.
+    fit.x must be a numeric swept key: refused when the file is read, naming fit.x and the study's grid key, exit 2
+    from the command line before any run."""
+    from legbench import cli
+
+    x = "integrator" if "integrator" in grid else "gains"
+    path = _write(tmp_path, GOOD.replace("{backends.*.dt: [1.0e-3, 5.0e-4]}", grid) + f"fit: {{x: {x}}}\n")
+    with pytest.raises(ScenarioError) as err:
+        sweep.load_sweep(path)
+    assert err.value.file == str(path) and err.value.key == "fit.x"
+    key = "backends.*.integrator" if x == "integrator" else "gains"
+    assert err.value.problem.startswith(f"{x!r} is not a numeric column: studies[0].grid.{key} sweeps {value}")
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(path), "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    assert captured.err.count("\n") == 1 and "fit.x" in captured.err and "Warning" not in captured.err
+    assert not out.exists()

@@ -5,8 +5,8 @@ its model is read back: link masses, COMs and inertias (``Backend.mass_propertie
 joint position and torque limits and gravity (from the engine objects, see
 :func:`readback`), and the settings it reports (``Backend.info``: time step,
 integrator, contact parameters as mapped, friction cone). One table shows them
-across backends beside the value the spec (``models/leg.yaml`` and the
-scenario) asks for.
+across backends beside the value the spec (the active leg parameter file,
+``models/leg.yaml`` unless ``--model`` names another, and the scenario) asks for.
 
 Rows of the leg itself and of the shared physics (mass properties, limits,
 gravity) must agree with the spec to :data:`RTOL` relative (of the quantity's
@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from legbench import backends as registry
-from legbench import model
+from legbench import model, resources
 from legbench import scenario as scenario_mod
 from legbench.backends.base import Backend
 from legbench.exceptions import BackendNotFound, LegbenchError, ModelError
@@ -67,7 +67,8 @@ class ParityError(LegbenchError):
 
     def __init__(self, backend: str, row: str, value: Any, expected: Any, unit: str = "", more: int = 0) -> None:
         self.backend, self.row, self.value, self.expected = backend, row, value, expected
-        msg = (f"parity: {backend} holds {row} = {_plain(value)} {unit}, the spec (models/leg.yaml and the scenario) "
+        spec = f"{resources.shown(resources.model_file())} and the scenario"  # the active leg file, not the bundled
+        msg = (f"parity: {backend} holds {row} = {_plain(value)} {unit}, the spec ({spec}) "
                f"says {_plain(expected)} {unit} (relative tolerance {RTOL:g})")  # fmt: skip
         if more:
             msg += f"; {more} more row(s) differ, see `legbench doctor`"

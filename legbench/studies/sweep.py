@@ -253,6 +253,13 @@ def load_sweep(path: str | Path) -> Sweep:
     if fit is not None and not any(_column(k) == fit.x for st in studies for k in st.grid):
         raise doc.error(["fit", "x"], f"no study sweeps a column named {fit.x!r}")
     fit_x = fit.x if fit is not None else None
+    for i, st in enumerate(studies if fit_x is not None else ()):  # a log-log slope against numbers
+        for k, values in st.grid.items():
+            text = next((v for v in values if isinstance(v, bool) or not isinstance(v, int | float)), None)
+            if _column(k) == fit_x and text is not None:
+                raise doc.error(["fit", "x"], f"{fit_x!r} is not a numeric column: studies[{i}].grid.{k} sweeps "
+                                              f"{text!r}; the fit is a log-log slope of the metric against x, which "
+                                              "must be a swept number such as dt")  # fmt: skip
     for i, st in enumerate(studies if fit_x is not None else ()):  # one slope per study and backend, over one key
         others = [k for k in st.grid if _column(k) != fit_x]
         if others and len(others) < len(st.grid):
@@ -261,6 +268,7 @@ def load_sweep(path: str | Path) -> Sweep:
                                                     "would mix their lines; give each value its own study (as "
                                                     "scenarios/sweeps/timestep.yaml does per integrator)")  # fmt: skip
     _check_values(doc, scenario, common, studies)
+    _check_references(doc, common, studies)  # after the values: a bad one is named as it is, not as a same run
     duration = float(common.get("duration", base_scenario.duration))  # the runs' (the sweep's own set may change it)
     if skip >= duration:  # every error metric would be undefined (NaN), and the sweep would still pass
         raise doc.error(["skip"], f"{skip:g} s skips the whole of the runs ({duration:g} s)")
@@ -392,6 +400,51 @@ def _fill(key: str, backend: str) -> str:
     return ".".join(backend if part == "*" else part for part in key.split("."))
 
 
+def _overrides(
+    backend: str, sources: Sequence[tuple[list[str | int], Mapping[str, Any], str]]
+) -> tuple[dict[str, Any], dict[str, list[str | int]]]:
+    """The scenario overrides of a run of ``backend`` from ``sources`` (path, mapping, the backend ``*`` means),
+    later ones winning, other backends' settings dropped; and the sweep key each came from."""
+    overrides: dict[str, Any] = {}
+    origin: dict[str, list[str | int]] = {}
+    for path, mapping, star in sources:
+        for k, v in mapping.items():
+            dotted = _fill(k, star)
+            if not _applies(dotted, backend):
+                continue  # another backend's setting: no effect on this run
+            overrides[dotted] = v
+            origin[dotted] = [*path, k]
+    return overrides, origin
+
+
+def _check_references(doc: YamlContext, common: Mapping[str, Any], studies: Sequence[Study]) -> None:
+    """No run is its own reference (docs/studies.md): a reference on the run's backend whose ``reference.set``
+    leaves every override of some grid point as the run has it (none given, the same values, or only other
+    backends' settings) would be the same run, every error 0 and the sweep passing, as :func:`plan` builds it."""
+    for i, st in enumerate(studies):
+        points = list(itertools.product(*st.grid.values())) if st.grid else [()]
+        for backend in st.backends:
+            if (st.reference_backend or backend) != backend:
+                continue
+            for point in points:
+                gp = dict(zip(st.grid, point, strict=True))
+                sources: list[tuple[list[str | int], Mapping[str, Any], str]] = [
+                    ([], common, backend),
+                    ([], st.set, backend),
+                    ([], gp, backend),
+                ]
+                run, _ = _overrides(backend, sources)
+                ref, _ = _overrides(backend, [*sources, ([], st.reference_set, backend)])
+                if json.dumps(run, sort_keys=True, default=str) != json.dumps(ref, sort_keys=True, default=str):
+                    continue
+                at = " at " + ", ".join(f"{_column(k, backend)}={v!r}" for k, v in gp.items()) if gp else ""
+                given = f"reference.backend {backend}" if st.reference_backend else "no reference.backend"
+                raise doc.error(["studies", i, "reference"],
+                                f"with {backend}{at}, the reference is the run itself ({given}, and "
+                                f"reference.set changes none of its settings): every error would be 0; give the "
+                                f"reference another backend or a setting of {backend} that differs")  # fmt: skip
+
+
 @dataclass(frozen=True)
 class Row:
     """One row of the sweep table: a grid point of a study on one backend, or a reference run.
@@ -461,15 +514,7 @@ def plan(sweep: Sweep) -> Plan:
 
     def task_for(backend: str, sources: list[tuple[list[str | int], Mapping[str, Any], str]], ref: int | None) -> int:
         """The task of ``backend`` with the overrides of ``sources`` (path, mapping, backend that ``*`` means)."""
-        overrides: dict[str, Any] = {}
-        origin: dict[str, list[str | int]] = {}
-        for path, mapping, star in sources:
-            for k, v in mapping.items():
-                dotted = _fill(k, star)
-                if not _applies(dotted, backend):
-                    continue  # another backend's setting: no effect on this run
-                overrides[dotted] = v
-                origin[dotted] = [*path, k]
+        overrides, origin = _overrides(backend, sources)
         key = (backend, json.dumps(overrides, sort_keys=True, default=str), ref)
         if key in index:
             return index[key]
