@@ -91,6 +91,14 @@ SECTION_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 MAX_TICKS = 10_000_000  # the default of limit('ticks'); LEGBENCH_LIMITS=ticks=N raises it
 MAX_WAYPOINTS = 100_000
 NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}")
+#: Names a results tree's root holds beside its run directories, which a scenario's folder would clash with:
+#: the tree's index pages, ``legbench check``'s summaries (``results.CHECK_OUTPUTS``) and the plotly assets
+#: folder (``report_figures.ASSETS``). They live in modules this one may not import (docs/architecture.md), so
+#: they are spelled here; tests/test_scenario.py keeps them equal. Compared case-folded (a case-blind disk).
+RESERVED_NAMES = ("report.html", "report.md", "check.md", "check-junit.xml", "assets")
+#: Suffixes ``results.out_dir_for`` gives a scenario's folder in another contact mode or profile than its own
+#: (``effort__reference``, ``effort__engine-defaults``): a scenario named so would share that folder.
+RESERVED_SUFFIXES = ("__reference", *(f"__{p}" for p in PROFILES))
 #: Divergence bounds no physical run of this leg reaches: joint speed [rad/s] (20x the hip's speed limit) and
 #: foot penetration [m] (5 cm is 500 N at Kp = 1e4 N/m; the leg pushes <= 100 N). The run loop stops a backend
 #: beyond them; the loader refuses an initial state beyond them (every run would stop at t = 0).
@@ -342,6 +350,7 @@ def parse(
     placeholders: Collection[str] = (),
     every_engine: bool = False,
     origin: str = "--set",
+    cut: bool = False,
 ) -> Scenario:
     """Validate a scenario document (already parsed YAML) into a :class:`Scenario`; ``overridden``: the dotted
     keys ``--set`` replaced (their errors name the override, not the file's line: ``(from ORIGIN KEY)``,
@@ -350,7 +359,8 @@ def parse(
     them so): the checks that compare other values with them are skipped. ``every_engine`` (``legbench
     validate``): also check that the control period suits the default (or profile) sub-step of every
     installed engine the scenario gives no ``dt`` (this imports them all); a run checks only the engines it
-    loads, when it loads them."""
+    loads, when it loads them. ``cut``: the document is a scenario cut short (:func:`shorten`), the start of the
+    whole run, so a trajectory, an ellipse or a delayed force may end after it."""
     ctx = YamlContext(file, root, overridden, origin)
     exact_d, exact_r = "duration" not in placeholders, "control_rate" not in placeholders
     if isinstance(doc, Mapping) and "events" not in doc:  # another of legbench's files, given where a scenario goes
@@ -364,6 +374,9 @@ def parse(
     name = doc["name"]
     if not isinstance(name, str) or not NAME_RE.fullmatch(name) or set(name) == {"."}:
         raise ctx.error(["name"], f"expected a plain name (letters, digits, - _ ., at most 64), got {name!r}")
+    why = name_problem(name)
+    if why is not None:
+        raise ctx.error(["name"], why)
     description = doc.get("description", "")
     if not isinstance(description, str):
         raise ctx.error(["description"], "expected text")
@@ -431,6 +444,8 @@ def parse(
             raise ctx.error(["events", i, "t"], f"event at {e.t} s is past the end ({duration} s)")
         if exact_d and e.t_switch >= duration:
             raise ctx.error(["events", i, "delay"], f"the switch at {e.t_switch:g} s is past the end ({duration} s)")
+        if exact_d and not cut:
+            _check_ends_in_run(ctx, i, e, events[i + 1].t_switch if i + 1 < len(events) else None, duration)
     for i, (a, b) in enumerate(zip(events, events[1:], strict=False)):
         if b.t_switch < a.t_switch:
             raise ctx.error(["events", i + 1, "t"], f"with its delay this event switches at {b.t_switch:g} s, before "
@@ -476,9 +491,10 @@ def parse(
     backends: dict[str, dict[str, Any]] = {}
     for bname, bset in bdoc.items():
         backends[bname] = _backend_settings(ctx, str(bname), {} if bset is None else bset)  # `name:` alone
-        why = _sub_step_problem(backends[bname].get("dt"), 1.0 / rate) if exact_r else None
-        if why is not None:
-            raise ctx.error(["backends", bname, "dt"], why)
+        for key, divides in _sub_step_keys(str(bname)) if exact_r else ():
+            why = _sub_step_problem(backends[bname].get(key), 1.0 / rate, divides)
+            if why is not None:
+                raise ctx.error(["backends", bname, key], why)
         _check_combination(ctx, str(bname), backends[bname], profile, mode)
     if exact_r and every_engine:
         _check_default_sub_steps(ctx, backends, profile, 1.0 / rate)
@@ -521,6 +537,37 @@ def parse(
         sha256=hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest(),
         raw=doc,
     )
+
+
+def _check_ends_in_run(ctx: YamlContext, i: int, e: Event, t_next: float | None, duration: float) -> None:
+    """Refuse event ``i`` whose delayed force would never be applied in the run (``duration`` [s]; ``t_next`` [s]:
+    the next event's switch, or None), as a switch past the end is: an effort event's force starts
+    ``force_delay`` after its switch, which must come before the end and before the next event's switch. A
+    trajectory (an ellipse) may outlast the run: a run cut short measures its start (a sweep's ``set:
+    {duration: 0.1}``)."""
+    if e.force_delay > 0.0:
+        t_force = e.t_switch + e.force_delay
+        if t_force >= duration:
+            raise ctx.error(["events", i, "force_delay"], f"the force would start at {t_force:g} s, past the end "
+                                                          f"({duration:g} s): it would never be applied")  # fmt: skip
+        if t_next is not None and t_force >= t_next:
+            raise ctx.error(["events", i, "force_delay"], f"the force would start at {t_force:g} s, not before the "
+                                                          f"next event switches ({t_next:g} s): it would never be "
+                                                          "applied")  # fmt: skip
+
+
+def name_problem(name: str) -> str | None:
+    """Why the plain ``name`` (:data:`NAME_RE`) cannot name a scenario's folder in a results tree: it is one of
+    legbench's own entries there (:data:`RESERVED_NAMES`) or ends in a suffix legbench gives a folder
+    (:data:`RESERVED_SUFFIXES`); None otherwise."""
+    folded = name.casefold()
+    if folded in RESERVED_NAMES:
+        return f"{name!r} is reserved: a results tree holds legbench's own {folded} there; choose another name"
+    suffix = next((s for s in RESERVED_SUFFIXES if folded.endswith(s)), None)
+    if suffix is not None:
+        return (f"{name!r} ends in {suffix!r}, the suffix legbench gives a scenario's folder in another contact mode "
+                "or profile; choose another name")  # fmt: skip
+    return None
 
 
 def _check_speed(ctx: YamlContext, path: list[str | int], ev: Event, q_start: tuple[float, ...] | None) -> None:
@@ -636,40 +683,59 @@ def validate_tolerances(tol: Any, file: str, prefix: str = "", ctx: YamlContext 
     return dict(tol)
 
 
-def _sub_step_problem(dt: Any, control_dt: float) -> str | None:
+def _sub_step_problem(dt: Any, control_dt: float, divides: bool = True) -> str | None:
     """Why an engine's sub-step ``dt`` [s] does not fit the control period ``control_dt`` [s]: it does not divide
-    it (the one rule, :func:`legbench.backends.base.dt_problem`) or more than ``limit("sub_steps")`` times; None
-    if it fits, or is not a positive number (an engine without a fixed step, one not installed here)."""
+    it (the one rule, :func:`legbench.backends.base.dt_problem`; only where ``divides``: not for a bound on an
+    adaptive solve's step, :attr:`Backend.step_bounds`) or more than ``limit("sub_steps")`` times; None if it
+    fits, or is not a positive number (an engine without a fixed step, one not installed here)."""
     if isinstance(dt, bool) or not isinstance(dt, int | float) or not dt > 0:
         return None
     ratio = control_dt / dt
     if ratio > limit("sub_steps"):
         return f"{dt:g} s is {ratio:.3g} sub-steps per control tick, more than {limit('sub_steps')} (limit sub_steps)"
-    return dt_problem(float(dt), control_dt)
+    return dt_problem(float(dt), control_dt) if divides else None
+
+
+def _step_bounds(name: str) -> tuple[str, ...]:
+    """The settings of backend ``name`` that bound an adaptive solve's step (:attr:`Backend.step_bounds`); none
+    where it is not installed here."""
+    try:
+        return tuple(backends.get(name).step_bounds)
+    except BackendNotFound:
+        return ()
+
+
+def _sub_step_keys(name: str) -> tuple[tuple[str, bool], ...]:
+    """(key, must divide the control period) of every setting of backend ``name`` that sets how many steps a
+    control period takes: ``dt`` (a fixed sub-step) and its :attr:`Backend.step_bounds`."""
+    return (("dt", True), *((k, False) for k in _step_bounds(name) if k != "dt"))
 
 
 def _check_default_sub_steps(ctx: YamlContext, settings: Mapping[str, Mapping[str, Any]], profile: str,
                              control_dt: float) -> None:  # fmt: skip
-    """The default (or profile) sub-step of every installed engine the scenario gives no ``dt`` for fits the
-    control period (:func:`_sub_step_problem`): else the engine would refuse to load (``legbench run``,
-    ``doctor``, with no file named), so ``control_rate`` is blamed, naming the engines."""
+    """The default (or profile) sub-step of every installed engine the scenario gives no ``dt`` for, and its
+    default bound on an adaptive step (:attr:`Backend.step_bounds`, where not given), fit the control period
+    (:func:`_sub_step_problem`): else the engine would refuse to load (``legbench run``, ``doctor``, with no
+    file named) or take more steps per tick than the limit, so ``control_rate`` is blamed, naming the engines."""
     misfits: list[tuple[str, str]] = []
     for name in dict.fromkeys([*backends.BUILTIN, *settings]):
         given = settings.get(name, {})
-        if "dt" in given:
-            continue  # checked as the scenario's own
         try:
-            dt = backends.get(name).resolve_settings({}, str(given.get("profile", profile))).get("dt")
+            resolved = backends.get(name).resolve_settings({}, str(given.get("profile", profile)))
         except LegbenchError:  # not installed here (BackendNotFound), or a plug-in without this profile
             continue
-        why = _sub_step_problem(dt, control_dt)
-        if why is not None:
-            misfits.append((name, f"backends.{name}.dt: {why}"))
+        for key, divides in _sub_step_keys(name):
+            if key in given:
+                continue  # checked as the scenario's own
+            why = _sub_step_problem(resolved.get(key), control_dt, divides)
+            if why is not None:
+                misfits.append((name, f"backends.{name}.{key}: {why}"))
+                break
     if misfits:
         names = ", ".join(n for n, _ in misfits)
         raise ctx.error(["control_rate"], f"{1.0 / control_dt:g} Hz does not suit the default (or profile) sub-step "
-                        f"of {names}: {misfits[0][1]}; set their backends.<name>.dt to such a step, or choose another "
-                        "control_rate")  # fmt: skip
+                        f"of {names}: {misfits[0][1]}; set the key named to such a step for each, or choose "
+                        "another control_rate")  # fmt: skip
 
 
 def _mode_problem(name: str, given: Mapping[str, Any], profile: str, mode: str) -> tuple[list[str | int], str] | None:
@@ -989,7 +1055,7 @@ def shorten(sc: Scenario, duration: float, option: str = "--duration") -> Scenar
     if cmp:
         doc["comparison"] = cmp
     try:
-        return parse(doc, sc.file)
+        return parse(doc, sc.file, cut=True)
     except ScenarioError as exc:
         if exc.key != "duration":
             raise

@@ -24,7 +24,7 @@ from legbench.backends import dopri, lagrange_kernel  # noqa: E402
 from legbench.backends import lagrange_eom as E  # noqa: E402
 from legbench.backends.base import Physics  # noqa: E402
 from legbench.backends.lagrange_ import LagrangeBackend  # noqa: E402
-from legbench.exceptions import LegbenchError  # noqa: E402
+from legbench.exceptions import LegbenchError, ScenarioError  # noqa: E402
 
 PARAMS = model.load_params()
 CONTROL_DT = 1e-3  # [s]
@@ -624,3 +624,22 @@ def test_an_edited_law_recompiles_the_cached_period(tmp_path: Path) -> None:
                              cwd=tmp_path)  # fmt: skip
         counts.append(tuple(int(v) for v in out.stdout.split()))
     assert counts == [(0, 1), (1, 0), (0, 1)]  # compiled, loaded, compiled again after the edit
+
+
+@pytest.mark.parametrize("where", ["int", "/dev/null", "file", "under-file"])
+def test_a_cache_dir_that_cannot_hold_the_equations_is_refused_naming_the_key(tmp_path: Path, where: str,
+                                                                               make: Any) -> None:  # fmt: skip
+    """backends.lagrange.cache_dir was never checked: 5, /dev/null or an existing regular file passed validate and
+    the run then failed (TypeError: expected str ... not int; exit 3). The loader refuses each naming the key
+    (exit 2 before any work), and so does the backend's load (LegbenchError, not a TypeError); a directory not
+    made yet passes."""
+    file = tmp_path / "plain.txt"
+    file.write_text("x")
+    value: Any = {"int": 5, "/dev/null": "/dev/null", "file": str(file), "under-file": str(file / "sub")}[where]
+    doc = {"name": "t", "duration": 1.0, "events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}}]}
+    with pytest.raises(ScenarioError) as err:
+        scenario.parse({**doc, "backends": {"lagrange": {"cache_dir": value}}}, "s.yaml")
+    assert err.value.key == "backends.lagrange.cache_dir" and "\n" not in str(err.value)
+    with pytest.raises(LegbenchError, match=r"^backends\.lagrange\.cache_dir: "):
+        make(cache_dir=value)
+    assert scenario.parse({**doc, "backends": {"lagrange": {"cache_dir": str(tmp_path / "new" / "dir")}}})

@@ -343,6 +343,7 @@ def test_a_limit_that_cannot_be_is_refused(monkeypatch: pytest.MonkeyPatch, valu
         ("=1", "expected KEY=VALUE"),
         ("backends.pinocchio.dt=1e-9", "limit sub_steps"),
         ("backends.pinocchio.dt=3e-4", "does not divide the control period"),
+        ("backends.pinocchio.max_step=1e-20", "limit sub_steps"),  # an adaptive solve: 1e17 steps a tick, a hang
         ("backends.pybullet.solver_iterations=1e20", "expected an integer"),
         ("backends.pybullet.solver_iterations=100000000000000000000", "largest integer"),
         ("comparison.reference=pinochio", "unknown backend 'pinochio'"),
@@ -650,7 +651,7 @@ def test_run_with_out_never_replaces_a_finished_run_without_force(
     meta["backends"]["fake"] |= {"status": "interrupted", "reason": "interrupted at t = 0.0000 s"}
     interrupted = json.dumps({**meta, "complete": False})  # as Ctrl-C before the backend finished leaves it
     (out / "run.json").write_text(interrupted)
-    assert cli.main([*argv, "--set", "duration=1.5"]) == 2
+    assert cli.main([*argv, "--set", "duration=1.9"]) == 2  # still past the trajectory's last waypoint (1.8 s)
     err = capsys.readouterr().err
     assert "holds an interrupted run of other settings" in err and "--force" in err and err.count("\n") == 1
     assert (out / "run.json").read_text() == interrupted

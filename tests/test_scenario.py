@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import re
 from pathlib import Path
@@ -496,3 +497,104 @@ def test_an_rtol_below_scipy_s_floor_is_refused(backend: str) -> None:
         scenario.load(SCENARIOS / "effort.yaml", {f"backends.{backend}.rtol": 1e-15})
     assert err.value.key == f"backends.{backend}.rtol" and "must be >= 2.22045e-14" in err.value.problem
     assert scenario.load(SCENARIOS / "effort.yaml", {f"backends.{backend}.rtol": RTOL_MIN}).backends[backend]
+
+
+@pytest.mark.parametrize(("backend", "extra"), [("pinocchio", {"integrator": "rk45"}), ("lagrange", {})])
+def test_a_max_step_past_the_sub_step_limit_is_refused_naming_the_key(backend: str, extra: dict) -> None:  # type: ignore[type-arg]
+    """max_step bounds an adaptive solve's step: 1e-20 s is 1e17 steps per 1 ms control tick. It passed validate
+    (only dt was held to the limit on sub-steps per tick, 100,000) and the run then hung, deaf to SIGTERM (the
+    compiled period checks no signal). It is refused now naming backends.<name>.max_step, by the limit the
+    backend declares (Backend.step_bounds); a max_step need not divide the control period (3e-4 s passes)."""
+    if backend not in backends.available():
+        pytest.skip(f"{backend} not installed")
+    assert "max_step" in backends.get(backend).step_bounds
+    for bad in (1e-20, 1e-12):
+        with pytest.raises(ScenarioError) as err:
+            scenario.parse({**BASE, "backends": {backend: {**extra, "max_step": bad}}}, "s.yaml")
+        assert err.value.key == f"backends.{backend}.max_step" and "limit sub_steps" in err.value.problem
+    assert scenario.parse({**BASE, "backends": {backend: {**extra, "max_step": 3e-4}}}).backends[backend]
+    assert scenario.parse({**BASE, "backends": {backend: {**extra, "max_step": 1e-3 / 100_000}}}).backends[backend]
+
+
+def test_a_control_rate_the_default_max_step_cannot_reach_is_refused_naming_the_engine() -> None:
+    """A 20 s control period with every engine's dt given (2e-4 s: 100,000 sub-steps, at the limit) still left the
+    adaptive backends' default max_step (1e-4 s: 200,000 steps per tick) unchecked; validate (every_engine) now
+    blames control_rate, naming backends.<name>.max_step."""
+    adaptive = [n for n in ("pinocchio", "lagrange") if n in backends.available()]
+    if not adaptive:
+        pytest.skip("no adaptive backend installed")
+    fixed = {name: {"dt": 2e-4} for name in backends.available() if "dt" in backends.get(name).defaults}
+    doc = {**BASE, "duration": 20.0, "control_rate": 0.05, "backends": fixed}
+    with pytest.raises(ScenarioError) as err:
+        scenario.parse(doc, "s.yaml", every_engine=True)
+    assert err.value.key == "control_rate" and f"backends.{adaptive[0]}.max_step" in err.value.problem
+    for name in adaptive:
+        fixed[name] = {**fixed.get(name, {}), "max_step": 2e-4}
+    assert scenario.parse({**doc, "backends": fixed}, every_engine=True).control_rate == 0.05
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "foo__reference",
+        "foo__engine-defaults",
+        "foo__engine-defaults__reference",
+        "report.html",
+        "report.md",
+        "Report.MD",
+        "check.md",
+        "check-junit.xml",
+        "assets",
+    ],
+)
+def test_a_scenario_name_that_clashes_with_legbench_s_own_names_is_refused(name: str) -> None:
+    """A scenario named foo__reference (the folder of foo run in reference mode), report.html, report.md,
+    check.md or assets (a results tree's index pages, check summary and plotly assets) passed validate and broke
+    later (one run's folder shared with another's, a page or the assets overwritten). The loader refuses each,
+    naming ``name``, one line; a name merely containing such words passes."""
+    with pytest.raises(ScenarioError) as err:
+        scenario.parse({**BASE, "name": name}, "s.yaml")
+    assert err.value.key == "name" and "\n" not in str(err.value)
+    assert scenario.parse({**BASE, "name": f"{name.replace('__', '_')}_x"}).name
+
+
+def test_the_reserved_names_are_the_results_trees_own() -> None:
+    """scenario.py may not import results or report_figures (docs/architecture.md), so it spells their names;
+    these are the tree's pages, check outputs and assets folder, and every suffix out_dir_for gives a folder."""
+    from legbench.backends.base import PROFILES
+    from legbench.report_figures import ASSETS
+    from legbench.results import CHECK_OUTPUTS, out_dir_for
+
+    assert {"report.html", "report.md", *CHECK_OUTPUTS, ASSETS} <= set(scenario.RESERVED_NAMES)
+    sc = scenario.parse(BASE)
+    for profile in PROFILES:
+        for mode in ("native", "reference"):
+            folder = out_dir_for(Path("r"), dataclasses.replace(sc, profile=profile), mode).name
+            assert folder == "t" or scenario.name_problem(folder) is not None
+
+
+@pytest.mark.parametrize(
+    ("events", "key", "words"),
+    [
+        ([{"t": 0.2, "effort": {"force": [0, 0, -1]}, "force_delay": 5}], "events[1].force_delay", "past the end"),
+        ([{"t": 0.2, "effort": {"force": [0, 0, -1]}, "force_delay": 0.4}], "events[1].force_delay", "past the end"),
+        ([{"t": 0.2, "effort": {"force": [0, 0, -1]}, "force_delay": 0.2}, {"t": 0.3, "position": {"joint": [0] * 3}}],
+         "events[1].force_delay", "next event"),
+    ],
+)  # fmt: skip
+def test_a_force_delay_that_starts_the_force_after_the_run_is_refused(events: list, key: str, words: str) -> None:  # type: ignore[type-arg]
+    """force_delay: 5 on an effort event at 0.2 s of a 0.6 s run was accepted, so the force was never applied (the
+    same overrun with delay was refused); so was one that starts the force after the next event took over. Each is
+    refused naming the key; a force_delay that fits, the same scenario cut short by shorten (the start of the
+    whole run), and a trajectory whose times outlast the run (a run cut short measures its start) pass."""
+    hold = {"t": 0.0, "position": {"joint": [0, 0, 0]}}
+    doc = {**BASE, "duration": 0.6, "events": [hold, *events]}
+    with pytest.raises(ScenarioError) as err:
+        scenario.parse(doc, "s.yaml")
+    assert err.value.key == key and words in err.value.problem
+    fits = {**doc, "events": [hold, {"t": 0.2, "effort": {"force": [0, 0, -1]}, "force_delay": 0.399}]}
+    assert scenario.parse(fits).events[1].force_delay == 0.399
+    whole = scenario.parse({**fits, "duration": 3.0})
+    assert scenario.shorten(whole, 0.5).duration == 0.5
+    path = {"t": 0.2, "trajectory": {"waypoints": [[0.2, 0.11, 0.05]], "times": [1.0]}}
+    assert scenario.parse({**doc, "events": [hold, path]}).duration == 0.6

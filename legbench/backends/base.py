@@ -234,6 +234,10 @@ class Backend(ABC):
     #: Allowed values of number settings, where the engine documents them (e.g. an ERP in [0, 1], a CFM >= 0),
     #: and of those whose default is ``None`` (``Range(nullable=True)``). A float setting not listed must be > 0.
     ranges: ClassVar[Mapping[str, Range]] = {}
+    #: Number settings that bound the step of an adaptive solve [s] (e.g. ``max_step``): a control period takes at
+    #: least control period / value steps, so the scenario loader holds each to the limit on sub-steps per control
+    #: tick (``limit("sub_steps")``) as it holds ``dt``, naming the key; the value need not divide the period.
+    step_bounds: ClassVar[tuple[str, ...]] = ()
     #: Named settings overlays on :attr:`defaults`. ``matched``: the spec's physics mapped as
     #: faithfully as the engine allows (usually :attr:`defaults` itself, ``{}``);
     #: ``engine-defaults``: what a user gets from the engine's documented defaults with only

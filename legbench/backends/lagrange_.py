@@ -10,7 +10,7 @@ the joint-limit law that every custom integrator uses.
 
 Per control period the torque is held and one adaptive solve covers the period
 (the report's custom simulation: ode45, i.e. Dormand-Prince 5(4), max step 1e-4 s; rtol 1e-8,
-atol 1e-6, legbench's assumption: the report gives no tolerances). ``rk45`` is
+atol 1e-6, the report's as legbench's issue 13 gives them: docs/spec.md section 7). ``rk45`` is
 :mod:`legbench.backends.lagrange_kernel`'s period,
 scipy's ``solve_ivp(method="RK45")`` algorithm step for step (same tableau, initial step selection,
 error norm and step-size control) on preallocated arrays, compiled into one numba call per control
@@ -25,13 +25,14 @@ and ``reference``, apply that same law.
 Profiles: ``matched`` takes the point of contact from the scenario's contact
 parameters (the true poc, the sphere's lowest point, unless the scenario says
 otherwise); ``engine-defaults`` is the report's custom simulation as far as the report
-describes it, with the poc at the sphere centre (its tolerances are assumed).
+describes it, with the poc at the sphere centre.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import importlib.util
+import os
 from collections.abc import Callable, Mapping
 from importlib import metadata
 from pathlib import Path
@@ -64,9 +65,11 @@ class LagrangeBackend(Backend):
     name: ClassVar[str] = "lagrange"
     #: rtol at or above scipy's floor (:data:`~legbench.backends.dopri.RTOL_MIN`, 2.2e-14): below it scipy raises it.
     ranges: ClassVar[Mapping[str, Range]] = {"rtol": Range(low=dopri.RTOL_MIN)}
+    #: max_step [s] bounds the adaptive solve's step: control period / max_step is held to the sub-step limit.
+    step_bounds: ClassVar[tuple[str, ...]] = ("max_step",)
     defaults: ClassVar[Mapping[str, Any]] = {
         "integrator": "rk45",  # scipy's RK45 algorithm, compiled (or "dop853": solve_ivp), one solve per period
-        "rtol": 1.0e-8,  # assumed (the report's custom simulation gives only its max step)
+        "rtol": 1.0e-8,  # the report's custom simulation's, as issue 13 gives them (docs/spec.md section 7)
         "atol": 1.0e-6,
         "max_step": 1.0e-4,  # [s]
         "poc": "physics",  # "physics": as the scenario's contact parameters say; "true"; "centre"
@@ -86,6 +89,24 @@ class LagrangeBackend(Backend):
     }
     install: ClassVar[str] = "pip install 'sympy>=1.12,<2'"
 
+    @classmethod
+    def settings_problem(
+        cls, settings: Mapping[str, Any], contact_mode: str
+    ) -> tuple[str | tuple[str, ...], str] | None:
+        """``cache_dir`` that cannot hold the generated equations: not text, or a path that exists (or whose
+        nearest existing ancestor is) not a directory (``/dev/null``, a regular file); any contact mode."""
+        cache = settings.get("cache_dir", "")
+        if not isinstance(cache, str):
+            return "cache_dir", f"expected a directory path as text ('' for the default cache), got {cache!r}"
+        if cache:
+            path = Path(cache)  # os.path's tests, not Path's: they answer False where stat fails (no permission)
+            existing = next((p for p in (path, *path.parents) if os.path.lexists(p)), None)
+            if existing is not None and not os.path.isdir(existing):
+                if existing == path:
+                    return "cache_dir", f"{cache!r} exists and is not a directory (the generated equations' cache)"
+                return "cache_dir", f"{cache!r} cannot be made a directory: {str(existing)!r} is not one"
+        return None
+
     # ----------------------------------------------------------------- load
     def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
         """Load (or derive once and cache) the leg's equations of motion and set up the solve.
@@ -103,6 +124,7 @@ class LagrangeBackend(Backend):
         for key, allowed in self.choices.items():
             if cfg[key] not in allowed:
                 raise LegbenchError(f"lagrange: unknown {key} '{cfg[key]}'; choose one of {list(allowed)}")
+        self.refuse_settings(cfg, physics.contact_mode)
         self.cfg = cfg
         self.physics = physics
         params = load_params()

@@ -36,8 +36,8 @@ Profiles: ``matched`` and ``engine-defaults`` are the defaults above (Pinocchio 
 legbench's own integrator). ``ode45`` is the lab report's Simscape Multibody set-up,
 MATLAB's ode45 (Dormand-Prince 5(4), adaptive): ``integrator: rk45`` (scipy's RK45 is the
 same Dormand-Prince pair, its error norm RMS where ode45's is a max-norm: docs/pinocchio.md)
-with the report's Simscape max step 2e-4 s and rtol 1e-6, atol 1e-8 (assumed: the report gives no
-tolerances), one solve per
+with the report's Simscape max step 2e-4 s and rtol 1e-6, atol 1e-8 (the report's, as legbench's
+issue 13 gives them: docs/spec.md section 7), one solve per
 control period; the contact law at the true point of contact as Simscape had it (the scenario's
 ``physics.contact.poc``, true by default: the poc is physics every backend shares, not a backend setting).
 
@@ -76,6 +76,8 @@ class PinocchioBackend(Backend):
     name: ClassVar[str] = "pinocchio"
     #: rtol at or above scipy's floor (:data:`~legbench.backends.dopri.RTOL_MIN`, 2.2e-14): below it scipy raises it.
     ranges: ClassVar[Mapping[str, Range]] = {"rtol": Range(low=dopri.RTOL_MIN)}
+    #: max_step [s] bounds the adaptive solve's step: control period / max_step is held to the sub-step limit.
+    step_bounds: ClassVar[tuple[str, ...]] = ("max_step",)
     defaults: ClassVar[Mapping[str, Any]] = {
         "dt": 5.0e-5,  # sub-step [s]; docs/pinocchio.md: convergence check
         "integrator": "euler",
@@ -93,7 +95,7 @@ class PinocchioBackend(Backend):
         "kernel": ("compiled", "python"),
     }
     #: Pinocchio is legbench's own integrator: its "engine defaults" are these defaults.
-    #: ``ode45``: the lab report's Simscape solver (adaptive Dormand-Prince, its max step; assumed tolerances).
+    #: ``ode45``: the lab report's Simscape solver (adaptive Dormand-Prince, its max step and tolerances).
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "matched": {},
         "engine-defaults": {},
