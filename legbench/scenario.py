@@ -90,6 +90,8 @@ SECTION_KEYS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 #: Longest run accepted: 1e7 ticks (2.8 h at 1 kHz) keep the log under ~1.3 GB.
 MAX_TICKS = 10_000_000  # the default of limit('ticks'); LEGBENCH_LIMITS=ticks=N raises it
 MAX_WAYPOINTS = 100_000
+#: The default ``comparison.steady_window`` [s]: the last 0.5 s of a run (the whole of a shorter one).
+STEADY_WINDOW = 0.5
 NAME_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}")
 #: Names a results tree's root holds beside its run directories, which a scenario's folder would clash with:
 #: the tree's index pages, ``legbench check``'s summaries (``results.CHECK_OUTPUTS``) and the plotly assets
@@ -173,7 +175,7 @@ class Comparison:
 
     reference: str = DEFAULT_REFERENCE
     skip: float = 0.0  # [s] ignored at the start
-    steady_window: float = 0.5  # [s] at the end, for steady-state means
+    steady_window: float = 0.5  # [s] at the end, for steady-state means (STEADY_WINDOW, or the run if shorter)
     tolerances: Mapping[str, Any] = field(default_factory=dict, hash=False)
     #: Published steady states to show beside the backends' (the lab report's rows): each
     #: ``{source: text, qd_abs: [3 magnitudes, rad/s]}`` and/or ``force: [fx, fy, fz in W, N]``, and an optional
@@ -500,11 +502,13 @@ def parse(
         _check_default_sub_steps(ctx, backends, profile, 1.0 / rate)
 
     cmp_d = doc.get("comparison", {})
+    # default: the last 0.5 s, or the whole of a shorter run (a window given longer than the run is refused)
+    window = min(STEADY_WINDOW, duration) if exact_d else STEADY_WINDOW
     check_keys(ctx, ["comparison"], cmp_d, *SECTION_KEYS["comparison"])
     comparison = Comparison(
         reference=str(cmp_d.get("reference", DEFAULT_REFERENCE)),
         skip=number(ctx, ["comparison", "skip"], cmp_d.get("skip", 0.0), nonneg=True),
-        steady_window=number(ctx, ["comparison", "steady_window"], cmp_d.get("steady_window", 0.5), positive=True),
+        steady_window=number(ctx, ["comparison", "steady_window"], cmp_d.get("steady_window", window), positive=True),
         tolerances={} if cmp_d.get("tolerances") is None else cmp_d["tolerances"],  # [] is no mapping: refused
         published=_published(ctx, cmp_d.get("published", [])),
     )
@@ -517,7 +521,9 @@ def parse(
     if exact_d and comparison.skip >= duration:
         raise ctx.error(["comparison", "skip"], f"skips the whole run ({duration} s)")
     if exact_d and comparison.steady_window > duration:
-        raise ctx.error(["comparison", "steady_window"], f"longer than the run ({duration} s)")
+        raise ctx.error(["comparison", "steady_window"],
+                        f"longer than the run ({duration} s): give a shorter one, or cut the run with --duration, "
+                        "which shrinks it")  # fmt: skip
     return Scenario(
         name=name,
         description=description,

@@ -431,7 +431,7 @@ def test_a_problem_the_sections_defaults_share_is_said_once() -> None:
     """position.yaml with duration 0.2 s: its steady_window (1 s) is longer than the run, and so is the default
     that replaced the dropped comparison section: the same line was printed twice; now once."""
     (problem,) = scenario.errors(SCENARIOS / "position.yaml", {"duration": 0.2})
-    assert str(problem).endswith("comparison.steady_window: longer than the run (0.2 s)")
+    assert "comparison.steady_window: longer than the run (0.2 s): " in str(problem)
 
 
 def test_a_gain_that_is_no_number_says_a_single_number_is_allowed() -> None:
@@ -598,3 +598,14 @@ def test_a_force_delay_that_starts_the_force_after_the_run_is_refused(events: li
     assert scenario.shorten(whole, 0.5).duration == 0.5
     path = {"t": 0.2, "trajectory": {"waypoints": [[0.2, 0.11, 0.05]], "times": [1.0]}}
     assert scenario.parse({**doc, "events": [hold, path]}).duration == 0.6
+
+
+def test_the_default_steady_window_is_the_last_half_second_or_the_whole_of_a_shorter_run() -> None:
+    """Without comparison.steady_window a 3 s run's window is its last 0.5 s and a 0.3 s run's the whole 0.3 s (it was
+    refused as longer than the run, though the user gave no window); one given longer than the run is refused, and
+    the message says how to shorten a run."""
+    assert scenario.parse({**BASE, "duration": 3.0}).comparison.steady_window == 0.5
+    assert scenario.parse({**BASE, "duration": 0.3}).comparison.steady_window == 0.3
+    with pytest.raises(ScenarioError) as err:
+        scenario.parse({**BASE, "duration": 0.3, "comparison": {"steady_window": 0.5}})
+    assert err.value.key == "comparison.steady_window" and "--duration" in err.value.problem
