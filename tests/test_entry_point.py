@@ -10,6 +10,9 @@ bench must treat it as any other backend, from what it declares.
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 import textwrap
 from collections.abc import Iterator
 from pathlib import Path
@@ -171,3 +174,82 @@ def test_a_missing_engine_no_longer_registered_is_not_listed(monkeypatch: pytest
         mp.setitem(backends.BUILTIN, "ghostengine", ("legbench.backends.ghostengine_", "G", "'ghostengine>=1'"))
         assert "ghostengine" in backends.unavailable()
     assert "ghostengine" in backends._MISSING and "ghostengine" not in backends.unavailable()
+
+
+_INTERRUPTED_IMPORT = {
+    # Ctrl-C reaching the import itself
+    "direct": "raise KeyboardInterrupt\n",
+    # as a pybind11 engine (MuJoCo) gives it back: ImportError("initialization failed") from the interrupt
+    "wrapped": (
+        "try:\n"
+        "    raise KeyboardInterrupt\n"
+        "except KeyboardInterrupt as exc:\n"
+        "    raise ImportError('initialization failed') from exc\n"
+    ),
+}
+
+
+@pytest.mark.parametrize("kind", ["built-in", "plug-in"])
+@pytest.mark.parametrize("how", sorted(_INTERRUPTED_IMPORT))
+def test_an_interrupt_while_an_engine_imports_is_an_interrupt(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, kind: str, how: str
+) -> None:
+    """Ctrl-C while MuJoCo was imported came back as ``--backends mujoco: not installed here ... (initialization
+    failed)``, exit 2: an interrupt wrapped in an engine's ImportError is an interrupt (exit 130 from the cli), and
+    the engine is not recorded as missing. Fails without the fix for the ``wrapped`` cases (BackendNotFound /
+    UnknownBackend); the ``direct`` ones keep that a bare interrupt propagates."""
+    module = f"legbench_sig_{how}_{kind.replace('-', '')}"
+    name = f"sig-{how}-{kind}"
+    (tmp_path / f"{module}.py").write_text(_INTERRUPTED_IMPORT[how])
+    if kind == "built-in":
+        monkeypatch.setitem(backends.BUILTIN, name, (module, "SigBackend", "'sig>=1'"))
+    else:
+        dist = tmp_path / f"{module}-0.1.dist-info"
+        dist.mkdir()
+        (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {module}\nVersion: 0.1\n")
+        (dist / "entry_points.txt").write_text(f"[legbench.backends]\n{name} = {module}:SigBackend\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(KeyboardInterrupt):
+        backends.get(name)
+    with pytest.raises(KeyboardInterrupt):
+        backends.resolve(f"pinocchio,{name}")
+    assert name not in backends._MISSING
+
+
+_NAMED_ONLY = """
+import os
+import sys
+from legbench import backends
+
+names = backends.resolve(sys.argv[1])
+assert names == sys.argv[1].split(","), names
+others = [m for n, (m, _, _) in backends.BUILTIN.items() if n not in names and m in sys.modules]
+loud = "LEGBENCH_LOUD_IMPORTED" in os.environ  # set by its import, which then fails
+print(f"imported: {others} loud: {loud}")
+"""
+
+
+def test_resolving_named_backends_imports_no_other_engine(tmp_path: Path) -> None:
+    """``--backends pinocchio,<plug-in>`` imported every installed engine (Drake's ~1 s import, which swallows a
+    Ctrl-C): a plug-in's name was looked up in the whole registry. Now each named backend is imported alone, and
+    neither another built-in nor another plug-in (``loud``, whose import fails loudly) is. Fails without the fix:
+    every other built-in's module is imported, and legbench_loud too."""
+    (tmp_path / "legbench_quiet.py").write_text(
+        "from legbench.backends.base import Backend\n\n\nclass QuietBackend(Backend):\n    name = 'quiet'\n"
+    )
+    (tmp_path / "legbench_loud.py").write_text(
+        "import os\n\nos.environ['LEGBENCH_LOUD_IMPORTED'] = '1'\n"
+        "raise RuntimeError('a plug-in nobody named was imported')\n"
+    )
+    dist = tmp_path / "legbench_quiet-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: legbench-quiet\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text(
+        "[legbench.backends]\nquiet = legbench_quiet:QuietBackend\nloud = legbench_loud:LoudBackend\n"
+    )
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(root)])}
+    out = subprocess.run([sys.executable, "-c", _NAMED_ONLY, "pinocchio,quiet"], env=env, capture_output=True,
+                         text=True, timeout=120, check=False)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "imported: [] loud: False"

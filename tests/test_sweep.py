@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import errno
 import json
 import math
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -236,6 +239,72 @@ def test_cli_replaces_a_finished_sweep_in_its_out_directory_only_with_force(
     assert "2 runs + 1 references, 0 failed" in capsys.readouterr().out
     assert (out / "sweep.csv").exists() and (out / "sweep.png").exists()
     assert (out / "sweep.json").stat().st_ino != inode  # a new file, moved into place
+
+
+@pytest.mark.parametrize("foreign", ["notes.txt", "plots", "a_run/run.json"])
+def test_force_refuses_a_sweep_directory_holding_files_of_the_users(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, foreign: str
+) -> None:
+    """``legbench sweep --out D --force`` deleted the user's notes.txt and plots/ in D (the old directory was
+    removed whole): like ``legbench run --force``, it now refuses before any run, naming the first entry that is
+    not the sweep's own, and leaves D as it was. Fails without the fix: the runs start (AssertionError)."""
+    out = tmp_path / "res"
+    out.mkdir()
+    (out / "sweep.json").write_text(json.dumps({"name": "t", "complete": True}))  # a finished sweep "t"
+    (out / "sweep.csv").write_text("x\n")
+    (out / foreign).parent.mkdir(parents=True, exist_ok=True)
+    if foreign == "plots":
+        (out / foreign).mkdir()
+    else:
+        (out / foreign).write_text("mine")
+    before = sorted(str(p.relative_to(out)) for p in out.rglob("*"))
+
+    def ran(*args: Any) -> None:
+        raise AssertionError("a run started")
+
+    monkeypatch.setattr(sweep, "execute", ran)
+    parser = argparse.ArgumentParser()
+    sweep.add_cli(parser.add_subparsers())
+    args = parser.parse_args(["sweep", str(_write(tmp_path, GOOD)), "--out", str(out), "--jobs", "1", "--force"])
+    name = Path(foreign).parts[0]
+    with pytest.raises(LegbenchError, match=rf"^{out}: not .*legbench sweep directory \(it holds {name}\)"):
+        args.func(args)
+    assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == before
+
+
+def _dead_pid() -> int:
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    return proc.pid
+
+
+def test_a_failed_write_leaves_no_temporary_and_stale_ones_are_cleaned(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A sweep whose write failed (a full disk) left ``.<out>.tmp-<pid>/`` beside its output, and nothing ever
+    removed it (nor one of a killed sweep). Now the failed write removes its temporary and the next sweep cleans
+    a stale one (results.atomic_dir). Fails without the fix: the temporaries are still there."""
+    sw = sweep.load_sweep(_write(tmp_path, GOOD))
+    table = pd.DataFrame({"role": ["run"], "status": ["ok"], "label": ["x"], "study": [0], "backend": ["pinocchio"]})
+    result = sweep.SweepResult(sw, table, pd.DataFrame(), pd.DataFrame(), (), None)
+    monkeypatch.setattr(sweep, "_plot", lambda figure: None)  # no figures: the files are what is tested
+    parent = tmp_path / "sweeps"
+    out = parent / "t"
+
+    def full(*args: Any, **kwargs: Any) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with monkeypatch.context() as m:
+        m.setattr(pd.DataFrame, "to_parquet", full)
+        with pytest.raises(OSError, match="No space left"):
+            sweep.write_sweep(result, out)
+    assert list(parent.iterdir()) == []  # neither the output nor a temporary
+    stale = parent / f".t.tmp-{_dead_pid()}"  # a sweep killed while writing
+    stale.mkdir()
+    (stale / "sweep.csv").write_text("half")
+    assert sweep.write_sweep(result, out) == out
+    assert [p.name for p in parent.iterdir()] == ["t"]
+    assert json.loads((out / "sweep.json").read_text())["name"] == "t"
 
 
 def test_star_keys_configure_the_run_not_another_backends_reference(tmp_path: Path) -> None:

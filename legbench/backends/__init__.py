@@ -65,17 +65,55 @@ _SAID_MISSING: set[str] = set()
 logger = logging.getLogger(__name__)
 
 
+def _interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` is, or was raised while handling or because of, a KeyboardInterrupt: Ctrl-C (or SIGTERM,
+    :mod:`legbench.cli`) during an engine's import comes back from a pybind11 extension as ``ImportError:
+    initialization failed`` from it, which is an interrupt, not an engine that is not installed."""
+    seen: set[int] = set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return True
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return False
+
+
 def _load_builtin(name: str) -> type[Backend] | None:
     module, cls, package = BUILTIN[name]
     try:
         return getattr(importlib.import_module(module), cls)  # type: ignore[no-any-return]
     except ImportError as exc:
+        if _interrupted(exc):
+            raise KeyboardInterrupt from exc
         command = package if package.startswith("apt-get ") else f"pip install {package}"
         _MISSING[name] = one_line(f"{command} ({exc})")  # numpy's ImportError spans lines
         return None
     except Exception as exc:  # an engine whose import breaks (a bad build, a missing shared library) fails alone
+        if _interrupted(exc):
+            raise KeyboardInterrupt from exc
         _MISSING[name] = one_line(f"its engine failed to import: {type(exc).__name__}: {exc}")
         return None
+
+
+def _load_plugin(ep: metadata.EntryPoint) -> type[Backend] | None:
+    """The class a plug-in's entry point names (its module imported), or None with why in ``_MISSING``."""
+    try:
+        return ep.load()  # type: ignore[no-any-return]
+    except Exception as exc:  # a broken plug-in must not take the others down
+        if _interrupted(exc):
+            raise KeyboardInterrupt from exc
+        _MISSING[ep.name] = one_line(f"entry point {ep.value} failed to load: {exc}")
+        return None
+
+
+def _plugins() -> dict[str, metadata.EntryPoint]:
+    """The plug-ins' entry points by name, not loaded (a name of a built-in is the built-in's)."""
+    found: dict[str, metadata.EntryPoint] = {}
+    for ep in metadata.entry_points(group="legbench.backends"):
+        if ep.name not in BUILTIN:
+            found.setdefault(ep.name, ep)
+    return found
 
 
 def _registry() -> dict[str, type[Backend]]:
@@ -84,13 +122,10 @@ def _registry() -> dict[str, type[Backend]]:
         cls = _load_builtin(name)
         if cls is not None:
             found[name] = cls
-    for ep in metadata.entry_points(group="legbench.backends"):
-        if ep.name in found or ep.name in BUILTIN:
-            continue
-        try:
-            found[ep.name] = ep.load()
-        except Exception as exc:  # a broken plug-in must not take the others down
-            _MISSING[ep.name] = one_line(f"entry point {ep.value} failed to load: {exc}")
+    for name, ep in _plugins().items():
+        cls = _load_plugin(ep)
+        if cls is not None:
+            found[name] = cls
     return found
 
 
@@ -114,11 +149,23 @@ def unavailable() -> dict[str, str]:
 
 
 def get(name: str) -> type[Backend]:
-    """The backend class registered under ``name`` (a built-in one is imported alone, not with every engine)."""
+    """The backend class registered under ``name``, its engine imported alone (a built-in's module, or the plug-in's
+    entry point), not with every engine: ``--backends a,b`` imports a and b (:func:`available` imports them all).
+    Only a name that cannot be loaded imports the others, to list what is available.
+
+    Raises:
+        BackendNotFound: ``name`` is unknown, or its engine is not installed (or failed to import).
+        KeyboardInterrupt: Ctrl-C (SIGTERM) while its engine was imported, even where the engine turned it into
+            an ImportError (:func:`_interrupted`).
+    """
+    cls: type[Backend] | None = None
     if name in BUILTIN:
         cls = _load_builtin(name)
-        if cls is not None:
-            return cls
+    else:
+        ep = _plugins().get(name)
+        cls = _load_plugin(ep) if ep is not None else None
+    if cls is not None:
+        return cls
     reg = _registry()
     if name not in reg:
         raise BackendNotFound(name, reg, _MISSING.get(name, ""))
@@ -148,6 +195,8 @@ def load(name: str, physics: Physics, settings: Mapping[str, Any], profile: str 
         backend.load(resources.urdf_file(), physics, resolved)
     except ImportError as exc:  # a plug-in that imports its engine only when loading
         backend.close()
+        if _interrupted(exc):
+            raise KeyboardInterrupt from exc
         hint = cls.install or "install the package that provides it"
         raise BackendNotFound(name, available(), f"{hint} ({exc})") from exc
     except BaseException:

@@ -49,7 +49,6 @@ import itertools
 import json
 import math
 import os
-import shutil
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import BrokenExecutor
@@ -66,7 +65,7 @@ from legbench import scenario as scenario_mod
 from legbench.contact import CONTACT_MODES
 from legbench.exceptions import LegbenchError, ScenarioError
 from legbench.metrics import signal_errors
-from legbench.results import RunResult, platform_info, versions
+from legbench.results import RunResult, atomic_dir, check_out_tree, platform_info, versions
 from legbench.run import crashed, deferred_interrupts
 from legbench.scenario import NAME_RE
 from legbench.signals import COLUMNS, UNITS
@@ -965,24 +964,41 @@ def _plot(figure: tuple[str, Any]) -> str | None:
     return str(path) if path is not None else None
 
 
+#: Every file a sweep writes into its output directory (:func:`write_sweep`); nothing else is legbench's there.
+OUTPUTS = ("sweep.json", "sweep.csv", "sweep.parquet", "fits.csv", "short_horizon.csv", "short_horizon.parquet",
+           "convergence.png", "speed_accuracy.png", "sweep.png")  # fmt: skip
+
+
 def check_out(out_dir: Path, name: str) -> None:
     """Refuse an output directory holding another sweep's results or anything else (empty or missing: fine; a
-    sweep of this name: replaced). Checked before the runs and again before writing.
+    sweep of this name holding only its own :data:`OUTPUTS`: replaced). Checked before the runs and again before
+    writing. A sweep is written whole and swapped in place of the old directory, so a file or folder of the
+    user's in it (notes, plots) is refused, never lost (as ``legbench run --force`` refuses such a run directory).
 
     Raises:
-        LegbenchError: one line naming the directory and what it holds.
+        LegbenchError: one line naming the directory and what it holds (the first entry not legbench's).
     """
+    out_dir = Path(out_dir)
     old = out_dir / "sweep.json"
-    if old.exists():
+    if old.is_file():
         try:
             prev = json.loads(old.read_text()).get("name")
-        except (ValueError, AttributeError):
+        except (OSError, ValueError, AttributeError):
             prev = None
         if prev != name:
             raise LegbenchError(f"{out_dir}: holds results of sweep {prev!r}, not {name!r}; choose another --out or "
                                 "remove it")  # fmt: skip
+        check_out_tree(out_dir, (), OUTPUTS, "sweep")  # a file of the user's, named
+        # what check_out_tree takes for legbench's in a results tree (a run directory, a study's output, a
+        # temporary) is not a sweep's own, and the swap would lose it
+        nested = next((p.name for p in sorted(out_dir.iterdir()) if p.name not in OUTPUTS or not p.is_file()), None)
+        if nested is not None:
+            raise LegbenchError(f"{out_dir}: not only a legbench sweep directory (it holds {nested}), and a sweep "
+                                "replaces the whole directory; move it away, or choose another --out")  # fmt: skip
     elif out_dir.is_dir() and any(out_dir.iterdir()):
-        raise LegbenchError(f"{out_dir}: not empty and not a legbench sweep directory; choose another --out")
+        first = sorted(p.name for p in out_dir.iterdir())[0]
+        raise LegbenchError(f"{out_dir}: not empty and not a legbench sweep directory (it holds {first}); choose "
+                            "another --out")  # fmt: skip
 
 
 def write_sweep(
@@ -1000,51 +1016,49 @@ def write_sweep(
     """
     out_dir = Path(out_dir)
     check_out(out_dir, result.sweep.name)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out_dir.parent / f".{out_dir.name}.tmp-{os.getpid()}"
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir()
-    sw = result.sweep
-    result.table.to_csv(tmp / "sweep.csv", index=False)
-    result.table.to_parquet(tmp / "sweep.parquet", index=False)
-    files = ["sweep.csv", "sweep.parquet"]
-    if len(result.fits):
-        result.fits.to_csv(tmp / "fits.csv", index=False)
-        files.append("fits.csv")
-    if len(result.windows):
-        result.windows.to_csv(tmp / "short_horizon.csv", index=False)
-        result.windows.to_parquet(tmp / "short_horizon.parquet", index=False)
-        files += ["short_horizon.csv", "short_horizon.parquet"]
-    figures: list[tuple[str, Any]] = [("speed_accuracy", (result.table, sw.metric, str(tmp / "speed_accuracy.png"))),
-                                       ("sweep", (result.table, sw.metric, str(tmp / "sweep.png")))]  # fmt: skip
-    if sw.fit is not None:
-        args = (result.table, result.fits, sw.metric, sw.fit, str(tmp / "convergence.png"))
-        figures.insert(0, ("convergence", args))
-    drawn = plots_on.map(_plot, figures) if plots_on is not None else [_plot(f) for f in figures]
-    files += [Path(p).name for p in drawn if p is not None]
-    meta = {
-        "schema": SCHEMA,
-        "name": sw.name,
-        "complete": result.complete,
-        "description": sw.description,
-        "file": sw.file,
-        "scenario": resources.shown(sw.scenario),
-        "sweep": dict(sw.raw),
-        "metric": sw.metric,
-        "runs": int((result.table["role"] == "run").sum()),
-        "failed": int(result.table["status"].isin(["failed", "missing"]).sum()),
-        "not_run": int((result.table["status"] == "interrupted").sum()),
-        "fits": result.fits.to_dict(orient="records"),
-        "notes": list(result.notes),
-        "executor": dict(executor or {}),
-        "files": files,
-        "versions": versions(),
-        "platform": platform_info(),
-    }
-    (tmp / "sweep.json").write_text(json.dumps(meta, indent=2, default=str))
-    if out_dir.exists():
-        shutil.rmtree(out_dir)
-    tmp.rename(out_dir)
+    # built whole in a temporary beside it and swapped in (removed on a failure: a full disk, an interrupt);
+    # temporaries of killed sweeps beside it are cleaned first (results.clean_stale)
+    with atomic_dir(out_dir) as tmp:
+        sw = result.sweep
+        result.table.to_csv(tmp / "sweep.csv", index=False)
+        result.table.to_parquet(tmp / "sweep.parquet", index=False)
+        files = ["sweep.csv", "sweep.parquet"]
+        if len(result.fits):
+            result.fits.to_csv(tmp / "fits.csv", index=False)
+            files.append("fits.csv")
+        if len(result.windows):
+            result.windows.to_csv(tmp / "short_horizon.csv", index=False)
+            result.windows.to_parquet(tmp / "short_horizon.parquet", index=False)
+            files += ["short_horizon.csv", "short_horizon.parquet"]
+        figures: list[tuple[str, Any]] = [
+            ("speed_accuracy", (result.table, sw.metric, str(tmp / "speed_accuracy.png"))),
+            ("sweep", (result.table, sw.metric, str(tmp / "sweep.png"))),
+        ]
+        if sw.fit is not None:
+            args = (result.table, result.fits, sw.metric, sw.fit, str(tmp / "convergence.png"))
+            figures.insert(0, ("convergence", args))
+        drawn = plots_on.map(_plot, figures) if plots_on is not None else [_plot(f) for f in figures]
+        files += [Path(p).name for p in drawn if p is not None]
+        meta = {
+            "schema": SCHEMA,
+            "name": sw.name,
+            "complete": result.complete,
+            "description": sw.description,
+            "file": sw.file,
+            "scenario": resources.shown(sw.scenario),
+            "sweep": dict(sw.raw),
+            "metric": sw.metric,
+            "runs": int((result.table["role"] == "run").sum()),
+            "failed": int(result.table["status"].isin(["failed", "missing"]).sum()),
+            "not_run": int((result.table["status"] == "interrupted").sum()),
+            "fits": result.fits.to_dict(orient="records"),
+            "notes": list(result.notes),
+            "executor": dict(executor or {}),
+            "files": files,
+            "versions": versions(),
+            "platform": platform_info(),
+        }
+        (tmp / "sweep.json").write_text(json.dumps(meta, indent=2, default=str))
     return out_dir
 
 
