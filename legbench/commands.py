@@ -12,7 +12,7 @@ import argparse
 import json
 import os
 import sys
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -192,20 +192,23 @@ def _run(args: argparse.Namespace) -> int:
     plan = [(sc, mode, root if (single and args.out) else results.out_dir_for(root, sc, mode)) for sc, mode in runs]
     if not single:  # a tree: not inside a run, and a --out of someone else's is refused (its index goes there)
         run.check_tree(root, [out.name for *_, out in plan], foreign=args.out is not None)
-    _check_plan(plan, names, args)
+    # a run of this command whose backends all finished but whose comparison an interrupt stopped: compared only
+    pending = set() if args.force or args.no_compare else {
+        out for sc, mode, out in plan if results.comparison_pending(sc, out, mode, names)}  # fmt: skip
+    _check_plan(plan, names, args, pending)
+    plan_run = [p for p in plan if p[2] not in pending]
     for sc, mode in runs:  # a mode the file does not give, checked as if it did (with or without the pre-flight)
         if mode is not None and mode != sc.contact_mode:
             given = f"--variant {sc.profile}:{mode}" if args.variant else f"--contact-mode {args.contact_mode}"
             scenario.check_contact_mode(sc, names, mode, given)
     # the workers (no more than the runs) import the engines while the pre-flight runs here (one run needs none)
-    n_runs = len(plan) * len(names)
+    n_runs = len(plan_run) * len(names)
     pool = run.start_pool(args.jobs, tasks=n_runs) if n_runs > 1 else None
     try:
         if not args.no_preflight:
-            available = set(backends.available())
-            installed = [n for n in names if n in available]
+            installed = names  # resolve loaded each (or refused it): no other engine is imported
             checked: set[str] = set()
-            for sc, mode in runs:  # every engine must hold the spec's leg, in the run's contact mode, before any run
+            for sc, mode, _ in plan_run:  # every engine must hold the spec's leg, in the run's mode, before any run
                 mode = mode or sc.contact_mode
                 key = json.dumps([sc.gravity, mode, sc.profile, {k: dict(v) for k, v in sc.backends.items()}],
                                  sort_keys=True)  # fmt: skip
@@ -216,9 +219,19 @@ def _run(args: argparse.Namespace) -> int:
         if pool is not None:
             pool.terminate()
         raise
-    outcome = run.run_many(plan, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet, pool=pool)
+    ran = iter(run.run_many(plan_run, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet, pool=pool)
+               if plan_run else [])  # fmt: skip
     failed = 0
-    for (sc, mode, out), res in zip(plan, outcome, strict=True):
+    for sc, mode, out in plan:
+        if out in pending:
+            print(f"{sc.name}: {out}: every backend finished in an earlier run of this command, kept as it is; "
+                  f"comparing only, as legbench compare {out} would")  # fmt: skip
+            for bname, entry in results.read_meta(out)["backends"].items():  # as the earlier run printed them
+                if entry["status"] != "ok":
+                    failed += 1
+                    print(f"  {bname:<10} {str(entry['status']).upper()}: {entry.get('reason')}")
+            continue
+        res = next(ran)
         print(
             f"{sc.name}: {sc.duration:g} s at {sc.control_rate:g} Hz, profile {sc.profile}, "
             f"contact {mode or sc.contact_mode} -> {out}"
@@ -258,11 +271,15 @@ def _variant(text: str) -> tuple[str, str]:
 
 
 def _check_plan(
-    plan: list[tuple[scenario.Scenario, str | None, Path]], names: Sequence[str], args: argparse.Namespace
+    plan: list[tuple[scenario.Scenario, str | None, Path]],
+    names: Sequence[str],
+    args: argparse.Namespace,
+    pending: Collection[Path] = (),
 ) -> None:
     """Before any work: no two runs of the plan into one directory, and no finished result replaced that the
     user did not ask to replace: a run into a directory holding a finished run (``run.json``, not an interrupted
-    run of the same scenario, which is resumed) needs ``--force``, with or without ``--out``."""
+    run of the same scenario, which is resumed) needs ``--force``, with or without ``--out``. The ``pending``
+    directories (:func:`legbench.results.comparison_pending`) are compared only, not replaced."""
     seen: dict[Path, str] = {}
     for sc, _, out in plan:
         if out in seen:
@@ -271,13 +288,14 @@ def _check_plan(
         seen[out] = sc.file
     from legbench import run
 
-    run.check_outs(plan, args.force, "choose another --out" if args.out is not None else "pass --out DIR",
-                   backends=names)  # fmt: skip
+    new_place = "choose another --out" if args.out is not None else "pass --out DIR"
+    run.check_outs([p for p in plan if p[2] not in pending], args.force, new_place, backends=names)
 
 
 def _validate(args: argparse.Namespace) -> int:
-    """Scenario, sweep (has ``studies``), framework (``legbench reproduce``'s: has ``frameworks``) and tolerance
-    files, told apart by content.
+    """Scenario, sweep (has ``studies``), framework (``legbench reproduce``'s: has ``frameworks``), tolerance
+    (:func:`_is_tolerances`) and leg parameter files (a section of :data:`_LEG_SECTIONS`, checked as ``--model``
+    reads one), told apart by content.
 
     Every file is checked and every independent problem of a file is one line on stderr
     (:func:`legbench.scenario.errors`, :func:`legbench.check.tolerance_errors`); exit 2 if any.
@@ -302,11 +320,54 @@ def _set_refused(path: str, kind: str) -> tuple[str, list[LegbenchError]]:
     return "", [LegbenchError(f"{path}: --set applies to scenario files; this is {kind}")]
 
 
+#: The sections of a leg parameter file (models/leg.yaml; legbench.model checks them): a file with one of them and no
+#: scenario key is one.
+_LEG_SECTIONS = ("geometry", "joints", "materials", "links", "calibration", "collision", "contact")
+
+
+def _is_tolerances(doc: Any) -> bool:
+    """Whether ``doc``, a document with no scenario key, is a tolerance file (``legbench check --tolerances``): a
+    key of one (a metric of :data:`legbench.check.DEFAULT_TOLERANCES` or ``scenarios``), a key one letter or two
+    from one (``sim_error_pc``), or a section of ``abs``/``rel``. A tolerance file whose every key was misspelt was
+    taken for a scenario: one "unknown key" line per key, then "missing required key 'name'"."""
+    import difflib
+
+    from legbench import check
+
+    tol_keys = [*check.DEFAULT_TOLERANCES, "scenarios"]
+    for k, v in doc.items():
+        if k in tol_keys or difflib.get_close_matches(str(k), tol_keys, n=1, cutoff=0.8):
+            return True
+        if isinstance(v, Mapping) and v and set(v) <= {"abs", "rel"}:
+            return True
+    return False
+
+
+def _tolerance_problems(path: str, root: Any) -> list[LegbenchError]:
+    """:func:`legbench.check.tolerance_errors`, each with the line of its key, as ``legbench check --tolerances``
+    names it (:func:`legbench.check.load_tolerances`)."""
+    from legbench import check
+    from legbench.exceptions import ScenarioError
+
+    ctx = yamlfile.YamlContext(path, root)
+    out: list[LegbenchError] = []
+    for exc in check.tolerance_errors(path):
+        line = exc.line if exc.line is not None or not exc.key else ctx.line(exc.key.split("."))
+        out.append(ScenarioError(exc.file, exc.key, exc.problem, line))
+    return out
+
+
 def _validate_one(path: str, overrides: Mapping[str, Any] | None = None) -> tuple[str, list[LegbenchError]]:
     try:
-        doc, _ = yamlfile.read_yaml(path)
+        doc, root = yamlfile.read_yaml(path)
     except LegbenchError as exc:
         return "", [exc]
+    no_scenario_key = isinstance(doc, dict) and not set(doc) & set(scenario.TOP_KEYS)
+    if no_scenario_key and set(doc) & set(_LEG_SECTIONS):
+        if overrides:
+            return _set_refused(path, "a leg parameter file")
+        model.read_params(path)  # ModelError: the file, the entry, why
+        return f"{path}: ok (a leg parameter file: give it to legbench --model {path}, or LEGBENCH_MODEL)", []
     if isinstance(doc, dict) and "studies" in doc:
         if overrides:  # --set is a scenario's, as legbench run's
             return _set_refused(path, "a sweep file")
@@ -321,13 +382,10 @@ def _validate_one(path: str, overrides: Mapping[str, Any] | None = None) -> tupl
 
         plan = reproduce.load_plan(path)
         return f"{path}: ok (frameworks: {len(plan.frameworks)}, tasks: {len(plan.tasks)})", []
-    from legbench import check
-
-    tol_keys = {*check.DEFAULT_TOLERANCES, "scenarios"}
-    if isinstance(doc, dict) and doc and set(doc) & tol_keys and not set(doc) & set(scenario.TOP_KEYS):
+    if no_scenario_key and _is_tolerances(doc):
         if overrides:
             return _set_refused(path, "a tolerance file")
-        problems: list[LegbenchError] = list(check.tolerance_errors(path))
+        problems = _tolerance_problems(path, root)
         return f"{path}: ok (tolerances: {', '.join(sorted(map(str, doc)))})", problems
     problems = list(scenario.errors(path, overrides))
     if problems:

@@ -76,6 +76,7 @@ __all__ = [
     "checks_summary",
     "clean_stale",
     "commit_staged",
+    "comparison_pending",
     "discard_staged",
     "json_default",
     "load_run",
@@ -663,6 +664,23 @@ def resumable(scenario: Scenario, out_dir: Path, contact_mode: str | None) -> di
     return {name: e for name, e in prev.get("backends", {}).items() if e.get("status") == "ok"}
 
 
+def comparison_pending(scenario: Scenario, out_dir: Path, contact_mode: str | None, backends: Collection[str]) -> bool:
+    """Whether ``out_dir`` holds a finished run (run.json without ``"complete": false``) of the same settings
+    (:func:`_same_settings`) on exactly ``backends`` whose comparison was never written (no metrics.json): what a
+    Ctrl-C after the last backend finished and before the comparison leaves. A rerun of the same ``legbench run``
+    command compares it (as ``legbench compare`` would) and runs nothing; :func:`replaced_by_run` still calls it
+    a finished run, for every other caller."""
+    out_dir = Path(out_dir)
+    prev = _previous(out_dir)
+    return bool(
+        prev
+        and prev.get("complete", True) is not False
+        and _same_settings(prev, scenario, contact_mode)
+        and set(prev["backends"]) == set(backends)
+        and not (out_dir / "metrics.json").exists()
+    )
+
+
 def replaced_by_run(
     scenario: Scenario, out_dir: Path, contact_mode: str | None, backends: Collection[str] | None = None
 ) -> str | None:
@@ -1028,6 +1046,19 @@ def _check_run_json(meta: Mapping[str, Any], rj: Path) -> None:
             if v is not None and (not isinstance(v, list) or len(v) != 3 or not all(_is_number(x) for x in v)):
                 raise ResultsError(str(rj), f"must be a list of 3 numbers, not {v!r:.40}", f"{key}.{k}")
     _check_backends(meta, rj)
+    for bname, b in meta["backends"].items():
+        _check_log_name(b.get("file"), f"backends.{bname}.file", rj)
+
+
+def _check_log_name(name: Any, key: str, rj: Path) -> None:
+    """A backend's ``file`` in run.json (a string or null: :func:`_check_backends`) is a plain file name inside the
+    run directory: no folder in it, not absolute, not ``.`` or ``..``. A hand-edited ``../../other/x.parquet`` or
+    ``/etc/passwd`` was followed by :func:`load_run`, which read (and measured) a file outside the run."""
+    if not isinstance(name, str) or not name:
+        return  # null or "": the default <backend>.parquet
+    seps = {"/", "\\", os.sep, *((os.altsep,) if os.altsep else ())}
+    if name in (".", "..") or "\0" in name or any(s in name for s in seps) or Path(name).is_absolute():
+        raise ResultsError(str(rj), f"must be a plain file name inside the run directory, not {name!r:.60}", key)
 
 
 def read_meta(run_dir: str | Path) -> dict[str, Any]:

@@ -322,6 +322,44 @@ def test_validate_knows_the_reproduce_framework_file(tmp_path: Path, capsys: pyt
     assert err.count("\n") == 1 and "bogus" in err and str(bad) in err
 
 
+@pytest.mark.parametrize(
+    "text",
+    ["sim_error_pc:\n  abs: 1\n", "rmse: {abs: 1}\n", "rms: {abs: 1}\nscenarios:\n  effort:\n    rms: {rel: -1}\n"],
+)
+def test_validate_takes_a_tolerance_file_as_check_does(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str
+) -> None:
+    """A tolerance file whose every key was misspelt (``sim_error_pc``) was taken for a scenario by validate: "unknown
+    key; valid keys: name, description, duration..." and "missing required key 'name'", two lines; and a tolerance
+    file's errors from validate had no line. Now validate says what ``legbench check --tolerances`` says, one line
+    with the line number."""
+    from legbench import check
+    from legbench.exceptions import ScenarioError
+
+    tol = tmp_path / "tol.yaml"
+    tol.write_text(text)
+    with pytest.raises(ScenarioError) as exc:
+        check.load_tolerances(tol)
+    assert exc.value.line is not None
+    assert cli.main(["validate", str(tol)]) == 2
+    assert capsys.readouterr().err == f"legbench: error: {exc.value}\n"
+
+
+def test_validate_takes_a_leg_parameter_file_as_one(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`legbench validate models/leg.yaml` printed one "unknown key" line per section of the leg file and "missing
+    required key 'name'", exit 2. Now it is checked as the leg parameter file it is (as --model reads it) and the
+    line says which option takes it; a bad one is the model's one line."""
+    leg = Path(__file__).resolve().parents[1] / "models" / "leg.yaml"
+    assert cli.main(["validate", str(leg)]) == 0
+    assert capsys.readouterr().out == f"{leg}: ok (a leg parameter file: give it to legbench --model {leg}, or " \
+                                      "LEGBENCH_MODEL)\n"  # fmt: skip
+    bad = tmp_path / "leg.yaml"
+    bad.write_text(leg.read_text().replace("R_foot", "R_fot"))
+    assert cli.main(["validate", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{bad}: geometry.R_fot" in err and "missing required key" not in err
+
+
 def test_compare_of_a_regular_file_says_it_is_a_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """`legbench compare FILE` says FILE is a file, not a results directory (it said "no such results
     directory"), in one line, exit 2."""
@@ -924,3 +962,17 @@ def test_a_run_out_whose_temporary_would_not_fit_is_refused_before_any_work(
     err = capsys.readouterr().err
     assert err.startswith(f"legbench: error: --out {long}: a name of 250 characters;") and err.count("\n") == 1
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_run_of_named_backends_imports_no_other_engine(tmp_path: Path) -> None:
+    """`legbench run --backends pinocchio` (pre-flight included) imports Pinocchio's engine and no other: it imported
+    every installed one for the pre-flight (pydrake's import alone takes about a second, and swallows a Ctrl-C)."""
+    others = ("mujoco", "pybullet", "pydrake", "dartpy", "odepy", "sympy")
+    code = (
+        "import sys\nfrom legbench import cli\n"
+        f"rc = cli.main(['run', {str(SCENARIOS / 'position.yaml')!r}, '--backends', 'pinocchio', '--set', "
+        f"'duration=0.6', '--out', {str(tmp_path / 'r')!r}, '-q', '--no-compare'])\n"
+        f"print(rc, [m for m in {others!r} if m in sys.modules])"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "0 []", out.stdout + out.stderr

@@ -200,6 +200,41 @@ def test_a_log_that_is_a_folder_is_one_results_error(tmp_path: Path, capsys: pyt
     assert capsys.readouterr().err.count("\n") == 1
 
 
+@pytest.mark.parametrize("name", ["../../other/a.parquet", "../a.parquet", "sub/a.parquet", "/etc/passwd", "..", "."])
+def test_a_backend_file_outside_the_run_directory_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str
+) -> None:
+    """run.json's backends.<name>.file was joined to the run directory and followed wherever it led: a hand-edited
+    ``../../other/a.parquet`` was read (and measured) as the backend's log, ``/etc/passwd`` read as parquet. Now
+    the validated reader refuses anything but a plain file name in the run directory, one line naming run.json
+    and the key, and compare writes nothing."""
+    run = write_run(tmp_path / "one", {"ref": None, "a": scale(1.1)}, name="one")
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "a.parquet").write_bytes((run / "a.parquet").read_bytes())
+    (run / "sub").mkdir()
+    (run / "sub" / "a.parquet").write_bytes((run / "a.parquet").read_bytes())
+    (run / "a.parquet").replace(tmp_path / "a.parquet")  # what ../a.parquet names
+    rj = run / "run.json"
+    _set(rj, "backends.a.file", name)
+    with pytest.raises(ResultsError) as exc:
+        results.read_meta(run)
+    assert exc.value.key == "backends.a.file" and exc.value.file == str(rj)
+    before = sorted(p.name for p in run.iterdir())
+    assert cli.main(["compare", str(run)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"legbench: error: {rj}: backends.a.file: must be a plain file name")
+    assert sorted(p.name for p in run.iterdir()) == before
+
+
+def test_a_backend_file_that_is_a_plain_name_is_read(tmp_path: Path) -> None:
+    """The check refuses only names that leave the directory: a log renamed and run.json edited to match reads."""
+    run = write_run(tmp_path / "one", {"ref": None, "a": scale(1.1)}, name="one")
+    (run / "a.parquet").rename(run / "a-renamed.parquet")
+    _set(run / "run.json", "backends.a.file", "a-renamed.parquet")
+    assert results.load_run(run).backends["a"].status == "ok"
+
+
 # --------------------------------------------------------------------------- #
 # Output paths: links, devices, files of the user's, names too long for the temporaries
 

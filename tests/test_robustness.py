@@ -6,6 +6,7 @@ import copy
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tracemalloc
@@ -589,6 +590,44 @@ def test_corrupt_results_are_one_line(tmp_path: Path, monkeypatch: pytest.Monkey
     (out / "fake.parquet").write_bytes(b"PAR1 truncated")
     assert cli.main(["compare", str(out)]) == 2
     assert "not a readable parquet file" in capsys.readouterr().err
+
+
+def test_a_rerun_after_an_interrupt_before_the_comparison_compares_only(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A Ctrl-C after every backend finished and before the comparison leaves a complete run.json, the logs and no
+    metrics.json (written here by deleting the comparison, not by timing a signal). The interrupt says "rerun the
+    same command to finish", but the rerun was refused: "holds a finished run; ... or --force". Now the same
+    command compares it, runs no backend and says so in one line; with other settings it is still refused."""
+    from legbench import run
+
+    f = _fake_run(tmp_path, monkeypatch)
+    out = tmp_path / "r"
+    argv = ["run", str(f), "--backends", "fake", "--out", str(out), "-q", "--no-preflight"]
+    assert cli.main(argv) == 0
+    for p in out.iterdir():
+        if p.name not in ("run.json", "fake.parquet"):
+            shutil.rmtree(p) if p.is_dir() else p.unlink()
+    kept = {p.name: p.read_bytes() for p in out.iterdir()}
+    capsys.readouterr()
+
+    def no_runs(*args: Any, **kwargs: Any) -> None:
+        raise AssertionError("a backend was run again")
+
+    monkeypatch.setattr(run, "run_many", no_runs)
+    assert cli.main([*argv, "--set", "duration=1.9"]) == 2  # other settings: still refused
+    err = capsys.readouterr().err
+    assert f"{out} holds a finished run; choose another --out" in err and err.count("\n") == 1
+    assert not (out / "metrics.json").exists()
+    assert cli.main(argv) == 0
+    said = capsys.readouterr().out.splitlines()
+    assert said[0] == (f"t: {out}: every backend finished in an earlier run of this command, kept as it is; "
+                       f"comparing only, as legbench compare {out} would")  # fmt: skip
+    assert said[1] == f"report: {out / 'report.html'}"
+    assert (out / "metrics.json").is_file() and (out / "report.html").is_file()
+    assert {n: (out / n).read_bytes() for n in kept} == kept  # the run itself untouched
+    assert cli.main(argv) == 2  # now finished with its comparison: refused as before
+    assert "holds a finished run" in capsys.readouterr().err
 
 
 def test_check_against_another_scenarios_baseline_names_the_mismatch(
