@@ -56,7 +56,7 @@ COMMANDS: dict[str, str] = {
 SUMMARY: dict[str, str] = {
     "model": "the leg model: kinematics, gravity, URDF generation",
     "run": "run scenarios on one or more backends, then compare them",
-    "validate": "check scenario, sweep, tolerance and framework files without running them",
+    "validate": "check scenario, sweep, tolerance, framework and leg parameter files without running them",
     "schema": "print the JSON Schema of the scenario format (for editors)",
     "compare": "compare the backends of a run directory (or a tree of them) and report",
     "check": "regression check of new results against a committed baseline",

@@ -587,7 +587,8 @@ def add_schema(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def add_validate(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("validate", help="check scenario, sweep, tolerance and framework files without running them")
+    p = sub.add_parser("validate", help="check scenario, sweep, tolerance, framework and leg parameter files "
+                                        "without running them")  # fmt: skip
     p.add_argument("files", nargs="+", help="YAML files")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key of every scenario file first, as legbench run --set does")  # fmt: skip
