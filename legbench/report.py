@@ -20,6 +20,7 @@ without a network.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
@@ -816,21 +817,32 @@ def _stage_report(
     return _Staged(ReportFiles(metrics, md, page, tuple(f.key for f in figures), adir), moves)
 
 
-def _commit(staged: Sequence[_Staged], progress: Progress | None = None) -> None:
+def _commit(
+    staged: Sequence[_Staged], progress: Progress | None = None, then: Sequence[tuple[Path, Path]] = ()
+) -> None:
     """Put rendered reports in place: the assets they load, then each page's files (one rename each), the
-    static figures of earlier versions removed; ``progress`` is called with each page once it is in place."""
-    for adir in dict.fromkeys(st.files.assets for st in staged):
-        write_assets(adir)
-    for st in staged:
-        path = st.files.html.parent
-        figs = path / "figures"
-        for old in figs.glob("*.png") if figs.is_dir() else ():
-            old.unlink()  # the static figures of earlier versions
-        if figs.is_dir() and not any(figs.iterdir()):
-            figs.rmdir()
-        commit_staged(st.moves)
-        if progress is not None:
-            progress(st.files.html)
+    static figures of earlier versions removed, then the staged files ``then`` (a tree's index); ``progress`` is
+    called with each page once it is in place. A failure (a full disk writing the assets) leaves no staged file
+    behind: what was not put in place is removed."""
+    try:
+        for adir in dict.fromkeys(st.files.assets for st in staged):
+            write_assets(adir)
+        for st in staged:
+            path = st.files.html.parent
+            figs = path / "figures"
+            for old in figs.glob("*.png") if figs.is_dir() else ():
+                old.unlink()  # the static figures of earlier versions
+            if figs.is_dir() and not any(figs.iterdir()):
+                figs.rmdir()
+            commit_staged(st.moves)
+            if progress is not None:
+                progress(st.files.html)
+        commit_staged(then)
+    except BaseException:
+        for tmp, _ in [*(m for st in staged for m in st.moves), *then]:
+            with contextlib.suppress(OSError):
+                tmp.unlink()  # already renamed into place, or never written: nothing there
+        raise
 
 
 #: One piece of a page for :func:`write_page`: a heading (``"## text"``), a paragraph (any
@@ -1373,8 +1385,7 @@ def write_all(
     except BaseException:
         _discard([*dirs, root], tag)
         raise
-    _commit(staged, progress)
-    commit_staged(index_moves)
+    _commit(staged, progress, index_moves)
     index = IndexFiles(root / "report.html", root / "report.md", tuple(dirs))
     if progress is not None:
         progress(index.html)

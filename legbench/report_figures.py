@@ -35,7 +35,6 @@ from __future__ import annotations
 import base64
 import hashlib
 import math
-import shutil
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib import resources
@@ -48,7 +47,7 @@ from legbench import kinematics
 from legbench.compare import ComparisonResult
 from legbench.resources import bundled_urdf, urdf_name
 from legbench.resources import shown as shown_file
-from legbench.results import Run, RunResult, atomic_write_text
+from legbench.results import Run, RunResult, atomic_write_bytes, atomic_write_text
 from legbench.signals import JOINTS, SIGNALS, SLICE, UNITS
 from legbench.signals import label as column_label
 
@@ -165,9 +164,7 @@ def write_assets(directory: Path) -> Path:
     dst = directory / PLOTLY_JS
     with resources.as_file(src) as path:
         if not dst.is_file() or dst.stat().st_size != path.stat().st_size:
-            tmp = dst.with_suffix(".tmp")
-            shutil.copyfile(path, tmp)
-            tmp.replace(dst)
+            atomic_write_bytes(dst, path.read_bytes())  # 4.8 MB once per tree; a failed copy leaves no temporary
     js = directory / LEGBENCH_FILE
     if not js.is_file() or js.read_text() != LEGBENCH_JS:
         atomic_write_text(js, LEGBENCH_JS)

@@ -1152,3 +1152,27 @@ def test_the_index_says_from_when_a_task_s_errors_are_measured(tmp_path: Path) -
     md = R.write_index(tmp_path).markdown.read_text()
     assert "late: simulation error % (backend x signal component; from t = 0.5 s (the scenario's skip))" in md
     assert "whole: simulation error % (backend x signal component)" in md
+
+
+def test_a_report_whose_assets_cannot_be_written_leaves_nothing_staged(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A full disk while the assets are written (after the pages were rendered into staged files) left
+    .metrics.json.out.tmp-PID, .report.md.out.tmp-PID and .report.html.out.tmp-PID in the run directory and the
+    tree's root for good: now nothing staged is left, the error goes on up, and the reports already in place stay
+    as they were, byte for byte (a run's page and a tree's)."""
+    import errno
+
+    tree = tmp_path / "tree"
+    d = write_run(tree / "fake", {"ref": None, "a": scale(1.01)})
+    R.write_all(tree)
+    before = {p: p.read_bytes() for p in sorted(tree.rglob("*")) if p.is_file()}
+
+    def full(directory: Path) -> Path:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(R, "write_assets", full)
+    for write in (lambda: R.write_report(d), lambda: R.write_all(tree)):
+        with pytest.raises(OSError, match="No space left"):
+            write()
+        assert {p: p.read_bytes() for p in sorted(tree.rglob("*")) if p.is_file()} == before
