@@ -194,7 +194,8 @@ def _run(args: argparse.Namespace) -> int:
         run.check_tree(root, [out.name for *_, out in plan], foreign=args.out is not None)
     # a run of this command whose backends all finished but whose comparison an interrupt stopped: compared only
     pending = set() if args.force or args.no_compare else {
-        out for sc, mode, out in plan if results.comparison_pending(sc, out, mode, names)}  # fmt: skip
+        out for sc, mode, out in plan if results.comparison_pending(sc, out, mode, names)
+        and not (args.csv and any(not (out / f"{n}.csv").is_file() for n in names))}  # fmt: skip
     _check_plan(plan, names, args, pending)
     plan_run = [p for p in plan if p[2] not in pending]
     for sc, mode in runs:  # a mode the file does not give, checked as if it did (with or without the pre-flight)
@@ -224,8 +225,9 @@ def _run(args: argparse.Namespace) -> int:
     failed = 0
     for sc, mode, out in plan:
         if out in pending:
-            print(f"{sc.name}: {out}: every backend finished in an earlier run of this command, kept as it is; "
-                  f"comparing only, as legbench compare {out} would")  # fmt: skip
+            print(f"{sc.name}: {out}: every backend finished in an earlier run of the same scenario, settings and "
+                  f"leg, which has no comparison yet: kept as it is and compared only, as legbench compare {out} "
+                  "would (--force runs it again)")  # fmt: skip
             for bname, entry in results.read_meta(out)["backends"].items():  # as the earlier run printed them
                 if entry["status"] != "ok":
                     failed += 1
@@ -294,8 +296,8 @@ def _check_plan(
 
 def _validate(args: argparse.Namespace) -> int:
     """Scenario, sweep (has ``studies``), framework (``legbench reproduce``'s: has ``frameworks``), tolerance
-    (:func:`_is_tolerances`) and leg parameter files (a section of :data:`_LEG_SECTIONS`, checked as ``--model``
-    reads one), told apart by content.
+    (:func:`_is_tolerances`) and leg parameter files (a section of :data:`legbench.model.SECTIONS`, checked as
+    ``--model`` reads one), told apart by content.
 
     Every file is checked and every independent problem of a file is one line on stderr
     (:func:`legbench.scenario.errors`, :func:`legbench.check.tolerance_errors`); exit 2 if any.
@@ -318,11 +320,6 @@ def _validate(args: argparse.Namespace) -> int:
 
 def _set_refused(path: str, kind: str) -> tuple[str, list[LegbenchError]]:
     return "", [LegbenchError(f"{path}: --set applies to scenario files; this is {kind}")]
-
-
-#: The sections of a leg parameter file (models/leg.yaml; legbench.model checks them): a file with one of them and no
-#: scenario key is one.
-_LEG_SECTIONS = ("geometry", "joints", "materials", "links", "calibration", "collision", "contact")
 
 
 def _is_tolerances(doc: Any) -> bool:
@@ -363,7 +360,7 @@ def _validate_one(path: str, overrides: Mapping[str, Any] | None = None) -> tupl
     except LegbenchError as exc:
         return "", [exc]
     no_scenario_key = isinstance(doc, dict) and not set(doc) & set(scenario.TOP_KEYS)
-    if no_scenario_key and set(doc) & set(_LEG_SECTIONS):
+    if no_scenario_key and set(doc) & set(model.SECTIONS):
         if overrides:
             return _set_refused(path, "a leg parameter file")
         model.read_params(path)  # ModelError: the file, the entry, why

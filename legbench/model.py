@@ -297,7 +297,7 @@ def param_bytes(path: Path) -> bytes:
 
 
 #: The sections of a leg parameter file, in the order they are checked.
-_SECTIONS = ("geometry", "joints", "materials", "links", "calibration", "collision", "contact")
+SECTIONS = ("geometry", "joints", "materials", "links", "calibration", "collision", "contact")
 
 #: The bodies with CAD parts (``links``) and collision primitives (``collision``): the moving links and the foot.
 _BODIES = (*LINK_NAMES, "foot")
@@ -438,8 +438,8 @@ def _check_physical(raw: Any, path: Path | str) -> None:
 
     if not isinstance(raw, dict):
         raise ModelError(one_line(f"{path}: expected a mapping at the top level, got {_value(raw)}"))
-    sections = f"a leg parameter file has {_listing(_SECTIONS)}"
-    keys("", raw, _SECTIONS, unknown=f"unknown section ({sections})", missing=f"missing ({sections})")
+    sections = f"a leg parameter file has {_listing(SECTIONS)}"
+    keys("", raw, SECTIONS, unknown=f"unknown section ({sections})", missing=f"missing ({sections})")
 
     # geometry: the lengths and offsets of docs/spec.md section 1
     lengths = [f.name for f in fields(Geometry)]
@@ -608,7 +608,7 @@ def check_physical(raw: dict[str, Any], path: Path | str = "leg parameters") -> 
     """Refuse a malformed or physically meaningless parameter file, naming the file, the key path
     (``links.link2.parts[1].axis``) and the problem in one line, before anything is built from it.
 
-    The shape of the file: the sections :data:`_SECTIONS`, each with its keys and no others (the three joints
+    The shape of the file: the sections :data:`SECTIONS`, each with its keys and no others (the three joints
     by their names and types, :data:`JOINT_NAMES`; the bodies link1, link2, link3, foot in ``links``, each with
     a non-empty list of ``parts``, every part one of :data:`_PART_KEYS` of a known material; ``collision`` by
     body, the foot's a sphere; ``calibration``'s q*, G(q*), gravity and a scale factor per link;

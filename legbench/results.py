@@ -420,8 +420,8 @@ _PID_DIGITS = 7
 
 
 def _check_temp_names(path: Path, what: str) -> None:
-    """The temporary siblings the writers make of ``path`` (``.<name>.tmp-<pid>``, ``.<name>.old-<pid>``,
-    ``.<name>.out.tmp-<pid>``; :func:`atomic_dir`, :func:`atomic_write_bytes`, :func:`staged_name`) fit the file
+    """The temporary siblings the writers make of ``path`` (``.<name>.tmp-<pid>``, ``.<name>.old-<pid>``;
+    :func:`atomic_dir`, :func:`atomic_write_bytes`; a report's staged pages are the run's own short names) fit the file
     system's longest name (NAME_MAX of the nearest existing folder, else 255): a name that fits but whose temporary
     does not failed only when the results were written, after all the work."""
     probe = path.parent
@@ -431,7 +431,7 @@ def _check_temp_names(path: Path, what: str) -> None:
         name_max = os.pathconf(probe, "PC_NAME_MAX")
     except (OSError, ValueError):
         name_max = 255
-    longest = len(f".{path.name}.out.tmp-") + _PID_DIGITS
+    longest = len(f".{path.name}.tmp-") + _PID_DIGITS  # .tmp- and .old- alike; .out.tmp- only for the pages in a run
     if path.name and longest > name_max:
         raise LegbenchError(f"{what} {path}: a name of {len(path.name)} characters; the temporary names legbench "
                             f"writes beside it must fit {name_max}, so at most {name_max - longest + len(path.name)} "
@@ -649,10 +649,13 @@ def check_out_dir(scenario: Scenario, out_dir: Path, option: str = "--out") -> N
 
 
 def _same_settings(prev: Mapping[str, Any], scenario: Scenario, contact_mode: str | None) -> bool:
-    """A run.json of the same scenario (its hash) in the same contact mode: one a run of it resumes."""
+    """A run.json of the same scenario (its hash) in the same contact mode, of the leg model active now (its
+    ``urdf``, where it names one: another ``--model`` is another leg): one a run of it resumes."""
     sc = prev.get("scenario") or {}
     return bool(
-        sc.get("sha256") == scenario.sha256 and sc.get("contact_mode") == (contact_mode or scenario.contact_mode)
+        sc.get("sha256") == scenario.sha256
+        and sc.get("contact_mode") == (contact_mode or scenario.contact_mode)
+        and prev.get("urdf", resources.urdf_name()) == resources.urdf_name()
     )
 
 

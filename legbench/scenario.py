@@ -522,8 +522,8 @@ def parse(
         raise ctx.error(["comparison", "skip"], f"skips the whole run ({duration} s)")
     if exact_d and comparison.steady_window > duration:
         raise ctx.error(["comparison", "steady_window"],
-                        f"longer than the run ({duration} s): give a shorter one, or cut the run with --duration, "
-                        "which shrinks it")  # fmt: skip
+                        f"longer than the run ({duration} s): give a shorter one (--set comparison.steady_window=...)"
+                        )  # fmt: skip
     return Scenario(
         name=name,
         description=description,

@@ -22,7 +22,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from legbench import backends as registry
-from legbench import cli, model, results, scenario, yamlfile
+from legbench import cli, model, resources, results, scenario, yamlfile
 from legbench.exceptions import LegbenchError, ModelError, ScenarioError
 
 GOOD: dict[str, Any] = {
@@ -598,7 +598,8 @@ def test_a_rerun_after_an_interrupt_before_the_comparison_compares_only(
     """A Ctrl-C after every backend finished and before the comparison leaves a complete run.json, the logs and no
     metrics.json (written here by deleting the comparison, not by timing a signal). The interrupt says "rerun the
     same command to finish", but the rerun was refused: "holds a finished run; ... or --force". Now the same
-    command compares it, runs no backend and says so in one line; with other settings it is still refused."""
+    command compares it, runs no backend and says so in one line; with other settings, another leg (--model) or
+    CSV logs it does not hold (--csv) it is still refused."""
     from legbench import run
 
     f = _fake_run(tmp_path, monkeypatch)
@@ -619,10 +620,20 @@ def test_a_rerun_after_an_interrupt_before_the_comparison_compares_only(
     err = capsys.readouterr().err
     assert f"{out} holds a finished run; choose another --out" in err and err.count("\n") == 1
     assert not (out / "metrics.json").exists()
+    assert cli.main([*argv, "--csv"]) == 2  # the CSV logs it asks for are not there: a run, refused as before
+    assert "holds a finished run" in capsys.readouterr().err
+    other = tmp_path / "leg2.yaml"  # another leg: the logs are of the bundled one
+    other.write_text(resources.bundled_model().read_text().replace("gravity: 9.81", "gravity: 9.0", 1))
+    try:
+        assert cli.main(["--model", str(other), *argv]) == 2
+    finally:
+        resources.select_model(None)
+    assert "holds a finished run" in capsys.readouterr().err
     assert cli.main(argv) == 0
     said = capsys.readouterr().out.splitlines()
-    assert said[0] == (f"t: {out}: every backend finished in an earlier run of this command, kept as it is; "
-                       f"comparing only, as legbench compare {out} would")  # fmt: skip
+    assert said[0] == (f"t: {out}: every backend finished in an earlier run of the same scenario, settings and leg, "
+                       f"which has no comparison yet: kept as it is and compared only, as legbench compare {out} "
+                       "would (--force runs it again)")  # fmt: skip
     assert said[1] == f"report: {out / 'report.html'}"
     assert (out / "metrics.json").is_file() and (out / "report.html").is_file()
     assert {n: (out / n).read_bytes() for n in kept} == kept  # the run itself untouched

@@ -603,9 +603,9 @@ def test_a_force_delay_that_starts_the_force_after_the_run_is_refused(events: li
 def test_the_default_steady_window_is_the_last_half_second_or_the_whole_of_a_shorter_run() -> None:
     """Without comparison.steady_window a 3 s run's window is its last 0.5 s and a 0.3 s run's the whole 0.3 s (it was
     refused as longer than the run, though the user gave no window); one given longer than the run is refused, and
-    the message says how to shorten a run."""
+    the message says how to give a shorter one."""
     assert scenario.parse({**BASE, "duration": 3.0}).comparison.steady_window == 0.5
     assert scenario.parse({**BASE, "duration": 0.3}).comparison.steady_window == 0.3
     with pytest.raises(ScenarioError) as err:
         scenario.parse({**BASE, "duration": 0.3, "comparison": {"steady_window": 0.5}})
-    assert err.value.key == "comparison.steady_window" and "--duration" in err.value.problem
+    assert err.value.key == "comparison.steady_window" and "--set comparison.steady_window=" in err.value.problem
