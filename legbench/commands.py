@@ -204,7 +204,7 @@ def _run(args: argparse.Namespace) -> int:
             scenario.check_contact_mode(sc, names, mode, given)
     # the workers (no more than the runs) import the engines while the pre-flight runs here (one run needs none)
     n_runs = len(plan_run) * len(names)
-    pool = run.start_pool(args.jobs, tasks=n_runs) if n_runs > 1 else None
+    pool = run.start_pool(args.jobs, tasks=n_runs, backend_names=names) if n_runs > 1 else None
     try:
         if not args.no_preflight:
             installed = names  # resolve loaded each (or refused it): no other engine is imported

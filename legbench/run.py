@@ -41,7 +41,7 @@ from legbench.results import (
     write_run,
 )
 from legbench.scenario import MAX_JOINT_SPEED, MAX_PENETRATION, Scenario, physics_of
-from legbench.studies.executors import LocalExecutor, capped
+from legbench.studies.executors import DEFAULT_PRELOAD, LocalExecutor, capped
 from legbench.yamlfile import one_line
 
 
@@ -429,13 +429,24 @@ def check_tree(root: Path, dirs: Sequence[str], option: str = "--out", foreign: 
     check_index_pages(root)  # the tree's index is written at the end: a page of the user's there is refused now
 
 
-def start_pool(jobs: int, tasks: int | None = None) -> LocalExecutor | None:
+def run_preload(backend_names: Sequence[str] | None = None) -> tuple[str, ...]:
+    """What the workers of :func:`run_many` import when they start: the run loop, the study tasks and the engines
+    of ``backend_names`` (their modules, :func:`legbench.backends.module_of`), or every installed engine (None):
+    a run of MuJoCo and Pinocchio does not wait for the fork server to import Drake."""
+    if backend_names is None:
+        return DEFAULT_PRELOAD
+    engines = (registry.module_of(n) for n in backend_names)
+    return ("legbench.run", "legbench.studies.tasks", *dict.fromkeys(m for m in engines if m is not None))
+
+
+def start_pool(jobs: int, tasks: int | None = None, backend_names: Sequence[str] | None = None) -> LocalExecutor | None:
     """A pool of ``jobs`` workers (no more than ``tasks``, the runs it will have) started now, for
-    :func:`run_many`: they import the engines while the caller reads scenarios and runs its pre-flight. None
-    for ``jobs <= 1`` (the runs go in this process)."""
+    :func:`run_many`: they import the engines of ``backend_names`` (every installed one: None,
+    :func:`run_preload`) while the caller reads scenarios and runs its pre-flight. None for ``jobs <= 1`` (the runs
+    go in this process)."""
     if jobs <= 1:
         return None
-    pool = LocalExecutor(jobs, tasks=tasks)
+    pool = LocalExecutor(jobs, preload=run_preload(backend_names), tasks=tasks)
     pool.start()
     return pool
 
@@ -494,7 +505,7 @@ def run_many(
     tasks = [(sc, name, mode, per_run_bar) for _, sc, name, mode in plan]
     got: dict[int, RunResult] = {}
     interrupted = False
-    pool = pool if pool is not None else LocalExecutor(jobs)
+    pool = pool if pool is not None else LocalExecutor(jobs, preload=run_preload(backend_names))
     with progress_mod.bar(len(plan), "runs", quiet=not progress or jobs <= 1) as bar:
         try:
             for j, tr in pool.imap_unordered(_task, tasks, first, _crashed):

@@ -125,8 +125,8 @@ def test_the_pool_starts_before_the_preflight_and_stops_when_it_fails(
 
     pools: list[Any] = []
 
-    def start(jobs: int, tasks: int | None = None) -> Any:
-        pool = real_start(jobs, tasks)
+    def start(jobs: int, tasks: int | None = None, backend_names: Any = None) -> Any:
+        pool = real_start(jobs, tasks, backend_names)
         pools.append(pool)
         return pool
 

@@ -134,6 +134,16 @@ def engine_packages() -> list[str]:
     return list(dict.fromkeys(package for _, _, package in BUILTIN.values()))
 
 
+def module_of(name: str) -> str | None:
+    """The module that holds backend ``name`` (a built-in's ``legbench.backends.<engine>_``, a plug-in's entry
+    point module), not imported: what a worker pool preloads to have only the named engines imported; None for a
+    name that is neither."""
+    if name in BUILTIN:
+        return BUILTIN[name][0]
+    ep = _plugins().get(name)
+    return ep.module if ep is not None else None
+
+
 def available() -> list[str]:
     """Names of the backends that can run here, built-ins first."""
     return list(_registry())
