@@ -1143,7 +1143,7 @@ def test_jobs_beyond_the_runs_start_no_more_workers_than_runs(tmp_path: Path, mo
     f = _fake_run(tmp_path, monkeypatch)
     asked: list[int] = []
 
-    def start(jobs: int, tasks: int | None = None) -> None:
+    def start(jobs: int, tasks: int | None = None, backend_names: Any = None) -> None:
         asked.append(run.LocalExecutor(jobs, tasks=tasks).jobs)  # the pool it would start (no process yet)
         raise LegbenchError("stopped before the runs")
 
