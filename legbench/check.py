@@ -208,7 +208,9 @@ class CheckReport:
 # Tolerances
 
 
-def _validate(tol: Any, file: str, prefix: str, ctx: yamlfile.YamlContext | None = None) -> dict[str, Any]:
+def _validate(
+    tol: Any, file: str, prefix: str | list[str | int], ctx: yamlfile.YamlContext | None = None
+) -> dict[str, Any]:
     """Tolerances checked by the rules a scenario's own are (:func:`legbench.scenario.validate_tolerances`); with
     ``ctx`` (the file's node tree) an error names the line."""
     return validate_tolerances(tol, file, prefix, ctx)
@@ -246,19 +248,21 @@ def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[st
     if not isinstance(per, Mapping):
         raise ScenarioError(str(path), "scenarios", "must be a mapping of scenario name or run label to tolerances")
     common = _validate(doc, str(path), "", ctx)
-    return common, {str(k): _validate(v, str(path), f"scenarios.{k}", ctx) for k, v in per.items()}
+    return common, {str(k): _validate(v, str(path), ["scenarios", str(k)], ctx) for k, v in per.items()}
 
 
 def tolerance_errors(path: str | Path) -> list[ScenarioError]:
-    """Every problem of a tolerance file, one :class:`ScenarioError` each (empty: the file is valid)."""
+    """Every problem of a tolerance file, one :class:`ScenarioError` each with its line, as
+    :func:`load_tolerances` names it (empty: the file is valid)."""
     try:
-        doc = yamlfile.read_yaml(path)[0]
+        doc, root = yamlfile.read_yaml(path)
     except ScenarioError as exc:
         return [exc]
     if not isinstance(doc, Mapping):
         return [ScenarioError(str(path), "", "top level must be a mapping")]
+    ctx = yamlfile.YamlContext(str(path), root)
     errors: list[ScenarioError] = []
-    sections: list[tuple[str, Any]] = [(str(k), {k: v}) for k, v in doc.items() if k != "scenarios"]
+    sections: list[tuple[list[str | int], Any]] = [([], {k: v}) for k, v in doc.items() if k != "scenarios"]
     per = doc.get("scenarios")
     if per is None:
         per = {}
@@ -269,12 +273,12 @@ def tolerance_errors(path: str | Path) -> list[ScenarioError]:
         per = {}
     for name, tol in per.items():
         if not isinstance(tol, Mapping):
-            sections.append((f"scenarios.{name}", tol))
+            sections.append((["scenarios", str(name)], tol))
             continue
-        sections += [(f"scenarios.{name}", {k: v}) for k, v in tol.items()]
+        sections += [(["scenarios", str(name)], {k: v}) for k, v in tol.items()]
     for prefix, one in sections:
         try:
-            _validate(one, str(path), prefix if prefix.startswith("scenarios.") else "")
+            _validate(one, str(path), prefix, ctx)
         except ScenarioError as exc:
             errors.append(exc)
     return errors

@@ -340,23 +340,9 @@ def _is_tolerances(doc: Any) -> bool:
     return False
 
 
-def _tolerance_problems(path: str, root: Any) -> list[LegbenchError]:
-    """:func:`legbench.check.tolerance_errors`, each with the line of its key, as ``legbench check --tolerances``
-    names it (:func:`legbench.check.load_tolerances`)."""
-    from legbench import check
-    from legbench.exceptions import ScenarioError
-
-    ctx = yamlfile.YamlContext(path, root)
-    out: list[LegbenchError] = []
-    for exc in check.tolerance_errors(path):
-        line = exc.line if exc.line is not None or not exc.key else ctx.line(exc.key.split("."))
-        out.append(ScenarioError(exc.file, exc.key, exc.problem, line))
-    return out
-
-
 def _validate_one(path: str, overrides: Mapping[str, Any] | None = None) -> tuple[str, list[LegbenchError]]:
     try:
-        doc, root = yamlfile.read_yaml(path)
+        doc, _ = yamlfile.read_yaml(path)
     except LegbenchError as exc:
         return "", [exc]
     no_scenario_key = isinstance(doc, dict) and not set(doc) & set(scenario.TOP_KEYS)
@@ -382,7 +368,9 @@ def _validate_one(path: str, overrides: Mapping[str, Any] | None = None) -> tupl
     if no_scenario_key and _is_tolerances(doc):
         if overrides:
             return _set_refused(path, "a tolerance file")
-        problems = _tolerance_problems(path, root)
+        from legbench import check
+
+        problems: list[LegbenchError] = list(check.tolerance_errors(path))  # each with its line
         return f"{path}: ok (tolerances: {', '.join(sorted(map(str, doc)))})", problems
     problems = list(scenario.errors(path, overrides))
     if problems:

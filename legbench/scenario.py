@@ -629,7 +629,9 @@ def _published(ctx: YamlContext, rows: Any) -> tuple[dict[str, Any], ...]:
     return tuple(out)
 
 
-def validate_tolerances(tol: Any, file: str, prefix: str = "", ctx: YamlContext | None = None) -> dict[str, Any]:
+def validate_tolerances(
+    tol: Any, file: str, prefix: str | Sequence[str | int] = "", ctx: YamlContext | None = None
+) -> dict[str, Any]:
     """Tolerances, checked: a scenario's ``comparison.tolerances``, a tolerance file or one of its sections
     (:func:`legbench.check.load_tolerances`); the one set of rules for all of them.
 
@@ -637,13 +639,14 @@ def validate_tolerances(tol: Any, file: str, prefix: str = "", ctx: YamlContext 
     metric to ``{abs: x, rel: x}``, each ``x`` a number or a mapping of label, signal or ``default``
     (:data:`TOLERANCE_KEYS`) to one; every number finite and >= 0. A key that is no label, signal or
     ``default`` would never be looked up (a typo silently leaving the tolerance as it was), and a key that is
-    not text could not be written to run.json: both are refused. Errors name ``prefix`` and the key below
-    it, with its line where ``ctx`` knows it.
+    not text could not be written to run.json: both are refused. Errors name ``prefix`` (dotted text, or the
+    keys as a list where one holds a dot: a scenario named ``my.task``) and the key below it, with its line where
+    ``ctx`` knows it.
 
     Raises:
         ScenarioError: the first problem found.
     """
-    base: list[str | int] = list(prefix.split(".")) if prefix else []
+    base: list[str | int] = (list(prefix.split(".")) if prefix else []) if isinstance(prefix, str) else list(prefix)
 
     def error(path: list[str | int], problem: str) -> ScenarioError:
         return ctx.error([*base, *path], problem) if ctx is not None else ScenarioError(file, keypath([*base, *path]),

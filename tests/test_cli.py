@@ -324,15 +324,17 @@ def test_validate_knows_the_reproduce_framework_file(tmp_path: Path, capsys: pyt
 
 @pytest.mark.parametrize(
     "text",
-    ["sim_error_pc:\n  abs: 1\n", "rmse: {abs: 1}\n", "rms: {abs: 1}\nscenarios:\n  effort:\n    rms: {rel: -1}\n"],
-)
+    ["sim_error_pc:\n  abs: 1\n", "rmse: {abs: 1}\n", "rms: {abs: 1}\nscenarios:\n  effort:\n    rms: {rel: -1}\n",
+     "scenarios:\n  my.task:\n    max_sim_error_pct: 5\n"],
+)  # fmt: skip
 def test_validate_takes_a_tolerance_file_as_check_does(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str
 ) -> None:
     """A tolerance file whose every key was misspelt (``sim_error_pc``) was taken for a scenario by validate: "unknown
     key; valid keys: name, description, duration..." and "missing required key 'name'", two lines; and a tolerance
     file's errors from validate had no line. Now validate says what ``legbench check --tolerances`` says, one line
-    with the line number."""
+    with the line number; under a scenario named with a dot (``my.task``), the entry's own line (3), where the
+    key re-split at every dot named line 1."""
     from legbench import check
     from legbench.exceptions import ScenarioError
 
@@ -341,6 +343,8 @@ def test_validate_takes_a_tolerance_file_as_check_does(
     with pytest.raises(ScenarioError) as exc:
         check.load_tolerances(tol)
     assert exc.value.line is not None
+    if "my.task" in text:
+        assert exc.value.line == 3
     assert cli.main(["validate", str(tol)]) == 2
     assert capsys.readouterr().err == f"legbench: error: {exc.value}\n"
 
