@@ -643,3 +643,28 @@ def test_a_cache_dir_that_cannot_hold_the_equations_is_refused_naming_the_key(tm
     with pytest.raises(LegbenchError, match=r"^backends\.lagrange\.cache_dir: "):
         make(cache_dir=value)
     assert scenario.parse({**doc, "backends": {"lagrange": {"cache_dir": str(tmp_path / "new" / "dir")}}})
+
+
+def test_a_cache_dir_with_a_tilde_is_under_the_home_directory(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, make: Any
+) -> None:
+    """cache_dir: ~/eom made a folder named '~' in the working directory; a leading ~ is now the home directory, as
+    in the shell (the equations are loaded from HOME/eom), and a ~user naming no user is refused naming the key."""
+    from legbench.backends import lagrange_
+
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.chdir(tmp_path)
+    asked: list[Any] = []
+
+    def load(chain: Any, cache_dir: Any = None) -> Any:
+        asked.append(cache_dir)
+        raise LegbenchError("stop after the cache directory is named")
+
+    monkeypatch.setattr(lagrange_, "load_eom", load)
+    with pytest.raises(LegbenchError, match="stop after"):
+        make(cache_dir="~/eom")
+    assert asked == [tmp_path / "home" / "eom"] and not (tmp_path / "~").exists()
+    doc = {"name": "t", "duration": 1.0, "events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}}]}
+    with pytest.raises(ScenarioError) as err:
+        scenario.parse({**doc, "backends": {"lagrange": {"cache_dir": "~no_such_user_0x4c/eom"}}}, "s.yaml")
+    assert err.value.key == "backends.lagrange.cache_dir" and "\n" not in str(err.value)

@@ -58,6 +58,16 @@ _METHODS = {"rk45": "RK45", "dop853": "DOP853"}
 _POC = ("physics", "true", "centre")
 
 
+def _cache_dir(setting: str) -> Path:
+    """The directory a ``cache_dir`` setting names, a leading ``~`` expanded as the shell does (``~/eom`` made a
+    folder named ``~`` in the working directory).
+
+    Raises:
+        RuntimeError: ``~user`` names no user (:meth:`pathlib.Path.expanduser`).
+    """
+    return Path(setting).expanduser()
+
+
 class LagrangeBackend(Backend):
     """Symbolic Euler-Lagrange model of the leg + the analytic contact law, integrated by scipy's RK45 algorithm
     (compiled; solve_ivp for dop853)."""
@@ -93,13 +103,17 @@ class LagrangeBackend(Backend):
     def settings_problem(
         cls, settings: Mapping[str, Any], contact_mode: str
     ) -> tuple[str | tuple[str, ...], str] | None:
-        """``cache_dir`` that cannot hold the generated equations: not text, or a path that exists (or whose
-        nearest existing ancestor is) not a directory (``/dev/null``, a regular file); any contact mode."""
+        """``cache_dir`` that cannot hold the generated equations: not text, a ``~user`` that names no user, or a
+        path that exists (or whose nearest existing ancestor is) not a directory (``/dev/null``, a regular file); any
+        contact mode. A leading ``~`` is the home directory, as in the shell (:func:`_cache_dir`)."""
         cache = settings.get("cache_dir", "")
         if not isinstance(cache, str):
             return "cache_dir", f"expected a directory path as text ('' for the default cache), got {cache!r}"
         if cache:
-            path = Path(cache)  # os.path's tests, not Path's: they answer False where stat fails (no permission)
+            try:
+                path = _cache_dir(cache)  # os.path's tests below, not Path's: False where stat fails (no permission)
+            except RuntimeError as exc:  # ~nosuchuser
+                return "cache_dir", f"{cache!r}: {exc}"
             existing = next((p for p in (path, *path.parents) if os.path.lexists(p)), None)
             if existing is not None and not os.path.isdir(existing):
                 if existing == path:
@@ -129,7 +143,7 @@ class LagrangeBackend(Backend):
         self.physics = physics
         params = load_params()
         #: The generated equations and whether this load derived them (cold) or read the cache.
-        self.eom: Loaded = load_eom(leg_chain(params), cfg["cache_dir"] or None)
+        self.eom: Loaded = load_eom(leg_chain(params), _cache_dir(cfg["cache_dir"]) if cfg["cache_dir"] else None)
         self._qdd = self.eom.module.qdd
         poc = physics.contact.poc if cfg["poc"] == "physics" else cfg["poc"]
         self.contact_params = dataclasses.replace(physics.contact, poc=poc)
