@@ -51,6 +51,7 @@ from legbench import backends, kinematics, resources
 from legbench.backends.base import PROFILES, Physics, Range, dt_problem
 from legbench.contact import CONTACT_MODES, ContactParams
 from legbench.exceptions import BackendNotFound, LegbenchError, ScenarioError
+from legbench.model import SECTIONS as LEG_SECTIONS
 from legbench.model import load_params
 from legbench.trajectories import ellipse_waypoints
 from legbench.yamlfile import (
@@ -372,6 +373,9 @@ def parse(
                 raise ctx.error([], f"is {kind} (it has '{key}'), not a scenario: run it with {command}")
         if doc and set(doc) <= {*TOLERANCE_METRICS, "scenarios"}:
             raise ctx.error([], "is a tolerance file, not a scenario: give it to legbench check --tolerances")
+        if set(doc) & set(LEG_SECTIONS) and not set(doc) & set(TOP_KEYS):
+            raise ctx.error([], "is a leg parameter file, not a scenario: give it to legbench --model (or "
+                                "LEGBENCH_MODEL)")  # fmt: skip
     check_keys(ctx, [], doc, TOP_KEYS, ["name", "duration", "events"])
     name = doc["name"]
     if not isinstance(name, str) or not NAME_RE.fullmatch(name) or set(name) == {"."}:

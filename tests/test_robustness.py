@@ -998,6 +998,15 @@ def test_a_tolerance_file_given_as_a_scenario_is_named_as_such(tmp_path: Path) -
         scenario.load(f)
 
 
+def test_a_leg_parameter_file_given_as_a_scenario_is_named_as_such() -> None:
+    """`legbench run models/leg.yaml` printed "unknown key" for each of its sections, then "missing required key
+    'name'": now one error naming it a leg parameter file and the option that takes it."""
+    with pytest.raises(ScenarioError, match=r"leg\.yaml: is a leg parameter file, not a scenario: give it to legbench "
+                                            r"--model") as err:  # fmt: skip
+        scenario.load(ROOT / "models" / "leg.yaml")
+    assert "\n" not in str(err.value)
+
+
 # --------------------------------------------------------------------------- #
 # Found by fuzzing the command line (each test failed before its fix)
 
