@@ -194,8 +194,7 @@ def _run(args: argparse.Namespace) -> int:
         run.check_tree(root, [out.name for *_, out in plan], foreign=args.out is not None)
     # a run of this command whose backends all finished but whose comparison an interrupt stopped: compared only
     pending = set() if args.force or args.no_compare else {
-        out for sc, mode, out in plan if results.comparison_pending(sc, out, mode, names)
-        and not (args.csv and any(not (out / f"{n}.csv").is_file() for n in names))}  # fmt: skip
+        out for sc, mode, out in plan if results.comparison_pending(sc, out, mode, names, csv=args.csv)}  # fmt: skip
     _check_plan(plan, names, args, pending)
     plan_run = [p for p in plan if p[2] not in pending]
     for sc, mode in runs:  # a mode the file does not give, checked as if it did (with or without the pre-flight)
@@ -207,14 +206,13 @@ def _run(args: argparse.Namespace) -> int:
     pool = run.start_pool(args.jobs, tasks=n_runs, backend_names=names) if n_runs > 1 else None
     try:
         if not args.no_preflight:
-            installed = names  # resolve loaded each (or refused it): no other engine is imported
             checked: set[str] = set()
             for sc, mode, _ in plan_run:  # every engine must hold the spec's leg, in the run's mode, before any run
                 mode = mode or sc.contact_mode
                 key = json.dumps([sc.gravity, mode, sc.profile, {k: dict(v) for k, v in sc.backends.items()}],
                                  sort_keys=True)  # fmt: skip
                 if key not in checked:  # the pre-flight depends only on gravity, mode, profile and backend settings
-                    doctor.preflight(sc, installed, mode)
+                    doctor.preflight(sc, names, mode)  # resolve loaded each: no other engine is imported
                     checked.add(key)
     except BaseException:
         if pool is not None:

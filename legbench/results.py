@@ -667,9 +667,12 @@ def resumable(scenario: Scenario, out_dir: Path, contact_mode: str | None) -> di
     return {name: e for name, e in prev.get("backends", {}).items() if e.get("status") == "ok"}
 
 
-def comparison_pending(scenario: Scenario, out_dir: Path, contact_mode: str | None, backends: Collection[str]) -> bool:
+def comparison_pending(
+    scenario: Scenario, out_dir: Path, contact_mode: str | None, backends: Collection[str], csv: bool = False
+) -> bool:
     """Whether ``out_dir`` holds a finished run (run.json without ``"complete": false``) of the same settings
-    (:func:`_same_settings`) on exactly ``backends`` whose comparison was never written (no metrics.json): what a
+    (:func:`_same_settings`) on exactly ``backends``, with their CSV logs too where ``csv`` asks for them, whose
+    comparison was never written (no metrics.json): what a
     Ctrl-C after the last backend finished and before the comparison leaves. A rerun of the same ``legbench run``
     command compares it (as ``legbench compare`` would) and runs nothing; :func:`replaced_by_run` still calls it
     a finished run, for every other caller."""
@@ -681,6 +684,7 @@ def comparison_pending(scenario: Scenario, out_dir: Path, contact_mode: str | No
         and _same_settings(prev, scenario, contact_mode)
         and set(prev["backends"]) == set(backends)
         and not (out_dir / "metrics.json").exists()
+        and not (csv and any(not (out_dir / f"{n}.csv").is_file() for n in backends))
     )
 
 

@@ -41,7 +41,7 @@ from legbench.results import (
     write_run,
 )
 from legbench.scenario import MAX_JOINT_SPEED, MAX_PENETRATION, Scenario, physics_of
-from legbench.studies.executors import DEFAULT_PRELOAD, LocalExecutor, capped
+from legbench.studies.executors import DEFAULT_PRELOAD, TASK_PRELOAD, LocalExecutor, capped
 from legbench.yamlfile import one_line
 
 
@@ -436,7 +436,7 @@ def run_preload(backend_names: Sequence[str] | None = None) -> tuple[str, ...]:
     if backend_names is None:
         return DEFAULT_PRELOAD
     engines = (registry.module_of(n) for n in backend_names)
-    return ("legbench.run", "legbench.studies.tasks", *dict.fromkeys(m for m in engines if m is not None))
+    return (*TASK_PRELOAD, *dict.fromkeys(m for m in engines if m is not None))
 
 
 def start_pool(jobs: int, tasks: int | None = None, backend_names: Sequence[str] | None = None) -> LocalExecutor | None:

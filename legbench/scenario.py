@@ -176,7 +176,7 @@ class Comparison:
 
     reference: str = DEFAULT_REFERENCE
     skip: float = 0.0  # [s] ignored at the start
-    steady_window: float = 0.5  # [s] at the end, for steady-state means (STEADY_WINDOW, or the run if shorter)
+    steady_window: float = STEADY_WINDOW  # [s] at the end, for steady-state means (or the whole of a shorter run)
     tolerances: Mapping[str, Any] = field(default_factory=dict, hash=False)
     #: Published steady states to show beside the backends' (the lab report's rows): each
     #: ``{source: text, qd_abs: [3 magnitudes, rad/s]}`` and/or ``force: [fx, fy, fz in W, N]``, and an optional
@@ -363,7 +363,7 @@ def parse(
     validate``): also check that the control period suits the default (or profile) sub-step of every
     installed engine the scenario gives no ``dt`` (this imports them all); a run checks only the engines it
     loads, when it loads them. ``cut``: the document is a scenario cut short (:func:`shorten`), the start of the
-    whole run, so a trajectory, an ellipse or a delayed force may end after it."""
+    whole run, so a delayed force may start after it (a trajectory or an ellipse may outlast any run)."""
     ctx = YamlContext(file, root, overridden, origin)
     exact_d, exact_r = "duration" not in placeholders, "control_rate" not in placeholders
     if isinstance(doc, Mapping) and "events" not in doc:  # another of legbench's files, given where a scenario goes

@@ -153,6 +153,8 @@ class Executor(ABC):
 #: (importing ``legbench.backends.installed`` imports them), so no task pays for it. The fork server imports
 #: them before it forks the workers (:func:`_mp_context`).
 DEFAULT_PRELOAD = ("legbench.run", "legbench.studies.tasks", "legbench.backends.installed")
+#: :data:`DEFAULT_PRELOAD` without the engines: what a pool of named backends adds their engines' modules to.
+TASK_PRELOAD = DEFAULT_PRELOAD[:2]
 
 
 def _worker_init(preload: Sequence[str]) -> None:

@@ -65,7 +65,7 @@ from legbench import scenario as scenario_mod
 from legbench.contact import CONTACT_MODES
 from legbench.exceptions import LegbenchError, ScenarioError
 from legbench.metrics import signal_errors
-from legbench.results import RunResult, atomic_dir, check_out_tree, platform_info, versions
+from legbench.results import RunResult, atomic_dir, platform_info, versions
 from legbench.run import crashed, deferred_interrupts
 from legbench.scenario import NAME_RE
 from legbench.signals import COLUMNS, UNITS
@@ -988,9 +988,8 @@ def check_out(out_dir: Path, name: str) -> None:
         if prev != name:
             raise LegbenchError(f"{out_dir}: holds results of sweep {prev!r}, not {name!r}; choose another --out or "
                                 "remove it")  # fmt: skip
-        check_out_tree(out_dir, (), OUTPUTS, "sweep")  # a file of the user's, named
-        # what check_out_tree takes for legbench's in a results tree (a run directory, a study's output, a
-        # temporary) is not a sweep's own, and the swap would lose it
+        # only its own files: what a results tree holds beside them (a run directory, a study's output, a
+        # temporary) is not a sweep's own either, and the swap would lose it
         nested = next((p.name for p in sorted(out_dir.iterdir()) if p.name not in OUTPUTS or not p.is_file()), None)
         if nested is not None:
             raise LegbenchError(f"{out_dir}: not only a legbench sweep directory (it holds {nested}), and a sweep "
