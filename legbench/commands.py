@@ -294,8 +294,8 @@ def _check_plan(
 
 def _validate(args: argparse.Namespace) -> int:
     """Scenario, sweep (has ``studies``), framework (``legbench reproduce``'s: has ``frameworks``), tolerance
-    (:func:`_is_tolerances`) and leg parameter files (a section of :data:`legbench.model.SECTIONS`, checked as
-    ``--model`` reads one), told apart by content.
+    (:func:`legbench.scenario.is_tolerance_file`, the rule a run uses too) and leg parameter files (a section of
+    :data:`legbench.model.SECTIONS`, checked as ``--model`` reads one), told apart by content.
 
     Every file is checked and every independent problem of a file is one line on stderr
     (:func:`legbench.scenario.errors`, :func:`legbench.check.tolerance_errors`); exit 2 if any.
@@ -318,24 +318,6 @@ def _validate(args: argparse.Namespace) -> int:
 
 def _set_refused(path: str, kind: str) -> tuple[str, list[LegbenchError]]:
     return "", [LegbenchError(f"{path}: --set applies to scenario files; this is {kind}")]
-
-
-def _is_tolerances(doc: Any) -> bool:
-    """Whether ``doc``, a document with no scenario key, is a tolerance file (``legbench check --tolerances``): a
-    key of one (a metric of :data:`legbench.check.DEFAULT_TOLERANCES` or ``scenarios``), a key one letter or two
-    from one (``sim_error_pc``), or a section of ``abs``/``rel``. A tolerance file whose every key was misspelt was
-    taken for a scenario: one "unknown key" line per key, then "missing required key 'name'"."""
-    import difflib
-
-    from legbench import check
-
-    tol_keys = [*check.DEFAULT_TOLERANCES, "scenarios"]
-    for k, v in doc.items():
-        if k in tol_keys or difflib.get_close_matches(str(k), tol_keys, n=1, cutoff=0.8):
-            return True
-        if isinstance(v, Mapping) and v and set(v) <= {"abs", "rel"}:
-            return True
-    return False
 
 
 def _validate_one(path: str, overrides: Mapping[str, Any] | None = None) -> tuple[str, list[LegbenchError]]:
@@ -363,7 +345,7 @@ def _validate_one(path: str, overrides: Mapping[str, Any] | None = None) -> tupl
 
         plan = reproduce.load_plan(path)
         return f"{path}: ok (frameworks: {len(plan.frameworks)}, tasks: {len(plan.tasks)})", []
-    if no_scenario_key and _is_tolerances(doc):
+    if scenario.is_tolerance_file(doc):
         if overrides:
             return _set_refused(path, "a tolerance file")
         from legbench import check

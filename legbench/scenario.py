@@ -34,6 +34,7 @@ Unknown keys are errors. Every error names the file, the key path and the proble
 from __future__ import annotations
 
 import copy
+import difflib
 import hashlib
 import json
 import logging
@@ -345,6 +346,24 @@ TOP_KEYS = ["name", "description", "duration", "control_rate", "gains", "initial
             "profile", "backends", "comparison"]  # fmt: skip
 
 
+def is_tolerance_file(doc: Any) -> bool:
+    """Whether ``doc`` (parsed YAML) is a tolerance file (``legbench check --tolerances``) rather than a scenario:
+    no scenario key (:data:`TOP_KEYS`), and a key of a tolerance file (a metric of :data:`TOLERANCE_METRICS` or
+    ``scenarios``), a key one letter or two from one (``sim_error_pc``), or a section of ``abs``/``rel``. The one
+    rule for ``legbench validate`` (which then checks the file as tolerances, each problem with its line) and for
+    a tolerance file given where a scenario goes (``run``: it was "unknown key" per key, then "missing required
+    key 'name'", whenever one key was misspelt)."""
+    if not isinstance(doc, Mapping) or not doc or set(map(str, doc)) & set(TOP_KEYS):
+        return False
+    keys = [*TOLERANCE_METRICS, "scenarios"]
+    for k, v in doc.items():
+        if str(k) in keys or difflib.get_close_matches(str(k), keys, n=1, cutoff=0.8):
+            return True
+        if isinstance(v, Mapping) and v and set(v) <= {"abs", "rel"}:
+            return True
+    return False
+
+
 def parse(
     doc: Any,
     file: str = "<memory>",
@@ -371,7 +390,7 @@ def parse(
                                    ("frameworks", "a framework file", "legbench reproduce")):  # fmt: skip
             if key in doc:
                 raise ctx.error([], f"is {kind} (it has '{key}'), not a scenario: run it with {command}")
-        if doc and set(doc) <= {*TOLERANCE_METRICS, "scenarios"}:
+        if is_tolerance_file(doc):
             raise ctx.error([], "is a tolerance file, not a scenario: give it to legbench check --tolerances")
         if set(doc) & set(LEG_SECTIONS) and not set(doc) & set(TOP_KEYS):
             raise ctx.error([], "is a leg parameter file, not a scenario: give it to legbench --model (or "

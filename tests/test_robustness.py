@@ -998,6 +998,27 @@ def test_a_tolerance_file_given_as_a_scenario_is_named_as_such(tmp_path: Path) -
         scenario.load(f)
 
 
+@pytest.mark.parametrize("text", ["sim_error_pc:\n  abs: 1\n", "rmse: {abs: 1}\n", "my_metric: {rel: 0.1}\n"])
+def test_a_misspelt_tolerance_file_given_as_a_scenario_is_named_as_one(
+    text: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """validate and run told a tolerance file from a scenario by two rules: validate's took a file whose every key
+    was misspelt (``sim_error_pc``), run's only exact keys, so run said "unknown key 'sim_error_pc'; valid keys:
+    name, ..." and "missing required key 'name'". One rule now (``scenario.is_tolerance_file``): both name it a
+    tolerance file in one line, exit 2."""
+    f = tmp_path / "tol.yaml"
+    f.write_text(text)
+    with pytest.raises(ScenarioError, match="is a tolerance file, not a scenario: give it to legbench check") as err:
+        scenario.load(f)
+    assert "\n" not in str(err.value)
+    out = tmp_path / "o"
+    assert cli.main(["run", str(f), "--backends", "pinocchio", "--out", str(out)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "is a tolerance file" in lines[0], lines
+    assert not out.exists()
+    assert scenario.is_tolerance_file({"name": "x", "rms": {"abs": 1}}) is False  # a scenario key: a scenario
+
+
 def test_a_leg_parameter_file_given_as_a_scenario_is_named_as_such() -> None:
     """`legbench run models/leg.yaml` printed "unknown key" for each of its sections, then "missing required key
     'name'": now one error naming it a leg parameter file and the option that takes it."""
