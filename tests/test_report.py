@@ -21,7 +21,7 @@ from legbench import report as R
 from legbench.compare import compare
 from legbench.exceptions import ResultsError
 from legbench.report_figures import BINS, Arrays, envelope, run_figures
-from legbench.report_html import num
+from legbench.report_html import num, to_markdown
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 #: 5 overlays (q, qd, tau, force, foot) + 4 deviations + 2 focused views + the 3D leg
@@ -1176,3 +1176,27 @@ def test_a_report_whose_assets_cannot_be_written_leaves_nothing_staged(
         with pytest.raises(OSError, match="No space left"):
             write()
         assert {p: p.read_bytes() for p in sorted(tree.rglob("*")) if p.is_file()} == before
+
+
+def _profile_entry(profile: str, sims: dict[tuple[str, str], float]) -> Any:
+    """An index entry of the effort task in one profile: backend 'a' against 'ref', the effort task's q peaks."""
+    peaks = {"1": 0.00397, "2": 1.2037, "3": 1.2599}
+    rows = [("a", "ref", "q", j, "sim_error_pct", v) for (_, j), v in sims.items()]
+    rows += [("a", "ref", "q", j, "ref_peak", p) for j, p in peaks.items()]
+    rows += [("a", "", "force", "z", "steady_mean", 52.5), ("ref", "", "force", "z", "steady_mean", 52.53)]
+    df = pd.DataFrame(rows, columns=["backend", "reference", "signal", "joint", "metric", "value"])
+    return R._Entry(dir=Path(profile), label=f"effort-{profile}", name="effort", profile=profile, mode="native",
+                    meta={"reference": "ref"}, tolerances={}, df=df, has_page=False, infos={})  # fmt: skip
+
+
+def test_the_profiles_table_leaves_out_the_joints_the_headline_leaves_out_and_names_the_joint() -> None:
+    """results/latest: the effort task's q1 (reference peak 0.004 rad, a third of a percent of the knee's 1.26 rad)
+    made the profiles' 'max q error %' MuJoCo's 30.7 (matched) and 3759 (engine-defaults), Drake's 32.4 -> 15.2
+    (engine-defaults looked better), while the sentences leave q1 out for that reason. The table takes the same
+    rule, names the joint its largest is in, and its caption names what it left out."""
+    matched = _profile_entry("matched", {("q", "1"): 30.71, ("q", "2"): 0.2437, ("q", "3"): 0.1684})
+    defaults = _profile_entry("engine-defaults", {("q", "1"): 3759.4, ("q", "2"): 15.71, ("q", "3"): 13.02})
+    md = to_markdown(R._profile_blocks([matched, defaults]))
+    assert "| effort | a | 0.244 (q2) | 15.7 (q2) | 52.5 | 52.5 |" in md, md
+    assert "30.7" not in md and "3759" not in md
+    assert "left out: effort's q1" in md
