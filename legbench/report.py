@@ -1174,8 +1174,12 @@ def _profile_blocks(entries: Sequence[_Entry]) -> list[Block]:
             "Native contact. 'matched': each engine configured to the spec's physics as faithfully as it allows; "
             "'engine-defaults': the engine's own solver and contact defaults at one step per 1 ms control period, "
             "with Kp, Kd and mu set through its own parameters the way its users usually do (not always in the "
-            "spec's units: an engine's parameter may be per unit of constraint mass), and a few choices the engine "
-            "leaves open made by legbench (docs/contact_mapping.md lists them, and the units, per engine). "
+            "spec's units: an engine's parameter may be per unit of constraint mass), a few choices the engine "
+            "leaves open made by legbench, and some model settings held in both profiles that are not the engine's "
+            'defaults (e.g. MuJoCo\'s compiler option fusestatic="false", which sets the constraint mass its raw '
+            "solref is per unit of, and its stiff joint limits; Bullet's link damping and joint-speed clamp off): "
+            "docs/contact_mapping.md lists them, and the units, per engine, and each run's settings table shows "
+            "them. "
             "A difference between the two columns is the settings', not the engine's." + same
         ),
         Table(

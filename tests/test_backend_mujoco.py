@@ -17,6 +17,7 @@ mujoco = pytest.importorskip("mujoco")
 
 from legbench import backends as registry  # noqa: E402
 from legbench import scenario  # noqa: E402
+from legbench.backends.mujoco_ import MujocoBackend  # noqa: E402
 from legbench.results import write_run  # noqa: E402
 from legbench.run import simulate  # noqa: E402
 from legbench.scenario import physics_of, shorten  # noqa: E402
@@ -208,3 +209,23 @@ def test_deadbeat_friction_on_the_pyramidal_cone_is_refused() -> None:
     for mode, settings in (("reference", {"cone": "pyramidal"}), (None, {"cone": "pyramidal", "friction_solref":
                                                                               "contact"})):  # fmt: skip
         registry.load("mujoco", physics_of(scenario.load(sc), mode), settings).close()
+
+
+def test_info_lists_only_settings_that_acted_and_the_compiler_options() -> None:
+    """engine-defaults runs without noslip (opt.noslip_iterations 0): the settings table showed
+    ``noslip_iterations 10`` beside ``noslip false``, read as noslip on. info() leaves out what the load does not
+    read (as Drake's does) and records the URDF compiler options it loaded: fusestatic="false", where MuJoCo's URDF
+    default is "true", sets the foot body's inverse weight (2.2101 1/kg; fused into link 3, 0.8431) that the
+    engine-defaults raw solref is per unit of."""
+    sc = scenario.load(ROOT / "scenarios" / "effort.yaml")
+    for profile in ("matched", "engine-defaults"):
+        backend = registry.load("mujoco", physics_of(sc, "native"), {}, profile)
+        try:
+            assert isinstance(backend, MujocoBackend)
+            info, m = backend.info(), backend.model
+            assert info.get("noslip_iterations", 0) == m.opt.noslip_iterations
+            assert "reference_friction" not in info  # native contact: the law is not applied
+            assert info["compiler"]["fusestatic"] == "false" and info["compiler"]["urdf_default_fusestatic"] == "true"
+            assert m.body("foot").id != m.body("link3").id  # the foot not fused, as the info says
+        finally:
+            backend.close()

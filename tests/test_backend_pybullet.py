@@ -179,3 +179,32 @@ def test_own_sub_stepping_only_where_bullets_accumulator_takes_every_step() -> N
     ref, info_ref, _ = _run("position", {"sub_stepping": "python", "dt": 1e-3 / 61}, 0.05)
     assert info["step_calls_per_period"] == info_ref["step_calls_per_period"] == 61 and info["engine_sub_steps"] == 1
     assert np.array_equal(own.q, ref.q) and len(own.t) == sc.n_ticks
+
+
+@pytest.mark.parametrize(("plane", "damping"), [("rigid", 0.0), ("default", 0.1)])
+def test_info_gives_the_plane_contact_bullet_combines_not_getdynamicsinfos_unset(
+    plane: str, damping: float, tmp_path: Path
+) -> None:
+    """getDynamicsInfo reports -1 for a body whose contact stiffness and damping were never set (engine-defaults'
+    plane); Bullet then combines its btCollisionObject defaults, 1e30 N/m and 0.1 N s/m. info() (and so the
+    report's settings table) showed -1, -1; it gives the values combined and the pair's contact, which the
+    calibration push measures: c_eff 100.102 (default plane) against 100.002 N s/m (rigid plane)."""
+    import yaml
+
+    from legbench.studies import calibrate_contact as cc
+
+    base = yaml.safe_load(Path(cc.SCENARIO).read_text())
+    sc = scenario.load(ROOT / "scenarios" / "effort.yaml")
+    backend = registry.load("pybullet", physics_of(sc, "native"), {"plane_contact": plane})
+    try:
+        contact = backend.info()["contact"]
+    finally:
+        backend.close()
+    assert contact["plane_damping"] == damping and contact["plane_stiffness"] >= 1e30
+    assert contact["pair_damping"] == pytest.approx(sc.contact.Kd + damping, abs=1e-12)
+    assert contact["pair_stiffness"] == pytest.approx(sc.contact.Kp, rel=1e-12)
+    path = tmp_path / "push.yaml"
+    path.write_text(yaml.safe_dump({**base, "backends": {"pybullet": {"plane_contact": plane}}}))
+    log, saturated = cc.push("pybullet", cc.Program(), path)
+    est = cc.estimate(log, cc.Program(), scenario.load(path).contact, saturated)
+    assert est.c_eff == pytest.approx(contact["pair_damping"], abs=0.01)  # [N s/m]: measured 100.002, 100.102

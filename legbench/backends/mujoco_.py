@@ -150,6 +150,15 @@ def urdf_with_compiler(urdf: Path) -> str:
     return text[:end] + COMPILER + text[end:]
 
 
+def compiler_options(text: str) -> dict[str, str]:
+    """The attributes of the ``<mujoco><compiler .../></mujoco>`` element of a URDF's text (empty if none): the
+    MuJoCo compiler options that text is loaded with (:func:`urdf_with_compiler`), for :meth:`MujocoBackend.info`."""
+    import xml.etree.ElementTree as ET
+
+    element = ET.fromstring(text).find("mujoco/compiler")
+    return dict(element.attrib) if element is not None else {}
+
+
 class MujocoBackend(Backend):
     """MuJoCo simulating the leg from the generated URDF."""
 
@@ -244,7 +253,9 @@ class MujocoBackend(Backend):
         self.cfg, self.physics, self.n_sub = cfg, physics, n_sub
         self.reference = physics.contact_mode == "reference"
 
-        spec = mujoco.MjSpec.from_string(urdf_with_compiler(urdf))
+        text = urdf_with_compiler(urdf)
+        self.compiler = compiler_options(text)
+        spec = mujoco.MjSpec.from_string(text)
         opt = spec.option
         opt.timestep = physics.control_dt / n_sub
         opt.integrator = _INTEGRATORS[cfg["integrator"]]
@@ -513,10 +524,14 @@ class MujocoBackend(Backend):
     def info(self) -> dict[str, Any]:
         """Engine, version, sub-stepping and every contact and limit setting actually used."""
         m, c = self.model, self.physics.contact
+        unused = self._unused_settings()
         return {
             "engine": "mujoco",
             "version": mujoco.__version__,
-            **{k: self.cfg[k] for k in self.defaults},
+            **{k: self.cfg[k] for k in self.defaults if k not in unused},
+            # MuJoCo's URDF compiler options as loaded (COMPILER): fusestatic="false" is not MuJoCo's URDF default
+            # ("true"), and the engine-defaults profile's raw solref depends on it (docs/contact_mapping.md)
+            "compiler": {**self.compiler, "urdf_default_fusestatic": "true"},
             "sub_steps": self.n_sub,
             "timestep": float(m.opt.timestep),
             "gravity": self.physics.gravity,
@@ -549,6 +564,19 @@ class MujocoBackend(Backend):
                 "tolerance": float(m.opt.tolerance),
             },
         }
+
+    def _unused_settings(self) -> set[str]:
+        """Settings this load does not read, left out of :meth:`info` so the report's settings table lists only
+        what acted (as the Drake backend does): ``noslip_iterations`` without ``noslip`` (the engine runs 0),
+        ``reference_friction`` in native contact, and in reference contact (engine contact off) the native
+        contact's own settings."""
+        unused = set() if self.cfg["noslip"] else {"noslip_iterations"}
+        if self.reference:
+            unused |= {"impratio", "noslip", "noslip_iterations", "cone", "contact_solref", "friction_solref",
+                       "contact_solimp", "force_readout"}  # fmt: skip
+        else:
+            unused.add("reference_friction")
+        return unused
 
     def warnings(self) -> list[str]:
         """Reference mode: the explicit law's step bound; native: deadbeat friction without its noslip pass."""

@@ -132,6 +132,12 @@ MAX_JOINT_VELOCITY = 1000.0
 #: btContactSolverInfo default is 0): added to the contact distance (btMultiBodyConstraintSolver.cpp), so a
 #: resting contact sinks that much deeper. ``contact_margins: zero`` sets it to 0.
 PYBULLET_CONTACT_SLOP = 1.0e-5
+#: A collision object's contact stiffness [N/m] and damping [N s/m] until set (btCollisionObject.cpp:
+#: ``m_contactStiffness(BT_LARGE_FLOAT)``, 1e30 in PyBullet's double-precision build, ``m_contactDamping(.1)``),
+#: which the pair's combination uses; ``getDynamicsInfo`` reports -1 for both while they are unset
+#: (PhysicsServerCommandProcessor.cpp, without ``CF_HAS_CONTACT_STIFFNESS_DAMPING``).
+BULLET_DEFAULT_CONTACT_STIFFNESS = 1.0e30
+BULLET_DEFAULT_CONTACT_DAMPING = 0.1
 #: Contact stiffness of the plane [N/m]: Bullet combines stiffnesses in series, so a
 #: rigid plane leaves the foot's Kp (1/(1/Kp + 1e-30) = Kp in double precision).
 PLANE_STIFFNESS = 1.0e30
@@ -423,11 +429,14 @@ class PybulletBackend(Backend):
         foot = p.getDynamicsInfo(self.body, self.foot, physicsClientId=cid)
         ground = p.getDynamicsInfo(self.ground, -1, physicsClientId=cid)
         engine = p.getPhysicsEngineParameters(physicsClientId=cid)
+        (k_foot, c_foot), (k_plane, c_plane) = _stiffness_damping(foot), _stiffness_damping(ground)
+        unused = {"plane_contact", "plane_friction", "contact_margins", "sub_stepping"} if self.reference else {
+            "reference_friction"}  # fmt: skip
         return {
             "engine": "pybullet",
             "version": metadata.version("pybullet"),
             "api_version": p.getAPIVersion(physicsClientId=cid),
-            **{k: self.cfg[k] for k in self.defaults},
+            **{k: self.cfg[k] for k in self.defaults if k not in unused},
             "sub_steps": self.n_sub,
             "timestep": engine["fixedTimeStep"] / max(int(engine["numSubSteps"]), 1),
             "engine_sub_steps": engine["numSubSteps"],
@@ -439,10 +448,14 @@ class PybulletBackend(Backend):
                 # Bullet applies and reports the impulse at the foot's witness point, the sphere's lowest
                 "poc": c.poc if self.reference else "true",
                 "lift": 0.0,  # measured: the statics hold there to 1e-7 N (docs/metrics.md)
-                "foot_stiffness": foot[9],
-                "foot_damping": foot[8],
-                "plane_stiffness": ground[9],
-                "plane_damping": ground[8],
+                # the values the pair combines (getDynamicsInfo's -1, "unset", replaced by Bullet's own defaults)
+                "foot_stiffness": k_foot,
+                "foot_damping": c_foot,
+                "plane_stiffness": k_plane,
+                "plane_damping": c_plane,
+                # the pair's contact as Bullet combines it (btManifoldResult.cpp: stiffness in series, damping added)
+                "pair_stiffness": 1.0 / (1.0 / k_foot + 1.0 / k_plane),
+                "pair_damping": c_foot + c_plane,
                 "foot_lateral_friction": foot[1],
                 "plane_lateral_friction": ground[1],
                 "friction": foot[1] * ground[1],
@@ -596,6 +609,15 @@ def bullet_substeps_exact(period: float, n_sub: int) -> bool:
     held = 0.0 + period
     taken = int(held / step) if held >= step else 0
     return taken == n_sub and held - taken * step == 0.0
+
+
+def _stiffness_damping(dynamics_info: Any) -> tuple[float, float]:
+    """A body's contact stiffness [N/m] and damping [N s/m] from its ``getDynamicsInfo`` row: the values set by
+    ``changeDynamics``, or Bullet's defaults where PyBullet reports -1 (unset)."""
+    k, c = float(dynamics_info[9]), float(dynamics_info[8])
+    if k < 0.0:
+        return BULLET_DEFAULT_CONTACT_STIFFNESS, BULLET_DEFAULT_CONTACT_DAMPING
+    return k, c
 
 
 def _quat_mat(quat: Any) -> np.ndarray:
