@@ -139,3 +139,29 @@ def test_enforced_limits_leave_joint_speeds_free_as_every_other_backend() -> Non
     np.testing.assert_allclose(q_on, q_off, rtol=0, atol=1e-9)
     for enforce, info in infos.items():
         assert info["joint_limits_enforced"] is enforce and not info["joint_velocity_limits_enforced"]
+
+
+@pytest.mark.parametrize(("setting", "solver"), [("nsgs", "NsgsFrictionSolver"), ("fbf", "FbfFrictionSolver")])
+def test_constructed_friction_solvers_slide_at_mu_fn_and_hold_the_statics(setting: str, solver: str) -> None:
+    """dartpy 6.20 constructs ``NsgsFrictionSolver`` and ``FbfFrictionSolver`` (BoxedLcpSolver subclasses), so
+    ``lcp_solver`` offers them. They bound friction by mu times the current normal impulse: the sliding
+    verification's drag slides at 0.700 Fn (measured 0.6999 NSGS, 0.6995 FBF; DART's default Dantzig holds
+    0.83 Fn and does not slide), with the slip acceleration within 1 % of the closed form (measured 0.06 %,
+    0.7 %), and the press statics hold (7e-11, 8e-9 of Fn)."""
+    from legbench.studies import sliding_case as S
+
+    tr, physics = S.drag("dart", settings={"lcp_solver": setting})
+    rows = S.score(tr, physics)
+    assert len(rows) == 3 and all(r["passed"] for r in rows), rows
+    assert rows[0]["measured"] == pytest.approx(0.7, abs=2e-3)
+    assert rows[2]["error"] < 0.01 * rows[2]["expected"]
+    backend = load("dart", Physics(), {"lcp_solver": setting})
+    try:
+        log = run_press(backend, PUSH, duration=0.5)
+        info = backend.info()["contact"]
+    finally:
+        backend.close()
+    q, tau, F = log["q"][-1], log["tau"][-1], log["F"][-1]
+    h = np.linalg.solve(kinematics.jacobian_poc(q).T, tau - model.gravity_torque(q))
+    assert np.linalg.norm(F + h) < 5e-3 * F[2], (F, -h)
+    assert info["lcp_solver"] == solver and info["secondary_lcp_solver"] == "PgsBoxedLcpSolver"

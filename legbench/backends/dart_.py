@@ -14,7 +14,11 @@ velocity limits are set to +-inf (position limits kept).
 
 Native contact is DART's rigid contact: a ``ContactConstraint`` per contact
 point solved with the other constraints as a boxed LCP (``lcp_solver``:
-``dantzig``, DART's default, with PGS as its fallback; or ``pgs`` alone), on
+``dantzig``, DART's default, with PGS as its fallback; ``pgs`` alone; or the
+friction solvers dartpy 6.20 constructs, ``nsgs`` (``NsgsFrictionSolver``,
+Coulomb law: the friction bound is mu times the current normal impulse at
+every sweep) and ``fbf`` (``FbfFrictionSolver``), each with DART's PGS
+fallback kept), on
 the collision detector ``collision_detector`` (``fcl`` default, ``dart``,
 ``bullet``, ``ode``). Rigid contact has no settable stiffness or damping: the spec's
 Kp and Kd do not apply (the foot sinks only by DART's fixed constraint regularisation,
@@ -59,7 +63,9 @@ _DETECTORS = {
     "bullet": dart.collision.BulletCollisionDetector,
     "ode": dart.collision.OdeCollisionDetector,
 }
-_LCP = ("dantzig", "pgs")
+_LCP = ("dantzig", "pgs", "nsgs", "fbf")
+#: Boxed LCP solvers dartpy constructs (Dantzig and PGS it does not: PGS is promoted from DART's fallback).
+_CONSTRUCTED_LCP = {"nsgs": dart.constraint.NsgsFrictionSolver, "fbf": dart.constraint.FbfFrictionSolver}
 #: Ground box: full size [m] in x and y (BoxShape takes the full edge lengths), thickness [m]; its top face is
 #: z_W = 0.
 GROUND_SIZE = (20.0, 20.0, 1.0)
@@ -77,7 +83,7 @@ class DartBackend(Backend):
     friction_cone: ClassVar[str] = "pyramid"
     defaults: ClassVar[Mapping[str, Any]] = {
         "dt": 5.0e-5,  # sub-step [s]: the Pinocchio default, so free space is the same scheme at the same step
-        "lcp_solver": "dantzig",  # boxed LCP solver ("dantzig" with PGS fallback, or "pgs")
+        "lcp_solver": "dantzig",  # boxed LCP solver ("dantzig" with PGS fallback, "pgs", or "nsgs"/"fbf")
         "collision_detector": "fcl",  # one of _DETECTORS
         "enforce_limits": True,  # joint position limits as constraints (DART's URDF loader leaves them off)
         "split_impulse": False,  # DART's split-impulse position correction (off by default)
@@ -187,11 +193,16 @@ class DartBackend(Backend):
         world.addSkeleton(skel)
         world.addSkeleton(ground)
         solver = world.getConstraintSolver()
+        self._lcp = None
         if cfg["lcp_solver"] == "pgs":
-            # dartpy cannot construct a solver: promote DART's PGS fallback to primary, no fallback
+            # dartpy cannot construct a PGS solver: promote DART's PGS fallback to primary, no fallback
             pgs = solver.getSecondaryBoxedLcpSolver()
             solver.setSecondaryBoxedLcpSolver(None)
             solver.setBoxedLcpSolver(pgs)
+        elif cfg["lcp_solver"] in _CONSTRUCTED_LCP:
+            # constructed by dartpy; held here as well as by the solver; DART's PGS fallback kept
+            self._lcp = _CONSTRUCTED_LCP[cfg["lcp_solver"]]()
+            solver.setBoxedLcpSolver(self._lcp)
         solver.setCollisionDetector(_DETECTORS[cfg["collision_detector"]]())
         solver.setSplitImpulseEnabled(bool(cfg["split_impulse"]))
 
