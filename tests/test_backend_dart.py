@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-pytest.importorskip("dartpy")
+dart = pytest.importorskip("dartpy")
 
 from test_backends_engines import R_FOOT, dop853_reference, run_case, run_press  # noqa: E402
 
@@ -165,3 +165,16 @@ def test_constructed_friction_solvers_slide_at_mu_fn_and_hold_the_statics(settin
     h = np.linalg.solve(kinematics.jacobian_poc(q).T, tau - model.gravity_torque(q))
     assert np.linalg.norm(F + h) < 5e-3 * F[2], (F, -h)
     assert info["lcp_solver"] == solver and info["secondary_lcp_solver"] == "PgsBoxedLcpSolver"
+
+
+def test_body_sleeping_is_off_in_matched_and_dartpys_own_in_engine_defaults() -> None:
+    """dartpy 6.20's World() puts a body to sleep below 0.01 m/s and 0.05 rad/s after 0.5 s, and a sleeping island's
+    contact forces read zero (DeactivationOptions); the backend neither set nor recorded it. matched turns it off,
+    engine-defaults keeps DART's own, and info() reads it back from the world."""
+    assert dart.simulation.World().getDeactivationOptions().mEnabled  # what engine-defaults keeps
+    for profile, enabled in (("matched", False), ("engine-defaults", True)):
+        backend = load("dart", Physics(), {}, profile)
+        try:
+            assert backend.info()["deactivation_enabled"] is enabled, profile
+        finally:
+            backend.close()

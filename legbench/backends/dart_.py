@@ -87,6 +87,9 @@ class DartBackend(Backend):
         "collision_detector": "fcl",  # one of _DETECTORS
         "enforce_limits": True,  # joint position limits as constraints (DART's URDF loader leaves them off)
         "split_impulse": False,  # DART's split-impulse position correction (off by default)
+        # DART's body sleeping (World's DeactivationOptions; on in dartpy 6.20's World(): below 0.01 m/s and
+        # 0.05 rad/s for 0.5 s an island sleeps, its contact forces read zero): off, so a resting foot is simulated
+        "deactivation": False,
         "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
         # native force read-out (MuJoCo's names): "last", the last sub-step's impulse / dt (a sample at the
         # period's end, as every backend reports), or "mean", the period's contact impulse / the control period,
@@ -101,8 +104,8 @@ class DartBackend(Backend):
     }
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "matched": {},
-        # World() defaults: 1 ms step, Dantzig + PGS fallback, FCL; URDF limits not enforced
-        "engine-defaults": {"dt": 1.0e-3, "enforce_limits": False},
+        # World() defaults: 1 ms step, Dantzig + PGS fallback, FCL, body sleeping on; URDF limits not enforced
+        "engine-defaults": {"dt": 1.0e-3, "enforce_limits": False, "deactivation": True},
     }
     install: ClassVar[str] = "pip install 'dartpy>=6.20,<7'"
 
@@ -190,6 +193,9 @@ class DartBackend(Backend):
         self.world = world = dart.simulation.World()
         world.setTimeStep(physics.control_dt / n_sub)
         world.setGravity(np.array([0.0, 0.0, -physics.gravity]))
+        sleep = world.getDeactivationOptions()
+        sleep.mEnabled = bool(cfg["deactivation"])
+        world.setDeactivationOptions(sleep)
         world.addSkeleton(skel)
         world.addSkeleton(ground)
         solver = world.getConstraintSolver()
@@ -368,6 +374,7 @@ class DartBackend(Backend):
                     else "last sub-step's contact impulse / dt"
                 ),
             },
+            "deactivation_enabled": bool(world.getDeactivationOptions().mEnabled),  # read back
             "joint_limits_enforced": bool(self.cfg["enforce_limits"]),
             # read back: a speed is bounded only where the limits are enforced and a velocity limit is finite
             "joint_velocity_limits_enforced": all(j.areLimitsEnforced() for j in self.joints)
