@@ -26,7 +26,7 @@ import pandas as pd
 
 from legbench.backends.base import contact_point
 from legbench.contact import ContactParams
-from legbench.contact_residuals import ContactResiduals, residuals
+from legbench.contact_residuals import FN_MIN, ContactResiduals, residuals
 from legbench.exceptions import ResultsError
 from legbench.logs import RosOptions, is_ros_bag, load_log
 from legbench.metrics import (
@@ -43,7 +43,7 @@ from legbench.metrics import (
 from legbench.results import FRAME_COLUMNS, METRICS_SCHEMA, Run, RunResult, load_run, log_digests, result_from_frame
 from legbench.signals import JOINT_OF, LABELS, SIGNAL_OF
 
-__all__ = ["ComparisonResult", "compare", "log_settings_problem", "reference_sibling"]
+__all__ = ["ComparisonResult", "compare", "first_contact", "log_settings_problem", "reference_sibling"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,6 +134,8 @@ class ComparisonResult:
         for s in self.steady:  # where its force acted, as the force check and the residuals took it
             backends[s.backend]["contact_lift"] = s.lift
             backends[s.backend]["contact_poc"] = s.poc
+        for name, tr in self.traces.items():  # when a deviation is a touch-down transient (the report says so)
+            backends[name]["first_contact"] = first_contact(tr)
         return {
             "schema": METRICS_SCHEMA,
             "scenario": run.label,
@@ -145,12 +147,22 @@ class ComparisonResult:
             "steady_window": run.steady_window,
             "duration": _json_value(run.duration),  # null for a run.json without scenario.duration
             "split_with": None if self.split_run is None else self.split_run.label,
+            "events": [{"t": e.t, "controller": e.controller} for e in run.events],
             "backends": backends,
             "logs": log_digests(run.path),
             "notes": list(self.notes),
             "columns": list(FRAME_COLUMNS),
             "metrics": [{k: _json_value(v) for k, v in r.items()} for r in self.records()],
         }
+
+
+def first_contact(trace: RunResult) -> float | None:
+    """The time [s] of the first sample at which ``trace``'s normal ground force exceeds
+    :data:`~legbench.contact_residuals.FN_MIN` (the residuals' "in contact"), or None: the foot never touches
+    the ground (or the force is not logged)."""
+    fz = trace.f[:, 2] if trace.f.ndim == 2 and trace.f.shape[1] == 3 else np.empty(0)
+    hit = np.flatnonzero(np.nan_to_num(fz, nan=0.0) > FN_MIN)
+    return float(trace.t[hit[0]]) if hit.size else None
 
 
 def _row(scenario: str, backend: str, ref: str, signal: str, joint: str, metric: str, value: Any) -> dict[str, Any]:

@@ -194,6 +194,60 @@ def at_most(x: float, digits: int = 4) -> str:
     return num(math.ceil(x * (1.0 - 1e-9) / step) * step, digits)
 
 
+#: How long after an onset [s] a largest deviation is that onset's transient: the foot's first contact, or a
+#: controller switch with the reference's foot already in contact (the combined task's push at 2 s). The effort
+#: task's reference friction peaks 6 ms after touch-down (fx 16.8 N, three times its steady 5.6 N) and is at
+#: 5.5 N by 10 ms; the engines' largest force deviations fall at 4-7 ms (at 5 ms of the push in the combined task).
+ONSET = 0.010
+
+
+def transient(meta: Mapping[str, Any], backend: str, t: float) -> str:
+    """Which onset transient a largest deviation of ``backend`` at ``t`` [s] falls in: within :data:`ONSET` after
+    the foot's first contact (the earlier of the backend's and the reference's: metrics.json
+    ``backends.<name>.first_contact``), else after a controller switch (``events``) at which the reference's foot
+    was already in contact. ``touch-down transient: 5 ms after the foot's first contact at t = 0.001 s``; empty
+    where it is in neither (and for a metrics.json of an older legbench, which records neither)."""
+    if not math.isfinite(t):
+        return ""
+    entries = meta.get("backends") or {}
+    ref = str(meta.get("reference", ""))
+    firsts = [x for n in (backend, ref) if isinstance(x := (entries.get(n) or {}).get("first_contact"), int | float)]
+
+    def after(t0: float) -> bool:
+        return t0 - 1e-9 <= t <= t0 + ONSET + 1e-9
+
+    if firsts and after(c := min(firsts)):
+        if t - c <= 1e-9:
+            return "touch-down transient: the foot's first contact tick"
+        return (
+            f"touch-down transient: {num((t - c) * 1e3, 3)} ms after the foot's first contact at t = {time_text(c)} s"
+        )
+    ref_first = (entries.get(ref) or {}).get("first_contact")
+    if not isinstance(ref_first, int | float):
+        return ""
+    for e in meta.get("events") or ():
+        t0 = float(e.get("t", math.nan))
+        if t0 >= ref_first - 1e-9 and after(t0):  # a switch while the foot is on the ground: its onset
+            return (f"onset transient: {num((t - t0) * 1e3, 3)} ms after the switch to {e.get('controller')} control "
+                    f"at t = {time_text(t0)} s, the foot in contact")  # fmt: skip
+    return ""
+
+
+def _when(meta: Mapping[str, Any], backend: str, t: float, inside: bool = False) -> str:
+    """`` (touch-down transient: ...)`` after a quoted time where :func:`transient` names one (``inside``
+    parentheses already: ``, touch-down transient: ...``), else empty."""
+    what = transient(meta, backend, t)
+    return "" if not what else f", {what}" if inside else f" ({what})"
+
+
+def deviation_note(meta: Mapping[str, Any], backend: str, signal: str, dev: float, t: float) -> str:
+    """A cell's hover note on where its simulation error % comes from: ``largest deviation 10.7 N at t = 0.006 s``
+    and the transient it falls in (:func:`transient`); empty without a finite deviation and time."""
+    if not (math.isfinite(dev) and math.isfinite(t)) or dev == 0.0:
+        return ""
+    return f"largest deviation {num(dev, 3)} {UNITS[signal]} at t = {time_text(t)} s{_when(meta, backend, t)}"
+
+
 def _names(items: Sequence[str]) -> str:
     return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
 
@@ -241,8 +295,8 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
         peak = peak if math.isfinite(peak) else dev * 100.0 / v
         text = (
             f"Largest difference: {b}'s {lab} ({NAMES[s]}) deviates from {ref} by up to {num(dev, 3)} "
-            f"{UNITS[s]} at t = {time_text(t)} s, {num(v, 3)} % of the reference's peak ({num(peak, 3)} "
-            f"{UNITS[s]})"
+            f"{UNITS[s]} at t = {time_text(t)} s{_when(meta, b, t)}, {num(v, 3)} % of the reference's peak "
+            f"({num(peak, 3)} {UNITS[s]})"
         )
         if tied:
             text += f"; {_names(tied)} deviate as much (within {num(TIE * 100.0)} % of it)"
@@ -274,7 +328,7 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
             text += (
                 f" Left out above, as their reference peak is under {num(SMALL_PEAK * 100.0)} % of their signal's "
                 f"largest: {_names(left)}; there {b2}'s {column_label(s2, j2)} reaches {num(v2, 3)} % "
-                f"({num(dev2, 3)} {UNITS[s2]} at t = {time_text(t2)} s)."
+                f"({num(dev2, 3)} {UNITS[s2]} at t = {time_text(t2)} s{_when(meta, b2, t2, inside=True)})."
             )
     return text
 
@@ -323,7 +377,9 @@ def _col_header(i: int) -> str:
     return f"{LABELS[i]} [{UNITS[SIGNAL_OF[i]]}]"
 
 
-def _pair_table(result: ComparisonResult, metric: str, caption: str, unit: bool) -> Table:
+def _pair_table(
+    result: ComparisonResult, metric: str, caption: str, unit: bool, meta: Mapping[str, Any] | None = None
+) -> Table:
     header = ("backend", "vs", *(_col_header(i) if unit else LABELS[i] for i in range(12)))
     rows = tuple(
         (p.backend, p.reference, *(f"{num(v)} (held)" if h and metric == "sim_error_pct" else num(v)
@@ -337,8 +393,10 @@ def _pair_table(result: ComparisonResult, metric: str, caption: str, unit: bool)
         for r, p in enumerate(result.pairs):
             for i, v in enumerate(p.sim_error_pct):
                 cls, why = sim_class(float(v), SIGNAL_OF[i], LABELS[i][-1], tol, bool(p.held[i]))
+                where = "" if p.held[i] else deviation_note(meta or {}, p.backend, SIGNAL_OF[i], float(p.max_abs[i]),
+                                                            float(p.t_max_abs[i]))  # fmt: skip
                 if cls:
-                    classes[(r, i + 2)], titles[(r, i + 2)] = cls, why
+                    classes[(r, i + 2)], titles[(r, i + 2)] = cls, f"{why}; {where}" if where else why
     return Table(header, rows, caption, classes=classes, titles=titles)
 
 
@@ -640,7 +698,8 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
     b: list[Block] = [Nav(tuple(nav)), Heading(1, f"legbench comparison: {run_title(run)}")]
     if sc.get("description"):
         b.append(Para(str(sc["description"])))
-    b.append(Para(sentence(result.to_json(), result.frame())))
+    doc = result.to_json()
+    b.append(Para(sentence(doc, result.frame())))
     for n in result.notes:
         b.append(Para(n, warn=True))
     for bk in result.run.backends.values():
@@ -658,8 +717,10 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
                 result,
                 "sim_error_pct",
                 f"Simulation error % = max|x - x_ref| / max|x_ref| x 100{skip} "
-                f"(colours: the scenario's limits where it sets them, else {legend})",
+                f"(colours: the scenario's limits where it sets them, else {legend}; hover a cell for the largest "
+                "deviation's size and time)",
                 False,
+                doc,
             )
         )
         b.append(_pair_table(result, "rms", f"RMS deviation{skip}", True))
@@ -935,6 +996,7 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
     """Per task: one sentence per run, then one table of simulation error % grouped by profile and contact."""
     header = ("run", "profile", "contact", "backend", "vs", *LABELS)
     blocks: list[Block] = []
+    nan = math.nan
     for name in dict.fromkeys(e.name for e in entries):
         runs = sorted(
             (e for e in entries if e.name == name),
@@ -951,6 +1013,9 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
             blocks.append(Para(f"{e.label} ({e.profile} profile, {e.mode} contact): {sentence(e.meta, e.df)}"))
             groups[len(rows)] = f"{e.profile} profile, {e.mode} contact"
             sim = e.df[e.df["metric"] == "sim_error_pct"]
+            at = {(str(b), str(r), str(s), str(j), str(m)): float(v) for b, r, s, j, m, v in zip(
+                *(e.df[c] for c in ("backend", "reference", "signal", "joint", "metric", "value")), strict=True)
+                if m in ("max_abs", "t_max_abs")}  # fmt: skip
             kept = e.df[(e.df["metric"] == "held") & (e.df["value"] == 1.0)]
             held = set(zip(kept["backend"], kept["reference"], kept["signal"], kept["joint"], strict=True))
             first = len(rows)
@@ -966,8 +1031,11 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
                     kept_here = (backend, ref, s, j) in held
                     cells.append(f"{num(v, 3)} (held)" if kept_here else num(v, 3))
                     cls, why = sim_class(v, s, j, e.tolerances, kept_here)
+                    key = (str(backend), str(ref), s, j)
+                    where = "" if kept_here else deviation_note(e.meta, str(backend), s, at.get((*key, "max_abs"), nan),
+                                                                at.get((*key, "t_max_abs"), nan))  # fmt: skip
                     if cls:
-                        classes[(r, 5 + c)], titles[(r, 5 + c)] = cls, why
+                        classes[(r, 5 + c)], titles[(r, 5 + c)] = cls, f"{why}; {where}" if where else why
                 rows.append((e.label, e.profile, e.mode, str(backend), str(ref), *cells))
             if len(rows) == first:
                 rows.append(
