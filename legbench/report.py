@@ -69,6 +69,7 @@ from legbench.studies.executors import make_executor
 
 __all__ = [
     "BANDS",
+    "SMALL_MARK",
     "IndexFiles",
     "PageItem",
     "Progress",
@@ -77,6 +78,8 @@ __all__ = [
     "page_markdown",
     "sentence",
     "sim_class",
+    "small_peaks",
+    "transient",
     "write_all",
     "write_index",
     "write_page",
@@ -146,11 +149,18 @@ HELD = ("held: constant and equal in both runs at every sample measured (from th
 
 
 def sim_class(
-    value: float, signal: str, joint: str, tolerances: Mapping[str, Any], held: bool = False
+    value: float,
+    signal: str,
+    joint: str,
+    tolerances: Mapping[str, Any],
+    held: bool = False,
+    small: tuple[float, float] | None = None,
 ) -> tuple[str, str]:
     """(CSS class, why) of one simulation error % against the scenario's ceiling
     (``comparison.tolerances.max_sim_error_pct``), else against :data:`BANDS`; ``held`` (the pair's ``held``
-    metric): n/a, :data:`HELD`."""
+    metric): n/a, :data:`HELD`; ``small`` (the component's reference peak and its signal's largest, for a
+    component :func:`small_peaks` names) without a ceiling: n/a, :func:`small_note`, as the headline leaves it
+    out."""
     if held:
         return "na", HELD
     if not math.isfinite(value):
@@ -160,6 +170,8 @@ def sim_class(
         if value > ceiling:
             return "over", f"{num(value)} % exceeds the scenario's limit {num(ceiling)} %"
         return "within", f"{num(value)} % within the scenario's limit {num(ceiling)} %"
+    if small is not None:
+        return "na", small_note(value, signal, *small)
     for bound, cls, why in BANDS:
         if value < bound:
             return cls, f"{num(value, 6)} %: {why}"
@@ -170,6 +182,37 @@ def sim_class(
 #: beside the knee's 1.26 rad; qd1, 0.089 rad/s beside 2.24 rad/s) turns a small deviation into a large
 #: percentage: the headline leaves it out, and says what it left out when that was larger.
 SMALL_PEAK = 0.1
+#: A small-peak component's cell reads ``30.7 (small peak)``: its number, and why it is not coloured.
+SMALL_MARK = "small peak"
+
+
+def small_peaks(df: pd.DataFrame, ref: str) -> dict[tuple[str, str], tuple[float, float]]:
+    """(signal, joint) -> (its reference peak, its signal's largest) [signal unit] of the components whose
+    reference peak (metric ``ref_peak`` against ``ref``, the largest over the backends) is under
+    :data:`SMALL_PEAK` of their signal's largest: the effort task's q1 (0.004 rad beside q3's 1.26 rad) and qd1
+    (0.089 rad/s beside 2.24 rad/s). The headline sentence leaves them out; the tables grey them."""
+    rows = df[(df["metric"] == "ref_peak") & (df["reference"] == ref)]
+    peaks: dict[tuple[str, str], float] = {}
+    for sig, j, x in zip(rows["signal"], rows["joint"], rows["value"], strict=True):
+        if math.isfinite(float(x)):
+            peaks[(str(sig), str(j))] = max(peaks.get((str(sig), str(j)), 0.0), float(x))
+    largest: dict[str, float] = {}
+    for (sig, _), x in peaks.items():
+        largest[sig] = max(largest.get(sig, 0.0), x)
+    return {c: (x, largest[c[0]]) for c, x in peaks.items() if x < SMALL_PEAK * largest[c[0]]}
+
+
+def small_note(value: float, signal: str, peak: float, largest: float) -> str:
+    """Why a small-peak component's simulation error % is grey, with what it amounts to."""
+    unit = UNITS[signal]
+    dev = f": {num(value, 3)} % of it is {num(value * peak / 100.0, 3)} {unit}" if math.isfinite(value) else ""
+    return (
+        f"small reference peak: {num(peak, 3)} {unit}, under {num(SMALL_PEAK * 100.0)} % of the largest in its "
+        f"signal ({num(largest, 3)} {unit}){dev}; a small deviation makes a large percentage here, so the cell is "
+        "not coloured and the headline sentence leaves it out"
+    )
+
+
 #: The contact-mode split names one part "mostly" the cause only when its peak is at least this many times the
 #: other's: the two peaks are taken at their own times, so a closer pair says both (today's runs: 3e5 and 3e4).
 MOSTLY = 3.0
@@ -228,8 +271,9 @@ def transient(meta: Mapping[str, Any], backend: str, t: float) -> str:
     for e in meta.get("events") or ():
         t0 = float(e.get("t", math.nan))
         if t0 >= ref_first - 1e-9 and after(t0):  # a switch while the foot is on the ground: its onset
-            return (f"onset transient: {num((t - t0) * 1e3, 3)} ms after the switch to {e.get('controller')} control "
-                    f"at t = {time_text(t0)} s, the foot in contact")  # fmt: skip
+            since = f"{num((t - t0) * 1e3, 3)} ms after" if t - t0 > 1e-9 else "the tick of"
+            return (f"onset transient: {since} the switch to {e.get('controller')} control at t = {time_text(t0)} s, "
+                    "the foot in contact")  # fmt: skip
     return ""
 
 
@@ -270,14 +314,8 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
             return f"No deviation measured: no backend but the reference '{ref}' has data."
         return f"No deviation measured: the reference backend '{ref}' has no data."
     nan = math.nan
-    peaks: dict[tuple[str, str], float] = {}
-    for (_, r, s, j, m), x in value.items():
-        if m == "ref_peak" and r == ref and math.isfinite(x):
-            peaks[(s, j)] = max(peaks.get((s, j), 0.0), x)
-    largest: dict[str, float] = {}
-    for (s, _), x in peaks.items():
-        largest[s] = max(largest.get(s, 0.0), x)
-    small = {c for c, x in peaks.items() if x < SMALL_PEAK * largest[c[0]]}
+    peaks = {c: x for c, (x, _) in small_peaks(df, ref).items()}
+    small = set(peaks)
     main = {k: v for k, v in sim.items() if (k[2], k[3]) not in small} or sim
     (b, _, s, j, _), v = max(main.items(), key=lambda kv: kv[1])
     lab = column_label(s, j)
@@ -363,7 +401,9 @@ def colour_key() -> Table:
     """One row showing every colour of a simulation error % and what it means."""
     header = (*(why.split(": ")[0] for _, _, why in BANDS), "<= scenario limit", "> scenario limit", "grey")
     row = (*(why.split(": ")[1] for _, _, why in BANDS), "within the limit", "exceeds the limit",
-           "held (both runs at one constant value: the 0 is the clamp's), or n/a")  # fmt: skip
+           "held (both runs at one constant value: the 0 is the clamp's); small peak (the reference's peak under "
+           f"{num(SMALL_PEAK * 100.0)} % of its signal's largest: a small deviation, a large %; left out of the "
+           "headline too); or n/a")  # fmt: skip
     classes = {(0, j): c for j, c in enumerate(("agree", "close", "differ", "far", "within", "over", "na"))}
     return Table(header, (row,), "Colour key of the simulation error % (a scenario's own limit overrides the bands)",
                  classes=classes)  # fmt: skip
@@ -381,23 +421,53 @@ def _pair_table(
     result: ComparisonResult, metric: str, caption: str, unit: bool, meta: Mapping[str, Any] | None = None
 ) -> Table:
     header = ("backend", "vs", *(_col_header(i) if unit else LABELS[i] for i in range(12)))
+    small = _small_of(result) if metric == "sim_error_pct" else {}
+    tol = result.run.tolerances
+
+    def cell(v: float, h: bool, i: int, ref: str) -> str:
+        if metric != "sim_error_pct":
+            return num(v)
+        if h:
+            return f"{num(v)} (held)"
+        grey = i in small and ref == result.reference
+        grey = grey and sim_class(v, SIGNAL_OF[i], LABELS[i][-1], tol, False, small[i])[0] == "na"
+        return f"{num(v)} ({SMALL_MARK})" if grey else num(v)
+
     rows = tuple(
-        (p.backend, p.reference, *(f"{num(v)} (held)" if h and metric == "sim_error_pct" else num(v)
-                                   for v, h in zip(getattr(p, metric), p.held, strict=True)))
+        (p.backend, p.reference, *(cell(float(v), bool(h), i, p.reference)
+                                   for i, (v, h) in enumerate(zip(getattr(p, metric), p.held, strict=True))))
         for p in result.pairs
     )  # fmt: skip
     classes: dict[tuple[int, int], str] = {}
     titles: dict[tuple[int, int], str] = {}
     if metric == "sim_error_pct":
-        tol = result.run.tolerances
         for r, p in enumerate(result.pairs):
             for i, v in enumerate(p.sim_error_pct):
-                cls, why = sim_class(float(v), SIGNAL_OF[i], LABELS[i][-1], tol, bool(p.held[i]))
+                tiny = small.get(i) if p.reference == result.reference else None
+                cls, why = sim_class(float(v), SIGNAL_OF[i], LABELS[i][-1], tol, bool(p.held[i]), tiny)
                 where = "" if p.held[i] else deviation_note(meta or {}, p.backend, SIGNAL_OF[i], float(p.max_abs[i]),
                                                             float(p.t_max_abs[i]))  # fmt: skip
                 if cls:
                     classes[(r, i + 2)], titles[(r, i + 2)] = cls, f"{why}; {where}" if where else why
     return Table(header, rows, caption, classes=classes, titles=titles)
+
+
+def _small_of(result: ComparisonResult) -> dict[int, tuple[float, float]]:
+    """Column index -> (reference peak, its signal's largest) of the run's small-peak components
+    (:func:`small_peaks`), against the run's reference."""
+    peaks: dict[tuple[str, str], float] = {}
+    for p in result.pairs:
+        if p.reference == result.reference:
+            for i, x in enumerate(p.ref_peak):
+                if math.isfinite(float(x)):
+                    key = (SIGNAL_OF[i], LABELS[i][-1])
+                    peaks[key] = max(peaks.get(key, 0.0), float(x))
+    largest: dict[str, float] = {}
+    for (sig, _), x in peaks.items():
+        largest[sig] = max(largest.get(sig, 0.0), x)
+    return {i: (peaks[(SIGNAL_OF[i], LABELS[i][-1])], largest[SIGNAL_OF[i]]) for i in range(len(LABELS))
+            if (SIGNAL_OF[i], LABELS[i][-1]) in peaks
+            and peaks[(SIGNAL_OF[i], LABELS[i][-1])] < SMALL_PEAK * largest[SIGNAL_OF[i]]}  # fmt: skip
 
 
 def _at_time(m: float, t: float) -> str:
@@ -1017,6 +1087,7 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
                 *(e.df[c] for c in ("backend", "reference", "signal", "joint", "metric", "value")), strict=True)
                 if m in ("max_abs", "t_max_abs")}  # fmt: skip
             kept = e.df[(e.df["metric"] == "held") & (e.df["value"] == 1.0)]
+            tiny = small_peaks(e.df, str(e.meta.get("reference", "")))
             held = set(zip(kept["backend"], kept["reference"], kept["signal"], kept["joint"], strict=True))
             first = len(rows)
             for (backend, ref), g in sim.groupby(["backend", "reference"], sort=False):
@@ -1029,8 +1100,10 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
                 for c, lab in enumerate(LABELS):
                     s, j, v = vals.get(lab, (SIGNAL_OF[c], lab[-1], math.nan))
                     kept_here = (backend, ref, s, j) in held
-                    cells.append(f"{num(v, 3)} (held)" if kept_here else num(v, 3))
-                    cls, why = sim_class(v, s, j, e.tolerances, kept_here)
+                    small = tiny.get((s, j)) if str(ref) == str(e.meta.get("reference", "")) else None
+                    cls, why = sim_class(v, s, j, e.tolerances, kept_here, small)
+                    mark = "held" if kept_here else SMALL_MARK if small is not None and cls == "na" else ""
+                    cells.append(f"{num(v, 3)} ({mark})" if mark else num(v, 3))
                     key = (str(backend), str(ref), s, j)
                     where = "" if kept_here else deviation_note(e.meta, str(backend), s, at.get((*key, "max_abs"), nan),
                                                                 at.get((*key, "t_max_abs"), nan))  # fmt: skip
@@ -1277,11 +1350,7 @@ def _small_q(df: pd.DataFrame, ref: str) -> set[str]:
     """Joints whose reference peak of q is under :data:`SMALL_PEAK` of the largest joint's (the effort task's
     q1, 0.004 rad beside 1.26 rad): their simulation error % is a small deviation over a near-zero peak, left
     out of the headline (:func:`sentence`) and of the profiles' table alike."""
-    rows = df[(df["metric"] == "ref_peak") & (df["signal"] == "q") & (df["reference"] == ref)]
-    peaks = rows.groupby("joint")["value"].max().dropna()
-    if peaks.empty:
-        return set()
-    return {str(j) for j, x in peaks.items() if x < SMALL_PEAK * float(peaks.max())}
+    return {j for s, j in small_peaks(df, ref) if s == "q"}
 
 
 #: Study outputs the index shows when present under the results root:

@@ -282,9 +282,9 @@ def test_index_groups_by_task_links_both_ways_and_tabulates_every_sim_error(tmp_
     assert '<tr class="group"><td colspan="17">matched profile, reference contact</td></tr>' in page
     md = index.markdown.read_text()
     assert "## one\n" in md and "## two\n" in md
-    assert "| [one](one/report.html) | matched | native | a | ref | 10 | 10 |" in md
-    assert "| [one__reference](one__reference/report.html) | matched | reference | a | ref | 1 | 1 |" in md
-    assert "| [two](two/report.html) | matched | native | a | ref | 20 | 20 |" in md
+    assert "| [one](one/report.html) | matched | native | a | ref | 10 (small peak) | 10 |" in md
+    assert "| [one__reference](one__reference/report.html) | matched | reference | a | ref | 1 (small peak) | 1 |" in md
+    assert "| [two](two/report.html) | matched | native | a | ref | 20 (small peak) | 20 |" in md
     assert "| two | c | failed | no engine |" in md
     assert md.count("](two/report.html) |") == 2  # backends a and b
     assert md.index("| [one](one/report.html)") < md.index("| [one__reference]")  # native before reference
@@ -331,7 +331,7 @@ def test_index_reads_metrics_without_reports(tmp_path: Path) -> None:
     root = tmp_path / "latest"
     write_run(root / "one", {"ref": None, "a": scale(1.1)}, name="one")
     md = R.write_index(root).markdown.read_text()
-    assert "| one | matched | native | a | ref | 10 |" in md
+    assert "| one | matched | native | a | ref | 10 (small peak) | 10 |" in md
 
 
 def test_write_all_in_parallel_writes_the_same_pages_and_reports_progress(tmp_path: Path) -> None:
@@ -1245,3 +1245,24 @@ def test_a_largest_deviation_in_the_first_ms_of_contact_is_named_as_its_transien
     assert found["b"].endswith("largest deviation 20 N at t = 1.004 s (onset transient: 4 ms after the switch to "
                                "effort control at t = 1 s, the foot in contact)"), found  # fmt: skip
     assert found["c"].endswith("largest deviation 10 N at t = 0.8 s"), found
+
+
+def test_a_component_whose_reference_barely_moves_is_grey_in_the_tables_as_in_the_sentence(tmp_path: Path) -> None:
+    """results/latest, effort: q1's 30.7-37.8 % (a deviation of 1-1.5 mrad over a 4 mrad reference peak) was red in
+    both tables while the headline leaves it out (SMALL_PEAK). Such a cell is now grey like a held one, reads
+    '30 (small peak)' (the Markdown has no colour) and says on hover what the percentage amounts to; a component
+    with a full-size peak keeps its band, and the colour key explains the grey."""
+    root = tmp_path / "tree"
+    d = write_run(root / "one", {"ref": None, "a": scale(1.3)}, name="one")  # q1 peaks at 0.1 rad, q3 at 1.4 rad
+    R.write_all(root)
+    index, page = (root / "report.html").read_text(), (d / "report.html").read_text()
+    grey = re.compile(r'<td class="na" title="(small reference peak: 0.1 rad, under 10 % of the largest in its '
+                      r'signal \(1.4 rad\): 30 % of it is 0.03 rad;[^"]*)">30 \(small peak\)</td>')  # fmt: skip
+    for text in (index, page):
+        m = grey.search(text)
+        assert m is not None and "largest deviation 0.03 rad at t = " in m.group(1), text[-3000:]
+        assert re.search(r'<td class="far" title="30 %: &gt;= 10 %: differs a lot[^"]*">30</td>', text)  # q2
+    assert "| a | ref | 30 (small peak) | 30 |" in (d / "report.md").read_text()
+    assert "| 30 (small peak) | 30 |" in (root / "report.md").read_text()
+    key = R.colour_key()
+    assert "small peak" in key.rows[0][-1] and key.classes is not None and key.classes[(0, len(key.header) - 1)] == "na"
