@@ -292,6 +292,24 @@ def deviation_note(meta: Mapping[str, Any], backend: str, signal: str, dev: floa
     return f"largest deviation {num(dev, 3)} {UNITS[signal]} at t = {time_text(t)} s{_when(meta, backend, t)}"
 
 
+def implicit_note(infos: Mapping[str, Mapping[str, Any]]) -> str:
+    """The sentence on what reference contact mode shares between backends, for the backends whose run.json info
+    says ``reference_friction: implicit`` (the engines' default): the law and its linearly implicit friction step
+    are legbench's code (:meth:`legbench.contact.ReferenceContact.implicit_generalized`), and that step's M^-1 and
+    explicit acceleration come from the reference model (Pinocchio on the same URDF), not from the engine. Empty
+    where no backend declares it."""
+    names = sorted(n for n, info in infos.items() if str((info or {}).get("reference_friction")) == "implicit")
+    if not names:
+        return ""
+    verb = "takes" if len(names) == 1 else "take"
+    return (
+        f"In reference contact mode the contact law, its implicit friction step included, is legbench's own code "
+        f"(legbench/contact.py), and {_names(names)} (reference_friction: implicit) {verb} that step's M^-1 and "
+        "explicit acceleration from the leg's Pinocchio model (the same URDF), not from the engine: agreement in "
+        "this mode, even to the same digits, is not independent evidence of the engines' dynamics in contact."
+    )
+
+
 def _names(items: Sequence[str]) -> str:
     return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
 
@@ -572,6 +590,17 @@ def _steady_table(result: ComparisonResult) -> Table:
     )
 
 
+def _touches(df: pd.DataFrame) -> bool:
+    """Some backend's foot touches the ground in the run (metric ``residual_n_contact`` > 0)."""
+    n = df[df["metric"] == "residual_n_contact"]["value"]
+    return bool(len(n)) and float(n.max()) > 0
+
+
+def _infos(run: Run) -> dict[str, Mapping[str, Any]]:
+    """backend -> its run.json info (the settings it used)."""
+    return {name: b.info for name, b in run.backends.items()}
+
+
 def _split_table(result: ComparisonResult, kind: str) -> Table:
     header = ("backend", "part", *(_col_header(i) if kind == "rms" else LABELS[i] for i in range(12)))
     rows = []
@@ -585,8 +614,10 @@ def _split_table(result: ComparisonResult, kind: str) -> Table:
         f"Contact-mode split ({what}"
         + (f",{_from_skip(result.run)}" if result.run.skip > 0 else "")
         + "): native = contact (a_native - a_reference-mode) + integration "
-        "(a_reference-mode - ref_reference-mode) + drift (ref_reference-mode - ref_native), sample by sample",
-    )
+        "(a_reference-mode - ref_reference-mode) + drift (ref_reference-mode - ref_native), sample by sample"
+        + (f". {shared}" if kind == "pct" and result.split_run is not None and _touches(result.frame())
+           and (shared := implicit_note(_infos(result.split_run))) else ""),
+    )  # fmt: skip
 
 
 def _flat(d: Mapping[str, Any], prefix: str = "") -> dict[str, str]:
@@ -770,6 +801,9 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
         b.append(Para(str(sc["description"])))
     doc = result.to_json()
     b.append(Para(sentence(doc, result.frame())))
+    touches = any(r.n_contact for r in result.residuals.values())
+    if run.contact_mode == "reference" and touches and (shared := implicit_note(_infos(run))):
+        b.append(Para(shared))
     for n in result.notes:
         b.append(Para(n, warn=True))
     for bk in result.run.backends.values():
@@ -1080,7 +1114,9 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
         groups: dict[int, str] = {}
         for e in runs:
             href = f"{e.dir.name}/report.html" if e.has_page else ""
-            blocks.append(Para(f"{e.label} ({e.profile} profile, {e.mode} contact): {sentence(e.meta, e.df)}"))
+            shared = implicit_note(e.infos) if e.mode == "reference" and _touches(e.df) else ""
+            blocks.append(Para(f"{e.label} ({e.profile} profile, {e.mode} contact): {sentence(e.meta, e.df)}"
+                               + (f" {shared}" if shared else "")))  # fmt: skip
             groups[len(rows)] = f"{e.profile} profile, {e.mode} contact"
             sim = e.df[e.df["metric"] == "sim_error_pct"]
             at = {(str(b), str(r), str(s), str(j), str(m)): float(v) for b, r, s, j, m, v in zip(

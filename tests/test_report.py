@@ -1266,3 +1266,38 @@ def test_a_component_whose_reference_barely_moves_is_grey_in_the_tables_as_in_th
     assert "| 30 (small peak) | 30 |" in (root / "report.md").read_text()
     key = R.colour_key()
     assert "small peak" in key.rows[0][-1] and key.classes is not None and key.classes[(0, len(key.header) - 1)] == "na"
+
+
+def _declare(d: Path, infos: dict[str, dict[str, Any]]) -> None:
+    """Merge ``infos`` into the run.json info of each named backend of run directory ``d``."""
+    meta = json.loads((d / "run.json").read_text())
+    for name, info in infos.items():
+        meta["backends"][name]["info"] |= info
+    (d / "run.json").write_text(json.dumps(meta))
+
+
+def test_reference_mode_pages_say_the_implicit_friction_step_is_legbench_s_own(tmp_path: Path) -> None:
+    """results/latest, effort__reference: MuJoCo, PyBullet, Drake and DART agree to the same 3.78355e-5 %, because in
+    reference mode the law's implicit friction step is legbench's code with M^-1 from the reference model
+    (contact.ReferenceContact.implicit_generalized; reference_friction: implicit in each run.json). The reference-mode
+    page, its index paragraph and the native page's split caption say so, naming the backends that declare it; a
+    run where none declares it says nothing of it."""
+    root = tmp_path / "tree"
+    write_run(root / "one", {"ref": None, "a": offset(0.04), "b": offset(0.02)}, name="one")
+    ref = write_run(root / "one__reference", {"ref": None, "a": offset(0.01), "b": offset(0.01)}, name="one",
+                    contact_mode="reference")  # fmt: skip
+    _declare(ref, {"a": {"reference_friction": "implicit"}, "b": {"reference_friction": "explicit"}})
+    R.write_all(root)
+    said = (
+        "In reference contact mode the contact law, its implicit friction step included, is legbench's own code "
+        "(legbench/contact.py), and a (reference_friction: implicit) takes that step's M^-1 and explicit "
+        "acceleration from the leg's Pinocchio model (the same URDF), not from the engine: agreement in this "
+        "mode, even to the same digits, is not independent evidence of the engines' dynamics in contact."
+    )
+    assert said in (ref / "report.md").read_text()
+    assert (root / "report.md").read_text().count(said) == 1  # the reference run's paragraph only
+    split = (root / "one" / "report.md").read_text()
+    assert f"sample by sample. {said}*" in split and split.count(said) == 1
+    _declare(ref, {"a": {"reference_friction": "explicit"}})
+    R.write_all(root)
+    assert "is legbench's own code" not in (ref / "report.md").read_text() + (root / "report.md").read_text()
