@@ -49,6 +49,8 @@ from legbench.report_figures import (
 from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num, relpath, to_html, to_markdown
 from legbench.results import (
     INDEX_TITLE,
+    VERIFY_PROFILE,
+    VERIFY_TOLERANCES,
     Run,
     atomic_write_text,
     check_index_pages,
@@ -1451,7 +1453,7 @@ def _study_blocks(root: Path) -> list[Block]:
         path = root / rel
         if not path.is_file():
             continue
-        _, records = read_study(path, key)
+        doc, records = read_study(path, key)
         link = f"{rel.rsplit('/', 1)[0]}/"
         if "pass" not in cols:
             rows = tuple(tuple(_cell(r.get(c, "")) for c in cols) for r in records)
@@ -1468,9 +1470,19 @@ def _study_blocks(root: Path) -> list[Block]:
         last = len(cols) - 1
         css = {"pass": "pass", "fail": "fail", "not-applicable": "na"}
         classes = {(i, last): css[st] for i, st in enumerate(status)}
+        tol = cols.index("tolerance")
+        titles = {(i, c): _tolerance_basis(r) for i, r in enumerate(records) for c in (tol, last)}
         failed = [i for i, st in enumerate(status) if st == "fail"]
         na = [i for i, st in enumerate(status) if st == "not-applicable"]
-        blocks.append(Heading(2, f"{heading}: {checks_summary(status)}"))
+        profile = str(doc.get("profile") or VERIFY_PROFILE)  # older files: legbench verify's one profile
+        blocks.append(Heading(2, f"{heading}, {profile} profile: {checks_summary(status)}"))
+        blocks.append(Para(
+            f"legbench verify runs every check with each backend's {profile} profile settings (the case scenario's "
+            "backend settings over them; the variant column names the integrator and step: the energy case once per "
+            "integrator a backend offers, the small oscillation also with RK4 where offered, the sliding drag in "
+            "native contact). The other profile's settings are not verified here. Hover a row's tolerance or "
+            "pass cell for how its tolerance is derived and the row's note (legbench/studies/verify.py)."
+        ))  # fmt: skip
         for which, title, cls in ((failed, "Failing checks", "fail"), (na, "Not applicable: no closed form for this "
                                   "engine's integrator or friction model (the note says which)", "na")):  # fmt: skip
             if which:
@@ -1478,10 +1490,19 @@ def _study_blocks(root: Path) -> list[Block]:
                 marks = {(k, last): cls for k in range(len(which))}
                 marks.update({(k, last + 1): "text" for k in range(len(which))})
                 blocks.append(Table((*cols, "note"), noted, title, classes=marks))
-        table = Table(cols, rows, caption, classes=classes)
+        table = Table(cols, rows, caption, classes=classes, titles=titles)
         blocks.append(Details(f"all {len(records)} checks", (table,), "fail" if failed else ""))
         blocks.append(Nav(((f"files in {link}", link),)))
     return blocks
+
+
+def _tolerance_basis(r: Mapping[str, Any]) -> str:
+    """A verification row's hover: how its case's tolerance is derived (:data:`VERIFY_TOLERANCES`), then the row's
+    own note (its terms and numbers)."""
+    basis = VERIFY_TOLERANCES.get(str(r.get("case", "")), "")
+    note = str(r.get("note") or "")
+    parts = ([f"tolerance: {basis}"] if basis else []) + ([f"this row: {note}"] if note else [])
+    return "; ".join(parts)
 
 
 def _bench_blocks(root: Path) -> list[Block]:

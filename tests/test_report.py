@@ -413,7 +413,7 @@ def test_index_collapses_verification_and_calibration_to_counts_with_the_tables_
     (root / "calibration" / "calibration.json").write_text(json.dumps({"rows": rows}))
     R.write_all(root)
     md = (root / "report.md").read_text()
-    assert "## Verification against closed-form answers: 2 of 3 checks pass" in md
+    assert "## Verification against closed-form answers, matched profile: 2 of 3 checks pass" in md
     assert "| energy | a | euler |" in md and "| balance | a | euler |" in md
     assert "## Contact calibration: 1 backends measured" in md and "| a | 10000 | 9999 |" in md
     page = (root / "report.html").read_text()
@@ -421,10 +421,8 @@ def test_index_collapses_verification_and_calibration_to_counts_with_the_tables_
     details = page.index('<details class="fail"><summary>all 3 checks</summary>')
     assert failing < details and page.count(">energy</td>", 0, details) == 0  # passing rows only on demand
     assert page[failing:details].count('<td class="text short">balance</td>') == 1
-    assert (
-        page.count('<td class="text short fail">NO</td>') == 2
-        and page.count('<td class="text short pass">yes</td>') == 2
-    )
+    assert len(re.findall(r'<td class="text short fail"(?: title="[^"]*")?>NO</td>', page)) == 2
+    assert len(re.findall(r'<td class="text short pass"(?: title="[^"]*")?>yes</td>', page)) == 2
 
 
 def test_index_counts_not_applicable_checks_apart_from_failures_and_shows_their_notes(tmp_path: Path) -> None:
@@ -442,14 +440,19 @@ def test_index_counts_not_applicable_checks_apart_from_failures_and_shows_their_
     (root / "verification" / "verification.json").write_text(json.dumps({"checks": checks}))
     R.write_all(root)
     md = (root / "report.md").read_text()
-    assert "## Verification against closed-form answers: 1 of 3 checks pass, 1 fail, 1 not applicable" in md
+    heading = (
+        "## Verification against closed-form answers, matched profile: 1 of 3 checks pass, 1 fail, 1 not applicable"
+    )
+    assert heading in md
     failing, na = md.index("*Failing checks*"), md.index("*Not applicable:")
     assert "| sliding | a | euler |" in md[failing:na] and "known: the solver lifts the foot" in md[failing:na]
     assert "pyramid" not in md[failing:na]
     assert "| pyramid | a | euler | dE | J | 1e-4 | 1e-4 | 1e-9 | 1e-6 | n/a | native friction is a pyramid |" in md
     page = (root / "report.html").read_text()
-    assert page.count('<td class="text short fail">NO</td>') == 2  # the failing table and the full one
-    assert page.count('<td class="text short na">n/a</td>') == 2 and page.count(">n/a</td>") == 2
+    # the failing table and the full one
+    assert len(re.findall(r'<td class="text short fail"(?: title="[^"]*")?>NO</td>', page)) == 2
+    assert len(re.findall(r'<td class="text short na"(?: title="[^"]*")?>n/a</td>', page)) == 2
+    assert page.count(">n/a</td>") == 2
 
 
 def test_index_names_a_malformed_study_file(tmp_path: Path) -> None:
@@ -1301,3 +1304,26 @@ def test_reference_mode_pages_say_the_implicit_friction_step_is_legbench_s_own(t
     _declare(ref, {"a": {"reference_friction": "explicit"}})
     R.write_all(root)
     assert "is legbench's own code" not in (ref / "report.md").read_text() + (root / "report.md").read_text()
+
+
+def test_the_verification_says_which_profile_it_checks_and_each_row_s_tolerance_basis(tmp_path: Path) -> None:
+    """results/latest: "112 of 117 checks pass" did not say that legbench verify loads every backend in the matched
+    profile (verify.py: registry.load's profile; the engine-defaults settings are never verified), and a passing
+    row's tolerance (6.404e-7 J) came with no word of where it comes from. The heading names the profile
+    (verification.json's ``profile``; legbench verify's own where an older file has none), a paragraph says what
+    runs, and every row's tolerance and pass cells carry its case's tolerance basis and its own note on hover."""
+    root = tmp_path / "results"
+    write_run(root / "fake", {"ref": None, "a": scale(1.02)})
+    (root / "verification").mkdir()
+    checks = [{**_check("energy", True), "note": "euler x20: predicted E(t) - E(0)"}, _check("static_balance", True)]
+    (root / "verification" / "verification.json").write_text(json.dumps({"checks": checks}))
+    md = R.write_index(root).markdown.read_text()
+    assert "## Verification against closed-form answers, matched profile: 2 of 2 checks pass\n" in md
+    assert "legbench verify runs every check with each backend's matched profile settings" in md
+    page = html.unescape((root / "report.html").read_text())
+    energy = f'title="tolerance: {results.VERIFY_TOLERANCES["energy"]}; this row: euler x20: predicted E(t) - E(0)">'
+    assert page.count(energy) == 2  # tolerance and pass cells of the passing row
+    assert page.count(f'title="tolerance: {results.VERIFY_TOLERANCES["static_balance"]}">') == 2
+    (root / "verification" / "verification.json").write_text(json.dumps({"profile": "engine-defaults",
+                                                                         "checks": checks}))  # fmt: skip
+    assert ", engine-defaults profile: 2 of 2" in R.write_index(root).markdown.read_text()

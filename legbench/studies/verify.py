@@ -114,6 +114,7 @@ from legbench import scenario as scenario_mod
 from legbench.backends.base import Physics, contact_point, rigid_contact
 from legbench.exceptions import LegbenchError
 from legbench.results import (
+    VERIFY_PROFILE,
     atomic_write_text,
     check_study_out,
     checks_summary,
@@ -257,7 +258,7 @@ def _variant(info: Mapping[str, Any], control_dt: float) -> str:
 
 
 def _simulate(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any]) -> Any:
-    backend = registry.load(name, physics, settings)
+    backend = registry.load(name, physics, settings, VERIFY_PROFILE)
     try:
         return simulate(scenario, backend, physics)
     finally:
@@ -635,7 +636,7 @@ def check_sliding(backends: Sequence[str]) -> list[Check]:
     backend whose friction is a pyramid against the pyramid's closed form."""
     out = []
     for name in backends:
-        for r in sliding_case(name):
+        for r in sliding_case(name, VERIFY_PROFILE):
             if r["quantity"] == "run":
                 out.append(_failed("sliding", name, "native, matched", r["note"]))
             else:
@@ -753,10 +754,12 @@ def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
     passed = int(df["pass"].sum())
     na = int((df["status"] == "not-applicable").sum())
     meta = {"schema": "legbench.verification/1", "passed": passed, "total": len(df), "not_applicable": na,
-            "checks": df.to_dict(orient="records"), "versions": versions(), "platform": platform_info()}  # fmt: skip
+            "profile": VERIFY_PROFILE, "checks": df.to_dict(orient="records"), "versions": versions(),
+            "platform": platform_info()}  # fmt: skip
     write_json(meta, out_dir / "verification.json")
     md = [f"# Verification: {checks_summary(list(df['status']))}\n",
-          "Cases and tolerances: `legbench/studies/verify.py`.\n", markdown(df), "\n## Notes\n"]  # fmt: skip
+          "Cases and tolerances: `legbench/studies/verify.py`. Every backend runs in its "
+          f"{VERIFY_PROFILE} profile's settings.\n", markdown(df), "\n## Notes\n"]  # fmt: skip
     md += [f"- {r['case']} / {r['backend']} / {r['variant']} / {r['quantity']}: {r['note']}"
            for r in df.to_dict(orient="records") if r["note"]]  # fmt: skip
     atomic_write_text(out_dir / "verification.md", "\n".join(md) + "\n")
