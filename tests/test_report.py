@@ -259,7 +259,7 @@ def test_the_sentence_names_the_largest_deviation_and_says_why(tmp_path: Path) -
     assert text.startswith("Largest difference: b's tau2 (joint torque) deviates from ref by up to 0.5 N m")
     best = max(res.pair("b").sim_error_pct)  # type: ignore[union-attr]
     assert f"{num(best, 3)} % of the reference's peak (2 N m)" in text
-    assert "every other backend stays at or below 5 %" in text
+    assert "; of the other backends, the largest is a's " in text and ", 5 % (" in text
     r = write_run(tmp_path / "r", {"ref": None, "a": scale(1.05)}, contact_mode="reference")
     res_r = compare(r)
     assert "same contact law" in R.sentence(res_r.to_json(), res_r.frame())
@@ -696,18 +696,19 @@ EFFORT_PEAKS = {
 }  # fmt: skip
 
 
-def _bound(text: str) -> float:
-    m = re.search(r"every other backend stays at or below ([^ ]+) %", text)
+def _next(text: str) -> tuple[str, float]:
+    """(``backend's component``, its %) of "of the other backends, the largest is X, Y %"."""
+    m = re.search(r"of the other backends, the largest is ([^,]+), ([^ ]+) %", text)
     assert m is not None, text
-    return float(m.group(1))
+    return m.group(1), float(m.group(2))
 
 
 def test_the_headline_leaves_out_components_whose_reference_barely_moves_and_says_so() -> None:
     """The effort task's numbers: ODE's qd1 is 102 % of a 0.0891 rad/s peak (0.0911 rad/s at t = 0.004 s), DART's
     qd3 100.04 % of a 2.24 rad/s peak (2.2458 rad/s at t = 0.007 s). A component whose reference peak is under 10 %
     of its signal's largest is left out of the headline (DART's qd3 leads), the bound on the others is over the
-    same components (ODE's 63.8 % fx: 'at or below 63.82 %', never below the true 63.815) and the left-out component's
-    102 % is still stated with its size and time."""
+    same components (ODE's 63.8 % fx, named with its 4 digits) and the left-out component's 102 % is still stated
+    with its size and time."""
     rows = {
         ("ode", "qd", "1"): (102.213, 0.091062, 0.004),
         ("ode", "force", "x"): (63.815, 10.713, 0.006),
@@ -722,34 +723,38 @@ def test_the_headline_leaves_out_components_whose_reference_barely_moves_and_say
         "Largest difference: dart's qd3 (joint velocity) deviates from ref by up to 2.25 rad/s at t = 0.007 s, "
         "100 % of the reference's peak (2.24 rad/s)"
     ), text
-    assert _bound(text) == 63.82 and _bound(text) >= 63.815
+    assert _next(text) == ("ode's fx", float(num(63.815)))  # as the run table prints it
     assert "ode's qd1 reaches 102 % (0.0911 rad/s at t = 0.004 s)" in text
     assert "q1 (0.00397 rad)" in text and "qd1 (0.0891 rad/s)" in text
 
 
-def test_every_other_backend_stays_within_a_bound_that_holds_after_rounding() -> None:
-    """'every other backend stays at or below X %' is an upper bound, printed to 4 digits (at 3 the effort page's
-    63.815 % read 63.9 beside the table's 63.8, like a typo): 20.041 % is 'at or below 20.05 %', not '20.04' (the
-    effort page said 'within 100 %' of DART's 100.04 %); an exact 5 % stays '5'."""
-    peaks = {("tau", "2"): 2.0}
-    text = R.sentence({"reference": "ref"}, _metrics({("a", "tau", "2"): (50.0, 1.0, 1.5),
-                                                      ("b", "tau", "2"): (20.041, 0.40082, 1.5)}, peaks))  # fmt: skip
-    assert _bound(text) >= 20.041 and _bound(text) == 20.05
-    text = R.sentence({"reference": "ref"}, _metrics({("a", "tau", "2"): (50.0, 1.0, 1.5),
-                                                      ("b", "tau", "2"): (5.0, 0.1, 1.5)}, peaks))  # fmt: skip
-    assert _bound(text) == 5.0
+def test_the_sentence_names_the_largest_of_the_other_backends_as_the_table_prints_it() -> None:
+    """results/latest, effort__engine-defaults: "every other backend stays at or below 105.3 %" beside a table
+    showing MuJoCo's qd2 as 105.2 (the bound rounded up): it read as a number missing from the table. The sentence now
+    names the holder, its component, its percentage in the run table's 4 digits, its size and time: "of the other
+    backends, the largest is mujoco's qd2, 105.2 %"."""
+    rows = {
+        ("dart", "force", "z"): (117.8, 69.8, 0.002),
+        ("mujoco", "qd", "2"): (105.24, 0.9776, 0.009),
+        ("drake", "qd", "1"): (140.0, 0.125, 0.006),  # a small-peak component: not the next largest
+        ("ode", "force", "x"): (51.9, 8.71, 0.006),
+    }
+    text = R.sentence({"reference": "ref"}, _metrics(rows, EFFORT_PEAKS))
+    assert text.startswith("Largest difference: dart's fz"), text
+    assert "; of the other backends, the largest is mujoco's qd2, 105.2 % (0.978 rad/s at t = 0.009 s)." in text
+    assert _next(text) == ("mujoco's qd2", float(num(105.24)))
 
 
 def test_backends_that_deviate_as_much_as_the_largest_are_named_with_it() -> None:
     """position__engine-defaults: ODE's tau1 3.964814 %, DART's, Drake's, MuJoCo's and PyBullet's 3.964759 %
     (1.4e-5 apart relative, all at the 1 ms step): the sentence names the four as deviating as much (within 0.1 %)
-    instead of 'every other backend stays at or below 3.96 %'; the bound is then lagrange's 0.2087 %."""
+    instead of naming one of them as the next largest; that is then lagrange's 0.2087 %."""
     rows = {(b, "tau", "1"): (3.964759, 0.046735, 0.001) for b in ("pybullet", "dart", "drake", "mujoco")}
     rows |= {("ode", "tau", "1"): (3.964814, 0.046736, 0.001), ("lagrange", "tau", "1"): (0.2087, 0.00246, 0.001)}
     text = R.sentence({"reference": "ref"}, _metrics(rows, {("tau", "1"): 1.1788}))
     assert text.startswith("Largest difference: ode's tau1 (joint torque)"), text
     assert "dart, drake, mujoco and pybullet deviate as much (within 0.1 % of it)" in text
-    assert _bound(text) == 0.2087
+    assert _next(text) == ("lagrange's tau1", 0.2087)
 
 
 def test_times_are_quoted_to_the_millisecond_of_the_log(tmp_path: Path) -> None:
