@@ -664,7 +664,8 @@ def _settings(info: Mapping[str, Any]) -> dict[str, str]:
 
 
 def _backend_tables(result: ComparisonResult) -> list[Block]:
-    header = ("backend", "status", "reason", "engine", "version", "dynamics", "wall time [s]", "RTF")
+    header = ("backend", "status", "reason", "engine", "version", "dynamics", "wall time [s]",
+              "RTF (simulated s per wall s)")  # fmt: skip
     rows = []
     for b in result.run.backends.values():
         rows.append(
@@ -682,8 +683,13 @@ def _backend_tables(result: ComparisonResult) -> list[Block]:
     for name, tr in result.traces.items():
         if name not in result.run.backends:
             rows.append((name, "ok", "", "imported log", tr.source, "", "", ""))
-    blocks: list[Block] = [Table(header, tuple(rows), "Backends: status, engine and version (from run.json)")]
+    blocks: list[Block] = [Table(header, tuple(rows), "Backends: status, engine and version (from run.json); wall "
+                                 "time of the simulation loop; RTF, the real-time factor: the run's simulated "
+                                 "time over that wall time (> 1: faster than real time)")]  # fmt: skip
     per = {b.name: _settings(b.info) for b in result.run.backends.values()}
+    for b in result.run.backends.values():  # an engine with no integrator setting: its declared family, as the index
+        if "integrator" not in per[b.name] and b.info.get("integrator_family"):
+            per[b.name]["integrator"] = _integrator_text(b.info)
     keys = list(dict.fromkeys(k for s in per.values() for k in s))
     if keys:
         names = list(per)
@@ -1223,7 +1229,8 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
         Para(
             "Simulation error % = max_t |x_a - x_ref| / max_t |x_ref| x 100 per signal component, each backend "
             "against its scenario's reference backend (n/a: the reference signal is zero, or missing). "
-            f"Colours: the scenario's limits (comparison.tolerances.max_sim_error_pct) where it sets them, else "
+            + _reference_text(entries)
+            + f"Colours: the scenario's limits (comparison.tolerances.max_sim_error_pct) where it sets them, else "
             f"{legend}. Hover a cell for its exact value; run names link to their reports."
         ),
     ]
@@ -1239,6 +1246,33 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
     return blocks, dirs
 
 
+def _reference_text(entries: Sequence[_Entry]) -> str:
+    """What the reference backend ("vs pinocchio") is: the scenarios' ``comparison.reference``, with its step and
+    integrator per profile from run.json; not ground truth."""
+    seen: dict[str, dict[str, str]] = {}
+    for e in entries:
+        ref = str(e.meta.get("reference", ""))
+        info = e.infos.get(ref)
+        if ref and info and e.mode == "native":
+            step, integ = _step_text(info)
+            seen.setdefault(ref, {}).setdefault(e.profile, f"{integ} at {step} per 1 ms control tick")
+    if not seen:
+        return ""
+    parts = []
+    for ref, by in seen.items():
+        order = sorted(by, key=lambda p: _PROFILE_ORDER.get(p, 9))
+        if len(order) > 1 and len(set(by.values())) == 1:
+            parts.append(f"{ref} ({by[order[0]]} in every profile)")
+        else:
+            parts.append(f"{ref} ({', '.join(f'{by[p]} in the {p} profile' for p in order)})")
+    said = "; ".join(parts)
+    return (
+        f"The reference ('vs' column) is the backend each scenario names as its comparison.reference, run with its "
+        f"own settings: {said}. It is not ground truth: 'simulation error' is a difference from it, and it has a "
+        "step error of its own (see 'How each backend integrates'). "
+    )
+
+
 def _step_text(info: Mapping[str, Any]) -> tuple[str, str]:
     """(step, integrator) of a backend's run.json info: ``50 us x 20`` per control period, or ``adaptive``;
     the integrator's name with its solver where the backend names one (Drake's contact approximation)."""
@@ -1248,9 +1282,19 @@ def _step_text(info: Mapping[str, Any]) -> tuple[str, str]:
         step += f" x {n}" if isinstance(n, int) and n > 1 else ""
     else:
         step = "adaptive"
-    name = str(info.get("integrator") or info.get("integrator_family") or "-")
+    name = _integrator_text(info)
     solver = info.get("solver")
     return step, f"{name}, {solver}" if isinstance(solver, str) else name
+
+
+def _integrator_text(info: Mapping[str, Any]) -> str:
+    """A backend's integrator as its run.json info names it (``integrator``), else its declared family marked as
+    such: PyBullet has no integrator setting (Bullet's step is semi-implicit Euler) and declares only
+    ``integrator_family: euler``, which the step table showed as if it were a setting the settings table left blank."""
+    if info.get("integrator"):
+        return str(info["integrator"])
+    family = info.get("integrator_family")
+    return f"{family} (declared family; no integrator setting)" if family else "-"
 
 
 def _steps(entries: Sequence[_Entry]) -> dict[str, dict[str, tuple[str, str]]]:
@@ -1423,17 +1467,20 @@ STUDY_UNITS = {
     "c_eff": "N s/m",
     "Fn": "N",
     "Ft": "N",
-    "creep": "m/s",
-    "creep_law": "m/s",
+    "creep": "mm/s",
+    "creep_law": "mm/s",
     "c_tangential": "N s/m",
 }
+#: Factor from a study file's SI value to the unit of :data:`STUDY_UNITS` (creep: m/s in calibration.json, mm/s
+#: in the tables, as on the run pages' contact-law residuals).
+STUDY_SCALE = {"creep": 1e3, "creep_law": 1e3}
 
 
-def _cell(v: Any) -> str:
+def _cell(v: Any, scale: float = 1.0) -> str:
     if isinstance(v, bool):
         return "yes" if v else "NO"
     if isinstance(v, int | float):
-        x = float(v)
+        x = float(v) * scale
         return ("inf" if x > 0 else "-inf") if math.isinf(x) else num(x, 4)  # inf is a value; n/a is NaN
     return str(v)
 
@@ -1457,7 +1504,7 @@ def _study_blocks(root: Path) -> list[Block]:
         doc, records = read_study(path, key)
         link = f"{rel.rsplit('/', 1)[0]}/"
         if "pass" not in cols:
-            rows = tuple(tuple(_cell(r.get(c, "")) for c in cols) for r in records)
+            rows = tuple(tuple(_cell(r.get(c, ""), STUDY_SCALE.get(c, 1.0)) for c in cols) for r in records)
             header = tuple(f"{c} [{STUDY_UNITS[c]}]" if c in STUDY_UNITS else c for c in cols)
             blocks.append(Heading(2, f"{heading}: {len(records)} backends measured"))
             blocks.append(Details(f"the {len(records)} rows", (Table(header, rows, caption),)))
@@ -1547,7 +1594,8 @@ def _bench_blocks(root: Path) -> list[Block]:
     )
     caption = (
         f"legbench bench ({doc.get('created', '')}, {doc.get('machine', {}).get('cpus', '?')} CPUs): medians; "
-        "overhead ratio = full run / engine-only replay of the same torques"
+        "overhead ratio = full run / engine-only replay of the same torques; RTF, the real-time factor: simulated "
+        "seconds per wall-clock second of the full run (> 1: faster than real time)"
     )
     return [Heading(2, "Performance"), Details(f"{len(rows)} rows", (Table(cols, tuple(rows), caption),))]
 
