@@ -363,17 +363,18 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
     contact = value.get((b, ref, s, j, "split_contact_pct"), nan)
     integ = value.get((b, ref, s, j, "split_integration_pct"), nan)
     n_contact = [x for k, x in value.items() if k[4] == "residual_n_contact"]
-    if top >= BANDS[0][0] and math.isfinite(contact) and math.isfinite(integ):
+    airborne = bool(n_contact) and max(n_contact) == 0  # no contact: the split's contact part is 0 by construction
+    if top >= BANDS[0][0] and math.isfinite(contact) and math.isfinite(integ) and not airborne:
         split = f"contact-mode split: contact {num(contact, 3)} %, integration {num(integ, 3)} %"
         if max(contact, integ) >= MOSTLY * min(contact, integ):
             part = "contact model" if contact >= integ else "integration and dynamics"
             text += f" Why: mostly the {part} ({split})."
         else:  # each part's peak is taken at its own time: without a clear ratio neither is 'mostly'
             text += f" Why: both the contact model and the integration ({split}; each a peak at its own time)."
+    elif airborne:
+        text += " The foot never touches the ground, so what differs is integration and dynamics."
     elif meta.get("contact_mode") == "reference":
         text += " Every engine runs the same contact law here, so what differs is integration and dynamics."
-    elif n_contact and max(n_contact) == 0:
-        text += " The foot never touches the ground, so what differs is integration and dynamics."
     if top >= BANDS[0][0] and n_contact and max(n_contact) == 0:  # free space: the step error is what differs
         text += _higher_order_note(meta, b, ref)
     if top >= BANDS[0][0]:
@@ -418,16 +419,20 @@ def _order(c: tuple[str, str]) -> int:
     return LABELS.index(lab) if lab in LABELS else len(LABELS)
 
 
-def colour_key() -> Table:
-    """One row showing every colour of a simulation error % and what it means."""
-    header = (*(why.split(": ")[0] for _, _, why in BANDS), "<= scenario limit", "> scenario limit", "grey")
-    row = (*(why.split(": ")[1] for _, _, why in BANDS), "within the limit", "exceeds the limit",
-           "held (both runs at one constant value: the 0 is the clamp's); small peak (the reference's peak under "
-           f"{num(SMALL_PEAK * 100.0)} % of its signal's largest: a small deviation, a large %; left out of the "
-           "headline too); or n/a")  # fmt: skip
-    classes = {(0, j): c for j, c in enumerate(("agree", "close", "differ", "far", "within", "over", "na"))}
-    return Table(header, (row,), "Colour key of the simulation error % (a scenario's own limit overrides the bands)",
-                 classes=classes)  # fmt: skip
+def colour_key(limits: bool = False) -> Table:
+    """One row showing every colour of a simulation error % on the page and what it means; the two colours of a
+    scenario's own limit (``comparison.tolerances.max_sim_error_pct``) only where ``limits``: some scenario sets
+    one (none of the bundled ones does, and a key entry for a colour that never appears misleads)."""
+    bands = [(why.split(": ")[0], why.split(": ")[1], cls) for _, cls, why in BANDS]
+    limit = [("<= scenario limit", "within the limit", "within"), ("> scenario limit", "exceeds the limit", "over")]
+    grey = ("grey", "held (both runs at one constant value: the 0 is the clamp's); small peak (the reference's peak "
+            f"under {num(SMALL_PEAK * 100.0)} % of its signal's largest: a small deviation, a large %; left out of "
+            "the headline too); or n/a", "na")  # fmt: skip
+    cols = [*bands, *(limit if limits else []), grey]
+    caption = "Colour key of the simulation error %" + (" (a scenario's own limit overrides the bands)" if limits
+                                                          else "")  # fmt: skip
+    return Table(tuple(c[0] for c in cols), (tuple(c[1] for c in cols),), caption,
+                 classes={(0, j): c[2] for j, c in enumerate(cols)})  # fmt: skip
 
 
 # --------------------------------------------------------------------------- #
@@ -874,7 +879,7 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
         if checks_note is not None:
             b.append(checks_note)
         b.append(_residual_table(result))
-    if result.split:
+    if result.split and touches:  # the foot in the air: no contact part to split off (it is 0 throughout)
         b.append(
             Heading(2, f"Contact model vs integration (with {result.split_run.label if result.split_run else ''})")
         )
@@ -1223,6 +1228,9 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
                 problems.append((e.label, bname, str(b.get("status")), str(b.get("reason") or "")))
     tasks = list(dict.fromkeys(e.name for e in entries))
     legend = "; ".join(why for _, _, why in BANDS)
+    limits = any(e.tolerances.get("max_sim_error_pct") for e in entries)
+    colours = (f"Colours: the scenario's limits (comparison.tolerances.max_sim_error_pct) where it sets them, else "
+               f"{legend}." if limits else f"Colours: {legend} (no scenario here sets its own limit).")  # fmt: skip
     blocks: list[Block] = [
         Heading(1, INDEX_TITLE),
         Nav(tuple((t, f"#task-{t}") for t in tasks)),
@@ -1230,11 +1238,11 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
             "Simulation error % = max_t |x_a - x_ref| / max_t |x_ref| x 100 per signal component, each backend "
             "against its scenario's reference backend (n/a: the reference signal is zero, or missing). "
             + _reference_text(entries)
-            + f"Colours: the scenario's limits (comparison.tolerances.max_sim_error_pct) where it sets them, else "
-            f"{legend}. Hover a cell for its exact value; run names link to their reports."
+            + colours
+            + " Hover a cell for its exact value; run names link to their reports."
         ),
     ]
-    blocks.append(colour_key())
+    blocks.append(colour_key(limits))
     blocks += _study_blocks(root)
     if problems:
         blocks.append(Heading(2, "Backends that did not run"))

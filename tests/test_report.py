@@ -773,7 +773,7 @@ def test_times_are_quoted_to_the_millisecond_of_the_log(tmp_path: Path) -> None:
 def test_colour_key_names_each_colour_once() -> None:
     """Each column of the colour key is one colour with its own header (the limit's two were both 'scenario
     limit'); the grey of a held component (and n/a) has its column too: it was not in the key."""
-    key = R.colour_key()
+    key = R.colour_key(limits=True)
     assert len(set(key.header)) == len(key.header) == len(key.rows[0]) == 7
     assert key.classes is not None and key.classes[(0, 6)] == "na" and "held" in key.rows[0][6]
     assert R.sim_class(5.0, "q", "1", {"max_sim_error_pct": 5.0})[0] == "within"  # <= limit is within
@@ -1355,3 +1355,39 @@ def test_the_index_says_what_the_reference_is_and_rtf_creep_and_integrator_read_
     assert f"| a | 50 us x 20 | {said} |" in index
     assert f"| integrator | euler | {said} |" in page
     assert "| RTF (simulated s per wall s) |" in page and "RTF, the real-time factor: the run's simulated time" in page
+
+
+def test_the_limit_colours_are_keyed_only_where_a_scenario_sets_a_limit(tmp_path: Path) -> None:
+    """results/latest's key listed 'within/exceeds the scenario limit' though no scenario sets max_sim_error_pct, so
+    those colours never appear: the key and the paragraph above it name them only where some scenario sets one."""
+    root = tmp_path / "tree"
+    write_run(root / "one", {"ref": None, "a": scale(1.1)}, name="one")
+    md = R.write_index(root).markdown.read_text()
+    assert "scenario limit" not in md and "| < 1e-8 % | < 1 % | < 10 % | >= 10 % | grey |" in md
+    assert "no scenario here sets its own limit" in md
+    write_run(root / "two", {"ref": None, "a": scale(1.1)}, name="two", tolerances={"max_sim_error_pct": {"q": 15}})
+    md = R.write_index(root).markdown.read_text()
+    assert "| < 1e-8 % | < 1 % | < 10 % | >= 10 % | <= scenario limit | > scenario limit | grey |" in md
+
+
+def test_a_task_that_never_touches_the_ground_gets_no_contact_mode_split(tmp_path: Path) -> None:
+    """results/latest, position and ellipse: "Why: mostly the integration and dynamics (contact-mode split: contact
+    0 %, ...)" for tasks whose foot never touches the ground, where the contact part is 0 by construction. The
+    sentence says the foot never touches the ground instead, and the page leaves the split tables out; a task in
+    contact keeps both."""
+
+    def airborne(t: np.ndarray) -> np.ndarray:
+        data = base_signals(t)
+        data[:, 9:] = 0.0
+        return data
+
+    for base, touches in ((airborne, False), (base_signals, True)):
+        root = tmp_path / ("air" if not touches else "ground")
+        write_run(root / "fake", {"ref": None, "a": offset(0.04)}, base=base)
+        write_run(root / "fake__reference", {"ref": None, "a": offset(0.01)}, contact_mode="reference", base=base)
+        res = compare(root / "fake")
+        text = R.sentence(res.to_json(), res.frame())
+        assert ("contact-mode split" in text) == touches, text
+        assert ("The foot never touches the ground" in text) == (not touches), text
+        md = R.write_report(root / "fake", res).markdown.read_text()
+        assert ("Contact model vs integration" in md) == touches
