@@ -598,6 +598,64 @@ def _steady_table(result: ComparisonResult) -> Table:
     )
 
 
+def _matched_infos(run: Run) -> dict[str, Mapping[str, Any]]:
+    """backend -> run.json info of the same scenario's matched run beside this one (``<tree>/<name>``, or its
+    ``__reference`` twin for a reference-mode run), if that directory holds one in the matched profile; else {}."""
+    label = run.name + ("__reference" if run.contact_mode == "reference" else "")
+    sibling = run.path.parent / label
+    if sibling == run.path or not (sibling / "run.json").is_file():
+        return {}
+    try:
+        meta = read_meta(sibling)
+    except ResultsError:
+        return {}
+    if str((meta.get("scenario") or {}).get("profile", "matched")) != "matched":
+        return {}
+    return {str(n): dict(v.get("info") or {}) for n, v in (meta.get("backends") or {}).items()}
+
+
+def _free_space_steps(result: ComparisonResult) -> str:
+    """What separates a free-space run of another profile from the reference, from run.json: the backends that run
+    the reference's integrator family at another step (the engines' 1 ms against Pinocchio's 50 us x 20), with
+    their own step in the matched run beside it where there is one, and those that change their integrator too.
+    In free space the contact settings act on nothing, so for the former the step is what the profile changes."""
+    infos, ref = _infos(result.run), result.reference
+    matched = _matched_infos(result.run)
+    ref_info = infos.get(ref) or {}
+    ref_step, _ = _step_text(ref_info)
+    family = ref_info.get("integrator_family")
+    profile = str((result.run.meta.get("scenario") or {}).get("profile", ""))
+    stepped: list[str] = []
+    changed: list[str] = []
+    steps: set[str] = set()
+    for name, info in infos.items():
+        if name == ref or not info or result.run.backends[name].status != "ok":
+            continue
+        step, _ = _step_text(info)
+        was = matched.get(name)
+        if was and _integrator_text(was) != _integrator_text(info):
+            changed.append(f"{name} changes its integrator too ({_integrator_text(was)} in the matched profile, "
+                           f"{_integrator_text(info)} here, at {step})")  # fmt: skip
+        elif family and info.get("integrator_family") == family and step != ref_step:
+            stepped.append(name)
+            steps.add(step)
+    text = "The foot never touches the ground here, so the contact settings act on nothing"
+    if stepped:
+        were = sorted({_step_text(matched[n])[0] for n in stepped if n in matched})
+        text += (
+            f" and what the {profile} profile changes is the step: {_names(stepped)} "
+            f"{'runs' if len(stepped) == 1 else 'run'} the reference's integrator family ({family}) at "
+            f"{_names(sorted(steps))} per control tick, against {ref}'s {ref_step}"
+            + (
+                f" ({'its' if len(stepped) == 1 else 'their'} own step in the matched profile: {_names(were)})"
+                if were
+                else ""
+            )
+            + ", as run.json records"
+        )
+    return text + "".join(f"; {c}" for c in changed) + "."
+
+
 def _touches(df: pd.DataFrame) -> bool:
     """Some backend's foot touches the ground in the run (metric ``residual_n_contact`` > 0)."""
     n = df[df["metric"] == "residual_n_contact"]["value"]
@@ -818,6 +876,8 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
     touches = any(r.n_contact for r in result.residuals.values())
     if run.contact_mode == "reference" and touches and (shared := implicit_note(_infos(run))):
         b.append(Para(shared))
+    if str(sc.get("profile", "matched")) != "matched" and result.residuals and not touches:
+        b.append(Para(_free_space_steps(result)))
     for n in result.notes:
         b.append(Para(n, warn=True))
     for bk in result.run.backends.values():
