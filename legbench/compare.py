@@ -361,7 +361,9 @@ def compare(
     law = _contact_law(run)
     if law is None:
         notes.append("no contact-law residuals: run.json's scenario names no contact law")
-    slide = {n: str((infos.get(n) or {}).get("sliding_coefficient", "mu_k")) for n in traces}  # mu_s: a Coulomb engine
+    # mu_s: a Coulomb engine's own contact; in reference mode every backend applies the law, which slides at mu_k
+    slide = {n: str((infos.get(n) or {}).get("sliding_coefficient", "mu_k")) if run.contact_mode == "native"
+             else "mu_k" for n in traces}  # fmt: skip
     res = {} if law is None else {n: residuals(tr.t, tr.q, tr.qd, tr.f, law, points[n], slide[n])
                                   for n, tr in traces.items()}  # fmt: skip
     return ComparisonResult(run, reference, traces, tuple(pairs), steady, split, split_run, tuple(notes), res)

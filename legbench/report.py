@@ -772,13 +772,68 @@ def _rigid(result: ComparisonResult, name: str) -> bool:
     return b.info["contact"].get("enabled") is not False
 
 
+#: What the contact-law residuals should read for a backend that follows the law, and how far a cell may depart
+#: before it is coloured: (column, expected, tolerance) [the column's unit]. Penetration 0 mm within 0.05 mm (1 %
+#: of the effort task's 5.25 mm rest penetration; the matched compliant engines read 0.005-0.014 mm); the spring's
+#: relative error 0 within 1 %; the friction ratio 1 within 1 % (the sliding verification's tolerance); the angle
+#: 0 within 10 deg: it is a maximum over every sample slipping at 0.1 mm/s or more, where a stick-slip transition
+#: sample pairs the last sub-step's force with the tick's velocity (the matched cone engines read 0.15-8 deg).
+RESIDUAL_EXPECTED: dict[str, tuple[float, float]] = {
+    "penetration_max_mm": (0.0, 0.05),
+    "penetration_rel": (0.0, 0.01),
+    "friction_ratio": (1.0, 0.01),
+    "angle_max": (0.0, 10.0),
+}
+#: A friction pyramid's own bounds (each tangent axis limited by mu Fn on its own): while sliding |F_t| / (mu Fn)
+#: is between 1 (along an axis) and sqrt(2) (on the diagonal), and F_t is within 45 deg of -v.
+PYRAMID_RATIO = (1.0, math.sqrt(2.0))
+PYRAMID_ANGLE = 45.0
+
+
+def pyramid(info: Mapping[str, Any]) -> bool:
+    """The backend's native friction is a pyramid: its run.json info's ``friction_cone`` (the backend's declared
+    :attr:`~legbench.backends.base.Backend.friction_cone`, where recorded), else its contact description says so
+    (DART's ``contact.model``, ODE's ``contact.friction``: "... friction pyramid")."""
+    if info.get("friction_cone"):
+        return str(info["friction_cone"]) == "pyramid"
+    contact = info.get("contact")
+    return isinstance(contact, Mapping) and any(isinstance(v, str) and "pyramid" in v for v in contact.values())
+
+
+def _residual_marks(value: float, column: str, pyr: bool) -> tuple[str, str]:
+    """(CSS class, why) of one contact-law residual against :data:`RESIDUAL_EXPECTED` (a pyramid's own bounds for
+    its friction columns): ``pass`` within the tolerance, ``fail`` beyond it; nothing for n/a."""
+    if not math.isfinite(value):
+        return "", ""
+    expected, tol = RESIDUAL_EXPECTED[column]
+    if pyr and column == "friction_ratio":
+        lo, hi = PYRAMID_RATIO[0] - tol, PYRAMID_RATIO[1] + tol
+        ok, what = lo <= value <= hi, f"a friction pyramid's own bound: 1 to sqrt(2) = {num(PYRAMID_RATIO[1])}"
+    elif pyr and column == "angle_max":
+        ok, what = value <= PYRAMID_ANGLE + tol, f"a friction pyramid's own bound: <= {num(PYRAMID_ANGLE)} deg"
+    else:
+        ok, what = abs(value - expected) <= tol, f"expected {num(expected)}"
+    return ("pass", f"{num(value)}: within the tolerance {num(tol)} of {what}") if ok else (
+        "fail", f"{num(value)}: departs from {what} by more than the tolerance {num(tol)}")  # fmt: skip
+
+
 def _residual_table(result: ComparisonResult) -> Table:
     rows = []
+    classes: dict[tuple[int, int], str] = {}
+    titles: dict[tuple[int, int], str] = {}
+    bounds = {c: f"{num(e)} +- {num(t)}" for c, (e, t) in RESIDUAL_EXPECTED.items()}
+    rows.append(
+        ("expected (tolerance)", "", f"{bounds['penetration_max_mm']} mm", bounds["penetration_rel"], "",
+         f"{bounds['friction_ratio']} (pyramid: 1 to {num(PYRAMID_RATIO[1])})",
+         f"{bounds['angle_max']} (pyramid: <= {num(PYRAMID_ANGLE)})", "", "the law's creep", "")
+    )  # fmt: skip
     for name, r in result.residuals.items():
         rigid = _rigid(result, name)
+        b = result.run.backends.get(name)
+        pyr = b is not None and result.run.contact_mode == "native" and pyramid(b.info)  # reference mode: the law
         rows.append(
             (
-                name,
+                f"{name} (pyramid)" if pyr else name,
                 str(r.n_contact),
                 "n/a (rigid)" if rigid else num(r.penetration_max * 1e3),
                 "n/a (rigid)" if rigid else num(r.penetration_rel),
@@ -790,6 +845,13 @@ def _residual_table(result: ComparisonResult) -> Table:
                 num(r.creep_law * 1e3),
             )
         )
+        marks = {5: ("friction_ratio", r.friction_ratio), 6: ("angle_max", r.angle_max)}
+        if not rigid:
+            marks |= {2: ("penetration_max_mm", r.penetration_max * 1e3), 3: ("penetration_rel", r.penetration_rel)}
+        for c, (column, value) in marks.items():
+            cls, why = _residual_marks(float(value), column, pyr)
+            if cls:
+                classes[(len(rows) - 1, c)], titles[(len(rows) - 1, c)] = cls, why
     return Table(
         (
             "backend",
@@ -810,7 +872,13 @@ def _residual_table(result: ComparisonResult) -> Table:
         "single-coefficient Coulomb engine: 1 for both when they slide as they should), friction direction against "
         "the slip, and creep under a sub-limit load beside the law's v_th |F_t| / (mu_s Fn); the slip taken where "
         "each engine applies its force (run.json: contact.lift); n/a where no sample qualifies; n/a (rigid) for a "
-        "backend whose contact reports no stiffness (run.json: contact.Kp null), which has no spring to compare",
+        "backend whose contact reports no stiffness (run.json: contact.Kp null), which has no spring to compare. "
+        "The first row gives what a backend following the law reads, and the tolerance: green within it, red "
+        "beyond (hover for the value against it); a friction pyramid (run.json: DART's and ODE's contact) is held "
+        "to its own bounds, |F_t| / (mu Fn) from 1 to sqrt(2) and the angle up to 45 deg; creep is not coloured "
+        "(a Coulomb engine sticks by design: read it beside the law's)",
+        classes=classes,
+        titles=titles,
     )
 
 

@@ -1423,3 +1423,44 @@ def test_a_free_space_engine_defaults_page_says_the_profile_changes_the_step(tmp
             "records; c changes its integrator too (dWorldStep in the matched profile, dWorldQuickStep here, at "
             "1 ms).") in md, md[:3000]  # fmt: skip
     assert "what the" not in (root / "one" / "report.md").read_text()
+
+
+def test_contact_residuals_show_what_the_law_expects_and_colour_what_departs_from_it(tmp_path: Path) -> None:
+    """results/latest: the residuals table had no expected value and no colour, so ODE's engine-defaults friction at
+    171.8 deg to the slip and Drake's 0.76 friction ratio while sliding read like any other number. The table's first
+    row gives the expected value and tolerance per column, a cell beyond it is red and one within green (hover: the
+    value against it); a friction pyramid (DART's, ODE's contact, as run.json describes it) is held to its own
+    bounds, 1 to sqrt(2) in ratio and 45 deg in angle (ODE matched: 1.053 and 23.7 deg pass)."""
+    assert R._residual_marks(171.8, "angle_max", pyr=True)[0] == "fail"
+    assert R._residual_marks(0.7565, "friction_ratio", pyr=False)[0] == "fail"
+    assert R._residual_marks(1.053, "friction_ratio", pyr=True)[0] == "pass"
+    assert R._residual_marks(23.67, "angle_max", pyr=True)[0] == "pass"
+    assert R._residual_marks(23.67, "angle_max", pyr=False)[0] == "fail"
+    assert R._residual_marks(0.7403, "penetration_max_mm", pyr=False)[0] == "fail"  # Drake matched: 0.74 mm
+    assert R._residual_marks(0.01375, "penetration_max_mm", pyr=True)[0] == "pass"  # ODE matched
+    assert R._residual_marks(math.nan, "angle_max", pyr=False) == ("", "")
+    assert R.pyramid({"contact": {"friction": "pyramid (dContactApprox1: bound mu x normal force per tangent)"}})
+    assert R.pyramid({"friction_cone": "pyramid"}) and not R.pyramid({"contact": {"cone": "mjCONE_ELLIPTIC"}})
+    d = write_run(tmp_path / "one", {"ref": None, "a": scale(1.01)})
+    _declare(d, {"a": {"contact": {"friction": "pyramid (bound mu x normal force per tangent direction)"}}})
+    md = R.write_report(d).markdown.read_text()
+    assert ("| expected (tolerance) |  | 0 +- 0.05 mm | 0 +- 0.01 |  | 1 +- 0.01 (pyramid: 1 to 1.414) | 0 +- 10 "
+            "(pyramid: <= 45) |  | the law's creep |  |") in md  # fmt: skip
+    assert "\n| a (pyramid) | " in md and "\n| ref | " in md
+    page = (d / "report.html").read_text()
+    assert re.search(r'<td class="(pass|fail)" title="[^"]*(within the tolerance|departs from)', page)
+
+
+def test_in_reference_mode_every_backend_is_scored_against_the_law_s_kinetic_friction(tmp_path: Path) -> None:
+    """results/latest, effort__reference: MuJoCo, PyBullet, Drake, DART and ODE read a friction ratio of 0.857
+    (= mu_k / mu_s) while sliding, because the ratio took the coefficient each engine's own contact slides with
+    (mu_s) though in reference mode each applies the law, which slides at mu_k. In reference mode every backend's
+    ratio is now against mu_k, as the law's; in native mode a Coulomb engine's is still against mu_s."""
+    ratios = {}
+    for mode in ("native", "reference"):
+        d = write_run(tmp_path / mode, {"ref": None, "a": None}, contact_mode=mode)
+        _declare(d, {"a": {"sliding_coefficient": "mu_s"}, "ref": {"sliding_coefficient": "mu_k"}})
+        res = compare(d)
+        ratios[mode] = res.residuals["a"].friction_ratio / res.residuals["ref"].friction_ratio
+    assert ratios["native"] == pytest.approx(0.6 / 0.7, rel=1e-12)
+    assert ratios["reference"] == pytest.approx(1.0, rel=1e-12)
