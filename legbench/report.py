@@ -161,8 +161,10 @@ def sim_class(
     """(CSS class, why) of one simulation error % against the scenario's ceiling
     (``comparison.tolerances.max_sim_error_pct``), else against :data:`BANDS`; ``held`` (the pair's ``held``
     metric): n/a, :data:`HELD`; ``small`` (the component's reference peak and its signal's largest, for a
-    component :func:`small_peaks` names) without a ceiling: n/a, :func:`small_note`, as the headline leaves it
-    out."""
+    component :func:`small_peaks` names) without a ceiling: the bands applied to the deviation as a % of the
+    signal's largest peak instead of the component's own (:func:`small_note`): effort q1's 30.7 % of a 0.004 rad
+    peak is 0.1 % of the knee's 1.26 rad (agree), MuJoCo engine-defaults' 3759 % is a 0.149 rad walk, 11.8 % of
+    it (differs a lot)."""
     if held:
         return "na", HELD
     if not math.isfinite(value):
@@ -173,7 +175,12 @@ def sim_class(
             return "over", f"{num(value)} % exceeds the scenario's limit {num(ceiling)} %"
         return "within", f"{num(value)} % within the scenario's limit {num(ceiling)} %"
     if small is not None:
-        return "na", small_note(value, signal, *small)
+        peak, largest = small
+        rel = value * peak / largest if largest > 0.0 else math.nan
+        for bound, cls, why in BANDS:
+            if rel < bound:
+                return cls, f"{small_note(value, signal, peak, largest)}; {num(rel, 3)} % of the largest: {why}"
+        return "", ""
     for bound, cls, why in BANDS:
         if value < bound:
             return cls, f"{num(value, 6)} %: {why}"
@@ -184,7 +191,7 @@ def sim_class(
 #: beside the knee's 1.26 rad; qd1, 0.089 rad/s beside 2.24 rad/s) turns a small deviation into a large
 #: percentage: the headline leaves it out, and says what it left out when that was larger.
 SMALL_PEAK = 0.1
-#: A small-peak component's cell reads ``30.7 (small peak)``: its number, and why it is not coloured.
+#: A small-peak component's cell reads ``30.7 (small peak)``: its number, and why its colour is by another measure.
 SMALL_MARK = "small peak"
 
 
@@ -192,7 +199,8 @@ def small_peaks(df: pd.DataFrame, ref: str) -> dict[tuple[str, str], tuple[float
     """(signal, joint) -> (its reference peak, its signal's largest) [signal unit] of the components whose
     reference peak (metric ``ref_peak`` against ``ref``, the largest over the backends) is under
     :data:`SMALL_PEAK` of their signal's largest: the effort task's q1 (0.004 rad beside q3's 1.26 rad) and qd1
-    (0.089 rad/s beside 2.24 rad/s). The headline sentence leaves them out; the tables grey them."""
+    (0.089 rad/s beside 2.24 rad/s). The headline sentence leaves them out; the tables colour them by their
+    deviation against the signal's largest peak (:func:`sim_class`)."""
     rows = df[(df["metric"] == "ref_peak") & (df["reference"] == ref)]
     peaks: dict[tuple[str, str], float] = {}
     for sig, j, x in zip(rows["signal"], rows["joint"], rows["value"], strict=True):
@@ -205,13 +213,13 @@ def small_peaks(df: pd.DataFrame, ref: str) -> dict[tuple[str, str], tuple[float
 
 
 def small_note(value: float, signal: str, peak: float, largest: float) -> str:
-    """Why a small-peak component's simulation error % is grey, with what it amounts to."""
+    """Why a small-peak component's simulation error % is coloured by another measure, with what it amounts to."""
     unit = UNITS[signal]
     dev = f": {num(value, 3)} % of it is {num(value * peak / 100.0, 3)} {unit}" if math.isfinite(value) else ""
     return (
         f"small reference peak: {num(peak, 3)} {unit}, under {num(SMALL_PEAK * 100.0)} % of the largest in its "
-        f"signal ({num(largest, 3)} {unit}){dev}; a small deviation makes a large percentage here, so the cell is "
-        "not coloured and the headline sentence leaves it out"
+        f"signal ({num(largest, 3)} {unit}){dev}; a small deviation makes a large percentage here, so the colour is "
+        "that of the deviation as a % of the largest peak, and the headline sentence leaves it out"
     )
 
 
@@ -425,12 +433,14 @@ def colour_key(limits: bool = False) -> Table:
     one (none of the bundled ones does, and a key entry for a colour that never appears misleads)."""
     bands = [(why.split(": ")[0], why.split(": ")[1], cls) for _, cls, why in BANDS]
     limit = [("<= scenario limit", "within the limit", "within"), ("> scenario limit", "exceeds the limit", "over")]
-    grey = ("grey", "held (both runs at one constant value: the 0 is the clamp's); small peak (the reference's peak "
-            f"under {num(SMALL_PEAK * 100.0)} % of its signal's largest: a small deviation, a large %; left out of "
-            "the headline too); or n/a", "na")  # fmt: skip
+    grey = ("grey", "held (both runs at one constant value: the 0 is the clamp's), or n/a", "na")
     cols = [*bands, *(limit if limits else []), grey]
     caption = "Colour key of the simulation error %" + (" (a scenario's own limit overrides the bands)" if limits
                                                           else "")  # fmt: skip
+    caption += (f". A cell marked ({SMALL_MARK}): the reference's peak of that component is under "
+                f"{num(SMALL_PEAK * 100.0)} % of its signal's largest, so a small deviation makes a large %: its "
+                "colour is that of the deviation as a % of the signal's largest peak; the headline leaves it "
+                "out")  # fmt: skip
     return Table(tuple(c[0] for c in cols), (tuple(c[1] for c in cols),), caption,
                  classes={(0, j): c[2] for j, c in enumerate(cols)})  # fmt: skip
 
@@ -455,9 +465,8 @@ def _pair_table(
             return num(v)
         if h:
             return f"{num(v)} (held)"
-        grey = i in small and ref == result.reference
-        grey = grey and sim_class(v, SIGNAL_OF[i], LABELS[i][-1], tol, False, small[i])[0] == "na"
-        return f"{num(v)} ({SMALL_MARK})" if grey else num(v)
+        marked = i in small and ref == result.reference and math.isfinite(v)
+        return f"{num(v)} ({SMALL_MARK})" if marked else num(v)
 
     rows = tuple(
         (p.backend, p.reference, *(cell(float(v), bool(h), i, p.reference)
@@ -1280,7 +1289,7 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
                     kept_here = (backend, ref, s, j) in held
                     small = tiny.get((s, j)) if str(ref) == str(e.meta.get("reference", "")) else None
                     cls, why = sim_class(v, s, j, e.tolerances, kept_here, small)
-                    mark = "held" if kept_here else SMALL_MARK if small is not None and cls == "na" else ""
+                    mark = "held" if kept_here else SMALL_MARK if small is not None and math.isfinite(v) else ""
                     cells.append(f"{num(v, 3)} ({mark})" if mark else num(v, 3))
                     key = (str(backend), str(ref), s, j)
                     where = "" if kept_here else deviation_note(e.meta, str(backend), s, at.get((*key, "max_abs"), nan),

@@ -1255,25 +1255,33 @@ def test_a_largest_deviation_in_the_first_ms_of_contact_is_named_as_its_transien
     assert found["c"].endswith("largest deviation 10 N at t = 0.8 s"), found
 
 
-def test_a_component_whose_reference_barely_moves_is_grey_in_the_tables_as_in_the_sentence(tmp_path: Path) -> None:
+def test_a_component_whose_reference_barely_moves_is_coloured_by_its_deviation_against_the_signals_largest(
+    tmp_path: Path,
+) -> None:
     """results/latest, effort: q1's 30.7-37.8 % (a deviation of 1-1.5 mrad over a 4 mrad reference peak) was red in
-    both tables while the headline leaves it out (SMALL_PEAK). Such a cell is now grey like a held one, reads
-    '30 (small peak)' (the Markdown has no colour) and says on hover what the percentage amounts to; a component
-    with a full-size peak keeps its band, and the colour key explains the grey."""
+    both tables while the headline leaves it out (SMALL_PEAK). Such a cell reads '30 (small peak)' (the Markdown has
+    no colour) and is coloured by the deviation as a % of its signal's largest peak, the hover saying what the
+    percentage amounts to: 30 % of a 0.1 rad peak is 0.03 rad, 2.14 % of q3's 1.4 rad (differs); a deviation of
+    0.16 rad there, 160 % of its own peak, is 11.4 % of the largest (differs a lot): a real walk of a joint that
+    barely moves in the reference (MuJoCo engine-defaults' q1, 0.149 rad) stays red. A component with a full-size
+    peak keeps its band, and the colour key's caption explains the mark."""
     root = tmp_path / "tree"
-    d = write_run(root / "one", {"ref": None, "a": scale(1.3)}, name="one")  # q1 peaks at 0.1 rad, q3 at 1.4 rad
+    d = write_run(root / "one", {"ref": None, "a": scale(1.3), "b": scale(2.6)}, name="one")  # q1 0.1, q3 1.4 rad
     R.write_all(root)
     index, page = (root / "report.html").read_text(), (d / "report.html").read_text()
-    grey = re.compile(r'<td class="na" title="(small reference peak: 0.1 rad, under 10 % of the largest in its '
-                      r'signal \(1.4 rad\): 30 % of it is 0.03 rad;[^"]*)">30 \(small peak\)</td>')  # fmt: skip
+    small = re.compile(r'<td class="differ" title="(small reference peak: 0.1 rad, under 10 % of the largest in its '
+                       r'signal \(1.4 rad\): 30 % of it is 0.03 rad;[^"]*2.14 % of the largest: &lt; 10 %: '
+                       r'differs[^"]*)">30 \(small peak\)</td>')  # fmt: skip
+    walk = re.compile(r'<td class="far" title="small reference peak: 0.1 rad[^"]*: 160 % of it is 0.16 rad;[^"]*'
+                      r'11.4 % of the largest: &gt;= 10 %: differs a lot[^"]*">160 \(small peak\)</td>')  # fmt: skip
     for text in (index, page):
-        m = grey.search(text)
+        m = small.search(text)
         assert m is not None and "largest deviation 0.03 rad at t = " in m.group(1), text[-3000:]
+        assert walk.search(text), text[-3000:]
         assert re.search(r'<td class="far" title="30 %: &gt;= 10 %: differs a lot[^"]*">30</td>', text)  # q2
     assert "| a | ref | 30 (small peak) | 30 |" in (d / "report.md").read_text()
     assert "| 30 (small peak) | 30 |" in (root / "report.md").read_text()
-    key = R.colour_key()
-    assert "small peak" in key.rows[0][-1] and key.classes is not None and key.classes[(0, len(key.header) - 1)] == "na"
+    assert "(small peak)" in R.colour_key().caption and "as a % of the signal's largest peak" in R.colour_key().caption
 
 
 def _declare(d: Path, infos: dict[str, dict[str, Any]]) -> None:
