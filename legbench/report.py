@@ -49,8 +49,6 @@ from legbench.report_figures import (
 from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num, relpath, to_html, to_markdown
 from legbench.results import (
     INDEX_TITLE,
-    VERIFY_PROFILE,
-    VERIFY_TOLERANCES,
     Run,
     atomic_write_text,
     check_index_pages,
@@ -1664,10 +1662,12 @@ def _study_blocks(root: Path) -> list[Block]:
         css = {"pass": "pass", "fail": "fail", "not-applicable": "na"}
         classes = {(i, last): css[st] for i, st in enumerate(status)}
         tol = cols.index("tolerance")
-        titles = {(i, c): _tolerance_basis(r) for i, r in enumerate(records) for c in (tol, last)}
+        basis = doc.get("tolerance_basis")
+        basis = basis if isinstance(basis, Mapping) else {}  # older files: none
+        titles = {(i, c): _tolerance_basis(r, basis) for i, r in enumerate(records) for c in (tol, last)}
         failed = [i for i, st in enumerate(status) if st == "fail"]
         na = [i for i, st in enumerate(status) if st == "not-applicable"]
-        profile = str(doc.get("profile") or VERIFY_PROFILE)  # older files: legbench verify's one profile
+        profile = str(doc.get("profile") or "matched")  # older files: legbench verify's one profile, matched
         blocks.append(Heading(2, f"{heading}, {profile} profile: {checks_summary(status)}"))
         blocks.append(Para(
             f"legbench verify runs every check with each backend's {profile} profile settings (the case scenario's "
@@ -1689,10 +1689,10 @@ def _study_blocks(root: Path) -> list[Block]:
     return blocks
 
 
-def _tolerance_basis(r: Mapping[str, Any]) -> str:
-    """A verification row's hover: how its case's tolerance is derived (:data:`VERIFY_TOLERANCES`), then the row's
-    own note (its terms and numbers)."""
-    basis = VERIFY_TOLERANCES.get(str(r.get("case", "")), "")
+def _tolerance_basis(r: Mapping[str, Any], bases: Mapping[str, Any]) -> str:
+    """A verification row's hover: how its case's tolerance is derived (``bases``, verification.json's
+    ``tolerance_basis``), then the row's own note (its terms and numbers)."""
+    basis = str(bases.get(str(r.get("case", "")), ""))
     note = str(r.get("note") or "")
     parts = ([f"tolerance: {basis}"] if basis else []) + ([f"this row: {note}"] if note else [])
     return "; ".join(parts)

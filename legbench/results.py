@@ -58,8 +58,6 @@ __all__ = [
     "INDEX_TITLE",
     "RUN_FILES",
     "STUDY_OUTPUTS",
-    "VERIFY_PROFILE",
-    "VERIFY_TOLERANCES",
     "BackendStatus",
     "EventMark",
     "Run",
@@ -1303,29 +1301,6 @@ def checks_summary(statuses: Sequence[str]) -> str:
     failed, na = sum(s == "fail" for s in statuses), sum(s == "not-applicable" for s in statuses)
     text = f"{sum(s == 'pass' for s in statuses)} of {len(statuses)} checks pass"
     return text + (f", {failed} fail" if failed else "") + (f", {na} not applicable" if na else "")
-
-
-#: The profile ``legbench verify`` loads every backend in (the case scenario's backend settings over it; the
-#: energy case once per integrator a backend offers, the small oscillation also with RK4): its checks verify the
-#: matched settings, not the engine-defaults ones.
-VERIFY_PROFILE = "matched"
-
-#: How each verification case's tolerance is derived, in one line (legbench/studies/verify.py's docstring has the
-#: derivation; each row's note gives its own terms and numbers). The index shows it on hover of every row.
-VERIFY_TOLERANCES = {
-    "energy": "first-order step: max |predicted drift| x (h W + (Ts W)^2), the O(h^2) remainder and the 1 ms log's "
-    "trapezoid sum, + round-off 4 sqrt(n) eps |E|; RK4: (h W)^4 W T_end max T + round-off; adaptive: (h W)^5 W "
-    "T_end max T at h = max_step + round-off; a first-order step of unknown form: 2 h int |e2| dt",
-    "rest_penetration": "0.1 % of y (the contact solver) + Kd max |ydot| / Kp (the damping force of the residual "
-    "motion); a rigid contact: y = 0 to the same tolerance",
-    "static_balance": "the dynamic terms left in the window |(J_poc^T)^-1 (M qdd + C qd)| + the held torque's step, "
-    "+ 0.1 % of |F| for an engine's contact solver (a law backend: round-off 8 eps, and the law's slopes times one "
-    "solver step's state error if adaptive), + the lever |(J_poc^T)^-1| y |F_t| where an engine declares no point",
-    "small_oscillation": "0.5 % of |s| per pole (the pencil fit of three close, heavily damped modes); a "
-    "first-order step of unknown form: + h |s|",
-    "sliding": "friction |F_t| / Fn within 1 % of mu, its angle to -slip within 1 deg, the slip acceleration within "
-    "2 % of the closed form M^-1 (tau - nle + J_poc^T F)",
-}
 
 
 def read_metrics(path: str | Path) -> tuple[dict[str, Any], pd.DataFrame]:

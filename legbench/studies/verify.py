@@ -114,7 +114,6 @@ from legbench import scenario as scenario_mod
 from legbench.backends.base import Physics, contact_point, rigid_contact
 from legbench.exceptions import LegbenchError
 from legbench.results import (
-    VERIFY_PROFILE,
     atomic_write_text,
     check_study_out,
     checks_summary,
@@ -157,6 +156,27 @@ STATUSES = ("pass", "fail", "not-applicable")
 #: How a backend without an ``integrator`` setting is named in the variant column, by its family.
 FAMILY_TEXT = {"euler": "semi-implicit euler", "implicit": "implicit euler", "rk4": "rk4", "adaptive": "adaptive",
                "first-order": "first order", "other": "other"}  # fmt: skip
+#: The profile every backend is loaded in (the case scenario's backend settings over it; the energy case once per
+#: integrator a backend offers, the small oscillation also with RK4): the checks verify the matched settings, not
+#: the engine-defaults ones. Recorded in verification.json (``profile``).
+VERIFY_PROFILE = "matched"
+#: How each case's tolerance is derived, in one line (the module docstring has the derivation; each row's note its
+#: own terms and numbers). Recorded in verification.json (``tolerance_basis``), which the report shows on hover.
+TOLERANCE_BASIS = {
+    "energy": "a first-order step with a closed form: max |predicted drift| x (h W + (Ts W)^2), the O(h^2) remainder "
+    "and the 1 ms log's trapezoid sum, + round-off 4 sqrt(n) eps |E|; a first-order step without one: the drift at h "
+    "less twice the drift at h/2 within 5 % of the drift (Richardson); RK4: (h W)^4 W T_end max T + round-off; "
+    "adaptive: (h W)^5 W T_end max T at h = max_step + round-off",
+    "rest_penetration": "0.1 % of y (the contact solver) + Kd max |ydot| / Kp (the damping force of the residual "
+    "motion); a rigid contact: y = 0 to the same tolerance",
+    "static_balance": "the dynamic terms left in the window |(J_poc^T)^-1 (M qdd + C qd)| + the held torque's step, "
+    "+ 0.1 % of |F| for an engine's contact solver (a law backend: round-off 8 eps, and the law's slopes times one "
+    "solver step's state error if adaptive), + the lever |(J_poc^T)^-1| y |F_t| where an engine declares no point",
+    "small_oscillation": "0.5 % of |s| per pole (the pencil fit of three close, heavily damped modes); a "
+    "first-order step of unknown form: + h |s|",
+    "sliding": "friction |F_t| / Fn within 1 % of mu, its angle to -slip within 1 deg, the slip acceleration within "
+    "2 % of the closed form M^-1 (tau - nle + J_poc^T F)",
+}
 #: Relative tolerance on each closed-loop pole (module docstring).
 POLE_RTOL = 5e-3
 #: Share of the quantity the engines' contact solvers may miss by (rest and balance checks).
@@ -754,7 +774,8 @@ def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
     passed = int(df["pass"].sum())
     na = int((df["status"] == "not-applicable").sum())
     meta = {"schema": "legbench.verification/1", "passed": passed, "total": len(df), "not_applicable": na,
-            "profile": VERIFY_PROFILE, "checks": df.to_dict(orient="records"), "versions": versions(),
+            "profile": VERIFY_PROFILE, "tolerance_basis": TOLERANCE_BASIS, "checks": df.to_dict(orient="records"),
+            "versions": versions(),
             "platform": platform_info()}  # fmt: skip
     write_json(meta, out_dir / "verification.json")
     md = [f"# Verification: {checks_summary(list(df['status']))}\n",
