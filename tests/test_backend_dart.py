@@ -89,8 +89,9 @@ def test_period_mean_force_keeps_the_impact_that_the_end_sample_misses() -> None
     identical to the last bit), equals the end sample in sustained contact (the combined task's last 0.5 s:
     measured 3e-11 of Fn, bound 1e-9), and keeps an impact the end sample misses: started at rest at q = 0
     instead of its first target, the combined task's first swing grazes the ground at t = 0.136 s (every
-    backend: docs/spec.md section 7), which the end sample reads as 0 N; the impulse over the graze's 30 ms is
-    0.52 N s against 0.026 N s in the end samples (bounds: > 10x)."""
+    backend: docs/spec.md section 7), which the end sample reads as 0 N: with the matched profile's NSGS solver
+    the graze is resolved inside one period, 0.624 N s in the period mean and nothing at all in the end samples
+    (Dantzig: 0.52 N s against 0.026 N s; bounds: more than 0.3 N s, and more than 10x the end samples')."""
     from legbench import scenario
     from legbench.run import run_backend
 
@@ -104,7 +105,8 @@ def test_period_mean_force_keeps_the_impact_that_the_end_sample_misses() -> None
     k = int(np.argmax(mean.f[:500, 2] > 0))  # the first period with contact
     assert abs(mean.t[k] - 0.136) < 1e-9 and end.f[k, 2] == 0.0 and mean.f[k, 2] > 100.0
     graze = slice(k - 5, k + 25)
-    assert mean.f[graze, 2].sum() > 10 * end.f[graze, 2].sum() > 0
+    impulse = mean.f[graze, 2].sum() * float(mean.t[1] - mean.t[0])  # [N s]
+    assert impulse > 0.3 and mean.f[graze, 2].sum() > 10 * end.f[graze, 2].sum(), (impulse, end.f[graze, 2].sum())
     w = end.t >= end.t[-1] - 0.5
     assert np.abs(mean.f[w] - end.f[w]).max() < 1e-9 * end.f[w, 2].mean()
     assert mean.info["contact"]["force_readout"] == "contact impulse over the control period / the period"

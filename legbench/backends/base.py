@@ -45,6 +45,8 @@ INFO_KEYS = {
     "0) raises that point by that fraction of the penetration y, where an engine's own contact acts above the "
     "sphere's lowest point (0.5: halfway between the two surfaces; 1: on the ground plane), its 'Kp' the normal "
     "stiffness [N/m], null for rigid contact (no stiffness declared)",
+    "friction_cone": "the native friction limit's shape as loaded, 'cone' or 'pyramid', where a setting chooses it "
+    "(default: the class's friction_cone); the sliding verification scores a pyramid by its own closed form",
     "max_step": "an adaptive solver's largest step [s] (a number)",
     "rtol": "an adaptive solver's relative tolerance (a number)",
     "atol": "an adaptive solver's absolute tolerance (a number)",

@@ -13,18 +13,18 @@ other backend enforces a joint speed, so with the limits enforced each DOF's
 velocity limits are set to +-inf (position limits kept).
 
 Native contact is DART's rigid contact: a ``ContactConstraint`` per contact
-point solved with the other constraints as a boxed LCP (``lcp_solver``:
-``dantzig``, DART's default, with PGS as its fallback; ``pgs`` alone; or the
-friction solvers dartpy 6.20 constructs, ``nsgs`` (``NsgsFrictionSolver``,
-Coulomb law: the friction bound is mu times the current normal impulse at
-every sweep) and ``fbf`` (``FbfFrictionSolver``), each with DART's PGS
-fallback kept), on
+point solved with the other constraints as a boxed LCP (``lcp_solver``: the
+friction solvers dartpy 6.20 constructs, ``nsgs`` (``NsgsFrictionSolver``, the
+matched profile's) and ``fbf`` (``FbfFrictionSolver``), each with DART's PGS
+fallback kept, bound |F_t| by mu times the current normal impulse, a cone;
+``dantzig``, DART's default (engine-defaults), with PGS as its fallback, and
+``pgs`` alone bound each friction direction on its own, a pyramid), on
 the collision detector ``collision_detector`` (``fcl`` default, ``dart``,
 ``bullet``, ``ode``). Rigid contact has no settable stiffness or damping: the spec's
 Kp and Kd do not apply (the foot sinks only by DART's fixed constraint regularisation,
 a relative CFM of 1e-5 and an error reduction of 0.01 capped at 1e-3 m/s, not settable
-from dartpy: 5e-10 m under 40 N at 0.05 ms; it reports no Kp y). Friction is a
-Coulomb pyramid with DART's combination rule mu = min(mu_foot, mu_ground): both shapes get mu_s; restitution 0. The foot
+from dartpy: 5e-10 m under 40 N at 0.05 ms; it reports no Kp y). Friction is
+Coulomb's with DART's combination rule mu = min(mu_foot, mu_ground): both shapes get mu_s; restitution 0. The foot
 sticks below mu_s Fn (no creep), unlike the spec's stick-slip law.
 
 Integration: DART's ``World.step`` is semi-implicit Euler (velocities from the
@@ -71,19 +71,30 @@ _CONSTRUCTED_LCP = {"nsgs": dart.constraint.NsgsFrictionSolver, "fbf": dart.cons
 GROUND_SIZE = (20.0, 20.0, 1.0)
 
 
+def friction_shape(lcp_solver: str) -> str:
+    """The friction limit's shape with the boxed LCP solver ``lcp_solver``: ``cone`` (NSGS, FBF: |F_t| <= mu Fn) or
+    ``pyramid`` (Dantzig, PGS: each friction direction on its own)."""
+    return "cone" if lcp_solver in _CONSTRUCTED_LCP else "pyramid"
+
+
 class DartBackend(Backend):
     """DART (dartpy; rigid boxed-LCP contact) simulating the leg."""
 
     name: ClassVar[str] = "dart"
     sliding_coefficient: ClassVar[str] = "mu_s"
-    #: DART's boxed LCP bounds each of the contact's two friction directions (W y and W x for the ground's
-    #: normal: ``ContactConstraint::getTangentBasisMatrixODE``) on its own: a friction pyramid. With the
-    #: default Dantzig solver the bound is mu times the normal impulse solved without friction (see
-    #: :meth:`known_deviation`); with ``lcp_solver: pgs`` it is mu Fn.
-    friction_cone: ClassVar[str] = "pyramid"
+    #: The friction limit's shape depends on ``lcp_solver`` (:func:`friction_shape`, recorded in :meth:`info`):
+    #: ``nsgs`` and ``fbf`` bound |F_t| by mu Fn, a cone (measured: a diagonal drag of 0.85 Fn slides at
+    #: |F_t| = 0.700 Fn); Dantzig and PGS bound each of the contact's two friction directions (W y and W x for the
+    #: ground's normal: ``ContactConstraint::getTangentBasisMatrixODE``) on its own, a pyramid (the same drag
+    #: holds, |F_t| = 0.846 Fn), Dantzig by mu times the normal impulse solved without friction (see
+    #: :meth:`known_deviation`). The class declares the matched profile's.
+    friction_cone: ClassVar[str] = "cone"
     defaults: ClassVar[Mapping[str, Any]] = {
         "dt": 5.0e-5,  # sub-step [s]: the Pinocchio default, so free space is the same scheme at the same step
-        "lcp_solver": "dantzig",  # boxed LCP solver ("dantzig" with PGS fallback, "pgs", or "nsgs"/"fbf")
+        # boxed LCP solver: "nsgs" (NsgsFrictionSolver: Coulomb's cone at mu Fn; DART's default Dantzig bounds the
+        # friction by the normal impulse solved without it, 0.83 Fn in the sliding case), "fbf", "dantzig" (with PGS
+        # fallback), "pgs"
+        "lcp_solver": "nsgs",
         "collision_detector": "fcl",  # one of _DETECTORS
         "enforce_limits": True,  # joint position limits as constraints (DART's URDF loader leaves them off)
         "split_impulse": False,  # DART's split-impulse position correction (off by default)
@@ -105,7 +116,7 @@ class DartBackend(Backend):
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "matched": {},
         # World() defaults: 1 ms step, Dantzig + PGS fallback, FCL, body sleeping on; URDF limits not enforced
-        "engine-defaults": {"dt": 1.0e-3, "enforce_limits": False, "deactivation": True},
+        "engine-defaults": {"dt": 1.0e-3, "lcp_solver": "dantzig", "enforce_limits": False, "deactivation": True},
     }
     install: ClassVar[str] = "pip install 'dartpy>=6.20,<7'"
 
@@ -117,8 +128,7 @@ class DartBackend(Backend):
                     "normal impulse solved before any friction row, not mu times the final normal force; on this "
                     "rigid contact the drag's W y then holds 0.83 Fn (mu_s 0.7) and the foot does not slide, so "
                     "its W x force is not the sliding pyramid's either "
-                    "(lcp_solver: pgs slides at 0.700 Fn, within 0.1 % of the closed form; "
-                    "docs/backends/dart.md)")  # fmt: skip
+                    "(lcp_solver: nsgs, the matched profile's, slides at 0.700 Fn; docs/backends/dart.md)")  # fmt: skip
         return None
 
     # ----------------------------------------------------------------- load
@@ -344,6 +354,7 @@ class DartBackend(Backend):
         return {
             "engine": "dart",
             "version": metadata.version("dartpy"),
+            "friction_cone": friction_shape(self.cfg["lcp_solver"]),
             **{k: self.cfg[k] for k in self.defaults},
             "sub_steps": self.n_sub,
             "timestep": world.getTimeStep(),
@@ -354,7 +365,7 @@ class DartBackend(Backend):
                 "enabled": not self.reference,
                 "poc": c.poc if self.reference else "true",  # rigid: the sphere's lowest point, on the ground
                 "lift": 0.0,
-                "model": "rigid (boxed LCP), Coulomb friction pyramid",
+                "model": f"rigid (boxed LCP), Coulomb friction {friction_shape(self.cfg['lcp_solver'])}",
                 "lcp_solver": solver.getBoxedLcpSolver().getType(),
                 "secondary_lcp_solver": (
                     solver.getSecondaryBoxedLcpSolver().getType() if solver.getSecondaryBoxedLcpSolver() else None

@@ -151,7 +151,7 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     n_window = len(k)
     # samples in contact only (an engine's foot may hop: the closed form is for sliding contact)
     k = k[tr.f[k, 2] > FN_MIN]
-    if cls.friction_cone == "pyramid" and len(k):
+    if str(tr.info.get("friction_cone", cls.friction_cone)) == "pyramid" and len(k):
         return _score_pyramid(tr, physics, cls, mu, v, k, n_window, lift)
     k = k[np.linalg.norm(v[k], axis=1) > 0.0]
     if len(k) == 0:
