@@ -63,7 +63,7 @@ from legbench.results import (
     stage_text,
     tolerances_of,
 )
-from legbench.signals import LABELS, SIGNAL_OF, UNITS, keyed
+from legbench.signals import JOINT_OF, LABELS, SIGNAL_OF, UNITS, keyed
 from legbench.signals import label as column_label
 from legbench.studies.executors import make_executor
 
@@ -304,7 +304,7 @@ def implicit_note(infos: Mapping[str, Mapping[str, Any]]) -> str:
     return (
         f"In reference contact mode the contact law, its implicit friction step included, is legbench's own code "
         f"(legbench/contact.py), and {_names(names)} (reference_friction: implicit) {verb} that step's M^-1 and "
-        "explicit acceleration from the leg's Pinocchio model (the same URDF), not from the engine: agreement in "
+        "explicit acceleration from legbench's own model of the leg (the same URDF), not from the engine: agreement in "
         "this mode, even to the same digits, is not independent evidence of the engines' dynamics in contact."
     )
 
@@ -368,8 +368,7 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
             text += "."
     contact = value.get((b, ref, s, j, "split_contact_pct"), nan)
     integ = value.get((b, ref, s, j, "split_integration_pct"), nan)
-    n_contact = [x for k, x in value.items() if k[4] == "residual_n_contact"]
-    airborne = bool(n_contact) and max(n_contact) == 0  # no contact: the split's contact part is 0 by construction
+    airborne = _airborne(df)  # no contact: the split's contact part is 0 by construction
     if top >= BANDS[0][0] and math.isfinite(contact) and math.isfinite(integ) and not airborne:
         split = f"contact-mode split: contact {num(contact, 3)} %, integration {num(integ, 3)} %"
         if max(contact, integ) >= MOSTLY * min(contact, integ):
@@ -381,9 +380,8 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
         text += " The foot never touches the ground, so what differs is integration and dynamics."
     elif meta.get("contact_mode") == "reference":
         text += " Every engine runs the same contact law here, so what differs is integration and dynamics."
-    free = bool(n_contact) and max(n_contact) == 0
-    if top >= BANDS[0][0] and (free or meta.get("contact_mode") == "reference"):  # the step error is what differs
-        text += _higher_order_note(meta, b, ref, "in free space" if free else "in reference contact mode")
+    if top >= BANDS[0][0] and (airborne or meta.get("contact_mode") == "reference"):  # the step error differs
+        text += _higher_order_note(meta, b, ref, "in free space" if airborne else "in reference contact mode")
     if top >= BANDS[0][0]:
         bound = max(others) if others else v
         beyond = {k: x for k, x in sim.items() if (k[2], k[3]) in small
@@ -492,20 +490,9 @@ def _pair_table(
 
 def _small_of(result: ComparisonResult) -> dict[int, tuple[float, float]]:
     """Column index -> (reference peak, its signal's largest) of the run's small-peak components
-    (:func:`small_peaks`), against the run's reference."""
-    peaks: dict[tuple[str, str], float] = {}
-    for p in result.pairs:
-        if p.reference == result.reference:
-            for i, x in enumerate(p.ref_peak):
-                if math.isfinite(float(x)):
-                    key = (SIGNAL_OF[i], LABELS[i][-1])
-                    peaks[key] = max(peaks.get(key, 0.0), float(x))
-    largest: dict[str, float] = {}
-    for (sig, _), x in peaks.items():
-        largest[sig] = max(largest.get(sig, 0.0), x)
-    return {i: (peaks[(SIGNAL_OF[i], LABELS[i][-1])], largest[SIGNAL_OF[i]]) for i in range(len(LABELS))
-            if (SIGNAL_OF[i], LABELS[i][-1]) in peaks
-            and peaks[(SIGNAL_OF[i], LABELS[i][-1])] < SMALL_PEAK * largest[SIGNAL_OF[i]]}  # fmt: skip
+    (:func:`small_peaks`, the one rule), against the run's reference."""
+    small = small_peaks(result.frame(), result.reference)
+    return {i: small[(SIGNAL_OF[i], JOINT_OF[i])] for i in range(len(LABELS)) if (SIGNAL_OF[i], JOINT_OF[i]) in small}
 
 
 def _at_time(m: float, t: float) -> str:
@@ -672,6 +659,13 @@ def _touches(df: pd.DataFrame) -> bool:
     """Some backend's foot touches the ground in the run (metric ``residual_n_contact`` > 0)."""
     n = df[df["metric"] == "residual_n_contact"]["value"]
     return bool(len(n)) and float(n.max()) > 0
+
+
+def _airborne(df: pd.DataFrame) -> bool:
+    """No backend's foot touches the ground (metric ``residual_n_contact`` recorded, and 0 for every backend). A run
+    whose run.json names no contact law has no residuals: it is not known to be airborne (its split is kept)."""
+    n = df[df["metric"] == "residual_n_contact"]["value"]
+    return bool(len(n)) and float(n.max()) == 0
 
 
 def _infos(run: Run) -> dict[str, Mapping[str, Any]]:
@@ -886,8 +880,9 @@ def _residual_table(result: ComparisonResult) -> Table:
         "each engine applies its force (run.json: contact.lift); n/a where no sample qualifies; n/a (rigid) for a "
         "backend whose contact reports no stiffness (run.json: contact.Kp null), which has no spring to compare. "
         "The first row gives what a backend following the law reads, and the tolerance: green within it, red "
-        "beyond (hover for the value against it); a friction pyramid (run.json: DART's and ODE's contact) is held "
-        "to its own bounds, |F_t| / (mu Fn) from 1 to sqrt(2) and the angle up to 45 deg; creep is not coloured "
+        "beyond (hover for the value against it); a backend whose native friction is a pyramid (marked "
+        "'(pyramid)': run.json's friction_cone, or its contact description) is held to its own bounds, "
+        "|F_t| / (mu Fn) from 1 to sqrt(2) and the angle up to 45 deg; creep is not coloured "
         "(a Coulomb engine sticks by design: read it beside the law's)",
         classes=classes,
         titles=titles,
@@ -951,12 +946,12 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
     b: list[Block] = [Nav(tuple(nav)), Heading(1, f"legbench comparison: {run_title(run)}")]
     if sc.get("description"):
         b.append(Para(str(sc["description"])))
-    doc = result.to_json()
-    b.append(Para(sentence(doc, result.frame())))
-    touches = any(r.n_contact for r in result.residuals.values())
-    if run.contact_mode == "reference" and touches and (shared := implicit_note(_infos(run))):
+    doc, df = result.to_json(), result.frame()
+    b.append(Para(sentence(doc, df)))
+    airborne = _airborne(df)  # the sentence's rule: without residuals (no contact law) not known to be
+    if run.contact_mode == "reference" and _touches(df) and (shared := implicit_note(_infos(run))):
         b.append(Para(shared))
-    if str(sc.get("profile", "matched")) != "matched" and result.residuals and not touches:
+    if str(sc.get("profile", "matched")) != "matched" and airborne:
         b.append(Para(_free_space_steps(result)))
     for n in result.notes:
         b.append(Para(n, warn=True))
@@ -1019,7 +1014,7 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
         if checks_note is not None:
             b.append(checks_note)
         b.append(_residual_table(result))
-    if result.split and touches:  # the foot in the air: no contact part to split off (it is 0 throughout)
+    if result.split and not airborne:  # the foot in the air: no contact part to split off (it is 0 throughout)
         b.append(
             Heading(2, f"Contact model vs integration (with {result.split_run.label if result.split_run else ''})")
         )
@@ -1548,10 +1543,9 @@ def _profile_blocks(entries: Sequence[_Entry]) -> list[Block]:
             "with Kp, Kd and mu set through its own parameters the way its users usually do (not always in the "
             "spec's units: an engine's parameter may be per unit of constraint mass), a few choices the engine "
             "leaves open made by legbench, and some model settings held in both profiles that are not the engine's "
-            'defaults (e.g. MuJoCo\'s compiler option fusestatic="false", which sets the constraint mass its raw '
-            "solref is per unit of, and its stiff joint limits; Bullet's link damping and joint-speed clamp off): "
-            "docs/contact_mapping.md lists them, and the units, per engine, and each run's settings table shows "
-            "them. "
+            "defaults (a compiler option that sets the constraint mass a raw contact parameter is per unit of, stiff "
+            "joint limits, link damping and a joint-speed clamp left off): docs/contact_mapping.md lists them, and "
+            "the units, per engine, and each run's settings table shows them. "
             "A difference between the two columns is the settings', not the engine's." + same
         ),
         Table(

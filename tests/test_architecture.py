@@ -201,6 +201,32 @@ def test_no_engine_named_outside_the_backends(name: str) -> None:
     assert engine_names(name) == []
 
 
+#: Modules whose text goes into reports and comparisons: no engine is named in any string of their code, prose
+#: included (an engine's specifics belong to its backend class; their docstrings may name one).
+ENGINE_FREE_TEXT = ("legbench.compare", "legbench.report", "legbench.results")
+
+
+def engine_words(name: str, text: str | None = None) -> list[str]:
+    """Strings in the code of ``name`` (docstrings aside) with a built-in backend's name (or Bullet's) as a word."""
+    words = re.compile(r"\b(" + "|".join(sorted({*backends.BUILTIN, "bullet"})) + r")\b", re.IGNORECASE)
+    tree = ast.parse(source(name) if text is None else text)
+    docstrings = _docstring_nodes(tree)
+    return [
+        f"{MODULES[name].relative_to(ROOT)}:{node.lineno} names {m.group(0)!r}: {node.value[:80]!r}"
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings
+        and (m := words.search(node.value))
+    ]  # fmt: skip
+
+
+@pytest.mark.parametrize("name", ENGINE_FREE_TEXT)
+def test_no_engine_named_in_report_text(name: str) -> None:
+    """report.py's text named engines in code (a residuals caption calling DART's contact a pyramid after DART's
+    matched profile took a friction cone; MuJoCo's and Bullet's model settings in the profiles paragraph; the
+    reference model as Pinocchio's): the string test above catches only a string that is a backend's name."""
+    assert engine_words(name) == []
+
+
 @pytest.mark.parametrize("name", sorted(MODULES))
 def test_no_private_name_crosses_modules(name: str) -> None:
     for imp in imports_of(name):
@@ -219,3 +245,5 @@ def test_the_checks_can_fail() -> None:
     assert len(engine_imports("legbench.model", "import pinocchio as pin\n")) == 0
     assert len(engine_names("legbench.metrics", 'REF = "mujoco"\n')) == 1
     assert len(engine_names("legbench.scenario", 'DEFAULT_REFERENCE = "pinocchio"\n')) == 0
+    assert len(engine_words("legbench.report", "X = \"a pyramid (DART's and ODE's contact)\"\n")) == 1
+    assert len(engine_words("legbench.report", 'def f():\n    """MuJoCo\'s docs may."""\n')) == 0

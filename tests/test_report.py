@@ -1332,7 +1332,7 @@ def test_reference_mode_pages_say_the_implicit_friction_step_is_legbench_s_own(t
     said = (
         "In reference contact mode the contact law, its implicit friction step included, is legbench's own code "
         "(legbench/contact.py), and a (reference_friction: implicit) takes that step's M^-1 and explicit "
-        "acceleration from the leg's Pinocchio model (the same URDF), not from the engine: agreement in this "
+        "acceleration from legbench's own model of the leg (the same URDF), not from the engine: agreement in this "
         "mode, even to the same digits, is not independent evidence of the engines' dynamics in contact."
     )
     assert said in (ref / "report.md").read_text()
@@ -1425,6 +1425,23 @@ def test_a_task_that_never_touches_the_ground_gets_no_contact_mode_split(tmp_pat
         assert ("The foot never touches the ground" in text) == (not touches), text
         md = R.write_report(root / "fake", res).markdown.read_text()
         assert ("Contact model vs integration" in md) == touches
+
+
+def test_a_run_without_a_contact_law_keeps_its_contact_mode_split(tmp_path: Path) -> None:
+    """The split tables were left out wherever the page found no residual with a contact sample, which includes a
+    run whose run.json names no contact law (no residuals at all): the sentence still gave "contact-mode split:
+    contact 9.55 %, ..." and the page had no split to read it in. A foot not known to be in the air keeps the split
+    (the sentence's rule, residual_n_contact recorded and 0)."""
+    root = tmp_path / "nolaw"
+    write_run(root / "fake", {"ref": None, "a": offset(0.04)})
+    write_run(root / "fake__reference", {"ref": None, "a": offset(0.01)}, contact_mode="reference")
+    for label in ("fake", "fake__reference"):
+        meta = json.loads((root / label / "run.json").read_text())
+        del meta["scenario"]["contact"]
+        (root / label / "run.json").write_text(json.dumps(meta))
+    res = compare(root / "fake")
+    assert not res.residuals and "contact-mode split" in R.sentence(res.to_json(), res.frame())
+    assert "Contact model vs integration" in R.write_report(root / "fake", res).markdown.read_text()
 
 
 def test_a_free_space_engine_defaults_page_says_the_profile_changes_the_step(tmp_path: Path) -> None:
