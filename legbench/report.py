@@ -238,8 +238,9 @@ def time_text(t: float) -> str:
 
 #: How long after an onset [s] a largest deviation is that onset's transient: the foot's first contact, or a
 #: controller switch with the reference's foot already in contact (the combined task's push at 2 s). The effort
-#: task's reference friction peaks 6 ms after touch-down (fx 16.8 N, three times its steady 5.6 N) and is at
-#: 5.5 N by 10 ms; the engines' largest force deviations fall at 4-7 ms (at 5 ms of the push in the combined task).
+#: task's reference friction peaks at t = 0.006 s, 5 ms after its first sample in contact (fx 16.8 N, three times
+#: its steady 5.6 N), and is at 5.5 N by t = 0.010 s; the engines' largest force deviations fall at 4-7 ms (at 5 ms
+#: of the push in the combined task).
 ONSET = 0.010
 
 
