@@ -1669,12 +1669,11 @@ def _study_blocks(root: Path) -> list[Block]:
         na = [i for i, st in enumerate(status) if st == "not-applicable"]
         profile = str(doc.get("profile") or "matched")  # older files: legbench verify's one profile, matched
         blocks.append(Heading(2, f"{heading}, {profile} profile: {checks_summary(status)}"))
+        scope = f" ({doc['scope']})" if isinstance(doc.get("scope"), str) else ""  # older files: none
         blocks.append(Para(
-            f"legbench verify runs every check with each backend's {profile} profile settings (the case scenario's "
-            "backend settings over them; the variant column names the integrator and step: the energy case once per "
-            "integrator a backend offers, the small oscillation also with RK4 where offered, the sliding drag in "
-            "native contact). The other profile's settings are not verified here. Hover a row's tolerance or "
-            "pass cell for how its tolerance is derived and the row's note (legbench/studies/verify.py)."
+            f"legbench verify runs every check with each backend's {profile} profile settings{scope}. The other "
+            "profile's settings are not verified here. Hover a row's tolerance or pass cell for how its tolerance is "
+            "derived and the row's note (legbench/studies/verify.py)."
         ))  # fmt: skip
         for which, title, cls in ((failed, "Failing checks", "fail"), (na, "Not applicable: no closed form for this "
                                   "engine's integrator or friction model (the note says which)", "na")):  # fmt: skip

@@ -1355,10 +1355,13 @@ def test_the_verification_says_which_profile_it_checks_and_each_row_s_tolerance_
     (root / "verification").mkdir()
     checks = [{**_check("energy", True), "note": "euler x20: predicted E(t) - E(0)"}, _check("static_balance", True)]
     basis = {"energy": "how energy's is derived", "static_balance": "how the balance's is derived"}
-    (root / "verification" / "verification.json").write_text(json.dumps({"checks": checks, "tolerance_basis": basis}))
+    doc = {"checks": checks, "tolerance_basis": basis, "scope": "what verify says it runs"}
+    (root / "verification" / "verification.json").write_text(json.dumps(doc))
     md = R.write_index(root).markdown.read_text()
     assert "## Verification against closed-form answers, matched profile: 2 of 2 checks pass\n" in md
-    assert "legbench verify runs every check with each backend's matched profile settings" in md
+    assert (
+        "legbench verify runs every check with each backend's matched profile settings (what verify says it runs)" in md
+    )
     page = html.unescape((root / "report.html").read_text())
     energy = 'title="tolerance: how energy\'s is derived; this row: euler x20: predicted E(t) - E(0)">'
     assert page.count(energy) == 2  # tolerance and pass cells of the passing row

@@ -124,7 +124,7 @@ from legbench.results import (
 from legbench.run import backend_rates, simulate
 from legbench.scenario import physics_of
 from legbench.studies.executors import DEFAULT_PRELOAD, make_executor
-from legbench.studies.sliding_case import WINDOW, applies_law, sliding_case
+from legbench.studies.sliding_case import TOL_ACC, TOL_ANGLE, TOL_MU, WINDOW, applies_law, sliding_case
 
 __all__ = [
     "CASES",
@@ -156,27 +156,6 @@ STATUSES = ("pass", "fail", "not-applicable")
 #: How a backend without an ``integrator`` setting is named in the variant column, by its family.
 FAMILY_TEXT = {"euler": "semi-implicit euler", "implicit": "implicit euler", "rk4": "rk4", "adaptive": "adaptive",
                "first-order": "first order", "other": "other"}  # fmt: skip
-#: The profile every backend is loaded in (the case scenario's backend settings over it; the energy case once per
-#: integrator a backend offers, the small oscillation also with RK4): the checks verify the matched settings, not
-#: the engine-defaults ones. Recorded in verification.json (``profile``).
-VERIFY_PROFILE = "matched"
-#: How each case's tolerance is derived, in one line (the module docstring has the derivation; each row's note its
-#: own terms and numbers). Recorded in verification.json (``tolerance_basis``), which the report shows on hover.
-TOLERANCE_BASIS = {
-    "energy": "a first-order step with a closed form: max |predicted drift| x (h W + (Ts W)^2), the O(h^2) remainder "
-    "and the 1 ms log's trapezoid sum, + round-off 4 sqrt(n) eps |E|; a first-order step without one: the drift at h "
-    "less twice the drift at h/2 within 5 % of the drift (Richardson); RK4: (h W)^4 W T_end max T + round-off; "
-    "adaptive: (h W)^5 W T_end max T at h = max_step + round-off",
-    "rest_penetration": "0.1 % of y (the contact solver) + Kd max |ydot| / Kp (the damping force of the residual "
-    "motion); a rigid contact: y = 0 to the same tolerance",
-    "static_balance": "the dynamic terms left in the window |(J_poc^T)^-1 (M qdd + C qd)| + the held torque's step, "
-    "+ 0.1 % of |F| for an engine's contact solver (a law backend: round-off 8 eps, and the law's slopes times one "
-    "solver step's state error if adaptive), + the lever |(J_poc^T)^-1| y |F_t| where an engine declares no point",
-    "small_oscillation": "0.5 % of |s| per pole (the pencil fit of three close, heavily damped modes); a "
-    "first-order step of unknown form: + h |s|",
-    "sliding": "friction |F_t| / Fn within 1 % of mu, its angle to -slip within 1 deg, the slip acceleration within "
-    "2 % of the closed form M^-1 (tau - nle + J_poc^T F)",
-}
 #: Relative tolerance on each closed-loop pole (module docstring).
 POLE_RTOL = 5e-3
 #: Share of the quantity the engines' contact solvers may miss by (rest and balance checks).
@@ -186,6 +165,32 @@ SOLVER_RTOL = 1e-3
 #: that does not vanish with h leaves about the whole drift (a per-step velocity damping of 2e-8: 190 %).
 FIRST_ORDER_REMAINDER = 0.05
 EPS = float(np.finfo(float).eps)
+#: The profile every backend is loaded in (the case scenario's backend settings over it): the checks verify the
+#: matched settings, not the engine-defaults ones. Recorded in verification.json (``profile``).
+VERIFY_PROFILE = "matched"
+#: What runs, in one sentence (the report shows it beside the profile). Recorded in verification.json (``scope``).
+SCOPE = ("the case scenario's backend settings over the profile's; the variant column names the integrator and step: "
+         "the energy case once per integrator a backend offers, the small oscillation also with RK4 where offered, "
+         "the sliding drag in native contact")  # fmt: skip
+#: How each case's tolerance is derived, in one line (the module docstring has the derivation; each row's note its
+#: own terms and numbers). Recorded in verification.json (``tolerance_basis``), which the report shows on hover.
+TOLERANCE_BASIS = {
+    "energy": "a first-order step with a closed form: max |predicted drift| x (h W + (Ts W)^2), the O(h^2) "
+    "remainder and the 1 ms log's trapezoid sum, + round-off 4 sqrt(n) eps |E|; a first-order step without one: "
+    f"the drift at h less twice the drift at h/2 within {FIRST_ORDER_REMAINDER * 100:g} % of the drift "
+    "(Richardson); RK4: (h W)^4 W T_end max T + round-off; adaptive: (h W)^5 W T_end max T at h = max_step + "
+    "round-off",
+    "rest_penetration": f"{SOLVER_RTOL * 100:g} % of y (the contact solver) + Kd max |ydot| / Kp (the damping "
+    "force of the residual motion); a rigid contact: y = 0 to the same tolerance",
+    "static_balance": "the dynamic terms left in the window |(J_poc^T)^-1 (M qdd + C qd)| + the held torque's step, "
+    f"+ {SOLVER_RTOL * 100:g} % of |F| for an engine's contact solver (a law backend: round-off 8 eps, and the "
+    "law's slopes times one solver step's state error if adaptive), + the lever |(J_poc^T)^-1| y |F_t| where an "
+    "engine declares no point",
+    "small_oscillation": f"{POLE_RTOL * 100:g} % of |s| per pole (the pencil fit of three close, heavily damped "
+    "modes); a first-order step of unknown form: + h |s|",
+    "sliding": f"friction |F_t| / Fn within {TOL_MU * 100:g} % of mu, its angle to -slip within {TOL_ANGLE:g} deg, "
+    f"the slip acceleration within {TOL_ACC * 100:g} % of the closed form M^-1 (tau - nle + J_poc^T F)",
+}
 
 
 @dataclass(frozen=True)
@@ -774,9 +779,8 @@ def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
     passed = int(df["pass"].sum())
     na = int((df["status"] == "not-applicable").sum())
     meta = {"schema": "legbench.verification/1", "passed": passed, "total": len(df), "not_applicable": na,
-            "profile": VERIFY_PROFILE, "tolerance_basis": TOLERANCE_BASIS, "checks": df.to_dict(orient="records"),
-            "versions": versions(),
-            "platform": platform_info()}  # fmt: skip
+            "profile": VERIFY_PROFILE, "scope": SCOPE, "tolerance_basis": TOLERANCE_BASIS,
+            "checks": df.to_dict(orient="records"), "versions": versions(), "platform": platform_info()}  # fmt: skip
     write_json(meta, out_dir / "verification.json")
     md = [f"# Verification: {checks_summary(list(df['status']))}\n",
           "Cases and tolerances: `legbench/studies/verify.py`. Every backend runs in its "
