@@ -791,33 +791,40 @@ RESIDUAL_EXPECTED: dict[str, tuple[float, float]] = {
     "friction_ratio": (1.0, 0.01),
     "angle_max": (0.0, 10.0),
 }
-#: A friction pyramid's own bounds (each tangent axis limited by mu Fn on its own): while sliding |F_t| / (mu Fn)
-#: is between 1 (along an axis) and sqrt(2) (on the diagonal), and F_t is within 45 deg of -v.
-PYRAMID_RATIO = (1.0, math.sqrt(2.0))
-PYRAMID_ANGLE = 45.0
+#: A non-conic friction limit's own bounds while sliding: |F_t| / (mu Fn) from, to, and the largest angle [deg]
+#: between F_t and -v. A pyramid (each tangent axis limited by mu Fn on its own): 1 along an axis to sqrt(2) on the
+#: diagonal; a diamond (|F_t1| + |F_t2| <= mu Fn): 1/sqrt(2) on the diagonal to 1 along an axis; either holds its
+#: force at a vertex over a 90 deg fan of slip directions, so within 45 deg of -v.
+SHAPE_BOUNDS: dict[str, tuple[float, float, float]] = {
+    "pyramid": (1.0, math.sqrt(2.0), 45.0),
+    "diamond": (1.0 / math.sqrt(2.0), 1.0, 45.0),
+}
 
 
-def pyramid(info: Mapping[str, Any]) -> bool:
-    """The backend's native friction is a pyramid: its run.json info's ``friction_cone`` (the backend's declared
-    :attr:`~legbench.backends.base.Backend.friction_cone`, where recorded), else its contact description says so
-    (DART's ``contact.model``, ODE's ``contact.friction``: "... friction pyramid")."""
+def friction_shape(info: Mapping[str, Any]) -> str:
+    """The backend's native friction limit: its run.json info's ``friction_cone`` (``cone``, ``pyramid``,
+    ``diamond``; :data:`~legbench.backends.base.INFO_KEYS`), else ``pyramid`` where its contact description says
+    so (a run written before the key: "... friction pyramid"), else ``cone``."""
     if info.get("friction_cone"):
-        return str(info["friction_cone"]) == "pyramid"
+        return str(info["friction_cone"])
     contact = info.get("contact")
-    return isinstance(contact, Mapping) and any(isinstance(v, str) and "pyramid" in v for v in contact.values())
+    said = isinstance(contact, Mapping) and any(isinstance(v, str) and "pyramid" in v for v in contact.values())
+    return "pyramid" if said else "cone"
 
 
-def _residual_marks(value: float, column: str, pyr: bool) -> tuple[str, str]:
-    """(CSS class, why) of one contact-law residual against :data:`RESIDUAL_EXPECTED` (a pyramid's own bounds for
-    its friction columns): ``pass`` within the tolerance, ``fail`` beyond it; nothing for n/a."""
+def _residual_marks(value: float, column: str, shape: str = "cone") -> tuple[str, str]:
+    """(CSS class, why) of one contact-law residual against :data:`RESIDUAL_EXPECTED` (a non-conic friction
+    limit's own bounds, :data:`SHAPE_BOUNDS`, for its friction columns): ``pass`` within the tolerance, ``fail``
+    beyond it; nothing for n/a."""
     if not math.isfinite(value):
         return "", ""
     expected, tol = RESIDUAL_EXPECTED[column]
-    if pyr and column == "friction_ratio":
-        lo, hi = PYRAMID_RATIO[0] - tol, PYRAMID_RATIO[1] + tol
-        ok, what = lo <= value <= hi, f"a friction pyramid's own bound: 1 to sqrt(2) = {num(PYRAMID_RATIO[1])}"
-    elif pyr and column == "angle_max":
-        ok, what = value <= PYRAMID_ANGLE + tol, f"a friction pyramid's own bound: <= {num(PYRAMID_ANGLE)} deg"
+    bounds = SHAPE_BOUNDS.get(shape)
+    if bounds is not None and column == "friction_ratio":
+        ok = bounds[0] - tol <= value <= bounds[1] + tol
+        what = f"a friction {shape}'s own bound: {num(bounds[0], 3)} to {num(bounds[1], 3)}"
+    elif bounds is not None and column == "angle_max":
+        ok, what = value <= bounds[2] + tol, f"a friction {shape}'s own bound: <= {num(bounds[2])} deg"
     else:
         ok, what = abs(value - expected) <= tol, f"expected {num(expected)}"
     return ("pass", f"{num(value)}: within the tolerance {num(tol)} of {what}") if ok else (
@@ -831,16 +838,19 @@ def _residual_table(result: ComparisonResult) -> Table:
     bounds = {c: f"{num(e)} +- {num(t)}" for c, (e, t) in RESIDUAL_EXPECTED.items()}
     rows.append(
         ("expected (tolerance)", "", f"{bounds['penetration_max_mm']} mm", bounds["penetration_rel"], "",
-         f"{bounds['friction_ratio']} (pyramid: 1 to {num(PYRAMID_RATIO[1])})",
-         f"{bounds['angle_max']} (pyramid: <= {num(PYRAMID_ANGLE)})", "", "the law's creep", "")
+         f"{bounds['friction_ratio']} (" + "; ".join(f"{k}: {num(lo, 3)} to {num(hi, 3)}"
+                                                     for k, (lo, hi, _) in SHAPE_BOUNDS.items()) + ")",
+         f"{bounds['angle_max']} (" + "; ".join(f"{k}: <= {num(a)}" for k, (_, _, a) in SHAPE_BOUNDS.items()) + ")",
+         "", "the law's creep", "")
     )  # fmt: skip
     for name, r in result.residuals.items():
         rigid = _rigid(result, name)
         b = result.run.backends.get(name)
-        pyr = b is not None and result.run.contact_mode == "native" and pyramid(b.info)  # reference mode: the law
+        # in reference mode every backend applies the law (a cone)
+        shape = friction_shape(b.info) if b is not None and result.run.contact_mode == "native" else "cone"
         rows.append(
             (
-                f"{name} (pyramid)" if pyr else name,
+                f"{name} ({shape})" if shape in SHAPE_BOUNDS else name,
                 str(r.n_contact),
                 "n/a (rigid)" if rigid else num(r.penetration_max * 1e3),
                 "n/a (rigid)" if rigid else num(r.penetration_rel),
@@ -856,7 +866,7 @@ def _residual_table(result: ComparisonResult) -> Table:
         if not rigid:
             marks |= {2: ("penetration_max_mm", r.penetration_max * 1e3), 3: ("penetration_rel", r.penetration_rel)}
         for c, (column, value) in marks.items():
-            cls, why = _residual_marks(float(value), column, pyr)
+            cls, why = _residual_marks(float(value), column, shape)
             if cls:
                 classes[(len(rows) - 1, c)], titles[(len(rows) - 1, c)] = cls, why
     return Table(
@@ -881,9 +891,10 @@ def _residual_table(result: ComparisonResult) -> Table:
         "each engine applies its force (run.json: contact.lift); n/a where no sample qualifies; n/a (rigid) for a "
         "backend whose contact reports no stiffness (run.json: contact.Kp null), which has no spring to compare. "
         "The first row gives what a backend following the law reads, and the tolerance: green within it, red "
-        "beyond (hover for the value against it); a backend whose native friction is a pyramid (marked "
-        "'(pyramid)': run.json's friction_cone, or its contact description) is held to its own bounds, "
-        "|F_t| / (mu Fn) from 1 to sqrt(2) and the angle up to 45 deg; creep is not coloured "
+        "beyond (hover for the value against it); a backend whose native friction is not a cone (marked "
+        "'(pyramid)', each tangent axis limited on its own, or '(diamond)', |F_t1| + |F_t2| <= mu Fn: run.json's "
+        "friction_cone, or its contact description) is held to its own bounds, |F_t| / (mu Fn) from 1 to sqrt(2) "
+        "or from 1/sqrt(2) to 1, and the angle up to 45 deg; creep is not coloured "
         "(a Coulomb engine sticks by design: read it beside the law's)",
         classes=classes,
         titles=titles,

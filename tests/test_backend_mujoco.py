@@ -229,3 +229,22 @@ def test_info_lists_only_settings_that_acted_and_the_compiler_options() -> None:
             assert m.body("foot").id != m.body("link3").id  # the foot not fused, as the info says
         finally:
             backend.close()
+
+
+def test_the_pyramidal_cone_is_recorded_as_the_diamond_it_is() -> None:
+    """MuJoCo's pyramidal cone has the edges n +- mu t_i (engine_core_constraint.c), so it bounds |F_t1| + |F_t2| by
+    mu Fn: a diamond, not the axis-by-axis pyramid of ODE's and DART's Dantzig (whose bounds the report held it to,
+    when it held it to any). Dragged along W y with 0.8 Fn (mu 0.7), it slides with |F_x| + |F_y| = 0.700 Fn and
+    |F_t| = 0.608 Fn (a cone: 0.700 Fn); info() records 'diamond', and 'cone' for the elliptic cone."""
+    from legbench.studies import sliding_case as S
+
+    for cone, shape in (("pyramidal", "diamond"), ("elliptic", "cone")):
+        tr, _ = S.drag("mujoco", settings={"cone": cone, "friction_solref": "contact"})
+        assert tr.info["friction_cone"] == shape
+        k = (tr.t >= S.WINDOW[0]) & (tr.t <= S.WINDOW[1]) & (tr.f[:, 2] > S.FN_MIN)
+        f = tr.f[k]
+        l1, l2 = (np.abs(f[:, 0]) + np.abs(f[:, 1])) / f[:, 2], np.hypot(f[:, 0], f[:, 1]) / f[:, 2]
+        if shape == "diamond":
+            assert abs(l1.mean() - 0.7) < 2e-3 and l2.mean() < 0.65, (l1.mean(), l2.mean())
+        else:
+            assert abs(l2.mean() - 0.7) < 2e-3, l2.mean()

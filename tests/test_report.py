@@ -1485,21 +1485,27 @@ def test_contact_residuals_show_what_the_law_expects_and_colour_what_departs_fro
     row gives the expected value and tolerance per column, a cell beyond it is red and one within green (hover: the
     value against it); a friction pyramid (DART's, ODE's contact, as run.json describes it) is held to its own
     bounds, 1 to sqrt(2) in ratio and 45 deg in angle (ODE matched: 1.053 and 23.7 deg pass)."""
-    assert R._residual_marks(171.8, "angle_max", pyr=True)[0] == "fail"
-    assert R._residual_marks(0.7565, "friction_ratio", pyr=False)[0] == "fail"
-    assert R._residual_marks(1.053, "friction_ratio", pyr=True)[0] == "pass"
-    assert R._residual_marks(23.67, "angle_max", pyr=True)[0] == "pass"
-    assert R._residual_marks(23.67, "angle_max", pyr=False)[0] == "fail"
-    assert R._residual_marks(0.7403, "penetration_max_mm", pyr=False)[0] == "fail"  # Drake matched: 0.74 mm
-    assert R._residual_marks(0.01375, "penetration_max_mm", pyr=True)[0] == "pass"  # ODE matched
-    assert R._residual_marks(math.nan, "angle_max", pyr=False) == ("", "")
-    assert R.pyramid({"contact": {"friction": "pyramid (dContactApprox1: bound mu x normal force per tangent)"}})
-    assert R.pyramid({"friction_cone": "pyramid"}) and not R.pyramid({"contact": {"cone": "mjCONE_ELLIPTIC"}})
+    assert R._residual_marks(171.8, "angle_max", "pyramid")[0] == "fail"
+    assert R._residual_marks(0.7565, "friction_ratio", "cone")[0] == "fail"
+    assert R._residual_marks(1.053, "friction_ratio", "pyramid")[0] == "pass"
+    assert R._residual_marks(23.67, "angle_max", "pyramid")[0] == "pass"
+    assert R._residual_marks(23.67, "angle_max", "cone")[0] == "fail"
+    assert R._residual_marks(0.7403, "penetration_max_mm", "cone")[0] == "fail"  # Drake matched: 0.74 mm
+    assert R._residual_marks(0.01375, "penetration_max_mm", "pyramid")[0] == "pass"  # ODE matched
+    assert R._residual_marks(math.nan, "angle_max", "cone") == ("", "")
+    # a diamond (|F_t1| + |F_t2| <= mu Fn) slides at 1/sqrt(2) to 1 of mu Fn: 0.869 passes, 1.2 (a pyramid's) fails
+    assert R._residual_marks(0.869, "friction_ratio", "diamond")[0] == "pass"
+    assert R._residual_marks(1.2, "friction_ratio", "diamond")[0] == "fail"
+    assert R._residual_marks(1.2, "friction_ratio", "pyramid")[0] == "pass"
+    ode_said = {"contact": {"friction": "pyramid (dContactApprox1: bound mu x normal force per tangent)"}}
+    assert R.friction_shape(ode_said) == "pyramid"
+    assert R.friction_shape({"friction_cone": "diamond", "contact": {"friction": "pyramid"}}) == "diamond"
+    assert R.friction_shape({"contact": {"cone": "mjCONE_ELLIPTIC"}}) == "cone"
     d = write_run(tmp_path / "one", {"ref": None, "a": scale(1.01)})
     _declare(d, {"a": {"contact": {"friction": "pyramid (bound mu x normal force per tangent direction)"}}})
     md = R.write_report(d).markdown.read_text()
-    assert ("| expected (tolerance) |  | 0 +- 0.05 mm | 0 +- 0.01 |  | 1 +- 0.01 (pyramid: 1 to 1.414) | 0 +- 10 "
-            "(pyramid: <= 45) |  | the law's creep |  |") in md  # fmt: skip
+    assert ("| expected (tolerance) |  | 0 +- 0.05 mm | 0 +- 0.01 |  | 1 +- 0.01 (pyramid: 1 to 1.41; diamond: 0.707 "
+            "to 1) | 0 +- 10 (pyramid: <= 45; diamond: <= 45) |  | the law's creep |  |") in md  # fmt: skip
     assert "\n| a (pyramid) | " in md and "\n| ref | " in md
     page = (d / "report.html").read_text()
     assert re.search(r'<td class="(pass|fail)" title="[^"]*(within the tolerance|departs from)', page)

@@ -45,8 +45,10 @@ INFO_KEYS = {
     "0) raises that point by that fraction of the penetration y, where an engine's own contact acts above the "
     "sphere's lowest point (0.5: halfway between the two surfaces; 1: on the ground plane), its 'Kp' the normal "
     "stiffness [N/m], null for rigid contact (no stiffness declared)",
-    "friction_cone": "the native friction limit's shape as loaded, 'cone' or 'pyramid', where a setting chooses it "
-    "(default: the class's friction_cone); the sliding verification scores a pyramid by its own closed form",
+    "friction_cone": "the native friction limit's shape as loaded, where a setting chooses it (default: the class's "
+    "friction_cone): 'cone' (|F_t| <= mu Fn), 'pyramid' (each tangent axis on its own, |F_ti| <= mu Fn) or 'diamond' "
+    "(|F_t1| + |F_t2| <= mu Fn: a pyramid whose edges are n +- mu t_i); the sliding verification scores a pyramid by "
+    "its own closed form, the report's residuals hold each shape to its own bounds",
     "max_step": "an adaptive solver's largest step [s] (a number)",
     "rtol": "an adaptive solver's relative tolerance (a number)",
     "atol": "an adaptive solver's absolute tolerance (a number)",
@@ -250,8 +252,10 @@ class Backend(ABC):
     #: stick-slip law, ``mu_s`` for an engine whose friction has a single (Coulomb) coefficient.
     sliding_coefficient: ClassVar[str] = "mu_k"
     #: The shape of the native friction limit: ``cone`` (isotropic, |F_t| <= mu Fn, what the law and
-    #: the sliding verification's closed form assume) or ``pyramid`` (each tangent axis of the contact
-    #: frame limited on its own, so |F_t| reaches sqrt(2) mu Fn on the diagonal).
+    #: the sliding verification's closed form assume), ``pyramid`` (each tangent axis of the contact
+    #: frame limited on its own, so |F_t| reaches sqrt(2) mu Fn on the diagonal) or ``diamond``
+    #: (|F_t1| + |F_t2| <= mu Fn, so |F_t| is mu Fn / sqrt(2) on the diagonal). Where a setting chooses it, info()
+    #: records the one loaded (``friction_cone``, :data:`INFO_KEYS`).
     friction_cone: ClassVar[str] = "cone"
     #: One command that installs the engine where it is missing (shown by the registry).
     install: ClassVar[str] = ""

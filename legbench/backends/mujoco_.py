@@ -532,6 +532,9 @@ class MujocoBackend(Backend):
             # MuJoCo's URDF compiler options as loaded (COMPILER): fusestatic="false" is not MuJoCo's URDF default
             # ("true"), and the engine-defaults profile's raw solref depends on it (docs/contact_mapping.md)
             "compiler": {**self.compiler, "urdf_default_fusestatic": "true"},
+            # the pyramidal cone's edges are n +- mu t_i (engine_core_constraint.c), so |F_t1| + |F_t2| <= mu Fn:
+            # dragged along W y it slides with |F_x| + |F_y| = 0.700 Fn, |F_t| = 0.608 Fn (measured, mu 0.7)
+            "friction_cone": "cone" if self.cfg["cone"] == "elliptic" else "diamond",
             "sub_steps": self.n_sub,
             "timestep": float(m.opt.timestep),
             "gravity": self.physics.gravity,
