@@ -822,13 +822,24 @@ def _residual_marks(value: float, column: str, shape: str = "cone") -> tuple[str
     bounds = SHAPE_BOUNDS.get(shape)
     if bounds is not None and column == "friction_ratio":
         ok = bounds[0] - tol <= value <= bounds[1] + tol
-        what = f"a friction {shape}'s own bound: {num(bounds[0], 3)} to {num(bounds[1], 3)}"
+        what = f"a friction {shape}'s own bounds, {num(bounds[0])} to {num(bounds[1])}"
     elif bounds is not None and column == "angle_max":
-        ok, what = value <= bounds[2] + tol, f"a friction {shape}'s own bound: <= {num(bounds[2])} deg"
+        ok, what = value <= bounds[2] + tol, f"a friction {shape}'s own bound, <= {num(bounds[2])} deg"
     else:
         ok, what = abs(value - expected) <= tol, f"expected {num(expected)}"
+    if bounds is not None and column in ("friction_ratio", "angle_max"):  # the shape's bounds, widened by tol
+        widened = f"{'+-' if column == 'friction_ratio' else '+'} the tolerance {num(tol)}"
+        return ("pass", f"{num(value)}: within {what}, {widened}") if ok else (
+            "fail", f"{num(value)}: beyond {what}, {widened}")  # fmt: skip
     return ("pass", f"{num(value)}: within the tolerance {num(tol)} of {what}") if ok else (
         "fail", f"{num(value)}: departs from {what} by more than the tolerance {num(tol)}")  # fmt: skip
+
+
+def _native_shape(result: ComparisonResult, name: str) -> str:
+    """The friction shape a backend's residuals are held to: its own (:func:`friction_shape`) in native contact;
+    in reference mode every backend applies the law, a cone."""
+    b = result.run.backends.get(name)
+    return friction_shape(b.info) if b is not None and result.run.contact_mode == "native" else "cone"
 
 
 def _residual_table(result: ComparisonResult) -> Table:
@@ -836,18 +847,24 @@ def _residual_table(result: ComparisonResult) -> Table:
     classes: dict[tuple[int, int], str] = {}
     titles: dict[tuple[int, int], str] = {}
     bounds = {c: f"{num(e)} +- {num(t)}" for c, (e, t) in RESIDUAL_EXPECTED.items()}
+    shapes = {name: _native_shape(result, name) for name in result.residuals}
+    # only the shapes some row has: a bound no backend on the page is held to reads as if one were
+    present = [k for k in SHAPE_BOUNDS if k in shapes.values()]
+
+    def also(text: Callable[[str], str]) -> str:
+        return f" ({'; '.join(f'{k}: {text(k)}' for k in present)})" if present else ""
+
+    ratio_tol, angle_tol = RESIDUAL_EXPECTED["friction_ratio"][1], RESIDUAL_EXPECTED["angle_max"][1]
     rows.append(
         ("expected (tolerance)", "", f"{bounds['penetration_max_mm']} mm", bounds["penetration_rel"], "",
-         f"{bounds['friction_ratio']} (" + "; ".join(f"{k}: {num(lo, 3)} to {num(hi, 3)}"
-                                                     for k, (lo, hi, _) in SHAPE_BOUNDS.items()) + ")",
-         f"{bounds['angle_max']} (" + "; ".join(f"{k}: <= {num(a)}" for k, (_, _, a) in SHAPE_BOUNDS.items()) + ")",
+         bounds["friction_ratio"] + also(lambda k: f"{num(SHAPE_BOUNDS[k][0])} to {num(SHAPE_BOUNDS[k][1])} "
+                                                   f"+- {num(ratio_tol)}"),
+         bounds["angle_max"] + also(lambda k: f"<= {num(SHAPE_BOUNDS[k][2])} + {num(angle_tol)}"),
          "", "the law's creep", "")
     )  # fmt: skip
     for name, r in result.residuals.items():
         rigid = _rigid(result, name)
-        b = result.run.backends.get(name)
-        # in reference mode every backend applies the law (a cone)
-        shape = friction_shape(b.info) if b is not None and result.run.contact_mode == "native" else "cone"
+        shape = shapes[name]
         rows.append(
             (
                 f"{name} ({shape})" if shape in SHAPE_BOUNDS else name,
@@ -894,7 +911,7 @@ def _residual_table(result: ComparisonResult) -> Table:
         "beyond (hover for the value against it); a backend whose native friction is not a cone (marked "
         "'(pyramid)', each tangent axis limited on its own, or '(diamond)', |F_t1| + |F_t2| <= mu Fn: run.json's "
         "friction_cone, or its contact description) is held to its own bounds, |F_t| / (mu Fn) from 1 to sqrt(2) "
-        "or from 1/sqrt(2) to 1, and the angle up to 45 deg; creep is not coloured "
+        "or from 1/sqrt(2) to 1, and the angle up to 45 deg, each widened by the tolerance; creep is not coloured "
         "(a Coulomb engine sticks by design: read it beside the law's)",
         classes=classes,
         titles=titles,
@@ -1692,7 +1709,11 @@ def _study_blocks(root: Path) -> list[Block]:
                 noted = tuple(rows[i] + (str(records[i].get("note", "")),) for i in which)
                 marks = {(k, last): cls for k in range(len(which))}
                 marks.update({(k, last + 1): "text" for k in range(len(which))})
-                blocks.append(Table((*cols, "note"), noted, title, classes=marks))
+                # the hover the paragraph promises, here too: the case's basis (the note has its own column)
+                hover = {(k, c): _tolerance_basis({"case": records[i].get("case")}, basis)
+                         for k, i in enumerate(which) for c in (tol, last)}  # fmt: skip
+                blocks.append(Table((*cols, "note"), noted, title, classes=marks,
+                                    titles={key: h for key, h in hover.items() if h}))  # fmt: skip
         table = Table(cols, rows, caption, classes=classes, titles=titles)
         blocks.append(Details(f"all {len(records)} checks", (table,), "fail" if failed else ""))
         blocks.append(Nav(((f"files in {link}", link),)))

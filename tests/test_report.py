@@ -1504,8 +1504,8 @@ def test_contact_residuals_show_what_the_law_expects_and_colour_what_departs_fro
     d = write_run(tmp_path / "one", {"ref": None, "a": scale(1.01)})
     _declare(d, {"a": {"contact": {"friction": "pyramid (bound mu x normal force per tangent direction)"}}})
     md = R.write_report(d).markdown.read_text()
-    assert ("| expected (tolerance) |  | 0 +- 0.05 mm | 0 +- 0.01 |  | 1 +- 0.01 (pyramid: 1 to 1.41; diamond: 0.707 "
-            "to 1) | 0 +- 10 (pyramid: <= 45; diamond: <= 45) |  | the law's creep |  |") in md  # fmt: skip
+    assert ("| expected (tolerance) |  | 0 +- 0.05 mm | 0 +- 0.01 |  | 1 +- 0.01 (pyramid: 1 to 1.414 +- 0.01) "
+            "| 0 +- 10 (pyramid: <= 45 + 10) |  | the law's creep |  |") in md  # fmt: skip
     assert "\n| a (pyramid) | " in md and "\n| ref | " in md
     page = (d / "report.html").read_text()
     assert re.search(r'<td class="(pass|fail)" title="[^"]*(within the tolerance|departs from)', page)
@@ -1524,3 +1524,44 @@ def test_in_reference_mode_every_backend_is_scored_against_the_law_s_kinetic_fri
         ratios[mode] = res.residuals["a"].friction_ratio / res.residuals["ref"].friction_ratio
     assert ratios["native"] == pytest.approx(0.6 / 0.7, rel=1e-12)
     assert ratios["reference"] == pytest.approx(1.0, rel=1e-12)
+
+
+def test_the_residuals_expected_row_names_only_the_shapes_on_the_page_and_their_bounds_with_the_tolerance(
+    tmp_path: Path,
+) -> None:
+    """results/latest, every run page: the expected row read '1 +- 0.01 (pyramid: 1 to 1.41; diamond: 0.707 to 1)'
+    and '0 +- 10 (pyramid: <= 45; diamond: <= 45)' on pages where no backend is a diamond (all of them) or a
+    pyramid (every reference-mode page), and a pyramid's angle passed up to 55 deg (its 45 plus the tolerance)
+    while the row and the hover ('within the tolerance 10 of a friction pyramid's own bound: <= 45 deg') said 45.
+    The row lists only the shapes of the page's rows, each bound with the tolerance it is widened by, and the hover
+    says the same."""
+    d = write_run(tmp_path / "cone", {"ref": None, "a": scale(1.01)})
+    md = R.write_report(d).markdown.read_text()
+    expected = "| expected (tolerance) |  | 0 +- 0.05 mm | 0 +- 0.01 |  | 1 +- 0.01 | 0 +- 10 |  | the law's creep |  |"
+    assert expected in md
+    assert "diamond" not in md.split("| expected (tolerance) |")[1].split("\n")[0]
+    assert R._residual_marks(50.0, "angle_max", "pyramid") == (
+        "pass",
+        "50: within a friction pyramid's own bound, <= 45 deg, + the tolerance 10",
+    )
+    assert R._residual_marks(0.7525, "friction_ratio", "pyramid") == (
+        "fail",
+        "0.7525: beyond a friction pyramid's own bounds, 1 to 1.414, +- the tolerance 0.01",
+    )
+
+
+def test_the_failing_checks_carry_the_tolerance_basis_the_paragraph_promises(tmp_path: Path) -> None:
+    """results/latest: the verification paragraph says 'Hover a row's tolerance or pass cell for how its tolerance
+    is derived', but the 'Failing checks' table, the one a reader opens first, had no hover at all (only the table
+    of all checks, collapsed, had). Its tolerance and pass cells now carry the case's basis (the row's note is in
+    its own column there)."""
+    root = tmp_path / "results"
+    write_run(root / "fake", {"ref": None, "a": scale(1.02)})
+    (root / "verification").mkdir()
+    checks = [{**_check("sliding", False), "note": "known: why it misses"}, _check("energy", True)]
+    doc = {"checks": checks, "tolerance_basis": {"sliding": "how sliding's is derived"}}
+    (root / "verification" / "verification.json").write_text(json.dumps(doc))
+    R.write_index(root)
+    page = html.unescape((root / "report.html").read_text())
+    failing = page.split("<caption>Failing checks</caption>")[1].split("</table>")[0]
+    assert failing.count('title="tolerance: how sliding\'s is derived">') == 2
