@@ -643,7 +643,8 @@ def _free_space_steps(result: ComparisonResult) -> str:
     if stepped:
         were = sorted({_step_text(matched[n])[0] for n in stepped if n in matched})
         text += (
-            f" and what the {profile} profile changes is the step: {_names(stepped)} "
+            f" and the {profile} profile's change that acts here is chiefly the step (settings such as joint limits "
+            f"that the motion never reaches act on nothing either): {_names(stepped)} "
             f"{'runs' if len(stepped) == 1 else 'run'} the reference's integrator family ({family}) at "
             f"{_names(sorted(steps))} per control tick, against {ref}'s {ref_step}"
             + (

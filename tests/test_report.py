@@ -1471,8 +1471,9 @@ def test_a_free_space_engine_defaults_page_says_the_profile_changes_the_step(tmp
         _declare(d, {"ref": {**fine, "integrator": "euler"}, "a": a, "c": c})
     R.write_all(root)
     md = (root / "one__engine-defaults" / "report.md").read_text()
-    assert ("The foot never touches the ground here, so the contact settings act on nothing and what the "
-            "engine-defaults profile changes is the step: a runs the reference's integrator family (euler) at 1 ms "
+    assert ("The foot never touches the ground here, so the contact settings act on nothing and the "
+            "engine-defaults profile's change that acts here is chiefly the step (settings such as joint limits that "
+            "the motion never reaches act on nothing either): a runs the reference's integrator family (euler) at 1 ms "
             "per control tick, against ref's 50 us x 20 (its own step in the matched profile: 50 us x 20), as run.json "
             "records; c changes its integrator too (dWorldStep in the matched profile, dWorldQuickStep here, at "
             "1 ms).") in md, md[:3000]  # fmt: skip
