@@ -260,6 +260,15 @@ def transient(meta: Mapping[str, Any], backend: str, t: float) -> str:
         return t0 - 1e-9 <= t <= t0 + ONSET + 1e-9
 
     if firsts and after(c := min(firsts)):
+        dt = meta.get("control_dt")  # [s]; an older metrics.json has none: no such onset said
+        tick = float(dt) if isinstance(dt, int | float) else -math.inf
+        for e in meta.get("events") or ():
+            # a task that starts on the ground (its first contact within a tick of a switch): the switch's onset
+            t0 = float(e.get("t", math.nan))
+            if t0 - 1e-9 <= c <= t0 + tick + 1e-9:
+                since = f"{num((t - t0) * 1e3, 3)} ms after" if t - t0 > 1e-9 else "the tick of"
+                return (f"onset transient: {since} the switch to {e.get('controller')} control at t = "
+                        f"{time_text(t0)} s, the foot in contact from its next tick")  # fmt: skip
         if t - c <= 1e-9:
             return "touch-down transient: the foot's first contact tick"
         return (

@@ -704,7 +704,7 @@ def test_metrics_json_round_trips_and_keeps_its_documented_keys(tmp_path: Path) 
     head, df = results.read_metrics(path)
     assert list(head) == [
         "schema", "scenario", "name", "contact_mode", "poc", "reference", "skip", "steady_window",
-        "duration", "split_with", "events", "backends", "logs", "notes", "columns",
+        "duration", "control_dt", "split_with", "events", "backends", "logs", "notes", "columns",
     ]  # fmt: skip
     assert head["logs"] == {n: hashlib.sha256((d / n).read_bytes()).hexdigest() for n in ("a.parquet", "ref.parquet")}
     assert head["schema"] == results.METRICS_SCHEMA and head["columns"] == list(results.FRAME_COLUMNS)

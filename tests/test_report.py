@@ -1566,3 +1566,19 @@ def test_the_failing_checks_carry_the_tolerance_basis_the_paragraph_promises(tmp
     page = html.unescape((root / "report.html").read_text())
     failing = page.split("<caption>Failing checks</caption>")[1].split("</table>")[0]
     assert failing.count('title="tolerance: how sliding\'s is derived">') == 2
+
+
+def test_a_task_that_starts_on_the_ground_has_its_push_onset_not_a_touch_down() -> None:
+    """results/latest, effort: the push starts at t = 0 with the foot at the surface (Fn 0 at t = 0, 21.3 N at the
+    next tick), and its largest force deviation at 0.006 s was called a "touch-down transient: 5 ms after the
+    foot's first contact", where the combined task's push, the same physics, is an onset. A first contact within
+    one control tick of a switch is that switch's onset; a touch-down later in an event stays a touch-down, and a
+    metrics.json without control_dt (an older legbench) says what it said."""
+    meta = {"reference": "ref", "control_dt": 1e-3, "events": [{"t": 0.0, "controller": "effort"}],
+            "backends": {"ref": {"first_contact": 0.001}, "a": {"first_contact": 0.001}}}  # fmt: skip
+    assert R.transient(meta, "a", 0.006) == ("onset transient: 6 ms after the switch to effort control at t = 0 s, "
+                                             "the foot in contact from its next tick")  # fmt: skip
+    late = {**meta, "backends": {"ref": {"first_contact": 0.139}, "a": {"first_contact": 0.139}}}
+    assert R.transient(late, "a", 0.144) == "touch-down transient: 5 ms after the foot's first contact at t = 0.139 s"
+    older = {k: v for k, v in meta.items() if k != "control_dt"}
+    assert R.transient(older, "a", 0.006) == "touch-down transient: 5 ms after the foot's first contact at t = 0.001 s"
