@@ -330,8 +330,8 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
     :data:`SMALL_PEAK` of their signal's largest (else a deviation of 0.09 rad/s in a joint that barely moves
     outranks one of 2.2 rad/s in one that swings); backends within :data:`TIE` of it in the same component are
     named with it; the largest of every other backend over the same components is named, with its backend,
-    component, size and time, its percentage in the tables' 4 digits; a
-    left-out component that exceeds what the sentence says is stated after it, with its size and time.
+    component, size and time; a left-out component that exceeds what the sentence says is stated after it, with
+    its size and time. Every percentage is in the run tables' 4 digits, sizes and peaks in 3.
     """
     ref = str(meta.get("reference", ""))
     cols = [df[c].tolist() for c in ("backend", "reference", "signal", "joint", "metric", "value")]
@@ -362,7 +362,7 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
         peak = peak if math.isfinite(peak) else dev * 100.0 / v
         text = (
             f"Largest difference: {b}'s {lab} ({NAMES[s]}) deviates from {ref} by up to {num(dev, 3)} "
-            f"{UNITS[s]} at t = {time_text(t)} s{_when(meta, b, t)}, {num(v, 3)} % of the reference's peak "
+            f"{UNITS[s]} at t = {time_text(t)} s{_when(meta, b, t)}, {num(v)} % of the reference's peak "
             f"({num(peak, 3)} {UNITS[s]})"
         )
         if tied:
@@ -402,7 +402,7 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
             left = [f"{column_label(*c)} ({num(peaks[c], 3)} {UNITS[c[0]]})" for c in sorted(small, key=_order)]
             text += (
                 f" Left out above, as their reference peak is under {num(SMALL_PEAK * 100.0)} % of their signal's "
-                f"largest: {_names(left)}; there {b2}'s {column_label(s2, j2)} reaches {num(v2, 3)} % "
+                f"largest: {_names(left)}; there {b2}'s {column_label(s2, j2)} reaches {num(v2)} % "
                 f"({num(dev2, 3)} {UNITS[s2]} at t = {time_text(t2)} s{_when(meta, b2, t2, inside=True)})."
             )
     return text
