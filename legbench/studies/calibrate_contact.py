@@ -279,16 +279,22 @@ def calibrate(
 
 _HEADERS = {
     "backend": "backend", "Kp": "Kp spec [N/m]", "k_eff": "k eff [N/m]", "Kd": "Kd spec [N s/m]",
-    "c_eff": "c eff [N s/m]", "mu_s": "mu_s", "Fn": "Fn [N]", "Ft": "Ft [N]", "creep": "creep [m/s]",
-    "creep_law": "law creep [m/s]", "c_tangential": "Ft/creep [N s/m] (inf: sticks)",
+    "c_eff": "c eff [N s/m]", "mu_s": "mu_s", "Fn": "Fn [N]", "Ft": "Ft [N]", "creep": "creep [mm/s]",
+    "creep_law": "law creep [mm/s]", "c_tangential": "Ft/creep [N s/m] (inf: sticks)",
 }  # fmt: skip
+#: Columns shown in another unit than the table's SI one (calibration.json): the creep in mm/s, as every page.
+_SHOWN_SCALE = {"creep": 1e3, "creep_law": 1e3}
 
 
 def markdown(df: pd.DataFrame) -> str:
-    """The calibration table as Markdown."""
+    """The calibration table as Markdown (creep in mm/s; n/a where a value is undefined, e.g. a rigid contact's
+    damping)."""
     lines = ["| " + " | ".join(_HEADERS.values()) + " |", "|" + "---|" * len(_HEADERS)]
     for r in df.to_dict(orient="records"):
-        cells = [str(r[k]) if k == "backend" else f"{r[k]:.4g}" for k in _HEADERS]
+        cells = [
+            str(r[k]) if k == "backend" else "n/a" if math.isnan(r[k]) else f"{r[k] * _SHOWN_SCALE.get(k, 1.0):.4g}"
+            for k in _HEADERS
+        ]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
