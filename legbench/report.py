@@ -161,7 +161,7 @@ def sim_class(
     metric): n/a, :data:`HELD`; ``small`` (the component's reference peak and its signal's largest, for a
     component :func:`small_peaks` names) without a ceiling: the bands applied to the deviation as a % of the
     signal's largest peak instead of the component's own (:func:`small_note`): effort q1's 30.7 % of a 0.004 rad
-    peak is 0.1 % of the knee's 1.26 rad (agree), MuJoCo engine-defaults' 3759 % is a 0.149 rad walk, 11.8 % of
+    peak is 0.1 % of the knee's 1.26 rad (close), MuJoCo engine-defaults' 3759 % is a 0.149 rad walk, 11.9 % of
     it (differs a lot)."""
     if held:
         return "na", HELD
