@@ -31,7 +31,7 @@ from typing import Any
 
 import pandas as pd
 
-from legbench.backends.base import rigid_contact
+from legbench.backends.base import FAMILY_TEXT, rigid_contact
 from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import ResultsError
 from legbench.report_figures import (
@@ -1476,7 +1476,7 @@ def _integrator_text(info: Mapping[str, Any]) -> str:
     if info.get("integrator"):
         return str(info["integrator"])
     family = info.get("integrator_family")
-    return f"{family} (declared family; no integrator setting)" if family else "-"
+    return f"{FAMILY_TEXT.get(str(family), family)} (declared family; no integrator setting)" if family else "-"
 
 
 def _steps(entries: Sequence[_Entry]) -> dict[str, dict[str, tuple[str, str]]]:

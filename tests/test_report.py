@@ -1388,7 +1388,7 @@ def test_the_index_says_what_the_reference_is_and_rtf_creep_and_integrator_read_
     assert ("The reference ('vs' column) is the backend each scenario names as its comparison.reference, run with its "
             "own settings: ref (euler at 50 us x 20 per 1 ms control tick in the matched profile). It is not ground "
             "truth: 'simulation error' is a difference from it") in index  # fmt: skip
-    said = "euler (declared family; no integrator setting)"
+    said = "semi-implicit euler (declared family; no integrator setting)"  # as verification names it
     assert f"| a | 50 us x 20 | {said} |" in index
     assert f"| integrator | euler | {said} |" in page
     assert "| RTF (simulated s per wall s) |" in page and "RTF, the real-time factor: the run's simulated time" in page

@@ -28,6 +28,10 @@ from legbench.exceptions import LegbenchError, SimulationDiverged
 #: e.g. one in maximal coordinates: verification bounds it by the size of a first-order error),
 #: ``other`` (no closed-form prediction at all: verification reports not-applicable rows).
 INTEGRATOR_FAMILIES = ("euler", "implicit", "rk4", "adaptive", "first-order", "other")
+#: How a backend without an ``integrator`` setting is named, by its family (verification's variant column, the
+#: report's step and settings tables).
+FAMILY_TEXT = {"euler": "semi-implicit euler", "implicit": "implicit euler", "rk4": "rk4", "adaptive": "adaptive",
+               "first-order": "first order", "other": "other"}  # fmt: skip
 
 #: The two profiles every backend offers (a backend may add its own, e.g. ``gazebo``).
 PROFILES = ("matched", "engine-defaults")

@@ -111,7 +111,7 @@ from scipy.optimize import linear_sum_assignment
 from legbench import backends as registry
 from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
-from legbench.backends.base import Physics, contact_point, rigid_contact
+from legbench.backends.base import FAMILY_TEXT, Physics, contact_point, rigid_contact
 from legbench.exceptions import LegbenchError
 from legbench.results import (
     atomic_write_text,
@@ -153,9 +153,6 @@ COLUMNS = ("case", "backend", "variant", "quantity", "unit", "measured", "expect
 #: Row status: ``pass``, ``fail``, or ``not-applicable`` (no closed-form prediction for the backend's
 #: integrator family; the note says why).
 STATUSES = ("pass", "fail", "not-applicable")
-#: How a backend without an ``integrator`` setting is named in the variant column, by its family.
-FAMILY_TEXT = {"euler": "semi-implicit euler", "implicit": "implicit euler", "rk4": "rk4", "adaptive": "adaptive",
-               "first-order": "first order", "other": "other"}  # fmt: skip
 #: Relative tolerance on each closed-loop pole (module docstring).
 POLE_RTOL = 5e-3
 #: Share of the quantity the engines' contact solvers may miss by (rest and balance checks).
