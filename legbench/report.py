@@ -921,7 +921,9 @@ def _residual_table(result: ComparisonResult) -> Table:
         "beyond (hover for the value against it); a backend whose native friction is not a cone (marked "
         "'(pyramid)', each tangent axis limited on its own, or '(diamond)', |F_t1| + |F_t2| <= mu Fn: run.json's "
         "friction_cone, or its contact description) is held to its own bounds, |F_t| / (mu Fn) from 1 to sqrt(2) "
-        "or from 1/sqrt(2) to 1, and the angle up to 45 deg, each widened by the tolerance; creep is not coloured "
+        "or from 1/sqrt(2) to 1, and the angle up to 45 deg, each widened by the tolerance (the angle's 10 deg, "
+        "where the sliding verification holds 1 deg: its drag is steady, while this maximum takes every sample "
+        "slipping at 0.1 mm/s or more, stick-slip transitions included); creep is not coloured "
         "(a Coulomb engine sticks by design: read it beside the law's)",
         classes=classes,
         titles=titles,
