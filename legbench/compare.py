@@ -312,10 +312,13 @@ def compare(
             if name != reference:
                 pairs.append(pair_metrics(tr, traces[reference], run.skip, lag, max_lag, lag_signals))
     if all_pairs:
+        # the spec's denominator for every pair: the scenario reference's peak (docs/metrics.md), so a-vs-b and
+        # b-vs-a share it and every pair of a component is a share of one number
+        peak = next((p.ref_peak for p in pairs if p.reference == reference), None)
         for a in traces:
             for b in traces:
                 if a != b and b != reference:
-                    pairs.append(pair_metrics(traces[a], traces[b], run.skip, lag, max_lag, lag_signals))
+                    pairs.append(pair_metrics(traces[a], traces[b], run.skip, lag, max_lag, lag_signals, peak=peak))
     # an imported log is measured over the run's steady window, not its own last seconds (which may be elsewhere)
     run_end = float(traces[run.reference].t[-1]) if run.reference in traces else run.duration
     ends = {name: run_end if name not in run.traces else None for name in traces}

@@ -546,6 +546,7 @@ def pair_metrics(
     max_lag: float = 0.1,
     lag_signals: Sequence[str] = ("q",),
     wrap: np.ndarray | None = None,
+    peak: np.ndarray | None = None,
 ) -> PairMetrics:
     """Deviation metrics of ``a`` against ``ref`` (docs/metrics.md).
 
@@ -558,6 +559,8 @@ def pair_metrics(
         max_lag: largest lag searched [s].
         lag_signals: signals the lag is estimated from.
         wrap: columns compared as angles on a circle (default: the hip angle).
+        peak: the denominator of ``sim_error_pct`` per column [signal units]: the spec's max_t |x_ref| of the
+            scenario's reference backend, for a pair of two other backends; None: ``ref``'s own peak.
 
     Returns:
         The metrics; see :class:`PairMetrics`.
@@ -582,7 +585,7 @@ def pair_metrics(
     sel = t >= skip - T_EPS
     ds, rs, ts = d[sel], xr[sel], t[sel]
     largest = max_abs(ds)
-    ref_peak = max_abs(rs)
+    ref_peak = max_abs(rs) if peak is None else np.asarray(peak, dtype=float)
     if len(ds):
         t_max = ts[np.argmax(np.nan_to_num(np.abs(ds), nan=-1.0), axis=0)]
         t_max = np.where(np.isfinite(largest), t_max, np.nan)

@@ -482,6 +482,22 @@ def test_all_pairs_measures_every_ordered_pair(tmp_path: Path) -> None:
     np.testing.assert_allclose(ab.deviation[:, 3:], -ba.deviation[:, 3:], atol=1e-15)
 
 
+def test_every_pair_divides_by_the_scenario_reference_s_peak(tmp_path: Path) -> None:
+    """The spec's simulation error % is max_t |x_a - x_b| / max_t |x_ref| with x_ref the reference's: in the pair
+    (a, b) b's own peak was the denominator, so a-vs-b and b-vs-a differed (effort, MuJoCo vs ODE q1: 11.30 % and
+    10.19 %, peaks 2.50e-3 and 2.78e-3 rad; with the reference's 3.97e-3 rad both are 7.12 %). Every pair now divides
+    by the reference's peak: a-vs-b equals b-vs-a (shared ticks), and is 100 max_abs / the reference's peak."""
+    d = write_run(tmp_path / "s", {"ref": None, "a": scale(1.3), "b": scale(0.8)})
+    res = C.compare(d, all_pairs=True)
+    ab, ba, a_ref = res.pair("a", "b"), res.pair("b", "a"), res.pair("a", "ref")
+    assert ab is not None and ba is not None and a_ref is not None
+    np.testing.assert_array_equal(ab.ref_peak, a_ref.ref_peak)  # the reference's, not b's (0.8 of it)
+    np.testing.assert_allclose(ab.sim_error_pct, ba.sim_error_pct, rtol=1e-12)
+    moving = a_ref.ref_peak > 0
+    np.testing.assert_allclose(ab.sim_error_pct[moving], 100.0 * ab.max_abs[moving] / a_ref.ref_peak[moving],
+                               rtol=1e-12)  # fmt: skip
+
+
 # --------------------------------------------------------------------------- #
 # Steady state and the analytic force check
 
