@@ -147,7 +147,7 @@ class ComparisonResult:
             "steady_window": run.steady_window,
             "duration": _json_value(run.duration),  # null for a run.json without scenario.duration
             # [s]: the sample spacing of the logs (the report tells a task that starts on the ground by it)
-            "control_dt": _json_value(1.0 / float((run.meta.get("scenario") or {}).get("control_rate") or math.nan)),
+            "control_dt": _json_value(run.control_dt),
             "split_with": None if self.split_run is None else self.split_run.label,
             "events": [{"t": e.t, "controller": e.controller} for e in run.events],
             "backends": backends,

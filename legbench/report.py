@@ -56,6 +56,7 @@ from legbench.results import (
     commit_staged,
     discard_staged,
     metrics_text,
+    profile_of,
     read_meta,
     read_metrics,
     read_study,
@@ -618,7 +619,7 @@ def _matched_infos(run: Run) -> dict[str, Mapping[str, Any]]:
         meta = read_meta(sibling)
     except ResultsError:
         return {}
-    if str((meta.get("scenario") or {}).get("profile", "matched")) != "matched":
+    if profile_of(meta) != "matched":
         return {}
     return {str(n): dict(v.get("info") or {}) for n, v in (meta.get("backends") or {}).items()}
 
@@ -633,7 +634,7 @@ def _free_space_steps(result: ComparisonResult) -> str:
     ref_info = infos.get(ref) or {}
     ref_step, _ = _step_text(ref_info)
     family = ref_info.get("integrator_family")
-    profile = str((result.run.meta.get("scenario") or {}).get("profile", ""))
+    profile = result.run.profile
     stepped: list[str] = []
     changed: list[str] = []
     steps: set[str] = set()
@@ -936,7 +937,7 @@ def _scenario_table(result: ComparisonResult) -> Table:
     contact = sc.get("contact") or {}
     rows = [
         ("scenario file", f"{sc.get('file', '')} (sha256 {str(sc.get('sha256', ''))[:12]})"),
-        ("profile", str(sc.get("profile", "matched"))),
+        ("profile", run.profile),
         ("duration [s]", num(run.duration)),
         ("control rate [Hz]", num(sc.get("control_rate", math.nan))),
         ("contact mode", run.contact_mode),
@@ -992,7 +993,7 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
     airborne = _airborne(df)  # the sentence's rule: without residuals (no contact law) not known to be
     if run.contact_mode == "reference" and _touches(df) and (shared := implicit_note(_infos(run))):
         b.append(Para(shared))
-    if str(sc.get("profile", "matched")) != "matched" and airborne:
+    if run.profile != "matched" and airborne:
         b.append(Para(_free_space_steps(result)))
     for n in result.notes:
         b.append(Para(n, warn=True))
@@ -1274,7 +1275,7 @@ def _entries(dirs: Sequence[Path], metrics_files: Mapping[Path, Path] | None = N
                 d,
                 d.name or str(meta.get("scenario", "")),
                 str(sc["name"]),
-                str(sc.get("profile", "matched")),
+                profile_of(run_meta),
                 str(meta.get("contact_mode", "native")),
                 meta,
                 tolerances_of(run_meta),

@@ -310,8 +310,7 @@ class Figure:
 def run_title(run: Run) -> str:
     """A run's name in page and figure titles: its label with the profile and contact mode (the runs of one
     scenario in two profiles share a label)."""
-    profile = str((run.meta.get("scenario") or {}).get("profile") or "matched")
-    return f"{run.label} ({profile} profile, {run.contact_mode} contact)"
+    return f"{run.label} ({run.profile} profile, {run.contact_mode} contact)"
 
 
 def _run_styles(result: ComparisonResult) -> dict[str, tuple[str, str]]:

@@ -85,6 +85,7 @@ __all__ = [
     "metrics_text",
     "out_dir_for",
     "platform_info",
+    "profile_of",
     "read_log",
     "read_meta",
     "read_metrics",
@@ -891,11 +892,27 @@ class Run:
         g = (self.meta.get("scenario") or {}).get("gravity")
         return float(g) if isinstance(g, int | float) and not isinstance(g, bool) else load_params().gravity
 
+    @property
+    def profile(self) -> str:
+        """``scenario.profile`` of run.json (:func:`profile_of`)."""
+        return profile_of(self.meta)
+
+    @property
+    def control_dt(self) -> float:
+        """The control period [s], 1 / ``scenario.control_rate`` of run.json: the logs' sample spacing (NaN where
+        run.json gives no rate)."""
+        return 1.0 / float((self.meta.get("scenario") or {}).get("control_rate") or math.nan)
+
 
 def tolerances_of(meta: Mapping[str, Any]) -> Mapping[str, Any]:
     """``scenario.comparison.tolerances`` of a run.json document (empty if absent)."""
     tol = ((meta.get("scenario") or {}).get("comparison") or {}).get("tolerances") or {}
     return tol if isinstance(tol, Mapping) else {}
+
+
+def profile_of(meta: Mapping[str, Any]) -> str:
+    """``scenario.profile`` of a run.json document (``matched`` where absent: a run of an earlier legbench)."""
+    return str((meta.get("scenario") or {}).get("profile") or "matched")
 
 
 def _read_json(path: Path) -> dict[str, Any]:
