@@ -295,7 +295,8 @@ def _check_plan(
 def _validate(args: argparse.Namespace) -> int:
     """Scenario, sweep (has ``studies``), framework (``legbench reproduce``'s: has ``frameworks``), tolerance
     (:func:`legbench.scenario.is_tolerance_file`, the rule a run uses too) and leg parameter files (a section of
-    :data:`legbench.model.SECTIONS`, checked as ``--model`` reads one), told apart by content.
+    :data:`legbench.model.SECTIONS`: :func:`legbench.scenario.is_leg_parameter_file`, checked as ``--model`` reads
+    one), told apart by content.
 
     Every file is checked and every independent problem of a file is one line on stderr
     (:func:`legbench.scenario.errors`, :func:`legbench.check.tolerance_errors`); exit 2 if any.
@@ -325,8 +326,7 @@ def _validate_one(path: str, overrides: Mapping[str, Any] | None = None) -> tupl
         doc, _ = yamlfile.read_yaml(path)
     except LegbenchError as exc:
         return "", [exc]
-    no_scenario_key = isinstance(doc, dict) and not set(doc) & set(scenario.TOP_KEYS)
-    if no_scenario_key and set(doc) & set(model.SECTIONS):
+    if scenario.is_leg_parameter_file(doc):
         if overrides:
             return _set_refused(path, "a leg parameter file")
         model.read_params(path)  # ModelError: the file, the entry, why

@@ -364,6 +364,17 @@ def is_tolerance_file(doc: Any) -> bool:
     return False
 
 
+def is_leg_parameter_file(doc: Any) -> bool:
+    """Whether ``doc`` (parsed YAML) is a leg parameter file (``--model``, ``LEGBENCH_MODEL``) rather than a scenario:
+    a section of one (:data:`legbench.model.SECTIONS`) and no scenario key (:data:`TOP_KEYS`). The one rule for
+    ``legbench validate`` (which then checks it as ``--model`` reads it) and for such a file given where a scenario
+    goes (``run``)."""
+    if not isinstance(doc, Mapping):
+        return False
+    keys = set(map(str, doc))
+    return bool(keys & set(LEG_SECTIONS)) and not keys & set(TOP_KEYS)
+
+
 def parse(
     doc: Any,
     file: str = "<memory>",
@@ -392,7 +403,7 @@ def parse(
                 raise ctx.error([], f"is {kind} (it has '{key}'), not a scenario: run it with {command}")
         if is_tolerance_file(doc):
             raise ctx.error([], "is a tolerance file, not a scenario: give it to legbench check --tolerances")
-        if set(doc) & set(LEG_SECTIONS) and not set(doc) & set(TOP_KEYS):
+        if is_leg_parameter_file(doc):
             raise ctx.error([], "is a leg parameter file, not a scenario: give it to legbench --model (or "
                                 "LEGBENCH_MODEL)")  # fmt: skip
     check_keys(ctx, [], doc, TOP_KEYS, ["name", "duration", "events"])
