@@ -465,44 +465,63 @@ def _col_header(i: int) -> str:
     return f"{LABELS[i]} [{UNITS[SIGNAL_OF[i]]}]"
 
 
+def _sim_cell(
+    value: float,
+    signal: str,
+    joint: str,
+    tolerances: Mapping[str, Any],
+    held: bool,
+    small: tuple[float, float] | None,
+    meta: Mapping[str, Any],
+    backend: str,
+    dev: float,
+    t: float,
+) -> tuple[str, str, str]:
+    """(mark, CSS class, hover) of one simulation error % cell, as every table of them shows it: the mark ``held``
+    or :data:`SMALL_MARK` after the number (or none), :func:`sim_class`'s class, and its why followed by where the
+    largest deviation ``dev`` [signal unit] at ``t`` [s] is (:func:`deviation_note`; none for a held one)."""
+    cls, why = sim_class(value, signal, joint, tolerances, held, small)
+    mark = "held" if held else SMALL_MARK if small is not None and math.isfinite(value) else ""
+    where = "" if held else deviation_note(meta, backend, signal, dev, t)
+    return mark, cls, f"{why}; {where}" if where else why
+
+
 def _pair_table(
-    result: ComparisonResult, metric: str, caption: str, unit: bool, meta: Mapping[str, Any] | None = None
+    result: ComparisonResult,
+    metric: str,
+    caption: str,
+    unit: bool,
+    meta: Mapping[str, Any] | None = None,
+    df: pd.DataFrame | None = None,
 ) -> Table:
+    """One row per pair of ``metric``; for ``sim_error_pct`` each cell marked, coloured and with its hover
+    (:func:`_sim_cell`; ``meta`` the page's metrics.json document, ``df`` its metrics table, else computed)."""
     header = ("backend", "vs", *(_col_header(i) if unit else LABELS[i] for i in range(12)))
-    small = _small_of(result) if metric == "sim_error_pct" else {}
-    tol = result.run.tolerances
-
-    def cell(v: float, h: bool, i: int, ref: str) -> str:
-        if metric != "sim_error_pct":
-            return num(v)
-        if h:
-            return f"{num(v)} (held)"
-        marked = i in small and ref == result.reference and math.isfinite(v)
-        return f"{num(v)} ({SMALL_MARK})" if marked else num(v)
-
-    rows = tuple(
-        (p.backend, p.reference, *(cell(float(v), bool(h), i, p.reference)
-                                   for i, (v, h) in enumerate(zip(getattr(p, metric), p.held, strict=True))))
-        for p in result.pairs
-    )  # fmt: skip
+    rows: list[tuple[str, ...]] = []
     classes: dict[tuple[int, int], str] = {}
     titles: dict[tuple[int, int], str] = {}
-    if metric == "sim_error_pct":
-        for r, p in enumerate(result.pairs):
-            for i, v in enumerate(p.sim_error_pct):
-                tiny = small.get(i) if p.reference == result.reference else None
-                cls, why = sim_class(float(v), SIGNAL_OF[i], LABELS[i][-1], tol, bool(p.held[i]), tiny)
-                where = "" if p.held[i] else deviation_note(meta or {}, p.backend, SIGNAL_OF[i], float(p.max_abs[i]),
-                                                            float(p.t_max_abs[i]))  # fmt: skip
-                if cls:
-                    classes[(r, i + 2)], titles[(r, i + 2)] = cls, f"{why}; {where}" if where else why
-    return Table(header, rows, caption, classes=classes, titles=titles)
+    small = _small_of(result, result.frame() if df is None else df) if metric == "sim_error_pct" else {}
+    for r, p in enumerate(result.pairs):
+        if metric != "sim_error_pct":
+            rows.append((p.backend, p.reference, *(num(float(v)) for v in getattr(p, metric))))
+            continue
+        cells = []
+        for i, v in enumerate(p.sim_error_pct):
+            tiny = small.get(i) if p.reference == result.reference else None
+            mark, cls, title = _sim_cell(float(v), SIGNAL_OF[i], LABELS[i][-1], result.run.tolerances,
+                                         bool(p.held[i]), tiny, meta or {}, p.backend, float(p.max_abs[i]),
+                                         float(p.t_max_abs[i]))  # fmt: skip
+            cells.append(f"{num(float(v))} ({mark})" if mark else num(float(v)))
+            if cls:
+                classes[(r, i + 2)], titles[(r, i + 2)] = cls, title
+        rows.append((p.backend, p.reference, *cells))
+    return Table(header, tuple(rows), caption, classes=classes, titles=titles)
 
 
-def _small_of(result: ComparisonResult) -> dict[int, tuple[float, float]]:
+def _small_of(result: ComparisonResult, df: pd.DataFrame) -> dict[int, tuple[float, float]]:
     """Column index -> (reference peak, its signal's largest) of the run's small-peak components
-    (:func:`small_peaks`, the one rule), against the run's reference."""
-    small = small_peaks(result.frame(), result.reference)
+    (:func:`small_peaks`, the one rule, on its metrics table ``df``), against the run's reference."""
+    small = small_peaks(df, result.reference)
     return {i: small[(SIGNAL_OF[i], JOINT_OF[i])] for i in range(len(LABELS)) if (SIGNAL_OF[i], JOINT_OF[i]) in small}
 
 
@@ -685,7 +704,8 @@ def _infos(run: Run) -> dict[str, Mapping[str, Any]]:
     return {name: b.info for name, b in run.backends.items()}
 
 
-def _split_table(result: ComparisonResult, kind: str) -> Table:
+def _split_table(result: ComparisonResult, kind: str, df: pd.DataFrame) -> Table:
+    """The contact-mode split of ``kind`` (``rms`` or ``pct``); ``df``: the page's metrics table."""
     header = ("backend", "part", *(_col_header(i) if kind == "rms" else LABELS[i] for i in range(12)))
     rows = []
     for m in result.split:
@@ -699,7 +719,7 @@ def _split_table(result: ComparisonResult, kind: str) -> Table:
         + (f",{_from_skip(result.run)}" if result.run.skip > 0 else "")
         + "): native = contact (a_native - a_reference-mode) + integration "
         "(a_reference-mode - ref_reference-mode) + drift (ref_reference-mode - ref_native), sample by sample"
-        + (f". {shared}" if kind == "pct" and result.split_run is not None and _touches(result.frame())
+        + (f". {shared}" if kind == "pct" and result.split_run is not None and _touches(df)
            and (shared := implicit_note(_infos(result.split_run))) else ""),
     )  # fmt: skip
 
@@ -1016,6 +1036,7 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
                 "deviation's size and time)",
                 False,
                 doc,
+                df,
             )
         )
         b.append(_pair_table(result, "rms", f"RMS deviation{skip}", True))
@@ -1060,8 +1081,8 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
         b.append(
             Heading(2, f"Contact model vs integration (with {result.split_run.label if result.split_run else ''})")
         )
-        b.append(_split_table(result, "rms"))
-        b.append(_split_table(result, "pct"))
+        b.append(_split_table(result, "rms", df))
+        b.append(_split_table(result, "pct", df))
     b.append(Heading(2, "Figures", "figures"))
     b.append(
         Para(
@@ -1328,14 +1349,22 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
                     s, j, v = vals.get(lab, (SIGNAL_OF[c], lab[-1], math.nan))
                     kept_here = (backend, ref, s, j) in held
                     small = tiny.get((s, j)) if str(ref) == str(e.meta.get("reference", "")) else None
-                    cls, why = sim_class(v, s, j, e.tolerances, kept_here, small)
-                    mark = "held" if kept_here else SMALL_MARK if small is not None and math.isfinite(v) else ""
-                    cells.append(f"{num(v, 3)} ({mark})" if mark else num(v, 3))
                     key = (str(backend), str(ref), s, j)
-                    where = "" if kept_here else deviation_note(e.meta, str(backend), s, at.get((*key, "max_abs"), nan),
-                                                                at.get((*key, "t_max_abs"), nan))  # fmt: skip
+                    mark, cls, title = _sim_cell(
+                        v,
+                        s,
+                        j,
+                        e.tolerances,
+                        kept_here,
+                        small,
+                        e.meta,
+                        str(backend),
+                        at.get((*key, "max_abs"), nan),
+                        at.get((*key, "t_max_abs"), nan),
+                    )
+                    cells.append(f"{num(v, 3)} ({mark})" if mark else num(v, 3))
                     if cls:
-                        classes[(r, 5 + c)], titles[(r, 5 + c)] = cls, f"{why}; {where}" if where else why
+                        classes[(r, 5 + c)], titles[(r, 5 + c)] = cls, title
                 rows.append((e.label, e.profile, e.mode, str(backend), str(ref), *cells))
             if len(rows) == first:
                 rows.append(
