@@ -298,6 +298,11 @@ class _Energy(model.Dynamics):
         """(T [J], V [J])."""
         return self.energy(q, qd)
 
+    def along(self, tr: Any) -> tuple[np.ndarray, np.ndarray]:
+        """(T, V) at every logged state of run ``tr``, (n, 2) [J], and the drift D(t) = E(t) - E(0), (n,) [J]."""
+        TV = np.array([self.energy(q, qd) for q, qd in zip(tr.q, tr.qd, strict=True)])
+        return TV, TV.sum(axis=1) - TV[0].sum()
+
     def step(self, q: np.ndarray, qd: np.ndarray, h: float, family: str) -> tuple[np.ndarray, np.ndarray]:
         """One zero-torque step of length h [s] of a first-order family.
 
@@ -340,8 +345,7 @@ def check_energy(
             if tr.status != "ok":
                 out.append(_failed("energy", name, variant, tr.reason or tr.status))
                 continue
-            TV = np.array([energy(q, qd) for q, qd in zip(tr.q, tr.qd, strict=True)])
-            D = TV.sum(axis=1) - TV[0].sum()
+            TV, D = energy.along(tr)
             family = _family(tr.info)
             h = _sub_step(tr.info, Ts)
             n_steps = (len(tr.t) - 1) * round(Ts / h)
@@ -368,8 +372,7 @@ def check_energy(
                 if half.status != "ok" or len(half.t) != len(tr.t):
                     out.append(_failed("energy", name, variant, f"the run at h/2: {half.reason or half.status}"))
                     continue
-                TV2 = np.array([energy(q, qd) for q, qd in zip(half.q, half.qd, strict=True)])
-                D2 = TV2.sum(axis=1) - TV2[0].sum()
+                _, D2 = energy.along(half)
                 drift, drift2 = float(np.abs(D).max()), float(np.abs(D2).max())
                 order = math.log2(drift / drift2) if drift > 0.0 and drift2 > 0.0 else math.nan
                 leftover = float(np.abs(D - 2.0 * D2).max())
