@@ -49,6 +49,7 @@ from legbench.report_figures import (
 from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num, relpath, to_html, to_markdown
 from legbench.results import (
     INDEX_TITLE,
+    SHOWN_SCALE,
     Run,
     atomic_write_text,
     check_index_pages,
@@ -1672,7 +1673,8 @@ STUDIES: tuple[tuple[str, str, str, tuple[str, ...], str], ...] = (
 )
 
 
-#: Units of the study tables' columns, shown in their headers.
+#: Units of the study tables' columns, shown in their headers (a column of
+#: :data:`~legbench.results.SHOWN_SCALE` is scaled to its unit).
 STUDY_UNITS = {
     "Kp": "N/m",
     "k_eff": "N/m",
@@ -1684,9 +1686,6 @@ STUDY_UNITS = {
     "creep_law": "mm/s",
     "c_tangential": "N s/m",
 }
-#: Factor from a study file's SI value to the unit of :data:`STUDY_UNITS` (creep: m/s in calibration.json, mm/s
-#: in the tables, as on the run pages' contact-law residuals).
-STUDY_SCALE = {"creep": 1e3, "creep_law": 1e3}
 
 
 def _cell(v: Any, scale: float = 1.0) -> str:
@@ -1717,7 +1716,7 @@ def _study_blocks(root: Path) -> list[Block]:
         doc, records = read_study(path, key)
         link = f"{rel.rsplit('/', 1)[0]}/"
         if "pass" not in cols:
-            rows = tuple(tuple(_cell(r.get(c, ""), STUDY_SCALE.get(c, 1.0)) for c in cols) for r in records)
+            rows = tuple(tuple(_cell(r.get(c, ""), SHOWN_SCALE.get(c, 1.0)) for c in cols) for r in records)
             header = tuple(f"{c} [{STUDY_UNITS[c]}]" if c in STUDY_UNITS else c for c in cols)
             blocks.append(Heading(2, f"{heading}: {len(records)} backends measured"))
             blocks.append(Details(f"the {len(records)} rows", (Table(header, rows, caption),)))

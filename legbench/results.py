@@ -57,6 +57,7 @@ __all__ = [
     "CHECK_OUTPUTS",
     "INDEX_TITLE",
     "RUN_FILES",
+    "SHOWN_SCALE",
     "STUDY_OUTPUTS",
     "BackendStatus",
     "EventMark",
@@ -484,6 +485,9 @@ def enclosing_run(path: str | Path) -> Path | None:
 
 #: The JSON document each study writes into its output directory: a directory holding one is legbench's.
 STUDY_OUTPUTS = ("verification.json", "calibration.json", "sweep.json", "reproduce.json", "bench.json", "scaling.json")
+#: Columns of a study's output shown in another unit than the file's SI value, and the factor: the contact
+#: calibration's creep [m/s] in mm/s, as on the run pages' contact-law residuals (its own page and the index's table).
+SHOWN_SCALE = {"creep": 1e3, "creep_law": 1e3}
 #: What ``legbench check`` writes by default into the results it checks (a tree's root, or a run directory).
 CHECK_OUTPUTS = ("check.md", "check-junit.xml")
 #: The title of a results tree's index: the first line of its report.md, the <title> of its report.html.

@@ -44,6 +44,7 @@ from legbench.contact import ContactParams
 from legbench.controllers import EffortController, saturate
 from legbench.exceptions import LegbenchError
 from legbench.results import (
+    SHOWN_SCALE,
     RunResult,
     atomic_write_text,
     check_study_out,
@@ -282,8 +283,6 @@ _HEADERS = {
     "c_eff": "c eff [N s/m]", "mu_s": "mu_s", "Fn": "Fn [N]", "Ft": "Ft [N]", "creep": "creep [mm/s]",
     "creep_law": "law creep [mm/s]", "c_tangential": "Ft/creep [N s/m] (inf: sticks)",
 }  # fmt: skip
-#: Columns shown in another unit than the table's SI one (calibration.json): the creep in mm/s, as every page.
-_SHOWN_SCALE = {"creep": 1e3, "creep_law": 1e3}
 
 
 def markdown(df: pd.DataFrame) -> str:
@@ -292,7 +291,7 @@ def markdown(df: pd.DataFrame) -> str:
     lines = ["| " + " | ".join(_HEADERS.values()) + " |", "|" + "---|" * len(_HEADERS)]
     for r in df.to_dict(orient="records"):
         cells = [
-            str(r[k]) if k == "backend" else "n/a" if math.isnan(r[k]) else f"{r[k] * _SHOWN_SCALE.get(k, 1.0):.4g}"
+            str(r[k]) if k == "backend" else "n/a" if math.isnan(r[k]) else f"{r[k] * SHOWN_SCALE.get(k, 1.0):.4g}"
             for k in _HEADERS
         ]
         lines.append("| " + " | ".join(cells) + " |")
