@@ -559,17 +559,22 @@ def rhs(_lc, _lim, _u, _g, y, out, _data):
 ref = solve_ivp(lambda _t, y: y * y, (0.0, 2.0), [1.0], method="RK45", rtol=1e-6, atol=1e-9)
 y = np.array([1.0])
 n = dopri.stepper(rhs)(y, None, 0.0, None, None, 2.0, 1e-6, 1e-9, np.inf, np.zeros((9, 1)), ())
-print(ref.status, n, float(ref.y[0, -1]) == float(y[0]), ref.t[-1])
+print(ref.status, n, repr(float(ref.y[0, -1])), repr(float(y[0])), ref.t[-1])
 """
 
 
 def test_the_stepper_gives_up_where_scipy_does_when_the_step_underflows() -> None:
     """y' = y^2, y(0) = 1 blows up at t = 1: scipy's RK45 stops there ("Required step size is less than spacing
-    between numbers", status -1, at t just above 1); the stepper returns -1 with y exactly scipy's last y. (In a
-    subprocess with a generous time-out: a stepper that kept creeping by one ulp would not come back.)"""
+    between numbers", status -1, at t just above 1); the stepper returns -1 at the same step: its y within 5 % of
+    scipy's last y. Near the pole y grows 14-17 % per step, so a stop one step early or late misses by that much;
+    scipy's own last y moves by up to 0.5 % with the BLAS kernel its RK stages are summed with (OpenBLAS's
+    Haswell, SkylakeX and Prescott kernels: 6.8278e13, 6.8361e13, 6.7940e13; the stepper's sums, in plain
+    Python, give 6.8278e13 on every machine), so bit-equality holds on some machines only. (In a subprocess
+    with a generous time-out: a stepper that kept creeping by one ulp would not come back.)"""
     out = subprocess.run([sys.executable, "-c", _BLOW_UP], capture_output=True, text=True, check=True, timeout=120)
-    status, n, same, t_end = out.stdout.split()
-    assert (status, n, same) == ("-1", "-1", "True") and 1.0 < float(t_end) < 1.0 + 1e-3
+    status, n, y_ref, y, t_end = out.stdout.split()
+    assert (status, n) == ("-1", "-1") and 1.0 < float(t_end) < 1.0 + 1e-3
+    assert abs(float(y) / float(y_ref) - 1.0) < 0.05
 
 
 def test_kernel_python_runs_the_python_period(make: Any) -> None:
