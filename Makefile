@@ -45,10 +45,12 @@ lint: $(STAMP)
 	$(BIN)/mypy legbench
 
 ## the main job: four tasks x all backends x both contact modes (matched profile) and the engine-defaults profile
-## (native contact), verification and contact
+## (native contact), verification (both profiles) and contact
 ## calibration -> results/latest/report.html
 compare: runs
 	$(LEGBENCH) verify --out results/latest/verification --jobs $(JOBS) || echo 'verify: some checks fail; the report lists them'
+	$(LEGBENCH) verify --profile engine-defaults --out results/latest/verification__engine-defaults --jobs $(JOBS) \
+		|| echo 'verify (engine-defaults): some checks fail; the report lists them'
 	$(LEGBENCH) calibrate-contact --out results/latest/calibration --jobs $(JOBS)
 	$(LEGBENCH) compare results/latest --jobs $(JOBS)
 
@@ -87,9 +89,11 @@ bench: $(STAMP)
 sweep: $(STAMP)
 	$(LEGBENCH) sweep scenarios/sweeps/timestep.yaml --out results/sweeps/timestep --jobs $(JOBS) --force
 
-## verification cases and contact calibration on their own
+## verification cases (both profiles) and contact calibration on their own
 verify: $(STAMP)
 	$(LEGBENCH) verify --out results/latest/verification --jobs $(JOBS) --force || echo 'verify: some checks fail; the report lists them'
+	$(LEGBENCH) verify --profile engine-defaults --out results/latest/verification__engine-defaults --jobs $(JOBS) \
+		--force || echo 'verify (engine-defaults): some checks fail; the report lists them'
 	$(LEGBENCH) calibrate-contact --out results/latest/calibration --jobs $(JOBS) --force
 
 urdf: $(STAMP)

@@ -31,7 +31,7 @@ from typing import Any
 
 import pandas as pd
 
-from legbench.backends.base import FAMILY_TEXT, rigid_contact
+from legbench.backends.base import FAMILY_TEXT, PROFILES, rigid_contact
 from legbench.compare import ComparisonResult, compare
 from legbench.exceptions import ResultsError
 from legbench.report_figures import (
@@ -64,6 +64,7 @@ from legbench.results import (
     run_dirs,
     stage_text,
     tolerances_of,
+    verification_dir,
 )
 from legbench.signals import JOINT_OF, LABELS, SIGNAL_OF, UNITS, keyed
 from legbench.signals import label as column_label
@@ -1651,15 +1652,18 @@ def _small_q(df: pd.DataFrame, ref: str) -> set[str]:
 
 
 #: Study outputs the index shows when present under the results root:
-#: (file, heading, record list key, columns, caption).
+#: (file, heading, record list key, columns, caption). Verification once per profile (``results.verification_dir``).
 STUDIES: tuple[tuple[str, str, str, tuple[str, ...], str], ...] = (
-    (
-        "verification/verification.json",
-        "Verification against closed-form answers",
-        "checks",
-        ("case", "backend", "variant", "quantity", "unit", "measured", "expected", "error", "tolerance", "pass"),
-        "legbench verify: each case, backend and integrator against its closed-form answer "
-        "(legbench/studies/verify.py)",
+    *(
+        (
+            f"{verification_dir('', profile).as_posix()}/verification.json",
+            "Verification against closed-form answers",
+            "checks",
+            ("case", "backend", "variant", "quantity", "unit", "measured", "expected", "error", "tolerance", "pass"),
+            "legbench verify: each case, backend and integrator against its closed-form answer "
+            "(legbench/studies/verify.py)",
+        )
+        for profile in PROFILES
     ),
     (
         "calibration/calibration.json",
@@ -1705,6 +1709,16 @@ def _status(r: Mapping[str, Any]) -> str:
     return "pass" if r.get("pass") is True else "fail"
 
 
+#: What a profile's verification tells, beside the other's (the index's paragraph over its table).
+PROFILE_VERIFIED = {
+    PROFILES[0]: "Its closed forms are the spec's physics, which these settings are chosen to match: a failure here "
+    "is the engine's, or its mapping's.",
+    PROFILES[1]: "The same closed forms, with each engine at its own defaults (its integrator and step, its "
+    "contact's own stiffness and friction as a user sets them): a check that passes matched and fails here is "
+    "what the defaults cost, not the engine (docs/studies.md, section 4).",
+}
+
+
 def _study_blocks(root: Path) -> list[Block]:
     """The verification and calibration studies found under ``root``: a count, the table on demand
     (failing checks, and checks whose closed form does not apply to an engine, shown open with their notes)."""
@@ -1737,13 +1751,17 @@ def _study_blocks(root: Path) -> list[Block]:
         failed = [i for i, st in enumerate(status) if st == "fail"]
         na = [i for i, st in enumerate(status) if st == "not-applicable"]
         profile = str(doc.get("profile") or "matched")  # older files: legbench verify's one profile, matched
+        rel_file = path.name
         blocks.append(Heading(2, f"{heading}, {profile} profile: {checks_summary(status)}"))
         scope = f" ({doc['scope']})" if isinstance(doc.get("scope"), str) else ""  # older files: none
-        blocks.append(Para(
-            f"legbench verify runs every check with each backend's {profile} profile settings{scope}. The other "
-            "profile's settings are not verified here. Hover a row's tolerance or pass cell for how its tolerance is "
-            "derived and the row's note (legbench/studies/verify.py)."
-        ))  # fmt: skip
+        unverified = [p for p in PROFILES if p != profile and not (verification_dir(root, p) / rel_file).is_file()]
+        blocks.append(Para(" ".join([
+            f"legbench verify --profile {profile} runs every check with each backend's {profile} settings{scope}.",
+            *([PROFILE_VERIFIED[profile]] if profile in PROFILE_VERIFIED else []),
+            *([f"The {' and '.join(unverified)} profile's settings are not verified in this tree."] * bool(unverified)),
+            "Hover a row's tolerance or pass cell for how its tolerance is derived and the row's note "
+            "(legbench/studies/verify.py).",
+        ])))  # fmt: skip
         for which, title, cls in ((failed, "Failing checks", "fail"), (na, "Not applicable: no closed form for this "
                                   "engine's integrator or friction model (the note says which)", "na")):  # fmt: skip
             if which:

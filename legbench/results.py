@@ -97,6 +97,7 @@ __all__ = [
     "run_dirs",
     "stage_text",
     "staged_name",
+    "verification_dir",
     "versions",
     "write_json",
     "write_metrics",
@@ -485,6 +486,15 @@ def enclosing_run(path: str | Path) -> Path | None:
 
 #: The JSON document each study writes into its output directory: a directory holding one is legbench's.
 STUDY_OUTPUTS = ("verification.json", "calibration.json", "sweep.json", "reproduce.json", "bench.json", "scaling.json")
+
+
+def verification_dir(root: str | Path, profile: str = registry.PROFILES[0]) -> Path:
+    """Where a results tree keeps ``legbench verify``'s output for ``profile``: ``<root>/verification`` for the
+    matched profile, ``<root>/verification__<profile>`` for another (the suffix the run folders take), where the
+    index finds it."""
+    return Path(root) / ("verification" if profile == registry.PROFILES[0] else f"verification__{profile}")
+
+
 #: Columns of a study's output shown in another unit than the file's SI value, and the factor: the contact
 #: calibration's creep [m/s] in mm/s, as on the run pages' contact-law residuals (its own page and the index's table).
 SHOWN_SCALE = {"creep": 1e3, "creep_law": 1e3}

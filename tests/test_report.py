@@ -1360,15 +1360,26 @@ def test_the_verification_says_which_profile_it_checks_and_each_row_s_tolerance_
     md = R.write_index(root).markdown.read_text()
     assert "## Verification against closed-form answers, matched profile: 2 of 2 checks pass\n" in md
     assert (
-        "legbench verify runs every check with each backend's matched profile settings (what verify says it runs)" in md
+        "legbench verify --profile matched runs every check with each backend's matched settings (what verify says "
+        "it runs)" in md
     )
+    assert "The engine-defaults profile's settings are not verified in this tree." in md
     page = html.unescape((root / "report.html").read_text())
     energy = 'title="tolerance: how energy\'s is derived; this row: euler x20: predicted E(t) - E(0)">'
     assert page.count(energy) == 2  # tolerance and pass cells of the passing row
     assert page.count('title="tolerance: how the balance\'s is derived">') == 2
-    (root / "verification" / "verification.json").write_text(json.dumps({"profile": "engine-defaults",
-                                                                         "checks": checks}))  # fmt: skip
-    assert ", engine-defaults profile: 2 of 2" in R.write_index(root).markdown.read_text()
+    # the engine-defaults verification, in its own folder (legbench verify --profile engine-defaults), is shown
+    # after the matched one, under its own heading, and neither then says the other profile is not verified
+    (root / "verification__engine-defaults").mkdir()
+    failing = [_check("energy", True), _check("rest_penetration", False)]
+    (root / "verification__engine-defaults" / "verification.json").write_text(json.dumps({
+        "profile": "engine-defaults", "checks": failing}))  # fmt: skip
+    md = R.write_index(root).markdown.read_text()
+    matched = md.index("## Verification against closed-form answers, matched profile: 2 of 2 checks pass\n")
+    defaults = md.index("## Verification against closed-form answers, engine-defaults profile: 1 of 2 checks pass, "
+                        "1 fail\n")  # fmt: skip
+    assert matched < defaults and "not verified in this tree" not in md
+    assert "a check that passes matched and fails here is what the defaults cost" in md[defaults:]
 
 
 def test_the_index_says_what_the_reference_is_and_rtf_creep_and_integrator_read_alike_everywhere(

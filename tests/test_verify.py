@@ -45,8 +45,8 @@ def results(tmp_path_factory: pytest.TempPathFactory, verify_runs: list[Simulate
     out = tmp_path_factory.mktemp("verification")
     simulate = verify._simulate
 
-    def keep(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any]) -> RunResult:
-        tr = simulate(scenario, name, physics, settings)
+    def keep(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any], profile: str) -> RunResult:
+        tr = simulate(scenario, name, physics, settings, profile)
         verify_runs.append((scenario, name, physics, tr))
         return tr
 
@@ -225,6 +225,40 @@ def test_cli_runs_a_case(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert args.func(args) == 0
     assert "1 of 1 checks pass" in capsys.readouterr().out
     assert math.isfinite(json.loads((tmp_path / "verification.json").read_text())["checks"][0]["measured"])
+
+
+def test_unknown_profile_is_an_error() -> None:
+    with pytest.raises(LegbenchError, match="unknown profile 'defaults'; choose from matched, engine-defaults"):
+        verify.verify(None, ["pinocchio"], ["energy"], profile="defaults")
+
+
+@pytest.mark.skipif("mujoco" not in backends.available(), reason="mujoco backend not installed")
+def test_engine_defaults_verification_runs_each_engine_as_its_defaults_have_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``legbench verify --profile engine-defaults`` loads every backend in that profile and runs its own integrator
+    and step only (matched runs each integrator offered: four energy rows for MuJoCo). MuJoCo's defaults step
+    semi-implicit Euler once per 1 ms period: its free swing drifts 6.19e-3 J, 20 x the 3.06e-4 J of the matched
+    50 us step (a first-order drift), and the drift is still the one predicted for that step (the row passes, error
+    4.2e-5 J within 1.9e-4 J). The CLI writes into results/verification__engine-defaults by default, and
+    verification.json records the profile and its scope."""
+    monkeypatch.chdir(tmp_path)
+    parser = argparse.ArgumentParser()
+    verify.add_cli(parser.add_subparsers())
+    args = parser.parse_args(["verify", "--profile", "engine-defaults", "--backends", "mujoco", "--cases", "energy"])
+    assert args.func(args) == 0
+    assert "1 of 1 checks pass (engine-defaults profile); wrote results/verification__engine-defaults" in (
+        capsys.readouterr().out
+    )
+    doc = json.loads((tmp_path / "results" / "verification__engine-defaults" / "verification.json").read_text())
+    assert doc["profile"] == "engine-defaults" and doc["scope"] == verify.scope("engine-defaults")
+    (row,) = doc["checks"]
+    assert row["variant"] == "integrator=euler dt=0.001" and row["pass"]
+    assert row["measured"] == pytest.approx(6.19e-3, rel=0.01) and row["error"] < 0.3 * row["tolerance"]
+    matched = verify.verify(None, ["mujoco"], ["energy"])
+    assert len(matched) == 4 and matched["variant"].str.endswith("dt=5e-05").all()
+    euler = matched[matched["variant"] == "integrator=euler dt=5e-05"].iloc[0]
+    assert row["measured"] / euler["measured"] == pytest.approx(20.0, rel=0.02)  # first order in h: 1 ms / 50 us
 
 
 def test_a_family_without_prediction_gets_not_applicable_rows(monkeypatch: pytest.MonkeyPatch,
@@ -595,8 +629,8 @@ def test_the_torque_step_term_is_the_2_norm_of_the_step_over_the_joints(monkeypa
     runs: list[SimulatedRun] = []
     simulate = verify._simulate
 
-    def stepped(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any]) -> RunResult:
-        tr = simulate(scenario, name, physics, settings)
+    def stepped(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any], profile: str) -> RunResult:
+        tr = simulate(scenario, name, physics, settings, profile)
         tau = tr.tau.copy()
         tau[-600:] += 1e-5 * (-1.0) ** np.arange(600)[:, None]
         tr = dataclasses.replace(tr, tau=tau)
@@ -652,7 +686,7 @@ def test_a_backend_whose_info_breaks_keeps_its_reason_in_verify(monkeypatch: pyt
         return {**original(self), "contact": {"poc": "center"}}
 
     monkeypatch.setattr(PinocchioBackend, "info", info)
-    rows = verify._group_checks(("energy", "pinocchio"))
+    rows = verify._group_checks(("energy", "pinocchio", "matched"))
     assert rows and all(not r.passed for r in rows)
     assert all("contact.poc: expected 'true' or 'centre', got 'center'" in r.note for r in rows), [r.note for r in rows]
 
@@ -727,7 +761,9 @@ def test_an_rk4_energy_row_fails_a_step_ten_times_the_declared_one(monkeypatch: 
     honest = verify.check_energy(["pinocchio"], integrators=["rk4"])
     assert len(honest) == 1 and honest[0].passed and honest[0].tolerance < 2e-11
     with monkeypatch.context() as m:
-        m.setattr(verify, "_variants", lambda name, base, integrators: [{**base, "integrator": "rk4", "dt": 5e-4}])
+        m.setattr(
+            verify, "_variants", lambda name, base, integrators, profile: [{**base, "integrator": "rk4", "dt": 5e-4}]
+        )
         m.setattr(verify, "_sub_step", lambda info, control_dt: 5e-5)  # what it would declare
         (lying,) = verify.check_energy(["pinocchio"], integrators=["rk4"])
     assert lying.error > lying.tolerance and not lying.passed
@@ -747,7 +783,7 @@ def test_a_first_order_energy_row_is_the_steps_own_drift_not_a_defect(monkeypatc
     assert verify.FIRST_ORDER_REMAINDER == 0.05
     variants = verify._variants
     monkeypatch.setattr(
-        verify, "_variants", lambda name, base, i: [{**s, "damping": 2e-8} for s in variants(name, base, i)]
+        verify, "_variants", lambda name, base, i, p: [{**s, "damping": 2e-8} for s in variants(name, base, i, p)]
     )
     (leaky,) = verify.check_energy(["ode"])
     assert not leaky.passed and leaky.measured > 10.0 * leaky.tolerance, leaky

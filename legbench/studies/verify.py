@@ -111,13 +111,14 @@ from scipy.optimize import linear_sum_assignment
 from legbench import backends as registry
 from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
-from legbench.backends.base import FAMILY_TEXT, Physics, contact_point, rigid_contact
+from legbench.backends.base import FAMILY_TEXT, PROFILES, Physics, contact_point, rigid_contact
 from legbench.exceptions import LegbenchError
 from legbench.results import (
     atomic_write_text,
     check_study_out,
     checks_summary,
     platform_info,
+    verification_dir,
     versions,
     write_json,
 )
@@ -138,6 +139,7 @@ __all__ = [
     "check_small_oscillation",
     "discrete_loop",
     "matrix_pencil",
+    "scope",
     "verify",
     "write_verification",
 ]
@@ -162,13 +164,24 @@ SOLVER_RTOL = 1e-3
 #: that does not vanish with h leaves about the whole drift (a per-step velocity damping of 2e-8: 190 %).
 FIRST_ORDER_REMAINDER = 0.05
 EPS = float(np.finfo(float).eps)
-#: The profile every backend is loaded in (the case scenario's backend settings over it): the checks verify the
-#: matched settings, not the engine-defaults ones. Recorded in verification.json (``profile``).
-VERIFY_PROFILE = "matched"
-#: What runs, in one sentence (the report shows it beside the profile). Recorded in verification.json (``scope``).
-SCOPE = ("the case scenario's backend settings over the profile's; the variant column names the integrator and step: "
-         "the energy case once per integrator a backend offers, the small oscillation also with RK4 where offered, "
-         "the sliding drag in native contact")  # fmt: skip
+#: The profile every backend is loaded in unless another is asked for (the case scenario's backend settings over
+#: it). Recorded in verification.json (``profile``).
+VERIFY_PROFILE = PROFILES[0]
+
+
+def scope(profile: str) -> str:
+    """What runs in ``profile``, in one sentence (the report shows it beside the profile). Recorded in
+    verification.json (``scope``). The matched profile verifies every integrator a backend offers; another profile
+    is the engine as its settings have it, one integrator."""
+    if profile == VERIFY_PROFILE:
+        return ("the case scenario's backend settings over the profile's; the variant column names the integrator "
+                "and step: the energy case once per integrator a backend offers, the small oscillation also with RK4 "
+                "where offered, the sliding drag in native contact")  # fmt: skip
+    return ("the case scenario's backend settings over the profile's, with the profile's own integrator and step "
+            "only (the engine as its settings have it; the variant column names them), the sliding drag in native "
+            "contact")  # fmt: skip
+
+
 #: How each case's tolerance is derived, in one line (the module docstring has the derivation; each row's note its
 #: own terms and numbers). Recorded in verification.json (``tolerance_basis``), which the report shows on hover.
 TOLERANCE_BASIS = {
@@ -250,11 +263,13 @@ def _not_applicable(case: str, backend: str, variant: str, quantity: str, family
 # Running a backend
 
 
-def _variants(name: str, base: Mapping[str, Any], integrators: Sequence[str] | None) -> list[dict[str, Any]]:
-    """Backend settings to verify: the scenario's, once per integrator the backend offers (or once)."""
+def _variants(name: str, base: Mapping[str, Any], integrators: Sequence[str] | None,
+              profile: str = VERIFY_PROFILE) -> list[dict[str, Any]]:  # fmt: skip
+    """Backend settings to verify: the scenario's, once per integrator the backend offers (or once; once in a
+    profile other than the matched one: its own integrator, :func:`scope`)."""
     cls = registry.get(name)
     offered = cls.choices.get("integrator")
-    if not offered:
+    if not offered or profile != VERIFY_PROFILE:
         return [dict(base)]
     chosen = [i for i in offered if integrators is None or i in integrators]
     return [{**base, "integrator": i} for i in chosen]
@@ -279,8 +294,8 @@ def _variant(info: Mapping[str, Any], control_dt: float) -> str:
     return f"integrator={integ} dt={_sub_step(info, control_dt):g}"
 
 
-def _simulate(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any]) -> Any:
-    backend = registry.load(name, physics, settings, VERIFY_PROFILE)
+def _simulate(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any], profile: str) -> Any:
+    backend = registry.load(name, physics, settings, profile)
     try:
         return simulate(scenario, backend, physics)
     finally:
@@ -328,9 +343,9 @@ class _Energy(model.Dynamics):
 
 def check_energy(
     backends: Sequence[str], scenario_file: Path = ENERGY_SCENARIO,
-    integrators: Sequence[str] | None = None,
+    integrators: Sequence[str] | None = None, profile: str = VERIFY_PROFILE,
 ) -> list[Check]:  # fmt: skip
-    """Energy with no torque, contact or damping, per backend and integrator (module docstring)."""
+    """Energy with no torque, contact or damping, per backend and integrator (module docstring), in ``profile``."""
     sc = scenario_mod.load(scenario_file)
     base = physics_of(sc, "reference")
     physics = dataclasses.replace(base, contact=dataclasses.replace(base.contact, Kp=0.0, Kd=0.0))
@@ -339,8 +354,8 @@ def check_energy(
     Ts = sc.control_dt
     out: list[Check] = []
     for name in backends:
-        for settings in _variants(name, sc.backends.get(name, {}), integrators):
-            tr = _simulate(sc, name, physics, settings)
+        for settings in _variants(name, sc.backends.get(name, {}), integrators, profile):
+            tr = _simulate(sc, name, physics, settings, profile)
             variant = _variant(tr.info, Ts)
             if tr.status != "ok":
                 out.append(_failed("energy", name, variant, tr.reason or tr.status))
@@ -368,7 +383,7 @@ def check_energy(
                 # no closed form for the step (e.g. one in maximal coordinates): the drift must be the step's own,
                 # first order in h (Richardson): the same run at h/2 drifts half as much, D_h - 2 D_h/2 = O(h^2),
                 # where a defect that does not vanish with h (a damping, a solver's energy leak) does not halve
-                half = _simulate(sc, name, physics, {**settings, "dt": h / 2.0})
+                half = _simulate(sc, name, physics, {**settings, "dt": h / 2.0}, profile)
                 if half.status != "ok" or len(half.t) != len(tr.t):
                     out.append(_failed("energy", name, variant, f"the run at h/2: {half.reason or half.status}"))
                     continue
@@ -409,8 +424,10 @@ def check_energy(
 # Rest penetration and static balance
 
 
-def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO) -> list[Check]:
-    """Rest penetration y = Fn/Kp and static balance F = -(J_poc^T)^-1 (tau - G), each backend's own contact."""
+def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO,
+               profile: str = VERIFY_PROFILE) -> list[Check]:  # fmt: skip
+    """Rest penetration y = Fn/Kp and static balance F = -(J_poc^T)^-1 (tau - G), each backend's own contact, in
+    ``profile``."""
     sc = scenario_mod.load(scenario_file)
     physics = physics_of(sc)
     c = sc.contact
@@ -418,7 +435,7 @@ def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO) -> 
     leg = model.Dynamics(sc.gravity)
     out: list[Check] = []
     for name in backends:
-        tr = _simulate(sc, name, physics, sc.backends.get(name, {}))
+        tr = _simulate(sc, name, physics, sc.backends.get(name, {}), profile)
         variant = _variant(tr.info, sc.control_dt)
         if tr.status != "ok":
             out += [_failed(case, name, variant, tr.reason or tr.status) for case in ("rest_penetration",
@@ -585,8 +602,10 @@ def _modes(s: np.ndarray) -> list[np.ndarray]:
 
 
 def check_small_oscillation(backends: Sequence[str], scenario_file: Path = OSCILLATION_SCENARIO,
-                            integrators: Sequence[str] | None = ("default", "rk4")) -> list[Check]:  # fmt: skip
-    """Closed-loop poles of the PD hold: fitted to each backend's response vs the linearised discrete loop."""
+                            integrators: Sequence[str] | None = ("default", "rk4"),
+                            profile: str = VERIFY_PROFILE) -> list[Check]:  # fmt: skip
+    """Closed-loop poles of the PD hold: fitted to each backend's response vs the linearised discrete loop, in
+    ``profile`` (only its own integrator outside the matched one, :func:`scope`)."""
     sc = scenario_mod.load(scenario_file)
     if any(sc.gains.Ki) or len(sc.events) != 1 or sc.events[0].joint is None:
         raise LegbenchError(f"{scenario_file}: small_oscillation needs one joint position event and Ki = 0")
@@ -603,10 +622,11 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = OSCIL
     for name in backends:
         base = dict(sc.backends.get(name, {}))
         offered = registry.get(name).choices.get("integrator", ())
-        runs = [base] + [{**base, "integrator": i} for i in (integrators or ()) if i in offered and i != "default"
+        others = integrators if profile == VERIFY_PROFILE else ()
+        runs = [base] + [{**base, "integrator": i} for i in (others or ()) if i in offered and i != "default"
                          and i != base.get("integrator", registry.get(name).defaults.get("integrator"))]  # fmt: skip
         for settings in runs:
-            tr = _simulate(sc, name, physics, settings)
+            tr = _simulate(sc, name, physics, settings, profile)
             variant = _variant(tr.info, Ts)
             if tr.status != "ok":
                 out.append(_failed("small_oscillation", name, variant, tr.reason or tr.status))
@@ -655,33 +675,34 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = OSCIL
 # Table and files
 
 
-def check_sliding(backends: Sequence[str]) -> list[Check]:
+def check_sliding(backends: Sequence[str], profile: str = VERIFY_PROFILE) -> list[Check]:
     """The foot dragged above the friction limit (:mod:`legbench.studies.sliding_case`): friction = mu Fn
-    against the slip and the slip acceleration of the closed form, per backend (native contact, matched); a
+    against the slip and the slip acceleration of the closed form, per backend (native contact, ``profile``); a
     backend whose friction is a pyramid against the pyramid's closed form."""
     out = []
+    variant = f"native, {profile}"
     for name in backends:
-        for r in sliding_case(name, VERIFY_PROFILE):
+        for r in sliding_case(name, profile):
             if r["quantity"] == "run":
-                out.append(_failed("sliding", name, "native, matched", r["note"]))
+                out.append(_failed("sliding", name, variant, r["note"]))
             else:
-                out.append(_check("sliding", name, "native, matched", r["quantity"], r["unit"], r["measured"],
+                out.append(_check("sliding", name, variant, r["quantity"], r["unit"], r["measured"],
                                   r["expected"], r["tolerance"], r["note"]) if r["quantity"].startswith("angle")
-                           else _ratio_check(r, name))  # fmt: skip
+                           else _ratio_check(r, name, variant))  # fmt: skip
     return out
 
 
-def _ratio_check(r: Mapping[str, Any], name: str) -> Check:
+def _ratio_check(r: Mapping[str, Any], name: str, variant: str) -> Check:
     """A sliding row scored as a relative error (``error`` = |measured / expected - 1|)."""
-    return Check("sliding", name, "native, matched", r["quantity"], r["unit"], float(r["measured"]),
+    return Check("sliding", name, variant, r["quantity"], r["unit"], float(r["measured"]),
                  float(r["expected"]), float(r["error"]), float(r["tolerance"]), bool(r["passed"]),
                  note=str(r["note"]))  # fmt: skip
 
 
 #: Each group of cases: the cases it checks, its function (rest_penetration and static_balance share one
-#: run) and its scenario (None: the sliding drag, :mod:`legbench.studies.sliding_case`); a pool task names its
-#: group, so it is plain data.
-_GROUPS: dict[str, tuple[tuple[str, ...], Callable[[Sequence[str]], list[Check]], Path | None]] = {
+#: run; each takes the backends and, by keyword, the profile) and its scenario (None: the sliding drag,
+#: :mod:`legbench.studies.sliding_case`); a pool task names its group, so it is plain data.
+_GROUPS: dict[str, tuple[tuple[str, ...], Callable[..., list[Check]], Path | None]] = {
     "energy": (("energy",), check_energy, ENERGY_SCENARIO),
     "rest": (("rest_penetration", "static_balance"), check_rest, REST_SCENARIO),
     "small_oscillation": (("small_oscillation",), check_small_oscillation, OSCILLATION_SCENARIO),
@@ -689,22 +710,23 @@ _GROUPS: dict[str, tuple[tuple[str, ...], Callable[[Sequence[str]], list[Check]]
 }
 
 
-def _group_checks(task: tuple[str, str]) -> list[Check]:
-    """One group of cases on one backend, ``(group, backend)``: a task for the pool (a top-level function)."""
-    group, name = task
+def _group_checks(task: tuple[str, str, str]) -> list[Check]:
+    """One group of cases on one backend in one profile, ``(group, backend, profile)``: a task for the pool (a
+    top-level function)."""
+    group, name, profile = task
     try:
-        return _GROUPS[group][1]([name])
+        return _GROUPS[group][1]([name], profile=profile)
     except Exception as exc:  # a backend that cannot load or run fails its own rows, not the whole verification
         return _failed_group(task, f"{type(exc).__name__}: {exc}")
 
 
-def _failed_group(task: tuple[str, str], why: str) -> list[Check]:
-    """One failed row per case of a group, ``(group, backend)``, each saying ``why``."""
-    group, name = task
+def _failed_group(task: tuple[str, str, str], why: str) -> list[Check]:
+    """One failed row per case of a group, ``(group, backend, profile)``, each saying ``why``."""
+    group, name, _ = task
     return [_failed(case, name, "", why) for case in _GROUPS[group][0]]
 
 
-def _crashed_group(task: tuple[str, str], why: str) -> list[Check]:
+def _crashed_group(task: tuple[str, str, str], why: str) -> list[Check]:
     """The rows of a group whose worker process died under it (the engine crashed)."""
     return _failed_group(task, f"the engine crashed: {why}")
 
@@ -714,8 +736,9 @@ def verify(
     backends: Sequence[str] | None = None,
     cases: Sequence[str] = CASES,
     jobs: int = 1,
+    profile: str = VERIFY_PROFILE,
 ) -> pd.DataFrame:
-    """Run the verification cases on the backends (default: all available) and tabulate them.
+    """Run the verification cases on the backends (default: all available) in ``profile`` and tabulate them.
 
     Args:
         out_dir: where to write ``verification.json`` and ``verification.md`` (None: nowhere).
@@ -723,13 +746,17 @@ def verify(
         cases: subset of :data:`CASES`.
         jobs: worker processes (:mod:`legbench.studies.executors`; 1: in this process); the table is the
             same whatever the number (each case and backend is one deterministic task, results in order).
+        profile: the profile every backend is loaded in (one of :data:`~legbench.backends.base.PROFILES`;
+            the matched one verifies every integrator a backend offers, another its own only: :func:`scope`).
 
     Returns:
         One row per checked quantity, columns :data:`COLUMNS`.
 
     Raises:
-        LegbenchError: an unknown case or backend.
+        LegbenchError: an unknown case, backend or profile.
     """
+    if profile not in PROFILES:
+        raise LegbenchError(f"unknown profile '{profile}'; choose from {', '.join(PROFILES)}")
     for c in cases:
         if c not in CASES:
             raise LegbenchError(f"unknown verification case '{c}'; choose from {', '.join(CASES)}")
@@ -737,7 +764,7 @@ def verify(
     for n in names:
         registry.get(n)
     groups = {g: file for g, (members, _, file) in _GROUPS.items() if set(members) & set(cases)}
-    tasks = [(g, n) for g in groups for n in names]
+    tasks = [(g, n, profile) for g in groups for n in names]
     # the longest first (simulated seconds x the backend's measured cost in the baseline), so that no long
     # task is left alone at the end; the order of the table does not depend on it
     seconds = {g: scenario_mod.load(file).duration if file is not None else WINDOW[1] for g, file in groups.items()}
@@ -749,7 +776,7 @@ def verify(
     df = pd.DataFrame([dataclasses.asdict(c) for c in checks]).rename(columns={"passed": "pass"})
     df = df.reindex(columns=list(COLUMNS))
     if out_dir is not None:
-        write_verification(df, Path(out_dir))
+        write_verification(df, Path(out_dir), profile)
     return df
 
 
@@ -773,18 +800,19 @@ def markdown(df: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_verification(df: pd.DataFrame, out_dir: Path) -> Path:
-    """Write ``verification.json`` (records, versions, platform) and ``verification.md`` into ``out_dir``."""
+def write_verification(df: pd.DataFrame, out_dir: Path, profile: str = VERIFY_PROFILE) -> Path:
+    """Write ``verification.json`` (records, versions, platform, the ``profile`` the backends ran in) and
+    ``verification.md`` into ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     passed = int(df["pass"].sum())
     na = int((df["status"] == "not-applicable").sum())
     meta = {"schema": "legbench.verification/1", "passed": passed, "total": len(df), "not_applicable": na,
-            "profile": VERIFY_PROFILE, "scope": SCOPE, "tolerance_basis": TOLERANCE_BASIS,
+            "profile": profile, "scope": scope(profile), "tolerance_basis": TOLERANCE_BASIS,
             "checks": df.to_dict(orient="records"), "versions": versions(), "platform": platform_info()}  # fmt: skip
     write_json(meta, out_dir / "verification.json")
     md = [f"# Verification: {checks_summary(list(df['status']))}\n",
           "Cases and tolerances: `legbench/studies/verify.py`. Every backend runs in its "
-          f"{VERIFY_PROFILE} profile's settings.\n", markdown(df), "\n## Notes\n"]  # fmt: skip
+          f"{profile} profile's settings: {scope(profile)}.\n", markdown(df), "\n## Notes\n"]  # fmt: skip
     md += [f"- {r['case']} / {r['backend']} / {r['variant']} / {r['quantity']}: {r['note']}"
            for r in df.to_dict(orient="records") if r["note"]]  # fmt: skip
     atomic_write_text(out_dir / "verification.md", "\n".join(md) + "\n")
@@ -796,19 +824,24 @@ def _cli(args: argparse.Namespace) -> int:
     cases = list(CASES) if args.cases is None else [c.strip() for c in args.cases.split(",") if c.strip()]
     if not cases:
         raise LegbenchError(f"--cases {args.cases!r}: names no case (give some of {', '.join(CASES)})")
-    check_study_out(args.out, "verification.json", ("verification.json", "verification.md"), "verification",
+    out = args.out or verification_dir("results", args.profile)
+    check_study_out(out, "verification.json", ("verification.json", "verification.md"), "verification",
                     args.force)  # fmt: skip
-    df = verify(args.out, names, cases, args.jobs)
+    df = verify(out, names, cases, args.jobs, args.profile)
     with pd.option_context("display.width", 200, "display.max_columns", 20, "display.max_colwidth", 40):
         print(df.drop(columns=["note"]).to_string(index=False))
-    print(f"{checks_summary(list(df['status']))}; wrote {args.out}")
+    print(f"{checks_summary(list(df['status']))} ({args.profile} profile); wrote {out}")
     return 0 if not bool((df["status"] == "fail").any()) else 1
 
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Register ``legbench verify [--out DIR] [--backends all] [--cases a,b] [--jobs N]``."""
+    """Register ``legbench verify [--out DIR] [--backends all] [--cases a,b] [--jobs N] [--profile P]``."""
     p = subparsers.add_parser("verify", help="verification cases with closed-form answers, on every backend")
-    p.add_argument("--out", default="results/verification", help="output directory (default results/verification)")
+    p.add_argument("--out", default=None, help="output directory (default results/verification, "
+                   "results/verification__engine-defaults for --profile engine-defaults)")  # fmt: skip
+    p.add_argument("--profile", choices=PROFILES, default=VERIFY_PROFILE,
+                   help=f"the backends' profile (default {VERIFY_PROFILE}: every integrator a backend offers; "
+                   "engine-defaults: the engine's own settings and integrator)")  # fmt: skip
     p.add_argument("--backends", default="all", help="comma-separated backend names, or 'all' (default)")
     p.add_argument("--cases", default=None, help=f"comma-separated subset of {', '.join(CASES)}")
     p.add_argument("--jobs", type=int, default=1, help="worker processes, one case and backend each (default 1)")
