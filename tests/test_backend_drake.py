@@ -22,6 +22,7 @@ from legbench.backends import load  # noqa: E402
 from legbench.backends.base import Physics  # noqa: E402
 from legbench.backends.drake_ import DrakeBackend, hydro_force_per_modulus  # noqa: E402
 from legbench.results import RunResult  # noqa: E402
+from legbench.studies import verify  # noqa: E402
 
 #: A press with a tangential load inside the friction cone (|F_t| / Fn = 0.09 < mu_s) [N, W].
 PUSH = np.array([3.0, 2.0, -40.0])
@@ -413,6 +414,27 @@ def test_info_reports_the_friction_drake_uses(profile: str, dynamic: str) -> Non
     assert "mu_k" not in contact and "mu_s" not in contact
     assert contact["mu_static"] == pytest.approx(physics.contact.mu_s, rel=1e-15)
     assert contact["mu_dynamic"] == pytest.approx(getattr(physics.contact, dynamic), rel=1e-15)
+
+
+@pytest.mark.parametrize(("profile", "pair"), [("matched", 1.0e4), ("engine-defaults", 1.0 / (1e-4 + 1e-6))])
+def test_info_reports_the_spring_the_foot_rests_on(profile: str, pair: float) -> None:
+    """engine-defaults registers the ground with friction only, so the scene graph gives it its default point
+    stiffness, 1e6 N/m, in series with the foot's Kp: the foot rests on 9901 N/m and sinks 1.0 % deeper than
+    Fn / Kp (the engine-defaults verification's rest penetration: measured against the spec's Kp it fails by that
+    1.0 %, against info()'s pair_stiffness it meets Fn / k to 1e-5). info() listed only what legbench set, so the
+    defaulted 1e6 N/m was invisible; it now holds each geometry's values as Drake holds them and the pair's."""
+    backend = load("drake", Physics(), {}, profile)
+    try:
+        contact = backend.info()["contact"]
+    finally:
+        backend.close()
+    assert contact["pair_stiffness"] == pytest.approx(pair, rel=1e-7)
+    if profile == "engine-defaults":
+        assert contact["held"]["ground"]["point_contact_stiffness"] == 1e6
+        (rest,) = [c for c in verify.check_rest(["drake"], profile=profile) if c.case == "rest_penetration"]
+        fn = rest.expected * Physics().contact.Kp  # the row's expected y is Fn / Kp
+        assert rest.measured / rest.expected - 1.0 == pytest.approx(0.01, abs=2e-4) and not rest.passed
+        assert rest.measured * pair / fn - 1.0 == pytest.approx(0.0, abs=1e-5)
 
 
 def test_reference_contact_reports_no_engine_friction_and_no_lift() -> None:

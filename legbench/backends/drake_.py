@@ -532,6 +532,7 @@ class DrakeBackend(Backend):
                 # the pair's friction, read back from the scene graph and combined as Drake does: the discrete
                 # solvers slide with the dynamic one alone (matched sets it to mu_s)
                 **self._pair_friction(),
+                **self._pair_point_contact(),
                 "normal_law": "linear Kelvin-Voigt Kp (x + tau_d xdot)_+"
                 if self.cfg["solver"] == "sap"
                 else "Hunt-Crossley k x (1 + d xdot)_+",
@@ -563,6 +564,31 @@ class DrakeBackend(Backend):
             for key, part in (("mu_static", "static_friction"), ("mu_dynamic", "dynamic_friction")):
                 a, b = (float(getattr(f, part)()) for f in pair)
                 out[key] = 2.0 * a * b / (a + b) if a + b > 0 else 0.0
+        return out
+
+    def _pair_point_contact(self) -> dict[str, Any]:
+        """``held``: each geometry's point-contact stiffness [N/m], Hunt-Crossley dissipation [s/m] and relaxation
+        time [s] as the scene graph holds them, with the defaults it filled in for what legbench left unset
+        (engine-defaults registers the ground with friction only, so it gets ``SceneGraphConfig()
+        .default_proximity_properties``: 1e6 N/m, 50 s/m, 0.1 s in Drake 1.51; ``properties`` shows only what
+        legbench set); ``pair_stiffness`` and ``pair_dissipation`` the discrete plant's combination of them (in
+        series; each d weighted by the other's share of the stiffness): the spring the foot rests on, y = Fn /
+        pair_stiffness. None in reference contact (no ground) and for the hydroelastic model."""
+        out: dict[str, Any] = {"held": None, "pair_stiffness": None, "pair_dissipation": None}
+        if self.ground is None or not self.foot_geoms or self.cfg["contact_model"] == "hydroelastic":
+            return out
+        names = ("point_contact_stiffness", "hunt_crossley_dissipation", "relaxation_time")
+        held = {
+            who: {n: float(p.GetProperty("material", n)) if p.HasProperty("material", n) else None for n in names}
+            for who, p in zip(("foot", "ground"), self._pair_properties(), strict=True)
+        }
+        out["held"] = held
+        k1, k2 = held["foot"]["point_contact_stiffness"], held["ground"]["point_contact_stiffness"]
+        d1, d2 = held["foot"]["hunt_crossley_dissipation"], held["ground"]["hunt_crossley_dissipation"]
+        if k1 is not None and k2 is not None:
+            out["pair_stiffness"] = k1 * k2 / (k1 + k2)
+            if d1 is not None and d2 is not None:
+                out["pair_dissipation"] = (k2 * d1 + k1 * d2) / (k1 + k2)
         return out
 
     def _pair_properties(self) -> tuple[Any, Any]:
