@@ -214,6 +214,22 @@ class MujocoBackend(Backend):
     }
 
     @classmethod
+    def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any]) -> str | None:
+        """The usual normal mapping (raw solref, default impedance) at a 1 ms step lets the sliding foot hop: the
+        sliding case's central differences then span steps without contact (docs/contact_mapping.md)."""
+        usual = (info.get("contact_mode"), info.get("contact_solref"), info.get("contact_solimp")) == (
+            "native", "raw", "default")  # fmt: skip
+        if case == "sliding" and quantity.startswith("slip acceleration") and usual and info.get("dt", 0) >= 1e-3:
+            return ("known: with the raw solref (-Kp, -Kd), MuJoCo's default impedance and a 1 ms step the sliding "
+                    "foot hops: Fn reads 0 at 4 of the window's 51 samples (every 9-12 ms, the sphere's centre "
+                    "0.01-0.03 mm above R_foot), steps without friction in which the drag accelerates the slip at "
+                    "+90 m/s^2, and the central differences of the 8 contact samples beside them carry that (mean "
+                    "+20 m/s^2). The contact steps meet the closed form: each one's forward difference under the "
+                    "force read at its start, which acts over that 1 ms step, averages -3.85 against -3.83 m/s^2 "
+                    "(0.3 %; pyramidal cone, elliptic -3.69 against -3.73)")  # fmt: skip
+        return None
+
+    @classmethod
     def settings_problem(
         cls, settings: Mapping[str, Any], contact_mode: str
     ) -> tuple[str | tuple[str, ...], str] | None:
@@ -532,8 +548,11 @@ class MujocoBackend(Backend):
             # MuJoCo's URDF compiler options as loaded (COMPILER): fusestatic="false" is not MuJoCo's URDF default
             # ("true"), and the engine-defaults profile's raw solref depends on it (docs/contact_mapping.md)
             "compiler": {**self.compiler, "urdf_default_fusestatic": "true"},
-            # the pyramidal cone's edges are n +- mu t_i (engine_core_constraint.c), so |F_t1| + |F_t2| <= mu Fn:
-            # dragged along W y it slides with |F_x| + |F_y| = 0.700 Fn, |F_t| = 0.608 Fn (measured, mu 0.7)
+            # the pyramidal cone's edges are n +- mu t_i (engine_core_constraint.c), so |F_t1| + |F_t2| <= mu Fn, with
+            # t_1, t_2 = W y, -W x on the ground: dragged along W y (engine-defaults, no noslip) it slides on the
+            # vertex, F_t = (0, -0.700 Fn), 8-10 deg off -slip, as maximal dissipation on the diamond has it
+            # (sliding_case.diamond_friction); with noslip (matched) |F_x| + |F_y| = 0.700 Fn at the end read,
+            # |F_t| = 0.608 Fn, alternating at the edge (mean read 0.599 Fn): not sliding at the bound
             "friction_cone": "cone" if self.cfg["cone"] == "elliptic" else "diamond",
             "sub_steps": self.n_sub,
             "timestep": float(m.opt.timestep),

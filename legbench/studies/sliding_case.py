@@ -6,13 +6,18 @@ h_d = (0, FT, -FN), FT = 0.8 FN, above the static limit mu_s FN = 0.7 FN. Over t
 :data:`WINDOW` the foot slides, and the law gives in closed form, at each logged
 sample (q, qd, tau, Fn):
 
-* the friction: |F_t| = mu Fn, opposite the slip (mu = the backend's sliding
-  coefficient: mu_k for the stick-slip law, where the slip is far above 1.5 v_th;
-  mu_s for a Coulomb engine, which has no other);
+* the friction: |F_t| = mu Fn, opposite the slip (mu = the coefficient the backend declares it
+  slides with for its loaded settings, ``Backend.slides_with()``, recorded in the run's info as
+  ``sliding_coefficient``: mu_k for the stick-slip law, where the slip is far above 1.5 v_th, and
+  for an engine given a dynamic coefficient mu_k; mu_s for a Coulomb engine with one coefficient);
+  the friction shape as the run's info declares it (``friction_cone``): a cone, the axis-by-axis
+  pyramid (:func:`pyramid_friction`) or the diamond |F_x| + |F_y| <= mu Fn (:func:`diamond_friction`:
+  it slides on the vertex against the slip's larger component);
 * the slip acceleration: qdd = M(q)^-1 (tau - nle(q, qd) + J_poc^T F), F = (-mu Fn v_t/|v_t|, Fn),
   and a_t = (J_poc qdd + Jdot_poc qd)_t, the poc's horizontal acceleration, along the slip
-  (F applied where the backend applies it: its info's ``contact.lift``; a point y/2 above the lowest
-  point alone moves the acceleration by 4 % here);
+  (F applied where the backend applies it: its info's ``contact.poc`` and ``contact.lift``,
+  :func:`~legbench.backends.base.contact_point`; a point y/2 above the lowest point alone moves the
+  acceleration by 4 % here, the sphere's centre instead of the lowest point by 64 %);
   M and nle from the leg's model (``model.Dynamics`` on the generated URDF), the same for every
   backend.
 
@@ -68,12 +73,13 @@ def _scenario(duration: float = WINDOW[1] + 0.01, overrides: Mapping[str, Any] |
 
 
 def predicted_acceleration(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force: np.ndarray,
-                           lift: float = 0.0) -> np.ndarray:  # fmt: skip
+                           lift: float = 0.0, poc: str = "true") -> np.ndarray:  # fmt: skip
     """Horizontal acceleration in W [m/s^2] (n x 2), under tau [N m] and the ground force in W [N], of the shank's
-    point where the force acts: ``lift`` times the penetration y above the sphere's lowest point (the backend's
-    info's ``contact.lift``, :func:`~legbench.backends.base.contact_point`; 0: the true poc), the point whose slip
-    the sliding case measures. Its acceleration is J qdd + Jdot qd with the material point (its depth d below E)
-    held: Jdot qd by a difference of J at q + eps qd and the same d.
+    point where the force acts (:func:`~legbench.backends.base.contact_point`, the backend's info's ``contact``):
+    ``poc`` ``"true"``, the sphere's lowest point raised by ``lift`` times the penetration y (``contact.lift``; 0:
+    the lowest point itself), or ``"centre"``, E (the law applied at the sphere's centre: the force's lever is then
+    R_foot shorter), the point whose slip the sliding case measures. Its acceleration is J qdd + Jdot qd with the
+    material point (its depth d below E) held: Jdot qd by a difference of J at q + eps qd and the same d.
     """
     R = load_params().geometry.R_foot
     dyn = Dynamics()
@@ -83,7 +89,7 @@ def predicted_acceleration(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force
     for k in range(len(q)):
         M = dyn.mass_matrix(q[k])
         nle = dyn.inverse_dynamics(q[k], qd[k], zero)
-        d = R - lift * max(R - float(kinematics.fk(q[k])[2]), 0.0)
+        d = 0.0 if poc == "centre" else R - lift * max(R - float(kinematics.fk(q[k])[2]), 0.0)
         J = kinematics.jacobian_below(q[k], d)
         qdd = np.linalg.solve(M, tau[k] - nle + J.T @ force[k])
         Jdot_qd = (kinematics.jacobian_below(q[k] + eps * qd[k], d) - J) / eps @ qd[k]
@@ -141,7 +147,8 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
                                     f"{tr.status}: {tr.reason}"), strict=True))]  # fmt: skip
     cls = registry.get(backend)
     p = physics.contact
-    mu = float(getattr(p, cls.sliding_coefficient))
+    coef = sliding_coefficient(tr.info, cls)
+    mu = float(getattr(p, coef))
     Ts = physics.control_dt
     poc, lift = contact_point(tr.info, p.poc)
     J = kinematics.jacobian_at(tr.q, poc, lift)  # the slip where the force acted
@@ -151,8 +158,9 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     n_window = len(k)
     # samples in contact only (an engine's foot may hop: the closed form is for sliding contact)
     k = k[tr.f[k, 2] > FN_MIN]
-    if str(tr.info.get("friction_cone", cls.friction_cone)) == "pyramid" and len(k):
-        return _score_pyramid(tr, physics, cls, mu, v, k, n_window, lift)
+    shape = str(tr.info.get("friction_cone", cls.friction_cone))
+    if shape == "pyramid" and len(k):
+        return _score_pyramid(tr, physics, cls, coef, mu, v, k, n_window, lift, poc)
     k = k[np.linalg.norm(v[k], axis=1) > 0.0]
     if len(k) == 0:
         return [dict(zip(ROW_KEYS, (case, backend, "run", "", math.nan, math.nan, math.nan, 0.0, False,
@@ -167,20 +175,85 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     angle = float(np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0))).max())
     a_meas = (v[k + 1] - v[k - 1]) / (2 * Ts)
     f_pred = np.column_stack([-mu * fn[:, None] * u, fn])
-    a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift)
+    a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift, poc)
     am, ap = float(np.mean(np.sum(a_meas * u, axis=1))), float(np.mean(np.sum(a_pred * u, axis=1)))
     slip = (f"slip {_span(1e3 * speed)} mm/s, Fn {fn.mean():.3g} N, "
             f"{len(k)} of {n_window} samples in contact")  # fmt: skip
+    if shape == "diamond":
+        return _score_diamond(tr, physics, cls, coef, mu, v, k, slip, lift, poc)
     # a law backend's force is the law evaluated at the logged state: its ratio and angle are the law read back
     law = ("the law read back (the force is the law at the logged state): checks the read-out, not an engine; "
            if applies_law(tr.info, physics) else "")  # fmt: skip
     rows = [
         _relative(case, backend, "friction |F_t| / Fn while sliding", "1", ratio, mu, TOL_MU,
-                  f"{law}{cls.sliding_coefficient} = {mu:g}; {slip}"),
+                  f"{law}{coef} = {mu:g}; {slip}"),
         (case, backend, "angle between friction and -slip (max)", "deg", angle, 0.0, angle, TOL_ANGLE,
          angle <= TOL_ANGLE, f"{law}{slip}"),
         _relative(case, backend, "slip acceleration along the slip (mean)", "m/s^2", am, ap, TOL_ACC,
-                  f"closed form M^-1 (tau - nle + J_poc^T F), F = mu Fn vs the slip; {slip}"),
+                  f"closed form M^-1 (tau - nle + J_poc^T F), F = mu Fn vs the slip{_at(poc)}; {slip}"),
+    ]  # fmt: skip
+    return _with_known(cls, tr, [dict(zip(ROW_KEYS, r, strict=True)) for r in rows])
+
+
+def sliding_coefficient(info: Mapping[str, Any], cls: type[Backend]) -> str:
+    """The ContactParams coefficient (``mu_k`` or ``mu_s``) the run's native contact slides with, as the backend
+    declared it for its loaded settings (:meth:`~legbench.backends.base.Backend.slides_with`, recorded in the run's
+    info as ``sliding_coefficient`` by :func:`legbench.run.backend_info`), else the class's
+    :attr:`~legbench.backends.base.Backend.sliding_coefficient`."""
+    coef = info.get("sliding_coefficient")
+    return coef if coef in ("mu_k", "mu_s") else cls.sliding_coefficient
+
+
+def _at(poc: str) -> str:
+    """Where the closed form applies F, said in a note where it is not the sphere's lowest point."""
+    return ", applied at the sphere's centre (the backend's poc)" if poc == "centre" else ""
+
+
+def diamond_friction(v: np.ndarray, fn: np.ndarray, mu: float) -> np.ndarray:
+    """The friction diamond's sliding force in W [N] (n x 2) for the slip velocity ``v`` (n x 2, W x and W y) and
+    the normal force ``fn`` [N]: the diamond |F_x| + |F_y| <= mu Fn (a pyramidal cone whose edges are n +- mu t_i,
+    t_1, t_2 = W y, W x for the ground's normal +z_W: MuJoCo's contact frame on the plane) slides with the force of
+    maximal dissipation, the point of the diamond furthest against the slip. That is the vertex on the axis of
+    the slip's larger component, -mu Fn sign(v_i) e_i, |F_t| = mu Fn, off -slip by atan(|v_j| / |v_i|); on the
+    diagonal |v_x| = |v_y| every point of the face between the two vertices dissipates as much, and the face's
+    middle is returned. Unlike the axis-by-axis pyramid (:func:`pyramid_friction`), no axis can hold with a force
+    while the other slides: with F on the vertex the other component is 0."""
+    v = np.asarray(v, float)
+    fn = np.asarray(fn, float)
+    ax, ay = np.abs(v[:, 0]), np.abs(v[:, 1])
+    w = np.column_stack([(ax > ay) + 0.5 * (ax == ay), (ay > ax) + 0.5 * (ax == ay)])
+    return -mu * fn[:, None] * w * np.sign(v)
+
+
+def _score_diamond(tr: RunResult, physics: Physics, cls: type[Backend], coef: str, mu: float, v: np.ndarray,
+                   k: np.ndarray, slip: str, lift: float, poc: str) -> list[dict[str, Any]]:  # fmt: skip
+    """The drag scored against the friction diamond's closed form (:func:`diamond_friction`) at the samples ``k``
+    in sliding contact: |F_x| + |F_y| = mu Fn, the tangential force's angle to the closed form's (the vertex
+    against the slip's larger component), the slip acceleration along the slip under that force."""
+    case, backend = "sliding", tr.backend
+    Ts = physics.control_dt
+    fn, ft, vk = tr.f[k, 2], tr.f[k, :2], v[k]
+    u = vk / np.linalg.norm(vk, axis=1)[:, None]
+    ft_pred = diamond_friction(vk, fn, mu)
+    l1 = float(np.mean(np.sum(np.abs(ft), axis=1) / fn))
+    cosang = np.sum(ft * ft_pred, axis=1) / (np.linalg.norm(ft, axis=1) * np.linalg.norm(ft_pred, axis=1))
+    angle = float(np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0))).max())
+    off = float(np.degrees(np.arccos(np.clip(-np.sum(ft_pred * u, axis=1) / np.linalg.norm(ft_pred, axis=1),
+                                             -1.0, 1.0))).max())  # fmt: skip
+    along = int(np.sum(np.abs(vk[:, 1]) > np.abs(vk[:, 0])))
+    ctx = (f"diamond |F_x| + |F_y| <= {coef} Fn, {coef} = {mu:g}: slides on the vertex against the slip's larger "
+           f"component (W y at {along} of {len(k)} samples), up to {off:.3g} deg off -slip; {slip}")  # fmt: skip
+    a_meas = (v[k + 1] - v[k - 1]) / (2 * Ts)
+    f_pred = np.column_stack([ft_pred, fn])
+    a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift, poc)
+    am, ap = float(np.mean(np.sum(a_meas * u, axis=1))), float(np.mean(np.sum(a_pred * u, axis=1)))
+    rows = [
+        _relative(case, backend, "friction (|F_x| + |F_y|) / Fn while sliding (diamond)", "1", l1, mu, TOL_MU,
+                  ctx),
+        (case, backend, "angle between friction and the diamond's closed form (max)", "deg", angle, 0.0, angle,
+         TOL_ANGLE, angle <= TOL_ANGLE, ctx),
+        _relative(case, backend, "slip acceleration along the slip (mean; diamond)", "m/s^2", am, ap, TOL_ACC,
+                  f"closed form M^-1 (tau - nle + J_poc^T F), F the diamond's{_at(poc)}; {ctx}"),
     ]  # fmt: skip
     return _with_known(cls, tr, [dict(zip(ROW_KEYS, r, strict=True)) for r in rows])
 
@@ -211,7 +284,7 @@ def _relative(case: str, backend: str, quantity: str, unit: str, measured: float
 
 
 def pyramid_friction(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, fn: np.ndarray, mu: float,
-                     lift: float = 0.0) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+                     lift: float = 0.0, poc: str = "true") -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """The friction pyramid's closed form at each sample: the tangential ground force in W [N] (n x 2) and the
     poc's horizontal acceleration in W [m/s^2] (n x 2) it gives, under tau [N m] and the normal force fn [N].
 
@@ -224,12 +297,12 @@ def pyramid_friction(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, fn: np.ndar
     n = len(q)
     force = np.zeros((n, 3))
     force[:, 2] = fn
-    a0 = predicted_acceleration(q, qd, tau, force, lift)
+    a0 = predicted_acceleration(q, qd, tau, force, lift, poc)
     cols = []
     for i in range(2):
         unit = force.copy()
         unit[:, i] = 1.0
-        cols.append(predicted_acceleration(q, qd, tau, unit, lift) - a0)
+        cols.append(predicted_acceleration(q, qd, tau, unit, lift, poc) - a0)
     ft = np.empty((n, 2))
     acc = np.empty((n, 2))
     for s in range(n):
@@ -249,36 +322,38 @@ def pyramid_friction(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, fn: np.ndar
     return ft, acc
 
 
-def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], mu: float, v: np.ndarray, k: np.ndarray,
-                   n_window: int, lift: float = 0.0) -> list[dict[str, Any]]:  # fmt: skip
+def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: str, mu: float, v: np.ndarray,
+                   k: np.ndarray, n_window: int, lift: float = 0.0,
+                   poc: str = "true") -> list[dict[str, Any]]:  # fmt: skip
     """The drag scored against the friction pyramid's closed form (:func:`pyramid_friction`): the force along
     the drag (W y) at mu Fn, the force across it (W x) at the closed form's (which holds W x: an engine with no
     friction along W x passed a bound |F_x| <= mu Fn, and its W y acceleration moved by 1.6 % only, within
-    2 %), the slip acceleration along W y; ``lift``: where the backend's force acts
+    2 %), the slip acceleration along W y; ``coef``: the coefficient the backend slides with
+    (:func:`sliding_coefficient`); ``lift``, ``poc``: where its force acts
     (:func:`~legbench.backends.base.contact_point`)."""
     case, backend = "sliding", tr.backend
     Ts = physics.control_dt
     fn = tr.f[k, 2]
-    ft_pred, a_pred = pyramid_friction(tr.q[k], tr.qd[k], tr.tau[k], fn, mu, lift)
+    ft_pred, a_pred = pyramid_friction(tr.q[k], tr.qd[k], tr.tau[k], fn, mu, lift, poc)
     slides = np.abs(ft_pred[:, 1]) >= mu * fn * (1.0 - 1e-12)  # the closed form's W y at its bound
     along = float(np.mean(np.abs(tr.f[k, 1]) / fn))
     across, across_pred = float(np.mean(tr.f[k, 0] / fn)), float(np.mean(ft_pred[:, 0] / fn))
     a_meas = (v[k + 1, 1] - v[k - 1, 1]) / (2 * Ts)
     am, ap = float(np.mean(a_meas)), float(np.mean(a_pred[:, 1]))
     speed = np.abs(v[k, 1])
-    ctx = (f"pyramid along W x and W y, {cls.sliding_coefficient} = {mu:g}; the closed form slides W y at "
+    ctx = (f"pyramid along W x and W y, {coef} = {mu:g}; the closed form slides W y at "
            f"{int(slides.sum())} of {len(k)} samples; slip along W y {_span(1e3 * speed)} mm/s, "
            f"Fn {fn.mean():.3g} N, {len(k)} of {n_window} samples in "
            "contact")  # fmt: skip
     expected_along = mu if slides.all() else float(np.mean(np.abs(ft_pred[:, 1]) / fn))
-    acc = f"closed form M^-1 (tau - nle + J_poc^T F), F the pyramid's; {ctx}"
+    acc = f"closed form M^-1 (tau - nle + J_poc^T F), F the pyramid's{_at(poc)}; {ctx}"
     if ap != 0.0:
         acc_row = _relative(case, backend, "slip acceleration along the drag (mean; pyramid)", "m/s^2", am, ap,
                             TOL_ACC, acc)  # fmt: skip
     else:  # the closed form holds both axes: the scale is the acceleration the drag gives without friction
         free = np.column_stack([np.zeros((len(k), 2)), fn])
-        scale = float(np.mean(np.abs(predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], free,
-                                                            lift)[:, 1])))  # fmt: skip
+        scale = float(np.mean(np.abs(predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], free, lift,
+                                                            poc)[:, 1])))  # fmt: skip
         acc_row = (case, backend, "slip acceleration along the drag (mean; pyramid)", "m/s^2", am, 0.0, abs(am),
                    TOL_ACC * scale, abs(am) <= TOL_ACC * scale,
                    f"{acc}; tolerance {100 * TOL_ACC:g} % of the frictionless acceleration")  # fmt: skip
@@ -294,4 +369,14 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], mu: floa
     return _with_known(cls, tr, [dict(zip(ROW_KEYS, r, strict=True)) for r in rows])
 
 
-__all__ = ["ROW_KEYS", "applies_law", "drag", "predicted_acceleration", "pyramid_friction", "score", "sliding_case"]
+__all__ = [
+    "ROW_KEYS",
+    "applies_law",
+    "diamond_friction",
+    "drag",
+    "predicted_acceleration",
+    "pyramid_friction",
+    "score",
+    "sliding_case",
+    "sliding_coefficient",
+]
