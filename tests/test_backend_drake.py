@@ -434,6 +434,8 @@ def test_info_reports_the_spring_the_foot_rests_on(profile: str, pair: float) ->
         (rest,) = [c for c in verify.check_rest(["drake"], profile=profile) if c.case == "rest_penetration"]
         fn = rest.expected * Physics().contact.Kp  # the row's expected y is Fn / Kp
         assert rest.measured / rest.expected - 1.0 == pytest.approx(0.01, abs=2e-4) and not rest.passed
+        assert rest.note.startswith("known: the ground, registered with friction only, takes the scene graph's "
+                                    "default point stiffness (1e+06 N/m)"), rest.note  # fmt: skip
         assert rest.measured * pair / fn - 1.0 == pytest.approx(0.0, abs=1e-5)
 
 

@@ -270,8 +270,8 @@ class Backend(ABC):
     def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any]) -> str | None:
         """Why this backend, run as ``info`` says (its :meth:`info`), misses the verification ``quantity`` of
         ``case``, where that has been measured and explained; None otherwise. Shown beside the row, which still
-        fails: an explanation, not a pass. Consulted by the sliding case (``studies.sliding_case.score``, which
-        has the run's ``info``); the other verification cases do not ask it yet."""
+        fails: an explanation, not a pass. Consulted by every verification case for its failing rows
+        (``studies.verify``, ``studies.sliding_case.score``), with the run's ``info``."""
         return None
 
     @classmethod

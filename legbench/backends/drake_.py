@@ -215,6 +215,19 @@ class DrakeBackend(Backend):
             return ("known: SAP's normal force while sliding is Kp y + Kd (ydot + mu_s |v_t|) (its convex "
                     "approximation's separation speed in the damping), so the foot leaves the ground once "
                     "mu_s Kd |v_t| reaches the load (docs/backends/drake.md)")  # fmt: skip
+        contact = info.get("contact")
+        contact = contact if isinstance(contact, Mapping) else {}
+        pair, kp = contact.get("pair_stiffness"), contact.get("Kp")
+        if (
+            case == "rest_penetration"
+            and isinstance(pair, float)
+            and isinstance(kp, float)
+            and abs(pair / kp - 1) > 1e-6
+        ):
+            return (f"known: the ground, registered with friction only, takes the scene graph's default point "
+                    f"stiffness ({1.0 / (1.0 / pair - 1.0 / kp):.3g} N/m) in series with the "
+                    f"foot's Kp: the foot rests on {pair:.6g} N/m and sinks {100 * (kp / pair - 1):.2f} % deeper "
+                    "than Fn/Kp; it meets Fn/pair_stiffness to 1.4e-6 (info contact.pair_stiffness)")  # fmt: skip
         return None
 
     # ----------------------------------------------------------------- load

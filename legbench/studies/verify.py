@@ -298,6 +298,18 @@ def _variant(info: Mapping[str, Any], control_dt: float) -> str:
     return f"integrator={integ} dt={_sub_step(info, control_dt):g}"
 
 
+def _explained(checks: list[Check], infos: Mapping[tuple[str, str], Mapping[str, Any]]) -> list[Check]:
+    """``checks`` with each failing row's measured and explained miss (``Backend.known_deviation`` of the run's
+    info, ``infos`` by (backend, variant)) before its note: an explanation, the row still fails."""
+    out = []
+    for c in checks:
+        info = infos.get((c.backend, c.variant))
+        known = None if c.status != "fail" or info is None else registry.get(c.backend).known_deviation(
+            c.case, c.quantity, info)  # fmt: skip
+        out.append(dataclasses.replace(c, note=f"{known}; {c.note}" if c.note else known) if known else c)
+    return out
+
+
 def _simulate(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any], profile: str) -> Any:
     backend = registry.load(name, physics, settings, profile)
     try:
@@ -357,10 +369,12 @@ def check_energy(
     lower, upper = model.load_params().lower, model.load_params().upper
     Ts = sc.control_dt
     out: list[Check] = []
+    infos: dict[tuple[str, str], Mapping[str, Any]] = {}
     for name in backends:
         for settings in _variants(name, sc.backends.get(name, {}), integrators, profile):
             tr = _simulate(sc, name, physics, settings, profile)
             variant = _variant(tr.info, Ts)
+            infos[name, variant] = tr.info
             if tr.status != "ok":
                 out.append(_failed("energy", name, variant, tr.reason or tr.status))
                 continue
@@ -429,7 +443,7 @@ def check_energy(
             c = _check("energy", name, variant, "max |E(t) - E(0)|", "J", float(np.abs(D).max()), 0.0, tol,
                        why + invalid)  # fmt: skip
             out.append(c if inside else dataclasses.replace(c, passed=False, status="fail"))
-    return out
+    return _explained(out, infos)
 
 
 # --------------------------------------------------------------------------- #
@@ -446,9 +460,11 @@ def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO,
     R = model.load_params().geometry.R_foot
     leg = model.Dynamics(sc.gravity)
     out: list[Check] = []
+    infos: dict[tuple[str, str], Mapping[str, Any]] = {}
     for name in backends:
         tr = _simulate(sc, name, physics, sc.backends.get(name, {}), profile)
         variant = _variant(tr.info, sc.control_dt)
+        infos[name, variant] = tr.info
         if tr.status != "ok":
             out += [_failed(case, name, variant, tr.reason or tr.status) for case in ("rest_penetration",
                                                                                       "static_balance")]  # fmt: skip
@@ -526,7 +542,7 @@ def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO,
                 note = f"{terms}, lever term up to {lever.max():.2e} N, solver {SOLVER_RTOL:g} |F|"
             out.append(_check("static_balance", name, variant, quantity, "N", float(f[k, j]), float(F_exp[k, j]),
                               tol, note))  # fmt: skip
-    return out
+    return _explained(out, infos)
 
 
 # --------------------------------------------------------------------------- #
@@ -631,6 +647,7 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = OSCIL
     s_cont = np.linalg.eigvals(np.block([[np.zeros((3, 3)), np.eye(3)], [-Mi @ (Kp + Kg), -Mi @ Kd]]))
     physics = physics_of(sc)
     out: list[Check] = []
+    infos: dict[tuple[str, str], Mapping[str, Any]] = {}
     for name in backends:
         base = dict(sc.backends.get(name, {}))
         offered = registry.get(name).choices.get("integrator", ())
@@ -640,6 +657,7 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = OSCIL
         for settings in runs:
             tr = _simulate(sc, name, physics, settings, profile)
             variant = _variant(tr.info, Ts)
+            infos[name, variant] = tr.info
             if tr.status != "ok":
                 out.append(_failed("small_oscillation", name, variant, tr.reason or tr.status))
                 continue
@@ -680,7 +698,7 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = OSCIL
                     note += f"; fitted imaginary part {sm.imag:.2g}"
                     out.append(_check("small_oscillation", name, variant, f"mode {i} decay rate", "1/s",
                                       -sm.real, -sp.real, tol_s, note))  # fmt: skip
-    return out
+    return _explained(out, infos)
 
 
 # --------------------------------------------------------------------------- #
