@@ -181,8 +181,8 @@ def scope(profile: str) -> str:
         return ("the case scenario's backend settings over the profile's; the variant column names the integrator "
                 "and step: the energy case once per integrator a backend offers, the small oscillation also with RK4 "
                 "where offered, the sliding drag in native contact")  # fmt: skip
-    return ("the case scenario's backend settings over the profile's, with the profile's own integrator and step "
-            "only (the engine as its settings have it; the variant column names them), the sliding drag in native "
+    return ("the case scenario's backend settings over the profile's; the profile's own integrator and step only, "
+            "the engine as its settings have it, which the variant column names; the sliding drag in native "
             "contact")  # fmt: skip
 
 
