@@ -1713,9 +1713,10 @@ def _status(r: Mapping[str, Any]) -> str:
 PROFILE_VERIFIED = {
     PROFILES[0]: "Its closed forms are the spec's physics, which these settings are chosen to match: a failure here "
     "is the engine's, or its mapping's.",
-    PROFILES[1]: "The same closed forms, with each engine at its own defaults (its integrator and step, its "
-    "contact's own stiffness and friction as a user sets them): a check that passes matched and fails here is "
-    "what the defaults cost, not the engine (docs/studies.md, section 4).",
+    PROFILES[1]: "The same closed forms, with each engine at its own defaults (its integrator and step, Kp, Kd and "
+    "mu set the engine's usual way): a check that passes matched and fails here is what the defaults and that "
+    "usual way cost, not the engine; each such row's note gives the engine's own answer where it has been "
+    "measured (docs/studies.md, section 4).",
 }
 
 

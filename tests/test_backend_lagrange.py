@@ -569,7 +569,7 @@ def test_the_stepper_gives_up_where_scipy_does_when_the_step_underflows() -> Non
     scipy's last y. Near the pole y grows 14-17 % per step, so a stop one step early or late misses by that much;
     scipy's own last y moves by up to 0.5 % with the BLAS kernel its RK stages are summed with (OpenBLAS's
     Haswell, SkylakeX and Prescott kernels: 6.8278e13, 6.8361e13, 6.7940e13; the stepper's sums, in plain
-    Python, give 6.8278e13 on every machine), so bit-equality holds on some machines only. (In a subprocess
+    Python, give 6.8278e13 under each of them), so bit-equality holds on some machines only. (In a subprocess
     with a generous time-out: a stepper that kept creeping by one ulp would not come back.)"""
     out = subprocess.run([sys.executable, "-c", _BLOW_UP], capture_output=True, text=True, check=True, timeout=120)
     status, n, y_ref, y, t_end = out.stdout.split()

@@ -22,7 +22,8 @@ import pytest
 from fakes import FakeBackend, install_crashing_engine
 
 from legbench import backends, kinematics, model
-from legbench.backends.base import Physics
+from legbench import scenario as scenario_mod
+from legbench.backends.base import Physics, explained_note
 from legbench.backends.pinocchio_ import PinocchioBackend
 from legbench.exceptions import LegbenchError
 from legbench.results import RunResult
@@ -276,6 +277,28 @@ def test_an_engine_defaults_miss_carries_its_backends_explanation_and_still_fail
     assert max(c.measured for c in poles if c.quantity.endswith("frequency")) > 400.0  # [Hz]: the flicker
     matched = verify.check_rest(["pybullet"]) + verify.check_small_oscillation(["ode"], integrators=None)
     assert all(c.passed and not c.note.startswith("known") for c in matched)
+    # an explanation holds the row to its own closed form: a miss it does not account for is not explained, and a
+    # run that failed is not the engine's known miss
+    pb = backends.get("pybullet")
+    sc = scenario_mod.load(verify.REST_SCENARIO)
+    info = verify._simulate(sc, "pybullet", scenario_mod.physics_of(sc), {}, "engine-defaults").info
+    args = ("rest_penetration", rest.quantity, info)
+    assert pb.known_deviation(*args, rest.measured, rest.expected, rest.tolerance) is not None
+    assert pb.known_deviation(*args, rest.expected + 3e-5, rest.expected, rest.tolerance) is None  # 3 slops deeper
+    failed = explained_note(pb, *args, False, math.nan, math.nan, math.nan, "simulation diverged")
+    assert failed == "simulation diverged"
+
+
+@pytest.mark.skipif("mujoco" not in backends.available(), reason="mujoco backend not installed")
+def test_mujocos_engine_defaults_rest_is_its_own_steady_state() -> None:
+    """MuJoCo's usual solref (-Kp, -Kd) is not Kp N/m: with the default impedance the foot rests at 0.42 mm under
+    59 N, not Fn/Kp = 5.9 mm, and the row fails against the spec. Its note is MuJoCo's own steady state from the
+    run's info (solimp, A, the pyramidal cone's share 2 / (mu^2 (1 + mu^2))): y = 0.4203 mm, 1.405e5 N/m, met to
+    3e-4 of y; held to it, so the note is an explanation and not a label."""
+    (rest,) = [c for c in verify.check_rest(["mujoco"], profile="engine-defaults") if c.case == "rest_penetration"]
+    assert not rest.passed and rest.measured == pytest.approx(4.2e-4, rel=0.01), rest
+    assert rest.note.startswith("known: the usual solref (-Kp, -Kd) is not Kp N/m"), rest.note
+    assert "1.405e+05 N/m, y = 0.0004203 m" in rest.note, rest.note
 
 
 def test_a_family_without_prediction_gets_not_applicable_rows(monkeypatch: pytest.MonkeyPatch,
@@ -799,11 +822,12 @@ def test_a_first_order_energy_row_is_the_steps_own_drift_not_a_defect(monkeypatc
     that correct step (the same 15 % with ODE's exact solver at 1 ms)."""
     (own,) = verify.check_energy(["ode"])
     assert own.passed and own.quantity == "order of R_h = max|D_h - 2 D_h/2| in h", own
-    assert own.measured == pytest.approx(2.0, abs=0.05), own
+    assert own.measured == pytest.approx(2.0, abs=0.05) and own.error == max(2.0 - own.measured, 0.0), own
     assert "max|E - E0| 0.0002384, 0.0001192, 5.961e-05 J" in own.note, own.note
     assert (verify.REMAINDER_ORDER, verify.REMAINDER_ORDER_TOL) == (2.0, 0.5)
     (defaults,) = verify.check_energy(["ode"], profile="engine-defaults")
     assert defaults.passed and defaults.measured == pytest.approx(2.06, abs=0.05), defaults
+    assert defaults.error == 0.0  # one-sided: a remainder falling faster than h^2 is no defect
     assert "(17.3 % of the drift at h)" in defaults.note, defaults.note
     variants = verify._variants
     monkeypatch.setattr(

@@ -101,6 +101,17 @@ def contact_point(info: Mapping[str, Any] | None, law_poc: str) -> tuple[str, fl
     return (poc if poc in ("true", "centre") else law_poc), (float(lift) if _is_number(lift) else 0.0)
 
 
+def explained_note(cls: type[Backend], case: str, quantity: str, info: Mapping[str, Any], passed: bool,
+                   measured: float, expected: float, tolerance: float, note: str) -> str:  # fmt: skip
+    """A verification row's note, with the backend's explanation of its miss before it
+    (:meth:`Backend.known_deviation`) where the row fails on a run that ran (a row of a run that failed,
+    ``measured`` NaN, is not the engine's known miss)."""
+    if passed or not math.isfinite(measured):
+        return note
+    known = cls.known_deviation(case, quantity, info, measured, expected, tolerance)
+    return (f"{known}; {note}" if note else known) if known else note
+
+
 def rigid_contact(info: Mapping[str, Any]) -> bool:
     """The backend's info declares its contact rigid: ``contact.Kp`` given and null (:data:`INFO_KEYS`)."""
     contact = info.get("contact")
@@ -267,11 +278,15 @@ class Backend(ABC):
     profile: str = "matched"
 
     @classmethod
-    def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any]) -> str | None:
+    def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any], measured: float = math.nan,
+                        expected: float = math.nan, tolerance: float = math.nan) -> str | None:  # fmt: skip
         """Why this backend, run as ``info`` says (its :meth:`info`), misses the verification ``quantity`` of
         ``case``, where that has been measured and explained; None otherwise. Shown beside the row, which still
-        fails: an explanation, not a pass. Consulted by every verification case for its failing rows
-        (``studies.verify``, ``studies.sliding_case.score``), with the run's ``info``."""
+        fails: an explanation, not a pass. Where the explanation is a closed form of its own (the engine's own
+        stiffness, an offset), it should hold the row's ``measured`` value to it within ``tolerance`` (the row's
+        units; ``expected`` is the case's closed form) and say nothing when it does not: a miss it does not
+        account for is not explained. Consulted by every verification case for its failing rows
+        (:func:`explained_note`)."""
         return None
 
     @classmethod

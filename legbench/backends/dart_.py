@@ -44,6 +44,7 @@ period's impulse / the period), which keeps an impact resolved inside a period.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from importlib import metadata
 from pathlib import Path
@@ -121,7 +122,8 @@ class DartBackend(Backend):
     install: ClassVar[str] = "pip install 'dartpy>=6.20,<7'"
 
     @classmethod
-    def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any]) -> str | None:
+    def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any], measured: float = math.nan,
+                        expected: float = math.nan, tolerance: float = math.nan) -> str | None:  # fmt: skip
         """The Dantzig solver's friction bound: the sliding drag sticks (docs/backends/dart.md)."""
         if case == "sliding" and info.get("lcp_solver") == "dantzig":
             return ("known: DART's Dantzig LCP (ODE's lcp.cpp) sets each friction row's bound once, mu times the "

@@ -183,15 +183,18 @@ class PybulletBackend(Backend):
     }
 
     @classmethod
-    def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any]) -> str | None:
-        """PyBullet's contact slop deepens the rest (engine-defaults; docs/studies.md, section 4)."""
+    def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any], measured: float = math.nan,
+                        expected: float = math.nan, tolerance: float = math.nan) -> str | None:  # fmt: skip
+        """PyBullet's contact slop deepens the rest by one slop (engine-defaults; docs/studies.md, section 4): said
+        where the rest penetration misses Fn/Kp by the slop, within the row's tolerance."""
         contact = info.get("contact")
         slop = contact.get("contact_slop") if isinstance(contact, Mapping) else None
-        if case == "rest_penetration" and isinstance(slop, float) and slop > 0.0:
+        if (case == "rest_penetration" and isinstance(slop, float) and slop > 0.0
+                and abs(measured - expected - slop) <= tolerance):  # fmt: skip
             return (f"known: with a contact stiffness set, Bullet springs from the depth less the contact slop "
                     f"({slop:g} m here, PyBullet's default; Bullet's own is 0), so the foot rests one slop deeper "
-                    "than Fn/Kp: +9.83 um at 52 N (0.19 %), -0.17 um with slop 0, +19.8 um with 2e-5; ERP, split "
-                    "impulse, the plane's damping and the iterations do not move it")  # fmt: skip
+                    f"than Fn/Kp: {1e6 * (measured - expected):+.2f} um (-0.17 um with slop 0, +19.8 um with 2e-5, "
+                    "measured; ERP, split impulse, the plane's damping and the iterations do not move it)")  # fmt: skip
         return None
 
     # ----------------------------------------------------------------- load

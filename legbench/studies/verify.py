@@ -36,10 +36,10 @@ answer computed here from the leg's reference model (:class:`legbench.model.Dyna
     e.g. one in maximal coordinates): no prediction of the drift D_h(t) = E(t) - E(0),
     so the check is that it is the step's own, D_h = a h + O(h^2) (Richardson): the
     same run at h/2 and h/4, and the remainder R_h = max |D_h - 2 D_h/2| of order 2 in h,
-    log2(R_h / R_h/2) = 2 within 0.5 (ODE: 2.003 at 50 us, 2.057 with its quick step at
-    1 ms), where a defect that does not vanish with h (a damping, a solver's energy
-    leak: order -1 for a per-step damping) does not fall 4x. Both remainders at
-    round-off pass.
+    log2(R_h / R_h/2) >= 1.5 (ODE: 2.003 at 50 us, 2.057 with its quick step at 1 ms),
+    where a defect that does not vanish with h (a damping, a solver's energy leak:
+    order -1 for a per-step damping) does not fall 4x; one-sided (a remainder that
+    falls faster is no defect), and R_h/2 at round-off passes.
 ``rest_penetration``
     The effort task at rest (``effort_rest.yaml``): y = R_foot - z_E = Fn/Kp.
     Tolerance: 0.1 % of y (the engines' contact solvers) plus Kd max|ydot|/Kp
@@ -113,7 +113,7 @@ from scipy.optimize import linear_sum_assignment
 from legbench import backends as registry
 from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
-from legbench.backends.base import FAMILY_TEXT, PROFILES, Physics, contact_point, rigid_contact
+from legbench.backends.base import FAMILY_TEXT, PROFILES, Physics, contact_point, explained_note, rigid_contact
 from legbench.exceptions import LegbenchError
 from legbench.results import (
     atomic_write_text,
@@ -162,7 +162,8 @@ POLE_RTOL = 5e-3
 #: Share of the quantity the engines' contact solvers may miss by (rest and balance checks).
 SOLVER_RTOL = 1e-3
 #: A first-order family's Richardson remainder R_h = max|D_h - 2 D_h/2| (the energy drift at h less twice its drift
-#: at h/2) is O(h^2) when the drift is the step's own: its order log2(R_h / R_h/2) must be 2 within this. Measured:
+#: at h/2) is O(h^2) when the drift is the step's own: its order log2(R_h / R_h/2) must be no more than this below 2
+#: (one-sided: a remainder that falls faster is no defect; R_h/2 at round-off passes). Measured:
 #: ODE 2.003 (dWorldStep, 50 us), 2.057 (its quick step at 1 ms); a per-step velocity damping, an error that does
 #: not vanish with h, gives -1.0 (2e-8 at 50 us) and -1.4 (4e-7 at 1 ms). (A fixed share of the drift instead, 5 %,
 #: failed correct steps at 1 ms, where the second-order part is 15 % of the drift with ODE's exact solver too.)
@@ -191,7 +192,7 @@ def scope(profile: str) -> str:
 TOLERANCE_BASIS = {
     "energy": "a first-order step with a closed form: max |predicted drift| x (h W + (Ts W)^2), the O(h^2) "
     "remainder and the 1 ms log's trapezoid sum, + round-off 4 sqrt(n) eps |E|; a first-order step without one: "
-    f"the Richardson remainder max|D_h - 2 D_h/2| of order {REMAINDER_ORDER:g} in h within {REMAINDER_ORDER_TOL:g} "
+    f"the Richardson remainder max|D_h - 2 D_h/2| of order at least {REMAINDER_ORDER - REMAINDER_ORDER_TOL:g} in h "
     "(runs at h, h/2, h/4: the drift is the step's own); RK4: (h W)^4 W T_end max T + round-off; adaptive: "
     "(h W)^5 W T_end max T at h = max_step + round-off",
     "rest_penetration": f"{SOLVER_RTOL * 100:g} % of y (the contact solver) + Kd max |ydot| / Kp (the damping "
@@ -203,7 +204,9 @@ TOLERANCE_BASIS = {
     "small_oscillation": f"{POLE_RTOL * 100:g} % of |s| per pole (the pencil fit of three close, heavily damped "
     "modes); a first-order step of unknown form: + h |s|",
     "sliding": f"friction |F_t| / Fn within {TOL_MU * 100:g} % of mu, its angle to -slip within {TOL_ANGLE:g} deg, "
-    f"the slip acceleration within {TOL_ACC * 100:g} % of the closed form M^-1 (tau - nle + J_poc^T F)",
+    f"the slip acceleration within {TOL_ACC * 100:g} % of the closed form M^-1 (tau - nle + J_poc^T F), with the "
+    "friction the run declares: a cone as said, a pyramid axis by axis (the sliding axis at mu Fn, the other's force "
+    "the closed form's), a diamond at (|F_x| + |F_y|) / Fn = mu and its angle to the diamond's vertex",
 }
 
 
@@ -300,13 +303,17 @@ def _variant(info: Mapping[str, Any], control_dt: float) -> str:
 
 def _explained(checks: list[Check], infos: Mapping[tuple[str, str], Mapping[str, Any]]) -> list[Check]:
     """``checks`` with each failing row's measured and explained miss (``Backend.known_deviation`` of the run's
-    info, ``infos`` by (backend, variant)) before its note: an explanation, the row still fails."""
+    info, ``infos`` by (backend, variant): :func:`~legbench.backends.base.explained_note`) before its note: an
+    explanation, the row still fails."""
     out = []
     for c in checks:
         info = infos.get((c.backend, c.variant))
-        known = None if c.status != "fail" or info is None else registry.get(c.backend).known_deviation(
-            c.case, c.quantity, info)  # fmt: skip
-        out.append(dataclasses.replace(c, note=f"{known}; {c.note}" if c.note else known) if known else c)
+        if info is None or c.status != "fail":
+            out.append(c)
+            continue
+        note = explained_note(registry.get(c.backend), c.case, c.quantity, info, c.passed, c.measured, c.expected,
+                              c.tolerance, c.note)  # fmt: skip
+        out.append(dataclasses.replace(c, note=note))
     return out
 
 
@@ -411,18 +418,21 @@ def check_energy(
                 drifts = [float(np.abs(x).max()) for x in (D, D2, D4)]
                 R1, R2 = float(np.abs(D - 2.0 * D2).max()), float(np.abs(D2 - 2.0 * D4).max())
                 order = math.log2(R1 / R2) if R1 > 0.0 and R2 > 0.0 else math.nan
-                floor = 12.0 * roundoff  # the h/4 run's round-off is twice the h run's, and R_h/2 holds three runs'
-                at_roundoff = max(R1, R2) <= floor
+                # R_h/2 holds the h/2 and h/4 runs' round-off, (sqrt 2 + 4) times the h run's: 12 x leaves a margin
+                floor = 12.0 * roundoff
+                at_roundoff = R2 <= floor  # nothing left to fall: R_h/2 is round-off
                 share = 100 * R1 / drifts[0]
                 why = (f"first order x{round(Ts / h)}: no closed-form prediction; Richardson: the same run at h/2 and "
                        f"h/4, max|E - E0| {drifts[0]:.4g}, {drifts[1]:.4g}, {drifts[2]:.4g} J; remainder R = max|D_h - "
                        f"2 D_h/2| {R1:.4g} J at h, {R2:.4g} J at h/2 ({share:.1f} % of the drift at h): its "
-                       f"order log2(R_h / R_h/2) must be {REMAINDER_ORDER:g} (the step's own O(h^2)), "
-                       f"W = {W:.3g} rad/s" + ("; both remainders at round-off" if at_roundoff else ""))  # fmt: skip
-                c = _check("energy", name, variant, "order of R_h = max|D_h - 2 D_h/2| in h", "1", order,
-                           REMAINDER_ORDER, REMAINDER_ORDER_TOL, why + invalid)  # fmt: skip
-                if at_roundoff:
-                    c = dataclasses.replace(c, passed=True, status="pass")
+                       f"order log2(R_h / R_h/2) must be at least {REMAINDER_ORDER - REMAINDER_ORDER_TOL:g} (the "
+                       f"step's own O(h^2); error: how far below {REMAINDER_ORDER:g}), W = {W:.3g} rad/s"
+                       + ("; R_h/2 at round-off" if at_roundoff else ""))  # fmt: skip
+                # one-sided: the defect is a remainder that does not fall; one falling faster than h^2 is fine
+                short = max(REMAINDER_ORDER - order, 0.0) if math.isfinite(order) else math.inf
+                ok = at_roundoff or short <= REMAINDER_ORDER_TOL
+                c = Check("energy", name, variant, "order of R_h = max|D_h - 2 D_h/2| in h", "1", order,
+                          REMAINDER_ORDER, short, REMAINDER_ORDER_TOL, ok, why + invalid)  # fmt: skip
                 out.append(c if inside else dataclasses.replace(c, passed=False, status="fail"))
                 continue
             if family == "rk4":
@@ -708,7 +718,8 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = OSCIL
 def check_sliding(backends: Sequence[str], profile: str = VERIFY_PROFILE) -> list[Check]:
     """The foot dragged above the friction limit (:mod:`legbench.studies.sliding_case`): friction = mu Fn
     against the slip and the slip acceleration of the closed form, per backend (native contact, ``profile``); a
-    backend whose friction is a pyramid against the pyramid's closed form."""
+    backend whose friction is a pyramid or a diamond against that shape's closed form, with the coefficient and
+    the point of contact its run declares."""
     out = []
     variant = f"native, {profile}"
     for name in backends:
