@@ -127,3 +127,133 @@ def test_dart_engine_defaults_says_why_its_dantzig_pyramid_does_not_slide() -> N
     rows = S.sliding_case("dart", "engine-defaults")
     assert rows[0]["measured"] == pytest.approx(0.833, abs=0.005)
     assert all(not r["passed"] and r["note"].startswith("known: ") and "0.83 Fn" in r["note"] for r in rows)
+
+
+def _rot_z(deg: float) -> np.ndarray:
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def test_the_diamond_and_the_pyramid_follow_the_declared_axes() -> None:
+    """The closed forms bound the axes the run declares (info ``friction_axes``), not W x and W y: with the axes
+    and the slip turned 30 deg about z_W the diamond's force turns with them (-mu Fn t1 for a slip mostly along
+    t1); the pyramid's force keeps |F . t_i| <= mu Fn on the turned axes, at the bound on the axis that slides
+    while the other holds (zero acceleration along it), and differs from the one on W x, W y. A run that
+    declares none (an older run.json) gets W x, W y."""
+    R = _rot_z(30.0)
+    axes = (R @ np.eye(3)[:, :2]).T  # t1, t2: W x, W y turned by 30 deg
+    assert S.friction_axes({"friction_axes": axes.tolist()}) == pytest.approx(axes, abs=0)
+    for undeclared in ({}, {"friction_axes": [1.0]}, {"friction_axes": None}):
+        assert (S.friction_axes(undeclared) == np.eye(3)[:2]).all()
+    mu, fn = 0.7, np.array([15.0, 15.0, 10.0])
+    v = np.array([[-0.04, 0.28], [0.3, -0.01], [0.2, -0.15]])  # off the diagonal (a tie there, to round-off)
+    f = S.diamond_friction(v, fn, mu)
+    turned = S.diamond_friction(v @ R[:2, :2].T, fn, mu, axes)
+    np.testing.assert_allclose(turned, f @ R[:2, :2].T, rtol=0, atol=1e-12)
+    assert turned[0] == pytest.approx(-mu * fn[0] * axes[1, :2], abs=1e-12)  # the vertex on t2, against the slip
+    assert not np.allclose(S.diamond_friction(v @ R[:2, :2].T, fn, mu), turned, atol=1e-3)  # W x, W y: another force
+    # the pyramid at the drag's state (foot at q*, pressed 15 N down and dragged 12 N along W y, at rest and
+    # slipping): a drag of 0.8 Fn along W y slides the W x, W y pyramid (|F_y| = mu Fn), while the pyramid turned
+    # by 30 deg holds it (12 cos 30 = 10.4 N and 12 sin 30 = 6 N, each under mu Fn = 10.5 N)
+    p = model.load_params()
+    q0 = kinematics.ik_nearest(np.array([0.1667, 0.0, p.geometry.R_foot - 0.001]), np.array(p.q_star))
+    q, qd = np.tile(q0, (2, 1)), np.array([[0.0, 0.0, 0.0], [0.1, 1.5, -2.0]])
+    tau = np.tile(kinematics.gravity(q0) + kinematics.jacobian(q0).T @ np.array([0.0, 12.0, -15.0]), (2, 1))
+    fp = np.array([15.0, 15.0])
+    for t in (axes, np.eye(3)[:2]):
+        ft, acc = S.pyramid_friction(q, qd, tau, fp, mu, axes=t)
+        f_t, a_t = ft @ t[:, :2].T, acc @ t[:, :2].T
+        assert (np.abs(f_t) <= mu * fp[:, None] * (1 + 1e-12)).all()
+        held = np.abs(f_t) < mu * fp[:, None] * (1 - 1e-12)
+        assert (np.abs(a_t[held]) < 1e-9).all()  # an axis under its bound holds
+        assert held[0].all() if t is axes else not held[0, 1] and held[0, 0]
+    ft0, _ = S.pyramid_friction(q, qd, tau, fp, mu)
+    assert abs(ft0[0, 1]) == pytest.approx(mu * fp[0], rel=1e-12)
+    assert np.abs(S.pyramid_friction(q, qd, tau, fp, mu, axes=axes)[1][0]).max() < 1e-9  # the turned one holds
+    # today's axes (W x, W y in any order and sign) are the W x, W y frame exactly: the rows are unchanged
+    for t in ([[0, 1, 0], [-1, 0, 0]], [[0, -1, 0], [1, 0, 0]], [[-1, 0, 0], [0, 1, 0]], [[1, 0, 0], [0, 1, 0]]):
+        assert (S.drag_frame(np.array(t, float)) == np.eye(2)).all()
+
+
+def _assert_tangents_of_z(axes: object) -> np.ndarray:
+    t = np.asarray(axes, float)
+    assert t.shape == (2, 3)
+    assert abs(t[0] @ t[1]) < 1e-12 and np.abs(t @ [0.0, 0.0, 1.0]).max() < 1e-12
+    np.testing.assert_allclose(np.linalg.norm(t, axis=1), 1.0, rtol=0, atol=1e-12)
+    return t
+
+
+def _on_ground(b: backends.Backend) -> None:
+    """Put the leg's foot 1 mm into the ground at rest and step once with the torque that holds it."""
+    p = model.load_params()
+    q = kinematics.ik_nearest(np.array([0.1667, 0.0, p.geometry.R_foot - 0.001]), np.array(p.q_star))
+    b.reset(q, np.zeros(3))
+    b.step(kinematics.gravity(q))
+
+
+def test_mujoco_declares_the_contact_frame_it_builds() -> None:
+    """MuJoCo's pyramidal cone (a diamond) declares its ground contact's tangents, t1 = W y, t2 = -W x: the frame's
+    rows 2 and 3 of a contact of the run's own data; the elliptic cone declares none."""
+    _need("mujoco")
+    b = backends.load("mujoco", Physics(), {}, "engine-defaults")
+    try:
+        t = _assert_tangents_of_z(b.info()["friction_axes"])
+        _on_ground(b)
+        d = b.data  # type: ignore[attr-defined]
+        assert d.ncon >= 1
+        for i in range(d.ncon):
+            np.testing.assert_array_equal(d.contact[i].frame[3:9].reshape(2, 3), t)
+        np.testing.assert_allclose(t, [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]], rtol=0, atol=1e-12)
+    finally:
+        b.close()
+    b = backends.load("mujoco", Physics(), {}, "matched")
+    try:
+        assert b.info()["friction_cone"] == "cone" and "friction_axes" not in b.info()
+    finally:
+        b.close()
+
+
+def test_ode_declares_dplanespace_of_its_contact_normal() -> None:
+    """ODE's pyramid declares dPlaneSpace(+z) = (-W y, W x), and its foot contact's normal, read back, is +z."""
+    _need("ode")
+    from legbench.backends import ode_
+
+    for profile in ("matched", "engine-defaults"):
+        b = backends.load("ode", Physics(), {}, profile)
+        try:
+            t = _assert_tangents_of_z(b.info()["friction_axes"])
+            np.testing.assert_allclose(t, [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0]], rtol=0, atol=1e-12)
+            _on_ground(b)
+            normal = list(b.contacts[0].geom.normal)[:3]  # type: ignore[attr-defined]
+            assert normal == pytest.approx([0.0, 0.0, 1.0], abs=1e-12)
+            np.testing.assert_allclose(ode_.friction_axes((normal[0], normal[1], normal[2])), t, rtol=0, atol=1e-12)
+        finally:
+            b.close()
+
+
+def test_dart_declares_its_tangent_basis_where_its_friction_is_a_pyramid() -> None:
+    """DART's Dantzig and PGS (a pyramid) declare getTangentBasisMatrixODE's basis for +z, (-W x, W y); its foot
+    contact's normal, read back, gives the same two lines; NSGS (a cone) declares none."""
+    _need("dart")
+    from legbench.backends import dart_
+
+    for solver in ("dantzig", "pgs"):
+        b = backends.load("dart", Physics(), {"lcp_solver": solver}, "engine-defaults")
+        try:
+            info = b.info()
+            assert info["friction_cone"] == "pyramid"
+            t = _assert_tangents_of_z(info["friction_axes"])
+            np.testing.assert_allclose(t, [[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], rtol=0, atol=1e-12)
+            _on_ground(b)
+            contacts = b.world.getLastCollisionResult().getContacts()  # type: ignore[attr-defined]
+            assert contacts
+            for c in contacts:
+                engine = np.asarray(dart_.friction_axes(tuple(np.asarray(c.normal, float))))
+                np.testing.assert_allclose(np.abs(engine @ t.T), np.eye(2), rtol=0, atol=1e-12)
+        finally:
+            b.close()
+    b = backends.load("dart", Physics(), {}, "matched")
+    try:
+        assert "friction_axes" not in b.info()
+    finally:
+        b.close()

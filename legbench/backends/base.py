@@ -53,6 +53,9 @@ INFO_KEYS = {
     "friction_cone): 'cone' (|F_t| <= mu Fn), 'pyramid' (each tangent axis on its own, |F_ti| <= mu Fn) or 'diamond' "
     "(|F_t1| + |F_t2| <= mu Fn: a pyramid whose edges are n +- mu t_i); the sliding verification scores a pyramid by "
     "its own closed form, the report's residuals hold each shape to its own bounds",
+    "friction_axes": "a pyramid's or diamond's two tangent axes t1, t2 in W as the engine builds them for a contact "
+    "on the ground plane z = 0 with normal +z (2 x 3 floats: unit, orthogonal, horizontal), which the sliding "
+    "verification projects the slip and the force onto (none declared: W x and W y)",
     "max_step": "an adaptive solver's largest step [s] (a number)",
     "rtol": "an adaptive solver's relative tolerance (a number)",
     "atol": "an adaptive solver's absolute tolerance (a number)",
@@ -62,7 +65,7 @@ INFO_KEYS = {
 def info_problem(info: object) -> str | None:
     """What is wrong with a backend's :meth:`~Backend.info` for the keys legbench reads (:data:`INFO_KEYS`), or
     None: it must be a mapping with text keys, ``contact`` a mapping (``poc`` 'true' or 'centre', ``Kp`` a
-    number or None), ``max_step``, ``rtol`` and ``atol`` numbers."""
+    number or None), ``max_step``, ``rtol`` and ``atol`` numbers, ``friction_axes`` two rows of 3 numbers."""
     if not isinstance(info, Mapping):
         return f"expected a mapping of setting -> value, got {type(info).__name__}"
     bad = [k for k in info if not isinstance(k, str)]
@@ -85,6 +88,13 @@ def info_problem(info: object) -> str | None:
     for key in ("max_step", "rtol", "atol"):
         if key in info and not _is_number(info[key]):
             return f"{key}: expected a number, got {info[key]!r}"
+    axes = info.get("friction_axes")
+    if axes is not None and not (
+        isinstance(axes, Sequence)
+        and len(axes) == 2
+        and all(isinstance(t, Sequence) and len(t) == 3 and all(_is_number(x) for x in t) for t in axes)
+    ):
+        return f"friction_axes: expected two directions of 3 numbers ({INFO_KEYS['friction_axes']}), got {axes!r}"
     return None
 
 

@@ -78,6 +78,24 @@ def friction_shape(lcp_solver: str) -> str:
     return "cone" if lcp_solver in _CONSTRUCTED_LCP else "pyramid"
 
 
+def friction_axes(normal: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> list[list[float]]:
+    """The two friction directions t1, t2 in W of DART's contact constraint with ``normal``, by DART's rule
+    (``ContactConstraint::getTangentBasisMatrixODE``, dart/constraint/ContactConstraint.cpp, DART 6.13 and later;
+    dartpy binds no ContactConstraint to read them from): tangent = n x d1, d1 the first friction direction, which
+    no shape here sets (dartpy's DynamicsAspect offers none), so DART's default +z (``DART_DEFAULT_FRICTION_DIR``);
+    parallel to n, so tangent = n x X (then n x Y), normalised; T.col(0) = tangent turned 90 deg about n (n x
+    tangent), T.col(1) = tangent. For the ground's +z: t1 = -W x, t2 = W y. The foot's contact, read back
+    (``getLastCollisionResult``), has the ground as object 1 and the normal -z: t1 = -W x, t2 = -W y, the same two
+    lines, and the pyramid |F_ti| <= mu Fn does not see the sign."""
+    n = np.asarray(normal, float)
+    for d in ((0.0, 0.0, 1.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)):
+        tangent = np.cross(n, d)
+        if tangent @ tangent >= 1e-12:  # DART_CONTACT_CONSTRAINT_EPSILON_SQUARED
+            break
+    tangent = tangent / np.linalg.norm(tangent)
+    return [np.cross(n, tangent).tolist(), tangent.tolist()]
+
+
 class DartBackend(Backend):
     """DART (dartpy; rigid boxed-LCP contact) simulating the leg."""
 
@@ -85,8 +103,8 @@ class DartBackend(Backend):
     sliding_coefficient: ClassVar[str] = "mu_s"
     #: The friction limit's shape depends on ``lcp_solver`` (:func:`friction_shape`, recorded in :meth:`info`):
     #: ``nsgs`` and ``fbf`` bound |F_t| by mu Fn, a cone (measured: a diagonal drag of 0.85 Fn slides at
-    #: |F_t| = 0.700 Fn); Dantzig and PGS bound each of the contact's two friction directions (W y and W x for the
-    #: ground's normal: ``ContactConstraint::getTangentBasisMatrixODE``) on its own, a pyramid (the same drag
+    #: |F_t| = 0.700 Fn); Dantzig and PGS bound each of the contact's two friction directions (-W x and W y for the
+    #: ground's normal: :func:`friction_axes`, info ``friction_axes``) on its own, a pyramid (the same drag
     #: holds, |F_t| = 0.846 Fn), Dantzig by mu times the normal impulse solved without friction (see
     #: :meth:`known_deviation`). The class declares the matched profile's.
     friction_cone: ClassVar[str] = "cone"
@@ -357,6 +375,11 @@ class DartBackend(Backend):
             "engine": "dart",
             "version": metadata.version("dartpy"),
             "friction_cone": friction_shape(self.cfg["lcp_solver"]),
+            **(
+                {"friction_axes": friction_axes()}
+                if not self.reference and friction_shape(self.cfg["lcp_solver"]) == "pyramid"
+                else {}
+            ),
             **{k: self.cfg[k] for k in self.defaults},
             "sub_steps": self.n_sub,
             "timestep": world.getTimeStep(),

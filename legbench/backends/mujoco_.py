@@ -96,10 +96,11 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
+from legbench import kinematics
 from legbench.backends.base import Backend, Limits, Physics, sub_step_count
 from legbench.contact import ReferenceContact, law_step_warnings
-from legbench.exceptions import LegbenchError, SimulationDiverged
-from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine
+from legbench.exceptions import LegbenchError, SimulationDiverged, Unreachable
+from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine, load_params
 
 #: Joint-limit constraint: time constant 2 ms, critically damped [s, 1].
 LIMIT_SOLREF = (0.002, 1.0)
@@ -398,6 +399,31 @@ class MujocoBackend(Backend):
         self._bad_qacc = self.data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
         self._integrate = _INTEGRATE[cfg["integrator"]]
         mujoco.mj_forward(m, self.data)  # every step may reuse the position and velocity stages of d
+        self._axes = self._friction_axes() if not self.reference and cfg["cone"] == "pyramidal" else None
+
+    def _friction_axes(self) -> list[list[float]] | None:
+        """The ground contact's tangent axes t1, t2 in W, read back from MuJoCo: rows 2 and 3 of ``mjContact.frame``
+        (row 1 the normal, from the ground, geom1, into the foot, geom2: +z_W) after an ``mj_forward`` of a scratch
+        ``MjData`` with the foot sphere 1 mm into the ground z = 0 (q* moved down by IK). The pyramidal cone's edges
+        are n +- mu t_i along them. The plane-sphere collider leaves the tangent unset and ``mj_collideGeoms``
+        completes the frame with ``mju_makeFrame`` (src/engine/engine_collision_driver.c:1865,
+        src/engine/engine_util_spatial.c:512, mujoco main 2026-08): t1 = W y, t2 = n x t1 = -W x. None where the
+        foot cannot be put on the ground (the run's info then declares no axes)."""
+        m, p = self.model, load_params()
+        q_star = np.asarray(p.q_star, float)
+        e = kinematics.fk(q_star)
+        try:
+            q = kinematics.ik_nearest(np.array([e[0], e[1], p.geometry.R_foot - 1e-3]), q_star)
+        except Unreachable:
+            return None
+        d = mujoco.MjData(m)
+        d.qpos[:] = q
+        mujoco.mj_forward(m, d)
+        for i in range(d.ncon):
+            con = d.contact[i]
+            if con.geom2 in self.foot_geoms and con.geom1 not in self.foot_geoms:
+                return [con.frame[3:6].tolist(), con.frame[6:9].tolist()]
+        return None
 
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
@@ -591,6 +617,8 @@ class MujocoBackend(Backend):
             # (sliding_case.diamond_friction); with noslip (matched) |F_x| + |F_y| = 0.700 Fn at the end read,
             # |F_t| = 0.608 Fn, alternating at the edge (mean read 0.599 Fn): not sliding at the bound
             "friction_cone": "cone" if self.cfg["cone"] == "elliptic" else "diamond",
+            # the diamond's axes t1, t2 (W y, -W x), read back from a contact on the ground (_friction_axes)
+            **({"friction_axes": self._axes} if self._axes is not None else {}),
             "sub_steps": self.n_sub,
             "timestep": float(m.opt.timestep),
             "gravity": self.physics.gravity,

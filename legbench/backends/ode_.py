@@ -104,14 +104,27 @@ _collide, _geom_body = ode.dCollide, ode.dGeomGetBody
 _create_contact, _set_feedback = ode.dJointCreateContact, ode.dJointSetFeedback
 
 
+def friction_axes(normal: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> list[list[float]]:
+    """The two friction directions t1, t2 in W of a contact joint with ``normal`` and no ``dContactFDir1``, from
+    ODE itself: ``dxJointContact::getInfo2`` takes ``dPlaneSpace(normal, t1, t2)`` (ode/src/joints/contact.cpp:
+    218-226, ODE 0.16; dxPlaneSpace in ode/src/odemath.cpp:224-250), called here through the binding. For the
+    ground's +z: t1 = -W y, t2 = W x. The foot's contact has that normal: the pair collides foot first
+    (``_use_pair``), so dCollideSpherePlane's normal is the plane's +z (read back from a contact: (0, 0, 1)) and the
+    joint, foot as body 1, is not reversed (contact.cpp:161-167)."""
+    n, t1, t2 = (ode.dReal * 4)(*normal, 0.0), (ode.dReal * 4)(), (ode.dReal * 4)()
+    ode.dPlaneSpace(n, t1, t2)
+    return [[float(x) for x in t1[:3]], [float(x) for x in t2[:3]]]
+
+
 class OdeBackend(Backend):
     """The Open Dynamics Engine (through the odepy ctypes binding) simulating the leg."""
 
     name: ClassVar[str] = "ode"
     #: ODE's contact friction here is the pyramid mu = mu2 = mu_s (dContactApprox1 on: each bound is mu times
-    #: the normal force): one coefficient, each of the two friction directions (W y and W x for the ground's
-    #: normal: dPlaneSpace) limited on its own. dWorldStep's Dantzig LCP takes the normal force solved
-    #: without friction for that bound (see :meth:`known_deviation`); dWorldQuickStep the current one.
+    #: the normal force): one coefficient, each of the two friction directions (-W y and W x for the ground's
+    #: normal: dPlaneSpace, :func:`friction_axes`, info ``friction_axes``) limited on its own. dWorldStep's
+    #: Dantzig LCP takes the normal force solved without friction for that bound (see :meth:`known_deviation`);
+    #: dWorldQuickStep the current one.
     sliding_coefficient: ClassVar[str] = "mu_s"
     friction_cone: ClassVar[str] = "pyramid"
     install: ClassVar[str] = INSTALL
@@ -568,6 +581,7 @@ class OdeBackend(Backend):
                 "linear_damping": float(ode.dWorldGetLinearDamping(world)),
                 "angular_damping": float(ode.dWorldGetAngularDamping(world)),
             },
+            **({"friction_axes": friction_axes()} if self._collide_on else {}),
             "contact_mode": self.physics.contact_mode,
             "contact": {
                 "enabled": self._collide_on,

@@ -11,8 +11,10 @@ sample (q, qd, tau, Fn):
   ``sliding_coefficient``: mu_k for the stick-slip law, where the slip is far above 1.5 v_th, and
   for an engine given a dynamic coefficient mu_k; mu_s for a Coulomb engine with one coefficient);
   the friction shape as the run's info declares it (``friction_cone``): a cone, the axis-by-axis
-  pyramid (:func:`pyramid_friction`) or the diamond |F_x| + |F_y| <= mu Fn (:func:`diamond_friction`:
-  it slides on the vertex against the slip's larger component);
+  pyramid (:func:`pyramid_friction`) or the diamond |F_t1| + |F_t2| <= mu Fn (:func:`diamond_friction`:
+  it slides on the vertex against the slip's larger component), the pyramid's and the diamond's tangent axes
+  t1, t2 as the run's info declares them (``friction_axes``, :func:`friction_axes`; W x and W y where it
+  declares none);
 * the slip acceleration: qdd = M(q)^-1 (tau - nle(q, qd) + J_poc^T F), F = (-mu Fn v_t/|v_t|, Fn),
   and a_t = (J_poc qdd + Jdot_poc qd)_t, the poc's horizontal acceleration, along the slip
   (F applied where the backend applies it: its info's ``contact.poc`` and ``contact.lift``,
@@ -209,39 +211,78 @@ def sliding_coefficient(info: Mapping[str, Any], cls: type[Backend]) -> str:
     return coef if coef in ("mu_k", "mu_s") else cls.sliding_coefficient
 
 
+def friction_axes(info: Mapping[str, Any] | None) -> np.ndarray:
+    """The run's pyramid's or diamond's tangent axes t1, t2 (rows, 2 x 3, in W) as its info declares them
+    (``friction_axes``: :data:`~legbench.backends.base.INFO_KEYS`), else W x and W y (a run.json written before the
+    key, or a backend that declares none)."""
+    axes = (info or {}).get("friction_axes")
+    try:
+        a = np.asarray(axes, float)
+    except (TypeError, ValueError):
+        a = np.empty(0)
+    return a if a.shape == (2, 3) and np.isfinite(a).all() else np.eye(3)[:2]
+
+
+def drag_frame(axes: np.ndarray) -> np.ndarray:
+    """The declared tangent axes (:func:`friction_axes`, 2 x 3) as the rows (across, along) of a 2 x 2 frame on
+    the ground's W x, W y: ``along`` the axis nearest the drag (W y), pointing with it, ``across`` the other,
+    pointing where the drag turned by -90 deg about z_W points (W x for an along W y): for axes along W x and W y
+    exactly the identity, whatever their order and signs, so the rows keep their W x / W y reading."""
+    t = np.asarray(axes, float)[:, :2]
+    i = int(np.argmax(np.abs(t[:, 1])))
+    along = t[i] if t[i, 1] >= 0.0 else -t[i]
+    across = t[1 - i] if t[1 - i] @ np.array([along[1], -along[0]]) >= 0.0 else -t[1 - i]
+    return np.vstack([across, along])
+
+
+def _axes_text(info: Mapping[str, Any] | None) -> str:
+    """The tangent axes the closed form took (:func:`friction_axes`), in words for a note."""
+    t = friction_axes(info)
+    if np.asarray((info or {}).get("friction_axes", []), dtype=object).shape != (2, 3):
+        return "axes W x, W y (the run declares none)"
+    rows = ", ".join(f"t{i + 1} ({', '.join(f'{x + 0.0:.3g}' for x in row)})" for i, row in enumerate(t))
+    return f"axes {rows} (the backend's friction_axes)"
+
+
 def _at(poc: str) -> str:
     """Where the closed form applies F, said in a note where it is not the sphere's lowest point."""
     return ", applied at the sphere's centre (the backend's poc)" if poc == "centre" else ""
 
 
-def diamond_friction(v: np.ndarray, fn: np.ndarray, mu: float) -> np.ndarray:
-    """The friction diamond's sliding force in W [N] (n x 2) for the slip velocity ``v`` (n x 2, W x and W y) and
-    the normal force ``fn`` [N]: the diamond |F_x| + |F_y| <= mu Fn (a pyramidal cone whose edges are n +- mu t_i,
-    t_1, t_2 = W y, W x for the ground's normal +z_W: MuJoCo's contact frame on the plane) slides with the force of
-    maximal dissipation, the point of the diamond furthest against the slip. That is the vertex on the axis of
-    the slip's larger component, -mu Fn sign(v_i) e_i, |F_t| = mu Fn, off -slip by atan(|v_j| / |v_i|); on the
-    diagonal |v_x| = |v_y| every point of the face between the two vertices dissipates as much, and the face's
-    middle is returned. Unlike the axis-by-axis pyramid (:func:`pyramid_friction`), no axis can hold with a force
-    while the other slides: with F on the vertex the other component is 0."""
+def diamond_friction(v: np.ndarray, fn: np.ndarray, mu: float, axes: np.ndarray | None = None) -> np.ndarray:
+    """The friction diamond's sliding force in W [N] (n x 2, W x and W y) for the slip velocity ``v`` (n x 2, W x
+    and W y) and the normal force ``fn`` [N]: the diamond |F_t1| + |F_t2| <= mu Fn (a pyramidal cone whose edges
+    are n +- mu t_i), its tangent axes ``axes`` (2 x 2 or 2 x 3 rows t1, t2 in W: the run's ``friction_axes``,
+    :func:`friction_axes`; default W x, W y), slides with the force of maximal dissipation, the point of the
+    diamond furthest against the slip. With s_i = v . t_i that is the vertex on the axis of the slip's larger
+    component, -mu Fn sign(s_i) t_i, |F_t| = mu Fn, off -slip by atan(|s_j| / |s_i|); on the diagonal |s_1| = |s_2|
+    every point of the face between the two vertices dissipates as much, and the face's middle is returned. Unlike
+    the axis-by-axis pyramid (:func:`pyramid_friction`), no axis can hold with a force while the other slides: with
+    F on the vertex the other component is 0."""
     v = np.asarray(v, float)
     fn = np.asarray(fn, float)
-    ax, ay = np.abs(v[:, 0]), np.abs(v[:, 1])
+    E = np.eye(2) if axes is None else np.asarray(axes, float)[:, :2]
+    s = v @ E.T
+    ax, ay = np.abs(s[:, 0]), np.abs(s[:, 1])
     w = np.column_stack([(ax > ay) + 0.5 * (ax == ay), (ay > ax) + 0.5 * (ax == ay)])
-    return -mu * fn[:, None] * w * np.sign(v)
+    return (-mu * fn[:, None] * w * np.sign(s)) @ E
 
 
 def _score_diamond(tr: RunResult, physics: Physics, cls: type[Backend], coef: str, mu: float, v: np.ndarray,
                    k: np.ndarray, slip: str, lift: float, poc: str) -> list[dict[str, Any]]:  # fmt: skip
-    """The drag scored against the friction diamond's closed form (:func:`diamond_friction`) at the samples ``k``
-    in sliding contact: |F_x| + |F_y| = mu Fn (at every sample: the boundary holds at any slip direction), the
-    tangential force's angle to the closed form's (the vertex against the slip's larger component) and the slip
-    acceleration along the slip under that force, at the samples whose slip is within :data:`DIAMOND_AXIS_DEG` of
-    a tangent axis (the vertex is a soft pyramid's force only there)."""
+    """The drag scored against the friction diamond's closed form (:func:`diamond_friction`) on the run's declared
+    tangent axes (:func:`friction_axes`) at the samples ``k`` in sliding contact: |F_t1| + |F_t2| = mu Fn (at every
+    sample: the boundary holds at any slip direction), the tangential force's angle to the closed form's (the
+    vertex against the slip's larger component) and the slip acceleration along the slip under that force, at the
+    samples whose slip is within :data:`DIAMOND_AXIS_DEG` of a tangent axis (the vertex is a soft pyramid's force
+    only there)."""
     case, backend = "sliding", tr.backend
     Ts = physics.control_dt
-    l1 = float(np.mean(np.sum(np.abs(tr.f[k, :2]), axis=1) / tr.f[k, 2]))
+    E = drag_frame(friction_axes(tr.info))  # rows: the axis across the drag, the axis along it
+    l1 = float(np.mean(np.sum(np.abs(tr.f[k, :2] @ E.T), axis=1) / tr.f[k, 2]))
     n_contact = len(k)
-    off_axis = np.degrees(np.arctan2(np.abs(v[k]).min(axis=1), np.abs(v[k]).max(axis=1)))
+    sk = np.abs(v[k] @ E.T)
+    off_axis = np.degrees(np.arctan2(sk.min(axis=1), sk.max(axis=1)))
     k = k[off_axis <= DIAMOND_AXIS_DEG]
     if len(k) == 0:
         why = (f"no sample slips within {DIAMOND_AXIS_DEG:g} deg of a tangent axis (from {off_axis.min():.3g} deg): "
@@ -250,15 +291,17 @@ def _score_diamond(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
                          strict=True))]  # fmt: skip
     fn, ft, vk = tr.f[k, 2], tr.f[k, :2], v[k]
     u = vk / np.linalg.norm(vk, axis=1)[:, None]
-    ft_pred = diamond_friction(vk, fn, mu)
+    ft_pred = diamond_friction(vk, fn, mu, E)
     cosang = np.sum(ft * ft_pred, axis=1) / (np.linalg.norm(ft, axis=1) * np.linalg.norm(ft_pred, axis=1))
     angle = float(np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0))).max())
     off = float(np.degrees(np.arccos(np.clip(-np.sum(ft_pred * u, axis=1) / np.linalg.norm(ft_pred, axis=1),
                                              -1.0, 1.0))).max())  # fmt: skip
-    along = int(np.sum(np.abs(vk[:, 1]) > np.abs(vk[:, 0])))
-    ctx = (f"diamond |F_x| + |F_y| <= {coef} Fn, {coef} = {mu:g}: slides on the vertex against the slip's larger "
-           f"component (W y at {along} of {len(k)} samples), up to {off:.3g} deg off -slip; angle and acceleration "
-           f"at the {len(k)} of {n_contact} samples within {DIAMOND_AXIS_DEG:g} deg of an axis; {slip}")  # fmt: skip
+    sv = vk @ E.T
+    along = int(np.sum(np.abs(sv[:, 1]) > np.abs(sv[:, 0])))
+    ctx = (f"diamond |F_t1| + |F_t2| <= {coef} Fn on {_axes_text(tr.info)}, {coef} = {mu:g}: slides on the vertex "
+           f"against the slip's larger component (the axis along the drag at {along} of {len(k)} samples), up to "
+           f"{off:.3g} deg off -slip; angle and acceleration at the {len(k)} of {n_contact} samples within "
+           f"{DIAMOND_AXIS_DEG:g} deg of an axis; {slip}")  # fmt: skip
     a_meas = (v[k + 1] - v[k - 1]) / (2 * Ts)
     f_pred = np.column_stack([ft_pred, fn])
     a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift, poc)
@@ -300,65 +343,73 @@ def _relative(case: str, backend: str, quantity: str, unit: str, measured: float
 
 
 def pyramid_friction(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, fn: np.ndarray, mu: float,
-                     lift: float = 0.0, poc: str = "true") -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-    """The friction pyramid's closed form at each sample: the tangential ground force in W [N] (n x 2) and the
-    poc's horizontal acceleration in W [m/s^2] (n x 2) it gives, under tau [N m] and the normal force fn [N].
+                     lift: float = 0.0, poc: str = "true",
+                     axes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The friction pyramid's closed form at each sample: the tangential ground force in W [N] (n x 2, W x and
+    W y) and the poc's horizontal acceleration in W [m/s^2] (n x 2) it gives, under tau [N m] and the normal
+    force fn [N].
 
-    The pyramid bounds each of W x and W y on its own, |F_i| <= mu Fn (the axes both pyramid engines take for a
-    ground normal +z_W: ODE's dPlaneSpace, DART's tangent basis). The acceleration is affine in the force
-    (:func:`predicted_acceleration`); the axes that can hold (|F_i| <= mu Fn with the foot stuck along both)
-    hold, an axis that cannot slides with |F_i| = mu Fn in its holding force's direction (against the slip),
-    the other is solved again with it (and slides too if it then cannot hold).
+    The pyramid bounds each of its tangent axes ``axes`` on its own, |F . t_i| <= mu Fn (2 x 2 or 2 x 3 rows t1,
+    t2 in W: the run's ``friction_axes``, :func:`friction_axes`; default W x and W y). The acceleration is affine
+    in the force (:func:`predicted_acceleration`); the axes that can hold (|F_i| <= mu Fn with the foot stuck
+    along both) hold, an axis that cannot slides with |F_i| = mu Fn in its holding force's direction (against the
+    slip), the other is solved again with it (and slides too if it then cannot hold).
     """
     n = len(q)
+    E = np.eye(2) if axes is None else np.asarray(axes, float)[:, :2]
     force = np.zeros((n, 3))
     force[:, 2] = fn
     a0 = predicted_acceleration(q, qd, tau, force, lift, poc)
     cols = []
     for i in range(2):
         unit = force.copy()
-        unit[:, i] = 1.0
+        unit[:, :2] = E[i]
         cols.append(predicted_acceleration(q, qd, tau, unit, lift, poc) - a0)
+    a0_t = a0 @ E.T  # the acceleration along each axis
+    cols_t = [c @ E.T for c in cols]
     ft = np.empty((n, 2))
     acc = np.empty((n, 2))
     for s in range(n):
-        A = np.column_stack([cols[0][s], cols[1][s]])
+        A = np.column_stack([cols_t[0][s], cols_t[1][s]])
         bound = mu * fn[s]
-        f = np.linalg.solve(A, -a0[s])  # both axes held
+        f = np.linalg.solve(A, -a0_t[s])  # both axes held
         over = np.abs(f) > bound
         if over.any():
             i = int(np.argmax(np.abs(f)))  # the axis furthest past its (common) bound slides first
             j = 1 - i
             f[i] = math.copysign(bound, f[i])
-            f[j] = -(a0[s, j] + A[j, i] * f[i]) / A[j, j]
+            f[j] = -(a0_t[s, j] + A[j, i] * f[i]) / A[j, j]
             if abs(f[j]) > bound:
                 f[j] = math.copysign(bound, f[j])
-        ft[s] = f
-        acc[s] = a0[s] + A @ f
+        ft[s] = f @ E
+        acc[s] = a0[s] + np.column_stack([cols[0][s], cols[1][s]]) @ f
     return ft, acc
 
 
 def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: str, mu: float, v: np.ndarray,
                    k: np.ndarray, n_window: int, lift: float = 0.0,
                    poc: str = "true") -> list[dict[str, Any]]:  # fmt: skip
-    """The drag scored against the friction pyramid's closed form (:func:`pyramid_friction`): the force along
-    the drag (W y) at mu Fn, the force across it (W x) at the closed form's (which holds W x: an engine with no
-    friction along W x passed a bound |F_x| <= mu Fn, and its W y acceleration moved by 1.6 % only, within
-    2 %), the slip acceleration along W y; ``coef``: the coefficient the backend slides with
-    (:func:`sliding_coefficient`); ``lift``, ``poc``: where its force acts
-    (:func:`~legbench.backends.base.contact_point`)."""
+    """The drag scored against the friction pyramid's closed form (:func:`pyramid_friction`) on the run's declared
+    tangent axes (:func:`friction_axes`; rows below by :func:`drag_frame`: the axis along the drag, W y for
+    today's engines, and the one across it, W x): the force along the drag at mu Fn, the force across it at the
+    closed form's (which holds that axis: an engine with no friction along W x passed a bound |F_x| <= mu Fn, and
+    its W y acceleration moved by 1.6 % only, within 2 %), the slip acceleration along the drag's axis; ``coef``:
+    the coefficient the backend slides with (:func:`sliding_coefficient`); ``lift``, ``poc``: where its force
+    acts (:func:`~legbench.backends.base.contact_point`)."""
     case, backend = "sliding", tr.backend
     Ts = physics.control_dt
+    E = drag_frame(friction_axes(tr.info))  # rows: the axis across the drag, the axis along it
     fn = tr.f[k, 2]
-    ft_pred, a_pred = pyramid_friction(tr.q[k], tr.qd[k], tr.tau[k], fn, mu, lift, poc)
-    slides = np.abs(ft_pred[:, 1]) >= mu * fn * (1.0 - 1e-12)  # the closed form's W y at its bound
-    along = float(np.mean(np.abs(tr.f[k, 1]) / fn))
-    across, across_pred = float(np.mean(tr.f[k, 0] / fn)), float(np.mean(ft_pred[:, 0] / fn))
-    a_meas = (v[k + 1, 1] - v[k - 1, 1]) / (2 * Ts)
+    ft_pred, a_pred = pyramid_friction(tr.q[k], tr.qd[k], tr.tau[k], fn, mu, lift, poc, E)
+    ft_pred, a_pred, f_meas, v_ax = ft_pred @ E.T, a_pred @ E.T, tr.f[:, :2] @ E.T, v @ E.T  # on (across, along)
+    slides = np.abs(ft_pred[:, 1]) >= mu * fn * (1.0 - 1e-12)  # the closed form's along-drag axis at its bound
+    along = float(np.mean(np.abs(f_meas[k, 1]) / fn))
+    across, across_pred = float(np.mean(f_meas[k, 0] / fn)), float(np.mean(ft_pred[:, 0] / fn))
+    a_meas = (v_ax[k + 1, 1] - v_ax[k - 1, 1]) / (2 * Ts)
     am, ap = float(np.mean(a_meas)), float(np.mean(a_pred[:, 1]))
-    speed = np.abs(v[k, 1])
-    ctx = (f"pyramid along W x and W y, {coef} = {mu:g}; the closed form slides W y at "
-           f"{int(slides.sum())} of {len(k)} samples; slip along W y {_span(1e3 * speed)} mm/s, "
+    speed = np.abs(v_ax[k, 1])
+    ctx = (f"pyramid on {_axes_text(tr.info)}, {coef} = {mu:g}; the closed form slides the axis along the drag at "
+           f"{int(slides.sum())} of {len(k)} samples; slip along it {_span(1e3 * speed)} mm/s, "
            f"Fn {fn.mean():.3g} N, {len(k)} of {n_window} samples in "
            "contact")  # fmt: skip
     expected_along = mu if slides.all() else float(np.mean(np.abs(ft_pred[:, 1]) / fn))
@@ -368,8 +419,8 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
                             TOL_ACC, acc)  # fmt: skip
     else:  # the closed form holds both axes: the scale is the acceleration the drag gives without friction
         free = np.column_stack([np.zeros((len(k), 2)), fn])
-        scale = float(np.mean(np.abs(predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], free, lift,
-                                                            poc)[:, 1])))  # fmt: skip
+        scale = float(np.mean(np.abs((predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], free, lift,
+                                                             poc) @ E.T)[:, 1])))  # fmt: skip
         acc_row = (case, backend, "slip acceleration along the drag (mean; pyramid)", "m/s^2", am, 0.0, abs(am),
                    TOL_ACC * scale, abs(am) <= TOL_ACC * scale,
                    f"{acc}; tolerance {100 * TOL_ACC:g} % of the frictionless acceleration")  # fmt: skip
@@ -378,7 +429,7 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
                   ctx),
         (case, backend, "friction across the drag F_x / Fn (mean; pyramid)", "1", across, across_pred,
          abs(across - across_pred), TOL_MU * mu, abs(across - across_pred) <= TOL_MU * mu,
-         f"the closed form's W x force, which holds the foot across the drag; {ctx}; tolerance {100 * TOL_MU:g} % "
+         f"the closed form's force across the drag, which holds the foot there; {ctx}; tolerance {100 * TOL_MU:g} % "
          "of mu"),
         acc_row,
     ]  # fmt: skip
@@ -390,6 +441,8 @@ __all__ = [
     "applies_law",
     "diamond_friction",
     "drag",
+    "drag_frame",
+    "friction_axes",
     "predicted_acceleration",
     "pyramid_friction",
     "score",
