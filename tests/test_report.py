@@ -1379,7 +1379,7 @@ def test_the_verification_says_which_profile_it_checks_and_each_row_s_tolerance_
     defaults = md.index("## Verification against closed-form answers, engine-defaults profile: 1 of 2 checks pass, "
                         "1 fail\n")  # fmt: skip
     assert matched < defaults and "not verified in this tree" not in md
-    assert "a check that passes matched and fails here is what the defaults cost" in md[defaults:]
+    assert "a check that passes matched and fails here is what the defaults and that usual way cost" in md[defaults:]
 
 
 def test_the_index_says_what_the_reference_is_and_rtf_creep_and_integrator_read_alike_everywhere(
