@@ -45,13 +45,13 @@ lint: $(STAMP)
 	$(BIN)/mypy legbench
 
 ## the main job: four tasks x all backends x both contact modes (matched profile) and the engine-defaults profile
-## (native contact), verification (both profiles) and contact
-## calibration -> results/latest/report.html
+## (native contact), verification and contact calibration (both profiles) -> results/latest/report.html
 compare: runs
 	$(LEGBENCH) verify --out results/latest/verification --jobs $(JOBS) || echo 'verify: some checks fail; the report lists them'
 	$(LEGBENCH) verify --profile engine-defaults --out results/latest/verification__engine-defaults --jobs $(JOBS) \
 		|| echo 'verify (engine-defaults): some checks fail; the report lists them'
 	$(LEGBENCH) calibrate-contact --out results/latest/calibration --jobs $(JOBS)
+	$(LEGBENCH) calibrate-contact --profile engine-defaults --out results/latest/calibration__engine-defaults --jobs $(JOBS)
 	$(LEGBENCH) compare results/latest --jobs $(JOBS)
 
 ## the four tasks x all backends x both contact modes (matched) and engine-defaults (native) -> results/latest
@@ -89,12 +89,14 @@ bench: $(STAMP)
 sweep: $(STAMP)
 	$(LEGBENCH) sweep scenarios/sweeps/timestep.yaml --out results/sweeps/timestep --jobs $(JOBS) --force
 
-## verification cases (both profiles) and contact calibration on their own
+## verification cases and contact calibration (both profiles) on their own
 verify: $(STAMP)
 	$(LEGBENCH) verify --out results/latest/verification --jobs $(JOBS) --force || echo 'verify: some checks fail; the report lists them'
 	$(LEGBENCH) verify --profile engine-defaults --out results/latest/verification__engine-defaults --jobs $(JOBS) \
 		--force || echo 'verify (engine-defaults): some checks fail; the report lists them'
 	$(LEGBENCH) calibrate-contact --out results/latest/calibration --jobs $(JOBS) --force
+	$(LEGBENCH) calibrate-contact --profile engine-defaults --out results/latest/calibration__engine-defaults \
+		--jobs $(JOBS) --force
 
 urdf: $(STAMP)
 	$(LEGBENCH) model urdf

@@ -63,8 +63,8 @@ from legbench.results import (
     read_study,
     run_dirs,
     stage_text,
+    study_dir,
     tolerances_of,
-    verification_dir,
 )
 from legbench.signals import JOINT_OF, LABELS, SIGNAL_OF, UNITS, keyed
 from legbench.signals import label as column_label
@@ -1651,12 +1651,16 @@ def _small_q(df: pd.DataFrame, ref: str) -> set[str]:
     return {j for s, j in small_peaks(df, ref) if s == "q"}
 
 
+#: The contact calibration's columns the index shows.
+CALIBRATION_COLUMNS = ("backend", "Kp", "k_eff", "Kd", "c_eff", "mu_s", "Fn", "Ft", "creep", "creep_law",
+                       "c_tangential", "note")  # fmt: skip
+
 #: Study outputs the index shows when present under the results root:
-#: (file, heading, record list key, columns, caption). Verification once per profile (``results.verification_dir``).
+#: (file, heading, record list key, columns, caption). Each once per profile (``results.study_dir``).
 STUDIES: tuple[tuple[str, str, str, tuple[str, ...], str], ...] = (
     *(
         (
-            f"{verification_dir('', profile).as_posix()}/verification.json",
+            f"{study_dir('', 'verification', profile).as_posix()}/verification.json",
             "Verification against closed-form answers",
             "checks",
             ("case", "backend", "variant", "quantity", "unit", "measured", "expected", "error", "tolerance", "pass"),
@@ -1665,14 +1669,17 @@ STUDIES: tuple[tuple[str, str, str, tuple[str, ...], str], ...] = (
         )
         for profile in PROFILES
     ),
-    (
-        "calibration/calibration.json",
-        "Contact calibration",
-        "rows",
-        ("backend", "Kp", "k_eff", "Kd", "c_eff", "mu_s", "Fn", "Ft", "creep", "creep_law", "c_tangential", "note"),
-        "legbench calibrate-contact: effective normal stiffness k_eff and damping c_eff from a static push, creep "
-        "under a tangential load Ft below mu_s Fn, beside the spec (Kp, Kd, mu_s) and the law's own creep; "
-        "c_tangential = Ft / creep (inf: the foot sticks)",
+    *(
+        (
+            f"{study_dir('', 'calibration', profile).as_posix()}/calibration.json",
+            "Contact calibration",
+            "rows",
+            CALIBRATION_COLUMNS,
+            "legbench calibrate-contact: effective normal stiffness k_eff and damping c_eff from a static push, "
+            "creep under a tangential load Ft below mu_s Fn, beside the spec (Kp, Kd, mu_s) and the law's own creep; "
+            "c_tangential = Ft / creep (inf: the foot sticks)",
+        )
+        for profile in PROFILES
     ),
 )
 
@@ -1733,7 +1740,8 @@ def _study_blocks(root: Path) -> list[Block]:
         if "pass" not in cols:
             rows = tuple(tuple(_cell(r.get(c, ""), SHOWN_SCALE.get(c, 1.0)) for c in cols) for r in records)
             header = tuple(f"{c} [{STUDY_UNITS[c]}]" if c in STUDY_UNITS else c for c in cols)
-            blocks.append(Heading(2, f"{heading}: {len(records)} backends measured"))
+            profile = str(doc.get("profile") or PROFILES[0])  # older files: the one profile it ran, matched
+            blocks.append(Heading(2, f"{heading}, {profile} profile: {len(records)} backends measured"))
             blocks.append(Details(f"the {len(records)} rows", (Table(header, rows, caption),)))
             blocks.append(Nav(((f"files in {link}", link),)))
             continue
@@ -1755,7 +1763,9 @@ def _study_blocks(root: Path) -> list[Block]:
         rel_file = path.name
         blocks.append(Heading(2, f"{heading}, {profile} profile: {checks_summary(status)}"))
         scope = f" ({doc['scope']})" if isinstance(doc.get("scope"), str) else ""  # older files: none
-        unverified = [p for p in PROFILES if p != profile and not (verification_dir(root, p) / rel_file).is_file()]
+        unverified = [
+            p for p in PROFILES if p != profile and not (study_dir(root, "verification", p) / rel_file).is_file()
+        ]
         blocks.append(Para(" ".join([
             f"legbench verify --profile {profile} runs every check with each backend's {profile} settings{scope}.",
             *([PROFILE_VERIFIED[profile]] if profile in PROFILE_VERIFIED else []),

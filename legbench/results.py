@@ -97,7 +97,7 @@ __all__ = [
     "run_dirs",
     "stage_text",
     "staged_name",
-    "verification_dir",
+    "study_dir",
     "versions",
     "write_json",
     "write_metrics",
@@ -488,11 +488,12 @@ def enclosing_run(path: str | Path) -> Path | None:
 STUDY_OUTPUTS = ("verification.json", "calibration.json", "sweep.json", "reproduce.json", "bench.json", "scaling.json")
 
 
-def verification_dir(root: str | Path, profile: str = registry.PROFILES[0]) -> Path:
-    """Where a results tree keeps ``legbench verify``'s output for ``profile``: ``<root>/verification`` for the
-    matched profile, ``<root>/verification__<profile>`` for another (the suffix the run folders take), where the
-    index finds it."""
-    return Path(root) / ("verification" if profile == registry.PROFILES[0] else f"verification__{profile}")
+def study_dir(root: str | Path, study: str, profile: str = registry.PROFILES[0]) -> Path:
+    """Where a results tree keeps a per-profile study's output (``study``: ``verification`` for ``legbench
+    verify``, ``calibration`` for ``legbench calibrate-contact``) for ``profile``: ``<root>/<study>`` for the
+    matched profile, ``<root>/<study>__<profile>`` for another (the suffix the run folders take), where the index
+    finds it."""
+    return Path(root) / (study if profile == registry.PROFILES[0] else f"{study}__{profile}")
 
 
 #: Columns of a study's output shown in another unit than the file's SI value, and the factor: the contact

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -80,6 +81,31 @@ def test_files_written(table: pd.DataFrame, tmp_path: Path) -> None:
     md = (tmp_path / "calibration.md").read_text()
     assert "k eff [N/m]" in md and all(n in md for n in table["backend"])
     assert (tmp_path / "calibration.json").stat().st_size > 0
+
+
+def test_engine_defaults_calibration_measures_what_the_defaults_give(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``calibrate-contact --profile engine-defaults`` pushes each engine at its own defaults: Drake's ground takes
+    the scene graph's default 1e6 N/m in series with Kp, so k eff is 9901 N/m, not 1e4 (within 0.1 %); MuJoCo's
+    usual solref (-Kp, -Kd) through the default impedance gives about 1.4e5 N/m; DART's rigid Dantzig contact does
+    not sink under the added load, inf rather than a negative secant (-1.1e7 N/m from 1.9 um of rise). Written to
+    results/calibration__engine-defaults by default, with the profile and contact mode in calibration.json."""
+    names = [n for n in ("drake", "mujoco", "dart") if n in backends.available()]
+    if not names:
+        pytest.skip("no drake, mujoco or dart here")
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["calibrate-contact", "--profile", "engine-defaults", "--backends", ",".join(names)]) == 0
+    assert "wrote results/calibration__engine-defaults (engine-defaults profile)" in capsys.readouterr().out
+    doc = json.loads((tmp_path / "results" / "calibration__engine-defaults" / "calibration.json").read_text())
+    assert (doc["profile"], doc["contact_mode"]) == ("engine-defaults", "native")
+    k = {r["backend"]: r["k_eff"] for r in doc["rows"]}
+    if "drake" in k:
+        assert k["drake"] == pytest.approx(1.0 / (1e-4 + 1e-6), rel=1e-3)
+    if "mujoco" in k:
+        assert k["mujoco"] == pytest.approx(1.4e5, rel=0.02)
+    if "dart" in k:
+        assert math.isinf(k["dart"]) and k["dart"] > 0
 
 
 def test_rows_do_not_depend_on_the_number_of_workers(table: pd.DataFrame) -> None:

@@ -416,13 +416,23 @@ def test_index_collapses_verification_and_calibration_to_counts_with_the_tables_
     md = (root / "report.md").read_text()
     assert "## Verification against closed-form answers, matched profile: 2 of 3 checks pass" in md
     assert "| energy | a | euler |" in md and "| balance | a | euler |" in md
-    assert "## Contact calibration: 1 backends measured" in md and "| a | 10000 | 9999 |" in md
+    assert "## Contact calibration, matched profile: 1 backends measured" in md and "| a | 10000 | 9999 |" in md
     page = (root / "report.html").read_text()
     failing = page.index("<caption>Failing checks</caption>")
     details = page.index('<details class="fail"><summary>all 3 checks</summary>')
     assert failing < details and page.count(">energy</td>", 0, details) == 0  # passing rows only on demand
     assert page[failing:details].count('<td class="text short">balance</td>') == 1
     assert len(re.findall(r'<td class="text short fail"(?: title="[^"]*")?>NO</td>', page)) == 2
+    # the engine-defaults calibration (calibrate-contact --profile engine-defaults) under its own heading, after
+    (root / "calibration__engine-defaults").mkdir()
+    stiff = [{**rows[0], "k_eff": 1.4e5}]
+    (root / "calibration__engine-defaults" / "calibration.json").write_text(json.dumps({"profile": "engine-defaults",
+                                                                                       "rows": stiff}))  # fmt: skip
+    R.write_all(root)
+    md = (root / "report.md").read_text()
+    matched = md.index("## Contact calibration, matched profile: 1 backends measured")
+    assert md.index("## Contact calibration, engine-defaults profile: 1 backends measured") > matched
+    assert "| a | 10000 | 140000 |" in md
     assert len(re.findall(r'<td class="text short pass"(?: title="[^"]*")?>yes</td>', page)) == 2
 
 

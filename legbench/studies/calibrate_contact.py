@@ -39,7 +39,7 @@ import pandas as pd
 from legbench import backends as registry
 from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
-from legbench.backends.base import contact_point, rigid_contact
+from legbench.backends.base import PROFILES, contact_point, rigid_contact
 from legbench.contact import ContactParams
 from legbench.controllers import EffortController, saturate
 from legbench.exceptions import LegbenchError
@@ -49,6 +49,7 @@ from legbench.results import (
     atomic_write_text,
     check_study_out,
     platform_info,
+    study_dir,
     versions,
     write_json,
 )
@@ -105,8 +106,9 @@ class Program:
 
 
 def push(name: str, program: Program = Program(), scenario_file: Path = SCENARIO,
-         contact_mode: str | None = None) -> tuple[RunResult, int]:  # fmt: skip
-    """Run the load program on backend ``name`` from the scenario's initial pose, with its physics and settings.
+         contact_mode: str | None = None, profile: str = PROFILES[0]) -> tuple[RunResult, int]:  # fmt: skip
+    """Run the load program on backend ``name`` from the scenario's initial pose, with its physics and settings,
+    the backend in ``profile``.
 
     Returns:
         The run (torques as applied, after saturation), and the number of ticks at which a
@@ -114,7 +116,7 @@ def push(name: str, program: Program = Program(), scenario_file: Path = SCENARIO
     """
     sc = scenario_mod.load(scenario_file)
     physics = physics_of(sc, contact_mode)
-    backend = registry.load(name, physics, sc.backends.get(name, {}))
+    backend = registry.load(name, physics, sc.backends.get(name, {}), profile)
     Ts = sc.control_dt
     n = int(round(program.duration / Ts)) + 1
     t = np.arange(n) * Ts
@@ -150,7 +152,7 @@ class Calibration:
         backend: backend name.
         Kp, Kd, mu_s, v_th: the spec's (scenario's) normal stiffness [N/m], damping [N s/m],
             static friction coefficient and stick-slip threshold speed [m/s].
-        k_eff: effective normal stiffness [N/m].
+        k_eff: effective normal stiffness [N/m] (inf for a rigid contact that did not sink under the added load).
         c_eff: effective normal damping while pressing in [N s/m].
         Fn: normal force at the end of the hold [N].
         Ft: tangential force at the end of the hold [N].
@@ -218,6 +220,9 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     compliant = not rigid_contact(log.info)
     if not compliant:
         notes.append("rigid contact: no Kp, Kd to match")
+        if dy <= 0.0:  # no sinking under the added load: a stiffness beyond what the log resolves, not a negative one
+            k_eff = math.inf
+            notes.append(f"the foot did not sink under the second push (y changed by {dy:.2g} m): k eff inf")
     return Calibration(
         backend=log.backend, Kp=contact.Kp, Kd=contact.Kd, mu_s=contact.mu_s, v_th=contact.v_th, k_eff=k_eff,
         c_eff=c_eff, Fn=Fn, Ft=Ft, creep=creep, creep_law=contact.v_th * Ft / (contact.mu_s * Fn),
@@ -234,19 +239,19 @@ def _failed_row(name: str, contact: ContactParams, why: str) -> dict[str, Any]:
     ))  # fmt: skip
 
 
-def _calibrate_one(task: tuple[str, Program, Path, str | None, ContactParams]) -> dict[str, Any]:
+def _calibrate_one(task: tuple[str, Program, Path, str | None, ContactParams, str]) -> dict[str, Any]:
     """One backend's row, ``(name, program, scenario_file, contact_mode, contact)``: a task for the pool. An
     engine that fails (any error, as in the run loop) gives a row of NaN whose note says why,
     and the other backends are still calibrated."""
-    name, program, scenario_file, contact_mode, contact = task
+    name, program, scenario_file, contact_mode, contact, profile = task
     try:
-        log, saturated = push(name, program, scenario_file, contact_mode)
+        log, saturated = push(name, program, scenario_file, contact_mode, profile)
     except Exception as exc:  # as the run loop: any error of the engine's fails this backend alone
         return _failed_row(name, contact, f"{type(exc).__name__}: {exc}")
     return dataclasses.asdict(estimate(log, program, contact, saturated))
 
 
-def _crashed(task: tuple[str, Program, Path, str | None, ContactParams], why: str) -> dict[str, Any]:
+def _crashed(task: tuple[str, Program, Path, str | None, ContactParams, str], why: str) -> dict[str, Any]:
     """The row of a backend whose worker process died under it (the engine crashed)."""
     return _failed_row(task[0], task[4], f"the engine crashed: {why}")
 
@@ -258,23 +263,28 @@ def calibrate(
     scenario_file: Path = SCENARIO,
     contact_mode: str | None = None,
     jobs: int = 1,
+    profile: str = PROFILES[0],
 ) -> pd.DataFrame:
-    """Calibrate every backend (default: all available); one row per backend, optionally written to ``out_dir``.
+    """Calibrate every backend (default: all available) in ``profile``; one row per backend, optionally written to
+    ``out_dir``.
 
     ``jobs``: worker processes (1: in this process); the rows are the same whatever the number.
     """
     if not 0 < program.ratio < 1:
         raise LegbenchError(f"tangential ratio {program.ratio} must lie in (0, 1): below the friction limit")
+    if profile not in PROFILES:
+        raise LegbenchError(f"unknown profile '{profile}'; choose from {', '.join(PROFILES)}")
     contact = scenario_mod.load(scenario_file).contact
     names = list(backends) if backends is not None else registry.available()
-    tasks = [(n, program, Path(scenario_file), contact_mode, contact) for n in names]
+    tasks = [(n, program, Path(scenario_file), contact_mode, contact, profile) for n in names]
     rates = backend_rates() if jobs > 1 else {}
     first = sorted(range(len(tasks)), key=lambda i: -rates.get(names[i], 1.0))  # the slowest backend first
     with make_executor("local", jobs, preload=(*DEFAULT_PRELOAD, __name__)) as ex:
         rows = list(ex.imap(_calibrate_one, tasks, first, _crashed))
     df = pd.DataFrame(rows)
     if out_dir is not None:
-        write_calibration(df, Path(out_dir), program)
+        write_calibration(df, Path(out_dir), program, profile, contact_mode or physics_of(scenario_mod.load(
+            scenario_file)).contact_mode)  # fmt: skip
     return df
 
 
@@ -298,16 +308,19 @@ def markdown(df: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_calibration(df: pd.DataFrame, out_dir: Path, program: Program = Program()) -> Path:
-    """Write ``calibration.json`` and ``calibration.md`` into ``out_dir``."""
+def write_calibration(df: pd.DataFrame, out_dir: Path, program: Program = Program(), profile: str = PROFILES[0],
+                      contact_mode: str = "native") -> Path:  # fmt: skip
+    """Write ``calibration.json`` (with the ``profile`` and ``contact_mode`` the pushes ran in) and
+    ``calibration.md`` into ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    meta = {"schema": "legbench.calibration/1", "program": dataclasses.asdict(program),
+    meta = {"schema": "legbench.calibration/1", "program": dataclasses.asdict(program), "profile": profile,
+            "contact_mode": contact_mode,
             "rows": df.to_dict(orient="records"), "versions": versions(), "platform": platform_info()}  # fmt: skip
     write_json(meta, out_dir / "calibration.json")
     notes = [f"- {r['backend']}: {r['note']}" for r in df.to_dict(orient="records") if r["note"]]
     units = {"F1": "N", "F2": "N", "ratio": "of mu_s F2"}
     spec = ", ".join(f"{k} {v:g} {units.get(k, 's')}" for k, v in dataclasses.asdict(program).items())
-    text = ["# Contact calibration\n",
+    text = [f"# Contact calibration, {profile} profile, {contact_mode} contact\n",
             f"Program (legbench/studies/calibrate_contact.py, `Program`): {spec}.\n", markdown(df),
             *notes]  # fmt: skip
     atomic_write_text(out_dir / "calibration.md", "\n".join(text) + "\n")
@@ -315,21 +328,27 @@ def write_calibration(df: pd.DataFrame, out_dir: Path, program: Program = Progra
 
 
 def _cli(args: argparse.Namespace) -> int:
-    check_study_out(args.out, "calibration.json", ("calibration.json", "calibration.md"), "calibration", args.force)
-    df = calibrate(args.out, registry.resolve(args.backends), contact_mode=args.contact_mode, jobs=args.jobs)
+    out = args.out or study_dir("results", "calibration", args.profile)
+    check_study_out(out, "calibration.json", ("calibration.json", "calibration.md"), "calibration", args.force)
+    df = calibrate(out, registry.resolve(args.backends), contact_mode=args.contact_mode, jobs=args.jobs,
+                   profile=args.profile)  # fmt: skip
     print(markdown(df))
     for r in df.to_dict(orient="records"):
         if r["note"]:
             print(f"note: {r['backend']}: {r['note']}")
-    print(f"wrote {args.out}")
+    print(f"wrote {out} ({args.profile} profile)")
     return 1 if df["note"].str.startswith("failed:").any() else 0
 
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Register ``legbench calibrate-contact [--out DIR] [--backends all] [--contact-mode native|reference]
-    [--jobs N]``."""
+    [--jobs N] [--profile P]``."""
     p = subparsers.add_parser("calibrate-contact", help="effective contact stiffness, damping and creep per backend")
-    p.add_argument("--out", default="results/calibration", help="output directory (default results/calibration)")
+    p.add_argument("--out", default=None, help="output directory (default results/calibration, "
+                   "results/calibration__engine-defaults for --profile engine-defaults)")  # fmt: skip
+    p.add_argument("--profile", choices=PROFILES, default=PROFILES[0],
+                   help=f"the backends' profile (default {PROFILES[0]}; engine-defaults: the engine's own settings, "
+                   "Kp, Kd and mu set its usual way)")  # fmt: skip
     p.add_argument("--backends", default="all", help="comma-separated backend names, or 'all' (default)")
     p.add_argument("--contact-mode", choices=("native", "reference"), default=None,
                    help="contact of the calibration pushes: each engine's own ('native', default) or the "

@@ -120,7 +120,7 @@ from legbench.results import (
     check_study_out,
     checks_summary,
     platform_info,
-    verification_dir,
+    study_dir,
     versions,
     write_json,
 )
@@ -865,7 +865,7 @@ def _cli(args: argparse.Namespace) -> int:
     cases = list(CASES) if args.cases is None else [c.strip() for c in args.cases.split(",") if c.strip()]
     if not cases:
         raise LegbenchError(f"--cases {args.cases!r}: names no case (give some of {', '.join(CASES)})")
-    out = args.out or verification_dir("results", args.profile)
+    out = args.out or study_dir("results", "verification", args.profile)
     check_study_out(out, "verification.json", ("verification.json", "verification.md"), "verification",
                     args.force)  # fmt: skip
     df = verify(out, names, cases, args.jobs, args.profile)
