@@ -1675,8 +1675,9 @@ STUDIES: tuple[tuple[str, str, str, tuple[str, ...], str], ...] = (
             "Contact calibration",
             "rows",
             CALIBRATION_COLUMNS,
-            "legbench calibrate-contact: effective normal stiffness k_eff and damping c_eff from a static push, "
-            "creep under a tangential load Ft below mu_s Fn, beside the spec (Kp, Kd, mu_s) and the law's own creep; "
+            "legbench calibrate-contact: effective normal stiffness k_eff from the rests under two pushes (20 N, "
+            "40 N), damping c_eff from the step's pressing-in transient, creep under a tangential load Ft below mu_s "
+            "Fn (half of it commanded), beside the spec (Kp, Kd, mu_s) and the law's own creep v_th Ft / (mu_s Fn); "
             "c_tangential = Ft / creep (inf: the foot sticks)",
         )
         for profile in PROFILES
@@ -1721,9 +1722,10 @@ PROFILE_VERIFIED = {
     PROFILES[0]: "Its closed forms are the spec's physics, which these settings are chosen to match: a failure here "
     "is the engine's, or its mapping's.",
     PROFILES[1]: "The same closed forms, with each engine at its own defaults (its integrator and step, Kp, Kd and "
-    "mu set the engine's usual way): a check that passes matched and fails here is what the defaults and that "
-    "usual way cost, not the engine; each such row's note gives the engine's own answer where it has been "
-    "measured (docs/studies.md, section 4).",
+    "mu set the engine's usual way), the sliding drag scored against the friction shape, coefficient and point "
+    "each run declares: a check that passes matched and fails here is mostly what the defaults and that usual way "
+    "cost (a solver's own limit shows in both profiles where the profiles share the solver); each such row's note "
+    "gives the engine's own answer where it has been measured (docs/studies.md, section 4).",
 }
 
 
@@ -1770,13 +1772,21 @@ def _study_blocks(root: Path) -> list[Block]:
             f"legbench verify --profile {profile} runs every check with each backend's {profile} settings{scope}.",
             *([PROFILE_VERIFIED[profile]] if profile in PROFILE_VERIFIED else []),
             *([f"The {' and '.join(unverified)} profile's settings are not verified in this tree."] * bool(unverified)),
-            "Hover a row's tolerance or pass cell for how its tolerance is derived and the row's note "
+            "error is |measured - expected| unless the row's note says otherwise (an energy prediction: the largest "
+            "gap between the drift curve and its prediction; a one-sided bound: how far past it). Each case's "
+            "tolerance is derived below; hover a row's tolerance or pass cell for it and the row's note "
             "(legbench/studies/verify.py).",
         ])))  # fmt: skip
+        if basis:
+            blocks.append(Details("how each case's tolerance is derived", (Table(
+                ("case", "tolerance"), tuple((case, str(text)) for case, text in basis.items()),
+                "verification.json's tolerance_basis (the derivations: legbench/studies/verify.py)",
+                classes={(k, 1): "text" for k in range(len(basis))}),)))  # fmt: skip
         for which, title, cls in ((failed, "Failing checks", "fail"), (na, "Not applicable: no closed form for this "
                                   "engine's integrator or friction model (the note says which)", "na")):  # fmt: skip
             if which:
-                noted = tuple(rows[i] + (str(records[i].get("note", "")),) for i in which)
+                noted = tuple(rows[i] + (note,) for i, note in zip(which, _shortened_notes(records, which),
+                                                                    strict=True))  # fmt: skip
                 marks = {(k, last): cls for k in range(len(which))}
                 marks.update({(k, last + 1): "text" for k in range(len(which))})
                 # the hover the paragraph promises, here too: the case's basis (the note has its own column)
@@ -1788,6 +1798,27 @@ def _study_blocks(root: Path) -> list[Block]:
         blocks.append(Details(f"all {len(records)} checks", (table,), "fail" if failed else ""))
         blocks.append(Nav(((f"files in {link}", link),)))
     return blocks
+
+
+def _shortened_notes(records: Sequence[Mapping[str, Any]], which: Sequence[int]) -> list[str]:
+    """The notes of the rows ``which`` as a table of them shows them: where a row's note begins with the same
+    explanation as the row above it of the same backend and case (a backend's known deviation, shared by every
+    pole of a mode fit, every row of a drag), that part reads "as above" (the rest, the row's own numbers, stays;
+    the full note is in the table of all checks and in verification.json)."""
+    out: list[str] = []
+    prev: Mapping[str, Any] | None = None
+    for i in which:
+        r = records[i]
+        note = str(r.get("note") or "")
+        if prev is not None and (prev.get("backend"), prev.get("case")) == (r.get("backend"), r.get("case")):
+            above = str(prev.get("note") or "")
+            shared = os.path.commonprefix([above, note])
+            cut = shared.rfind("; ") if len(shared) < len(note) else len(shared)
+            if cut >= 80:  # a shared explanation, not a shared word
+                note = "as above" + (note[cut:] if cut < len(note) else "")
+        out.append(note)
+        prev = r
+    return out
 
 
 def _tolerance_basis(r: Mapping[str, Any], bases: Mapping[str, Any]) -> str:

@@ -226,7 +226,7 @@ class DrakeBackend(Backend):
             return (f"known: the ground, registered with friction only, takes the scene graph's default point "
                     f"stiffness ({1.0 / (1.0 / pair - 1.0 / kp):.3g} N/m) in series with the foot's Kp: the foot "
                     f"rests on {pair:.6g} N/m and sinks {100 * (kp / pair - 1):.2f} % deeper than Fn/Kp; it meets "
-                    f"Fn/pair_stiffness to {abs(measured * pair / (expected * kp) - 1):.1e} (info "
+                    f"Fn/pair_stiffness to {100 * abs(measured * pair / (expected * kp) - 1):.2g} % (info "
                     "contact.pair_stiffness)")  # fmt: skip
         return None
 

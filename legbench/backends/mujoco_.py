@@ -254,7 +254,7 @@ class MujocoBackend(Backend):
                 return (f"known: the usual solref (-Kp, -Kd) is not Kp N/m: it goes through the impedance d(y) "
                         f"{tuple(contact['solimp'])} and the constraint's mass, and MuJoCo's steady state is Fn / y = "
                         f"Kp d^2 / (dmax^2 (1 - d) A) (x 2 / (mu^2 (1 + mu^2)) on the pyramidal cone): {k:.4g} N/m, "
-                        f"y = {y:.4g} m for this Fn, met to {abs(measured / y - 1):.1e} "
+                        f"y = {y:.4g} m for this Fn, met to {100 * abs(measured / y - 1):.2g} % "
                         "(docs/contact_mapping.md)")  # fmt: skip
         if case == "sliding" and quantity.startswith("slip acceleration") and usual and info.get("dt", 0) >= 1e-3:
             return ("known: with the raw solref (-Kp, -Kd), MuJoCo's default impedance and a 1 ms step the sliding "

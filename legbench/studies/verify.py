@@ -202,7 +202,8 @@ TOLERANCE_BASIS = {
     "law's slopes times one solver step's state error if adaptive), + the lever |(J_poc^T)^-1| y |F_t| where an "
     "engine declares no point",
     "small_oscillation": f"{POLE_RTOL * 100:g} % of |s| per pole (the pencil fit of three close, heavily damped "
-    "modes); a first-order step of unknown form: + h |s|",
+    f"modes); a first-order step of unknown form: ({POLE_RTOL * 100:g} % + h |s|) of |s|, h |s| the pole shift any "
+    "first-order step may have",
     "sliding": f"friction |F_t| / Fn within {TOL_MU * 100:g} % of mu, its angle to -slip within {TOL_ANGLE:g} deg, "
     f"the slip acceleration within {TOL_ACC * 100:g} % of the closed form M^-1 (tau - nle + J_poc^T F), with the "
     "friction the run declares: a cone as said, a pyramid axis by axis (the sliding axis at mu Fn, the other's force "
@@ -501,7 +502,7 @@ def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO,
                               f"rigid contact (no Kp declared): expected no sinking; Fn = {fn:.3f} N, "
                               f"a {c.Kp:g} N/m spring would sink {fn / c.Kp:.2e} m"))  # fmt: skip
         else:
-            note = f"Fn = {fn:.3f} N, Kp = {c.Kp:g} N/m, max|ydot| = {np.abs(ydot).max():.2e} m/s"
+            note = f"mean Fn = {fn:.3f} N, Kp = {c.Kp:g} N/m, max|ydot| = {np.abs(ydot).max():.2e} m/s"
             if law:
                 note = (f"law backend: Fn is the law at the logged y, so y - Fn/Kp = -Kd mean(max(ydot, 0))/Kp = "
                         f"{-c.Kd * float(np.maximum(ydot, 0.0).mean()) / c.Kp:.2e} m by construction: this checks "
