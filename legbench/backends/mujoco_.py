@@ -612,9 +612,9 @@ class MujocoBackend(Backend):
             "compiler": {**self.compiler, "urdf_default_fusestatic": "true"},
             # the pyramidal cone's edges are n +- mu t_i (engine_core_constraint.c), so |F_t1| + |F_t2| <= mu Fn, with
             # t_1, t_2 = W y, -W x on the ground: dragged along W y (engine-defaults, no noslip) it slides on the
-            # vertex, F_t = (0, -0.700 Fn), 8-10 deg off -slip, as maximal dissipation on the diamond has it (within
-            # about 15 deg of an axis: sliding_case.DIAMOND_AXIS_DEG)
-            # (sliding_case.diamond_friction); with noslip (matched) |F_x| + |F_y| = 0.700 Fn at the end read,
+            # vertex, F_t = (0, -0.700 Fn), 8-10 deg off -slip, as maximal dissipation on the diamond has it
+            # (sliding_case.diamond_friction; within about 15 deg of an axis: sliding_case.DIAMOND_AXIS_DEG);
+            # with noslip (matched) |F_x| + |F_y| = 0.700 Fn at the end read,
             # |F_t| = 0.608 Fn, alternating at the edge (mean read 0.599 Fn): not sliding at the bound
             "friction_cone": "cone" if self.cfg["cone"] == "elliptic" else "diamond",
             # the diamond's axes t1, t2 (W y, -W x), read back from a contact on the ground (_friction_axes)
