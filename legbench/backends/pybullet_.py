@@ -25,7 +25,7 @@ penetration (PyBullet's slop is 1e-5 m, PhysicsServerCommandProcessor.cpp
 btMultiBodyConstraintSolver.cpp: the foot would rest 10 um deeper; Bullet's own
 ``btContactSolverInfo`` default is 0). Friction is a hard Coulomb cone at the
 velocity level: the foot holds to micrometres, but with no positional correction
-(Bullet's friction anchor, which PyBullet leaves off) it drifts under a tangential
+(Bullet's friction anchor, which PyBullet leaves off: setting ``friction_anchor: on``) it drifts under a tangential
 load: 13 um/s in the calibration's 13.2 N push at 40 N, 3 um over the effort task
 (with ``frictionAnchor`` on, 5e-13 m/s, but the read-out against the statics goes
 from 2e-9 to 1.6e-3 of Fn; a reviewer's check, 27 Nov).
@@ -157,6 +157,9 @@ class PybulletBackend(Backend):
         "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
         "contact_margins": "zero",  # zero: contactSlop = contactProcessingThreshold = 0; default: Bullet's
         "sub_stepping": "bullet",  # native: bullet: one command + numSubSteps; python: n x (command + step)
+        # Bullet's friction anchor (changeDynamics frictionAnchor): off, PyBullet's default; on holds the contact
+        # point against the velocity-level friction's drift (module docstring)
+        "friction_anchor": "off",
     }
     #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
     sliding_coefficient: ClassVar[str] = "mu_s"
@@ -167,6 +170,7 @@ class PybulletBackend(Backend):
         "contact_margins": ("zero", "default"),
         "reference_friction": ("implicit", "explicit"),
         "sub_stepping": ("bullet", "python"),
+        "friction_anchor": ("off", "on"),
     }
     #: ``engine-defaults``: one Bullet step per control period, Bullet's plane, slop and
     #: thresholds; Kp, Kd as the foot's contactStiffness/contactDamping, mu as its
@@ -263,7 +267,8 @@ class PybulletBackend(Backend):
         margins = {"contactProcessingThreshold": 0.0} if self.exact_margins else {}
         p.changeDynamics(
             body, self.foot, contactStiffness=c.Kp, contactDamping=c.Kd, lateralFriction=c.mu_s,
-            spinningFriction=0.0, rollingFriction=0.0, restitution=0.0, physicsClientId=cid, **margins,
+            spinningFriction=0.0, rollingFriction=0.0, restitution=0.0, physicsClientId=cid,
+            frictionAnchor=int(cfg["friction_anchor"] == "on"), **margins,
         )  # fmt: skip
         rigid = {"contactStiffness": PLANE_STIFFNESS, "contactDamping": 0.0} if cfg["plane_contact"] == "rigid" else {}
         p.changeDynamics(
@@ -445,8 +450,8 @@ class PybulletBackend(Backend):
         ground = p.getDynamicsInfo(self.ground, -1, physicsClientId=cid)
         engine = p.getPhysicsEngineParameters(physicsClientId=cid)
         (k_foot, c_foot), (k_plane, c_plane) = _stiffness_damping(foot), _stiffness_damping(ground)
-        unused = {"plane_contact", "plane_friction", "contact_margins", "sub_stepping"} if self.reference else {
-            "reference_friction"}  # fmt: skip
+        unused = {"plane_contact", "plane_friction", "contact_margins", "sub_stepping", "friction_anchor"} if (
+            self.reference) else {"reference_friction"}  # fmt: skip
         return {
             "engine": "pybullet",
             "version": metadata.version("pybullet"),
