@@ -89,7 +89,8 @@ def test_engine_defaults_calibration_measures_what_the_defaults_give(
     """``calibrate-contact --profile engine-defaults`` pushes each engine at its own defaults: Drake's ground takes
     the scene graph's default 1e6 N/m in series with Kp, so k eff is 9901 N/m, not 1e4 (within 0.1 %); MuJoCo's
     usual solref (-Kp, -Kd) through the default impedance gives about 1.4e5 N/m; DART's rigid Dantzig contact does
-    not sink under the added load, inf rather than a negative secant (-1.1e7 N/m from 1.9 um of rise). Written to
+    not sink under the added load, inf rather than a negative secant (-1.1e7 N/m from 1.9 um of rise). A stiffness
+    off Kp says why in its note (the backend's explanation of its rest, as the verification's). Written to
     results/calibration__engine-defaults by default, with the profile and contact mode in calibration.json."""
     names = [n for n in ("drake", "mujoco", "dart") if n in backends.available()]
     if not names:
@@ -100,10 +101,14 @@ def test_engine_defaults_calibration_measures_what_the_defaults_give(
     doc = json.loads((tmp_path / "results" / "calibration__engine-defaults" / "calibration.json").read_text())
     assert (doc["profile"], doc["contact_mode"]) == ("engine-defaults", "native")
     k = {r["backend"]: r["k_eff"] for r in doc["rows"]}
+    note = {r["backend"]: r["note"] for r in doc["rows"]}
+    # each stiffness off Kp carries its backend's explanation of the rest, held to the engine's own closed form
     if "drake" in k:
         assert k["drake"] == pytest.approx(1.0 / (1e-4 + 1e-6), rel=1e-3)
+        assert note["drake"].startswith("known: the ground, registered with friction only"), note["drake"]
     if "mujoco" in k:
         assert k["mujoco"] == pytest.approx(1.4e5, rel=0.02)
+        assert note["mujoco"].startswith("known: the usual solref (-Kp, -Kd) is not Kp N/m"), note["mujoco"]
     if "dart" in k:
         assert math.isinf(k["dart"]) and k["dart"] > 0
 
