@@ -157,6 +157,8 @@ COLUMNS = ("case", "backend", "variant", "quantity", "unit", "measured", "expect
 #: Row status: ``pass``, ``fail``, or ``not-applicable`` (no closed-form prediction for the backend's
 #: integrator family; the note says why).
 STATUSES = ("pass", "fail", "not-applicable")
+#: The discrete plant each small-oscillation model steps with, in words for the rows' notes.
+MODEL_TEXT = {"euler": "semi-implicit Euler steps", "rk4": "RK4 steps", "exact": "the exact flow over each step"}
 #: Relative tolerance on each closed-loop pole (module docstring).
 POLE_RTOL = 5e-3
 #: Share of the quantity the engines' contact solvers may miss by (rest and balance checks).
@@ -693,8 +695,8 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = OSCIL
             shown = [p for p in pairs if abs(np.exp(p[0] * Ts)) > 0.5 and p[0].imag >= -1e-9 * abs(p[0])]
             for i, (sp, sm) in enumerate(shown, start=1):
                 sc_near = s_cont[np.argmin(np.abs(s_cont - sp))]
-                note = (f"model: {model_family} x{n_sub}; pole {sp:.2f}/s, fitted {sm:.2f}/s; "
-                        f"continuous-time model (no sampling) {sc_near:.2f}/s")  # fmt: skip
+                note = (f"model: {MODEL_TEXT[model_family]}, {n_sub} per control period; pole {sp:.2f}/s, fitted "
+                        f"{sm:.2f}/s; continuous-time model (no sampling) {sc_near:.2f}/s")  # fmt: skip
                 # a step with no discrete model of its own ("first-order", modelled by the exact flow) may move a
                 # pole by O(h |s|) relative, as any first-order step does
                 rel = POLE_RTOL + (h_sub * abs(sp) if family == "first-order" else 0.0)
@@ -706,7 +708,7 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = OSCIL
                     out.append(_check("small_oscillation", name, variant, f"mode {i} damping ratio", "1",
                                       -sm.real / abs(sm), -sp.real / abs(sp), 2 * rel, note))  # fmt: skip
                 else:
-                    note += f"; fitted imaginary part {sm.imag:.2g}"
+                    note += f"; the model's pole is real (a decay), the fitted pole's imaginary part {sm.imag:.2g}/s"
                     out.append(_check("small_oscillation", name, variant, f"mode {i} decay rate", "1/s",
                                       -sm.real, -sp.real, tol_s, note))  # fmt: skip
     return _explained(out, infos)
