@@ -207,7 +207,8 @@ TOLERANCE_BASIS = {
     f"modes); a first-order step of unknown form: ({POLE_RTOL * 100:g} % + h |s|) of |s|, h |s| the pole shift any "
     "first-order step may have",
     "sliding": f"friction |F_t| / Fn within {TOL_MU * 100:g} % of mu, its angle to -slip within {TOL_ANGLE:g} deg, "
-    f"the slip acceleration within {TOL_ACC * 100:g} % of the closed form M^-1 (tau - nle + J_poc^T F), with the "
+    f"the slip acceleration (along the slip: positive where it speeds up) within {TOL_ACC * 100:g} % of the closed "
+    "form M^-1 (tau - nle + J_poc^T F), with the "
     "friction the run declares: a cone as said, a pyramid axis by axis (the sliding axis at mu Fn, the other's force "
     "the closed form's), a diamond at (|F_x| + |F_y|) / Fn = mu and its angle to the diamond's vertex",
 }
