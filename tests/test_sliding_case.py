@@ -171,8 +171,8 @@ def test_the_diamond_and_the_pyramid_follow_the_declared_axes() -> None:
     assert abs(ft0[0, 1]) == pytest.approx(mu * fp[0], rel=1e-12)
     assert np.abs(S.pyramid_friction(q, qd, tau, fp, mu, axes=axes)[1][0]).max() < 1e-9  # the turned one holds
     # today's axes (W x, W y in any order and sign) are the W x, W y frame exactly: the rows are unchanged
-    for t in ([[0, 1, 0], [-1, 0, 0]], [[0, -1, 0], [1, 0, 0]], [[-1, 0, 0], [0, 1, 0]], [[1, 0, 0], [0, 1, 0]]):
-        assert (S.drag_frame(np.array(t, float)) == np.eye(2)).all()
+    for basis in ([[0, 1, 0], [-1, 0, 0]], [[0, -1, 0], [1, 0, 0]], [[-1, 0, 0], [0, 1, 0]], [[1, 0, 0], [0, 1, 0]]):
+        assert (S.drag_frame(np.array(basis, float)) == np.eye(2)).all()
 
 
 def _assert_tangents_of_z(axes: object) -> np.ndarray:
