@@ -176,6 +176,10 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     ft = tr.f[k, :2]
     vk = v[k]
     speed = np.linalg.norm(vk, axis=1)
+    slip = (f"slip {_span(1e3 * speed)} mm/s, Fn {fn.mean():.3g} N, "
+            f"{len(k)} of {n_window} samples in contact")  # fmt: skip
+    if shape == "diamond":  # scored on its own closed form (the cone's below would be computed for nothing)
+        return _score_diamond(tr, physics, cls, coef, mu, v, k, slip, lift, poc)
     u = vk / speed[:, None]
     ratio = float(np.mean(np.linalg.norm(ft, axis=1) / fn))
     cosang = -np.sum(ft * u, axis=1) / np.linalg.norm(ft, axis=1)
@@ -184,10 +188,6 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     f_pred = np.column_stack([-mu * fn[:, None] * u, fn])
     a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift, poc)
     am, ap = float(np.mean(np.sum(a_meas * u, axis=1))), float(np.mean(np.sum(a_pred * u, axis=1)))
-    slip = (f"slip {_span(1e3 * speed)} mm/s, Fn {fn.mean():.3g} N, "
-            f"{len(k)} of {n_window} samples in contact")  # fmt: skip
-    if shape == "diamond":
-        return _score_diamond(tr, physics, cls, coef, mu, v, k, slip, lift, poc)
     # a law backend's force is the law evaluated at the logged state: its ratio and angle are the law read back
     law = ("the law read back (the force is the law at the logged state): checks the read-out, not an engine; "
            if applies_law(tr.info, physics) else "")  # fmt: skip
@@ -211,16 +211,21 @@ def sliding_coefficient(info: Mapping[str, Any], cls: type[Backend]) -> str:
     return coef if coef in ("mu_k", "mu_s") else cls.sliding_coefficient
 
 
-def friction_axes(info: Mapping[str, Any] | None) -> np.ndarray:
-    """The run's pyramid's or diamond's tangent axes t1, t2 (rows, 2 x 3, in W) as its info declares them
-    (``friction_axes``: :data:`~legbench.backends.base.INFO_KEYS`), else W x and W y (a run.json written before the
-    key, or a backend that declares none)."""
-    axes = (info or {}).get("friction_axes")
+def _declared_axes(info: Mapping[str, Any] | None) -> np.ndarray | None:
+    """The tangent axes t1, t2 (rows, 2 x 3, in W) the run's info declares (``friction_axes``:
+    :data:`~legbench.backends.base.INFO_KEYS`), or None where it declares none or malformed ones."""
     try:
-        a = np.asarray(axes, float)
+        a = np.asarray((info or {}).get("friction_axes"), float)
     except (TypeError, ValueError):
-        a = np.empty(0)
-    return a if a.shape == (2, 3) and np.isfinite(a).all() else np.eye(3)[:2]
+        return None
+    return a if a.shape == (2, 3) and np.isfinite(a).all() else None
+
+
+def friction_axes(info: Mapping[str, Any] | None) -> np.ndarray:
+    """The run's pyramid's or diamond's tangent axes t1, t2 (rows, 2 x 3, in W) as its info declares them, else W x
+    and W y (a run.json written before the key, or a backend that declares none)."""
+    a = _declared_axes(info)
+    return np.eye(3)[:2] if a is None else a
 
 
 def drag_frame(axes: np.ndarray) -> np.ndarray:
@@ -237,8 +242,8 @@ def drag_frame(axes: np.ndarray) -> np.ndarray:
 
 def _axes_text(info: Mapping[str, Any] | None) -> str:
     """The tangent axes the closed form took (:func:`friction_axes`), in words for a note."""
-    t = friction_axes(info)
-    if np.asarray((info or {}).get("friction_axes", []), dtype=object).shape != (2, 3):
+    t = _declared_axes(info)
+    if t is None:
         return "axes W x, W y (the run declares none)"
     rows = ", ".join(f"t{i + 1} ({', '.join(f'{x + 0.0:.3g}' for x in row)})" for i, row in enumerate(t))
     return f"axes {rows} (the backend's friction_axes)"
