@@ -21,6 +21,7 @@ without a network.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import logging
 import math
 import os
@@ -1652,35 +1653,28 @@ def _small_q(df: pd.DataFrame, ref: str) -> set[str]:
 
 
 #: The contact calibration's columns the index shows.
-CALIBRATION_COLUMNS = ("backend", "Kp", "k_eff", "Kd", "c_eff", "mu_s", "Fn", "Ft", "creep", "creep_law",
-                       "c_tangential", "note")  # fmt: skip
-
-#: Study outputs the index shows when present under the results root:
-#: (file, heading, record list key, columns, caption). Each once per profile (``results.study_dir``).
-STUDIES: tuple[tuple[str, str, str, tuple[str, ...], str], ...] = (
-    *(
-        (
-            f"{study_dir('', 'verification', profile).as_posix()}/verification.json",
-            "Verification against closed-form answers",
-            "checks",
-            ("case", "backend", "variant", "quantity", "unit", "measured", "expected", "error", "tolerance", "pass"),
-            "legbench verify: each case, backend and integrator against its closed-form answer "
-            "(legbench/studies/verify.py)",
-        )
-        for profile in PROFILES
+#: Study outputs the index shows when present under the results root, each once per profile, in the folder
+#: ``results.study_dir`` gives it: (study, file, heading, record list key, columns, caption).
+STUDIES: tuple[tuple[str, str, str, str, tuple[str, ...], str], ...] = (
+    (
+        "verification",
+        "verification.json",
+        "Verification against closed-form answers",
+        "checks",
+        ("case", "backend", "variant", "quantity", "unit", "measured", "expected", "error", "tolerance", "pass"),
+        "legbench verify: each case, backend and integrator against its closed-form answer "
+        "(legbench/studies/verify.py)",
     ),
-    *(
-        (
-            f"{study_dir('', 'calibration', profile).as_posix()}/calibration.json",
-            "Contact calibration",
-            "rows",
-            CALIBRATION_COLUMNS,
-            "legbench calibrate-contact: effective normal stiffness k_eff from the rests under two pushes (20 N, "
-            "40 N), damping c_eff from the step's pressing-in transient, creep under a tangential load Ft below mu_s "
-            "Fn (half of it commanded), beside the spec (Kp, Kd, mu_s) and the law's own creep v_th Ft / (mu_s Fn); "
-            "c_tangential = Ft / creep (inf: the foot sticks)",
-        )
-        for profile in PROFILES
+    (
+        "calibration",
+        "calibration.json",
+        "Contact calibration",
+        "rows",
+        ("backend", "Kp", "k_eff", "Kd", "c_eff", "mu_s", "Fn", "Ft", "creep", "creep_law", "c_tangential", "note"),
+        "legbench calibrate-contact: effective normal stiffness k_eff from the rests under two pushes (20 N, "
+        "40 N), damping c_eff from the step's pressing-in transient, creep under a tangential load Ft below mu_s "
+        "Fn (half of it commanded), beside the spec (Kp, Kd, mu_s) and the law's own creep v_th Ft / (mu_s Fn); "
+        "c_tangential = Ft / creep (inf: the foot sticks)",
     ),
 )
 
@@ -1733,16 +1727,16 @@ def _study_blocks(root: Path) -> list[Block]:
     """The verification and calibration studies found under ``root``: a count, the table on demand
     (failing checks, and checks whose closed form does not apply to an engine, shown open with their notes)."""
     blocks: list[Block] = []
-    for rel, heading, key, cols, caption in STUDIES:
-        path = root / rel
+    for (study, name, heading, key, cols, caption), folder in itertools.product(STUDIES, PROFILES):
+        path = study_dir(root, study, folder) / name
         if not path.is_file():
             continue
         doc, records = read_study(path, key)
-        link = f"{rel.rsplit('/', 1)[0]}/"
+        link = f"{path.parent.name}/"
+        profile = str(doc.get("profile") or PROFILES[0])  # older files: the one profile legbench ran, matched
         if "pass" not in cols:
             rows = tuple(tuple(_cell(r.get(c, ""), SHOWN_SCALE.get(c, 1.0)) for c in cols) for r in records)
             header = tuple(f"{c} [{STUDY_UNITS[c]}]" if c in STUDY_UNITS else c for c in cols)
-            profile = str(doc.get("profile") or PROFILES[0])  # older files: the one profile it ran, matched
             blocks.append(Heading(2, f"{heading}, {profile} profile: {len(records)} backends measured"))
             blocks.append(Details(f"the {len(records)} rows", (Table(header, rows, caption),)))
             blocks.append(Nav(((f"files in {link}", link),)))
@@ -1761,13 +1755,9 @@ def _study_blocks(root: Path) -> list[Block]:
         titles = {(i, c): _tolerance_basis(r, basis) for i, r in enumerate(records) for c in (tol, last)}
         failed = [i for i, st in enumerate(status) if st == "fail"]
         na = [i for i, st in enumerate(status) if st == "not-applicable"]
-        profile = str(doc.get("profile") or "matched")  # older files: legbench verify's one profile, matched
-        rel_file = path.name
         blocks.append(Heading(2, f"{heading}, {profile} profile: {checks_summary(status)}"))
         scope = f" ({doc['scope']})" if isinstance(doc.get("scope"), str) else ""  # older files: none
-        unverified = [
-            p for p in PROFILES if p != profile and not (study_dir(root, "verification", p) / rel_file).is_file()
-        ]
+        unverified = [p for p in PROFILES if p != profile and not (study_dir(root, study, p) / name).is_file()]
         blocks.append(Para(" ".join([
             f"legbench verify --profile {profile} runs every check with each backend's {profile} settings{scope}.",
             *([PROFILE_VERIFIED[profile]] if profile in PROFILE_VERIFIED else []),
