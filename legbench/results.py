@@ -927,7 +927,7 @@ def tolerances_of(meta: Mapping[str, Any]) -> Mapping[str, Any]:
 
 def profile_of(meta: Mapping[str, Any]) -> str:
     """``scenario.profile`` of a run.json document (``matched`` where absent: a run of an earlier legbench)."""
-    return str((meta.get("scenario") or {}).get("profile") or "matched")
+    return str((meta.get("scenario") or {}).get("profile") or registry.PROFILES[0])
 
 
 def _read_json(path: Path) -> dict[str, Any]:

@@ -37,6 +37,7 @@ __all__ = [
     "Range",
     "UnknownBackend",
     "available",
+    "check_profile",
     "dt_problem",
     "engine_packages",
     "get",
@@ -142,6 +143,16 @@ def module_of(name: str) -> str | None:
         return BUILTIN[name][0]
     ep = _plugins().get(name)
     return ep.module if ep is not None else None
+
+
+def check_profile(profile: str) -> None:
+    """Refuse a profile a study is asked to load every backend in that not every backend offers.
+
+    Raises:
+        LegbenchError: ``profile`` is not one of :data:`PROFILES`.
+    """
+    if profile not in PROFILES:
+        raise LegbenchError(f"unknown profile '{profile}'; choose from {', '.join(PROFILES)}")
 
 
 def available() -> list[str]:

@@ -283,9 +283,9 @@ def calibrate(
     """
     if not 0 < program.ratio < 1:
         raise LegbenchError(f"tangential ratio {program.ratio} must lie in (0, 1): below the friction limit")
-    if profile not in PROFILES:
-        raise LegbenchError(f"unknown profile '{profile}'; choose from {', '.join(PROFILES)}")
-    contact = scenario_mod.load(scenario_file).contact
+    registry.check_profile(profile)
+    sc = scenario_mod.load(scenario_file)
+    contact = sc.contact
     names = list(backends) if backends is not None else registry.available()
     tasks = [(n, program, Path(scenario_file), contact_mode, contact, profile) for n in names]
     rates = backend_rates() if jobs > 1 else {}
@@ -294,8 +294,7 @@ def calibrate(
         rows = list(ex.imap(_calibrate_one, tasks, first, _crashed))
     df = pd.DataFrame(rows)
     if out_dir is not None:
-        write_calibration(df, Path(out_dir), program, profile, contact_mode or physics_of(scenario_mod.load(
-            scenario_file)).contact_mode)  # fmt: skip
+        write_calibration(df, Path(out_dir), program, profile, contact_mode or physics_of(sc).contact_mode)
     return df
 
 

@@ -140,6 +140,7 @@ __all__ = [
     "check_rest",
     "check_small_oscillation",
     "discrete_loop",
+    "every_integrator",
     "matrix_pencil",
     "scope",
     "verify",
@@ -176,11 +177,17 @@ EPS = float(np.finfo(float).eps)
 VERIFY_PROFILE = PROFILES[0]
 
 
+def every_integrator(profile: str) -> bool:
+    """Whether ``profile``'s verification runs every integrator a backend offers (the matched profile's) or only
+    the profile's own (another: the engine as its settings have it)."""
+    return profile == VERIFY_PROFILE
+
+
 def scope(profile: str) -> str:
     """What runs in ``profile``, in one sentence (the report shows it beside the profile). Recorded in
     verification.json (``scope``). The matched profile verifies every integrator a backend offers; another profile
-    is the engine as its settings have it, one integrator."""
-    if profile == VERIFY_PROFILE:
+    is the engine as its settings have it, one integrator (:func:`every_integrator`)."""
+    if every_integrator(profile):
         return ("the case scenario's backend settings over the profile's; the variant column names the integrator "
                 "and step: the energy case once per integrator a backend offers, the small oscillation also with RK4 "
                 "where offered, the sliding drag in native contact")  # fmt: skip
@@ -280,7 +287,7 @@ def _variants(name: str, base: Mapping[str, Any], integrators: Sequence[str] | N
     profile other than the matched one: its own integrator, :func:`scope`)."""
     cls = registry.get(name)
     offered = cls.choices.get("integrator")
-    if not offered or profile != VERIFY_PROFILE:
+    if not offered or not every_integrator(profile):
         return [dict(base)]
     chosen = [i for i in offered if integrators is None or i in integrators]
     return [{**base, "integrator": i} for i in chosen]
@@ -665,7 +672,7 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = OSCIL
     for name in backends:
         base = dict(sc.backends.get(name, {}))
         offered = registry.get(name).choices.get("integrator", ())
-        others = integrators if profile == VERIFY_PROFILE else ()
+        others = integrators if every_integrator(profile) else ()
         runs = [base] + [{**base, "integrator": i} for i in (others or ()) if i in offered and i != "default"
                          and i != base.get("integrator", registry.get(name).defaults.get("integrator"))]  # fmt: skip
         for settings in runs:
@@ -800,8 +807,7 @@ def verify(
     Raises:
         LegbenchError: an unknown case, backend or profile.
     """
-    if profile not in PROFILES:
-        raise LegbenchError(f"unknown profile '{profile}'; choose from {', '.join(PROFILES)}")
+    registry.check_profile(profile)
     for c in cases:
         if c not in CASES:
             raise LegbenchError(f"unknown verification case '{c}'; choose from {', '.join(CASES)}")
