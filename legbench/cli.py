@@ -26,8 +26,10 @@ import os
 import select
 import signal
 import sys
-from collections.abc import Sequence
+import threading
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from types import CodeType
 from typing import NoReturn
 
 from legbench import __version__, resources
@@ -262,8 +264,45 @@ def _sigterm(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+def _redeliver(previous: Callable[[sys.UnraisableHookArgs], object]) -> Callable[[sys.UnraisableHookArgs], None]:
+    """The unraisable hook of a command: an interrupt that Python could not raise where it arrived (Ctrl-C during an
+    import lands, now and then, in importlib's module-lock weakref callback, which printed "Exception ignored" and
+    carried on: the run went to its end, exit status 0) is raised again in the main thread; anything else goes to
+    ``previous``.
+
+    Raised again through the SIGTERM handler :func:`main` installs (``_thread.interrupt_main``), from a thread that
+    waits until the main thread has left this hook: raised within it, the interrupt would be ignored for good. Where
+    it lands in another such callback, that callback reports it here again."""
+
+    def hook(unraisable: sys.UnraisableHookArgs) -> None:
+        if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+            threading.Thread(target=_interrupt_main_after, args=(hook.__code__,), daemon=True).start()
+            return
+        previous(unraisable)
+
+    return hook
+
+
+def _interrupt_main_after(code: CodeType) -> None:
+    """Interrupt the main thread (its SIGTERM handler) once no frame of its stack runs ``code``."""
+    import _thread
+    import time
+
+    main = threading.main_thread().ident
+    while main is not None:
+        frame = sys._current_frames().get(main)
+        while frame is not None and frame.f_code is not code:
+            frame = frame.f_back
+        if frame is None:
+            break
+        time.sleep(0.001)  # the main thread is still in the hook: it returns within microseconds
+    _thread.interrupt_main(signal.SIGTERM)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     previous = signal.signal(signal.SIGTERM, _sigterm)  # before anything slow
+    previous_hook = sys.unraisablehook
+    sys.unraisablehook = _redeliver(previous_hook)
     try:
         argv = sys.argv[1:] if argv is None else list(argv)
         if "_ARGCOMPLETE" in os.environ:  # tab completion: import only the subcommand being completed
@@ -298,6 +337,7 @@ def main(argv: Sequence[str] | None = None) -> int:
               file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPTED
     finally:
+        sys.unraisablehook = previous_hook
         signal.signal(signal.SIGTERM, previous)
 
 
