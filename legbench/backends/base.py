@@ -296,7 +296,9 @@ class Backend(ABC):
         stiffness, an offset), it should hold the row's ``measured`` value to it within ``tolerance`` (the row's
         units; ``expected`` is the case's closed form) and say nothing when it does not: a miss it does not
         account for is not explained. Consulted by every verification case for its failing rows
-        (:func:`explained_note`)."""
+        (:func:`explained_note`), and by the contact calibration for a stiffness off Kp (case
+        ``rest_penetration``, as the verification's) and a creep off the law's (case ``creep``: ``measured`` the
+        creep [m/s], ``expected`` the law's, ``info`` with the held load ``load: {Fn, Ft}`` [N])."""
         return None
 
     @classmethod

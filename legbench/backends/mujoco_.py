@@ -89,7 +89,7 @@ restarting from qpos0.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -160,6 +160,15 @@ def compiler_options(text: str) -> dict[str, str]:
     return dict(element.attrib) if element is not None else {}
 
 
+def _impedance(solimp: Sequence[float], y: float) -> float:
+    """MuJoCo's impedance d(y) [1] at penetration ``y`` [m] for ``solimp`` (dmin, dmax, width, midpoint, power)
+    (MuJoCo's modelling documentation, "Solver parameters"); the Python binding does not expose it."""
+    dmin, dmax, width, mid, power = (float(v) for v in solimp)
+    x = min(max(y / width, 0.0), 1.0)
+    s = x**power / mid ** (power - 1) if x <= mid else 1.0 - (1.0 - x) ** power / (1.0 - mid) ** (power - 1)
+    return dmin + s * (dmax - dmin)
+
+
 def usual_rest_depth(contact: Mapping[str, Any], fn: float) -> tuple[float, float]:
     """MuJoCo's steady contact under the normal force ``fn`` [N] for a contact as :meth:`MujocoBackend.info`
     records it (raw solref (-Kp, -Kd), solimp, A = the foot body's ``body_invweight0``, friction, cone): the
@@ -171,18 +180,33 @@ def usual_rest_depth(contact: Mapping[str, Any], fn: float) -> tuple[float, floa
     "Solver parameters"; docs/contact_mapping.md: 1.264e5 N/m measured against 1.263e5 at 40 N)."""
     from scipy.optimize import brentq  # 0.3 s to import, for a verification row's note: not in every run
 
-    dmin, dmax, width, mid, power = (float(v) for v in contact["solimp"])
+    dmax = float(contact["solimp"][1])
     kp, a_inv, mu = -float(contact["solref"][0]), float(contact["A"]), float(contact["friction"][0])
     share = 2.0 / (mu**2 * (1.0 + mu**2)) if contact.get("cone") == "mjCONE_PYRAMIDAL" else 1.0
 
     def stiffness(y: float) -> float:
-        x = min(max(y / width, 0.0), 1.0)
-        s = x**power / mid ** (power - 1) if x <= mid else 1.0 - (1.0 - x) ** power / (1.0 - mid) ** (power - 1)
-        d = dmin + s * (dmax - dmin)
+        d = _impedance(contact["solimp"], y)
         return kp * d**2 / (dmax**2 * (1.0 - d) * a_inv) * share
 
     y = float(brentq(lambda y: stiffness(y) * y - fn, 1e-12, 1.0, xtol=1e-15, rtol=1e-12))
     return y, stiffness(y)
+
+
+def usual_creep(contact: Mapping[str, Any], fn: float, ft: float) -> float:
+    """MuJoCo's steady creep [m/s] of a foot held by the raw solref (-Kp, -Kd) on a pyramidal cone under the
+    normal force ``fn`` and a tangential force ``ft`` below the cone [N], for a contact as
+    :meth:`MujocoBackend.info` records it.
+
+    Each of the pyramid's four rows n +- mu t_i is a soft constraint at the rest depth y (:func:`usual_rest_depth`)
+    whose steady force is its reference acceleration over its regulariser, f = (-B v_row - K d(y) (-y)) / R, with
+    K = Kp / dmax^2 and B = Kd / dmax (raw solref). Along the slip the rows move at v_row = +- mu v: their forces
+    sum to Fn = 4 K d y / R and differ by 2 B mu v / R, and Ft = mu (f+ - f-); so v = 2 (Ft / Fn) Kp d y /
+    (Kd dmax mu^2), whatever R (checked against the solver's own efc_aref and efc_R at the end of the
+    calibration: 40.99 against 41.00 mm/s, 0.03 %)."""
+    y, _ = usual_rest_depth(contact, fn)
+    dmax, mu = float(contact["solimp"][1]), float(contact["friction"][0])
+    kp, kd = -float(contact["solref"][0]), -float(contact["solref"][1])
+    return 2.0 * (ft / fn) * kp * _impedance(contact["solimp"], y) * y / (kd * dmax * mu**2)
 
 
 class MujocoBackend(Backend):
@@ -255,6 +279,16 @@ class MujocoBackend(Backend):
                         f"{tuple(contact['solimp'])} and the constraint's mass, and MuJoCo's steady state is Fn / y = "
                         f"Kp d^2 / (dmax^2 (1 - d) A) (x 2 / (mu^2 (1 + mu^2)) on the pyramidal cone): {k:.4g} N/m, "
                         f"y = {y:.4g} m for this Fn, met to {100 * abs(measured / y - 1):.2g} % "
+                        "(docs/contact_mapping.md)")  # fmt: skip
+        load = info.get("load")
+        if (case == "creep" and usual and isinstance(contact, Mapping) and contact.get("cone") == "mjCONE_PYRAMIDAL"
+                and isinstance(load, Mapping)):  # fmt: skip
+            v = usual_creep(contact, float(load["Fn"]), float(load["Ft"]))
+            if abs(measured - v) <= tolerance:
+                return (f"known: the pyramid's rows n +- mu t_i are soft constraints at the rest depth (the usual "
+                        f"solref through the impedance): their steady forces, reference acceleration over R, differ "
+                        f"by the slip's damping term alone, so Ft creeps at 2 (Ft / Fn) Kp d y / (Kd dmax mu^2) = "
+                        f"{1e3 * v:.4g} mm/s, met to {100 * abs(measured / v - 1):.2g} % "
                         "(docs/contact_mapping.md)")  # fmt: skip
         if case == "sliding" and quantity.startswith("slip acceleration") and usual and info.get("dt", 0) >= 1e-3:
             return ("known: with the raw solref (-Kp, -Kd), MuJoCo's default impedance and a 1 ms step the sliding "
