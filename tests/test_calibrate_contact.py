@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -106,6 +107,9 @@ def test_engine_defaults_calibration_measures_what_the_defaults_give(
     if "drake" in k:
         assert k["drake"] == pytest.approx(1.0 / (1e-4 + 1e-6), rel=1e-3)
         assert note["drake"].startswith("known: the ground, registered with friction only"), note["drake"]
+        # its creep (0.067 mm/s, 0.14x the law's) is the lagged approximation's own, held to 1 % (measured 5e-8)
+        assert "known: the lagged approximation's friction is mu_k Fn v / sqrt(v^2 + eps^2)" in note["drake"]
+        assert "= 0.06696 mm/s, met to" in note["drake"], note["drake"]
     if "mujoco" in k:
         assert k["mujoco"] == pytest.approx(1.4e5, rel=0.02)
         assert note["mujoco"].startswith("known: the usual solref (-Kp, -Kd) is not Kp N/m"), note["mujoco"]
@@ -140,6 +144,37 @@ def test_a_creep_explanation_holds_the_measured_creep_to_its_closed_form() -> No
     assert ask("creep", "creep", info, v * 1.05, 4.7e-4, 0.01 * v * 1.05) is None
     elliptic = {**info, "contact": {**contact, "cone": "mjCONE_ELLIPTIC"}}
     assert ask("creep", "creep", elliptic, v, 4.7e-4, 0.01 * v) is None
+
+
+def test_drakes_creep_is_its_regularised_frictions_own(table: pd.DataFrame) -> None:
+    """Drake's matched SAP holds the foot to a creep of sigma w dt Ft (2.414e-6 m/s, 0.5 % of the law's), its
+    friction's regularisation R_t = sigma w: the row says so, held to 1 % (measured 1e-7); the closed forms give
+    nothing for a creep 5 % off them, for TAMSI, or without the run's Delassus estimate."""
+    drake_ = pytest.importorskip("legbench.backends.drake_")
+    row = table.set_index("backend").loc["drake"]
+    assert "known: SAP regularises friction: sticking" in row["note"], row["note"]
+    assert "0.002414 mm/s, met to" in row["note"], row["note"]
+    ask = drake_.DrakeBackend.known_deviation
+    sap: dict[str, Any] = {
+        "timestep": 5e-5,
+        "load": {"Fn": 40.0, "Ft": 13.22},
+        "contact": {"delassus_w": 3.652, "discrete_contact_approximation": "DiscreteContactApproximation.kSap"},
+    }
+    v = 1e-3 * 3.652 * 5e-5 * 13.22
+    assert ask("creep", "creep", sap, v, 4.7e-4, 0.01 * v) is not None
+    assert ask("creep", "creep", sap, 1.05 * v, 4.7e-4, 0.0105 * v) is None
+    lagged: dict[str, Any] = {"timestep": 1e-3, "load": {"Fn": 40.0, "Ft": 13.35},
+              "contact": {"delassus_w": 3.566, "mu_dynamic": 0.6, "stiction_tolerance": 1e-4,
+                          "discrete_contact_approximation": "DiscreteContactApproximation.kLagged"}}  # fmt: skip
+    r = 13.35 / (0.6 * 40.0)
+    v = 1e-4 * r / math.sqrt(1 - r * r)  # eps = v_s: mu_k sigma w dt Fn = 8.6e-5 m/s is below it
+    assert v == pytest.approx(6.696e-5, rel=1e-3)
+    assert ask("creep", "creep", lagged, v, 4.7e-4, 0.01 * v) is not None
+    assert ask("creep", "creep", lagged, 1.05 * v, 4.7e-4, 0.0105 * v) is None
+    tamsi = {**lagged, "contact": {**lagged["contact"], "discrete_contact_approximation": "kTamsi"}}
+    assert ask("creep", "creep", tamsi, v, 4.7e-4, 0.01 * v) is None
+    unknown_w = {**sap, "contact": {**sap["contact"], "delassus_w": None}}
+    assert ask("creep", "creep", unknown_w, v, 4.7e-4, 0.01 * v) is None
 
 
 def test_rows_do_not_depend_on_the_number_of_workers(table: pd.DataFrame) -> None:

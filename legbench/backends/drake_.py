@@ -119,6 +119,7 @@ from pydrake.geometry import (
 from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlant, CoulombFriction, MultibodyPlantConfig
+from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
@@ -133,6 +134,9 @@ SOLVERS = ("sap", "tamsi", "lagged", "similar", "continuous")
 HUNT_CROSSLEY = ("tamsi", "lagged", "similar", "continuous")
 #: Contact models offered.
 CONTACT_MODELS = ("point", "hydroelastic")
+#: SAP's friction regularisation over the Delassus estimate, R_t = sigma w: a constant of Drake's (``sap_driver.cc``,
+#: ``constexpr double sigma = 1.0e-3``), not a setting.
+SAP_SIGMA = 1.0e-3
 #: Foot stiffness over Kp in the matched point contact: the foot is near-rigid, the ground carries the spring.
 FOOT_STIFFNESS_RATIO = 1.0e8
 #: Ways of setting the contact parameters: the mapping of the module docstring, or the usual user way.
@@ -218,6 +222,8 @@ class DrakeBackend(Backend):
                     "mu_s Kd |v_t| reaches the load (docs/backends/drake.md)")  # fmt: skip
         contact = info.get("contact")
         contact = contact if isinstance(contact, Mapping) else {}
+        if case == "creep":
+            return cls._known_creep(info, contact, measured, tolerance)
         pair, kp = contact.get("pair_stiffness"), contact.get("Kp")
         ground = (contact.get("properties") or {}).get("ground") or {}
         defaulted = "material.point_contact_stiffness" not in ground  # the scene graph's default, not legbench's
@@ -231,6 +237,40 @@ class DrakeBackend(Backend):
         return None
 
     # ----------------------------------------------------------------- load
+    @classmethod
+    def _known_creep(cls, info: Mapping[str, Any], contact: Mapping[str, Any], measured: float,
+                     tolerance: float) -> str | None:  # fmt: skip
+        """The creep of a foot held below the friction limit by SAP's regularised friction (the calibration's case
+        ``creep``; ``info["load"]`` the held Fn, Ft [N]), where the measured creep meets it within ``tolerance``:
+        SAP sticking, the impulse -v_t / R_t with R_t = sigma w, so v = sigma w dt Ft (``sap_friction_cone_
+        constraint.cc``); ``lagged``, Ft = mu_k Fn v / sqrt(v^2 + eps^2) with eps = max(v_s, mu_k sigma w dt Fn)
+        (``sap_hunt_crossley_constraint.cc``; n0 = dt Fn at rest), so v = eps r / sqrt(1 - r^2), r = Ft / (mu_k Fn).
+        w is the run's Delassus estimate at its end (``contact.delassus_w``)."""
+        load, w, dt = info.get("load"), contact.get("delassus_w"), info.get("timestep")
+        approx = str(contact.get("discrete_contact_approximation"))
+        if not (isinstance(load, Mapping) and isinstance(w, float) and isinstance(dt, float)):
+            return None
+        fn, ft = float(load["Fn"]), float(load["Ft"])
+        if approx.endswith("kSap"):
+            v = SAP_SIGMA * w * dt * ft
+            law = (f"SAP regularises friction: sticking, the tangential impulse is -v_t / R_t with R_t = sigma w "
+                   f"(sigma = {SAP_SIGMA:g}, Drake's constant; w = {w:.4g} 1/kg, its Delassus estimate at the end "
+                   f"pose), so Ft creeps at sigma w dt Ft")  # fmt: skip
+        elif approx.endswith("kLagged") and isinstance(mu := contact.get("mu_dynamic"), float):
+            v_s = float(contact.get("stiction_tolerance") or 0.0)
+            eps, r = max(v_s, mu * SAP_SIGMA * w * dt * fn), ft / (mu * fn)
+            if not 0.0 < r < 1.0:
+                return None
+            v = eps * r / math.sqrt(1.0 - r * r)
+            law = (f"the lagged approximation's friction is mu_k Fn v / sqrt(v^2 + eps^2), eps = max(v_s, mu_k sigma "
+                   f"w dt Fn) = {eps:.4g} m/s (mu_k = {mu:.3g}, w = {w:.4g} 1/kg), so Ft = {ft:.4g} N creeps at "
+                   f"eps r / sqrt(1 - r^2), r = Ft / (mu_k Fn) = {r:.4g}")  # fmt: skip
+        else:
+            return None
+        if not abs(measured - v) <= tolerance:
+            return None
+        return f"known: {law} = {1e3 * v:.4g} mm/s, met to {100 * abs(measured / v - 1):.2g} % (docs/backends/drake.md)"
+
     @classmethod
     def settings_problem(
         cls, settings: Mapping[str, Any], contact_mode: str
@@ -546,6 +586,8 @@ class DrakeBackend(Backend):
                 # solvers slide with the dynamic one alone (matched sets it to mu_s)
                 **self._pair_friction(),
                 **self._pair_point_contact(),
+                "delassus_w": self._delassus_estimate(),
+                "sap_sigma": SAP_SIGMA if self._sap_family() else None,
                 "normal_law": "linear Kelvin-Voigt Kp (x + tau_d xdot)_+"
                 if self.cfg["solver"] == "sap"
                 else "Hunt-Crossley k x (1 + d xdot)_+",
@@ -603,6 +645,39 @@ class DrakeBackend(Backend):
             if d1 is not None and d2 is not None:
                 out["pair_dissipation"] = (k2 * d1 + k1 * d2) / (k1 + k2)
         return out
+
+    def _sap_family(self) -> bool:
+        """Whether the plant's contact is solved by SAP's machinery: the discrete plant with the ``sap``, ``lagged``
+        or ``similar`` approximation (TAMSI and the continuous plant are not)."""
+        return not self.continuous and self.cfg["solver"] in ("sap", "lagged", "similar")
+
+    def _delassus_estimate(self) -> float | None:
+        """w [1/kg]: SAP's estimate of the Delassus operator's diagonal for the foot's point contact in the present
+        state, ||J diag(M)^-1 J^T||_F / 3, J the translational Jacobian of the point where the discrete plant applies
+        the force (the witness points weighted by stiffness) and only M's diagonal (``SapModel``'s diagonal
+        approximation, A = M + dt D with no joint damping on the leg; ``sap_model.cc``): the scale SAP's friction
+        regularisation takes, R_t = sigma w. None outside SAP's family, in reference or hydroelastic contact, and
+        where the foot is not in contact."""
+        if not self._sap_family() or self.ground is None or not self.foot_geoms:
+            return None
+        if self.cfg["contact_model"] == "hydroelastic":
+            return None
+        plant, ctx = self.plant, self.ctx
+        pairs = plant.get_geometry_query_input_port().Eval(ctx).ComputePointPairPenetration()
+        if len(pairs) != 1:
+            return None
+        pair = pairs[0]
+        k_foot, k_ground = (float(p.GetProperty("material", "point_contact_stiffness"))
+                            for p in self._pair_properties())  # fmt: skip
+        on_foot, on_ground = (pair.p_WCa, pair.p_WCb) if pair.id_A in self.foot_geoms else (pair.p_WCb, pair.p_WCa)
+        p_WC = (k_foot * on_foot + k_ground * on_ground) / (k_foot + k_ground)
+        p_FC = plant.EvalBodyPoseInWorld(ctx, self.foot_body).inverse() @ p_WC
+        world = plant.world_frame()
+        J = plant.CalcJacobianTranslationalVelocity(
+            ctx, JacobianWrtVariable.kV, self.foot_body.body_frame(), p_FC, world, world
+        )
+        W = J @ (J.T / np.diag(plant.CalcMassMatrix(ctx))[:, None])
+        return float(np.linalg.norm(W) / 3.0)
 
     def _pair_properties(self) -> tuple[Any, Any]:
         """The foot's and the ground's ProximityProperties as the scene graph holds them (defaults filled in)."""
