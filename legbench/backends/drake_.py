@@ -236,7 +236,6 @@ class DrakeBackend(Backend):
                     "contact.pair_stiffness)")  # fmt: skip
         return None
 
-    # ----------------------------------------------------------------- load
     @classmethod
     def _known_creep(cls, info: Mapping[str, Any], contact: Mapping[str, Any], measured: float,
                      tolerance: float) -> str | None:  # fmt: skip
@@ -271,6 +270,7 @@ class DrakeBackend(Backend):
             return None
         return f"known: {law} = {1e3 * v:.4g} mm/s, met to {100 * abs(measured / v - 1):.2g} % (docs/backends/drake.md)"
 
+    # ----------------------------------------------------------------- load
     @classmethod
     def settings_problem(
         cls, settings: Mapping[str, Any], contact_mode: str
@@ -660,17 +660,15 @@ class DrakeBackend(Backend):
         where the foot is not in contact."""
         if not self._sap_family() or self.ground is None or not self.foot_geoms:
             return None
-        if self.cfg["contact_model"] == "hydroelastic":
+        if self.cfg["contact_model"] == "hydroelastic":  # no point pair: a contact surface
             return None
         plant, ctx = self.plant, self.ctx
         pairs = plant.get_geometry_query_input_port().Eval(ctx).ComputePointPairPenetration()
         if len(pairs) != 1:
             return None
         pair = pairs[0]
-        k_foot, k_ground = (float(p.GetProperty("material", "point_contact_stiffness"))
-                            for p in self._pair_properties())  # fmt: skip
         on_foot, on_ground = (pair.p_WCa, pair.p_WCb) if pair.id_A in self.foot_geoms else (pair.p_WCb, pair.p_WCa)
-        p_WC = (k_foot * on_foot + k_ground * on_ground) / (k_foot + k_ground)
+        p_WC = on_foot + self._lift() * (on_ground - on_foot)  # the stiffness-weighted point
         p_FC = plant.EvalBodyPoseInWorld(ctx, self.foot_body).inverse() @ p_WC
         world = plant.world_frame()
         J = plant.CalcJacobianTranslationalVelocity(
