@@ -223,3 +223,32 @@ def test_the_friction_anchor_holds_the_foot_where_the_velocity_level_friction_le
         i = np.flatnonzero(tr.t >= 1.0)
         drift[anchor] = float(np.hypot(*(e[i[-1], :2] - e[i[0], :2])))  # [m]
     assert drift["off"] == pytest.approx(1.9e-6, rel=0.1) and drift["on"] < 1e-9, drift
+
+
+@pytest.mark.parametrize(("threshold", "passes"), [(1e-7, 2), (1e-9, 4), (0.0, None)])
+def test_the_held_foots_creep_is_what_the_solvers_residual_threshold_leaves(
+    monkeypatch: pytest.MonkeyPatch, threshold: float, passes: int | None
+) -> None:
+    """Under the calibration's hold (40 N, 13.2 N drag, below mu_s Fn) Bullet's foot creeps at what its solver's
+    passes leave: it stops at the first pass whose squared row residual is below the threshold (PyBullet's 1e-7:
+    2 passes, 12.56 um/s; 1e-9: 4 passes, 0.07 um/s), and the closed form of those passes (pgs_creep, from the run's
+    own W = J M^-1 J^T) meets the measured creep within 0.1 %; with the threshold at 0 the passes run until the
+    residual is round-off and the foot sticks (below the calibration's 1e-9 m/s)."""
+    from legbench.backends import pybullet_
+    from legbench.studies import calibrate_contact
+
+    monkeypatch.setattr(pybullet_, "PYBULLET_RESIDUAL_THRESHOLD", threshold)
+    log, _ = calibrate_contact.push("pybullet")
+    sc = scenario.load(calibrate_contact.SCENARIO)
+    row = calibrate_contact.estimate(log, calibrate_contact.Program(), sc.contact)
+    contact = log.info["contact"]
+    assert contact["solver_residual_threshold"] == threshold
+    end = log.t > log.t[-1] - calibrate_contact.Program().window - 1e-9
+    v, n = pybullet_.pgs_creep(np.array(contact["delassus"]), log.info["timestep"], contact["pair_stiffness"],
+                               contact["pair_damping"], log.f[end].mean(axis=0), threshold, 50)  # fmt: skip
+    if passes is not None:
+        assert n == passes
+        assert row.creep == pytest.approx(v, rel=1e-3), (row.creep, v)
+        assert f"here after {passes} of 50 passes" in row.note, row.note
+    else:
+        assert row.creep < calibrate_contact.STICK_SPEED and v < calibrate_contact.STICK_SPEED

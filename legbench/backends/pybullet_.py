@@ -81,6 +81,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from legbench import kinematics
 from legbench.backends.base import Backend, Limits, Physics, check_finite, clamp_torque, sub_step_count
 from legbench.contact import ReferenceContact, law_step_warnings
 from legbench.model import FOOT_FRAME, LINK_NAMES, Inertial, combine
@@ -132,6 +133,15 @@ MAX_JOINT_VELOCITY = 1000.0
 #: btContactSolverInfo default is 0): added to the contact distance (btMultiBodyConstraintSolver.cpp), so a
 #: resting contact sinks that much deeper. ``contact_margins: zero`` sets it to 0.
 PYBULLET_CONTACT_SLOP = 1.0e-5
+#: PyBullet's solver residual threshold (PhysicsServerCommandProcessor.cpp: ``m_leastSquaresResidualThreshold =
+#: 1e-7``; getPhysicsEngineParameters does not report it): the constraint solver's passes stop at the first whose
+#: largest squared row residual is below it (btSequentialImpulseConstraintSolver.cpp), so a held contact keeps
+#: what the last pass left (:func:`pgs_creep`). Set explicitly, to the same value (the runs are bit-identical).
+PYBULLET_RESIDUAL_THRESHOLD = 1.0e-7
+#: The contact rows of a foot on the ground as Bullet orders them: the normal n = +z, then the friction directions
+#: btPlaneSpace1(n) gives, d1 = (0, -1, 0) and d2 = n x d1 = (1, 0, 0) (two, as btMultiBodyDynamicsWorld sets
+#: SOLVER_USE_2_FRICTION_DIRECTIONS).
+CONTACT_ROWS = ((0.0, 0.0, 1.0), (0.0, -1.0, 0.0), (1.0, 0.0, 0.0))
 #: A collision object's contact stiffness [N/m] and damping [N s/m] until set (btCollisionObject.cpp:
 #: ``m_contactStiffness(BT_LARGE_FLOAT)``, 1e30 in PyBullet's double-precision build, ``m_contactDamping(.1)``),
 #: which the pair's combination uses; ``getDynamicsInfo`` reports -1 for both while they are unset
@@ -141,6 +151,55 @@ BULLET_DEFAULT_CONTACT_DAMPING = 0.1
 #: Contact stiffness of the plane [N/m]: Bullet combines stiffnesses in series, so a
 #: rigid plane leaves the foot's Kp (1/(1/Kp + 1e-30) = Kp in double precision).
 PLANE_STIFFNESS = 1.0e30
+
+
+def pgs_creep(W: np.ndarray, h: float, kp: float, kd: float, force: np.ndarray, threshold: float,
+              iterations: int) -> tuple[float, int]:  # fmt: skip
+    """The steady creep [m/s] of a foot Bullet holds below the friction limit, and the solver passes it takes.
+
+    Bullet's multibody solver starts each step from zero impulses (no warm start) and stops at the first pass whose
+    largest squared row residual is below ``threshold`` (at most ``iterations``); a pass solves the normal row, then
+    the two friction rows together from the same velocity (the implicit cone). With A = W + C (C the normal row's
+    CFM 1 / (h (h kp + kd)) of a contact stiffness and damping; the friction rows have none) and S that pass's
+    splitting (A's diagonal, with the normal row's coupling below it), n passes leave the error E = (I - S^-1 A)^n
+    of the full solve, and in the steady state the rows move at -h W E (I - E)^-1 F per step, F the contact force
+    in the rows (n, d1, d2) of :data:`CONTACT_ROWS`; the creep is its tangential part. n is found with it: the
+    residuals of the passes (A_ii times each row's impulse change, the friction pair's summed) from the steady
+    right-hand side A (I - E)^-1 h F.
+    (btMultiBodyConstraintSolver.cpp, btSequentialImpulseConstraintSolver.cpp; measured on the calibration's hold:
+    1.2561e-5 against 1.2560e-5 m/s matched, n = 2; 5.2153e-6 against 5.2152e-6 engine-defaults, n = 4.)
+
+    Args:
+        W: J M^-1 J^T of the contact rows [1/kg].
+        h: Bullet's internal step [s].
+        kp, kd: the pair's contact stiffness [N/m] and damping [N s/m].
+        force: the contact force on the foot in W [N].
+        threshold: the solver's residual threshold.
+        iterations: the solver's pass limit.
+    """
+    A = W + np.diag([1.0 / (h * (h * kp + kd)), 0.0, 0.0])
+    d = np.diag(A)
+    S = np.diag(d)
+    S[1:, 0] = A[1:, 0]
+    G = np.eye(3) - np.linalg.solve(S, A)
+    F = np.array(CONTACT_ROWS) @ force
+    n = 1
+    for _ in range(iterations):  # n and the steady state it leaves, found together (1-2 rounds)
+        E = np.linalg.matrix_power(G, n)
+        r = A @ np.linalg.solve(np.eye(3) - E, h * F)
+        impulse, stop = np.zeros(3), iterations
+        for k in range(iterations):
+            change = np.linalg.solve(S, r - A @ impulse)
+            impulse += change
+            if max((d[0] * change[0]) ** 2, (d[1] * change[1] + d[2] * change[2]) ** 2) <= threshold:
+                stop = k + 1
+                break
+        if stop == n:
+            break
+        n = stop
+    E = np.linalg.matrix_power(G, n)
+    w = -h * W @ E @ np.linalg.solve(np.eye(3) - E, F)
+    return float(math.hypot(w[1], w[2])), n
 
 
 class PybulletBackend(Backend):
@@ -199,6 +258,21 @@ class PybulletBackend(Backend):
                     f"({slop:g} m here, PyBullet's default; Bullet's own is 0), so the foot rests one slop deeper "
                     f"than Fn/Kp: {1e6 * (measured - expected):+.2f} um (-0.17 um with slop 0, +19.8 um with 2e-5, "
                     "measured; ERP, split impulse, the plane's damping and the iterations do not move it)")  # fmt: skip
+        load, delassus = info.get("load"), contact.get("delassus") if isinstance(contact, Mapping) else None
+        if (case == "creep" and isinstance(load, Mapping) and "F" in load and isinstance(delassus, list)
+                and info.get("friction_anchor") == "off" and isinstance(contact, Mapping)):  # fmt: skip
+            h, iterations = float(info["timestep"]), int(info["solver_iterations"])
+            threshold = float(contact["solver_residual_threshold"])
+            v, n = pgs_creep(np.array(delassus), h, float(contact["pair_stiffness"]), float(contact["pair_damping"]),
+                             np.asarray(load["F"], float), threshold, iterations)  # fmt: skip
+            if abs(measured - v) <= tolerance:
+                return (f"known: Bullet's solver stops at the first pass whose squared row residual is below its "
+                        f"threshold ({threshold:g}; PyBullet sets 1e-7), here after {n} of {iterations} passes, each "
+                        f"step from zero impulses (no warm start): the friction rows keep what the passes leave, "
+                        f"h W E (I - E)^-1 F with E = (I - S^-1 A)^{n} the passes' error map, a creep of "
+                        f"{1e3 * v:.4g} mm/s, met to {100 * abs(measured / v - 1):.2g} %; with the threshold at 0 the "
+                        "foot sticks "
+                        "(tests/test_backend_pybullet.py; docs/contact_mapping.md)")  # fmt: skip
         return None
 
     # ----------------------------------------------------------------- load
@@ -228,6 +302,7 @@ class PybulletBackend(Backend):
             fixedTimeStep=physics.control_dt if self.engine_sub else physics.control_dt / n_sub,
             numSubSteps=n_sub if self.engine_sub else 1,
             numSolverIterations=int(cfg["solver_iterations"]),
+            solverResidualThreshold=PYBULLET_RESIDUAL_THRESHOLD,
             physicsClientId=cid,
         )
         self.exact_margins = cfg["contact_margins"] == "zero"
@@ -488,6 +563,9 @@ class PybulletBackend(Backend):
                     0.0 if self.exact_margins else "Bullet default (BT_LARGE_FLOAT, btCollisionObject.cpp)"
                 ),
                 "cone": "Coulomb cone (sticks below mu Fn, slides at mu Fn)",
+                "solver_residual_threshold": PYBULLET_RESIDUAL_THRESHOLD,
+                # J M^-1 J^T of the contact rows (CONTACT_ROWS) at the lowest point, in the present state [1/kg]
+                "delassus": None if self.reference else self._delassus().tolist(),
                 "Kp": c.Kp,
                 "Kd": c.Kd,
                 "reference_law": "J_poc^T F added to the torque per sub-step" if self.reference else None,
@@ -495,6 +573,14 @@ class PybulletBackend(Backend):
             "damping": {"linear": 0.0, "angular": 0.0, "joint": 0.0},
             "max_joint_velocity": MAX_JOINT_VELOCITY,
         }
+
+    def _delassus(self) -> np.ndarray:
+        """W = J M^-1 J^T [1/kg] of the contact rows (:data:`CONTACT_ROWS`) at the sphere's lowest point, with
+        Bullet's own mass matrix, in the present state: what its solver iterates on (:func:`pgs_creep`)."""
+        q, _ = self.state()
+        M = np.array(p.calculateMassMatrix(self.body, q.tolist(), physicsClientId=self.cid))
+        J = np.array(CONTACT_ROWS) @ kinematics.jacobian_at(q, "true")
+        return np.asarray(J @ np.linalg.solve(M, J.T))
 
     def warnings(self) -> list[str]:
         """Reference mode: the explicit law's step bound at the run's peak Fn (native Coulomb contact has none)."""

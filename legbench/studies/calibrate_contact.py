@@ -235,7 +235,7 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     creep_law = contact.v_th * Ft / (contact.mu_s * Fn)
     if creep > STICK_SPEED and abs(creep / creep_law - 1.0) > CREEP_RTOL:
         # the engine's own tangential law, where it has one in closed form, held to the measured creep
-        load = {"Fn": Fn, "Ft": Ft}
+        load = {"Fn": Fn, "Ft": Ft, "F": f[end].mean(axis=0).tolist()}
         known = _known(log, "creep", "creep of the point of contact", {**log.info, "load": load}, creep, creep_law,
                        CREEP_RTOL * creep)  # fmt: skip
         if known:
