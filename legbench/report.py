@@ -1674,7 +1674,8 @@ STUDIES: tuple[tuple[str, str, str, str, tuple[str, ...], str], ...] = (
         "legbench calibrate-contact: effective normal stiffness k_eff from the rests under two pushes (20 N, "
         "40 N), damping c_eff from the step's pressing-in transient, creep under a tangential load Ft below mu_s "
         "Fn (half of it commanded), beside the spec (Kp, Kd, mu_s) and the law's own creep v_th Ft / (mu_s Fn); "
-        "c_tangential = Ft / creep (inf: the foot sticks)",
+        "c_tangential = Ft / creep (inf: the foot sticks); a note 'known: ...' is the backend's closed form of a "
+        "stiffness off Kp or a creep off the law's, given only where it meets the measurement",
     ),
 )
 

@@ -122,6 +122,16 @@ def explained_note(cls: type[Backend], case: str, quantity: str, info: Mapping[s
     return (f"{known}; {note}" if note else known) if known else note
 
 
+def held(explanation: str, measured: float, predicted: float, tolerance: float, after: str = "") -> str | None:
+    """An explanation that is a closed form of the engine's own, given only where it holds: ``explanation``, then
+    "met to X %" (the measured value against ``predicted``, relative) and ``after``, where ``measured`` lies within
+    ``tolerance`` of ``predicted``; None where it does not (a deviation it does not account for is not explained:
+    :meth:`Backend.known_deviation`)."""
+    if not abs(measured - predicted) <= tolerance:
+        return None
+    return f"{explanation}, met to {100 * abs(measured / predicted - 1):.2g} %{after}"
+
+
 def rigid_contact(info: Mapping[str, Any]) -> bool:
     """The backend's info declares its contact rigid: ``contact.Kp`` given and null (:data:`INFO_KEYS`)."""
     contact = info.get("contact")

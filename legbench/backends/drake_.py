@@ -123,7 +123,16 @@ from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from legbench.backends.base import Backend, Limits, Physics, Range, check_finite, clamp_torque, sub_step_count
+from legbench.backends.base import (
+    Backend,
+    Limits,
+    Physics,
+    Range,
+    check_finite,
+    clamp_torque,
+    held,
+    sub_step_count,
+)
 from legbench.contact import ContactParams, ReferenceContact
 from legbench.exceptions import LegbenchError
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine, load_params
@@ -266,9 +275,7 @@ class DrakeBackend(Backend):
                    f"eps r / sqrt(1 - r^2), r = Ft / (mu_k Fn) = {r:.4g}")  # fmt: skip
         else:
             return None
-        if not abs(measured - v) <= tolerance:
-            return None
-        return f"known: {law} = {1e3 * v:.4g} mm/s, met to {100 * abs(measured / v - 1):.2g} % (docs/backends/drake.md)"
+        return held(f"known: {law} = {1e3 * v:.4g} mm/s", measured, v, tolerance, " (docs/backends/drake.md)")
 
     # ----------------------------------------------------------------- load
     @classmethod
