@@ -77,6 +77,23 @@ def test_a_foot_that_sticks_to_round_off_has_infinite_tangential_damping() -> No
     assert moving.c_tangential == pytest.approx(5.0 / 2e-9, rel=1e-6)
 
 
+@pytest.mark.parametrize("force", [(0.0, 0.0, 0.0), (0.0, 0.0, 40.0)])
+def test_a_foot_off_the_ground_or_without_drag_gives_a_row_not_an_error(force: tuple[float, float, float]) -> None:
+    """A hold that ends with the foot off the ground (Fn = 0: the law's creep is undefined, NaN) or with no drag
+    (Ft = 0: the law's creep 0) while the foot moves at 1 mm/s is a row with its numbers, not a division by zero."""
+    program = calibrate_contact.Program()
+    sc = scenario_mod.load(calibrate_contact.SCENARIO)
+    n = int(round(program.duration / sc.control_dt)) + 1
+    q = np.tile(np.asarray(sc.q0, float), (n, 1))
+    J = kinematics.jacobian_poc(q[:1], true_poc=sc.contact.poc == "true")[0]
+    qd = np.tile(np.linalg.lstsq(J[:2], [1e-3, 0.0], rcond=None)[0], (n, 1))
+    log = RunResult("fake", np.arange(n) * sc.control_dt, q, qd, np.zeros((n, 3)), np.tile(force, (n, 1)),
+                    np.full(n, "effort", dtype=object))  # fmt: skip
+    row = calibrate_contact.estimate(log, program, sc.contact)
+    assert row.creep == pytest.approx(1e-3, rel=1e-6)
+    assert math.isnan(row.creep_law) if force[2] == 0.0 else row.creep_law == 0.0
+
+
 def test_files_written(table: pd.DataFrame, tmp_path: Path) -> None:
     calibrate_contact.write_calibration(table, tmp_path)
     md = (tmp_path / "calibration.md").read_text()

@@ -232,8 +232,8 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
         known = _known(log, "rest_penetration", "penetration R_foot - z_E", log.info, y2, f2 / contact.Kp,
                        K_EFF_RTOL * y2)  # fmt: skip
         notes.append(known or f"k eff {100 * (k_eff / contact.Kp - 1.0):+.3g} % off Kp")
-    creep_law = contact.v_th * Ft / (contact.mu_s * Fn)
-    if creep > STICK_SPEED and abs(creep / creep_law - 1.0) > CREEP_RTOL:
+    creep_law = contact.v_th * Ft / (contact.mu_s * Fn) if Fn > 0.0 else math.nan  # the foot off the ground: none
+    if creep > STICK_SPEED and not math.isclose(creep, creep_law, rel_tol=CREEP_RTOL):
         # the engine's own tangential law, where it has one in closed form, held to the measured creep
         load = {"Fn": Fn, "Ft": Ft, "F": f[end].mean(axis=0).tolist()}
         known = _known(log, "creep", "creep of the point of contact", {**log.info, "load": load}, creep, creep_law,
@@ -254,7 +254,7 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
 
 def _known(log: RunResult, *args: Any) -> str | None:
     """The explanation the run's backend gives of a deviation (``Backend.known_deviation(*args)``); None from a
-    backend that is not here (a log of another machine's)."""
+    backend not installed here."""
     try:
         cls = registry.get(log.backend)
     except BackendNotFound:
