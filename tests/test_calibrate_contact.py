@@ -143,6 +143,8 @@ def test_engine_defaults_calibration_measures_what_the_defaults_give(
         assert "so Ft creeps at 2 (Ft / Fn) Kp d y / (Kd dmax mu^2) = 40.99 mm/s" in note["mujoco"], note["mujoco"]
     if "dart" in k:
         assert math.isinf(k["dart"]) and k["dart"] > 0
+        # its Dantzig LCP at 1 ms creeps at cfm h A_11 Ft: 20 times the matched 50 us step's (the next test)
+        assert "foot creeps at cfm h |sum_i A_ii F_i t_i| = 0.0004224 mm/s, met to" in note["dart"], note["dart"]
 
 
 def test_a_creep_explanation_holds_the_measured_creep_to_its_closed_form() -> None:
@@ -192,6 +194,29 @@ def test_drakes_creep_is_its_regularised_frictions_own(table: pd.DataFrame) -> N
     assert ask("creep", "creep", tamsi, v, 4.7e-4, 0.01 * v) is None
     unknown_w = {**sap, "contact": {**sap["contact"], "delassus_w": None}}
     assert ask("creep", "creep", unknown_w, v, 4.7e-4, 0.01 * v) is None
+
+
+def test_darts_rigid_contact_creeps_by_its_constraint_force_mixing(table: pd.DataFrame) -> None:
+    """DART's rigid contact holds the foot but for its constraint force mixing: the LCP solves with A_ii (1 + cfm),
+    cfm = 1e-5, the impulse acts without it, so a sticking friction row keeps -cfm A_ii x_i: cfm h A_11 Ft =
+    2.112e-8 m/s at the matched 50 us step (measured 2.1118e-8, 6e-10 apart), the row says so within 1 %; the
+    closed form gives nothing 5 % off it, or for PGS, whose own residual takes over."""
+    dart_ = pytest.importorskip("legbench.backends.dart_")
+    row = table.set_index("backend").loc["dart"]
+    assert "known: DART mixes a constraint force into its contact rows (cfm 1e-05)" in row["note"], row["note"]
+    assert row["creep"] == pytest.approx(2.112e-8, rel=1e-3)
+    A = np.diag([3.1968, 3.1968, 6.6])
+    info: dict[str, Any] = {
+        "lcp_solver": "nsgs",
+        "timestep": 5e-5,
+        "load": {"Fn": 40.0, "Ft": 13.212, "F": [13.212, 0.0, 40.0]},
+        "contact": {"constraint_force_mixing": 1e-5, "delassus": A.tolist()},
+    }
+    v = 1e-5 * 5e-5 * 3.1968 * 13.212
+    ask = dart_.DartBackend.known_deviation
+    assert ask("creep", "creep", info, v, 4.7e-4, 0.01 * v) is not None
+    assert ask("creep", "creep", info, 1.05 * v, 4.7e-4, 0.0105 * v) is None
+    assert ask("creep", "creep", {**info, "lcp_solver": "pgs"}, v, 4.7e-4, 0.01 * v) is None
 
 
 def test_rows_do_not_depend_on_the_number_of_workers(table: pd.DataFrame) -> None:

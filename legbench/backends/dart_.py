@@ -53,7 +53,8 @@ from typing import Any, ClassVar
 import dartpy as dart
 import numpy as np
 
-from legbench.backends.base import Backend, Limits, Physics, check_finite, clamp_torque, sub_step_count
+from legbench import kinematics
+from legbench.backends.base import Backend, Limits, Physics, check_finite, clamp_torque, held, sub_step_count
 from legbench.contact import ReferenceContact
 from legbench.exceptions import LegbenchError
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine
@@ -70,6 +71,11 @@ _CONSTRUCTED_LCP = {"nsgs": dart.constraint.NsgsFrictionSolver, "fbf": dart.cons
 #: Ground box: full size [m] in x and y (BoxShape takes the full edge lengths), thickness [m]; its top face is
 #: z_W = 0.
 GROUND_SIZE = (20.0, 20.0, 1.0)
+#: DART's constraint force mixing on a contact's rows (ContactConstraint.cpp: ``#define DART_CFM 1e-5``,
+#: ``mConstraintForceMixing``; dartpy binds no ContactConstraint to read it): the LCP solves with A's diagonal
+#: times (1 + cfm), the impulse acts through the dynamics without it, so a sticking friction row keeps a velocity
+#: -cfm A_ii x_i, which no position correction removes (the error reduction acts on the normal row only).
+DART_CFM = 1.0e-5
 
 
 def friction_shape(lcp_solver: str) -> str:
@@ -149,6 +155,18 @@ class DartBackend(Backend):
                     "rigid contact the drag's W y then holds 0.83 Fn (mu_s 0.7) and the foot does not slide, so "
                     "its W x force is not the sliding pyramid's either "
                     "(lcp_solver: nsgs, the matched profile's, slides at 0.700 Fn; docs/backends/dart.md)")  # fmt: skip
+        contact, load, h = info.get("contact"), info.get("load"), info.get("timestep")
+        contact = contact if isinstance(contact, Mapping) else {}
+        W = contact.get("delassus")
+        if (case == "creep" and info.get("lcp_solver") in ("dantzig", "nsgs") and isinstance(load, Mapping)
+                and "F" in load and isinstance(W, list) and isinstance(h, float)):  # fmt: skip
+            # the exact solvers only: PGS and FBF leave their own residuals (docs/backends/dart.md)
+            cfm, A, F = float(contact["constraint_force_mixing"]), np.array(W), np.asarray(load["F"], float)
+            v = cfm * h * np.linalg.norm(sum((t @ A @ t) * (F @ t) * t for t in np.array(friction_axes())))
+            return held(f"known: DART mixes a constraint force into its contact rows (cfm {cfm:g}): the LCP solves "
+                        f"with A_ii (1 + cfm), the impulse acts without it, so each sticking friction row keeps "
+                        f"-cfm A_ii x_i and the foot creeps at cfm h |sum_i A_ii F_i t_i| = {1e3 * v:.4g} mm/s",
+                        measured, float(v), tolerance, " (docs/backends/dart.md)")  # fmt: skip
         return None
 
     # ----------------------------------------------------------------- load
@@ -362,6 +380,12 @@ class DartBackend(Backend):
         """:meth:`state` and :meth:`ground_force` as nine floats, without the copies."""
         return (*self._q.tolist(), *self._qd.tolist(), *self._force.tolist())
 
+    def _delassus(self) -> np.ndarray:
+        """W = J M^-1 J^T [1/kg] of the sphere's lowest point in W, with DART's own mass matrix, in the present
+        state: what the contact's LCP rows are built from (their A_ii = t_i^T W t_i)."""
+        J = kinematics.jacobian_at(self._q, "true")
+        return np.asarray(J @ np.linalg.solve(self.skel.getMassMatrix(), J.T))
+
     def info(self) -> dict[str, Any]:
         """Engine, version and every setting actually used, read back from the world where DART allows."""
         world, c = self.world, self.physics.contact
@@ -401,6 +425,9 @@ class DartBackend(Backend):
                 "Kp": None,
                 "Kd": None,
                 "Kp_Kd_note": "rigid contact: DART has no contact stiffness or damping; Kp, Kd do not apply",
+                "constraint_force_mixing": None if self.reference else DART_CFM,
+                # J M^-1 J^T at the lowest point in W, in the present state, with DART's mass matrix [1/kg]
+                "delassus": None if self.reference else self._delassus().tolist(),
                 "reference_law": "J_poc^T F added to the joint forces per sub-step" if self.reference else None,
                 "force_readout": (
                     "the law at the end state"
