@@ -7,6 +7,7 @@ per control period (``sub_stepping: bullet``, the default); ``sub_stepping: pyth
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -22,6 +23,7 @@ from test_backends_engines import R_FOOT, run_press  # noqa: E402
 from legbench import backends as registry  # noqa: E402
 from legbench import kinematics, model, scenario  # noqa: E402
 from legbench.backends.base import Physics  # noqa: E402
+from legbench.backends.pybullet_ import CONTACT_ROWS  # noqa: E402
 from legbench.backends.pybullet_ import p as bullet  # noqa: E402
 from legbench.run import simulate  # noqa: E402
 from legbench.scenario import physics_of, shorten  # noqa: E402
@@ -252,3 +254,24 @@ def test_the_held_foots_creep_is_what_the_solvers_residual_threshold_leaves(
         assert f"here after {passes} of 50 passes" in row.note, row.note
     else:
         assert row.creep < calibrate_contact.STICK_SPEED and v < calibrate_contact.STICK_SPEED
+
+
+def test_info_gives_the_contact_rows_delassus_from_the_engines_own_mass_matrix() -> None:
+    """info()'s contact.delassus, W = J M^-1 J^T at the sphere's lowest point with the engine's own mass matrix
+    (what the calibration's creep closed form is built on), equals the spec leg's (Pinocchio's M) to 1e-6 of its
+    largest entry, symmetric positive definite; a state that is not finite (a diverged run) gives None, not NaN."""
+    sc = scenario.load(ROOT / "scenarios" / "effort.yaml")
+    backend = registry.load("pybullet", physics_of(sc), {})
+    try:
+        backend.reset(np.array(sc.q0), np.zeros(3))
+        W = np.array(backend.info()["contact"]["delassus"])
+        q = np.array(sc.q0)
+        J = kinematics.jacobian_at(q, "true")
+        expected = J @ np.linalg.solve(model.Dynamics().mass_matrix(q), J.T)
+        rows = np.array(CONTACT_ROWS)  # W in Bullet's contact rows (n, d1, d2)
+        assert np.abs(W - rows @ expected @ rows.T).max() <= 1e-6 * np.abs(expected).max()
+        assert np.allclose(W, W.T, atol=1e-12) and np.all(np.linalg.eigvalsh(W) > 0)
+        backend._reading = (math.nan,) * 9  # type: ignore[attr-defined]  # what a diverged run reads
+        assert backend.info()["contact"]["delassus"] is None
+    finally:
+        backend.close()

@@ -380,11 +380,14 @@ class DartBackend(Backend):
         """:meth:`state` and :meth:`ground_force` as nine floats, without the copies."""
         return (*self._q.tolist(), *self._qd.tolist(), *self._force.tolist())
 
-    def _delassus(self) -> np.ndarray:
+    def _delassus(self) -> list[list[float]] | None:
         """W = J M^-1 J^T [1/kg] of the sphere's lowest point in W, with DART's own mass matrix, in the present
-        state: what the contact's LCP rows are built from (their A_ii = t_i^T W t_i)."""
+        state: what the contact's LCP rows are built from (their A_ii = t_i^T W t_i). None in reference contact
+        and for a state that is not finite (a diverged run)."""
+        if self.reference or not np.all(np.isfinite(self._q)):
+            return None
         J = kinematics.jacobian_at(self._q, "true")
-        return np.asarray(J @ np.linalg.solve(self.skel.getMassMatrix(), J.T))
+        return np.asarray(J @ np.linalg.solve(self.skel.getMassMatrix(), J.T)).tolist()
 
     def info(self) -> dict[str, Any]:
         """Engine, version and every setting actually used, read back from the world where DART allows."""
@@ -427,7 +430,7 @@ class DartBackend(Backend):
                 "Kp_Kd_note": "rigid contact: DART has no contact stiffness or damping; Kp, Kd do not apply",
                 "constraint_force_mixing": None if self.reference else DART_CFM,
                 # J M^-1 J^T at the lowest point in W, in the present state, with DART's mass matrix [1/kg]
-                "delassus": None if self.reference else self._delassus().tolist(),
+                "delassus": self._delassus(),
                 "reference_law": "J_poc^T F added to the joint forces per sub-step" if self.reference else None,
                 "force_readout": (
                     "the law at the end state"

@@ -663,13 +663,15 @@ class DrakeBackend(Backend):
         state, ||J diag(M)^-1 J^T||_F / 3, J the translational Jacobian of the point where the discrete plant applies
         the force (the witness points weighted by stiffness) and only M's diagonal (``SapModel``'s diagonal
         approximation, A = M + dt D with no joint damping on the leg; ``sap_model.cc``): the scale SAP's friction
-        regularisation takes, R_t = sigma w. None outside SAP's family, in reference or hydroelastic contact, and
-        where the foot is not in contact."""
+        regularisation takes, R_t = sigma w. None outside SAP's family, in reference or hydroelastic contact,
+        where the foot is not in contact and for a state that is not finite."""
         if not self._sap_family() or self.ground is None or not self.foot_geoms:
             return None
         if self.cfg["contact_model"] == "hydroelastic":  # no point pair: a contact surface
             return None
         plant, ctx = self.plant, self.ctx
+        if not np.all(np.isfinite(plant.GetPositions(ctx))):  # a diverged run: no geometry query on it
+            return None
         pairs = plant.get_geometry_query_input_port().Eval(ctx).ComputePointPairPenetration()
         if len(pairs) != 1:
             return None

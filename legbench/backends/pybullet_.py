@@ -563,7 +563,7 @@ class PybulletBackend(Backend):
                 "cone": "Coulomb cone (sticks below mu Fn, slides at mu Fn)",
                 "solver_residual_threshold": PYBULLET_RESIDUAL_THRESHOLD,
                 # J M^-1 J^T of the contact rows (CONTACT_ROWS) at the lowest point, in the present state [1/kg]
-                "delassus": None if self.reference else self._delassus().tolist(),
+                "delassus": self._delassus(),
                 "Kp": c.Kp,
                 "Kd": c.Kd,
                 "reference_law": "J_poc^T F added to the torque per sub-step" if self.reference else None,
@@ -572,13 +572,16 @@ class PybulletBackend(Backend):
             "max_joint_velocity": MAX_JOINT_VELOCITY,
         }
 
-    def _delassus(self) -> np.ndarray:
+    def _delassus(self) -> list[list[float]] | None:
         """W = J M^-1 J^T [1/kg] of the contact rows (:data:`CONTACT_ROWS`) at the sphere's lowest point, with
-        Bullet's own mass matrix, in the present state: what its solver iterates on (:func:`pgs_creep`)."""
+        Bullet's own mass matrix, in the present state: what its solver iterates on (:func:`pgs_creep`). None in
+        reference contact and for a state that is not finite (a diverged run)."""
         q, _ = self.state()
+        if self.reference or not np.all(np.isfinite(q)):
+            return None
         M = np.array(p.calculateMassMatrix(self.body, q.tolist(), physicsClientId=self.cid))
         J = np.array(CONTACT_ROWS) @ kinematics.jacobian_at(q, "true")
-        return np.asarray(J @ np.linalg.solve(M, J.T))
+        return np.asarray(J @ np.linalg.solve(M, J.T)).tolist()
 
     def warnings(self) -> list[str]:
         """Reference mode: the explicit law's step bound at the run's peak Fn (native Coulomb contact has none)."""
