@@ -15,10 +15,9 @@ import pytest
 
 dart = pytest.importorskip("dartpy")
 
-from test_backends_engines import R_FOOT, dop853_reference, run_case, run_press  # noqa: E402
+from test_backends_engines import R_FOOT, check_delassus, dop853_reference, run_case, run_press  # noqa: E402
 
 from legbench import kinematics, model, resources  # noqa: E402
-from legbench import scenario as scenario_mod  # noqa: E402
 from legbench.backends import load  # noqa: E402
 from legbench.backends.base import Physics  # noqa: E402
 
@@ -190,17 +189,4 @@ def test_info_gives_the_contact_rows_delassus_from_the_engines_own_mass_matrix()
     """info()'s contact.delassus, W = J M^-1 J^T at the sphere's lowest point with the engine's own mass matrix
     (what the calibration's creep closed form is built on), equals the spec leg's (Pinocchio's M) to 1e-6 of its
     largest entry, symmetric positive definite; a state that is not finite (a diverged run) gives None, not NaN."""
-    sc = scenario_mod.load(resources.scenario("effort"))
-    backend = load("dart", scenario_mod.physics_of(sc), {})
-    try:
-        backend.reset(np.array(sc.q0), np.zeros(3))
-        W = np.array(backend.info()["contact"]["delassus"])
-        q = np.array(sc.q0)
-        J = kinematics.jacobian_at(q, "true")
-        expected = J @ np.linalg.solve(model.Dynamics().mass_matrix(q), J.T)
-        assert np.abs(W - expected).max() <= 1e-6 * np.abs(expected).max()  # in W's axes
-        assert np.allclose(W, W.T, atol=1e-12) and np.all(np.linalg.eigvalsh(W) > 0)
-        backend._q[:] = math.nan  # type: ignore[attr-defined]  # what a diverged run reads
-        assert backend.info()["contact"]["delassus"] is None
-    finally:
-        backend.close()
+    check_delassus("dart", np.eye(3), lambda b: b._q.fill(math.nan))  # type: ignore[attr-defined]

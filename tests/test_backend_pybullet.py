@@ -18,7 +18,7 @@ import pytest
 
 pytest.importorskip("pybullet")
 
-from test_backends_engines import R_FOOT, run_press  # noqa: E402
+from test_backends_engines import R_FOOT, check_delassus, run_press  # noqa: E402
 
 from legbench import backends as registry  # noqa: E402
 from legbench import kinematics, model, scenario  # noqa: E402
@@ -260,18 +260,4 @@ def test_info_gives_the_contact_rows_delassus_from_the_engines_own_mass_matrix()
     """info()'s contact.delassus, W = J M^-1 J^T at the sphere's lowest point with the engine's own mass matrix
     (what the calibration's creep closed form is built on), equals the spec leg's (Pinocchio's M) to 1e-6 of its
     largest entry, symmetric positive definite; a state that is not finite (a diverged run) gives None, not NaN."""
-    sc = scenario.load(ROOT / "scenarios" / "effort.yaml")
-    backend = registry.load("pybullet", physics_of(sc), {})
-    try:
-        backend.reset(np.array(sc.q0), np.zeros(3))
-        W = np.array(backend.info()["contact"]["delassus"])
-        q = np.array(sc.q0)
-        J = kinematics.jacobian_at(q, "true")
-        expected = J @ np.linalg.solve(model.Dynamics().mass_matrix(q), J.T)
-        rows = np.array(CONTACT_ROWS)  # W in Bullet's contact rows (n, d1, d2)
-        assert np.abs(W - rows @ expected @ rows.T).max() <= 1e-6 * np.abs(expected).max()
-        assert np.allclose(W, W.T, atol=1e-12) and np.all(np.linalg.eigvalsh(W) > 0)
-        backend._reading = (math.nan,) * 9  # type: ignore[attr-defined]  # what a diverged run reads
-        assert backend.info()["contact"]["delassus"] is None
-    finally:
-        backend.close()
+    check_delassus("pybullet", np.array(CONTACT_ROWS), lambda b: setattr(b, "_reading", (math.nan,) * 9))
