@@ -308,7 +308,8 @@ class Backend(ABC):
         account for is not explained. Consulted by every verification case for its failing rows
         (:func:`explained_note`), and by the contact calibration for a stiffness off Kp (case
         ``rest_penetration``, as the verification's) and a creep off the law's (case ``creep``: ``measured`` the
-        creep [m/s], ``expected`` the law's, ``info`` with the held load ``load: {Fn, Ft}`` [N])."""
+        creep [m/s], ``expected`` the law's, ``info`` with the held load ``load``: Fn, Ft and the mean contact force
+        F in W [N])."""
         return None
 
     @classmethod
