@@ -761,7 +761,7 @@ _SETTING_UNITS = {
 
 
 def _settings(info: Mapping[str, Any]) -> dict[str, str]:
-    rest = {k: v for k, v in info.items() if k not in ("engine", "version", "warnings")}
+    rest = {k: v for k, v in info.items() if k not in ("engine", "version", "warnings", "at_end")}  # at_end: no setting
     if set(rest) == {"settings"} and isinstance(rest["settings"], Mapping):
         rest = dict(rest["settings"])
     return _flat(rest)

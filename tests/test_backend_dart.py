@@ -186,7 +186,7 @@ def test_body_sleeping_is_off_in_matched_and_dartpys_own_in_engine_defaults() ->
 
 
 def test_info_gives_the_contact_rows_delassus_from_the_engines_own_mass_matrix() -> None:
-    """info()'s contact.delassus, W = J M^-1 J^T at the sphere's lowest point with the engine's own mass matrix
+    """info()'s at_end.delassus, W = J M^-1 J^T at the sphere's lowest point with the engine's own mass matrix
     (what the calibration's creep closed form is built on), equals the spec leg's (Pinocchio's M) to 1e-6 of its
     largest entry, symmetric positive definite; a state that is not finite (a diverged run) gives None, not NaN."""
     check_delassus("dart", np.eye(3), lambda b: b._q.fill(math.nan))  # type: ignore[attr-defined]

@@ -246,8 +246,9 @@ def test_the_held_foots_creep_is_what_the_solvers_residual_threshold_leaves(
     contact = log.info["contact"]
     assert contact["solver_residual_threshold"] == threshold
     end = log.t > log.t[-1] - calibrate_contact.Program().window - 1e-9
-    v, n = pybullet_.pgs_creep(np.array(contact["delassus"]), log.info["timestep"], contact["pair_stiffness"],
-                               contact["pair_damping"], log.f[end].mean(axis=0), threshold, 50)  # fmt: skip
+    W = np.array(log.info["at_end"]["delassus"])
+    v, n = pybullet_.pgs_creep(W, log.info["timestep"], contact["pair_stiffness"], contact["pair_damping"],
+                               log.f[end].mean(axis=0), threshold, 50)  # fmt: skip
     if passes is not None:
         assert n == passes
         assert row.creep == pytest.approx(v, rel=1e-3), (row.creep, v)
@@ -257,7 +258,34 @@ def test_the_held_foots_creep_is_what_the_solvers_residual_threshold_leaves(
 
 
 def test_info_gives_the_contact_rows_delassus_from_the_engines_own_mass_matrix() -> None:
-    """info()'s contact.delassus, W = J M^-1 J^T at the sphere's lowest point with the engine's own mass matrix
+    """info()'s at_end.delassus, W = J M^-1 J^T at the sphere's lowest point with the engine's own mass matrix
     (what the calibration's creep closed form is built on), equals the spec leg's (Pinocchio's M) to 1e-6 of its
     largest entry, symmetric positive definite; a state that is not finite (a diverged run) gives None, not NaN."""
     check_delassus("pybullet", np.array(CONTACT_ROWS), lambda b: setattr(b, "_reading", (math.nan,) * 9))
+
+
+def test_pass_counts_that_cycle_give_no_steady_creep_and_the_rows_are_bullets_own() -> None:
+    """Where no pass count leaves a steady state that stops at it (a drag of 0.6 mu_s Fn at the effort task's start,
+    50 us: the counts map 1 -> 3, 2 -> 3, 3 -> 2), pgs_creep says NaN (no steady creep to explain), not one side of
+    the cycle; and CONTACT_ROWS' friction directions are the ones Bullet reports for the foot's contact."""
+    from legbench.backends import pybullet_
+
+    sc = scenario.load(ROOT / "scenarios" / "effort.yaml")
+    backend = registry.load("pybullet", physics_of(sc), {})
+    try:
+        backend.reset(np.array(sc.q0), np.zeros(3))
+        info = backend.info()
+        contact = info["contact"]
+        W = np.array(info["at_end"]["delassus"])
+        v, _ = pybullet_.pgs_creep(W, info["timestep"], contact["pair_stiffness"], contact["pair_damping"],
+                                   np.array([23.86, 0.0, 40.0]), 1e-7, 50)  # fmt: skip
+        assert math.isnan(v)
+        for _ in range(50):  # onto the ground under the effort task's start torques: a contact to read
+            backend.step(np.zeros(3))
+        points = bullet.getContactPoints(bodyA=backend.body, physicsClientId=backend.cid)  # type: ignore[attr-defined]
+        assert points, "no contact to read the friction directions from"
+        for point in points:
+            n, d1, d2 = np.array(point[7]), np.array(point[11]), np.array(point[13])
+            assert np.allclose(np.abs([n, d1, d2]), np.abs(np.array(pybullet_.CONTACT_ROWS)), atol=1e-9), point
+    finally:
+        backend.close()

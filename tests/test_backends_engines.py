@@ -327,7 +327,7 @@ def press_targets(push: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def check_delassus(name: str, rows: np.ndarray, diverge: Callable[[Backend], None]) -> None:
-    """What a backend's ``info()["contact"]["delassus"]`` must be: W = J M^-1 J^T at the sphere's lowest point with
+    """What a backend's ``info()["at_end"]["delassus"]`` must be: W = J M^-1 J^T at the sphere's lowest point with
     the engine's own mass matrix, in the contact ``rows`` it declares, equal to the spec leg's (Pinocchio's M) to
     1e-6 of its largest entry at the effort task's start, symmetric positive definite; None once ``diverge`` has
     made the backend's state not finite (a diverged run), not NaN."""
@@ -339,14 +339,14 @@ def check_delassus(name: str, rows: np.ndarray, diverge: Callable[[Backend], Non
     backend = load(name, scenario_mod.physics_of(sc), {})
     try:
         backend.reset(np.array(sc.q0), np.zeros(3))
-        W = np.array(backend.info()["contact"]["delassus"])
+        W = np.array(backend.info()["at_end"]["delassus"])
         q = np.array(sc.q0)
         J = kinematics.jacobian_at(q, "true")
         expected = rows @ J @ np.linalg.solve(model.Dynamics().mass_matrix(q), J.T) @ rows.T
         assert np.abs(W - expected).max() <= 1e-6 * np.abs(expected).max()
         assert np.allclose(W, W.T, atol=1e-12) and np.all(np.linalg.eigvalsh(W) > 0)
         diverge(backend)
-        assert backend.info()["contact"]["delassus"] is None
+        assert backend.info()["at_end"]["delassus"] is None
     finally:
         backend.close()
 

@@ -56,6 +56,9 @@ INFO_KEYS = {
     "friction_axes": "a pyramid's or diamond's two tangent axes t1, t2 in W as the engine builds them for a contact "
     "on the ground plane z = 0 with normal +z (2 x 3 floats: unit, orthogonal, horizontal), which the sliding "
     "verification projects the slip and the force onto (none declared: W x and W y)",
+    "at_end": "quantities of the state the run ended in, not settings (a mapping), which the backend's "
+    "known_deviation may read (e.g. the contact's Delassus matrix J M^-1 J^T); the report's settings table leaves "
+    "them out",
     "max_step": "an adaptive solver's largest step [s] (a number)",
     "rtol": "an adaptive solver's relative tolerance (a number)",
     "atol": "an adaptive solver's absolute tolerance (a number)",
@@ -83,6 +86,8 @@ def info_problem(info: object) -> str | None:
         kp = contact.get("Kp")
         if kp is not None and not _is_number(kp):
             return f"contact.Kp: expected a stiffness [N/m] or null (rigid contact), got {kp!r}"
+    if "at_end" in info and not isinstance(info["at_end"], Mapping):
+        return f"at_end: expected a mapping ({INFO_KEYS['at_end']}), got {info['at_end']!r}"
     if "dynamics" in info and not isinstance(info["dynamics"], str):
         return f"dynamics: expected text ({INFO_KEYS['dynamics']}), got {info['dynamics']!r}"
     for key in ("max_step", "rtol", "atol"):
@@ -129,7 +134,8 @@ def held(explanation: str, measured: float, predicted: float, tolerance: float, 
     :meth:`Backend.known_deviation`)."""
     if not abs(measured - predicted) <= tolerance:
         return None
-    return f"{explanation}, met to {100 * abs(measured / predicted - 1):.2g} %{after}"
+    met = f"{100 * abs(measured / predicted - 1):.2g} %" if predicted != 0.0 else f"{abs(measured):.2g}"
+    return f"{explanation}, met to {met}{after}"
 
 
 def rigid_contact(info: Mapping[str, Any]) -> bool:

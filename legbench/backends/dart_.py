@@ -155,12 +155,13 @@ class DartBackend(Backend):
                     "rigid contact the drag's W y then holds 0.83 Fn (mu_s 0.7) and the foot does not slide, so "
                     "its W x force is not the sliding pyramid's either "
                     "(lcp_solver: nsgs, the matched profile's, slides at 0.700 Fn; docs/backends/dart.md)")  # fmt: skip
-        contact, load, h = info.get("contact"), info.get("load"), info.get("timestep")
+        contact, load, h, at_end = info.get("contact"), info.get("load"), info.get("timestep"), info.get("at_end")
         contact = contact if isinstance(contact, Mapping) else {}
-        W = contact.get("delassus")
+        W = at_end.get("delassus") if isinstance(at_end, Mapping) else None
         if (case == "creep" and info.get("lcp_solver") in ("dantzig", "nsgs") and isinstance(load, Mapping)
                 and "F" in load and isinstance(W, list) and isinstance(h, float)):  # fmt: skip
-            # the exact solvers only: PGS and FBF leave their own residuals (docs/backends/dart.md)
+            # the exact solvers only: Dantzig, and NSGS, whose local solve is exact for the one contact here; PGS
+            # and FBF leave their own residuals (docs/backends/dart.md)
             cfm, A, F = float(contact["constraint_force_mixing"]), np.array(W), np.asarray(load["F"], float)
             v = cfm * h * np.linalg.norm(sum((t @ A @ t) * (F @ t) * t for t in np.array(friction_axes())))
             return held(f"known: DART mixes a constraint force into its contact rows (cfm {cfm:g}): the LCP solves "
@@ -429,8 +430,6 @@ class DartBackend(Backend):
                 "Kd": None,
                 "Kp_Kd_note": "rigid contact: DART has no contact stiffness or damping; Kp, Kd do not apply",
                 "constraint_force_mixing": None if self.reference else DART_CFM,
-                # J M^-1 J^T at the lowest point in W, in the present state, with DART's mass matrix [1/kg]
-                "delassus": self._delassus(),
                 "reference_law": "J_poc^T F added to the joint forces per sub-step" if self.reference else None,
                 "force_readout": (
                     "the law at the end state"
@@ -448,6 +447,8 @@ class DartBackend(Backend):
                 np.isfinite(self.skel.getVelocityLowerLimit(i)) or np.isfinite(self.skel.getVelocityUpperLimit(i))
                 for i in self.dofs
             ),
+            # J M^-1 J^T at the lowest point in W, in the state the run ended in, with DART's mass matrix [1/kg]
+            "at_end": {"delassus": self._delassus()},
         }
 
     # ------------------------------------------------------- declared abilities

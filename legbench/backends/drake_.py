@@ -253,12 +253,16 @@ class DrakeBackend(Backend):
         SAP sticking, the impulse -v_t / R_t with R_t = sigma w, so v = sigma w dt Ft (``sap_friction_cone_
         constraint.cc``); ``lagged``, Ft = mu_k Fn v / sqrt(v^2 + eps^2) with eps = max(v_s, mu_k sigma w dt Fn)
         (``sap_hunt_crossley_constraint.cc``; n0 = dt Fn at rest), so v = eps r / sqrt(1 - r^2), r = Ft / (mu_k Fn).
-        w is the run's Delassus estimate at its end (``contact.delassus_w``)."""
-        load, w, dt = info.get("load"), contact.get("delassus_w"), info.get("timestep")
+        w is the run's Delassus estimate at its end (``at_end.delassus_w``)."""
+        at_end = info.get("at_end")
+        load, dt = info.get("load"), info.get("timestep")
+        w = at_end.get("delassus_w") if isinstance(at_end, Mapping) else None
         approx = str(contact.get("discrete_contact_approximation"))
         if not (isinstance(load, Mapping) and isinstance(w, float) and isinstance(dt, float)):
             return None
         fn, ft = float(load["Fn"]), float(load["Ft"])
+        if not fn > 0.0:  # the foot off the ground: no held contact
+            return None
         if approx.endswith("kSap"):
             v = SAP_SIGMA * w * dt * ft
             law = (f"SAP regularises friction: sticking, the tangential impulse is -v_t / R_t with R_t = sigma w "
@@ -593,8 +597,7 @@ class DrakeBackend(Backend):
                 # solvers slide with the dynamic one alone (matched sets it to mu_s)
                 **self._pair_friction(),
                 **self._pair_point_contact(),
-                "delassus_w": self._delassus_estimate(),
-                "sap_sigma": SAP_SIGMA if self._sap_family() else None,
+                "sap_sigma": SAP_SIGMA if self._sap_family() and not self.reference else None,
                 "normal_law": "linear Kelvin-Voigt Kp (x + tau_d xdot)_+"
                 if self.cfg["solver"] == "sap"
                 else "Hunt-Crossley k x (1 + d xdot)_+",
@@ -604,6 +607,7 @@ class DrakeBackend(Backend):
                 else None,
             },  # fmt: skip
         }
+        out["at_end"] = {"delassus_w": self._delassus_estimate()}  # the state the run ended in, not a setting
         if self.continuous:
             integ = self.simulator.get_integrator()
             out["target_accuracy"] = integ.get_target_accuracy()

@@ -280,7 +280,7 @@ class MujocoBackend(Backend):
                         f"y = {y:.4g} m for this Fn", measured, y, tolerance, " (docs/contact_mapping.md)")  # fmt: skip
         load = info.get("load")
         if (case == "creep" and usual and isinstance(contact, Mapping) and contact.get("cone") == "mjCONE_PYRAMIDAL"
-                and isinstance(load, Mapping)):  # fmt: skip
+                and isinstance(load, Mapping) and float(load["Fn"]) > 0.0):  # fmt: skip
             v = usual_creep(contact, float(load["Fn"]), float(load["Ft"]))
             return held(f"known: the pyramid's rows n +- mu t_i are soft constraints at the rest depth (the usual "
                         f"solref through the impedance): their steady forces, reference acceleration over R, differ "

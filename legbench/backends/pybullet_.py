@@ -165,7 +165,8 @@ def pgs_creep(W: np.ndarray, h: float, kp: float, kd: float, force: np.ndarray, 
     of the full solve, and in the steady state the rows move at -h W E (I - E)^-1 F per step, F the contact force
     in the rows (n, d1, d2) of :data:`CONTACT_ROWS`; the creep is its tangential part. n is found with it: the
     residuals of the passes (A_ii times each row's impulse change, the friction pair's summed) from the steady
-    right-hand side A (I - E)^-1 h F.
+    right-hand side A (I - E)^-1 h F. Where the pass counts cycle (no count leaves a steady state that stops at
+    it), NaN: no steady creep to explain.
     (btMultiBodyConstraintSolver.cpp, btSequentialImpulseConstraintSolver.cpp; measured on the calibration's hold:
     1.2561e-5 against 1.2560e-5 m/s matched, n = 2; 5.2153e-6 against 5.2152e-6 engine-defaults, n = 4.)
 
@@ -183,8 +184,11 @@ def pgs_creep(W: np.ndarray, h: float, kp: float, kd: float, force: np.ndarray, 
     S[1:, 0] = A[1:, 0]
     G = np.eye(3) - np.linalg.solve(S, A)
     F = np.array(CONTACT_ROWS) @ force
-    n = 1
+    n, seen = 1, set()
     for _ in range(iterations):  # n and the steady state it leaves, found together (1-2 rounds)
+        if n in seen:  # no fixed point: the passes alternate between counts from step to step, no steady creep
+            return math.nan, n
+        seen.add(n)
         E = np.linalg.matrix_power(G, n)
         r = A @ np.linalg.solve(np.eye(3) - E, h * F)
         impulse, stop = np.zeros(3), iterations
@@ -249,7 +253,9 @@ class PybulletBackend(Backend):
     def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any], measured: float = math.nan,
                         expected: float = math.nan, tolerance: float = math.nan) -> str | None:  # fmt: skip
         """PyBullet's contact slop deepens the rest by one slop (engine-defaults; docs/studies.md, section 4): said
-        where the rest penetration misses Fn/Kp by the slop, within the row's tolerance."""
+        where the rest penetration misses Fn/Kp by the slop, within the row's tolerance; a held foot creeps by what
+        the solver's passes leave (:func:`pgs_creep`, the calibration's case ``creep``), said where it meets the
+        measured creep."""
         contact = info.get("contact")
         slop = contact.get("contact_slop") if isinstance(contact, Mapping) else None
         if (case == "rest_penetration" and isinstance(slop, float) and slop > 0.0
@@ -258,7 +264,8 @@ class PybulletBackend(Backend):
                     f"({slop:g} m here, PyBullet's default; Bullet's own is 0), so the foot rests one slop deeper "
                     f"than Fn/Kp: {1e6 * (measured - expected):+.2f} um (-0.17 um with slop 0, +19.8 um with 2e-5, "
                     "measured; ERP, split impulse, the plane's damping and the iterations do not move it)")  # fmt: skip
-        load, delassus = info.get("load"), contact.get("delassus") if isinstance(contact, Mapping) else None
+        at_end, load = info.get("at_end"), info.get("load")
+        delassus = at_end.get("delassus") if isinstance(at_end, Mapping) else None
         if (case == "creep" and isinstance(load, Mapping) and "F" in load and isinstance(delassus, list)
                 and info.get("friction_anchor") == "off" and isinstance(contact, Mapping)):  # fmt: skip
             h, iterations = float(info["timestep"]), int(info["solver_iterations"])
@@ -562,14 +569,14 @@ class PybulletBackend(Backend):
                 ),
                 "cone": "Coulomb cone (sticks below mu Fn, slides at mu Fn)",
                 "solver_residual_threshold": PYBULLET_RESIDUAL_THRESHOLD,
-                # J M^-1 J^T of the contact rows (CONTACT_ROWS) at the lowest point, in the present state [1/kg]
-                "delassus": self._delassus(),
                 "Kp": c.Kp,
                 "Kd": c.Kd,
                 "reference_law": "J_poc^T F added to the torque per sub-step" if self.reference else None,
             },
             "damping": {"linear": 0.0, "angular": 0.0, "joint": 0.0},
             "max_joint_velocity": MAX_JOINT_VELOCITY,
+            # J M^-1 J^T of the contact rows (CONTACT_ROWS) at the lowest point, in the state the run ended in [1/kg]
+            "at_end": {"delassus": self._delassus()},
         }
 
     def _delassus(self) -> list[list[float]] | None:

@@ -56,6 +56,7 @@ from legbench.results import (
 from legbench.run import backend_info, backend_rates
 from legbench.scenario import Event, physics_of
 from legbench.studies.executors import DEFAULT_PRELOAD, make_executor
+from legbench.yamlfile import one_line
 
 __all__ = ["STICK_SPEED", "Calibration", "Program", "add_cli", "calibrate", "estimate", "push", "write_calibration"]
 
@@ -233,7 +234,7 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
                        K_EFF_RTOL * y2)  # fmt: skip
         notes.append(known or f"k eff {100 * (k_eff / contact.Kp - 1.0):+.3g} % off Kp")
     creep_law = contact.v_th * Ft / (contact.mu_s * Fn) if Fn > 0.0 else math.nan  # the foot off the ground: none
-    if creep > STICK_SPEED and not math.isclose(creep, creep_law, rel_tol=CREEP_RTOL):
+    if creep > STICK_SPEED and math.isfinite(creep_law) and not math.isclose(creep, creep_law, rel_tol=CREEP_RTOL):
         # the engine's own tangential law, where it has one in closed form, held to the measured creep
         load = {"Fn": Fn, "Ft": Ft, "F": f[end].mean(axis=0).tolist()}
         known = _known(log, "creep", "creep of the point of contact", {**log.info, "load": load}, creep, creep_law,
@@ -259,7 +260,10 @@ def _known(log: RunResult, *args: Any) -> str | None:
         cls = registry.get(log.backend)
     except BackendNotFound:
         return None
-    return cls.known_deviation(*args)
+    try:
+        return cls.known_deviation(*args)
+    except Exception as exc:  # a backend's (a plug-in's) explanation failing must not lose the calibration
+        return one_line(f"no explanation: {log.backend}'s known_deviation raised {type(exc).__name__}: {exc}")
 
 
 def _failed_row(name: str, contact: ContactParams, why: str) -> dict[str, Any]:
