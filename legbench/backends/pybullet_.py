@@ -258,12 +258,12 @@ class PybulletBackend(Backend):
         measured creep."""
         contact = info.get("contact")
         slop = contact.get("contact_slop") if isinstance(contact, Mapping) else None
-        if (case == "rest_penetration" and isinstance(slop, float) and slop > 0.0
-                and abs(measured - expected - slop) <= tolerance):  # fmt: skip
-            return (f"known: with a contact stiffness set, Bullet springs from the depth less the contact slop "
-                    f"({slop:g} m here, PyBullet's default; Bullet's own is 0), so the foot rests one slop deeper "
-                    f"than Fn/Kp: {1e6 * (measured - expected):+.2f} um (-0.17 um with slop 0, +19.8 um with 2e-5, "
-                    "measured; ERP, split impulse, the plane's damping and the iterations do not move it)")  # fmt: skip
+        if case == "rest_penetration" and isinstance(slop, float) and slop > 0.0:
+            return held(f"known: with a contact stiffness set, Bullet springs from the depth less the contact slop "
+                        f"({slop:g} m here, PyBullet's default; Bullet's own is 0), so the foot rests one slop deeper "
+                        f"than Fn/Kp: {1e6 * (measured - expected):+.2f} um", measured, expected + slop, tolerance,
+                        " (-0.17 um with slop 0, +19.8 um with 2e-5, measured; ERP, split impulse, the plane's "
+                        "damping and the iterations do not move it)")  # fmt: skip
         at_end, load = info.get("at_end"), info.get("load")
         delassus = at_end.get("delassus") if isinstance(at_end, Mapping) else None
         if (case == "creep" and isinstance(load, Mapping) and "F" in load and isinstance(delassus, list)
