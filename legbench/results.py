@@ -493,7 +493,13 @@ def study_dir(root: str | Path, study: str, profile: str = registry.PROFILES[0])
     verify``, ``calibration`` for ``legbench calibrate-contact``) for ``profile``: ``<root>/<study>`` for the
     matched profile, ``<root>/<study>__<profile>`` for another (the suffix the run folders take), where the index
     finds it."""
-    return Path(root) / (study if profile == registry.PROFILES[0] else f"{study}__{profile}")
+    return Path(root) / _profiled(study, profile)
+
+
+def _profiled(name: str, profile: str) -> str:
+    """A results folder's name in ``profile``: ``name`` for the matched profile, ``name__<profile>`` for another
+    (:data:`legbench.scenario.RESERVED_SUFFIXES`), for runs and studies alike."""
+    return name if profile == registry.PROFILES[0] else f"{name}__{profile}"
 
 
 #: Columns of a study's output shown in another unit than the file's SI value, and the factor: the contact
@@ -609,7 +615,7 @@ def out_dir_for(root: Path, scenario: Scenario, contact_mode: str | None) -> Pat
     """Directory of one scenario in a results tree: <root>/<name>, with ``__<profile>`` for a profile other
     than ``matched`` and ``__reference`` in reference contact mode (``effort__engine-defaults__reference``)."""
     mode = contact_mode or scenario.contact_mode
-    name = scenario.name if scenario.profile == "matched" else f"{scenario.name}__{scenario.profile}"
+    name = _profiled(scenario.name, scenario.profile)
     return Path(root) / (name if mode == "native" else f"{name}__reference")
 
 
