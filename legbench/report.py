@@ -1652,7 +1652,6 @@ def _small_q(df: pd.DataFrame, ref: str) -> set[str]:
     return {j for s, j in small_peaks(df, ref) if s == "q"}
 
 
-#: The contact calibration's columns the index shows.
 #: Study outputs the index shows when present under the results root, each once per profile, in the folder
 #: ``results.study_dir`` gives it: (study, file, heading, record list key, columns, caption).
 STUDIES: tuple[tuple[str, str, str, str, tuple[str, ...], str], ...] = (
