@@ -323,6 +323,11 @@ def implicit_note(infos: Mapping[str, Mapping[str, Any]]) -> str:
     )
 
 
+def _rows(n: int) -> str:
+    """``n`` rows, for a details summary: "1 row", "3 rows"."""
+    return f"{n} row" if n == 1 else f"{n} rows"
+
+
 def _names(items: Sequence[str]) -> str:
     return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
 
@@ -800,7 +805,7 @@ def _backend_tables(result: ComparisonResult) -> list[Block]:
         srows = tuple((f"{k}{_SETTING_UNITS.get(k, '')}", *(per[n].get(k, "") for n in names)) for k in keys)
         table = Table(("setting", *names), srows, "Settings each backend reports it used (run.json); units where "
                       "legbench defines the key, an engine's own parameters in the engine's units")  # fmt: skip
-        blocks.append(Details(f"Settings of every backend ({len(keys)} rows)", (table,)))
+        blocks.append(Details(f"Settings of every backend ({_rows(len(keys))})", (table,)))
     return blocks
 
 
@@ -1738,7 +1743,7 @@ def _study_blocks(root: Path) -> list[Block]:
             rows = tuple(tuple(_cell(r.get(c, ""), SHOWN_SCALE.get(c, 1.0)) for c in cols) for r in records)
             header = tuple(f"{c} [{STUDY_UNITS[c]}]" if c in STUDY_UNITS else c for c in cols)
             blocks.append(Heading(2, f"{heading}, {profile} profile: {len(records)} backends measured"))
-            blocks.append(Details(f"the {len(records)} rows", (Table(header, rows, caption),)))
+            blocks.append(Details(f"the {_rows(len(records))}", (Table(header, rows, caption),)))
             blocks.append(Nav(((f"files in {link}", link),)))
             continue
         status = [_status(r) for r in records]
@@ -1864,7 +1869,7 @@ def _bench_blocks(root: Path) -> list[Block]:
         "overhead ratio = full run / engine-only replay of the same torques; RTF, the real-time factor: simulated "
         "seconds per wall-clock second of the full run (> 1: faster than real time)"
     )
-    return [Heading(2, "Performance"), Details(f"{len(rows)} rows", (Table(cols, tuple(rows), caption),))]
+    return [Heading(2, "Performance"), Details(_rows(len(rows)), (Table(cols, tuple(rows), caption),))]
 
 
 def _report_page(task: tuple[str, str, dict[str, Any], str]) -> _Staged:

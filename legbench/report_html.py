@@ -113,8 +113,8 @@ def _md(blocks: Sequence[Block], out: list[str], page: str) -> None:
                 ]
                 out.append("| " + " | ".join(cells) + " |")
             out.append("")
-        elif isinstance(b, Details):
-            out.append(f"{b.summary}\n")
+        elif isinstance(b, Details):  # written out, under its summary in bold (the HTML's closed line)
+            out.append(f"**{b.summary}**\n")
             _md(b.blocks, out, page)
         elif isinstance(b, Nav):
             out.append(

@@ -75,7 +75,8 @@ def test_report_shows_failed_backends_with_reason_versions_and_settings_as_a_tab
         assert "fake-ref" in text and "fake-a" in text and "fake-c" in text
         assert '"dt"' not in text.replace("&quot;", '"')
     assert "| setting | ref | a | c |" in md and "| dt [s] | 1e-4 | 1e-4 |  |" in md
-    assert "<details><summary>Settings of every backend (1 rows)</summary>" in page
+    assert "<details><summary>Settings of every backend (1 row)</summary>" in page
+    assert "\n**Settings of every backend (1 row)**\n" in md  # the closed line, in bold over its table
     assert '<p class="warn">backend &#x27;c&#x27; failed: diverged at t = 0.3 s</p>' in page
 
 
