@@ -1472,21 +1472,25 @@ def _reference_text(entries: Sequence[_Entry]) -> str:
     """What the reference backend ("vs pinocchio") is: the scenarios' ``comparison.reference``, with its step and
     integrator per profile from run.json; not ground truth."""
     seen: dict[str, dict[str, str]] = {}
+    computed: dict[str, str] = {}  # what computes the reference's dynamics, where not the engine's own stepper
     for e in entries:
         ref = str(e.meta.get("reference", ""))
         info = e.infos.get(ref)
         if ref and info and e.mode == "native":
             step, integ = _step_text(info)
             seen.setdefault(ref, {}).setdefault(e.profile, f"{integ} at {step} per 1 ms control tick")
+            if isinstance(info.get("dynamics"), str):
+                computed.setdefault(ref, info["dynamics"])
     if not seen:
         return ""
     parts = []
     for ref, by in seen.items():
         order = sorted(by, key=lambda p: _PROFILE_ORDER.get(p, 9))
+        dynamics = f"; dynamics: {computed[ref]}" if ref in computed else ""
         if len(order) > 1 and len(set(by.values())) == 1:
-            parts.append(f"{ref} ({by[order[0]]} in every profile)")
+            parts.append(f"{ref} ({by[order[0]]} in every profile{dynamics})")
         else:
-            parts.append(f"{ref} ({', '.join(f'{by[p]} in the {p} profile' for p in order)})")
+            parts.append(f"{ref} ({', '.join(f'{by[p]} in the {p} profile' for p in order)}{dynamics})")
     said = "; ".join(parts)
     return (
         f"The reference ('vs' column) is the backend each scenario names as its comparison.reference, run with its "

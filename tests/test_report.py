@@ -1439,6 +1439,26 @@ def test_the_index_says_what_the_reference_is_and_rtf_creep_and_integrator_read_
     assert "| RTF (simulated s per wall s) |" in page and "RTF, the real-time factor: the run's simulated time" in page
 
 
+def test_the_index_says_what_computes_the_references_dynamics_where_the_backend_declares_it(tmp_path: Path) -> None:
+    """A reviewer read 'vs pinocchio' in the index as Pinocchio's code, where the reference runs legbench's compiled
+    ABA on Pinocchio's model (the run pages' dynamics column said so, the index did not): the index's reference
+    sentence carries the reference's declared ``dynamics``, and says nothing more for an engine's own stepper."""
+    root = tmp_path / "tree"
+    d = write_run(root / "one", {"ref": None, "a": scale(1.01)}, name="one")
+    _declare(d, {"ref": {"dt": 5e-5, "sub_steps": 20, "integrator": "euler", "dynamics": "a compiled ABA"},
+                 "a": {"dt": 5e-5, "sub_steps": 20, "integrator": "euler"}})  # fmt: skip
+    R.write_all(root)
+    index = (root / "report.md").read_text()
+    assert "own settings: ref (euler at 50 us x 20 per 1 ms control tick in the matched profile; dynamics: a " \
+           "compiled ABA). It is not ground truth" in index  # fmt: skip
+    plain = tmp_path / "plain"
+    d = write_run(plain / "one", {"ref": None, "a": scale(1.01)}, name="one")
+    _declare(d, {"ref": {"dt": 5e-5, "sub_steps": 20, "integrator": "euler"},
+                 "a": {"dt": 5e-5, "sub_steps": 20, "integrator": "euler"}})  # fmt: skip
+    R.write_all(plain)
+    assert "per 1 ms control tick in the matched profile). It is not" in (plain / "report.md").read_text()
+
+
 def test_the_limit_colours_are_keyed_only_where_a_scenario_sets_a_limit(tmp_path: Path) -> None:
     """results/latest's key listed 'within/exceeds the scenario limit' though no scenario sets max_sim_error_pct, so
     those colours never appear: the key and the paragraph above it name them only where some scenario sets one."""
