@@ -47,17 +47,20 @@ lint: $(STAMP)
 ## the main job: four tasks x all backends x both contact modes (matched profile) and the engine-defaults profile
 ## (native contact), verification and contact calibration (both profiles) -> results/latest/report.html
 compare: runs
-	$(LEGBENCH) verify --out results/latest/verification --jobs $(JOBS) || echo 'verify: some checks fail; the report lists them'
+	$(LEGBENCH) verify --out results/latest/verification --jobs $(JOBS) --force \
+		|| echo 'verify: some checks fail; the report lists them'
 	$(LEGBENCH) verify --profile engine-defaults --out results/latest/verification__engine-defaults --jobs $(JOBS) \
-		|| echo 'verify (engine-defaults): some checks fail; the report lists them'
-	$(LEGBENCH) calibrate-contact --out results/latest/calibration --jobs $(JOBS)
-	$(LEGBENCH) calibrate-contact --profile engine-defaults --out results/latest/calibration__engine-defaults --jobs $(JOBS)
+		--force || echo 'verify (engine-defaults): some checks fail; the report lists them'
+	$(LEGBENCH) calibrate-contact --out results/latest/calibration --jobs $(JOBS) --force
+	$(LEGBENCH) calibrate-contact --profile engine-defaults --out results/latest/calibration__engine-defaults \
+		--jobs $(JOBS) --force
 	$(LEGBENCH) compare results/latest --jobs $(JOBS)
 
-## the four tasks x all backends x both contact modes (matched) and engine-defaults (native) -> results/latest
+## the four tasks x all backends x both contact modes (matched) and engine-defaults (native) -> results/latest.
+## --force replaces these twelve runs (and the studies above) as legbench does: your own runs in results/latest
+## under other names stay, and a file legbench did not write there stops the target with one line naming it
 runs: $(STAMP)
-	rm -rf results/latest
-	$(RUN_TASKS) --out results/latest
+	$(RUN_TASKS) --out results/latest --force
 
 ## regression check of a fresh run of the four tasks against the committed baseline (CI), in its own tree
 ## (results/check: `make compare`'s results/latest, with its verification and calibration, is left as it is).
@@ -73,13 +76,13 @@ check: $(STAMP)
 baseline: compare
 	rm -rf results/baseline
 	mkdir -p results/baseline
-	cd results/latest && for d in */; do if [ -f $$d/metrics.json ]; then mkdir -p ../baseline/$$d && cp $$d/metrics.json $$d/run.json ../baseline/$$d; fi; done
+	cd results/latest && for t in $(basename $(notdir $(TASKS))); do for d in $$t $${t}__reference $${t}__engine-defaults; do \
+		mkdir -p ../baseline/$$d && cp $$d/metrics.json $$d/run.json ../baseline/$$d; done; done
 
 ## the lab report's comparison (tables 10, 11, 12, simulation error % between its frameworks' analogues,
 ## as scenarios/reproduce.yaml maps them) -> results/reproduce/reproduce.{md,html,json}
 reproduce: $(STAMP)
-	rm -rf results/reproduce
-	$(LEGBENCH) reproduce --out results/reproduce --jobs $(JOBS) --quiet
+	$(LEGBENCH) reproduce --out results/reproduce --jobs $(JOBS) --quiet --force
 
 ## harness overhead per backend and task -> results/bench/bench.{json,md}
 bench: $(STAMP)
