@@ -76,7 +76,7 @@ def test_rescaled_force_matches_the_statics_with_own_sub_stepping() -> None:
     """
     tr, info, _ = _run("effort", {})
     assert info["engine_sub_steps"] == 20
-    s = steady_contact(tr.t, tr.q, tr.qd, tr.tau, tr.f)
+    s = steady_contact(tr)
     assert s.force[2] > 30.0  # [N]
     assert s.readout_error < 1e-5, (s.force, s.statics)
 

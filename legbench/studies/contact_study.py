@@ -25,9 +25,11 @@ import numpy as np
 import yaml
 
 from legbench import backends as registry
-from legbench import kinematics
+from legbench import kinematics, metrics
 from legbench import scenario as scenario_mod
 from legbench.backends.base import contact_point
+from legbench.exceptions import LegbenchError
+from legbench.results import RunResult
 from legbench.run import physics_of, simulate
 
 #: Motion of the foot centre counted from this time on [s] (the first 50 ms settle the contact).
@@ -41,7 +43,8 @@ class SteadyContact:
     Attributes:
         force: mean ground force on the foot in W over the final window (Fx, Fy, Fn) [N].
         force_std: standard deviation of each component over the window [N].
-        statics: mean over the window of F = -(J_poc^T)^-1 (tau - G(q)) per tick, in W [N].
+        statics: F = -(J_poc^T)^-1 (tau - G(q)) at the window's mean q and tau, in W [N]
+            (:func:`legbench.metrics.steady_state`).
         readout_error: max_k |force_k - statics_k| / Fn over the three components [1].
         qd: mean joint velocities over the window [rad/s].
         foot_travel: largest horizontal distance of the foot centre from its position at
@@ -64,43 +67,32 @@ class SteadyContact:
         return float(np.linalg.norm(self.qd))
 
 
-def statics_force(q: np.ndarray, tau: np.ndarray, point: tuple[str, float] = ("true", 0.0)) -> np.ndarray:
-    """F = -(J(q)^T)^-1 (tau - G(q)) per row: the ground force on the foot in W [N] that balances
-    the joint torques tau [N m] at rest at q [rad] (N x 3 in, N x 3 out), J the Jacobian of ``point``, where
-    the force acts (``(poc, lift)``, :func:`~legbench.backends.base.contact_point`)."""
-    q = np.atleast_2d(np.asarray(q, float))
-    tau = np.atleast_2d(np.asarray(tau, float))
-    out = np.empty_like(q)
-    for k in range(len(q)):
-        J = kinematics.jacobian_at(q[k], *point)
-        out[k] = -np.linalg.solve(J.T, tau[k] - kinematics.gravity(q[k]))
-    return out
-
-
-def steady_contact(t: np.ndarray, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force: np.ndarray,
-                   window: float = 0.5, point: tuple[str, float] = ("true", 0.0)) -> SteadyContact:  # fmt: skip
-    """Summarise a run's final ``window`` [s]; arrays as logged (t [s], q [rad], qd [rad/s], tau [N m],
-    force in W [N]); the statics at ``point``, where the backend's force acts
-    (:func:`~legbench.backends.base.contact_point`)."""
-    sel = t >= t[-1] - window - 1e-9
-    h = statics_force(q[sel], tau[sel], point)
-    f = force[sel]
+def steady_contact(tr: RunResult, window: float = 0.5, point: tuple[str, float] = ("true", 0.0),
+                   gravity: float | None = None) -> SteadyContact:  # fmt: skip
+    """Summarise the final ``window`` [s] of run ``tr`` (the closed interval metrics.steady_state takes); the
+    statics at ``point``, where the backend's force acts (``(poc, lift)``,
+    :func:`~legbench.backends.base.contact_point`), with G(q) for the run's ``gravity`` [m/s^2] (None: the leg
+    file's): metrics.steady_state's analytic force check, the one implementation of it."""
+    ss = metrics.steady_state(tr, window, point[0], gravity, lift=point[1])
+    sel = (tr.t >= ss.t0 - metrics.T_EPS) & (tr.t <= ss.t1 + metrics.T_EPS)
+    f = tr.f[sel]
     # deviations from the window's first sample: numpy's mean over axis 0 of an N x 3 log sums row
     # by row, so mean and std of the raw samples carry round-off of the force's size (a bit-constant
     # 52.5 N read 2.3e-13 N std, 33 ulp); of the deviations they are exact for a constant force and
     # at the fluctuation's own scale otherwise (std is shift-invariant)
     dev = f - f[0]
-    mean_f, mean_h = f[0] + dev.mean(axis=0), h[0] + (h - h[0]).mean(axis=0)
+    mean_f = f[0] + dev.mean(axis=0)
+    statics = ss.force - ss.residual  # the analytic force at the backend's point
     fn = abs(float(mean_f[2])) or math.nan
-    ee = kinematics.fk(q)[:, :2]
-    later = t >= SETTLE - 1e-9
+    ee = kinematics.fk(tr.q)[:, :2]
+    later = tr.t >= SETTLE - 1e-9
     d = np.linalg.norm(ee[later] - ee[later][0], axis=1)
     return SteadyContact(
         force=mean_f,
         force_std=dev.std(axis=0),
-        statics=mean_h,
-        readout_error=float(np.max(np.abs(mean_f - mean_h)) / fn),
-        qd=qd[sel].mean(axis=0),
+        statics=statics,
+        readout_error=float(np.max(np.abs(mean_f - statics)) / fn),
+        qd=tr.qd[sel].mean(axis=0),
         foot_travel=float(d.max()),
         foot_drift=float(d[-1]),
     )
@@ -126,9 +118,9 @@ def run_case(scenario: str | Path, backend: str, profile: str = "matched", setti
     finally:
         b.close()
     if tr.status != "ok":
-        raise RuntimeError(f"{backend} {profile} {settings}: {tr.status}: {tr.reason}")
+        raise LegbenchError(f"{backend} {profile} {settings}: {tr.status}: {tr.reason}")
     w = window if window is not None else sc.comparison.steady_window
-    return steady_contact(tr.t, tr.q, tr.qd, tr.tau, tr.f, w, contact_point(tr.info, physics.contact.poc))
+    return steady_contact(tr, w, contact_point(tr.info, physics.contact.poc), physics.gravity)
 
 
 def table(rows: Sequence[tuple[str, SteadyContact]]) -> str:
