@@ -482,6 +482,12 @@ def parse(
             raise ctx.error(["events", i, "delay"], f"the switch at {e.t_switch:g} s is past the end ({duration} s)")
         if exact_d and not cut:
             _check_ends_in_run(ctx, i, e, events[i + 1].t_switch if i + 1 < len(events) else None, duration)
+        for j, f in enumerate(e.frequency or ()):  # a torque event's sine, held over each control period
+            if exact_r and f >= rate / 2:
+                raise ctx.error(["events", i, "torque", "frequency", j],
+                                f"{f:g} Hz is not below half the control rate ({rate / 2:g} Hz): the torque is "
+                                f"sampled once per tick, so it would alias (at {rate:g} Hz every sample is "
+                                "sin(phase))")  # fmt: skip
     for i, (a, b) in enumerate(zip(events, events[1:], strict=False)):
         if b.t_switch < a.t_switch:
             raise ctx.error(["events", i + 1, "t"], f"with its delay this event switches at {b.t_switch:g} s, before "
