@@ -447,7 +447,10 @@ def _compare(args: argparse.Namespace) -> int:
         jobs=args.jobs,
         progress=lambda page: print(f"wrote {page}", flush=True),  # each page as it is put in place (after all render)
     )
-    return EXIT_OK
+    missing = results.missing_logs(args.dir)  # reported without that backend, as a failed one would be
+    for line in missing:
+        print(f"legbench: {line}", file=sys.stderr)
+    return EXIT_BACKEND_FAILED if missing else EXIT_OK
 
 
 def add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

@@ -84,6 +84,7 @@ __all__ = [
     "log_digests",
     "load_trace",
     "metrics_text",
+    "missing_logs",
     "out_dir_for",
     "platform_info",
     "profile_of",
@@ -1143,6 +1144,29 @@ def run_dirs(root: str | Path) -> dict[str, Path]:
     return dirs
 
 
+def _missing_log(path: Path, fname: str) -> str:
+    return f"run.json says ok but {fname} is not in {path}"
+
+
+def missing_logs(root: str | Path) -> list[str]:
+    """What the run directories under ``root`` (or ``root`` itself) lack: a log of a backend their run.json says
+    ran ok, as :func:`load_run` reports it (that backend left out of the comparison), ``name: <backend>
+    missing: why`` each; an empty list where every log is there. Reads run.json only.
+
+    Raises:
+        ResultsError: as :func:`run_dirs` and :func:`read_meta`.
+    """
+    out = []
+    for d in run_dirs(root).values():
+        if not (d / "run.json").is_file():
+            continue
+        for bname, b in read_meta(d)["backends"].items():
+            fname = str(b.get("file") or f"{bname}.parquet")
+            if str(b["status"]) == "ok" and not (d / fname).exists():
+                out.append(f"{bname} missing: {_missing_log(d, fname)}")
+    return out
+
+
 def read_log(path: str | Path) -> pd.DataFrame:
     """A backend's parquet log as written (every column, the controller names included).
 
@@ -1277,7 +1301,7 @@ def load_run(run_dir: str | Path) -> Run:
         if status == "ok" and fpath.exists() and not fpath.is_file():  # a folder or a device: not a log to read
             raise ResultsError(str(fpath), f"is {_kind(fpath)}, not a backend log (run.json says {bname} ran ok)")
         if status == "ok" and not fpath.is_file():
-            status, reason = "missing", f"run.json says ok but {fname} is not in {path}"
+            status, reason = "missing", _missing_log(path, fname)
         if status == "ok":
             traces[bname] = load_trace(fpath, bname)
             _check_span(traces[bname], duration, rate, fpath, rj)

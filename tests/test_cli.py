@@ -50,6 +50,24 @@ def test_bad_log_column_mapping_is_a_one_line_error(tmp_path: Path, capsys: pyte
     assert "--log-columns 'time_ms': expected HEADER=COLUMN" in capsys.readouterr().err
 
 
+def test_compare_of_a_run_missing_a_log_says_so_and_exits_3(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A run directory whose run.json says a backend ran ok but whose log is gone: the report leaves that backend
+    out (as a failed one), and the command says so on stderr and exits 3, as a run with a failed backend does (it
+    said nothing and exited 0; the gap showed only inside report.md). In a tree, each such log is named."""
+    tree = tmp_path / "tree"
+    write_run(tree / "one", {"ref": None, "a": scale(1.02)}, name="one")
+    write_run(tree / "two", {"ref": None, "a": scale(1.01)}, name="two")
+    assert cli.main(["compare", str(tree)]) == 0
+    (tree / "two" / "a.parquet").unlink()
+    capsys.readouterr()
+    assert cli.main(["compare", str(tree / "two")]) == 3
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"legbench: a missing: run.json says ok but a.parquet is not in {tree / 'two'}"]
+    assert cli.main(["compare", str(tree)]) == 3
+    assert "a.parquet is not in" in capsys.readouterr().err
+    assert "backend 'a' missing" in (tree / "two" / "report.md").read_text()
+
+
 def test_run_records_the_declared_abilities(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``legbench run`` end to end on one backend: exit 0, one log of 51 ticks (0.05 s at 1 kHz), and run.json
     holding the backend's declared integrator family and sub-step count (control period / dt) beside its settings."""
