@@ -729,6 +729,23 @@ def test_metrics_json_round_trips_and_keeps_its_documented_keys(tmp_path: Path) 
     assert {"sim_error_pct", "rms", "max_abs", "t_max_abs", "ref_peak", "lag", "steady_mean"} <= metrics
 
 
+def test_first_contact_is_the_first_sample_above_half_a_newton() -> None:
+    """first_contact (metrics.json ``backends.<name>.first_contact``) is the first sample whose normal force
+    exceeds FN_MIN = 0.5 N, the residuals' "in contact", not the first nonzero one: a 1 kHz log with no force
+    until 20 ms, a light 0.3 N touch from 20 ms, then a 7 N/s ramp from 50 ms (0.3 + 7 (t - 0.05) N) crosses
+    0.5 N at 78.57 ms, so 78 ms (0.496 N) is not in contact and 79 ms (0.503 N) is the first contact (1e-12 s:
+    a sample time, exact); the 0.3 N touch from 20 ms is not."""
+    t = np.arange(101) * 1e-3
+    fz = np.zeros_like(t)
+    fz[20:] = 0.3
+    fz[50:] += 7.0 * (t[50:] - 0.05)
+    assert fz[78] < 0.5 < fz[79]  # the hand numbers: 0.496 and 0.503 N
+    trace = results.result_from_frame(pd.DataFrame({"t": t, "fx": 0.0, "fy": 0.0, "fz": fz}), "a")
+    assert C.first_contact(trace) == pytest.approx(0.079, abs=1e-12)
+    light = results.result_from_frame(pd.DataFrame({"t": t, "fx": 0.0, "fy": 0.0, "fz": np.minimum(fz, 0.3)}), "a")
+    assert C.first_contact(light) is None  # a touch that never exceeds 0.5 N is no contact
+
+
 def test_read_metrics_rejects_a_wrong_schema(tmp_path: Path) -> None:
     """A metrics.json of another schema is a ResultsError naming the file."""
     f = tmp_path / "metrics.json"

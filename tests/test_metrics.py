@@ -179,6 +179,25 @@ def test_a_lag_at_the_search_limit_or_on_a_flat_correlation_is_not_identified() 
         assert abs(between.samples - lag / 1e-3) < 1e-3, (lag, between.samples)
 
 
+def test_at_most_half_the_common_span_is_searched_whatever_max_lag() -> None:
+    """A 0.2 s trace at 1 kHz (201 samples) with max_lag 1 s: the search is capped at half the common span, 100
+    samples (100 ms), as documented (docs/metrics.md). A 130 ms lag, beyond that half, peaks at the limit and is
+    not identified (NaN), the note naming the 100 ms limit; a 50 ms lag within it is still found (to 1e-2 sample:
+    the slow swing's parabola error, measured 6e-3), so the large max_lag itself does no harm."""
+    t = np.arange(0.0, 0.2 + 1e-12, 1e-3)
+
+    def swing(lag: float) -> np.ndarray:
+        s = t - lag
+        return np.column_stack([0.1 * np.sin(np.pi * s), 2.6 + 0.8 * np.sin(2 * np.pi * s), np.cos(3 * np.pi * s)])
+
+    ref = _trace("ref", t, swing(0.0))
+    beyond = metrics.estimate_lag(_trace("a", t, swing(0.13)), ref, max_lag=1.0)
+    assert math.isnan(beyond.seconds) and math.isnan(beyond.samples)
+    assert "search limit (100 ms)" in beyond.note, beyond.note
+    within = metrics.estimate_lag(_trace("a", t, swing(0.05)), ref, max_lag=1.0)
+    assert abs(within.samples - 50.0) < 1e-2 and within.note == ""
+
+
 def test_a_component_at_rest_does_not_steer_the_lag_and_a_lag_that_hurts_is_not_removed() -> None:
     """q1 at rest but for 1e-17 rad of round-off: its Pearson correlation is noise and weighed as much as a
     swinging joint's (a planted 20 ms lag came back as 5.3 ms). It is left out: 20 ms. And where shifting by the
