@@ -135,7 +135,8 @@ def residuals(
     ft = np.hypot(f[:, 0], f[:, 1])
     slides = contact & (vt >= 1.5 * params.v_th) & np.isfinite(ft)
     mu_slide = params.mu_s if sliding == "mu_s" else params.mu_k
-    ratio = ft[slides] / (mu_slide * fn[slides])
+    # frictionless ground (mu 0): no friction bound to measure against, n/a (it divided by zero)
+    ratio = ft[slides] / (mu_slide * fn[slides]) if mu_slide > 0 else np.empty(0)
 
     scored = contact & (vt >= V_DIRECTION) & (ft > 1e-9)
     cosang = -(f[scored, 0] * v[scored, 0] + f[scored, 1] * v[scored, 1]) / (ft[scored] * vt[scored])

@@ -111,6 +111,25 @@ def test_residuals_see_a_wrong_law() -> None:
     assert residuals(t, q, qd, f, P, sliding="mu_s").friction_ratio == pytest.approx(1.0, rel=1e-9)
 
 
+def test_frictionless_ground_has_no_friction_ratio_and_no_warning() -> None:
+    """mu_s = mu_k = 0 (a frictionless ground, valid input): sliding samples are counted, their friction ratio
+    |F_t| / (mu Fn) is n/a (NaN), and nothing is divided by zero (numpy's RuntimeWarning reached the terminal of
+    `legbench run` with its source line); the penetration is scored as before."""
+    import dataclasses
+    import warnings
+
+    frictionless = dataclasses.replace(P, mu_s=0.0, mu_k=0.0)
+    speeds = np.linspace(2 * P.v_th, 0.1, 10) / 0.4
+    t, q, qd, f = _synthetic(np.array([1.0, 0.0, 0.0]), speeds)
+    f = f.copy()
+    f[:, :2] = 0.0  # no friction
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r = residuals(t, q, qd, f, frictionless)
+    assert r.n_sliding == 10 and math.isnan(r.friction_ratio)
+    assert r.penetration_max < 1e-15
+
+
 def test_a_missing_sample_leaves_out_only_that_sample() -> None:
     """An imported log's NaN (one joint speed, one friction component) leaves that sample out of the scores that
     need it, as the deviation metrics do; before, one NaN made penetration_max, penetration_rms and creep_speed
@@ -283,3 +302,40 @@ def test_the_slip_is_taken_where_the_backend_says_its_force_acts() -> None:
     assert at_mid.n_creep == 20 and at_mid.creep_speed < 1e-15
     v_poc = np.hypot(*(kinematics.jacobian_poc(q) @ qd[..., None])[:, :2, 0].T)
     assert at_poc.creep_speed == pytest.approx(float(np.median(v_poc)), rel=1e-12) and at_poc.creep_speed > 1e-4
+
+
+def test_penetration_max_and_rms_of_an_uneven_spring_error() -> None:
+    """At the pose 4 mm in the ground (y = 4 mm, rising: ydot < 0, no damping, so Fn_spring = Fn), normal forces
+    of 0.75, 1.125, 0.9375, 1 and 0.5 Kp y leave y - Fn / Kp = 1, -0.5, 0.25, 0 and 2 mm: penetration_max is the
+    largest |.|, 2 mm, and penetration_rms sqrt((1 + 0.25 + 0.0625 + 0 + 4) / 5) mm = sqrt(1.0625) mm =
+    1.0308 mm, not the largest (1e-15 m: y from the forward kinematics is 4 mm to a few ulp of the 0.2 m links,
+    ~1e-16 m)."""
+    qd_dir = np.array([1.0, 0.0, 0.0])
+    t, q, qd, f = _synthetic(qd_dir, np.linspace(2 * P.v_th, 0.1, 5) / 0.4)
+    ydot = -(kinematics.jacobian_poc(q) @ qd[..., None])[:, 2, 0]
+    assert ydot.max() < 0  # rising: the law adds no damping, the whole normal force is the spring's
+    y = 0.004  # [m]: _synthetic's depth
+    f = f.copy()
+    f[:, 2] = np.array([0.75, 1.125, 0.9375, 1.0, 0.5]) * P.Kp * y  # [N]: 30, 45, 37.5, 40, 20
+    r = residuals(t, q, qd, f, P)
+    assert r.n_contact == 5
+    assert r.penetration_max == pytest.approx(2e-3, rel=0, abs=1e-15)
+    assert r.penetration_rms == pytest.approx(1e-3 * math.sqrt(1.0625), rel=0, abs=1e-15)
+    # the same from the definition, with y from the forward kinematics: sqrt(mean((y - Fn / Kp)^2))
+    y_fk = load_params().geometry.R_foot - kinematics.fk(q)[:, 2]
+    assert r.penetration_rms == pytest.approx(math.sqrt(np.mean((y_fk - f[:, 2] / P.Kp) ** 2)), rel=1e-12)
+
+
+def test_penetration_rel_is_the_median_over_contact_samples() -> None:
+    """A spring error that differs over thirds of 9 samples at y = 4 mm (rising, no damping): Fn = 0.8 Kp y on
+    the first three (|y Kp / Fn - 1| = 0.25), 1.25 Kp y on the middle three (0.2), 0.5 Kp y on the last three
+    (1.0). penetration_rel is their median, 0.25, not the mean 0.4833, the largest 1.0, nor the middle sample's
+    0.2 (1e-12: y from the forward kinematics is 4 mm to a few ulp of the 0.2 m links, ~1e-16 m, 2.5e-14 of y;
+    measured 2.3e-14)."""
+    qd_dir = np.array([1.0, 0.0, 0.0])
+    t, q, qd, f = _synthetic(qd_dir, np.linspace(2 * P.v_th, 0.1, 9) / 0.4)
+    f = f.copy()
+    f[:, 2] = np.repeat([0.8, 1.25, 0.5], 3) * P.Kp * 0.004  # [N]: 32, 50, 20
+    r = residuals(t, q, qd, f, P)
+    assert r.n_contact == 9
+    assert r.penetration_rel == pytest.approx(0.25, rel=0, abs=1e-12)
