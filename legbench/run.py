@@ -25,6 +25,7 @@ import numpy as np
 from legbench import backends as registry
 from legbench import progress as progress_mod
 from legbench.backends.base import Backend, Physics, info_problem
+from legbench.contact import friction_chatter
 from legbench.controllers import Controller, make_controller
 from legbench.exceptions import BackendNotFound, LegbenchError, SimulationDiverged
 from legbench.model import load_params
@@ -175,6 +176,8 @@ def simulate(
         controller[min(first, n) :] = name
     try:
         info = backend_info(backend)
+        if status == "ok":  # the log read at the ticks: a friction that chatters, whatever the engine
+            info["warnings"] = [*info["warnings"], *friction_chatter(backend.name, t, f_log, physics.contact)]
     except Exception as exc:  # the run is kept up to here, but a backend that cannot say what it ran failed
         info = _declared(backend)
         if status == "ok":

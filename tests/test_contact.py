@@ -272,3 +272,29 @@ def test_implicit_generalized_makes_an_explicit_step_the_implicit_one() -> None:
         np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12)
         checked += 1
     assert checked >= 50
+
+
+def test_friction_chatter_is_read_from_reversals_between_ticks() -> None:
+    """A friction force at its bound that reverses direction every tick is chatter (one warning, naming the count
+    and the first tick); the same force turning slowly, reversing once (the combined task's swing), or too small
+    to be near its bound (|F_t| < mu_k Fn / 2) is not; a frictionless contact has nothing to chatter."""
+    from legbench.contact import ContactParams, friction_chatter
+
+    p = ContactParams()
+    n = 1000
+    t = np.arange(n) * 1e-3
+    fn = np.full(n, 50.0)
+    sign = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
+    flipping = np.column_stack([0.7 * fn * sign, np.zeros(n), fn])
+    (w,) = friction_chatter("b", t, flipping, p)
+    assert "reverses between control ticks at 999 of 1000 ticks in contact, from t = 0.001 s" in w
+    angle = np.linspace(0.0, np.pi, n)  # turns by 180 deg over the run: 0.18 deg a tick
+    turning = np.column_stack([0.7 * fn * np.cos(angle), 0.7 * fn * np.sin(angle), fn])
+    assert friction_chatter("b", t, turning, p) == []
+    once = np.column_stack([0.7 * fn * np.where(t < 0.5, 1.0, -1.0), np.zeros(n), fn])
+    assert friction_chatter("b", t, once, p) == []
+    small = np.column_stack([0.2 * p.mu_k * fn * sign, np.zeros(n), fn])
+    assert friction_chatter("b", t, small, p) == []
+    import dataclasses
+
+    assert friction_chatter("b", t, flipping, dataclasses.replace(p, mu_s=0.0, mu_k=0.0)) == []
