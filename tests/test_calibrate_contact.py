@@ -130,7 +130,7 @@ def test_an_explanation_that_raises_is_a_note_and_the_row_is_kept(monkeypatch: p
 def test_files_written(table: pd.DataFrame, tmp_path: Path) -> None:
     calibrate_contact.write_calibration(table, tmp_path)
     md = (tmp_path / "calibration.md").read_text()
-    assert "k eff [N/m]" in md and all(n in md for n in table["backend"])
+    assert "k eff: dFn/dy between the rests [N/m]" in md and all(n in md for n in table["backend"])
     assert (tmp_path / "calibration.json").stat().st_size > 0
 
 

@@ -276,8 +276,9 @@ class MujocoBackend(Backend):
             y, k = usual_rest_depth(contact, expected * float(contact["Kp"]))
             return held(f"known: the usual solref (-Kp, -Kd) is not Kp N/m: it goes through the impedance d(y) "
                         f"{tuple(contact['solimp'])} and the constraint's mass, and MuJoCo's steady state is Fn / y = "
-                        f"Kp d^2 / (dmax^2 (1 - d) A) (x 2 / (mu^2 (1 + mu^2)) on the pyramidal cone): {k:.4g} N/m, "
-                        f"y = {y:.4g} m for this Fn", measured, y, tolerance, " (docs/contact_mapping.md)")  # fmt: skip
+                        f"Kp d^2 / (dmax^2 (1 - d) A) (x 2 / (mu^2 (1 + mu^2)) on the pyramidal cone; a secant, "
+                        f"rising with the load through d(y)): {k:.4g} N/m, y = {y:.4g} m for this Fn",
+                        measured, y, tolerance, " (docs/contact_mapping.md)")  # fmt: skip
         load = info.get("load")
         if (case == "creep" and usual and isinstance(contact, Mapping) and contact.get("cone") == "mjCONE_PYRAMIDAL"
                 and isinstance(load, Mapping) and float(load["Fn"]) > 0.0):  # fmt: skip

@@ -324,9 +324,9 @@ def calibrate(
 
 
 _HEADERS = {
-    "backend": "backend", "Kp": "Kp spec [N/m]", "k_eff": "k eff [N/m]", "Kd": "Kd spec [N s/m]",
-    "c_eff": "c eff [N s/m]", "mu_s": "mu_s", "Fn": "Fn [N]", "Ft": "Ft [N]", "creep": "creep [mm/s]",
-    "creep_law": "law creep [mm/s]", "c_tangential": "Ft/creep [N s/m] (inf: sticks)",
+    "backend": "backend", "Kp": "Kp spec [N/m]", "k_eff": "k eff: dFn/dy between the rests [N/m]",
+    "Kd": "Kd spec [N s/m]", "c_eff": "c eff [N s/m]", "mu_s": "mu_s", "Fn": "Fn [N]", "Ft": "Ft [N]",
+    "creep": "creep [mm/s]", "creep_law": "law creep [mm/s]", "c_tangential": "Ft/creep [N s/m] (inf: sticks)",
 }  # fmt: skip
 
 
