@@ -560,6 +560,12 @@ def parse(
     validate_tolerances(comparison.tolerances, file, "comparison.tolerances", ctx)
     if exact_d and comparison.skip >= duration:
         raise ctx.error(["comparison", "skip"], f"skips the whole run ({duration} s)")
+    if exact_d and exact_r and comparison.skip > duration - 1.0 / rate + 1e-9:
+        raise ctx.error(["comparison", "skip"], f"leaves fewer than two control ticks of the {duration} s run to "
+                                                "compare")  # fmt: skip
+    if exact_r and "steady_window" in cmp_d and comparison.steady_window < 1.0 / rate - 1e-9:
+        raise ctx.error(["comparison", "steady_window"], f"{comparison.steady_window:g} s is shorter than one control "
+                        f"period ({1.0 / rate:g} s): the window would hold one tick, no mean")  # fmt: skip
     if exact_d and comparison.steady_window > duration:
         raise ctx.error(["comparison", "steady_window"],
                         f"longer than the run ({duration} s): give a shorter one (--set comparison.steady_window=...)"

@@ -65,6 +65,9 @@ BASE = {"name": "t", "duration": 1.0, "events": [{"t": 0.0, "position": {"joint"
         ({"events": [{"t": 0.0, "torque": {"amplitude": [0.1, 0.1, 0.1]}}]}, "events[0].torque", "frequency"),
         ({"events": [{"t": 0.0, "torque": {"amplitude": [0.1] * 3, "frequency": [1, -1, 1]}}]},
          "events[0].torque.frequency[1]", ">= 0"),
+        # a steady window of under one control period holds one tick; a skip past the last period leaves one tick
+        ({"comparison": {"steady_window": 1e-6}}, "comparison.steady_window", "shorter than one control period"),
+        ({"comparison": {"skip": 0.9995}}, "comparison.skip", "fewer than two control ticks"),
         # a sine at or above half the control rate is sampled into another one (at 1 kHz a 1 kHz sine is all zeros)
         ({"events": [{"t": 0.0, "torque": {"amplitude": [0.1] * 3, "frequency": [1, 500, 1]}}]},
          "events[0].torque.frequency[1]", "not below half the control rate (500 Hz)"),
