@@ -62,7 +62,7 @@ from legbench.results import (
     run_dirs,
     tolerances_of,
 )
-from legbench.scenario import TOLERANCE_METRICS, validate_tolerances
+from legbench.scenario import TOLERANCE_METRICS, is_leg_parameter_file, validate_tolerances
 from legbench.signals import keyed
 from legbench.signals import label as column_label
 
@@ -241,6 +241,7 @@ def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[st
                                            "--tolerances out for the defaults)")  # fmt: skip
     if not isinstance(doc, Mapping):
         raise ScenarioError(str(path), "", "top level must be a mapping")
+    _refuse_other_file(doc, path)
     doc = dict(doc)
     per = doc.pop("scenarios", None)
     if per is None:
@@ -249,6 +250,16 @@ def load_tolerances(path: str | Path) -> tuple[dict[str, Any], dict[str, dict[st
         raise ScenarioError(str(path), "scenarios", "must be a mapping of scenario name or run label to tolerances")
     common = _validate(doc, str(path), "", ctx)
     return common, {str(k): _validate(v, str(path), ["scenarios", str(k)], ctx) for k, v in per.items()}
+
+
+def _refuse_other_file(doc: Mapping[str, Any], path: Path) -> None:
+    """Another of legbench's files given to ``--tolerances`` is named for what it is (a leg parameter file read
+    "geometry: unknown tolerance", a scenario "name: unknown tolerance")."""
+    other = yamlfile.other_file(doc, "a tolerance file")
+    if other is None and is_leg_parameter_file(doc):
+        other = "is a leg parameter file, not a tolerance file: give it to legbench --model (or LEGBENCH_MODEL)"
+    if other is not None:
+        raise ScenarioError(str(path), "", other)
 
 
 def tolerance_errors(path: str | Path) -> list[ScenarioError]:

@@ -26,7 +26,7 @@ import pinocchio as pin
 
 from legbench import resources
 from legbench.exceptions import ModelError, ScenarioError
-from legbench.yamlfile import check_magnitude, one_line, read_bytes, read_yaml
+from legbench.yamlfile import check_magnitude, one_line, other_file, read_bytes, read_yaml
 
 #: The source checkout's root (only meaningful when running from one; data paths come from
 #: :mod:`legbench.resources`).
@@ -438,6 +438,9 @@ def _check_physical(raw: Any, path: Path | str) -> None:
 
     if not isinstance(raw, dict):
         raise ModelError(one_line(f"{path}: expected a mapping at the top level, got {_value(raw)}"))
+    other = other_file(raw, "a leg parameter file")
+    if other is not None and not set(map(str, raw)) & set(SECTIONS):  # a scenario given to --model
+        raise ModelError(one_line(f"{path}: {other}"))
     sections = f"a leg parameter file has {_listing(SECTIONS)}"
     keys("", raw, SECTIONS, unknown=f"unknown section ({sections})", missing=f"missing ({sections})")
 

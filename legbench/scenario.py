@@ -64,6 +64,7 @@ from legbench.yamlfile import (
     keypath,
     limit,
     number,
+    other_file,
     read_yaml,
     set_key,
     vector,
@@ -397,10 +398,9 @@ def parse(
     ctx = YamlContext(file, root, overridden, origin)
     exact_d, exact_r = "duration" not in placeholders, "control_rate" not in placeholders
     if isinstance(doc, Mapping) and "events" not in doc:  # another of legbench's files, given where a scenario goes
-        for key, kind, command in (("studies", "a sweep file", "legbench sweep"),
-                                   ("frameworks", "a framework file", "legbench reproduce")):  # fmt: skip
-            if key in doc:
-                raise ctx.error([], f"is {kind} (it has '{key}'), not a scenario: run it with {command}")
+        other = other_file(doc, "a scenario")
+        if other is not None:
+            raise ctx.error([], other)
         if is_tolerance_file(doc):
             raise ctx.error([], "is a tolerance file, not a scenario: give it to legbench check --tolerances")
         if is_leg_parameter_file(doc):

@@ -37,6 +37,7 @@ __all__ = [
     "limit",
     "number",
     "one_line",
+    "other_file",
     "parse_overrides",
     "positive_float",
     "read_bytes",
@@ -267,6 +268,25 @@ def one_line(text: str) -> str:
     """``text`` on one line: every control character (newline, carriage return, ...) written as its escape
     (``\\n``), so a message that quotes the user's input is still one line."""
     return _CONTROL.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), str(text))
+
+
+#: legbench's files by a top-level key only they have: (key, what the file is, the command that takes it).
+_FILES_BY_KEY = (("events", "a scenario", "run it with legbench run"),
+                 ("studies", "a sweep file", "run it with legbench sweep"),
+                 ("frameworks", "a framework file", "run it with legbench reproduce"))  # fmt: skip
+
+
+def other_file(doc: Any, expected: str) -> str | None:
+    """Why ``doc`` (parsed YAML) given where ``expected`` goes (``"a leg parameter file"``) is another of legbench's
+    files, by a key only that kind has (a scenario's ``events``, a sweep's ``studies``, a framework file's
+    ``frameworks``), in the words of the message, e.g. "is a scenario (it has 'events'), not a leg parameter
+    file: run it with legbench run"; None where it has none of them (or is that kind itself)."""
+    if not isinstance(doc, Mapping):
+        return None
+    for key, kind, command in _FILES_BY_KEY:
+        if key in doc and kind != expected:
+            return f"is {kind} (it has '{key}'), not {expected}: {command}"
+    return None
 
 
 _NUMBER_TAGS = ("tag:yaml.org,2002:int", "tag:yaml.org,2002:float")

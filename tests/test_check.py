@@ -681,6 +681,23 @@ def test_a_tolerance_of_a_magnitude_no_other_number_may_have_is_refused(
         K.load_tolerances(f)
 
 
+@pytest.mark.parametrize(
+    ("name", "words"),
+    [
+        ("models/leg.yaml", "is a leg parameter file, not a tolerance file: give it to legbench --model"),
+        ("scenarios/effort.yaml", "is a scenario (it has 'events'), not a tolerance file: run it with legbench run"),
+        ("scenarios/sweeps/timestep.yaml", "is a sweep file (it has 'studies'), not a tolerance file"),
+    ],
+)
+def test_another_of_legbenchs_files_given_as_tolerances_is_named(name: str, words: str) -> None:
+    """The leg's parameter file given to --tolerances read "geometry: unknown tolerance", a scenario "name: unknown
+    tolerance": each is named for what it is, as a tolerance file given as a scenario already was."""
+    root = Path(__file__).resolve().parent.parent
+    with pytest.raises(ScenarioError) as exc:
+        K.load_tolerances(root / name)
+    assert words in str(exc.value) and "\n" not in str(exc.value)
+
+
 def test_a_tolerance_file_s_error_names_its_line(tmp_path: Path) -> None:
     """A tolerance file's errors named the key but not the line (a scenario's name both): the line too, in the
     common part and in a scenario's section."""

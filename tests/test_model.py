@@ -727,3 +727,22 @@ def test_a_link_too_light_for_the_engines_is_refused_naming_its_scale_factor(
     assert err.count("\n") == 1, err
     held = _edited(tmp_path, "link3: 1.27669764", "link3: 1e-9", "held.yaml")
     assert model.read_params(held).scale["link3"] == 1e-9
+
+
+@pytest.mark.parametrize(
+    ("name", "words"),
+    [
+        ("effort.yaml", "is a scenario (it has 'events'), not a leg parameter file: run it with legbench run"),
+        ("sweeps/timestep.yaml", "is a sweep file (it has 'studies'), not a leg parameter file"),
+        ("reproduce.yaml", "is a framework file (it has 'frameworks'), not a leg parameter file"),
+    ],
+)
+def test_another_of_legbenchs_files_given_to_model_is_named(name: str, words: str) -> None:
+    """A scenario given to --model read "name: unknown section (a leg parameter file has ...)": each of legbench's
+    other files is named for what it is, with the command that takes it, as a leg file given as a scenario was."""
+    from legbench.exceptions import ModelError
+
+    path = Path(__file__).resolve().parent.parent / "scenarios" / name
+    with pytest.raises(ModelError) as exc:
+        model.load_params(path)
+    assert f"{path}: {words}" in str(exc.value)
