@@ -599,7 +599,10 @@ def _check_physical(raw: Any, path: Path | str) -> None:
          tuple(f.name for f in fields(Contact) if f.default is not MISSING))  # fmt: skip
     for k in c:
         if num(f"contact.{k}", c[k]) < 0:
-            raise bad(f"contact.{k}", c[k], "must be >= 0 (negative damping, stiffness or friction)")
+            what = {"Kp": "stiffness", "Kd": "damping", "v_th": "slip speed", "restitution": "restitution"}.get(
+                k, "friction"
+            )
+            raise bad(f"contact.{k}", c[k], f"must be >= 0 (a negative {what})")
     for k in ("Kp", "v_th"):
         if c[k] <= 0:
             raise bad(f"contact.{k}", c[k], "must be > 0")

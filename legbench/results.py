@@ -655,8 +655,10 @@ def check_out_dir(scenario: Scenario, out_dir: Path, option: str = "--out") -> N
     out_dir = Path(out_dir)
     prev = _previous(out_dir)
     if prev is None:
-        if out_dir.exists() and any(out_dir.iterdir()):
-            raise LegbenchError(f"{out_dir}: not empty and not a legbench run directory; choose another {option}")
+        first = min((p.name for p in out_dir.iterdir()), default=None) if out_dir.exists() else None
+        if first is not None:
+            raise LegbenchError(f"{out_dir}: not empty and not a legbench run directory (it holds {first}); choose "
+                                f"another {option}")  # fmt: skip
         return
     name = (prev.get("scenario") or {}).get("name") if isinstance(prev.get("scenario"), Mapping) else None
     if name is None:

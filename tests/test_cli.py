@@ -737,7 +737,7 @@ def test_a_refused_out_names_the_option(holds: str, tmp_path: Path, capsys: pyte
     argv = ["run", str(POSITION), "--backends", "pinocchio", "--out", str(out), *mode, "-q", "--no-compare"]
     assert cli.main(argv) == 2
     why = {
-        "a foreign file": "not empty and not a legbench run directory; choose another --out",
+        "a foreign file": "not empty and not a legbench run directory (it holds notes.txt); choose another --out",
         "a corrupt run.json": "its run.json is unreadable or corrupt (not written by legbench); choose another --out "
         "or remove it",
         "another scenario's run": "holds results of scenario 'fake', not 'position'; choose another --out or remove it",

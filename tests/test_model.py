@@ -461,6 +461,9 @@ _TUBE = "material, shape, pos, r_out, r_in, length, axis"
     ("edit", "message"),
     [
         (lambda raw: raw.update(bogus=1), f"bogus: unknown section ({_SECTIONS})"),
+        (lambda raw: raw["contact"].update(restitution=-3.0), "contact.restitution: -3.0 must be >= 0 (a negative "
+         "restitution)"),  # it read "(negative damping, stiffness or friction)"
+        (lambda raw: raw["contact"].update(Kd=-1.0), "contact.Kd: -1.0 must be >= 0 (a negative damping)"),
         (lambda raw: raw.pop("contact"), f"contact: missing ({_SECTIONS})"),
         (lambda raw: raw.update(joints={"q1_abad": 1}),
          "joints: {'q1_abad': 1} is not a list of the leg's three joints: q1_abad (revolute), q2_hip (continuous), "
@@ -542,7 +545,8 @@ _TUBE = "material, shape, pos, r_out, r_in, length, axis"
         (lambda raw: raw["contact"].update({"a\nb": 1}),
          "contact.a\\nb: unknown key (known: Kp, Kd, mu_s, mu_k, v_th, restitution, torsional_friction)"),
     ],
-    ids=["unknown-section", "no-contact", "joints-mapping", "joint-string", "no-type", "hip-revolute",
+    ids=["unknown-section", "restitution-negative", "Kd-negative",
+         "no-contact", "joints-mapping", "joint-string", "no-type", "hip-revolute",
          "knee-continuous", "joint-renamed", "no-effort", "joint-unknown-key", "continuous-limits", "effort-string",
          "velocity-0", "huge-integer", "materials-list", "links-list", "link4", "link-list", "link-unknown-key",
          "part-string", "no-shape", "shape-list", "tube-no-r_in", "box-r", "size-number", "size-0", "part-name-twice",

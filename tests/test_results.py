@@ -173,7 +173,8 @@ def test_a_refused_output_directory_names_what_the_caller_named_it_with(tmp_path
         given = () if option == "--out" else (option,)  # --out: the default
         with pytest.raises(LegbenchError) as exc:
             results.check_out_dir(sc, mine, *given)
-        assert str(exc.value) == f"{mine}: not empty and not a legbench run directory; choose another {option}"
+        assert str(exc.value) == (f"{mine}: not empty and not a legbench run directory (it holds notes.txt); choose "
+                                  f"another {option}")  # fmt: skip
         with pytest.raises(LegbenchError) as exc:
             results.check_out_dir(sc, other, *given)
         assert str(exc.value).endswith(f"not 'position'; choose another {option} or remove it")
