@@ -177,16 +177,16 @@ def _run(args: argparse.Namespace) -> int:
         raise LegbenchError(f"--variant {':'.join(twice[0])}: given twice (each pair runs once)")
     modes: list[str | None] = ["native", "reference"] if args.contact_mode == "both" else [args.contact_mode]
     runs: list[tuple[scenario.Scenario, str | None]] = []  # all validated before any runs
+    names = backends.resolve(args.backends)
     for path in args.scenarios:
-        sc = scenario.load(path, overrides)
+        sc = scenario.load(path, overrides, engines=names)
         profiles = list(PROFILES) if args.profile == "both" else [args.profile or sc.profile]
         variants = args.variant or [(prof, mode) for prof in profiles for mode in modes]
         loaded = {sc.profile: sc}
         for prof, mode in variants:  # a profile other than the file's is an override, so it is in the scenario's hash
             if prof not in loaded:
-                loaded[prof] = scenario.load(path, {**overrides, "profile": prof})
+                loaded[prof] = scenario.load(path, {**overrides, "profile": prof}, engines=names)
             runs.append((loaded[prof], mode))
-    names = backends.resolve(args.backends)
     single = len(runs) == 1
     root = Path(args.out) if args.out else Path("results") / "latest"
     plan = [(sc, mode, root if (single and args.out) else results.out_dir_for(root, sc, mode)) for sc, mode in runs]

@@ -385,6 +385,7 @@ def parse(
     every_engine: bool = False,
     origin: str = "--set",
     cut: bool = False,
+    engines: Collection[str] = (),
 ) -> Scenario:
     """Validate a scenario document (already parsed YAML) into a :class:`Scenario`; ``overridden``: the dotted
     keys ``--set`` replaced (their errors name the override, not the file's line: ``(from ORIGIN KEY)``,
@@ -392,9 +393,10 @@ def parse(
     keys (``duration``, ``control_rate``) whose values stand in for invalid ones (:func:`errors` looks past
     them so): the checks that compare other values with them are skipped. ``every_engine`` (``legbench
     validate``): also check that the control period suits the default (or profile) sub-step of every
-    installed engine the scenario gives no ``dt`` (this imports them all); a run checks only the engines it
-    loads, when it loads them. ``cut``: the document is a scenario cut short (:func:`shorten`), the start of the
-    whole run, so a delayed force may start after it (a trajectory or an ellipse may outlast any run)."""
+    installed engine the scenario gives no ``dt`` (this imports them all); ``engines``: only these, the
+    engines a run will load (``legbench run``: the misfit blamed on ``control_rate``, not on a ``dt`` the file
+    never set). ``cut``: the document is a scenario cut short (:func:`shorten`), the start of the whole run, so
+    a delayed force may start after it (a trajectory or an ellipse may outlast any run)."""
     ctx = YamlContext(file, root, overridden, origin)
     exact_d, exact_r = "duration" not in placeholders, "control_rate" not in placeholders
     if isinstance(doc, Mapping) and "events" not in doc:  # another of legbench's files, given where a scenario goes
@@ -538,8 +540,8 @@ def parse(
             if why is not None:
                 raise ctx.error(["backends", bname, key], why)
         _check_combination(ctx, str(bname), backends[bname], profile, mode)
-    if exact_r and every_engine:
-        _check_default_sub_steps(ctx, backends, profile, 1.0 / rate)
+    if exact_r and (every_engine or engines):
+        _check_default_sub_steps(ctx, backends, profile, 1.0 / rate, None if every_engine else engines)
 
     cmp_d = doc.get("comparison", {})
     # default: the last 0.5 s, or the whole of a shorter run (a window given longer than the run is refused)
@@ -767,13 +769,13 @@ def _sub_step_keys(name: str) -> tuple[tuple[str, bool], ...]:
 
 
 def _check_default_sub_steps(ctx: YamlContext, settings: Mapping[str, Mapping[str, Any]], profile: str,
-                             control_dt: float) -> None:  # fmt: skip
+                             control_dt: float, engines: Collection[str] | None = None) -> None:  # fmt: skip
     """The default (or profile) sub-step of every installed engine the scenario gives no ``dt`` for, and its
     default bound on an adaptive step (:attr:`Backend.step_bounds`, where not given), fit the control period
     (:func:`_sub_step_problem`): else the engine would refuse to load (``legbench run``, ``doctor``, with no
     file named) or take more steps per tick than the limit, so ``control_rate`` is blamed, naming the engines."""
     misfits: list[tuple[str, str]] = []
-    for name in dict.fromkeys([*backends.BUILTIN, *settings]):
+    for name in dict.fromkeys([*backends.BUILTIN, *settings] if engines is None else engines):
         given = settings.get(name, {})
         try:
             resolved = backends.get(name).resolve_settings({}, str(given.get("profile", profile)))
@@ -901,12 +903,15 @@ def _ranged(ctx: YamlContext, path: list[str | int], v: Any, rng: Range) -> floa
     return x
 
 
-def load(path: str | Path, overrides: Mapping[str, Any] | None = None, origin: str = "--set") -> Scenario:
+def load(path: str | Path, overrides: Mapping[str, Any] | None = None, origin: str = "--set",
+         engines: Collection[str] = ()) -> Scenario:  # fmt: skip
     """Read and validate a scenario file; ``overrides`` are dotted keys set before validation, their errors
-    naming ``origin`` (what set them in the caller's words: ``--set``, the Python API's ``overrides``)."""
+    naming ``origin`` (what set them in the caller's words: ``--set``, the Python API's ``overrides``);
+    ``engines``: the backends the caller will load, whose default sub-steps must suit the control period
+    (:func:`parse`)."""
     doc, root = read_yaml(path)
     apply_overrides(doc, overrides, origin)
-    return parse(doc, str(path), root, tuple(overrides or ()), origin=origin)
+    return parse(doc, str(path), root, tuple(overrides or ()), origin=origin, engines=engines)
 
 
 def apply_overrides(doc: Any, overrides: Mapping[str, Any] | None, origin: str = "--set") -> None:

@@ -450,14 +450,20 @@ def test_a_run_whose_engine_refuses_the_control_rate_names_the_scenario_file(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """control_rate 333 Hz (3 s: 999 ticks) with Pinocchio's default 50 us sub-step, which does not divide
-    1/333 s: the run's pre-flight refuses it in one line that names the scenario file and the engine's key,
-    exit 2, nothing written; with a sub-step that divides the period it runs."""
+    1/333 s: the run refuses it in one line that names the scenario file and control_rate (the key the file set;
+    it blamed backends.pinocchio.dt, which the file never set, where legbench validate named control_rate) with the
+    engine's key, exit 2, nothing written; with a sub-step that divides the period it runs."""
     sc = tmp_path / "r333.yaml"
     sc.write_text("name: r333\nduration: 3.0\ncontrol_rate: 333\nevents:\n  - {t: 0, position: {joint: [0, 0, 0]}}\n")
     out = tmp_path / "o"
     assert cli.main(["run", str(sc), "--backends", "pinocchio", "--out", str(out), "-q", "--no-compare"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and f"{sc}: backends.pinocchio.dt: 5e-05 s does not divide the control period" in err[0]
+    assert (
+        len(err) == 1
+        and f"{sc}:3: control_rate: 333 Hz does not suit the default (or profile) sub-step of "
+        "pinocchio: backends.pinocchio.dt: 5e-05 s does not divide the control period"
+        in err[0]
+    )
     assert not out.exists()
     argv = ["run", str(sc), "--backends", "pinocchio", "--out", str(out), "-q", "--no-compare",
             "--set", f"backends.pinocchio.dt={1 / 333 / 60!r}"]  # fmt: skip
