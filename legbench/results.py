@@ -310,11 +310,19 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
+        _name_it(exc, path)
         raise
     return path
+
+
+def _name_it(exc: BaseException, path: Path) -> None:
+    """An OSError of a write that names no file (a full disk: "No space left on device") names ``path``, the
+    output it was for, so the one line the CLI prints says where (:mod:`legbench.cli`)."""
+    if isinstance(exc, OSError) and not exc.filename:
+        exc.filename = str(path)
 
 
 def atomic_write_text(path: str | Path, text: str) -> Path:
@@ -334,10 +342,14 @@ def stage_text(final: Path, text: str, tag: str) -> tuple[Path, Path]:
     :func:`commit_staged`. Several files staged first and committed together put a set of files in place
     only once every one of them could be made. Returns (staged, final)."""
     staged = staged_name(final, tag)
-    with open(staged, "wb") as fh:
-        fh.write(text.encode("utf-8"))
-        fh.flush()
-        os.fsync(fh.fileno())
+    try:
+        with open(staged, "wb") as fh:
+            fh.write(text.encode("utf-8"))
+            fh.flush()
+            os.fsync(fh.fileno())
+    except OSError as exc:
+        _name_it(exc, final)
+        raise
     return staged, final
 
 
@@ -393,8 +405,9 @@ def atomic_dir(path: str | Path, keep: Sequence[str] = ()) -> Iterator[Path]:
             shutil.rmtree(old, ignore_errors=True)
         else:
             tmp.rename(path)
-    except BaseException:
+    except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
+        _name_it(exc, path)
         raise
 
 

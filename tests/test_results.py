@@ -347,3 +347,36 @@ def test_a_metrics_row_given_twice_is_refused(tmp_path: Path) -> None:
     results.write_metrics({"schema": results.METRICS_SCHEMA, "backends": {}, "metrics": [row, row]}, d)
     with pytest.raises(ResultsError, match=r"metrics\[1\]: the same row as metrics\[0\] \(fake/ref//qd/1/"):
         results.read_metrics(d)
+
+
+def test_a_full_disk_names_the_output_it_was_writing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A full disk reads "No space left on device" with no file (the OS names none for a write): the atomic writers
+    name the output they were making, so the CLI's one line says where (it read "legbench: I/O error: No space left
+    on device; nothing was replaced"); the previous file and directory stay as they were."""
+    import errno
+
+    def full(*args: Any, **kwargs: Any) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    target = tmp_path / "page.md"
+    target.write_text("before")
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(os, "fsync", full)
+        with pytest.raises(OSError) as exc:
+            results.atomic_write_text(target, "after")
+        assert exc.value.filename == str(target) and target.read_text() == "before"
+        with pytest.raises(OSError) as exc:
+            results.stage_text(target, "after", "t")
+        assert exc.value.filename == str(target)
+    run_dir = tmp_path / "run"
+    with pytest.raises(OSError) as exc, results.atomic_dir(run_dir) as tmp:
+        (tmp / "x").write_text("x")
+        full()
+    assert exc.value.filename == str(run_dir) and not run_dir.exists()
+    # through the CLI: one line naming the output (legbench compare of a run whose page cannot be written)
+    d = write_run(tmp_path / "fake", {"ref": None, "a": scale(1.01)})
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(os, "fsync", full)
+        assert cli.main(["compare", str(d)]) == 4
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"legbench: I/O error: {d}") and "No space left on device" in err[0]
