@@ -73,8 +73,9 @@ def _header(kind: int, Ts: float, gains: Gains | None, params: LegParams, body: 
 def error_integral(
     q1: float, q2: float, q3: float, r1: float, r2: float, r3: float, p: np.ndarray, s: np.ndarray
 ) -> tuple[float, float, float, float, float, float]:
-    """Joint errors r - q [rad] (angular distance on continuous joints) and the forward-Euler integral
-    sum(e Ts) [rad s], updated in ``s``."""
+    """Joint errors r - q [rad] (angular distance on continuous joints) and the integral sum(e Ts) [rad s] with the
+    current error added before use (what Simulink's discrete PID calls backward Euler; docs/spec.md section 6),
+    updated in ``s``."""
     e1 = angdist_scalar(q1, r1) if p[P_WRAP] != 0.0 else r1 - q1
     e2 = angdist_scalar(q2, r2) if p[P_WRAP + 1] != 0.0 else r2 - q2
     e3 = angdist_scalar(q3, r3) if p[P_WRAP + 2] != 0.0 else r3 - q3
@@ -246,8 +247,8 @@ class PID:
     """Discrete PID per joint (ros_control / Simulink form), unfiltered derivative (:func:`pid_law`).
 
     e = d(q, q_des) (angular distance on the continuous hip), edot = (e - e_prev) / Ts,
-    I += e Ts (forward Euler), u = Kp e + Kd edot + Ki I. On activation e_prev is set
-    to the first error, so a new target does not give a one-tick derivative kick (one
+    I += e Ts (the current error added before use: Simulink's backward Euler), u = Kp e + Kd edot + Ki I.
+    On activation e_prev is set to the first error, so a new target does not give a one-tick derivative kick (one
     ros_control PID carried across the target change would; docs/spec.md section 6 gives
     the decision and its measured effect).
     """

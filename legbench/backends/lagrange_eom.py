@@ -21,8 +21,8 @@ under a name that is the SHA-256 of the chain's numbers, of this module's source
 and of sympy's version (:data:`DERIVATION`), so a chain is derived once per machine
 and derivation code and only loaded afterwards (:func:`load_eom`); an edit to the
 derivation or another sympy derives again. Expressions go through
-common-subexpression elimination (a cold derivation of the leg takes about 0.4 s
-of CPU, generation 0.1 s).
+common-subexpression elimination (a cold load, sympy's import, the derivation, the code's generation and
+import, takes 1-2.5 s of CPU: docs/lagrange.md).
 """
 
 from __future__ import annotations
