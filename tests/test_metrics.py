@@ -153,6 +153,12 @@ def _trace(name: str, t: np.ndarray, q: np.ndarray) -> results.RunResult:
                                      required=REQUIRED)  # fmt: skip
 
 
+def _swing(t: np.ndarray, lag: float) -> np.ndarray:
+    """Three joints' slow swings [rad] at times t - lag [s]: the lag tests' signal."""
+    s = t - lag
+    return np.column_stack([0.1 * np.sin(np.pi * s), 2.6 + 0.8 * np.sin(2 * np.pi * s), np.cos(3 * np.pi * s)])
+
+
 def test_a_lag_at_the_search_limit_or_on_a_flat_correlation_is_not_identified() -> None:
     """A 150 ms lag searched within 100 ms came back as 100 ms at correlation 0.88, and two slow ramps (which
     correlate at any lag) as the search limit at correlation 1: both now give no lag (NaN) with a note, and
@@ -161,8 +167,7 @@ def test_a_lag_at_the_search_limit_or_on_a_flat_correlation_is_not_identified() 
     t = np.arange(0.0, 2.0 + 1e-12, 1e-3)
 
     def swing(lag: float) -> np.ndarray:
-        s = t - lag
-        return np.column_stack([0.1 * np.sin(np.pi * s), 2.6 + 0.8 * np.sin(2 * np.pi * s), np.cos(3 * np.pi * s)])
+        return _swing(t, lag)
 
     ref = _trace("ref", t, swing(0.0))
     far = metrics.estimate_lag(_trace("a", t, swing(0.15)), ref, max_lag=0.1)
@@ -185,16 +190,11 @@ def test_at_most_half_the_common_span_is_searched_whatever_max_lag() -> None:
     not identified (NaN), the note naming the 100 ms limit; a 50 ms lag within it is still found (to 1e-2 sample:
     the slow swing's parabola error, measured 6e-3), so the large max_lag itself does no harm."""
     t = np.arange(0.0, 0.2 + 1e-12, 1e-3)
-
-    def swing(lag: float) -> np.ndarray:
-        s = t - lag
-        return np.column_stack([0.1 * np.sin(np.pi * s), 2.6 + 0.8 * np.sin(2 * np.pi * s), np.cos(3 * np.pi * s)])
-
-    ref = _trace("ref", t, swing(0.0))
-    beyond = metrics.estimate_lag(_trace("a", t, swing(0.13)), ref, max_lag=1.0)
+    ref = _trace("ref", t, _swing(t, 0.0))
+    beyond = metrics.estimate_lag(_trace("a", t, _swing(t, 0.13)), ref, max_lag=1.0)
     assert math.isnan(beyond.seconds) and math.isnan(beyond.samples)
     assert "search limit (100 ms)" in beyond.note, beyond.note
-    within = metrics.estimate_lag(_trace("a", t, swing(0.05)), ref, max_lag=1.0)
+    within = metrics.estimate_lag(_trace("a", t, _swing(t, 0.05)), ref, max_lag=1.0)
     assert abs(within.samples - 50.0) < 1e-2 and within.note == ""
 
 
