@@ -220,7 +220,7 @@ def _run(args: argparse.Namespace) -> int:
         raise
     ran = iter(run.run_many(plan_run, names, jobs=args.jobs, csv=args.csv, progress=not args.quiet, pool=pool)
                if plan_run else [])  # fmt: skip
-    not_ok: list[str] = []  # scenario/backend of each run that did not finish ok
+    not_ok: list[str] = []  # run directory/backend of each run that did not finish ok
     for sc, mode, out in plan:
         if out in pending:
             print(f"{sc.name}: {out}: every backend finished in an earlier run of the same scenario, settings and "
@@ -228,7 +228,7 @@ def _run(args: argparse.Namespace) -> int:
                   "would (--force runs it again)")  # fmt: skip
             for bname, entry in results.read_meta(out)["backends"].items():  # as the earlier run printed them
                 if entry["status"] != "ok":
-                    not_ok.append(f"{sc.name}/{bname}")
+                    not_ok.append(f"{out.name}/{bname}")
                     print(f"  {bname:<10} {str(entry['status']).upper()}: {entry.get('reason')}")
             continue
         res = next(ran)
@@ -238,7 +238,7 @@ def _run(args: argparse.Namespace) -> int:
         )
         for tr in res:
             if tr.status != "ok":
-                not_ok.append(f"{sc.name}/{tr.backend}")
+                not_ok.append(f"{out.name}/{tr.backend}")
                 print(f"  {tr.backend:<10} {tr.status.upper()}: {tr.reason}")
                 continue
             rtf = tr.t[-1] / tr.wall_time if tr.wall_time > 0 else float("nan")

@@ -395,10 +395,11 @@ def law_step_warnings(backend: str, h: float, fn_peak: float, q_peak: list[float
     ]
 
 
-#: A friction force reversing between consecutive control ticks, turning by more than 120 deg with both ticks'
-#: |F_t| above half of mu_k Fn, on at least this many ticks and this share of the ticks in contact, is chatter
-#: (:func:`friction_chatter`): the runs of the four tasks on every engine reverse at most once (the combined
-#: task's swing), a run of the law stepped too coarsely for its slope at 721 of 3000 ticks.
+#: A friction force that reverses between consecutive control ticks (turning by more than 120 deg, both ticks'
+#: |F_t| above half of mu_k Fn) and reverses again within two ticks, on at least this many ticks and this share of
+#: the ticks in contact, is chatter (:func:`friction_chatter`): a slide rubbed back and forth reverses once per half
+#: period (every 5 ticks even at 100 Hz), and the runs of the four tasks on every engine reverse at most once (the
+#: combined task's swing); the law stepped too coarsely for its slope did so at 308 of 3000 ticks.
 CHATTER_TICKS = 10
 CHATTER_SHARE = 0.01
 
@@ -406,10 +407,11 @@ CHATTER_SHARE = 0.01
 def friction_chatter(backend: str, t: np.ndarray, force: np.ndarray, p: ContactParams) -> list[str]:
     """The warning of a run whose friction chatters, read from its log at the control ticks, or none.
 
-    Any contact's friction (the law's or an engine's) that is resolved turns smoothly from tick to tick; one that
-    flips sign every step of a too coarse integrator reverses between ticks over and over, each tick at the
-    friction bound, so the run's forces and creep are the step's, not the physics' (the law stepped at 50 us with
-    v_th = 1e-5 m/s, whose implicit step no bound covers: Fx, Fy spread by 22 N where they hold to 1e-4 N).
+    Any contact's friction (the law's or an engine's) that is resolved turns smoothly from tick to tick, and a
+    slide that changes direction reverses it once; one that flips sign every step of a too coarse integrator
+    reverses and reverses back within a tick or two, over and over, each tick near the friction bound, so the
+    run's forces and creep are the step's, not the physics' (the law stepped at 50 us with v_th = 1e-5 m/s, whose
+    implicit step no bound covers: Fx, Fy spread by 22 N where they hold to 1e-4 N).
 
     Args:
         backend: backend name, for the message.
@@ -417,7 +419,7 @@ def friction_chatter(backend: str, t: np.ndarray, force: np.ndarray, p: ContactP
         force: ground force on the foot in W [N] (n, 3).
         p: contact parameters (mu_k: the bound the test takes half of).
     """
-    if p.mu_k <= 0.0 or len(t) < 2:
+    if p.mu_k <= 0.0 or len(t) < 3:
         return []
     ft, fn = force[:, :2], force[:, 2]
     mag = np.hypot(ft[:, 0], ft[:, 1])
@@ -425,12 +427,13 @@ def friction_chatter(backend: str, t: np.ndarray, force: np.ndarray, p: ContactP
     both = engaged[:-1] & engaged[1:]
     turned = (ft[:-1] * ft[1:]).sum(axis=1) < -0.5 * mag[:-1] * mag[1:]  # cos < -1/2: by more than 120 deg
     flips = np.flatnonzero(both & turned)
+    back = flips[:-1][np.diff(flips) <= 2]  # reversals reversed again within two ticks
     in_contact = int(np.count_nonzero(fn > 0.5))
-    if len(flips) < CHATTER_TICKS or len(flips) < CHATTER_SHARE * in_contact:
+    if len(back) < CHATTER_TICKS or len(back) < CHATTER_SHARE * in_contact:
         return []
     return [
-        f"{backend}: the friction chatters: it reverses between control ticks at {len(flips)} of {in_contact} ticks "
-        f"in contact, from t = {t[flips[0] + 1]:.3f} s, each near its bound; the forces and the creep there are the "
-        "step's, not the contact's (a step too coarse for the friction: for the law, a finer sub-step or a larger "
-        "v_th)"
+        f"{backend}: the friction chatters: it reverses and reverses back within two control ticks at {len(back)} "
+        f"of {in_contact} ticks in contact, from t = {t[back[0] + 1]:.3f} s, each near its bound; the forces and the "
+        "creep there are the step's, not the contact's (a step too coarse for the friction: for the law, a finer "
+        "sub-step or a larger v_th)"
     ]

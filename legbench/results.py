@@ -321,7 +321,7 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
 def _name_it(exc: BaseException, path: Path) -> None:
     """An OSError of a write that names no file (a full disk: "No space left on device") names ``path``, the
     output it was for, so the one line the CLI prints says where (:mod:`legbench.cli`)."""
-    if isinstance(exc, OSError) and not exc.filename:
+    if isinstance(exc, OSError) and exc.errno is not None and not exc.filename:  # an errno the CLI words by
         exc.filename = str(path)
 
 
@@ -1165,8 +1165,8 @@ def _missing_log(path: Path, fname: str) -> str:
 
 def missing_logs(root: str | Path) -> list[str]:
     """What the run directories under ``root`` (or ``root`` itself) lack: a log of a backend their run.json says
-    ran ok, as :func:`load_run` reports it (that backend left out of the comparison), ``name: <backend>
-    missing: why`` each; an empty list where every log is there. Reads run.json only.
+    ran ok, as :func:`load_run` reports it (that backend left out of the comparison), ``<backend> missing: why``
+    each (the why names the directory); an empty list where every log is there. Reads run.json only.
 
     Raises:
         ResultsError: as :func:`run_dirs` and :func:`read_meta`.

@@ -176,8 +176,6 @@ def simulate(
         controller[min(first, n) :] = name
     try:
         info = backend_info(backend)
-        if status == "ok":  # the log read at the ticks: a friction that chatters, whatever the engine
-            info["warnings"] = [*info["warnings"], *friction_chatter(backend.name, t, f_log, physics.contact)]
     except Exception as exc:  # the run is kept up to here, but a backend that cannot say what it ran failed
         info = _declared(backend)
         if status == "ok":
@@ -185,6 +183,8 @@ def simulate(
                 str(exc) if isinstance(exc, LegbenchError) else f"info() failed: {type(exc).__name__}: {exc}"
             )
             status, reason = "failed", why
+    if status == "ok":  # the log read at the ticks: a friction that chatters, whatever the engine
+        info["warnings"] = [*info["warnings"], *friction_chatter(backend.name, t, f_log, physics.contact)]
     return RunResult(
         backend=backend.name,
         t=t[:n] if status != "ok" else t,

@@ -1108,7 +1108,7 @@ def shorten(sc: Scenario, duration: float, option: str = "--duration") -> Scenar
     doc["events"] = [e for e in doc["events"] if float(e["t"]) + float(e.get("delay", 0.0)) < duration]
     doc["duration"] = duration
     cmp = dict(doc.get("comparison") or {})
-    if float(cmp.get("skip", 0.0)) >= duration:
+    if float(cmp.get("skip", 0.0)) > duration - 1.0 / sc.control_rate + 1e-9:  # fewer than two ticks left
         cmp["skip"] = 0.0
     if float(cmp.get("steady_window", 0.0)) > duration:
         cmp["steady_window"] = duration

@@ -274,10 +274,16 @@ def test_implicit_generalized_makes_an_explicit_step_the_implicit_one() -> None:
     assert checked >= 50
 
 
-def test_friction_chatter_is_read_from_reversals_between_ticks() -> None:
-    """A friction force at its bound that reverses direction every tick is chatter (one warning, naming the count
-    and the first tick); the same force turning slowly, reversing once (the combined task's swing), or too small
-    to be near its bound (|F_t| < mu_k Fn / 2) is not; a frictionless contact has nothing to chatter."""
+def test_friction_chatter_is_read_from_reversals_reversed_again_within_two_ticks() -> None:
+    """A friction force near its bound that reverses and reverses back within two ticks, over and over, is chatter
+    (one warning, naming the count and the first tick); a slide rubbed back and forth reverses once per half
+    period (at 10 Hz and even at 100 Hz, every 5 ticks: a reviewer's synthetic log from the law warned at 7 Hz
+    under the first rule, reversals alone), and a force turning slowly, reversing once (the combined task's swing)
+    or too small to be near its bound (|F_t| < mu_k Fn / 2) is not; nor is a frictionless contact. The share rule
+    (1 % of the ticks in contact): a burst of 13 flips in a 3001-tick contact (13 reversals reversed back, 0.4 %)
+    is not said, one of 41 (41, 1.4 %) is."""
+    import dataclasses
+
     from legbench.contact import ContactParams, friction_chatter
 
     p = ContactParams()
@@ -287,7 +293,10 @@ def test_friction_chatter_is_read_from_reversals_between_ticks() -> None:
     sign = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
     flipping = np.column_stack([0.7 * fn * sign, np.zeros(n), fn])
     (w,) = friction_chatter("b", t, flipping, p)
-    assert "reverses between control ticks at 999 of 1000 ticks in contact, from t = 0.001 s" in w
+    assert "reverses back within two control ticks at 998 of 1000 ticks in contact, from t = 0.001 s" in w
+    for hz in (10.0, 100.0):  # a real back-and-forth slide at the friction bound
+        rubbed = np.column_stack([-0.6 * fn * np.sign(np.sin(2 * np.pi * hz * t + 0.1)), np.zeros(n), fn])
+        assert friction_chatter("b", t, rubbed, p) == [], hz
     angle = np.linspace(0.0, np.pi, n)  # turns by 180 deg over the run: 0.18 deg a tick
     turning = np.column_stack([0.7 * fn * np.cos(angle), 0.7 * fn * np.sin(angle), fn])
     assert friction_chatter("b", t, turning, p) == []
@@ -295,6 +304,11 @@ def test_friction_chatter_is_read_from_reversals_between_ticks() -> None:
     assert friction_chatter("b", t, once, p) == []
     small = np.column_stack([0.2 * p.mu_k * fn * sign, np.zeros(n), fn])
     assert friction_chatter("b", t, small, p) == []
-    import dataclasses
-
     assert friction_chatter("b", t, flipping, dataclasses.replace(p, mu_s=0.0, mu_k=0.0)) == []
+    m = 3001
+    tm, fm = np.arange(m) * 1e-3, np.full(m, 50.0)
+    for burst, said in ((13, False), (41, True)):  # ticks flipped in a row; the share threshold is 30 ticks
+        s = np.ones(m)
+        s[1000 : 1000 + burst] = np.where(np.arange(burst) % 2 == 0, -1.0, 1.0)
+        f = np.column_stack([0.7 * fm * s, np.zeros(m), fm])
+        assert bool(friction_chatter("b", tm, f, p)) is said, burst

@@ -246,7 +246,7 @@ def test_a_plug_in_that_raises_in_the_pre_flight_fails_alone(
     assert "AttributeError" in meta["backends"]["loadraises"]["reason"]
     # the status's one line on stderr, where a script looks for errors (the reason is on stdout's table)
     assert capsys.readouterr().err.splitlines()[-1] == (
-        "legbench: 1 run(s) did not finish ok (effort/loadraises); the others' results are written"
+        "legbench: 1 run(s) did not finish ok (run/loadraises); the others' results are written"
     )
     assert cli.main(["doctor", str(EFFORT), "--backends", "pinocchio,loadraises"]) == 3
     shown = capsys.readouterr().out

@@ -459,6 +459,16 @@ def test_a_duration_that_cuts_off_the_control_grid_names_the_option() -> None:
     assert scenario.shorten(sc, 0.5).duration == 0.5
 
 
+def test_shorten_lets_go_of_a_skip_that_would_leave_fewer_than_two_ticks() -> None:
+    """A skip valid in the whole run (0.9995 s of 3 s) would leave one tick when the run is cut to 1 s, which the
+    loader refuses (a review, 27 Nov): the cut drops the skip, as it drops one past the new end, and keeps a skip
+    that leaves two ticks."""
+    sc = scenario.load(SCENARIOS / "effort.yaml", {"comparison.skip": 0.9995})
+    assert scenario.shorten(sc, 1.0).comparison.skip == 0.0
+    sc = scenario.load(SCENARIOS / "effort.yaml", {"comparison.skip": 0.999})
+    assert scenario.shorten(sc, 1.0).comparison.skip == 0.999
+
+
 def test_shorten_each_says_which_scenarios_a_longer_duration_leaves_whole(caplog: pytest.LogCaptureFixture) -> None:
     """``bench --duration 6`` over the position (3 s) and ellipse (11.5 s) tasks: position runs whole, which one
     note says (before, nothing did, and its 3 s could be read as the 6 asked for); the ellipse is cut to 6 s. A
