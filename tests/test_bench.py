@@ -256,6 +256,57 @@ def test_kernels_per_sub_step_add_up_to_one_floor_and_per_tick_ones_stand_alone(
     assert v["aba+law"][1] == 50.0 / 4  # one call per sub-step: a pass covers 50 sub-steps = 12.5 periods
 
 
+def test_a_floor_counts_as_many_evaluations_per_tick_as_the_run_makes(fake_registry: None) -> None:
+    """A per-evaluation kernel that the run calls more than once a sub-step (RK4's four stages, an adaptive solve's
+    right-hand sides: lagrange made 62-440 a period) is counted that many times: a reviewer's bench printed
+    'full / qdd+law 19.9', one evaluation per tick against a run of hundreds. The fake's 2.5 calls per sub-step
+    over 4 sub-steps: a pass covers 50 / 10 periods; the lagrange backend's floor covers the run's periods over
+    the right-hand sides its own solves made per period (measured: > 50 on the effort task's push), and
+    Pinocchio's aba+law under rk4 a quarter of euler's."""
+    sc = _fake_scenario()
+    physics = scenario.physics_of(sc)
+    b = backends.load("fake", physics, {})
+    tr = simulate(sc, b, physics)
+    loops = b.kernels(tr.q[:-1], tr.qd[:-1], tr.tau[:-1])
+    orig = b.kernels
+    for f in loops.values():
+        f.calls_per_sub_step = 2.5  # type: ignore[attr-defined]
+    b.kernels = lambda q, qd, tau: loops  # type: ignore[method-assign]
+    assert bench.kernel_variants(b, tr)["aba+law"][1] == 50.0 / (4 * 2.5)
+    assert "2.5 calls each per sub-step" in bench.kernel_variants(b, tr)["aba+law"][2]
+    b.kernels = orig  # type: ignore[method-assign]
+    effort = bench.load_tasks(bench.TASKS[2:3], duration=0.3)[0]
+    physics = scenario.physics_of(effort)
+    for name, settings, low, high in (("lagrange", {}, 50.0, 500.0), ("pinocchio", {"integrator": "rk4"}, 80, 80)):
+        if name not in backends.available():
+            continue
+        eng = backends.load(name, physics, settings)
+        try:
+            tr = simulate(effort, eng, physics)
+            (floor,) = [v for k, v in bench.kernel_variants(eng, tr).items() if "+" in k]
+            per_tick = (len(tr.t) - 1) / floor[1]  # evaluations per period the floor stands for
+            assert low <= per_tick <= high, (name, per_tick)
+        finally:
+            eng.close()
+
+
+@pytest.mark.parametrize("name", ["mujoco", "pybullet"])
+def test_a_floor_that_skips_the_law_sets_no_target_in_reference_contact(name: str) -> None:
+    """MuJoCo's and PyBullet's floors step the engine alone; in reference contact the run also applies the law every
+    sub-step, so their 1.15x full/floor target read 4.8x and 3.9x 'missed' there (and bench --check failed) on work
+    the floor does not do: no target in reference contact, the 1.15x in native."""
+    if name not in backends.available():
+        pytest.skip(f"{name} not installed")
+    from legbench.backends.base import Physics
+
+    for mode, targets in (("reference", {}), ("native", {"full/floor": 1.15})):
+        eng = backends.load(name, Physics(contact_mode=mode), {})
+        try:
+            assert dict(getattr(eng, "bench_targets")) == targets, mode  # noqa: B009
+        finally:
+            eng.close()
+
+
 def test_repeats_are_interleaved_across_backends_with_the_order_rotated(fake_registry: None) -> None:
     """Three repeats after one warm-up through two backends: each pass times full, replay and the floors of one
     backend, then the other; the first backend alternates from pass to pass. Warm-up samples are dropped."""

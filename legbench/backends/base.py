@@ -434,7 +434,9 @@ class Backend(ABC):
         Returns:
             name -> a callable that makes one pass over the N rows (inputs prepared beforehand).
             By default a call per row is one sub-step's call (e.g. ``{"aba": ..., "law": ...}``:
-            the bench adds such kernels up and multiplies by :meth:`sub_steps`); a callable with
+            the bench adds such kernels up and multiplies by :meth:`sub_steps`, and by their attribute
+            ``calls_per_sub_step`` where the run calls them more than once a sub-step: RK4's four stages, an
+            adaptive solve's right-hand sides per period); a callable with
             the attribute ``per_tick = True``, or a name ending in ``_tick``, covers one whole
             control period per row (e.g. ``mj_step(m, d, n)``, a compiled sub-step loop). A callable
             that steps the run itself may carry ``end_state``, a function returning the pass's final

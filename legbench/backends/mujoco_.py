@@ -230,8 +230,13 @@ class MujocoBackend(Backend):
     }
     #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
     sliding_coefficient: ClassVar[str] = "mu_s"
-    #: ``legbench bench`` targets (CPU-time medians): the full run within 1.15x ``mj_step(m, d, n)``.
-    bench_targets: ClassVar[Mapping[str, float]] = {"full/floor": 1.15}
+
+    @property
+    def bench_targets(self) -> Mapping[str, float]:
+        """The full run within 1.15x the engine's own stepping in native contact; in reference contact the floor
+        steps without the law legbench applies every sub-step, so it is no floor of that run: no target."""
+        return {} if self.reference else {"full/floor": 1.15}
+
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "integrator": tuple(_INTEGRATORS),
         "cone": tuple(_CONES),

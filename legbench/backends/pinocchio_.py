@@ -202,6 +202,7 @@ class PinocchioBackend(Backend):
     # ---------------------------------------------------------------- reset
     def reset(self, q: np.ndarray, qd: np.ndarray) -> None:
         self._fn_peak, self._q_peak = 0.0, [float(x) for x in q]
+        self._nfev, self._periods = 0, 0  # an adaptive solve's right-hand sides since the reset (the bench's floor)
         self._limit_minv = [0.0, 0.0, 0.0]
         self.q = [float(x) for x in q]
         self.qd = [float(x) for x in qd]
@@ -373,6 +374,7 @@ class PinocchioBackend(Backend):
             raise LegbenchError(f"pinocchio: {self.cfg['integrator']} failed: {sol.message}")
         x = sol.y[:, -1]
         self.q, self.qd = x[:3].tolist(), x[3:].tolist()
+        self._nfev, self._periods = self._nfev + int(sol.nfev), self._periods + 1
 
     def _rk45_compiled(self, tau: np.ndarray) -> None:
         """:meth:`_adaptive`'s RK45 solve in one compiled call: scipy's algorithm step for step
@@ -386,6 +388,7 @@ class PinocchioBackend(Backend):
         if n < 0:
             raise LegbenchError("pinocchio: rk45 failed: Required step size is less than spacing between numbers.")
         self.q, self.qd = x[0:3].tolist(), x[3:6].tolist()
+        self._nfev, self._periods = self._nfev + n, self._periods + 1
 
     def _period_compiled(self, tau: np.ndarray) -> None:
         """:meth:`_euler_implicit` (or :meth:`_euler`, :meth:`_rk4`) and the force read-out in one compiled call."""
@@ -543,13 +546,16 @@ class PinocchioBackend(Backend):
     def kernels(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> dict[str, Any]:
         """The bench's floors (:meth:`Backend.kernels`).
 
-        ``aba`` and ``law`` (per sub-step; the bench adds them up as ``aba+law``): ``pin.aba`` on this backend's
-        model and data and the contact law, called from Python at each logged state: the Python path's calls,
-        without the integration. With the compiled period (``kernel: compiled``, ``euler`` or ``rk4``) also
-        ``period_loop`` (per control period): the backend's own compiled period (:func:`pinocchio_kernel.period`,
-        the same arguments as :meth:`step` passes) once per logged torque, the whole pass one compiled call
-        (:func:`pinocchio_kernel.period_loop`: no Python per tick), from the first row's state (the run's
-        initial state), on its own scratch and state arrays (the backend's state is left alone). Its
+        ``aba`` and ``law`` (per evaluation; the bench adds them up as ``aba+law``, as many times per sub-step as the
+        run evaluates them: 1 for euler, 4 for rk4, an adaptive solve's right-hand sides per period as the run
+        made them): ``pin.aba`` on this backend's model and data and the contact law, called from Python at each
+        logged state: the Python path's calls through the binding, without the integration (not a floor of the
+        compiled period, which calls neither). With the compiled period (``kernel: compiled``, ``euler`` or
+        ``rk4``) also ``period_loop`` (per control period): the backend's own compiled period
+        (:func:`pinocchio_kernel.period`, the same arguments as :meth:`step` passes) once per logged torque, the
+        whole pass one compiled call (:func:`pinocchio_kernel.period_loop`: no Python per tick), from the first
+        row's state (the run's initial state), on its own scratch and state arrays (the backend's state is left
+        alone). Its
         ``end_state()`` is the pass's final (q, qd): the run's last logged state, bit for bit, which the bench
         checks as it checks the replay's. What the replay adds to it is the Python loop, one numba dispatch
         per period and the peak-force record."""
@@ -568,6 +574,13 @@ class PinocchioBackend(Backend):
             for x in law_in:
                 law(*x)
 
+        # as often as the run calls them per sub-step: RK4's four stages; an adaptive solve's right-hand sides per
+        # period, as many as the backend's own solves since its reset made on average (the run the bench timed)
+        if self.integrator_family() == "adaptive":
+            calls = self._nfev / self._periods if self._periods else 1.0
+        else:
+            calls = 4.0 if self.cfg["integrator"] == "rk4" else 1.0
+        aba_loop.calls_per_sub_step = law_loop.calls_per_sub_step = calls  # type: ignore[attr-defined]
         out: dict[str, Any] = {"aba": aba_loop, "law": law_loop}
         if self._compiled is not None and len(tau) > 0:
             packed, scratch, _, h, n_sub, method = self._compiled

@@ -226,8 +226,13 @@ class PybulletBackend(Backend):
     }
     #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
     sliding_coefficient: ClassVar[str] = "mu_s"
-    #: ``legbench bench`` targets (CPU-time medians): the full run within 1.15x Bullet's own sub-stepping.
-    bench_targets: ClassVar[Mapping[str, float]] = {"full/floor": 1.15}
+
+    @property
+    def bench_targets(self) -> Mapping[str, float]:
+        """The full run within 1.15x the engine's own stepping in native contact; in reference contact the floor
+        steps without the law legbench applies every sub-step, so it is no floor of that run: no target."""
+        return {} if self.reference else {"full/floor": 1.15}
+
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "plane_contact": ("rigid", "default"),
         "contact_margins": ("zero", "default"),

@@ -350,7 +350,8 @@ def kernel_variants(backend: Backend, tr: RunResult) -> dict[str, tuple[Callable
 
     :meth:`Backend.kernels` gets the run's consecutive rows (q, qd, tau of every control period
     but the last); a per-tick kernel's pass covers ``steps`` control periods, the per-sub-step
-    kernels (one call per row each) add up to one floor whose pass covers ``steps / sub_steps``.
+    kernels (one call per row each) add up to one floor whose pass covers ``steps / (sub_steps x calls)``, calls
+    the kernels' ``calls_per_sub_step`` (default 1: RK4's 4, an adaptive solve's right-hand sides per period).
     Empty if the backend declares no kernels.
     """
     try:
@@ -366,13 +367,19 @@ def kernel_variants(backend: Backend, tr: RunResult) -> dict[str, tuple[Callable
             out[name] = (fn, float(steps), getattr(fn, "__doc__", None) or f"{name}, one call per control period")
     if per_sub:
         calls = list(per_sub.values())
+        # as many calls per sub-step as the run makes (RK4's stages, an adaptive solve's right-hand sides): the
+        # kernels of one floor share that count, the first one's
+        per = float(getattr(calls[0], "calls_per_sub_step", 1.0))
 
         def one_pass() -> None:
             for f in calls:
                 f()
 
         name = "+".join(per_sub)
-        out[name] = (one_pass, steps / n_sub, f"{name}: one call each per sub-step, x {n_sub} sub-steps")
+        what = f"{name}: one call each per sub-step, x {n_sub} sub-steps"
+        if per != 1.0:
+            what = f"{name}: {per:.4g} calls each per sub-step (as the run evaluates them), x {n_sub} sub-steps"
+        out[name] = (one_pass, steps / (n_sub * per), what)
     return out
 
 
