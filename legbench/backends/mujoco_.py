@@ -738,8 +738,10 @@ class MujocoBackend(Backend):
         ``mj_step_tick`` (one call = one control period): from the first row's state, ``ctrl`` set
         to each row's tau [N m] and ``mj_step(m, d, n_sub)``, nothing read back (no ground force, no
         end-state ``mj_forward``). Rows are a run's consecutive periods, so the steps retrace the
-        run (in and out of contact as it was). In reference mode the engine's contact is off and
-        the law is not applied, so this floor is MuJoCo's stepping alone.
+        run (in and out of contact as it was): in native contact its ``end_state()`` is the run's last state,
+        which the bench checks bit for bit (the run's end-state ``mj_forward`` reused by its next step is
+        plain ``mj_step``'s arithmetic). In reference mode the engine's contact is off and the law is not
+        applied, so this floor is MuJoCo's stepping alone (no end state to check, no target).
         """
         m, d, n, ctrl = self.model, self.data, self.n_sub, self._ctrl
         q0, qd0 = np.array(q[0], float), np.array(qd[0], float)
@@ -754,6 +756,8 @@ class MujocoBackend(Backend):
                 ctrl[:] = t
                 step(m, d, n)
 
+        if not self.reference:
+            mj_step_tick.end_state = lambda: (d.qpos.copy(), d.qvel.copy())  # type: ignore[attr-defined]
         return {"mj_step_tick": mj_step_tick}
 
     def limits(self) -> Limits:

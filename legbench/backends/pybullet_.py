@@ -616,10 +616,13 @@ class PybulletBackend(Backend):
         From the first row's state (q [rad], qd [rad/s]), per row: ``bullet_substeps_tick``, one
         torque command (a list) and one ``stepSimulation`` with Bullet's own ``numSubSteps =
         n_sub``; ``python_substeps_tick``, ``n_sub`` x (command + ``stepSimulation``) at the
-        sub-step. Nothing is read back. Each pass sets the engine's step parameters it needs and
+        sub-step. Nothing is read back during a pass. Each pass sets the engine's step parameters it needs and
         restores the backend's. Rows are a run's consecutive periods, so native contact retraces
-        the run; in reference mode the foot-ground pair is off and the law is not applied (Bullet's
-        stepping alone).
+        the run, and each floor's ``end_state()`` is then the run's last state, which the bench checks bit for bit
+        (Bullet's own sub-stepping is offered only where it is bit-identical to the sub-steps, as the run uses
+        it: with other step counts its accumulator drops steps and the floor would do less work); in reference
+        mode the foot-ground pair is off and the law is not applied (Bullet's stepping alone: no end state to
+        check, no target).
         """
         body, cid, joints, n = self.body, self.cid, self.joints, self.n_sub
         dt = self.physics.control_dt
@@ -653,7 +656,18 @@ class PybulletBackend(Backend):
                     step(physicsClientId=cid)
             setp(physicsClientId=cid, **own)
 
-        return {"bullet_substeps_tick": bullet_substeps_tick, "python_substeps_tick": python_substeps_tick}
+        out: dict[str, Any] = {"python_substeps_tick": python_substeps_tick}
+        if self.engine_sub:
+            out["bullet_substeps_tick"] = bullet_substeps_tick
+        if not self.reference:
+
+            def end_state() -> tuple[np.ndarray, np.ndarray]:
+                states = p.getJointStates(body, joints, physicsClientId=cid)
+                return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
+            for fn in out.values():
+                fn.end_state = end_state
+        return out
 
     def limits(self) -> Limits:
         """``getJointInfo`` limits (lower > upper means none) and effort, ``getPhysicsEngineParameters``."""
