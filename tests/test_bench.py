@@ -307,6 +307,23 @@ def test_a_floor_that_skips_the_law_sets_no_target_in_reference_contact(name: st
             eng.close()
 
 
+def test_the_engines_floors_end_where_the_run_ends() -> None:
+    """MuJoCo's mj_step_tick and PyBullet's sub-step floors (Bullet's own, and 20 commands and steps) retrace the
+    run from its first state in native contact: each declares its end state, which is the run's last state bit
+    for bit, so the floor is known to do the run's work (only Pinocchio's period_loop was checked); in reference
+    contact they step without the law, declare none, and the replay alone is checked."""
+    names = [n for n in ("mujoco", "pybullet") if n in backends.available()]
+    if not names:
+        pytest.skip("neither mujoco nor pybullet is installed")
+    sc = bench.load_tasks(bench.TASKS[2:3], duration=0.2)[0]  # effort: in contact from the start
+    for mode, floors in (("native", True), ("reference", False)):
+        for r in bench.run_bench([sc], names, repeats=1, warmup=0, memory=False, min_sample=0.0, contact_mode=mode):
+            assert r.status == "ok" and all(c["identical"] for c in r.end_state.values()), (r.backend, r.end_state)
+            checked = set(r.end_state) - {"replay"}
+            assert checked == ({k for k, t in r.timings.items() if t.kind == "floor"} if floors else set()), (
+                r.backend, mode, checked)  # fmt: skip
+
+
 def test_repeats_are_interleaved_across_backends_with_the_order_rotated(fake_registry: None) -> None:
     """Three repeats after one warm-up through two backends: each pass times full, replay and the floors of one
     backend, then the other; the first backend alternates from pass to pass. Warm-up samples are dropped."""
