@@ -112,13 +112,15 @@ def test_ratios_come_from_the_same_samples_and_never_show_a_negative_overhead(
 
 def test_engine_only_replay_reproduces_the_full_run_bit_for_bit(quick: tuple[int, dict[str, Any], str]) -> None:
     """Same torques through the same engine steps after reset: the final state must be identical, not close; so
-    must Pinocchio's compiled floor's (its own period over the logged torques from the run's start)."""
+    must each floor's that retraces the run from its start (Pinocchio's compiled period, MuJoCo's mj_step, Bullet's
+    sub-stepping and its 20 commands and steps, the tasks being in native contact)."""
     _, doc, md = quick
+    floors = {"pinocchio": {"period_loop"}, "mujoco": {"mj_step_tick"},
+              "pybullet": {"bullet_substeps_tick", "python_substeps_tick"}}  # fmt: skip
     for r in doc["results"]:
         assert r["replay_identical"] is True, (r["task"], r["backend"], r["replay_max_diff"])
         assert r["replay_max_diff"] == 0.0
-        checked = {"replay", "period_loop"} if r["backend"] == "pinocchio" else {"replay"}
-        assert set(r["end_state"]) == checked
+        assert set(r["end_state"]) == {"replay", *floors[r["backend"]]}
         assert all(c == {"identical": True, "max_diff": 0.0} for c in r["end_state"].values()), r["end_state"]
     if "pinocchio" in BENCHED:
         assert "| replay yes; period_loop yes |" in md

@@ -142,6 +142,7 @@ class PinocchioBackend(Backend):
         euler = self._euler_implicit if self.implicit else self._euler
         self._step = {"euler": euler, "rk4": self._rk4}.get(self.cfg["integrator"], self._adaptive)
         self._fn_peak, self._q_peak = 0.0, [0.0, 0.0, 0.0]
+        self._nfev, self._periods = 0, 0  # an adaptive solve's right-hand sides since the reset (the bench's floor)
         #: per joint the largest (M^-1)_jj [1/(kg m^2)] at which it was past its limit in this run, 0 if never
         #: (the Python sub-steps; the compiled period keeps it in its scratch: pinocchio_kernel.limit_record)
         self._limit_minv = [0.0, 0.0, 0.0]
