@@ -702,8 +702,8 @@ def _not_an_input(opt: str, path: Path, new: Path, baseline: Path, tolerance_fil
         raise LegbenchError(f"{opt} {path}: is the tolerance file; choose another file")
     parent = enclosing_run(path) if path.name not in CHECK_OUTPUTS else None
     if parent is not None:
-        raise LegbenchError(f"{opt} {path}: inside the run directory {parent}, whose files the check reads; choose "
-                            "another file")  # fmt: skip
+        raise LegbenchError(f"{opt} {path}: inside the run directory {parent}, which holds one run's files (a file "
+                            "there is read as part of it); choose another file")  # fmt: skip
 
 
 def run_check(
