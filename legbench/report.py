@@ -1741,14 +1741,15 @@ def _study_blocks(root: Path) -> list[Block]:
         if not path.is_file():
             continue
         doc, records = read_study(path, key)
-        link = f"{path.parent.name}/"
+        # the study's Markdown and JSON linked as files, not its folder (a static host lists no folder)
+        md, js = f"{path.parent.name}/{path.stem}.md", f"{path.parent.name}/{path.name}"
         profile = str(doc.get("profile") or PROFILES[0])  # older files: the one profile legbench ran, matched
         if "pass" not in cols:
             rows = tuple(tuple(_cell(r.get(c, ""), SHOWN_SCALE.get(c, 1.0)) for c in cols) for r in records)
             header = tuple(f"{c} [{STUDY_UNITS[c]}]" if c in STUDY_UNITS else c for c in cols)
             blocks.append(Heading(2, f"{heading}, {profile} profile: {len(records)} backends measured"))
             blocks.append(Details(f"the {_rows(len(records))}", (Table(header, rows, caption),)))
-            blocks.append(Nav(((f"files in {link}", link),)))
+            blocks.append(Nav(((f"{md}", md), (f"{js}", js))))
             continue
         status = [_status(r) for r in records]
         shown = {"pass": "yes", "fail": "NO", "not-applicable": "n/a"}
@@ -1795,7 +1796,7 @@ def _study_blocks(root: Path) -> list[Block]:
                                     titles={key: h for key, h in hover.items() if h}))  # fmt: skip
         table = Table(cols, rows, caption, classes=classes, titles=titles)
         blocks.append(Details(f"all {len(records)} checks", (table,), "fail" if failed else ""))
-        blocks.append(Nav(((f"files in {link}", link),)))
+        blocks.append(Nav(((f"{md}", md), (f"{js}", js))))
     return blocks
 
 

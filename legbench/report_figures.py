@@ -84,7 +84,7 @@ NAMES = {
     "ee": "foot centre position (W)",
 }
 _PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#bcbd22", "#17becf")
-_DASHES = ("solid", "dash", "dot", "dashdot", "longdash")
+_DASHES = ("solid", "dash", "dot", "dashdot", "longdash", "longdashdot")  # one per non-reference backend of the seven
 
 #: The page-side loader: decodes the float32 arrays and draws the figures and the leg view.
 LEGBENCH_JS = r"""/* legbench report figures: decode float32 arrays, draw with plotly.js (loaded before). */
@@ -308,9 +308,10 @@ class Figure:
 
 
 def run_title(run: Run) -> str:
-    """A run's name in page and figure titles: its label with the profile and contact mode (the runs of one
-    scenario in two profiles share a label)."""
-    return f"{run.label} ({run.profile} profile, {run.contact_mode} contact)"
+    """A run's name in page and figure titles: its scenario's name with the profile and contact mode (every run of
+    one scenario alike: the reference-contact run read "effort__reference (matched profile, reference contact)"
+    and the engine-defaults one "effort (engine-defaults profile, native contact)")."""
+    return f"{run.name} ({run.profile} profile, {run.contact_mode} contact)"
 
 
 def _run_styles(result: ComparisonResult) -> dict[str, tuple[str, str]]:
@@ -432,6 +433,9 @@ def _trace(
         "yaxis": f"y{suffix}",
         "line": {"color": color, "width": width, "dash": dash},
         "opacity": opacity,
+        # each trace's own sample time: the display envelopes sample each trace at its own times, so the shared
+        # hover's one t could be a bin (7-24 ms) from a trace's point
+        "hovertemplate": "%{y:.6g} at t = %{x:.4f} s",
     }
 
 

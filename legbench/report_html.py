@@ -137,13 +137,14 @@ CSS = """
 body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1400px; padding: 0 1em; color: #222; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; border-bottom: 1px solid #ddd; }
 h3 { font-size: 1.05em; margin-top: 1.2em; }
-table { border-collapse: collapse; margin: 0.4em 0 1.2em; font-size: 0.82em; display: block; overflow-x: auto; }
+table { border-collapse: collapse; font-size: 0.82em; }
+.scroll { overflow: auto; max-height: 85vh; margin: 0 0 1.2em; }
 th, td { border: 1px solid #d0d0d0; padding: 2px 5px; text-align: right; white-space: nowrap; }
 th { background: #f0f0f0; position: sticky; top: 0; }
 td.text { text-align: left; white-space: normal; } td.short { white-space: nowrap; }
 td:first-child, th:first-child { text-align: left; white-space: nowrap; }
 tr.group td { background: #f7f7f7; font-weight: 600; text-align: left; }
-caption { caption-side: top; text-align: left; font-style: italic; padding-bottom: 3px; color: #444; }
+p.caption { text-align: left; font-style: italic; margin: 0.4em 0 3px; color: #444; }
 .warn { background: #fde8e8; border-left: 4px solid #c00; padding: 4px 8px; }
 .nav { font-size: 0.9em; margin: 0.3em 0 1em; } .nav a { margin-right: 1.2em; }
 figure { margin: 0.8em 0 1.6em; } figcaption { font-size: 0.85em; color: #555; }
@@ -161,9 +162,11 @@ td.na { background: #eeeeee; color: #555; }
 
 
 def _html_table(b: Table, e: Any) -> list[str]:
-    out = ["<table>"]
-    if b.caption:
-        out.append(f"<caption>{e(b.caption)}</caption>")
+    """The table in a box that scrolls it (sideways where it is wide, down where it is long, its header row staying
+    in view), its caption above the box at the page's width, naming the box for a screen reader."""
+    out = [f'<p class="caption">{e(b.caption)}</p>'] if b.caption else []
+    label = f' aria-label="{e(b.caption)}"' if b.caption else ""
+    out.append(f'<div class="scroll" role="region" tabindex="0"{label}><table>')
     out.append("<thead><tr>" + "".join(f"<th>{e(h)}</th>" for h in b.header) + "</tr></thead><tbody>")
     for i, r in enumerate(b.rows):
         if i in b.group_rows:
@@ -181,7 +184,7 @@ def _html_table(b: Table, e: Any) -> list[str]:
                 attr += f' title="{e(b.titles[(i, j)])}"'
             cells.append(f"<td{attr}>{txt}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
     return out
 
 

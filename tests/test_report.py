@@ -419,7 +419,13 @@ def test_index_collapses_verification_and_calibration_to_counts_with_the_tables_
     assert "| energy | a | euler |" in md and "| balance | a | euler |" in md
     assert "## Contact calibration, matched profile: 1 backends measured" in md and "| a | 10000 | 9999 |" in md
     page = (root / "report.html").read_text()
-    failing = page.index("<caption>Failing checks</caption>")
+    # each study linked by its files, not its folder (a static host lists no folder; the folder link read as one)
+    assert 'href="verification/verification.md"' in page and 'href="calibration/calibration.json"' in page
+    assert 'href="verification/"' not in page and 'href="calibration/"' not in page
+    # a caption above its table's scroll box, at the page's width (inside the box it was clipped with the table)
+    assert '<p class="caption">Failing checks</p>\n<div class="scroll" role="region" tabindex="0" aria-label=' \
+           '"Failing checks"><table>' in page and "<caption>" not in page  # fmt: skip
+    failing = page.index('<p class="caption">Failing checks</p>')
     details = page.index('<details class="fail"><summary>all 3 checks</summary>')
     assert failing < details and page.count(">energy</td>", 0, details) == 0  # passing rows only on demand
     assert page[failing:details].count('<td class="text short">balance</td>') == 1
@@ -542,7 +548,7 @@ def test_write_page_renders_headings_paragraphs_and_tables(tmp_path: Path) -> No
     assert text == R.page_markdown(items)
     assert "# Title\n" in text and "## Sub\n" in text and "*caption*" in text and "| x\\|y | 1.5 |" in text
     html_text = page.read_text()
-    assert "<h1>Title</h1>" in html_text and "<caption>caption</caption>" in html_text
+    assert "<h1>Title</h1>" in html_text and '<p class="caption">caption</p>' in html_text
     assert "<td>1.5</td>" in html_text and '<td class="text short">x|y</td>' in html_text
     assert "<script" not in html_text
 
@@ -1629,7 +1635,7 @@ def test_the_failing_checks_carry_the_tolerance_basis_the_paragraph_promises(tmp
     (root / "verification" / "verification.json").write_text(json.dumps(doc))
     R.write_index(root)
     page = html.unescape((root / "report.html").read_text())
-    failing = page.split("<caption>Failing checks</caption>")[1].split("</table>")[0]
+    failing = page.split('<p class="caption">Failing checks</p>')[1].split("</table>")[0]
     assert failing.count('title="tolerance: how sliding\'s is derived">') == 2
 
 
@@ -1647,3 +1653,21 @@ def test_a_task_that_starts_on_the_ground_has_its_push_onset_not_a_touch_down() 
     assert R.transient(late, "a", 0.144) == "touch-down transient: 5 ms after the foot's first contact at t = 0.139 s"
     older = {k: v for k, v in meta.items() if k != "control_dt"}
     assert R.transient(older, "a", 0.006) == "touch-down transient: 5 ms after the foot's first contact at t = 0.001 s"
+
+
+def test_every_run_page_of_a_scenario_is_titled_by_the_scenario_and_its_figures_keep_each_traces_time(
+    tmp_path: Path,
+) -> None:
+    """A review found the reference-contact page titled "fake__reference (matched profile, reference contact)"
+    beside the engine-defaults page's "fake (engine-defaults profile, native contact)": both name the scenario
+    now. The figures' shared hover shows each trace's value with its own sample time (the display envelopes sample
+    each trace at its own times), and six non-reference backends get six line styles."""
+    d = write_run(tmp_path / "fake__reference", {"ref": None, "a": scale(1.02)}, contact_mode="reference")
+    R.write_report(d)
+    page = (d / "report.html").read_text()
+    assert "<h1>legbench comparison: fake (matched profile, reference contact)</h1>" in page
+    assert "fake__reference (" not in page
+    assert '"hovertemplate":"%{y:.6g} at t = %{x:.4f} s"' in page
+    from legbench import report_figures
+
+    assert len(set(report_figures._DASHES)) >= 6
