@@ -1004,12 +1004,33 @@ def _model_notes(result: ComparisonResult, match: ModelMatch) -> tuple[Para, Par
     return leg, checks
 
 
+def _sibling_pages(run: Run) -> list[tuple[str, str]]:
+    """Links to the pages of the same scenario's other runs beside this one in its tree (its other profile or
+    contact mode), named by them, in the index's order: (profile, mode), the relative path."""
+    found = []
+    for d in sorted(run.path.parent.iterdir()):
+        if d == run.path or not (d.name == run.name or d.name.startswith(f"{run.name}__")):
+            continue
+        try:
+            meta = read_meta(d)
+        except (ResultsError, OSError):
+            continue  # not a run directory, or not one to link: the index says what it is
+        sc = meta.get("scenario") or {}
+        if sc.get("name") != run.name:
+            continue
+        profile, mode = profile_of(meta), str(sc.get("contact_mode") or "native")
+        found.append(((_PROFILE_ORDER.get(profile, 9), _MODE_ORDER.get(mode, 9)), f"{profile}, {mode}",
+                      f"../{d.name}/report.html"))  # fmt: skip
+    return [(text, href) for _, text, href in sorted(found)]
+
+
 def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None) -> list[Block]:
     run = result.run
     sc = run.meta.get("scenario", {})
     match = model_match(run)
     leg_note, checks_note = _model_notes(result, match) if match.differs else (None, None)
     nav = [("\u2190 all scenarios", index)] if index else []
+    nav += _sibling_pages(run) if index else []
     nav += [("tables", "#tables"), ("figures", "#figures")]
     if leg_note is not None or any(getattr(f, "key", None) == "leg" for f in figures):
         nav.append(("3D leg", "#leg"))

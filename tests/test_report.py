@@ -1671,3 +1671,20 @@ def test_every_run_page_of_a_scenario_is_titled_by_the_scenario_and_its_figures_
     from legbench import report_figures
 
     assert len(set(report_figures._DASHES)) >= 6
+
+
+def test_a_run_page_links_the_same_scenarios_other_runs_in_its_tree(tmp_path: Path) -> None:
+    """A reader on one run's page had to go back to the index to reach the same scenario's other contact mode or
+    profile: the page's navigation links each of them, named by profile and mode (another scenario's runs and a
+    run directory of another scenario's name sharing the prefix are not linked)."""
+    root = tmp_path / "tree"
+    write_run(root / "fake", {"ref": None, "a": scale(1.02)})
+    write_run(root / "fake__reference", {"ref": None, "a": scale(1.01)}, contact_mode="reference")
+    write_run(root / "other", {"ref": None, "a": scale(1.03)}, name="other")
+    R.write_all(root)
+    page = (root / "fake" / "report.html").read_text()
+    assert '<a href="../fake__reference/report.html">matched, reference</a>' in page
+    assert "../other/report.html" not in page and "../fake/report.html" not in page
+    assert '<a href="../fake/report.html">matched, native</a>' in (root / "fake__reference" / "report.html").read_text()
+    assert "[matched, reference](../fake__reference/report.md)" in (root / "fake" / "report.md").read_text()
+    assert "matched, " not in (root / "other" / "report.html").read_text().split("<h1>")[0]
