@@ -744,7 +744,7 @@ def replaced_by_run(
     if not _same_settings(prev, scenario, contact_mode):
         return "an interrupted run of other settings (it resumes only with the same scenario and options)"
     logged = {n for n, e in (prev.get("backends") or {}).items()  # a backend not run has no log to lose
-              if isinstance(e, dict) and (Path(out_dir) / str(e.get("file") or f"{n}.parquet")).is_file()}  # fmt: skip
+              if isinstance(e, dict) and (Path(out_dir) / _log_name(n, e)).is_file()}  # fmt: skip
     others = sorted(logged - set(backends)) if backends is not None else []
     if others:
         return (
@@ -1159,6 +1159,11 @@ def run_dirs(root: str | Path) -> dict[str, Path]:
     return dirs
 
 
+def _log_name(backend: str, entry: Mapping[str, Any]) -> str:
+    """The file of ``backend``'s log in its run directory: its run.json entry's ``file``, else ``<backend>.parquet``."""
+    return str(entry.get("file") or f"{backend}.parquet")
+
+
 def _missing_log(path: Path, fname: str) -> str:
     return f"run.json says ok but {fname} is not in {path}"
 
@@ -1176,7 +1181,7 @@ def missing_logs(root: str | Path) -> list[str]:
         if not (d / "run.json").is_file():
             continue
         for bname, b in read_meta(d)["backends"].items():
-            fname = str(b.get("file") or f"{bname}.parquet")
+            fname = _log_name(bname, b)
             if str(b["status"]) == "ok" and not (d / fname).exists():
                 out.append(f"{bname} missing: {_missing_log(d, fname)}")
     return out
@@ -1311,7 +1316,7 @@ def load_run(run_dir: str | Path) -> Run:
     partial: dict[str, RunResult] = {}
     for bname, b in meta["backends"].items():
         status, reason = str(b["status"]), b.get("reason")
-        fname = str(b.get("file") or f"{bname}.parquet")
+        fname = _log_name(bname, b)
         fpath = path / fname
         if status == "ok" and fpath.exists() and not fpath.is_file():  # a folder or a device: not a log to read
             raise ResultsError(str(fpath), f"is {_kind(fpath)}, not a backend log (run.json says {bname} ran ok)")

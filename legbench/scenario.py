@@ -562,7 +562,7 @@ def parse(
     validate_tolerances(comparison.tolerances, file, "comparison.tolerances", ctx)
     if exact_d and comparison.skip >= duration:
         raise ctx.error(["comparison", "skip"], f"skips the whole run ({duration} s)")
-    if exact_d and exact_r and comparison.skip > duration - 1.0 / rate + 1e-9:
+    if exact_d and exact_r and _skips_too_much(comparison.skip, duration, rate):
         raise ctx.error(["comparison", "skip"], f"leaves fewer than two control ticks of the {duration} s run to "
                                                 "compare")  # fmt: skip
     if exact_r and "steady_window" in cmp_d and comparison.steady_window < 1.0 / rate - 1e-9:
@@ -1092,6 +1092,12 @@ def errors(path: str | Path, overrides: Mapping[str, Any] | None = None) -> list
     return found
 
 
+def _skips_too_much(skip: float, duration: float, rate: float) -> bool:
+    """Whether ``skip`` [s] leaves fewer than two control ticks of a ``duration`` [s] run at ``rate`` [Hz] to
+    compare (the loader refuses it; a cut scenario lets go of it)."""
+    return skip > duration - 1.0 / rate + 1e-9
+
+
 def shorten(sc: Scenario, duration: float, option: str = "--duration") -> Scenario:
     """The scenario cut to ``duration`` [s].
 
@@ -1108,7 +1114,7 @@ def shorten(sc: Scenario, duration: float, option: str = "--duration") -> Scenar
     doc["events"] = [e for e in doc["events"] if float(e["t"]) + float(e.get("delay", 0.0)) < duration]
     doc["duration"] = duration
     cmp = dict(doc.get("comparison") or {})
-    if float(cmp.get("skip", 0.0)) > duration - 1.0 / sc.control_rate + 1e-9:  # fewer than two ticks left
+    if _skips_too_much(float(cmp.get("skip", 0.0)), duration, sc.control_rate):
         cmp["skip"] = 0.0
     if float(cmp.get("steady_window", 0.0)) > duration:
         cmp["steady_window"] = duration

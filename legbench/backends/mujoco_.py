@@ -757,7 +757,7 @@ class MujocoBackend(Backend):
                 step(m, d, n)
 
         if not self.reference:
-            mj_step_tick.end_state = lambda: (d.qpos.copy(), d.qvel.copy())  # type: ignore[attr-defined]
+            mj_step_tick.end_state = self.state  # type: ignore[attr-defined]  # d's qpos, qvel after the pass
         return {"mj_step_tick": mj_step_tick}
 
     def limits(self) -> Limits:

@@ -662,8 +662,8 @@ class PybulletBackend(Backend):
         if not self.reference:
 
             def end_state() -> tuple[np.ndarray, np.ndarray]:
-                states = p.getJointStates(body, joints, physicsClientId=cid)
-                return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+                self._read()  # the engine's joint states after the pass, as the backend reads them
+                return self._q.copy(), self._qd.copy()
 
             for fn in out.values():
                 fn.end_state = end_state
