@@ -43,11 +43,24 @@ from legbench.report_figures import (
     ModelMatch,
     model_advice,
     model_match,
+    no_ground_force,
     run_figures,
     run_title,
     write_assets,
 )
-from legbench.report_html import Block, Details, Heading, Nav, Para, Table, num, relpath, to_html, to_markdown
+from legbench.report_html import (
+    Block,
+    Details,
+    Heading,
+    Nav,
+    Para,
+    Table,
+    num,
+    num_apart,
+    relpath,
+    to_html,
+    to_markdown,
+)
 from legbench.results import (
     INDEX_TITLE,
     SHOWN_SCALE,
@@ -159,34 +172,43 @@ def sim_class(
     tolerances: Mapping[str, Any],
     held: bool = False,
     small: tuple[float, float] | None = None,
-) -> tuple[str, str]:
-    """(CSS class, why) of one simulation error % against the scenario's ceiling
-    (``comparison.tolerances.max_sim_error_pct``), else against :data:`BANDS`; ``held`` (the pair's ``held``
-    metric): n/a, :data:`HELD`; ``small`` (the component's reference peak and its signal's largest, for a
-    component :func:`small_peaks` names) without a ceiling: the bands applied to the deviation as a % of the
-    signal's largest peak instead of the component's own (:func:`small_note`): effort q1's 30.7 % of a 0.004 rad
-    peak is 0.1 % of the knee's 1.26 rad (close), MuJoCo engine-defaults' 3759 % is a 0.149 rad walk, 11.9 % of
-    it (differs a lot)."""
+) -> tuple[str, str, tuple[float, ...]]:
+    """(CSS class, why, the bounds ``value`` was held to) of one simulation error % against the scenario's ceiling
+    (``comparison.tolerances.max_sim_error_pct``), else against :data:`BANDS` (the band's edges); ``held`` (the
+    pair's ``held`` metric): n/a, :data:`HELD`; ``small`` (the component's reference peak and its signal's
+    largest, for a component :func:`small_peaks` names) without a ceiling: the bands applied to the deviation as
+    a % of the signal's largest peak instead of the component's own (:func:`small_note`; no bounds on ``value``
+    itself): effort q1's 30.7 % of a 0.004 rad peak is 0.1 % of the knee's 1.26 rad (close), MuJoCo
+    engine-defaults' 3759 % is a 0.149 rad walk, 11.9 % of it (differs a lot). A number is written with the
+    digits that set it apart from its bounds (:func:`~legbench.report_html.num_apart`)."""
     if held:
-        return "na", HELD
+        return "na", HELD, ()
     if not math.isfinite(value):
-        return "", ""
+        return "", "", ()
     ceiling = keyed([tolerances.get("max_sim_error_pct")], signal, joint, math.inf)
     if math.isfinite(ceiling):
+        shown = num_apart(value, (ceiling,))
         if value > ceiling:
-            return "over", f"{num(value)} % exceeds the scenario's limit {num(ceiling)} %"
-        return "within", f"{num(value)} % within the scenario's limit {num(ceiling)} %"
+            return "over", f"{shown} % exceeds the scenario's limit {num(ceiling)} %", (ceiling,)
+        return "within", f"{shown} % within the scenario's limit {num(ceiling)} %", (ceiling,)
     if small is not None:
         peak, largest = small
         rel = value * peak / largest if largest > 0.0 else math.nan
         for bound, cls, why in BANDS:
             if rel < bound:
-                return cls, f"{small_note(value, signal, peak, largest)}; {num(rel, 3)} % of the largest: {why}"
-        return "", ""
+                return (
+                    cls,
+                    f"{small_note(value, signal, peak, largest)}; {num_apart(rel, (bound,), 3)} % of the "
+                    f"largest: {why}",
+                    (),
+                )
+        return "", "", ()
+    below = 0.0
     for bound, cls, why in BANDS:
         if value < bound:
-            return cls, f"{num(value, 6)} %: {why}"
-    return "", ""
+            return cls, f"{num_apart(value, (below, bound), 6)} %: {why}", (below, bound)
+        below = bound
+    return "", "", ()
 
 
 #: A component whose reference peak is under this fraction of its signal's largest (the effort task's q1, 0.004 rad
@@ -323,9 +345,9 @@ def implicit_note(infos: Mapping[str, Mapping[str, Any]]) -> str:
     )
 
 
-def _rows(n: int) -> str:
-    """``n`` rows, for a details summary: "1 row", "3 rows"."""
-    return f"{n} row" if n == 1 else f"{n} rows"
+def _rows(n: int, what: str = "row") -> str:
+    """``n`` rows (or ``what``s), for a summary: "1 row", "3 rows", "1 backend"."""
+    return f"{n} {what}" if n == 1 else f"{n} {what}s"
 
 
 def _names(items: Sequence[str]) -> str:
@@ -484,14 +506,18 @@ def _sim_cell(
     backend: str,
     dev: float,
     t: float,
+    digits: int = 4,
 ) -> tuple[str, str, str]:
-    """(mark, CSS class, hover) of one simulation error % cell, as every table of them shows it: the mark ``held``
-    or :data:`SMALL_MARK` after the number (or none), :func:`sim_class`'s class, and its why followed by where the
-    largest deviation ``dev`` [signal unit] at ``t`` [s] is (:func:`deviation_note`; none for a held one)."""
-    cls, why = sim_class(value, signal, joint, tolerances, held, small)
+    """(text, CSS class, hover) of one simulation error % cell, as every table of them shows it: the number
+    (``digits`` significant, more where fewer would read as a bound it was held to: :func:`sim_class`) and the
+    mark ``held`` or :data:`SMALL_MARK` after it (or none), :func:`sim_class`'s class, and its why followed by
+    where the largest deviation ``dev`` [signal unit] at ``t`` [s] is (:func:`deviation_note`; none for a held
+    one)."""
+    cls, why, bounds = sim_class(value, signal, joint, tolerances, held, small)
     mark = "held" if held else SMALL_MARK if small is not None and math.isfinite(value) else ""
     where = "" if held else deviation_note(meta, backend, signal, dev, t)
-    return mark, cls, f"{why}; {where}" if where else why
+    text = num_apart(value, bounds, digits)
+    return f"{text} ({mark})" if mark else text, cls, f"{why}; {where}" if where else why
 
 
 def _pair_table(
@@ -516,10 +542,10 @@ def _pair_table(
         cells = []
         for i, v in enumerate(p.sim_error_pct):
             tiny = small.get(i) if p.reference == result.reference else None
-            mark, cls, title = _sim_cell(float(v), SIGNAL_OF[i], LABELS[i][-1], result.run.tolerances,
+            text, cls, title = _sim_cell(float(v), SIGNAL_OF[i], LABELS[i][-1], result.run.tolerances,
                                          bool(p.held[i]), tiny, meta or {}, p.backend, float(p.max_abs[i]),
                                          float(p.t_max_abs[i]))  # fmt: skip
-            cells.append(f"{num(float(v))} ({mark})" if mark else num(float(v)))
+            cells.append(text)
             if cls:
                 classes[(r, i + 2)], titles[(r, i + 2)] = cls, title
         rows.append((p.backend, p.reference, *cells))
@@ -851,27 +877,43 @@ def friction_shape(info: Mapping[str, Any]) -> str:
     return "pyramid" if said else "cone"
 
 
+def _residual_edges(column: str, shape: str = "cone") -> tuple[float, ...]:
+    """The values a contact-law residual of ``column`` is held to by :func:`_residual_marks`: the expected value
+    +- its tolerance, or a non-conic friction limit's own bounds widened by it."""
+    expected, tol = RESIDUAL_EXPECTED[column]
+    bounds = SHAPE_BOUNDS.get(shape)
+    if bounds is not None and column == "friction_ratio":
+        return bounds[0] - tol, bounds[1] + tol
+    if bounds is not None and column == "angle_max":
+        return (bounds[2] + tol,)
+    return expected - tol, expected + tol
+
+
+def _residual_text(value: float, column: str, shape: str = "cone") -> str:
+    """One contact-law residual as its cell writes it: with the digits that set it apart from its edges."""
+    return num_apart(value, _residual_edges(column, shape))
+
+
 def _residual_marks(value: float, column: str, shape: str = "cone") -> tuple[str, str]:
     """(CSS class, why) of one contact-law residual against :data:`RESIDUAL_EXPECTED` (a non-conic friction
     limit's own bounds, :data:`SHAPE_BOUNDS`, for its friction columns): ``pass`` within the tolerance, ``fail``
-    beyond it; nothing for n/a."""
+    beyond it (:func:`_residual_edges`); nothing for n/a."""
     if not math.isfinite(value):
         return "", ""
     expected, tol = RESIDUAL_EXPECTED[column]
     bounds = SHAPE_BOUNDS.get(shape)
-    if bounds is not None and column == "friction_ratio":
-        ok = bounds[0] - tol <= value <= bounds[1] + tol
-        what = f"a friction {shape}'s own bounds, {num(bounds[0])} to {num(bounds[1])}"
-    elif bounds is not None and column == "angle_max":
-        ok, what = value <= bounds[2] + tol, f"a friction {shape}'s own bound, <= {num(bounds[2])} deg"
-    else:
-        ok, what = abs(value - expected) <= tol, f"expected {num(expected)}"
+    edges = _residual_edges(column, shape)
+    ok = edges[0] <= value <= edges[1] if len(edges) == 2 else value <= edges[0]
+    shown = _residual_text(value, column, shape)
     if bounds is not None and column in ("friction_ratio", "angle_max"):  # the shape's bounds, widened by tol
-        widened = f"{'+-' if column == 'friction_ratio' else '+'} the tolerance {num(tol)}"
-        return ("pass", f"{num(value)}: within {what}, {widened}") if ok else (
-            "fail", f"{num(value)}: beyond {what}, {widened}")  # fmt: skip
-    return ("pass", f"{num(value)}: within the tolerance {num(tol)} of {what}") if ok else (
-        "fail", f"{num(value)}: departs from {what} by more than the tolerance {num(tol)}")  # fmt: skip
+        what = (f"a friction {shape}'s own bounds, {num(bounds[0])} to {num(bounds[1])}" if column == "friction_ratio"
+                else f"a friction {shape}'s own bound, <= {num(bounds[2])} deg")  # fmt: skip
+        widened = f"{'±' if column == 'friction_ratio' else '+'} the tolerance {num(tol)}"
+        return ("pass", f"{shown}: within {what}, {widened}") if ok else (
+            "fail", f"{shown}: beyond {what}, {widened}")  # fmt: skip
+    what = f"expected {num(expected)}"
+    return ("pass", f"{shown}: within the tolerance {num(tol)} of {what}") if ok else (
+        "fail", f"{shown}: departs from {what} by more than the tolerance {num(tol)}")  # fmt: skip
 
 
 def _native_shape(result: ComparisonResult, name: str) -> str:
@@ -885,7 +927,7 @@ def _residual_table(result: ComparisonResult) -> Table:
     rows = []
     classes: dict[tuple[int, int], str] = {}
     titles: dict[tuple[int, int], str] = {}
-    bounds = {c: f"{num(e)} +- {num(t)}" for c, (e, t) in RESIDUAL_EXPECTED.items()}
+    bounds = {c: f"{num(e)} ± {num(t)}" for c, (e, t) in RESIDUAL_EXPECTED.items()}
     shapes = {name: _native_shape(result, name) for name in result.residuals}
     # only the shapes some row has: a bound no backend on the page is held to reads as if one were
     present = [k for k in SHAPE_BOUNDS if k in shapes.values()]
@@ -897,7 +939,7 @@ def _residual_table(result: ComparisonResult) -> Table:
     rows.append(
         ("expected (tolerance)", "", f"{bounds['penetration_max_mm']} mm", bounds["penetration_rel"], "",
          bounds["friction_ratio"] + also(lambda k: f"{num(SHAPE_BOUNDS[k][0])} to {num(SHAPE_BOUNDS[k][1])} "
-                                                   f"+- {num(ratio_tol)}"),
+                                                   f"± {num(ratio_tol)}"),
          bounds["angle_max"] + also(lambda k: f"<= {num(SHAPE_BOUNDS[k][2])} + {num(angle_tol)}"),
          "", "the law's creep", "")
     )  # fmt: skip
@@ -908,11 +950,11 @@ def _residual_table(result: ComparisonResult) -> Table:
             (
                 f"{name} ({shape})" if shape in SHAPE_BOUNDS else name,
                 str(r.n_contact),
-                "n/a (rigid)" if rigid else num(r.penetration_max * 1e3),
-                "n/a (rigid)" if rigid else num(r.penetration_rel),
+                "n/a (rigid)" if rigid else _residual_text(r.penetration_max * 1e3, "penetration_max_mm", shape),
+                "n/a (rigid)" if rigid else _residual_text(r.penetration_rel, "penetration_rel", shape),
                 str(r.n_sliding),
-                num(r.friction_ratio),
-                num(r.angle_max),
+                _residual_text(r.friction_ratio, "friction_ratio", shape),
+                _residual_text(r.angle_max, "angle_max", shape),
                 str(r.n_creep),
                 num(r.creep_speed * 1e3),
                 num(r.creep_law * 1e3),
@@ -1119,6 +1161,9 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
             "except in the focus on transients (one window of its own per row)."
         )
     )
+    if no_ground_force(result):
+        b.append(Para("No figures of the ground force: every backend's is 0 at every sample (the foot never touches "
+                      "the ground)."))  # fmt: skip
     b.extend(figures)
     if leg_note is not None:
         b += [Heading(3, "3D leg view", "leg"), leg_note]
@@ -1379,7 +1424,7 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
                     kept_here = (backend, ref, s, j) in held
                     small = tiny.get((s, j)) if str(ref) == str(e.meta.get("reference", "")) else None
                     key = (str(backend), str(ref), s, j)
-                    mark, cls, title = _sim_cell(
+                    text, cls, title = _sim_cell(
                         v,
                         s,
                         j,
@@ -1390,8 +1435,9 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
                         str(backend),
                         at.get((*key, "max_abs"), nan),
                         at.get((*key, "t_max_abs"), nan),
+                        digits=3,
                     )
-                    cells.append(f"{num(v, 3)} ({mark})" if mark else num(v, 3))
+                    cells.append(text)
                     if cls:
                         classes[(r, 5 + c)], titles[(r, 5 + c)] = cls, title
                 rows.append((e.label, e.profile, e.mode, str(backend), str(ref), *cells))
@@ -1733,6 +1779,15 @@ def _cell(v: Any, scale: float = 1.0) -> str:
     return str(v)
 
 
+def _error_cell(r: Mapping[str, Any]) -> str:
+    """A verification row's error, written with the digits that set it apart from its tolerance (an error of
+    0.010004 against 0.01 is not shown as 0.01)."""
+    e, tol = r.get("error", ""), r.get("tolerance")
+    if isinstance(e, bool) or not isinstance(e, int | float) or not isinstance(tol, int | float) or math.isinf(e):
+        return _cell(e)
+    return num_apart(float(e), (float(tol),))
+
+
 def _status(r: Mapping[str, Any]) -> str:
     """A check's status: ``pass``, ``fail`` or ``not-applicable`` (files without ``status``: from ``pass``)."""
     status = r.get("status")
@@ -1768,19 +1823,20 @@ def _study_blocks(root: Path) -> list[Block]:
         if "pass" not in cols:
             rows = tuple(tuple(_cell(r.get(c, ""), SHOWN_SCALE.get(c, 1.0)) for c in cols) for r in records)
             header = tuple(f"{c} [{STUDY_UNITS[c]}]" if c in STUDY_UNITS else c for c in cols)
-            blocks.append(Heading(2, f"{heading}, {profile} profile: {len(records)} backends measured"))
+            blocks.append(Heading(2, f"{heading}, {profile} profile: {_rows(len(records), 'backend')} measured"))
             blocks.append(Details(f"the {_rows(len(records))}", (Table(header, rows, caption),)))
             blocks.append(Nav(((f"{md}", md), (f"{js}", js))))
             continue
         status = [_status(r) for r in records]
         shown = {"pass": "yes", "fail": "NO", "not-applicable": "n/a"}
-        rows = tuple(
-            (*(_cell(r.get(c, "")) for c in cols[:-1]), shown[st]) for r, st in zip(records, status, strict=True)
-        )
         last = len(cols) - 1
+        err, tol = cols.index("error"), cols.index("tolerance")
+        rows = tuple(
+            tuple(_error_cell(r) if c == err else _cell(r.get(cols[c], "")) for c in range(last)) + (shown[st],)
+            for r, st in zip(records, status, strict=True)
+        )
         css = {"pass": "pass", "fail": "fail", "not-applicable": "na"}
         classes = {(i, last): css[st] for i, st in enumerate(status)}
-        tol = cols.index("tolerance")
         basis = doc.get("tolerance_basis")
         basis = basis if isinstance(basis, Mapping) else {}  # older files: none
         titles = {(i, c): _tolerance_basis(r, basis) for i, r in enumerate(records) for c in (tol, last)}

@@ -60,6 +60,7 @@ __all__ = [
     "envelope",
     "model_advice",
     "model_match",
+    "no_ground_force",
     "run_figures",
     "run_title",
     "write_assets",
@@ -439,11 +440,21 @@ def _trace(
     }
 
 
+def no_ground_force(result: ComparisonResult) -> bool:
+    """Every backend logged a ground force, and it is 0 at every sample: the foot never touched the ground (the
+    position and ellipse tasks). Its overlay and deviation figures would be flat lines at 0: the run gets none,
+    and its page says why."""
+    traces = [tr for tr in (*result.traces.values(), *result.run.partial.values()) if len(tr.t)]
+    return bool(traces) and all(tr.has("force") and not np.nan_to_num(tr.signal("force")).any() for tr in traces)
+
+
 def _overlay(result: ComparisonResult, signal: str, arrays: Arrays) -> Figure | None:
     run = result.run
     shown = {**result.traces, **{f"{k} (failed)": v for k, v in run.partial.items()}}
     shown = {k: v for k, v in shown.items() if len(v.t)}
     if signal != "ee" and not any(tr.has(signal) for tr in shown.values()):
+        return None
+    if signal == "force" and no_ground_force(result):
         return None
     styles = _run_styles(result)
     comps = ("x", "y", "z") if signal == "ee" else JOINTS[signal]
@@ -490,7 +501,7 @@ def _pairs(result: ComparisonResult, signal: str) -> list[Any]:
 def _deviation(result: ComparisonResult, signal: str, arrays: Arrays) -> Figure | None:
     run = result.run
     pairs = _pairs(result, signal)
-    if not pairs:
+    if not pairs or (signal == "force" and no_ground_force(result)):
         return None
     styles = _run_styles(result)
     cols = np.arange(12)[SLICE[signal]]

@@ -21,7 +21,7 @@ from typing import Any
 
 from legbench.report_figures import LEGBENCH_FILE, PLOTLY_JS, Arrays, Figure
 
-__all__ = ["Block", "Details", "Heading", "Nav", "Para", "Table", "num", "to_html", "to_markdown"]
+__all__ = ["Block", "Details", "Heading", "Nav", "Para", "Table", "num", "num_apart", "to_html", "to_markdown"]
 
 
 def num(v: Any, digits: int = 4) -> str:
@@ -42,6 +42,21 @@ def num(v: Any, digits: int = 4) -> str:
     mant, exp = f"{x:.{digits - 1}e}".split("e")
     mant = mant.rstrip("0").rstrip(".") if "." in mant else mant
     return f"{mant}e{int(exp)}"
+
+
+def num_apart(v: Any, bounds: Sequence[float], digits: int = 4) -> str:
+    """:func:`num` of ``v`` with as many more significant digits (up to 12) as it takes not to read as one of the
+    ``bounds`` it is compared with and differs from: a 100.04 % over a 100 % limit is written ``100.04``, not
+    ``100``; a 0.010004 beyond a tolerance of 0.01, ``0.010004``."""
+    if v is None or not math.isfinite(float(v)):
+        return num(v, digits)
+    x = float(v)
+    near = [b for b in bounds if math.isfinite(b) and b != x]
+    for d in range(digits, 13):
+        s = num(x, d)
+        if all(s != num(b, d) for b in near):
+            return s
+    return num(x, 12)
 
 
 @dataclass(frozen=True)
@@ -140,10 +155,11 @@ h3 { font-size: 1.05em; margin-top: 1.2em; }
 table { border-collapse: collapse; font-size: 0.82em; }
 .scroll { overflow: auto; max-height: 85vh; margin: 0 0 1.2em; }
 th, td { border: 1px solid #d0d0d0; padding: 2px 5px; text-align: right; white-space: nowrap; }
-th { background: #f0f0f0; position: sticky; top: 0; }
-td.text { text-align: left; white-space: normal; } td.short { white-space: nowrap; }
+thead th { background: #f0f0f0; position: sticky; top: 0; z-index: 1; }
+tbody th { background: #fff; position: sticky; left: 0; font-weight: normal; }
+.text { text-align: left; white-space: normal; } .short { white-space: nowrap; }
 td:first-child, th:first-child { text-align: left; white-space: nowrap; }
-tr.group td { background: #f7f7f7; font-weight: 600; text-align: left; }
+tr.group th { background: #f7f7f7; font-weight: 600; text-align: left; }
 p.caption { text-align: left; font-style: italic; margin: 0.4em 0 3px; color: #444; }
 .warn { background: #fde8e8; border-left: 4px solid #c00; padding: 4px 8px; }
 .nav { font-size: 0.9em; margin: 0.3em 0 1em; } .nav a { margin-right: 1.2em; }
@@ -152,25 +168,28 @@ figure { margin: 0.8em 0 1.6em; } figcaption { font-size: 0.85em; color: #555; }
 .leg-controls { font-size: 0.9em; margin: 0.3em 0; } .leg-controls input { width: 60%; vertical-align: middle; }
 details { margin: 0.3em 0 1em; } summary { cursor: pointer; font-weight: 600; }
 details.fail > summary { color: #a00; }
-td.agree { background: #d9f2d9; } td.close { background: #eef7d6; } td.differ { background: #fde9c8; }
-td.far { background: #f9cccc; } td.within { background: #d9f2d9; } td.over { background: #f4a7a7; font-weight: 600; }
-td.pass { background: #d9f2d9; } td.fail { background: #f4a7a7; font-weight: 600; }
-td.na { background: #eeeeee; color: #555; }
+:is(td, th).agree { background: #d9f2d9; } :is(td, th).close { background: #eef7d6; }
+:is(td, th).differ { background: #fde9c8; } :is(td, th).far { background: #f9cccc; }
+:is(td, th).within { background: #d9f2d9; } :is(td, th).over { background: #f4a7a7; font-weight: 600; }
+:is(td, th).pass { background: #d9f2d9; } :is(td, th).fail { background: #f4a7a7; font-weight: 600; }
+:is(td, th).na { background: #eeeeee; color: #555; }
 .legend span { display: inline-block; padding: 1px 6px; margin-right: 6px; border: 1px solid #ccc; font-size: 0.85em; }
 .sentence { margin: 0.2em 0 0.6em; }
 """
 
 
 def _html_table(b: Table, e: Any) -> list[str]:
-    """The table in a box that scrolls it (sideways where it is wide, down where it is long, its header row staying
-    in view), its caption above the box at the page's width, naming the box for a screen reader."""
+    """The table in a box that scrolls it (sideways where it is wide, down where it is long, its header row and
+    first column staying in view), its caption above the box at the page's width, naming the box for a screen
+    reader; the header cells head their columns, each row's first cell heads its row."""
     out = [f'<p class="caption">{e(b.caption)}</p>'] if b.caption else []
     label = f' aria-label="{e(b.caption)}"' if b.caption else ""
     out.append(f'<div class="scroll" role="region" tabindex="0"{label}><table>')
-    out.append("<thead><tr>" + "".join(f"<th>{e(h)}</th>" for h in b.header) + "</tr></thead><tbody>")
+    out.append("<thead><tr>" + "".join(f'<th scope="col">{e(h)}</th>' for h in b.header) + "</tr></thead><tbody>")
     for i, r in enumerate(b.rows):
         if i in b.group_rows:
-            out.append(f'<tr class="group"><td colspan="{len(b.header)}">{e(b.group_rows[i])}</td></tr>')
+            group = e(b.group_rows[i])
+            out.append(f'<tr class="group"><th scope="rowgroup" colspan="{len(b.header)}">{group}</th></tr>')
         cells = []
         for j, c in enumerate(r):
             txt = e(c)
@@ -182,7 +201,8 @@ def _html_table(b: Table, e: Any) -> list[str]:
             attr = f' class="{" ".join(cls)}"' if cls else ""
             if b.titles and (i, j) in b.titles:
                 attr += f' title="{e(b.titles[(i, j)])}"'
-            cells.append(f"<td{attr}>{txt}</td>")
+            # the first column names the row (a backend, a case): its header, kept in view scrolling sideways
+            cells.append(f'<th scope="row"{attr}>{txt}</th>' if j == 0 else f"<td{attr}>{txt}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
     out.append("</tbody></table></div>")
     return out

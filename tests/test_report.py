@@ -22,7 +22,7 @@ from legbench import report as R
 from legbench.compare import compare
 from legbench.exceptions import ResultsError
 from legbench.report_figures import BINS, Arrays, envelope, run_figures
-from legbench.report_html import num, to_markdown
+from legbench.report_html import num, num_apart, to_markdown
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 #: 5 overlays (q, qd, tau, force, foot) + 4 deviations + 2 focused views + the 3D leg
@@ -91,6 +91,30 @@ def test_partial_log_of_a_failed_backend_is_plotted_not_measured(tmp_path: Path)
     assert {r["backend"] for r in metrics} == {"ref", "a"}
     assert len(files.figures) == N_FIGURES
     assert '"name":"c (failed)"' in files.html.read_text()
+
+
+def test_a_run_whose_foot_never_touches_gets_no_force_figures_and_says_why(tmp_path: Path) -> None:
+    """The position and ellipse tasks: every backend's ground force 0 at every sample drew two figures of flat
+    lines at 0; the page says why it has none. One backend's 0.1 N somewhere brings both back."""
+
+    def airborne(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        x[:, 9:12] = 0.0
+        return x
+
+    def touches(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+        x[:, 9:12] = 0.0
+        x[len(t) // 2, 11] = 0.1
+        return x
+
+    d = write_run(tmp_path / "air", {"ref": airborne, "a": airborne})
+    files = R.write_report(d)
+    assert "overlay-force" not in files.figures and "deviation-force" not in files.figures
+    assert "overlay-q" in files.figures and "deviation-q" in files.figures
+    assert "No figures of the ground force: every backend's is 0 at every sample" in files.markdown.read_text()
+    d = write_run(tmp_path / "touch", {"ref": airborne, "a": touches})
+    files = R.write_report(d)
+    assert "overlay-force" in files.figures and "deviation-force" in files.figures
+    assert "No figures of the ground force" not in files.markdown.read_text()
 
 
 def test_a_signal_missing_everywhere_gets_no_figure_and_stale_pngs_go(tmp_path: Path) -> None:
@@ -251,6 +275,26 @@ def test_colours_follow_the_scenario_ceiling_else_the_bands() -> None:
     assert R.sim_class(math.nan, "q", "1", {})[0] == ""
 
 
+def test_a_number_held_to_a_bound_is_written_apart_from_it() -> None:
+    """A 100.04 % over a 100 % limit read '100' in a red cell, an error of 0.010004 beyond a tolerance of 0.01
+    read '0.01': a number compared with a bound gets the digits (up to 12) that set it apart from the bound; one
+    equal to its bound, or far from it, keeps the four."""
+    assert num_apart(100.04, (100.0,)) == "100.04" and num(100.04) == "100"
+    assert num_apart(0.010004, (0.01,)) == "0.010004"
+    assert num_apart(0.01, (0.01,)) == "0.01" and num_apart(5.12345, (1.0, 10.0)) == "5.123"
+    assert num_apart(1.0 + 1e-15, (1.0,)) == "1"  # beyond 12 digits: the 12-digit form, as near as it can say
+    assert num_apart(math.nan, (1.0,)) == "n/a" and num_apart(2.0, (math.inf,)) == "2"
+    tol = {"max_sim_error_pct": 100.0}
+    cls, why, bounds = R.sim_class(100.04, "q", "1", tol)
+    assert (cls, bounds) == ("over", (100.0,)) and why.startswith("100.04 % exceeds the scenario's limit 100 %")
+    assert R.sim_class(0.99996, "q", "1", {})[1].startswith("0.99996 %: < 1 %")  # the band's edge, 6 digits
+    assert R._residual_text(1.01003, "friction_ratio") == "1.01003"  # beyond 1 + 0.01
+    assert R._residual_marks(1.01003, "friction_ratio")[0] == "fail"
+    assert R._error_cell({"error": 0.010004, "tolerance": 0.01}) == "0.010004"
+    assert R._error_cell({"error": 0.0123, "tolerance": 0.01}) == "0.0123"
+    assert R._error_cell({"error": "", "tolerance": 0.01}) == ""
+
+
 def test_the_sentence_names_the_largest_deviation_and_says_why(tmp_path: Path) -> None:
     """Largest simulation error: backend, component, size, time and the reference's peak it is a percentage of
     (tau2 = 2 cos(0.7 w t) peaks at 2 N m at t = 0); in reference contact mode the reason is integration;
@@ -281,7 +325,7 @@ def test_index_groups_by_task_links_both_ways_and_tabulates_every_sim_error(tmp_
     assert isinstance(index, R.IndexFiles)
     page = index.html.read_text()
     assert 'href="one/report.html"' in page and 'href="two/report.html"' in page
-    assert '<tr class="group"><td colspan="17">matched profile, reference contact</td></tr>' in page
+    assert '<tr class="group"><th scope="rowgroup" colspan="17">matched profile, reference contact</th></tr>' in page
     md = index.markdown.read_text()
     assert "## one\n" in md and "## two\n" in md
     assert "| [one](one/report.html) | matched | native | a | ref | 10 (small peak) | 10 |" in md
@@ -417,7 +461,7 @@ def test_index_collapses_verification_and_calibration_to_counts_with_the_tables_
     md = (root / "report.md").read_text()
     assert "## Verification against closed-form answers, matched profile: 2 of 3 checks pass" in md
     assert "| energy | a | euler |" in md and "| balance | a | euler |" in md
-    assert "## Contact calibration, matched profile: 1 backends measured" in md and "| a | 10000 | 9999 |" in md
+    assert "## Contact calibration, matched profile: 1 backend measured" in md and "| a | 10000 | 9999 |" in md
     page = (root / "report.html").read_text()
     # each study linked by its files, not its folder (a static host lists no folder; the folder link read as one)
     assert 'href="verification/verification.md"' in page and 'href="calibration/calibration.json"' in page
@@ -427,8 +471,8 @@ def test_index_collapses_verification_and_calibration_to_counts_with_the_tables_
            '"Failing checks"><table>' in page and "<caption>" not in page  # fmt: skip
     failing = page.index('<p class="caption">Failing checks</p>')
     details = page.index('<details class="fail"><summary>all 3 checks</summary>')
-    assert failing < details and page.count(">energy</td>", 0, details) == 0  # passing rows only on demand
-    assert page[failing:details].count('<td class="text short">balance</td>') == 1
+    assert failing < details and page.count(">energy</th>", 0, details) == 0  # passing rows only on demand
+    assert page[failing:details].count('<th scope="row" class="text short">balance</th>') == 1
     assert len(re.findall(r'<td class="text short fail"(?: title="[^"]*")?>NO</td>', page)) == 2
     # the engine-defaults calibration (calibrate-contact --profile engine-defaults) under its own heading, after
     (root / "calibration__engine-defaults").mkdir()
@@ -437,8 +481,8 @@ def test_index_collapses_verification_and_calibration_to_counts_with_the_tables_
                                                                                        "rows": stiff}))  # fmt: skip
     R.write_all(root)
     md = (root / "report.md").read_text()
-    matched = md.index("## Contact calibration, matched profile: 1 backends measured")
-    assert md.index("## Contact calibration, engine-defaults profile: 1 backends measured") > matched
+    matched = md.index("## Contact calibration, matched profile: 1 backend measured")
+    assert md.index("## Contact calibration, engine-defaults profile: 1 backend measured") > matched
     assert "| a | 10000 | 140000 |" in md
     assert len(re.findall(r'<td class="text short pass"(?: title="[^"]*")?>yes</td>', page)) == 2
 
@@ -549,7 +593,7 @@ def test_write_page_renders_headings_paragraphs_and_tables(tmp_path: Path) -> No
     assert "# Title\n" in text and "## Sub\n" in text and "*caption*" in text and "| x\\|y | 1.5 |" in text
     html_text = page.read_text()
     assert "<h1>Title</h1>" in html_text and '<p class="caption">caption</p>' in html_text
-    assert "<td>1.5</td>" in html_text and '<td class="text short">x|y</td>' in html_text
+    assert "<td>1.5</td>" in html_text and '<th scope="row" class="text short">x|y</th>' in html_text
     assert "<script" not in html_text
 
 
@@ -1576,8 +1620,8 @@ def test_contact_residuals_show_what_the_law_expects_and_colour_what_departs_fro
     d = write_run(tmp_path / "one", {"ref": None, "a": scale(1.01)})
     _declare(d, {"a": {"contact": {"friction": "pyramid (bound mu x normal force per tangent direction)"}}})
     md = R.write_report(d).markdown.read_text()
-    assert ("| expected (tolerance) |  | 0 +- 0.05 mm | 0 +- 0.01 |  | 1 +- 0.01 (pyramid: 1 to 1.414 +- 0.01) "
-            "| 0 +- 10 (pyramid: <= 45 + 10) |  | the law's creep |  |") in md  # fmt: skip
+    assert ("| expected (tolerance) |  | 0 ± 0.05 mm | 0 ± 0.01 |  | 1 ± 0.01 (pyramid: 1 to 1.414 ± 0.01) "
+            "| 0 ± 10 (pyramid: <= 45 + 10) |  | the law's creep |  |") in md  # fmt: skip
     assert "\n| a (pyramid) | " in md and "\n| ref | " in md
     page = (d / "report.html").read_text()
     assert re.search(r'<td class="(pass|fail)" title="[^"]*(within the tolerance|departs from)', page)
@@ -1609,7 +1653,7 @@ def test_the_residuals_expected_row_names_only_the_shapes_on_the_page_and_their_
     says the same."""
     d = write_run(tmp_path / "cone", {"ref": None, "a": scale(1.01)})
     md = R.write_report(d).markdown.read_text()
-    expected = "| expected (tolerance) |  | 0 +- 0.05 mm | 0 +- 0.01 |  | 1 +- 0.01 | 0 +- 10 |  | the law's creep |  |"
+    expected = "| expected (tolerance) |  | 0 ± 0.05 mm | 0 ± 0.01 |  | 1 ± 0.01 | 0 ± 10 |  | the law's creep |  |"
     assert expected in md
     assert "diamond" not in md.split("| expected (tolerance) |")[1].split("\n")[0]
     assert R._residual_marks(50.0, "angle_max", "pyramid") == (
@@ -1618,7 +1662,7 @@ def test_the_residuals_expected_row_names_only_the_shapes_on_the_page_and_their_
     )
     assert R._residual_marks(0.7525, "friction_ratio", "pyramid") == (
         "fail",
-        "0.7525: beyond a friction pyramid's own bounds, 1 to 1.414, +- the tolerance 0.01",
+        "0.7525: beyond a friction pyramid's own bounds, 1 to 1.414, ± the tolerance 0.01",
     )
 
 
