@@ -954,6 +954,11 @@ class Dynamics:
         M = pin.crba(self.model, self.data, q_to_pin(q))
         return np.triu(M) + np.triu(M, 1).T  # type: ignore[no-any-return]
 
+    def gravity(self, q: np.ndarray) -> np.ndarray:
+        """G(q) [N m] at this model's gravity (``gravity_torque`` and ``kinematics.gravity`` take the parameter
+        file's): the joint torques that hold the leg still."""
+        return np.array(pin.computeGeneralizedGravity(self.model, self.data, q_to_pin(np.asarray(q, float))))
+
     def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         """tau = M(q) qdd + C(q, qd) qd + G(q) [N m]; with qdd = 0 the bias b(q, qd)."""
         return np.array(pin.rnea(self.model, self.data, q_to_pin(q), np.asarray(qd, float), np.asarray(qdd, float)))

@@ -71,6 +71,21 @@ def test_the_closed_form_applies_the_force_at_the_declared_point() -> None:
     assert (np.abs(centre[:, 1] - lowest[:, 1]) > 0.05 * np.abs(lowest[:, 1])).all()
 
 
+def test_the_closed_form_takes_the_runs_gravity() -> None:
+    """The slip acceleration's closed form took G at the leg file's 9.81 m/s^2 whatever the run's gravity: at
+    g = 3.71 its M^-1 (tau - nle + J^T F) is the one of Dynamics(3.71), and differs from 9.81's by more than 1 %."""
+    p = model.load_params()
+    q = np.tile(kinematics.ik_nearest(np.array([0.1667, 0.0, p.geometry.R_foot - 0.001]), np.array(p.q_star)), (2, 1))
+    qd, tau = np.zeros((2, 3)), np.tile([0.5, -2.0, 1.0], (2, 1))
+    force = np.tile([0.0, -6.0, 15.0], (2, 1))
+    mars = S.predicted_acceleration(q, qd, tau, force, 0.0, "centre", gravity=3.71)
+    dyn, J = model.Dynamics(3.71), kinematics.jacobian(q[0])
+    qdd = np.linalg.solve(dyn.mass_matrix(q[0]), tau[0] - dyn.gravity(q[0]) + J.T @ force[0])
+    np.testing.assert_allclose(mars[0], (J @ qdd)[:2], rtol=1e-9, atol=1e-9)
+    earth = S.predicted_acceleration(q, qd, tau, force, 0.0, "centre")
+    assert np.abs(mars[0] - earth[0]).max() > 0.01 * np.abs(earth[0]).max()
+
+
 def test_lagrange_engine_defaults_is_scored_at_the_sphere_centre() -> None:
     """The lagrange backend's engine-defaults apply the law at the sphere's centre (info ``contact.poc``
     'centre'); the closed form with F there meets its slip acceleration (measured 6.521 against 6.511 m/s^2,

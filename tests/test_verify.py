@@ -574,7 +574,7 @@ def _static_balance_terms(scenario: Any, physics: Physics, tr: RunResult) -> dic
     out = {"dyn": np.zeros((n, 3)), "step": np.zeros(n), "lever": np.zeros(n), "solver": np.zeros(n),
            "roundoff": np.zeros(n)}  # fmt: skip
     for k in range(n):
-        G = kinematics.gravity(q[k])
+        G = leg.gravity(q[k])
         JTinv = np.linalg.inv(J[k].T)
         norm = np.linalg.norm(JTinv, 2)
         out["dyn"][k] = np.abs(JTinv @ (leg.inverse_dynamics(q[k], qd[k], qdd[k]) - G))
@@ -835,3 +835,25 @@ def test_a_first_order_energy_row_is_the_steps_own_drift_not_a_defect(monkeypatc
     )
     (leaky,) = verify.check_energy(["ode"])
     assert not leaky.passed and leaky.measured == pytest.approx(-1.0, abs=0.1), leaky  # R doubles per halving
+
+
+def test_the_closed_forms_take_the_scenarios_gravity(tmp_path: Path) -> None:
+    """The static balance's expected force took G(q) at the leg file's 9.81 m/s^2 while the tolerance's dynamic
+    terms took the scenario's gravity, so at g = 4.905 the whole error of G went into the tolerance and passed:
+    0.93 N within 0.93 N (a review's run). Now G is the scenario's: Pinocchio's force meets F = -(J_poc^T)^-1
+    (tau - G(q)) to 1e-3 N within a tolerance under 1e-3 N (at 9.81: 5e-5 N within 2e-4 N), and the small
+    oscillation's equilibrium and gravity stiffness are the scenario's too (dG/dq halves with g)."""
+    rest = tmp_path / "rest_g.yaml"
+    rest.write_text(
+        verify.REST_SCENARIO.read_text().replace(
+            "physics: {contact_mode: native}", "physics: {contact_mode: native, gravity: 4.905}"
+        )
+    )
+    rows = [r for r in verify.check_rest(["pinocchio"], rest) if r.case == "static_balance"]
+    assert len(rows) == 3 and all(r.passed for r in rows), rows
+    assert max(r.tolerance for r in rows) < 1e-3 and max(r.error for r in rows) < 1e-3, rows
+    q = np.array([-0.0025, -1.1899, -1.2599])
+    half, full = model.Dynamics(4.905), model.Dynamics(9.81)
+    np.testing.assert_allclose(half.gravity(q), 0.5 * full.gravity(q), rtol=1e-12)
+    np.testing.assert_allclose(verify.gravity_stiffness(q, leg=half), 0.5 * verify.gravity_stiffness(q, leg=full),
+                               rtol=1e-6, atol=1e-9)  # fmt: skip

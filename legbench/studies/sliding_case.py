@@ -79,17 +79,18 @@ def _scenario(duration: float = WINDOW[1] + 0.01, overrides: Mapping[str, Any] |
     return scenario_mod.load(resources.scenario("effort"), {**base, **(overrides or {})})
 
 
-def predicted_acceleration(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force: np.ndarray,
-                           lift: float = 0.0, poc: str = "true") -> np.ndarray:  # fmt: skip
+def predicted_acceleration(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, force: np.ndarray, lift: float = 0.0,
+                           poc: str = "true", gravity: float | None = None) -> np.ndarray:  # fmt: skip
     """Horizontal acceleration in W [m/s^2] (n x 2), under tau [N m] and the ground force in W [N], of the shank's
     point where the force acts (:func:`~legbench.backends.base.contact_point`, the backend's info's ``contact``):
     ``poc`` ``"true"``, the sphere's lowest point raised by ``lift`` times the penetration y (``contact.lift``; 0:
     the lowest point itself), or ``"centre"``, E (the law applied at the sphere's centre: the force's lever is then
     R_foot shorter), the point whose slip the sliding case measures. Its acceleration is J qdd + Jdot qd with the
     material point (its depth d below E) held: Jdot qd by a difference of J at q + eps qd and the same d.
+    ``gravity`` [m/s^2]: the run's (its physics'; default the parameter file's).
     """
     R = load_params().geometry.R_foot
-    dyn = Dynamics()
+    dyn = Dynamics(gravity)
     out = np.empty((len(q), 2))
     eps = 1e-7
     zero = np.zeros(3)
@@ -186,7 +187,7 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     angle = float(np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0))).max())
     a_meas = (v[k + 1] - v[k - 1]) / (2 * Ts)
     f_pred = np.column_stack([-mu * fn[:, None] * u, fn])
-    a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift, poc)
+    a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift, poc, physics.gravity)
     am, ap = float(np.mean(np.sum(a_meas * u, axis=1))), float(np.mean(np.sum(a_pred * u, axis=1)))
     # a law backend's force is the law evaluated at the logged state: its ratio and angle are the law read back
     law = ("the law read back (the force is the law at the logged state): checks the read-out, not an engine; "
@@ -309,7 +310,7 @@ def _score_diamond(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
            f"{DIAMOND_AXIS_DEG:g} deg of an axis; {slip}")  # fmt: skip
     a_meas = (v[k + 1] - v[k - 1]) / (2 * Ts)
     f_pred = np.column_stack([ft_pred, fn])
-    a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift, poc)
+    a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift, poc, physics.gravity)
     am, ap = float(np.mean(np.sum(a_meas * u, axis=1))), float(np.mean(np.sum(a_pred * u, axis=1)))
     rows = [
         _relative(case, backend, "friction (|F_x| + |F_y|) / Fn while sliding (diamond)", "1", l1, mu, TOL_MU,
@@ -348,11 +349,11 @@ def _relative(case: str, backend: str, quantity: str, unit: str, measured: float
 
 
 def pyramid_friction(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, fn: np.ndarray, mu: float,
-                     lift: float = 0.0, poc: str = "true",
-                     axes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+                     lift: float = 0.0, poc: str = "true", axes: np.ndarray | None = None,
+                     gravity: float | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """The friction pyramid's closed form at each sample: the tangential ground force in W [N] (n x 2, W x and
     W y) and the poc's horizontal acceleration in W [m/s^2] (n x 2) it gives, under tau [N m] and the normal
-    force fn [N].
+    force fn [N], at ``gravity`` [m/s^2] (the run's; default the parameter file's).
 
     The pyramid bounds each of its tangent axes ``axes`` on its own, |F . t_i| <= mu Fn (2 x 2 or 2 x 3 rows t1,
     t2 in W: the run's ``friction_axes``, :func:`friction_axes`; default W x and W y). The acceleration is affine
@@ -364,12 +365,12 @@ def pyramid_friction(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, fn: np.ndar
     E = np.eye(2) if axes is None else np.asarray(axes, float)[:, :2]
     force = np.zeros((n, 3))
     force[:, 2] = fn
-    a0 = predicted_acceleration(q, qd, tau, force, lift, poc)
+    a0 = predicted_acceleration(q, qd, tau, force, lift, poc, gravity)
     cols = []
     for i in range(2):
         unit = force.copy()
         unit[:, :2] = E[i]
-        cols.append(predicted_acceleration(q, qd, tau, unit, lift, poc) - a0)
+        cols.append(predicted_acceleration(q, qd, tau, unit, lift, poc, gravity) - a0)
     a0_t = a0 @ E.T  # the acceleration along each axis
     cols_t = [c @ E.T for c in cols]
     ft = np.empty((n, 2))
@@ -405,7 +406,7 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
     Ts = physics.control_dt
     E = drag_frame(friction_axes(tr.info))  # rows: the axis across the drag, the axis along it
     fn = tr.f[k, 2]
-    ft_pred, a_pred = pyramid_friction(tr.q[k], tr.qd[k], tr.tau[k], fn, mu, lift, poc, E)
+    ft_pred, a_pred = pyramid_friction(tr.q[k], tr.qd[k], tr.tau[k], fn, mu, lift, poc, E, physics.gravity)
     ft_pred, a_pred, f_meas, v_ax = ft_pred @ E.T, a_pred @ E.T, tr.f[:, :2] @ E.T, v @ E.T  # on (across, along)
     slides = np.abs(ft_pred[:, 1]) >= mu * fn * (1.0 - 1e-12)  # the closed form's along-drag axis at its bound
     along = float(np.mean(np.abs(f_meas[k, 1]) / fn))
@@ -424,8 +425,8 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
                             TOL_ACC, acc)  # fmt: skip
     else:  # the closed form holds both axes: the scale is the acceleration the drag gives without friction
         free = np.column_stack([np.zeros((len(k), 2)), fn])
-        scale = float(np.mean(np.abs((predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], free, lift,
-                                                             poc) @ E.T)[:, 1])))  # fmt: skip
+        scale = float(np.mean(np.abs((predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], free, lift, poc,
+                                                             physics.gravity) @ E.T)[:, 1])))  # fmt: skip
         acc_row = (case, backend, "slip acceleration along the drag (mean; pyramid)", "m/s^2", am, 0.0, abs(am),
                    TOL_ACC * scale, abs(am) <= TOL_ACC * scale,
                    f"{acc}; tolerance {100 * TOL_ACC:g} % of the frictionless acceleration")  # fmt: skip

@@ -527,7 +527,7 @@ def check_rest(backends: Sequence[str], scenario_file: Path = REST_SCENARIO,
         rtol, atol = float(tr.info.get("rtol", 0.0)), float(tr.info.get("atol", 0.0))
         slope_v = max(c.mu_s, 2.0 * abs(c.mu_s - c.mu_k)) / c.v_th  # [1/(m/s)], times Fn: the friction's slope
         for k in range(n):
-            G = kinematics.gravity(q[k])
+            G = leg.gravity(q[k])  # at the scenario's gravity, as the run's physics
             JTinv = np.linalg.inv(J[k].T)
             F_exp[k] = -JTinv @ (tau[k] - G)
             Mqdd_Cqd = leg.inverse_dynamics(q[k], qd[k], qdd[k]) - G
@@ -592,21 +592,24 @@ def matrix_pencil(Y: np.ndarray, order: int, L: int | None = None) -> np.ndarray
     return np.linalg.eigvals(np.linalg.pinv(V[:-1]) @ V[1:])  # type: ignore[no-any-return]
 
 
-def equilibrium(q_des: np.ndarray, Kp: np.ndarray, q0: np.ndarray, tol: float = 1e-13) -> np.ndarray:
-    """The pose where the PD hold balances gravity, Kp (q_des - q) = G(q), by Newton from q0 [rad]."""
+def equilibrium(q_des: np.ndarray, Kp: np.ndarray, q0: np.ndarray, tol: float = 1e-13,
+                leg: model.Dynamics | None = None) -> np.ndarray:  # fmt: skip
+    """The pose where the PD hold balances gravity, Kp (q_des - q) = G(q), by Newton from q0 [rad]; G at ``leg``'s
+    gravity (default: the parameter file's)."""
+    leg = leg or model.Dynamics()
     q = np.array(q0, float)
     for _ in range(50):
-        r = Kp @ kinematics.joint_error(q, q_des) - kinematics.gravity(q)
+        r = Kp @ kinematics.joint_error(q, q_des) - leg.gravity(q)
         if np.abs(r).max() < tol:
             return q
-        q = q + np.linalg.solve(Kp + gravity_stiffness(q), r)
+        q = q + np.linalg.solve(Kp + gravity_stiffness(q, leg=leg), r)
     raise LegbenchError(f"no PD equilibrium found near {np.round(q0, 4).tolist()} rad")
 
 
-def gravity_stiffness(q: np.ndarray, eps: float = 1e-6) -> np.ndarray:
-    """dG/dq [N m/rad] by central differences."""
-    return np.column_stack([(kinematics.gravity(q + e) - kinematics.gravity(q - e)) / (2 * eps)
-                            for e in np.eye(3) * eps])  # fmt: skip
+def gravity_stiffness(q: np.ndarray, eps: float = 1e-6, leg: model.Dynamics | None = None) -> np.ndarray:
+    """dG/dq [N m/rad] by central differences; G at ``leg``'s gravity (default: the parameter file's)."""
+    leg = leg or model.Dynamics()
+    return np.column_stack([(leg.gravity(q + e) - leg.gravity(q - e)) / (2 * eps) for e in np.eye(3) * eps])
 
 
 def discrete_loop(M: np.ndarray, Kg: np.ndarray, Kp: np.ndarray, Kd: np.ndarray, Ts: float, family: str = "exact",
@@ -661,9 +664,10 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = OSCIL
     Ts = sc.control_dt
     Kp, Kd = np.diag(sc.gains.Kp), np.diag(sc.gains.Kd)
     q_des = np.array(sc.events[0].joint)
-    q_eq = equilibrium(q_des, Kp, np.array(sc.q0))
+    leg = model.Dynamics(sc.gravity)  # the scenario's gravity, as the runs' physics
+    q_eq = equilibrium(q_des, Kp, np.array(sc.q0), leg=leg)
     energy = _Energy(sc.gravity)
-    M, Kg = energy.mass_matrix(q_eq), gravity_stiffness(q_eq)
+    M, Kg = energy.mass_matrix(q_eq), gravity_stiffness(q_eq, leg=leg)
     Mi = np.linalg.inv(M)
     s_cont = np.linalg.eigvals(np.block([[np.zeros((3, 3)), np.eye(3)], [-Mi @ (Kp + Kg), -Mi @ Kd]]))
     physics = physics_of(sc)
