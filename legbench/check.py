@@ -502,6 +502,25 @@ def _trace_checks(sc: str, base_dir: Path, new_dir: Path, backends: Mapping[str,
     return out
 
 
+def _same_inputs(bdir: Path, ndir: Path) -> None:
+    """Refuse a baseline made from other inputs than the new run: the scenario as run (run.json's
+    ``scenario.sha256``, the validated document with any ``--set``) or the leg model (its ``urdf``, named by the
+    parameter file's digest where it is not the bundled leg). Its metrics would move as the inputs did, and
+    pass or fail as regressions of the engines: a gains change of 20 % passed, a shank 10 % heavier passed. Either
+    side without the key (an older run.json) is not compared."""
+    if not (bdir / "run.json").is_file() or not (ndir / "run.json").is_file():
+        return  # a baseline of metrics.json alone: nothing to compare
+    b, n = read_meta(bdir), read_meta(ndir)
+    bsc, nsc = b.get("scenario") or {}, n.get("scenario") or {}
+    pairs = (("the scenario as run (scenario.sha256)", bsc.get("sha256"), nsc.get("sha256")),
+             ("the leg model (urdf)", b.get("urdf"), n.get("urdf")))  # fmt: skip
+    for what, old, new in pairs:
+        if old and new and old != new:
+            raise ResultsError(str(ndir), f"{what} is {str(new)[:16]}, the baseline's ({bdir}) {str(old)[:16]}: a "
+                                          "regression check compares runs of the same inputs; refresh the baseline "
+                                          "on purpose (make baseline) or choose the matching --baseline")  # fmt: skip
+
+
 def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | None = None) -> CheckReport:
     """Check new results against a baseline.
 
@@ -514,7 +533,8 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
         The :class:`CheckReport`; ``exit_status`` is 1 on any regression.
 
     Raises:
-        ResultsError: a directory or metrics file is missing or malformed.
+        ResultsError: a directory or metrics file is missing or malformed; a run of another scenario, or of the
+            same one made from other inputs than its baseline (:func:`_same_inputs`).
         ScenarioError: a tolerance file or run.json tolerances are malformed, or a ``scenarios`` section of the
             file matches no scenario name or run label checked.
     """
@@ -549,6 +569,7 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
         if bname != nname:  # another scenario's baseline: name the mismatch instead of 66 "regressions"
             raise ResultsError(str(ndir), f"holds scenario {nname!r} but the baseline {bdir} holds {bname!r}: "
                                           "not the same scenario; choose the matching --baseline")  # fmt: skip
+        _same_inputs(bdir, ndir)
         sc = nname
         keys = (str(nmeta.get("name", sc)), sc)
         used.update(keys)

@@ -76,6 +76,7 @@ from legbench.results import (
     read_metrics,
     read_study,
     run_dirs,
+    run_label,
     stage_text,
     study_dir,
     tolerances_of,
@@ -664,8 +665,7 @@ def _steady_table(result: ComparisonResult) -> Table:
 def _matched_infos(run: Run) -> dict[str, Mapping[str, Any]]:
     """backend -> run.json info of the same scenario's matched run beside this one (``<tree>/<name>``, or its
     ``__reference`` twin for a reference-mode run), if that directory holds one in the matched profile; else {}."""
-    label = run.name + ("__reference" if run.contact_mode == "reference" else "")
-    sibling = run.path.parent / label
+    sibling = run.path.parent / run_label(run.name, "matched", run.contact_mode)
     if sibling == run.path or not (sibling / "run.json").is_file():
         return {}
     try:

@@ -86,6 +86,7 @@ __all__ = [
     "metrics_text",
     "missing_logs",
     "out_dir_for",
+    "run_label",
     "platform_info",
     "profile_of",
     "read_log",
@@ -625,12 +626,17 @@ def check_out_file(path: str | Path, what: str = "--out", *, in_run_ok: bool = F
 # Writing a run directory
 
 
+def run_label(name: str, profile: str, contact_mode: str) -> str:
+    """A run's label, its directory's name in a results tree: the scenario's ``name``, with ``__<profile>`` for a
+    profile other than ``matched`` and ``__reference`` in reference contact mode
+    (``effort__engine-defaults__reference``); metrics.json's ``scenario``, and what ``legbench check`` pairs."""
+    name = _profiled(name, profile)
+    return name if contact_mode == "native" else f"{name}__reference"
+
+
 def out_dir_for(root: Path, scenario: Scenario, contact_mode: str | None) -> Path:
-    """Directory of one scenario in a results tree: <root>/<name>, with ``__<profile>`` for a profile other
-    than ``matched`` and ``__reference`` in reference contact mode (``effort__engine-defaults__reference``)."""
-    mode = contact_mode or scenario.contact_mode
-    name = _profiled(scenario.name, scenario.profile)
-    return Path(root) / (name if mode == "native" else f"{name}__reference")
+    """Directory of one scenario in a results tree: <root>/<its run label> (:func:`run_label`)."""
+    return Path(root) / run_label(scenario.name, scenario.profile, contact_mode or scenario.contact_mode)
 
 
 def _previous(out_dir: Path) -> dict[str, Any] | None:
@@ -888,8 +894,8 @@ class Run:
         path: the directory.
         meta: run.json as read.
         name: scenario name.
-        label: ``name`` in native contact mode, ``name + "__reference"`` in reference mode;
-            the ``scenario`` column of the metrics table.
+        label: the run's label (:func:`run_label`: ``effort``, ``effort__reference``,
+            ``effort__engine-defaults``), the ``scenario`` column of the metrics table.
         contact_mode: ``"native"`` or ``"reference"``.
         poc: point of contact of the analytic law, ``"true"`` or ``"centre"``.
         reference: the scenario's reference backend.
@@ -1343,7 +1349,7 @@ def load_run(run_dir: str | Path) -> Run:
         path=path,
         meta=meta,
         name=name,
-        label=name if mode == "native" else f"{name}__reference",
+        label=run_label(name, profile_of(meta), mode),
         contact_mode=mode,
         poc=str((sc.get("contact") or {}).get("poc") or "true"),
         reference=str(cmp_.get("reference") or DEFAULT_REFERENCE),

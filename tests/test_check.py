@@ -12,6 +12,7 @@ import shutil
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -358,6 +359,47 @@ def test_single_run_directories_are_compared_directly(baseline: Path, tmp_path: 
     new = write_run(tmp_path / "elsewhere", {"ref": None, "a": then(scale(1.02), BUMP), "b": offset(0.01)})
     report = K.check(new, baseline / "fake")
     assert {r.label for r in report.regressions} == {"tau2"}
+
+
+def _edit_meta(d: Path, edit: Callable[[dict[str, Any]], None]) -> Path:
+    meta = json.loads((d / "run.json").read_text())
+    edit(meta)
+    (d / "run.json").write_text(json.dumps(meta))
+    return d
+
+
+def test_a_baseline_made_from_other_inputs_is_refused_naming_what_differs(baseline: Path, tmp_path: Path) -> None:
+    """A review's runs: `--set gains.Kp=12` and a shank 10 % heavier (`--model`) both PASSED against the
+    committed baseline (the metrics are mostly engine-to-engine differences, which such a change barely moves).
+    A run of the same scenario name whose run.json records another scenario digest or another leg model is
+    refused, exit 2, naming the key; an older run.json without the key is not compared."""
+    base = shutil.copytree(baseline, tmp_path / "base")
+    _edit_meta(base / "fake", lambda m: m.update(urdf="leg.urdf"))
+    same = tree(tmp_path / "same")  # an older run.json, without urdf: that key is not compared
+    assert K.check(same, base).passed
+    for key, edit in (("scenario.sha256", lambda m: m["scenario"].update(sha256="1" * 64)),
+                      ("urdf", lambda m: m.update(urdf="leg-0123456789abcdef.urdf"))):  # fmt: skip
+        new = tree(tmp_path / key)
+        _edit_meta(new / "fake", edit)
+        with pytest.raises(ResultsError, match=re.escape(f"({key}) is ") + ".*compares runs of the same inputs"):
+            K.check(new, base)
+        assert cli.main(["check", str(new), "--baseline", str(base)]) == 2
+    _edit_meta(same / "fake", lambda m: m.update(urdf="leg.urdf"))
+    assert K.check(same, base).passed
+
+
+def test_an_engine_defaults_run_is_labelled_by_its_profile_and_not_checked_against_the_matched(
+    baseline: Path, tmp_path: Path
+) -> None:
+    """Run.label left out the profile: effort__engine-defaults was labelled 'effort' in metrics.json, its
+    regressions read 'effort/mujoco ...' (pointing at the matched run), two JUnit suites merged into one, and an
+    engine-defaults run checked against the matched baseline reported 111 'regressions'. The label is the run
+    directory's name (results.run_label), so the pairing is refused by name."""
+    d = _edit_meta(tree(tmp_path / "new") / "fake", lambda m: m["scenario"].update(profile="engine-defaults"))
+    assert C.compare(d).to_json()["scenario"] == "fake__engine-defaults" == results.load_run(d).label
+    assert results.run_label("fake", "engine-defaults", "reference") == "fake__engine-defaults__reference"
+    with pytest.raises(ResultsError, match="holds scenario 'fake__engine-defaults' but the baseline .* holds 'fake'"):
+        K.check(d, baseline / "fake")
 
 
 def test_baseline_without_logs_is_checked_on_metrics_only(baseline: Path, tmp_path: Path) -> None:
