@@ -69,10 +69,8 @@ class BackendNotFound(LegbenchError):
         self.available = sorted(available)
         self.hint = hint
         self._init_args, self._init_kwargs = (name, self.available, hint), {}  # an iterator would not pickle
-        msg = f"backend '{name}' is not available. Available backends: {self.available}"
-        if hint:
-            msg += f" ({hint})"
-        super().__init__(msg)
+        msg = f"backend '{name}' is not available" + (f" ({hint})" if hint else "")
+        super().__init__(f"{msg}; available here: {', '.join(self.available) or 'none'}")
 
 
 class UnknownBackend(BackendNotFound):

@@ -24,7 +24,7 @@ import numpy as np
 
 from legbench import backends as registry
 from legbench import progress as progress_mod
-from legbench.backends.base import Backend, Physics, info_problem
+from legbench.backends.base import Backend, Physics, declared_problem, info_problem
 from legbench.contact import friction_chatter
 from legbench.controllers import Controller, make_controller
 from legbench.exceptions import BackendNotFound, LegbenchError, SimulationDiverged
@@ -237,14 +237,18 @@ def backend_info(backend: Backend) -> dict[str, Any]:
 
     Raises:
         LegbenchError: the backend's info breaks what legbench reads of it
-            (:func:`~legbench.backends.base.info_problem`).
+            (:func:`~legbench.backends.base.info_problem`), or what it declares of itself does
+            (:func:`~legbench.backends.base.declared_problem`).
     """
     info = backend.info()
     problem = info_problem(info)
     if problem is not None:
         raise LegbenchError(f"{backend.name}: info() {problem}")
-    return {**info, "profile": backend.profile, **{key: ask(backend) for key, ask in _DECLARED},
-            "warnings": backend.warnings()}  # fmt: skip
+    declared = {key: ask(backend) for key, ask in _DECLARED}
+    problem = declared_problem(declared["integrator_family"], declared["sub_steps"], declared["sliding_coefficient"])
+    if problem is not None:
+        raise LegbenchError(f"{backend.name}: {problem}")
+    return {**info, "profile": backend.profile, **declared, "warnings": backend.warnings()}
 
 
 def run_backend(scenario: Scenario, name: str, contact_mode: str | None = None, progress: bool = False) -> RunResult:

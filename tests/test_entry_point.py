@@ -235,7 +235,8 @@ def test_resolving_named_backends_imports_no_other_engine(tmp_path: Path) -> Non
     neither another built-in nor another plug-in (``loud``, whose import fails loudly) is. Fails without the fix:
     every other built-in's module is imported, and legbench_loud too."""
     (tmp_path / "legbench_quiet.py").write_text(
-        "from legbench.backends.base import Backend\n\n\nclass QuietBackend(Backend):\n    name = 'quiet'\n"
+        "from legbench.backends.pinocchio_ import PinocchioBackend\n\n\nclass QuietBackend(PinocchioBackend):\n"
+        "    name = 'quiet'\n"
     )
     (tmp_path / "legbench_loud.py").write_text(
         "import os\n\nos.environ['LEGBENCH_LOUD_IMPORTED'] = '1'\n"
@@ -253,3 +254,56 @@ def test_resolving_named_backends_imports_no_other_engine(tmp_path: Path) -> Non
                          text=True, timeout=120, check=False)  # fmt: skip
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "imported: [] loud: False"
+
+
+def test_a_plugin_whose_engine_is_missing_fails_alone_in_a_run(
+    plugin: str, tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    """A review's plug-in importing its engine in load(), the engine not installed: `legbench run --backends all`
+    (so `make compare`) stopped at the pre-flight, exit 2, nothing run, with "'needs-engine' is not available.
+    Available backends: [..., 'needs-engine', ...]". The pre-flight now warns in one line, the others run and
+    the plug-in's run is 'missing' with what to install; the message names the others, not itself."""
+    from legbench import cli, results
+
+    out = tmp_path / "run"
+    short = ["--set", "duration=0.05", "--set", "comparison.steady_window=0.02"]
+    code = cli.main(["run", str(EFFORT), "--backends", f"needs-engine,{plugin}", *short, "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert (out / "run.json").is_file(), (code, err)
+    meta = results.read_meta(out)
+    assert meta["backends"][plugin]["status"] == "ok"
+    assert meta["backends"]["needs-engine"]["status"] == "missing", meta["backends"]["needs-engine"]
+    reason = meta["backends"]["needs-engine"]["reason"]
+    assert "pip install imaginary-engine" in reason and "its engine did not import when loading" in reason
+    assert "needs-engine" not in reason.split("available here:")[1]
+    assert "warning: backend 'needs-engine' is not available" in caplog.text and code == 3, (code, err)
+    assert "did not finish ok (run/needs-engine)" in err
+
+
+def test_an_entry_point_that_names_no_runnable_backend_is_unavailable_with_why(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An entry point naming pathlib.Path crashed `legbench backends` with "AttributeError: type object 'Path' has
+    no attribute 'profiles'", and a Backend subclass lacking abstract methods was listed as runnable (its run
+    failed at load): both are unavailable now, each with why, and `--backends` naming one is one line, exit 2."""
+    from legbench import cli
+
+    (tmp_path / "legbench_halfdone.py").write_text(
+        "from legbench.backends.base import Backend\n\n\nclass HalfBackend(Backend):\n    name = 'halfdone'\n"
+    )
+    dist = tmp_path / "legbench_halfdone-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: legbench-halfdone\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text(
+        "[legbench.backends]\nnotclass = pathlib:Path\nhalfdone = legbench_halfdone:HalfBackend\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    missing = backends.unavailable()
+    assert missing["notclass"] == "entry point pathlib:Path names <class 'pathlib.Path'>, not a subclass of " \
+                                  "legbench's Backend"  # fmt: skip
+    half = "entry point legbench_halfdone:HalfBackend: HalfBackend does not implement ground_force, info, "
+    assert missing["halfdone"].startswith(half + "integrator_family, limits, load, ")
+    assert "notclass" not in backends.available() and "halfdone" not in backends.available()
+    assert cli.main(["backends"]) == 0
+    assert cli.main(["run", str(EFFORT), "--backends", "notclass", "--out", str(tmp_path / "out")]) == 2
+    assert not (tmp_path / "out").exists()

@@ -110,6 +110,29 @@ def test_diverging_backend_is_stopped_and_marked_failed() -> None:
     assert len(tr.t) == 100 and np.isfinite(tr.q).all()
 
 
+@pytest.mark.parametrize(
+    ("method", "value", "words"),
+    [
+        ("integrator_family", "semi-implicit", "integrator_family() returned 'semi-implicit', not one of euler, "),
+        ("sub_steps", 0, "sub_steps() returned 0, not a whole number >= 1"),
+        ("slides_with", "mu", "slides_with() returned 'mu', not 'mu_s' or 'mu_k'"),
+    ],
+)
+def test_a_backend_declaring_what_legbench_cannot_read_fails_its_run_naming_it(
+    method: str, value: object, words: str
+) -> None:
+    """A plug-in's integrator_family() of 'semi-implicit' (FAMILY_TEXT's words for euler) ran with exit 0 and
+    verification then marked every check of it not applicable, silently; sub_steps() 0 was a ZeroDivisionError
+    row in verify. Each fails the backend's run with a reason naming the method and the value."""
+    sc = scenario.parse(DOC)
+    be = FakeBackend()
+    setattr(be, method, lambda: value)
+    phys = scenario.physics_of(sc)
+    be.load(Path("unused"), phys, {})
+    tr = run.simulate(sc, be, phys)
+    assert tr.status == "failed" and words in (tr.reason or ""), tr.reason
+
+
 def test_results_are_bit_identical_for_any_number_of_jobs(tmp_path: Path) -> None:
     """Tasks run in separate processes with --jobs 2 give exactly the logs of --jobs 1, in input order."""
     from legbench import backends

@@ -9,6 +9,7 @@ Other packages add backends through the ``legbench.backends`` entry-point group
 from __future__ import annotations
 
 import importlib
+import inspect
 import logging
 from collections.abc import Mapping
 from importlib import metadata
@@ -100,12 +101,20 @@ def _load_builtin(name: str) -> type[Backend] | None:
 def _load_plugin(ep: metadata.EntryPoint) -> type[Backend] | None:
     """The class a plug-in's entry point names (its module imported), or None with why in ``_MISSING``."""
     try:
-        return ep.load()  # type: ignore[no-any-return]
+        obj = ep.load()
     except Exception as exc:  # a broken plug-in must not take the others down
         if _interrupted(exc):
             raise KeyboardInterrupt from exc
         _MISSING[ep.name] = one_line(f"entry point {ep.value} failed to load: {exc}")
         return None
+    if not (isinstance(obj, type) and issubclass(obj, Backend)):  # it would fail on its first attribute
+        _MISSING[ep.name] = f"entry point {ep.value} names {obj!r}, not a subclass of legbench's Backend"
+        return None
+    if inspect.isabstract(obj):  # listed as runnable, it failed at its first load
+        missing = ", ".join(sorted(getattr(obj, "__abstractmethods__", ())))
+        _MISSING[ep.name] = f"entry point {ep.value}: {obj.__name__} does not implement {missing}"
+        return None
+    return obj
 
 
 def _plugins() -> dict[str, metadata.EntryPoint]:
@@ -219,7 +228,8 @@ def load(name: str, physics: Physics, settings: Mapping[str, Any], profile: str 
         if _interrupted(exc):
             raise KeyboardInterrupt from exc
         hint = cls.install or "install the package that provides it"
-        raise BackendNotFound(name, available(), f"{hint} ({exc})") from exc
+        others = [n for n in available() if n != name]  # it imported, but its engine did not
+        raise BackendNotFound(name, others, f"its engine did not import when loading: {exc}; {hint}") from exc
     except BaseException:
         backend.close()
         raise

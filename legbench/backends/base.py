@@ -65,6 +65,20 @@ INFO_KEYS = {
 }
 
 
+def declared_problem(family: object, sub_steps: object, coefficient: object) -> str | None:
+    """What is wrong with what a backend declares of itself (:meth:`Backend.integrator_family`,
+    :meth:`Backend.sub_steps`, :meth:`Backend.slides_with`), or None. Verification predicts by the family: one
+    outside :data:`INTEGRATOR_FAMILIES` (``"semi-implicit"``, the text of :data:`FAMILY_TEXT`) turned every
+    check of the backend not-applicable, silently; ``sub_steps`` 0 divided by zero there."""
+    if family not in INTEGRATOR_FAMILIES:
+        return f"integrator_family() returned {family!r}, not one of {', '.join(INTEGRATOR_FAMILIES)}"
+    if not isinstance(sub_steps, int) or isinstance(sub_steps, bool) or sub_steps < 1:
+        return f"sub_steps() returned {sub_steps!r}, not a whole number >= 1 (1 for an adaptive solve per period)"
+    if coefficient not in ("mu_s", "mu_k"):
+        return f"slides_with() returned {coefficient!r}, not 'mu_s' or 'mu_k'"
+    return None
+
+
 def info_problem(info: object) -> str | None:
     """What is wrong with a backend's :meth:`~Backend.info` for the keys legbench reads (:data:`INFO_KEYS`), or
     None: it must be a mapping with text keys, ``contact`` a mapping (``poc`` 'true' or 'centre', ``Kp`` a

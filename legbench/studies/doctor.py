@@ -217,7 +217,12 @@ def table(
     for name in names:
         try:
             b = registry.load(name, physics, sc.backends.get(name, {}), sc.profile)
-        except (BackendNotFound, ModelError):  # the leg or the cache every engine needs: named as it is
+        except BackendNotFound as exc:  # a plug-in importing its engine only when loading, and it is missing:
+            if failed is None:  # that engine's problem, as any other load error (the names were resolved before)
+                raise
+            failed[name] = str(exc)
+            continue
+        except ModelError:  # the leg or the cache every engine needs: named as it is
             raise
         except LegbenchError as exc:  # a setting the engine refuses for this scenario (a dt that does not
             raise LegbenchError(f"{sc.file}: {exc}") from exc  # divide its control period): name the file
