@@ -285,7 +285,8 @@ def compare(
         A :class:`ComparisonResult`.
 
     Raises:
-        ResultsError: a directory or file is missing or malformed, or the log does not overlap the run.
+        ResultsError: a directory or file is missing or malformed, or the log does not overlap the run (or
+            ends before its skip).
     """
     check_lag_mode(lag)
     run = load_run(run_dir)
@@ -301,6 +302,10 @@ def compare(
         if name in traces:
             raise ResultsError(str(log), f"log name '{name}' is already a backend of {run.path}; pass another name")
         traces[name] = result_from_frame(load_log(log, column_map, log_time_scale, ros), name, str(log))
+        end = float(traces[name].t[-1])
+        if run.skip > 0.0 and end <= run.skip + T_EPS:  # every metric would be n/a, and said nowhere
+            raise ResultsError(str(log), f"ends at t = {end:.4g} s, before the run's skip ({run.skip:g} s, its "
+                                         "scenario's comparison.skip): no sample of it is compared")  # fmt: skip
         if log_is_reference:
             reference = name
     pairs: list[PairMetrics] = []

@@ -31,8 +31,8 @@ import pandas as pd
 
 from legbench import kinematics
 from legbench.exceptions import LegbenchError, ResultsError
-from legbench.results import RunResult, result_from_frame
-from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS
+from legbench.results import result_from_frame
+from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS, SIGNAL_OF
 from legbench.yamlfile import file_kind
 
 __all__ = ["API_WORDS", "CLI_WORDS", "JOINT_STATE", "WRENCH", "LogWords", "RosOptions", "is_ros_bag", "load_log",
@@ -112,6 +112,35 @@ def _normalise_header(col: str) -> str:
     return ALIASES.get(base, base)
 
 
+#: The units a header may give each signal's columns in, each with its factor to legbench's unit
+#: (:data:`~legbench.signals.UNITS`); written lower case, spaces as one.
+HEADER_UNITS: dict[str, dict[str, float]] = {
+    "t": {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6},
+    "q": {"rad": 1.0, "deg": math.pi / 180.0},
+    "qd": {"rad/s": 1.0, "deg/s": math.pi / 180.0},
+    "tau": {"n m": 1.0, "nm": 1.0, "n*m": 1.0, "n.m": 1.0},
+    "force": {"n": 1.0},
+    "ee": {"m": 1.0, "mm": 1e-3},
+}
+
+
+def _unit_factor(path: Path, col: str, target: str) -> float:
+    """The factor taking header column ``col`` (legbench's column ``target``) to legbench's unit, from the unit it
+    writes after its name (``"q1 [deg]"``: pi/180; none written: 1). A unit legbench does not read for that signal
+    is refused: read as its own unit it would be compared silently off by the unit's factor."""
+    m = re.search(r"[\[(]\s*(.*?)\s*[\])]\s*$", str(col))
+    if m is None or target == "controller":
+        return 1.0
+    signal = "t" if target == "t" else "ee" if target in EE_COLUMNS else SIGNAL_OF[LABELS.index(target)]
+    unit = " ".join(m.group(1).lower().split())
+    known = HEADER_UNITS[signal]
+    if unit not in known:
+        raise ResultsError(str(path), f"column {col!r}: unit [{m.group(1)}] is not one legbench reads for "
+                                      f"{target} ({', '.join(known)}); convert the column, or write its unit as "
+                                      "one of these")  # fmt: skip
+    return known[unit]
+
+
 #: Largest magnitude a logged value may have [SI units]: beyond it the column is not a physical signal.
 PLAUSIBLE_MAX = 1e9
 
@@ -127,8 +156,8 @@ def _check_plausible(t: np.ndarray, data: np.ndarray, source: str, foot: np.ndar
     finite = np.abs(np.where(np.isfinite(values), values, 0.0))
     if finite.max(initial=0.0) > PLAUSIBLE_MAX:
         i, j = np.unravel_index(int(np.argmax(finite)), finite.shape)
-        raise ResultsError(source, f"column '{names[j]}' reaches {values[i, j]:.3g} at row {i + 1}: not a physical "
-                                   f"value (limit {PLAUSIBLE_MAX:g})")  # fmt: skip
+        raise ResultsError(source, f"column '{names[j]}' reaches {values[i, j]:.3g} at data row {i + 1} (t = "
+                                   f"{t[i]:g} s): not a physical value (limit {PLAUSIBLE_MAX:g})")  # fmt: skip
     step = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
     if step > 0.1:
         logger.warning("legbench: warning: %s: median time step %.4g s: is the time in ms? (%s)", source, step,
@@ -139,14 +168,13 @@ def _check_plausible(t: np.ndarray, data: np.ndarray, source: str, foot: np.ndar
                        "legbench logs radians", source, qmax)  # fmt: skip
 
 
-def _foot(trace: RunResult) -> np.ndarray:
-    """Foot centre in W [m], shape (n, 3): each column as logged, or from q (:func:`legbench.kinematics.fk`,
-    as for a run) where the log holds no value of it (NaN throughout)."""
-    foot = trace.ee
+def _foot(foot: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Foot centre in W [m], shape (n, 3): each column of ``foot`` as logged, or from ``q`` [rad]
+    (:func:`legbench.kinematics.fk`, as for a run) where the log holds no value of it (NaN throughout)."""
     logged = ~np.isnan(foot).all(axis=0)
     if logged.all():
         return foot
-    return np.where(logged, foot, kinematics.fk(trace.q))
+    return np.where(logged, foot, kinematics.fk(q))
 
 
 def _check_regular(path: Path) -> None:
@@ -199,9 +227,10 @@ def load_log(
     position, velocity and effort all go to that joint) and ``time_scale`` is not used (bag time is
     in ns). What follows is the CSV case.
 
-    Header names are matched to :data:`RUN_COLUMNS` case-insensitively, with a
-    trailing unit in brackets or parentheses ignored (``"q1 [rad]"`` is ``q1``;
-    ``time`` is ``t``). ``column_map`` maps other names, ``{"their name": "q1"}``,
+    Header names are matched to :data:`RUN_COLUMNS` case-insensitively, a
+    trailing unit in brackets or parentheses read (``"q1 [rad]"`` is ``q1``; ``"q1 [deg]"`` is ``q1``
+    converted to rad, :data:`HEADER_UNITS`; another unit is refused; ``time`` is ``t``).
+    ``column_map`` maps other names, ``{"their name": "q1"}``,
     and wins over the automatic match: a header column whose automatic match is a column the map
     already targets is ignored. Only ``t`` and ``q1..q3`` are required;
     other missing signals become NaN and are left out of the metrics. A missing value in some rows
@@ -221,7 +250,8 @@ def load_log(
 
     Raises:
         ResultsError: the file is missing, not a regular file or unreadable, a header name
-            names two columns, a mapped column is absent, two columns map to one name, a
+            names two columns, a header unit is not one legbench reads for its column, a mapped
+            column is absent, two columns map to one name, a
             required column is missing, a value is not numeric or infinite, or time is not
             strictly increasing.
     """
@@ -268,11 +298,18 @@ def load_log(
         header = list(map(str, raw.columns))
         raise ResultsError(str(path), f"no column matches {unmatched} in the header {header}; map them with "
                                       f"{words.map_columns}")  # fmt: skip
+    factor = {target: _unit_factor(path, col, target) for col, target in rename.items()}
+    if factor["t"] != 1.0 and time_scale != 1.0:  # both would scale the time
+        raise LegbenchError(f"{words.time_scale} {time_scale!r}: {path}'s header gives the time's unit already "
+                            f"({[c for c, t in rename.items() if t == 't'][0]!r}); give one or the other")  # fmt: skip
     trace = result_from_frame(df, path.stem, str(path), required)  # validates
-    _check_plausible(trace.t * time_scale, trace.data, str(path), trace.ee)
-    out = {"t": trace.t * time_scale}
-    out |= {c: trace.data[:, i] for i, c in enumerate(LABELS)}
-    out |= {c: v for c, v in zip(EE_COLUMNS, _foot(trace).T, strict=True)}
+    data = trace.data * np.array([factor.get(c, 1.0) for c in LABELS])
+    ee = trace.ee * np.array([factor.get(c, 1.0) for c in EE_COLUMNS])
+    t = trace.t * (time_scale * factor["t"])
+    _check_plausible(t, data, str(path), ee)
+    out = {"t": t}
+    out |= {c: data[:, i] for i, c in enumerate(LABELS)}
+    out |= {c: v for c, v in zip(EE_COLUMNS, _foot(ee, data[:, 0:3]).T, strict=True)}
     out["controller"] = trace.controller.astype(str) if "controller" in df.columns else np.full(len(df), "")
     return pd.DataFrame(out, columns=list(RUN_COLUMNS))
 
@@ -455,6 +492,6 @@ def load_ros_bag(path: str | Path, options: RosOptions | None = None) -> pd.Data
     trace = result_from_frame(df, path.stem, str(path), ["t", "q1", "q2", "q3"])  # validates (t increasing)
     out = {"t": trace.t}
     out |= {c: trace.data[:, i] for i, c in enumerate(LABELS)}
-    out |= {c: v for c, v in zip(EE_COLUMNS, _foot(trace).T, strict=True)}
+    out |= {c: v for c, v in zip(EE_COLUMNS, _foot(trace.ee, trace.q).T, strict=True)}
     out["controller"] = np.full(len(df), "")
     return pd.DataFrame(out, columns=list(RUN_COLUMNS))

@@ -1243,7 +1243,7 @@ def result_from_frame(df: pd.DataFrame, name: str, source: str = "<frame>",
                 if bad.any():
                     k = int(np.argmax(bad))
                     when = f" (t = {float(t[k]):g} s)" if t is not None else ""
-                    what = f"column '{c}' holds {float(out[k, i])} at row {k}{when}"
+                    what = f"column '{c}' holds {float(out[k, i])} at data row {k + 1}{when}"  # counted from 1
                     raise ResultsError(source, f"{what} ({int(bad.sum())} such value(s)): a log must hold finite "
                                                "numbers")  # fmt: skip
         return out
@@ -1254,7 +1254,7 @@ def result_from_frame(df: pd.DataFrame, name: str, source: str = "<frame>",
     steps = np.diff(t)
     if (steps <= 0).any():
         i = int(np.argmax(steps <= 0))
-        raise ResultsError(source, f"time is not strictly increasing at row {i + 1} (t = {float(t[i + 1]):.9g} s "
+        raise ResultsError(source, f"time is not strictly increasing at data row {i + 2} (t = {float(t[i + 1]):.9g} s "
                                    f"after {float(t[i]):.9g} s)")  # fmt: skip
     ctrl = (
         df["controller"].astype(str).to_numpy(dtype=object)

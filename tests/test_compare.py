@@ -205,6 +205,22 @@ def test_imported_csv_of_a_run_compares_to_it_with_zero_deviation(tmp_path: Path
     assert np.all(as_ref.max_abs == 0.0) and np.all(as_ref.rms == 0.0)
 
 
+def test_a_log_that_ends_before_the_runs_skip_is_refused(tmp_path: Path) -> None:
+    """A review's log of 0-0.5 s against the ellipse run's skip of 1 s: every metric n/a, exit 0, nothing said.
+    It is refused in one line naming the log, its end and the skip; one reaching past the skip is measured."""
+    d = write_run(tmp_path / "s", {"ref": None}, skip=1.0)
+    short, longer = tmp_path / "short.csv", tmp_path / "longer.csv"
+    t = np.arange(0, 0.5 + 1e-9, DT)
+    frame(t, base_signals(t)).to_csv(short, index=False)
+    with pytest.raises(ResultsError, match=r"short.csv: ends at t = 0.5 s, before the run's skip \(1 s, its "
+                                           r"scenario's comparison.skip\): no sample of it is compared"):  # fmt: skip
+        C.compare(d, log=short)
+    t = np.arange(0, 1.2 + 1e-9, DT)
+    frame(t, base_signals(t)).to_csv(longer, index=False)
+    p = C.compare(d, log=longer).pair("log:longer")
+    assert p is not None and np.isfinite(p.max_abs).all()
+
+
 def test_load_log_keeps_missing_optional_signals_as_nan(tmp_path: Path) -> None:
     """A log with only t and q1..q3: the other signals are NaN and their metrics NaN; q is measured."""
     d = write_run(tmp_path / "s", {"ref": None})
@@ -295,7 +311,7 @@ def test_imported_log_without_foot_columns_gets_the_foot_from_q(tmp_path: Path) 
     [
         ("t,q1,q3\n0,0,0\n1,0,0\n", None, "no column matches ['q2'] in the header ['t', 'q1', 'q3']"),
         ("time_ms,hip\n0,0\n1,0\n", None, "no column matches ['t', 'q1', 'q2', 'q3'] in the header ['time_ms', 'hip']"),
-        ("t,q1,q2,q3\n0,0,0,0\n0,0,0,0\n", None, "not strictly increasing at row 1 (t = 0 s after 0 s)"),
+        ("t,q1,q2,q3\n0,0,0,0\n0,0,0,0\n", None, "not strictly increasing at data row 2 (t = 0 s after 0 s)"),
         ("t,q1,q2,q3\n0,0,0,0\n1,x,0,0\n", None, "column 'q1' is not numeric"),
         ("t,q1,q2,q3\n0,0,0,0\n1,0,0,0\n", {"joint_1": "q1"}, "not in the header"),
         ("t,q1,q2,q3\n0,0,0,0\n1,0,0,0\n", {"q1": "angle"}, "not legbench columns"),
@@ -388,8 +404,8 @@ def _damage(d: Path, backend: str, how: str) -> Path:
     [
         ("cut to 10 rows", "column 't' spans 0 .. 0.009 s (10 rows), not the scenario's 0 .. 2 s"),
         ("first rows gone", "column 't' spans 0.1 .. 2 s (1901 rows), not the scenario's 0 .. 2 s"),
-        ("NaN in one row", "column 'q2' holds nan at row 5 (t = 0.005 s) (1 such value(s))"),
-        ("inf in one row", "column 'fz' holds -inf at row 7 (t = 0.007 s) (1 such value(s))"),
+        ("NaN in one row", "column 'q2' holds nan at data row 6 (t = 0.005 s) (1 such value(s))"),
+        ("inf in one row", "column 'fz' holds -inf at data row 8 (t = 0.007 s) (1 such value(s))"),
     ],
 )
 def test_a_damaged_log_of_an_ok_backend_is_refused_naming_file_and_column(
@@ -443,7 +459,7 @@ def test_inf_in_an_imported_log_is_refused_without_numpy_warnings(tmp_path: Path
         warnings.simplefilter("error")  # any RuntimeWarning fails the test
         with pytest.raises(ResultsError) as err:
             C.compare(d, log=log, log_is_reference=True)
-    assert str(err.value) == (f"{log}: column 'q2' holds inf at row 5 (t = 0.005 s) (1 such value(s)): a log must "
+    assert str(err.value) == (f"{log}: column 'q2' holds inf at data row 6 (t = 0.005 s) (1 such value(s)): a log must "
                               "hold finite numbers")  # fmt: skip
 
 

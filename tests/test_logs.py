@@ -13,7 +13,7 @@ import pytest
 from fakerun import scale, write_run
 
 from legbench import cli, logs
-from legbench.exceptions import ResultsError
+from legbench.exceptions import LegbenchError, ResultsError
 from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS
 
 rosbags = pytest.importorskip("rosbags", reason="pip install 'legbench[ros]'")
@@ -344,7 +344,7 @@ def test_a_missing_value_in_a_csv_log_is_a_missing_sample_not_an_error(tmp_path:
     np.testing.assert_array_equal(df["q2"], [0.2, np.nan, 0.22])
     np.testing.assert_array_equal(df["q1"], [0.1, 0.11, 0.12])
     log.write_text(log.read_text().replace(f",{cell},", ",inf,"))
-    with pytest.raises(ResultsError, match=r"column 'q2' holds inf at row 1 \(t = 0\.001 s\)"):
+    with pytest.raises(ResultsError, match=r"column 'q2' holds inf at data row 2 \(t = 0\.001 s\)"):
         logs.load_log(log)
 
 
@@ -375,3 +375,24 @@ def test_a_bag_path_that_is_a_fifo_is_refused_unopened(tmp_path: Path) -> None:
     with pytest.raises(ResultsError) as exc:
         logs.load_log(fifo)
     assert str(exc.value) == f"{fifo}: is a FIFO, not a regular file (a bag is read only from one)"
+
+
+def test_a_unit_in_a_csv_header_is_read_or_refused_never_ignored(tmp_path: Path) -> None:
+    """A review's log with 'q1 [deg]' was read as radians (5634 % errors, exit 0), 't [ms]' as seconds, 'qd1 [deg/s]'
+    without a warning: the header's unit was stripped and dropped. A unit legbench knows for the column is
+    converted to its unit (deg -> rad, ms -> s, mm -> m); another is refused naming the column and what it reads;
+    a header time unit together with a time scale is refused (it would scale twice)."""
+    plain = tmp_path / "plain.csv"
+    plain.write_text("t,q1,q2,q3,qd1,ee_x\n0,0.1,0.2,0.3,1.0,0.1\n0.001,0.11,0.21,0.31,1.5,0.2\n")
+    deg = tmp_path / "deg.csv"
+    k = 180.0 / np.pi
+    deg.write_text(f"t [ms],q1 [deg],q2 (deg),q3 [rad],qd1 [deg/s],ee_x [mm]\n0,{0.1 * k!r},{0.2 * k!r},0.3,{k!r},"
+                   f"100\n1,{0.11 * k!r},{0.21 * k!r},0.31,{1.5 * k!r},200\n")  # fmt: skip
+    pd.testing.assert_frame_equal(logs.load_log(deg), logs.load_log(plain), rtol=1e-14, atol=0)
+    with pytest.raises(LegbenchError, match="header gives the time's unit already .'t \\[ms\\]'.; give one or"):
+        logs.load_log(deg, time_scale=1e-3)
+    odd = tmp_path / "odd.csv"
+    odd.write_text("t,q1 [grad],q2,q3\n0,0,0,0\n0.001,0,0,0\n")
+    with pytest.raises(ResultsError, match=r"column 'q1 \[grad\]': unit \[grad\] is not one legbench reads for q1 "
+                                           r"\(rad, deg\)"):  # fmt: skip
+        logs.load_log(odd)

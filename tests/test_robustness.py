@@ -1225,7 +1225,7 @@ def test_an_external_log_with_an_absurd_foot_position_is_refused(tmp_path: Path)
     f = tmp_path / "foot.csv"
     cols = {"t": t, **{f"q{i}": np.zeros(21) for i in (1, 2, 3)}, "ee_x": np.full(21, 1e300)}
     pd.DataFrame(cols).to_csv(f, index=False)
-    with pytest.raises(ResultsError, match="column 'ee_x' reaches 1e\\+300 at row 1: not a physical value"):
+    with pytest.raises(ResultsError, match=r"column 'ee_x' reaches 1e\+300 at data row 1 \(t = 0 s\): not a physical "):
         logs.load_log(f)
 
 
