@@ -219,7 +219,8 @@ def test_sap_slides_as_the_closed_form_until_the_foot_lifts_where_mu_kd_v_reache
         rows = {r["quantity"]: r for r in S.score(tr, physics, (S.WINDOW[0], min(S.WINDOW[1], t_on - 0.003)))}
         acc = rows["slip acceleration along the slip (mean)"]
         assert abs(acc["measured"] / acc["expected"] - 1.0) <= 0.02, acc
-        assert abs(rows["friction |F_t| / Fn while sliding"]["measured"] / physics.contact.mu_s - 1.0) <= 0.01
+        ratio = rows["friction |F_t| / Fn while sliding (worst sample)"]["measured"]
+        assert abs(ratio / physics.contact.mu_s - 1.0) <= 0.01
         onsets[kd] = v_star
     assert onsets[50.0] > 1.5 * onsets[100.0]
     tr, physics = S.drag("drake", "matched", {"solver": "tamsi"}, duration=0.45)

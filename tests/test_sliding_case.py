@@ -120,7 +120,7 @@ def test_mujoco_engine_defaults_slides_on_the_diamonds_vertex_and_hops() -> None
     tr, physics = S.drag("mujoco", "engine-defaults")
     assert tr.info["friction_cone"] == "diamond"
     ratio, angle, acc = S.score(tr, physics)
-    assert ratio["passed"] and angle["passed"] and "(diamond)" in ratio["quantity"], (ratio, angle)
+    assert ratio["passed"] and angle["passed"] and "diamond)" in ratio["quantity"], (ratio, angle)
     assert "up to 10 deg off -slip" in ratio["note"]
     assert not acc["passed"] and acc["note"].startswith("known: ") and "hops" in acc["note"]
     poc, lift = tr.info["contact"]["poc"], tr.info["contact"]["lift"]
@@ -272,3 +272,20 @@ def test_dart_declares_its_tangent_basis_where_its_friction_is_a_pyramid() -> No
         assert "friction_axes" not in b.info()
     finally:
         b.close()
+
+
+def test_a_friction_chattering_about_mu_fails_the_ratio_row_it_passed_on_its_mean() -> None:
+    """A review: Pinocchio's drag log with the friction scaled by 1.15 and 0.85 on alternate samples read a mean
+    ratio of 0.6018 and passed the 1 % row; the row is held at the window's worst sample now (0.51 or 0.69 against 0.6),
+    and the unedited run still reads 0.6 at every sample."""
+    import dataclasses
+
+    tr, physics = S.drag("pinocchio")
+    rows = {r["quantity"]: r for r in S.score(tr, physics)}
+    clean = rows["friction |F_t| / Fn while sliding (worst sample)"]
+    assert clean["passed"] and clean["error"] < 1e-12, clean
+    f = tr.f.copy()
+    f[:, :2] *= np.where(np.arange(len(f)) % 2 == 0, 1.15, 0.85)[:, None]
+    rows = {r["quantity"]: r for r in S.score(dataclasses.replace(tr, f=f), physics)}
+    chattering = rows["friction |F_t| / Fn while sliding (worst sample)"]
+    assert not chattering["passed"] and abs(chattering["measured"] / 0.6 - 1.0) == pytest.approx(0.15), chattering

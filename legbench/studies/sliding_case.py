@@ -23,7 +23,8 @@ sample (q, qd, tau, Fn):
   M and nle from the leg's model (``model.Dynamics`` on the generated URDF), the same for every
   backend.
 
-The measured friction is the backend's reported ground force; the measured
+The measured friction is the backend's reported ground force, held to the closed form at the window's worst
+sample (a friction that chatters about mu does not pass on its mean); the measured
 acceleration is the central difference of the poc's horizontal velocity J_poc qd of
 the 1 kHz log. :func:`sliding_case` returns one row per quantity. A backend that
 applies the law itself (no contact of its own, or reference contact mode:
@@ -54,10 +55,14 @@ DRAG = 0.8
 #: Start of the drag [s] and the window scored [s] (slip established, foot still near q*).
 T_DRAG = 0.3
 WINDOW = (0.33, 0.38)
-#: Tolerances: friction coefficient (relative; 1 %: the law and the cones are exact, a 1 kHz
-#: log of a force that changes by ~1 % over the window), angle [deg] (1: the law is exactly
-#: opposite), acceleration (relative; 2 %: central differences of a 1 kHz log and forces
-#: averaged over a control period against a prediction at the sample; measured 0.1-0.2 %).
+#: Tolerances: friction coefficient (relative, at the worst sample of the window: the law and a Coulomb cone are
+#: exact at every sample, measured to 1e-16; an engine's friction regularised near zero slip reads up to 0.22 %
+#: under mu, Drake's defaults; 1 % is the read-out's check, per sample so a friction that chatters about mu does
+#: not pass on its mean; its size is held far tighter by the slip acceleration, which the drag's net force
+#: (DRAG - mu) Fn = 0.1 Fn makes ten times as sensitive to it: ODE's bound 0.98 % over mu passes here and moves
+#: the acceleration by 11 %), angle [deg] (1: the law is exactly opposite), acceleration (relative; 2 %: central
+#: differences of a 1 kHz log and forces averaged over a control period against a prediction at the sample;
+#: measured 0.1-0.2 %).
 TOL_MU, TOL_ANGLE, TOL_ACC = 0.01, 1.0, 0.02
 #: A sample counts as in contact above this normal force [N].
 FN_MIN = 0.5
@@ -182,7 +187,7 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     if shape == "diamond":  # scored on its own closed form (the cone's below would be computed for nothing)
         return _score_diamond(tr, physics, cls, coef, mu, v, k, slip, lift, poc)
     u = vk / speed[:, None]
-    ratio = float(np.mean(np.linalg.norm(ft, axis=1) / fn))
+    ratio, _ = _worst(np.linalg.norm(ft, axis=1) / fn, mu)
     cosang = -np.sum(ft * u, axis=1) / np.linalg.norm(ft, axis=1)
     angle = float(np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0))).max())
     a_meas = (v[k + 1] - v[k - 1]) / (2 * Ts)
@@ -193,7 +198,7 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     law = ("the law read back (the force is the law at the logged state): checks the read-out, not an engine; "
            if applies_law(tr.info, physics) else "")  # fmt: skip
     rows = [
-        _relative(case, backend, "friction |F_t| / Fn while sliding", "1", ratio, mu, TOL_MU,
+        _relative(case, backend, "friction |F_t| / Fn while sliding (worst sample)", "1", ratio, mu, TOL_MU,
                   f"{law}{coef} = {mu:g}; {slip}"),
         (case, backend, "angle between friction and -slip (max)", "deg", angle, 0.0, angle, TOL_ANGLE,
          angle <= TOL_ANGLE, f"{law}{slip}"),
@@ -285,7 +290,7 @@ def _score_diamond(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
     case, backend = "sliding", tr.backend
     Ts = physics.control_dt
     E = drag_frame(friction_axes(tr.info))  # rows: the axis across the drag, the axis along it
-    l1 = float(np.mean(np.sum(np.abs(tr.f[k, :2] @ E.T), axis=1) / tr.f[k, 2]))
+    l1, _ = _worst(np.sum(np.abs(tr.f[k, :2] @ E.T), axis=1) / tr.f[k, 2], mu)
     n_contact = len(k)
     sk = np.abs(v[k] @ E.T)
     off_axis = np.degrees(np.arctan2(sk.min(axis=1), sk.max(axis=1)))
@@ -313,7 +318,8 @@ def _score_diamond(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
     a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift, poc, physics.gravity)
     am, ap = float(np.mean(np.sum(a_meas * u, axis=1))), float(np.mean(np.sum(a_pred * u, axis=1)))
     rows = [
-        _relative(case, backend, "friction (|F_x| + |F_y|) / Fn while sliding (diamond)", "1", l1, mu, TOL_MU,
+        _relative(case, backend, "friction (|F_x| + |F_y|) / Fn while sliding (worst sample; diamond)", "1", l1, mu,
+                  TOL_MU,
                   ctx),
         (case, backend, "angle between friction and the diamond's closed form (max)", "deg", angle, 0.0, angle,
          TOL_ANGLE, angle <= TOL_ANGLE, ctx),
@@ -321,6 +327,14 @@ def _score_diamond(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
                   f"closed form M^-1 (tau - nle + J_poc^T F), F the diamond's{_at(poc)}; {ctx}"),
     ]  # fmt: skip
     return _with_known(cls, tr, [dict(zip(ROW_KEYS, r, strict=True)) for r in rows])
+
+
+def _worst(measured: np.ndarray, expected: np.ndarray | float) -> tuple[float, float]:
+    """(measured, expected) at the sample where they differ most, relative to the expected: a row held at every
+    sample of the window (:data:`TOL_MU`)."""
+    exp = np.broadcast_to(np.asarray(expected, float), measured.shape)
+    i = int(np.argmax(np.abs(measured - exp) / np.abs(exp)))
+    return float(measured[i]), float(exp[i])
 
 
 def _span(x: np.ndarray) -> str:
@@ -409,7 +423,8 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
     ft_pred, a_pred = pyramid_friction(tr.q[k], tr.qd[k], tr.tau[k], fn, mu, lift, poc, E, physics.gravity)
     ft_pred, a_pred, f_meas, v_ax = ft_pred @ E.T, a_pred @ E.T, tr.f[:, :2] @ E.T, v @ E.T  # on (across, along)
     slides = np.abs(ft_pred[:, 1]) >= mu * fn * (1.0 - 1e-12)  # the closed form's along-drag axis at its bound
-    along = float(np.mean(np.abs(f_meas[k, 1]) / fn))
+    # at its worst sample against the closed form's there (mu where it slides, the force that holds it elsewhere)
+    along, expected_along = _worst(np.abs(f_meas[k, 1]) / fn, np.abs(ft_pred[:, 1]) / fn)
     across, across_pred = float(np.mean(f_meas[k, 0] / fn)), float(np.mean(ft_pred[:, 0] / fn))
     a_meas = (v_ax[k + 1, 1] - v_ax[k - 1, 1]) / (2 * Ts)
     am, ap = float(np.mean(a_meas)), float(np.mean(a_pred[:, 1]))
@@ -418,7 +433,6 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
            f"{int(slides.sum())} of {len(k)} samples; slip along it {_span(1e3 * speed)} mm/s, "
            f"Fn {fn.mean():.3g} N, {len(k)} of {n_window} samples in "
            "contact")  # fmt: skip
-    expected_along = mu if slides.all() else float(np.mean(np.abs(ft_pred[:, 1]) / fn))
     acc = f"closed form M^-1 (tau - nle + J_poc^T F), F the pyramid's{_at(poc)}; {ctx}"
     if ap != 0.0:
         acc_row = _relative(case, backend, "slip acceleration along the drag (mean; pyramid)", "m/s^2", am, ap,
@@ -431,8 +445,8 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
                    TOL_ACC * scale, abs(am) <= TOL_ACC * scale,
                    f"{acc}; tolerance {100 * TOL_ACC:g} % of the frictionless acceleration")  # fmt: skip
     rows = [
-        _relative(case, backend, "friction along the drag |F_y| / Fn (pyramid)", "1", along, expected_along, TOL_MU,
-                  ctx),
+        _relative(case, backend, "friction along the drag |F_y| / Fn (worst sample; pyramid)", "1", along,
+                  expected_along, TOL_MU, ctx),
         (case, backend, "friction across the drag F_x / Fn (mean; pyramid)", "1", across, across_pred,
          abs(across - across_pred), TOL_MU * mu, abs(across - across_pred) <= TOL_MU * mu,
          f"the closed form's force across the drag, which holds the foot there; {ctx}; tolerance {100 * TOL_MU:g} % "

@@ -213,7 +213,8 @@ TOLERANCE_BASIS = {
     "small_oscillation": f"{POLE_RTOL * 100:g} % of |s| per pole (the pencil fit of three close, heavily damped "
     f"modes); a first-order step of unknown form: ({POLE_RTOL * 100:g} % + h |s|) of |s|, h |s| the pole shift any "
     "first-order step may have",
-    "sliding": f"friction |F_t| / Fn within {TOL_MU * 100:g} % of mu, its angle to -slip within {TOL_ANGLE:g} deg, "
+    "sliding": f"friction |F_t| / Fn within {TOL_MU * 100:g} % of mu at every sample of the window (its worst), "
+    f"its angle to -slip within {TOL_ANGLE:g} deg, "
     f"the slip acceleration (along the slip: positive where it speeds up) within {TOL_ACC * 100:g} % of the closed "
     "form M^-1 (tau - nle + J_poc^T F), with the "
     "friction the run declares: a cone as said, a pyramid axis by axis (the sliding axis at mu Fn, the other's force "
