@@ -51,7 +51,7 @@ def _diverged(code: int) -> str:
     from legbench import tick
 
     return {
-        tick.NOT_FINITE: "state is not finite",
+        tick.NOT_FINITE: "state or ground force is not finite",
         tick.TOO_FAST: f"joint speed above {MAX_JOINT_SPEED} rad/s",
         tick.TOO_DEEP: f"foot more than {MAX_PENETRATION} m into the ground",
     }[code]
@@ -149,7 +149,7 @@ def simulate(
                 try:
                     step(tau_out)
                 except Exception as exc:
-                    raise _EngineError(exc) from exc
+                    raise _EngineError(exc, logged=True) from exc
             if progress is not None and k % every == 0:
                 progress(k / n)
     except SimulationDiverged as exc:
@@ -164,7 +164,7 @@ def simulate(
             status, reason = "failed", one_line(str(cause))
         else:
             status, reason = "failed", one_line(f"{type(cause).__name__} at t = {k * Ts:.4f} s: {cause}")
-        n = k
+        n = k + 1 if isinstance(exc, _EngineError) and exc.logged else k  # the state read at t_k is the log's
     except KeyboardInterrupt:
         status, reason = "interrupted", f"interrupted at t = {k * Ts:.4f} s"
         n = k
@@ -203,9 +203,10 @@ def simulate(
 class _EngineError(Exception):
     """An error raised by a backend's own call in the run loop (reset, read, step), carried to its handler."""
 
-    def __init__(self, cause: Exception) -> None:
+    def __init__(self, cause: Exception, logged: bool = False) -> None:
         super().__init__(str(cause))
         self.cause = cause
+        self.logged = logged  # the tick's row was written before the call failed (a step): it is kept
 
 
 #: What a backend declares of itself, recorded beside its info (what verification predicts and scores by).

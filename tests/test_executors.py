@@ -428,3 +428,15 @@ def test_a_pool_started_at_a_scripts_top_level_is_refused(tmp_path: Path) -> Non
     last = done.stderr.strip().splitlines()[-1]
     assert done.returncode == 1 and done.stdout == "", done.stdout
     assert last.startswith(f"legbench.exceptions.LegbenchError: {script}:4: 2 worker processes started outside")
+
+
+def test_a_crashed_tasks_log_line_names_it_in_a_few_words() -> None:
+    """A crashed run's warning printed the task's repr: the whole Scenario, 2.3 kB on one line. It names the
+    scenario and backend now."""
+    from legbench import scenario
+    from legbench.studies.executors import _task_text
+    from legbench.studies.tasks import RunTask
+
+    sc = scenario.load(Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml")
+    assert _task_text((sc, "mujoco", "native", False)) == "effort, mujoco, native, False"
+    assert _task_text(RunTask(3, "x.yaml", backend="ode")) == "ode"

@@ -1275,7 +1275,7 @@ def test_any_error_of_a_backend_fails_it_alone(tmp_path: Path, monkeypatch: pyte
     got = {tr.backend: tr for tr in res}
     assert got["steptypeerror"].status == "failed"
     assert got["steptypeerror"].reason == "TypeError at t = 0.0050 s: plug-in bug"
-    assert len(got["steptypeerror"].t) == 5  # the ticks before the error are kept
+    assert len(got["steptypeerror"].t) == 6  # the ticks up to the error kept, its own row read before the step
     assert got["inforaises"].status == "failed" and got["inforaises"].reason == "info() failed: KeyError: 'engine'"
     assert got["infocontacttext"].status == "failed"
     assert (got["infocontacttext"].reason or "").startswith("infocontacttext: info() contact: expected a mapping")

@@ -133,6 +133,37 @@ def test_a_backend_declaring_what_legbench_cannot_read_fails_its_run_naming_it(
     assert tr.status == "failed" and words in (tr.reason or ""), tr.reason
 
 
+def test_a_step_that_raises_keeps_the_row_read_before_it() -> None:
+    """A plug-in's step() raising at t = 0.05 s: the reason said t = 0.0500 s while the log ended at 0.049 s (the
+    row of the state read at 0.05 s, written before the step, was dropped). It is kept: the log ends at the time
+    the reason names; a read() that raises keeps nothing of its tick."""
+
+    class Breaking(FakeBackend):
+        def step(self, tau: np.ndarray) -> None:
+            if len(self.steps) == 50:
+                raise RuntimeError("solver gave up")
+            super().step(tau)
+
+    sc = scenario.parse(DOC)
+    be = Breaking()
+    phys = scenario.physics_of(sc)
+    be.load(Path("unused"), phys, {})
+    tr = run.simulate(sc, be, phys)
+    assert tr.status == "failed" and "RuntimeError at t = 0.0500 s: solver gave up" in (tr.reason or "")
+    assert len(tr.t) == 51 and tr.t[-1] == pytest.approx(0.05) and np.isfinite(tr.q).all()
+
+    class Unreadable(FakeBackend):
+        def read(self) -> tuple[float, ...]:
+            if len(self.steps) == 50:
+                raise RuntimeError("lost the state")
+            return super().read()
+
+    be2 = Unreadable()
+    be2.load(Path("unused"), phys, {})
+    tr = run.simulate(sc, be2, phys)
+    assert tr.status == "failed" and len(tr.t) == 50 and tr.t[-1] == pytest.approx(0.049)
+
+
 def test_results_are_bit_identical_for_any_number_of_jobs(tmp_path: Path) -> None:
     """Tasks run in separate processes with --jobs 2 give exactly the logs of --jobs 1, in input order."""
     from legbench import backends

@@ -203,6 +203,15 @@ def _call(fn: Callable[[T], R], x: T) -> R | None:
         return None
 
 
+def _task_text(x: Any) -> str:
+    """A task in a few words for a log line: its parts' names (a scenario's, a backend's), not their reprs (a
+    Scenario's ran to 2.3 kB on one line)."""
+    parts = x if isinstance(x, tuple) else (x,)
+    words = [p if isinstance(p, str | int | float) else
+             getattr(p, "name", None) or getattr(p, "backend", None) or type(p).__name__ for p in parts]  # fmt: skip
+    return ", ".join(map(str, words))[:200]
+
+
 def _died(code: int | None) -> str:
     """How a worker process ended, in words: ``killed by SIGSEGV`` or ``exit status 1``."""
     if code is None:
@@ -416,7 +425,7 @@ class LocalExecutor(Executor):
                 # second reader of the fork server's status pipe racing it got end-of-file: "exit status 255")
                 solo.shutdown(wait=True)
                 why = _died(procs[0].exitcode if procs else None)
-                log.warning("a worker process died (%s) running %r", why, x)
+                log.warning("a worker process died (%s) running %s", why, _task_text(x))
                 out = on_crash(x, f"its worker process died ({why}); the other tasks ran on")
             finished = True
             return out
