@@ -785,3 +785,40 @@ def test_a_corrupt_or_empty_baseline_never_passes(
              "a row twice": rf"metrics\[{len(doc['metrics']) - 1}\]: the same row as metrics\[3\]"}[damage]  # fmt: skip
     assert re.match(rf"^legbench: error: {re.escape(str(base / 'metrics.json'))}: {words}", err), err
     assert err.count("\n") == 1 and sorted(p.name for p in new.iterdir()) == before
+
+
+def test_a_negative_baseline_gets_the_same_relative_allowance(baseline: Path, tmp_path: Path) -> None:
+    """The allowance is rel x |baseline|: b's steady fz made -22.23 N may move by 0.5 % of 22.23 N either way
+    (0.9 x: moved, 1.1 x: REGRESSION); with rel x baseline a negative steady mean had an allowance of the abs part
+    alone and a 0.4 % change failed."""
+    base = _committed(baseline / "fake", tmp_path / "base", {("b", "fz", "steady_mean"): lambda v: -v})
+    for k, status in ((0.9, "moved"), (-0.9, "moved"), (1.1, "REGRESSION")):
+        plant = functools.partial(lambda v, k: -v * (1.0 + k * 0.005), k=k)
+        new = _committed(baseline / "fake", tmp_path / f"new{k:+g}", {("b", "fz", "steady_mean"): plant})
+        row = _row(K.check(new, base), "b", "fz", "steady_mean")
+        assert row.baseline < -20.0 and row.allowed == pytest.approx(0.005 * abs(row.baseline), rel=1e-12), k
+        assert row.status == status, (k, row.message)
+
+
+def test_the_ceiling_holds_the_new_value_not_the_baseline(baseline: Path, tmp_path: Path) -> None:
+    """max_sim_error_pct {tau: 1.5}: a's torque error that was 2 % in the baseline and is 1 % now is under its
+    limit (improved, no OVER LIMIT); one that stays at 2 % is OVER LIMIT (test_absolute_ceiling_on_sim_error)."""
+    new = tree(tmp_path / "new", scale(1.01), tolerances={"max_sim_error_pct": {"tau": 1.5}})
+    report = K.check(new, baseline)
+    rows = [_row(report, "a", f"tau{j}", "sim_error_pct") for j in (1, 2, 3)]
+    assert all(r.baseline > 1.5 > r.new and r.status == "improved" for r in rows), [r.message for r in rows]
+    assert not [r for r in report.regressions if r.status == "OVER LIMIT"]
+
+
+def test_a_time_series_whose_controller_column_changed_is_not_identical(baseline: Path, tmp_path: Path) -> None:
+    """The bit-for-bit trace check reads the controller column too: the same numbers with the switch to effort
+    control logged a tick later is 'changed', not 'identical'."""
+    new = tree(tmp_path / "new")
+    log = new / "fake" / "a.parquet"
+    df = pd.read_parquet(log)
+    df.loc[1000, "controller"] = "position"
+    df.to_parquet(log, index=False)
+    report = K.check(new, baseline)
+    a = next(t for t in report.traces if (t.scenario, t.backend) == ("fake", "a"))
+    assert (a.status, a.detail) == ("changed", "the controller column only"), a
+    assert {t.status for t in report.traces if (t.scenario, t.backend) != ("fake", "a")} == {"identical"}

@@ -521,3 +521,42 @@ def test_a_fit_over_a_column_that_is_not_numeric_is_refused_at_load(
     captured = capsys.readouterr()
     assert captured.err.count("\n") == 1 and "fit.x" in captured.err and "Warning" not in captured.err
     assert not out.exists()
+
+
+def _fit_table(x: list[float], y: list[float], status: list[str] | None = None) -> pd.DataFrame:
+    n = len(x)
+    return pd.DataFrame({"role": ["run"] * n, "study": [0] * n, "label": ["s"] * n, "backend": ["b"] * n,
+                         "status": status or ["ok"] * n, "dt": x, "q_max": y})  # fmt: skip
+
+
+def test_the_slope_fit_leaves_out_what_it_cannot_fit_and_says_so() -> None:
+    """A first-order error e = 3 dt: slope 1 over the usable points; a point at the floor (exactly), one at x = 0
+    (a Kd grid holding 0: log 0 crashed the sweep after every run had finished) and a failed run are left out,
+    and the note counts them; a column held at one value (an adaptive solver's study) or given twice gets no
+    slope and says why."""
+    fit = sweep.Fit("dt", floor=1e-12)
+    x = [1e-3, 5e-4, 2.5e-4, 0.0, 1e-4, 2e-3]
+    y = [3e-3, 1.5e-3, 7.5e-4, 0.0, 1e-12, 6e-3]
+    table = _fit_table(x, y, ["ok"] * 5 + ["failed"])
+    (row,) = sweep.fit_slopes(table, "q_max", fit).to_dict("records")
+    assert row["slope"] == pytest.approx(1.0, abs=1e-12) and row["n_points"] == 3, row
+    assert row["note"] == "3 point(s) left out (failed, dt not > 0, or at or below the floor 1e-12)"
+    (one,) = sweep.fit_slopes(_fit_table([1e-4, 1e-4], [1e-6, 2e-6]), "q_max", fit).to_dict("records")
+    assert math.isnan(one["slope"]) and one["note"] == "dt takes one value in this study: no slope against it"
+    (few,) = sweep.fit_slopes(_fit_table([1e-3, 1e-4], [1e-6, 1e-13]), "q_max", fit).to_dict("records")
+    assert math.isnan(few["slope"]) and few["note"].startswith("fewer than two usable points"), few
+
+
+def test_the_short_horizon_columns_leave_out_the_windows_before_the_skip() -> None:
+    """docs/studies.md: the sweep's skip is left out of every comparison; the sh_ columns took every window from
+    t = 0 (a transient at the start set them). They take the windows starting at or after the skip; a window
+    starting at it is kept."""
+    from legbench.studies import horizon
+
+    peaks = {s: np.array([[9.0, 9.0, 9.0], [1.0, 2.0, 3.0], [0.5, 0.5, 0.5]]) for s in horizon.SIGNALS}
+    h = horizon.HorizonResult(0.1, np.array([0.0, 0.1, 0.2]), peaks, peaks)
+    every = sweep._horizon_columns(h)
+    kept = sweep._horizon_columns(h, skip=0.1)
+    s = horizon.SIGNALS[0]
+    assert every[f"sh_{s}_max"] == 9.0 and kept[f"sh_{s}_max"] == 3.0
+    assert math.isnan(sweep._horizon_columns(None, 0.1)[f"sh_{s}_max"])  # a reference row: no windows

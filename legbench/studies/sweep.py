@@ -678,10 +678,13 @@ def run_metrics(res: RunResult, ref: RunResult, signals: Sequence[str], skip: fl
     return out
 
 
-def _horizon_columns(h: HorizonResult | None) -> dict[str, float]:
+def _horizon_columns(h: HorizonResult | None, skip: float = 0.0) -> dict[str, float]:
+    """The short-horizon columns ``sh_<component>_max``: the largest peak deviation over the windows that start
+    at or after ``skip`` [s] (the sweep's skip, as its other columns; every window is in the windows table)."""
     out: dict[str, float] = {}
+    kept = None if h is None else np.asarray(h.t0) >= skip - 1e-9
     for s in horizon.SIGNALS:
-        peak = None if h is None else np.asarray(h.peak[s])
+        peak = None if h is None else np.asarray(h.peak[s])[kept]
         for j, c in enumerate(COMPONENTS[s]):
             col = None if peak is None else peak[:, j]
             out[f"sh_{c}_max"] = float(np.nanmax(col)) if col is not None and np.isfinite(col).any() else math.nan
@@ -726,7 +729,7 @@ def tabulate(sweep: Sweep, p: Plan, results: Mapping[int, TaskResult]) -> tuple[
                         for m in ("max", "pct")})  # fmt: skip
         if sweep.short_horizon is not None:
             h = task.horizon if r.role == "run" else None
-            rec.update(_horizon_columns(h))
+            rec.update(_horizon_columns(h, sweep.skip))
             rec["sh_status"] = h.status if h else ""
             if h is not None:
                 for w, t0 in enumerate(np.asarray(h.t0)):
@@ -770,9 +773,13 @@ def fit_slopes(table: pd.DataFrame, metric: str, fit: Fit) -> pd.DataFrame:
                        x_max=float(x[ok].max()))  # fmt: skip
             left = int(len(x) - ok.sum())
             if left:
-                rec["note"] = f"{left} point(s) left out (failed, or at or below the floor {fit.floor:g})"
+                rec["note"] = (
+                    f"{left} point(s) left out (failed, {fit.x} not > 0, or at or below the floor {fit.floor:g})"
+                )
+        elif len(set(x[np.isfinite(x)])) < 2:  # the study holds it at one value (an adaptive solver's sweep)
+            rec["note"] = f"{fit.x} takes one value in this study: no slope against it"
         else:
-            rec["note"] = f"fewer than two usable points above the floor {fit.floor:g}"
+            rec["note"] = f"fewer than two usable points (at two values of {fit.x} > 0) above the floor {fit.floor:g}"
         rows.append(rec)
     return pd.DataFrame(rows)
 
