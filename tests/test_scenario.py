@@ -94,6 +94,22 @@ BASE = {"name": "t", "duration": 1.0, "events": [{"t": 0.0, "position": {"joint"
         ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}},
                      {"t": 0.1, "effort": {"force": [0, 0, -1]}, "force_delay": 0.0071}]}, "events[1].force_delay",
          "not a whole number"),
+        # the boundaries a mutation audit found untested: each of these was accepted with its < in place of <=
+        ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}}, {"t": 1.0, "effort": {"force": [0, 0, -1]}}]},
+         "events[1].t", "past the end"),  # an event at exactly the end never acts
+        ({"events": [{"t": 0.0, "trajectory": {"waypoints": [[0.1667, 0.05, 0.10], [0.1667, 0.10, 0.12]],
+                                               "times": [0.4, 0.4]}}]}, "events[0].trajectory.times",
+         "must increase strictly"),  # two waypoints at one instant: a zero time step between them
+        ({"duration": 20.0, "events": [{"t": 0.0, "ellipse": {"a": 0.15, "b": 0.06, "DY": 0.11208, "DZ": 0.105,
+                                                              "T": 5.0, "points": 1000, "repetitions": 101}}]},
+         "events[0].ellipse.points", "points x repetitions = 101000 is more than 100000"),
+        ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}}, {"t": 0.5, "effort": {"force": [0, 0, -1]}},
+                     {"t": 0.3, "position": {"joint": [0, 0, 0]}, "delay": 0.3}]}, "events[2].t",
+         "events out of order"),  # its delayed switch (0.6 s) after the previous one's does not put it in order
+        ({"events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}},
+                     {"t": 0.2, "effort": {"force": [0, 0, -1]}, "force_delay": 0.1},
+                     {"t": 0.3, "position": {"joint": [0, 0, 0]}}]}, "events[1].force_delay",
+         "not before the next event switches"),  # the force would start as the next event takes over
     ],
 )  # fmt: skip
 def test_bad_input_names_file_key_and_problem(tmp_path: Path, patch: dict, key: str, words: str) -> None:  # type: ignore[type-arg]
