@@ -34,6 +34,7 @@ run.json calls ok that is gone makes the backend ``missing`` (a FAILED row).
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 import xml.etree.ElementTree as ET
@@ -91,7 +92,9 @@ DEFAULT_TOLERANCES: dict[str, Any] = dict(
         (
             {"abs": 0.01, "rel": 0.005},  # sim_error_pct: [percentage points], [1]
             {"abs": {"q": 1e-5, "qd": 1e-4, "tau": 1e-4, "force": 1e-3}, "rel": 0.005},  # rms: [signal unit], [1]
-            {"abs": {"qd": 1e-4, "force": 1e-2}, "rel": 0.005},  # steady_mean: [signal unit], [1]
+            # steady_mean: [signal unit], [1]; qd's floor under the engines' creep (1e-7 to 9e-4 rad/s in the
+            # baseline: at 1e-4, 15 of 21 creeps on the contact tasks were under it, and ten times one passed)
+            {"abs": {"qd": 1e-8, "force": 1e-2}, "rel": 0.005},
             {},  # max_sim_error_pct: label or signal -> ceiling [%]
         ),
         strict=True,
@@ -505,23 +508,42 @@ def _trace_checks(sc: str, base_dir: Path, new_dir: Path, backends: Mapping[str,
     return out
 
 
+#: The keys of run.json's ``scenario`` that make the task (the leg's physics, its controllers, what is compared):
+#: a baseline that differs in one is another experiment. The backends' settings are not among them: an engine's
+#: setting changed (a sub-step) is what the check is for; the comparison's tolerances neither (the new run's apply).
+TASK_KEYS = ("duration", "control_rate", "contact_mode", "profile", "gravity", "gains", "initial", "contact", "events")
+
+
+def _task_of(sc: Mapping[str, Any]) -> dict[str, Any]:
+    cmp_ = {k: v for k, v in (sc.get("comparison") or {}).items() if k != "tolerances"}
+    return {**{k: sc[k] for k in TASK_KEYS if k in sc}, "comparison": cmp_}
+
+
 def _same_inputs(bdir: Path, ndir: Path) -> None:
-    """Refuse a baseline made from other inputs than the new run: the scenario as run (run.json's
-    ``scenario.sha256``, the validated document with any ``--set``) or the leg model (its ``urdf``, named by the
-    parameter file's digest where it is not the bundled leg). Its metrics would move as the inputs did, and
-    pass or fail as regressions of the engines: a gains change of 20 % passed, a shank 10 % heavier passed. Either
-    side without the key (an older run.json) is not compared."""
+    """Refuse a baseline made from another task than the new run: its scenario's physics, controllers or
+    comparison (:data:`TASK_KEYS` of run.json's ``scenario``, with any ``--set``) or its leg model (run.json's
+    ``urdf``, named by the parameter file's digest where it is not the bundled leg). Its metrics would move as the
+    task did, and pass or fail as regressions of the engines: a gains change of 20 % passed, a shank 10 % heavier
+    passed. A backend's settings may differ (what the check measures). Either side without the key (an older
+    run.json) is not compared."""
     if not (bdir / "run.json").is_file() or not (ndir / "run.json").is_file():
         return  # a baseline of metrics.json alone: nothing to compare
     b, n = read_meta(bdir), read_meta(ndir)
-    bsc, nsc = b.get("scenario") or {}, n.get("scenario") or {}
-    pairs = (("the scenario as run (scenario.sha256)", bsc.get("sha256"), nsc.get("sha256")),
-             ("the leg model (urdf)", b.get("urdf"), n.get("urdf")))  # fmt: skip
-    for what, old, new in pairs:
-        if old and new and old != new:
-            raise ResultsError(str(ndir), f"{what} is {str(new)[:16]}, the baseline's ({bdir}) {str(old)[:16]}: a "
-                                          "regression check compares runs of the same inputs; refresh the baseline "
-                                          "on purpose (make baseline) or choose the matching --baseline")  # fmt: skip
+    bt, nt = _task_of(b.get("scenario") or {}), _task_of(n.get("scenario") or {})
+    diffs = [(f"the scenario's {k}", bt[k], nt[k]) for k in sorted(bt.keys() & nt.keys()) if bt[k] != nt[k]]
+    if b.get("urdf") and n.get("urdf") and b["urdf"] != n["urdf"]:
+        diffs.append(("the leg model (urdf)", b["urdf"], n["urdf"]))
+    if diffs:
+        what, old, new = diffs[0]
+        more = f" (and {len(diffs) - 1} more: {', '.join(d[0] for d in diffs[1:])})" if len(diffs) > 1 else ""
+        raise ResultsError(str(ndir), f"{what} is {_short(new)}, the baseline's ({bdir}) {_short(old)}{more}: a "
+                                      "regression check compares runs of one task; refresh the baseline on purpose "
+                                      "(make baseline) or choose the matching --baseline")  # fmt: skip
+
+
+def _short(v: Any) -> str:
+    text = json.dumps(v, sort_keys=True, default=str) if not isinstance(v, str) else v
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | None = None) -> CheckReport:
@@ -536,8 +558,8 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
         The :class:`CheckReport`; ``exit_status`` is 1 on any regression.
 
     Raises:
-        ResultsError: a directory or metrics file is missing or malformed; a run of another scenario, or of the
-            same one made from other inputs than its baseline (:func:`_same_inputs`).
+        ResultsError: a directory or metrics file is missing or malformed; a run of another scenario, or of
+            another task or leg model than its baseline (:func:`_same_inputs`).
         ScenarioError: a tolerance file or run.json tolerances are malformed, or a ``scenarios`` section of the
             file matches no scenario name or run label checked.
     """

@@ -368,22 +368,33 @@ def _edit_meta(d: Path, edit: Callable[[dict[str, Any]], None]) -> Path:
     return d
 
 
-def test_a_baseline_made_from_other_inputs_is_refused_naming_what_differs(baseline: Path, tmp_path: Path) -> None:
+def test_a_baseline_of_another_task_is_refused_naming_what_differs(baseline: Path, tmp_path: Path) -> None:
     """A review's runs: `--set gains.Kp=12` and a shank 10 % heavier (`--model`) both PASSED against the
     committed baseline (the metrics are mostly engine-to-engine differences, which such a change barely moves).
-    A run of the same scenario name whose run.json records another scenario digest or another leg model is
-    refused, exit 2, naming the key; an older run.json without the key is not compared."""
+    A run whose run.json records another task (gains, contact, events, the comparison's skip...) or another leg
+    model is refused, exit 2, naming what differs; a backend's settings may differ (what the check measures,
+    tests/test_check_engines.py), and so may the tolerances; an older run.json without the key is not compared."""
     base = shutil.copytree(baseline, tmp_path / "base")
     _edit_meta(base / "fake", lambda m: m.update(urdf="leg.urdf"))
     same = tree(tmp_path / "same")  # an older run.json, without urdf: that key is not compared
     assert K.check(same, base).passed
-    for key, edit in (("scenario.sha256", lambda m: m["scenario"].update(sha256="1" * 64)),
-                      ("urdf", lambda m: m.update(urdf="leg-0123456789abcdef.urdf"))):  # fmt: skip
-        new = tree(tmp_path / key)
+    edits = {
+        "the scenario's contact": lambda m: m["scenario"]["contact"].update(Kp=2e4),
+        "the scenario's comparison": lambda m: m["scenario"]["comparison"].update(skip=0.5),
+        "the leg model (urdf)": lambda m: m.update(urdf="leg-0123456789abcdef.urdf"),
+    }
+    for what, edit in edits.items():
+        new = tree(tmp_path / what.split()[-1].strip("()"))
         _edit_meta(new / "fake", edit)
-        with pytest.raises(ResultsError, match=re.escape(f"({key}) is ") + ".*compares runs of the same inputs"):
+        with pytest.raises(ResultsError, match=re.escape(f"{what} is ") + ".*compares runs of one task"):
             K.check(new, base)
         assert cli.main(["check", str(new), "--baseline", str(base)]) == 2
+    for ok, edit in (("settings", lambda m: m["backends"]["a"]["info"]["settings"].update(dt=2e-4)),
+                     ("tolerances", lambda m: m["scenario"]["comparison"].update(tolerances={"rms": {"rel": 0.1}})),
+                     ("digest", lambda m: m["scenario"].update(sha256="1" * 64))):  # fmt: skip
+        new = tree(tmp_path / ok)
+        _edit_meta(new / "fake", edit)
+        assert K.check(new, base).passed, ok
     _edit_meta(same / "fake", lambda m: m.update(urdf="leg.urdf"))
     assert K.check(same, base).passed
 
