@@ -833,3 +833,16 @@ def test_a_time_series_whose_controller_column_changed_is_not_identical(baseline
     a = next(t for t in report.traces if (t.scenario, t.backend) == ("fake", "a"))
     assert (a.status, a.detail) == ("changed", "the controller column only"), a
     assert {t.status for t in report.traces if (t.scenario, t.backend) != ("fake", "a")} == {"identical"}
+
+
+def test_a_creep_ten_times_faster_is_a_regression(baseline: Path, tmp_path: Path) -> None:
+    """The lab report's table 10 compares the engines' creep under the effort push (steady qd, 1e-7 to 9e-4
+    rad/s in the baseline); qd's steady_mean floor of 1e-4 rad/s let a creep of 5e-6 rad/s grow tenfold. With
+    1e-8 rad/s its allowance is 0.5 % of it: tenfold fails, 0.9 of the allowance moves."""
+    creep = functools.partial(lambda v, c: c, c=5e-6)
+    base = _committed(baseline / "fake", tmp_path / "base", {("b", "qd2", "steady_mean"): creep})
+    for name, value, status in (("fast", 5e-5, "REGRESSION"), ("near", 5e-6 * (1 + 0.9 * 0.005), "moved")):
+        plant = functools.partial(lambda v, c: c, c=value)
+        new = _committed(baseline / "fake", tmp_path / name, {("b", "qd2", "steady_mean"): plant})
+        row = _row(K.check(new, base), "b", "qd2", "steady_mean")
+        assert row.allowed == pytest.approx(2.5e-8, rel=1e-9) and row.status == status, (name, row.message)
