@@ -973,7 +973,8 @@ def json_schema() -> dict[str, Any]:
         "oneOf": [{"required": [c]} for c in CONTROLLERS],
     }
     backend_props: dict[str, Any] = {}
-    for name in backends.BUILTIN:
+    # the built-ins (installed or not), then the plug-ins installed here (their entry points)
+    for name in dict.fromkeys([*backends.BUILTIN, *backends.available()]):
         try:
             cls = backends.get(name)
         except BackendNotFound:  # not installed here: its settings are not known, any mapping

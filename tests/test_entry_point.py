@@ -307,3 +307,15 @@ def test_an_entry_point_that_names_no_runnable_backend_is_unavailable_with_why(
     assert cli.main(["backends"]) == 0
     assert cli.main(["run", str(EFFORT), "--backends", "notclass", "--out", str(tmp_path / "out")]) == 2
     assert not (tmp_path / "out").exists()
+
+
+def test_the_schema_holds_the_plugins_settings(plugin: str) -> None:
+    """`legbench schema` listed the built-ins alone under additionalProperties false, so an editor marked a
+    scenario's `backends: {<plug-in>: ...}` invalid, though run and validate take it: the plug-in's settings are
+    in it, as its class declares them."""
+    from legbench import scenario
+
+    props = scenario.json_schema()["properties"]["backends"]["properties"]
+    mine = props[plugin]
+    assert mine["additionalProperties"] is False and set(backends.get(plugin).defaults) <= set(mine["properties"])
+    assert mine["properties"]["profile"]["enum"] == list(backends.get(plugin).profiles)
