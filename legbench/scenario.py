@@ -909,7 +909,16 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None, origin: s
     naming ``origin`` (what set them in the caller's words: ``--set``, the Python API's ``overrides``);
     ``engines``: the backends the caller will load, whose default sub-steps must suit the control period
     (:func:`parse`)."""
-    doc, root = read_yaml(path)
+    try:
+        doc, root = read_yaml(path)
+    except ScenarioError as exc:  # a bundled scenario's bare name (the Python API takes those): say where it is
+        bundled = resources.scenario(str(path))
+        if str(exc).endswith(": no such file") and Path(path).parent == Path() and bundled.is_file():
+            where = resources.shown(bundled)
+            where = where if Path(where).is_file() else str(bundled)  # a path the user can give from here
+            raise ScenarioError(str(path), "", f"no such file; the bundled scenario of that name is {where}: give "
+                                               "its path") from None  # fmt: skip
+        raise
     apply_overrides(doc, overrides, origin)
     return parse(doc, str(path), root, tuple(overrides or ()), origin=origin, engines=engines)
 

@@ -1035,3 +1035,20 @@ def test_a_run_of_named_backends_imports_no_other_engine(tmp_path: Path) -> None
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True)
     assert out.stdout.strip().splitlines()[-1] == "0 []", out.stdout + out.stderr
+
+
+def test_a_bundled_scenarios_bare_name_says_where_the_file_is(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`legbench run position` said "position: no such file" though the Python API takes the bundled name: the
+    line names the bundled file by a path that can be given from here; another missing name stays as it was."""
+    from legbench import resources
+
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["run", "position", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (f"legbench: error: position: no such file; the bundled scenario of that name is "
+                   f"{resources.scenario('position')}: give its path")  # fmt: skip
+    assert cli.main(["run", "nothere", "--out", str(tmp_path / "out")]) == 2
+    assert capsys.readouterr().err.strip() == "legbench: error: nothere: no such file"
+    assert not (tmp_path / "out").exists()
