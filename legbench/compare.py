@@ -220,6 +220,13 @@ def _contact_law(run: Run) -> ContactParams | None:
     return ContactParams(**contact) if contact else None
 
 
+def _missing_of(tr: RunResult) -> str:
+    """What a log lacks of tau and q, which the analytic force check needs: no finite tau, q or either, or no
+    sample with both."""
+    gone = [name for name, x in (("tau", tr.tau), ("q", tr.q)) if not np.isfinite(x).any()]
+    return f"no finite {' or '.join(gone)}" if gone else "no sample with both tau and q finite"
+
+
 def log_settings_problem(
     log: str | Path | None,
     column_map: object,
@@ -238,6 +245,9 @@ def log_settings_problem(
                                           ("log_time_scale", log_time_scale != 1.0)) if on]  # fmt: skip
         if given:
             return f"{', '.join(given)}: need {w.get('log', 'log')} (they describe that log)"
+    if log is not None and log_time_scale != 1.0 and is_ros_bag(log):  # bag stamps are ns: it would be ignored
+        return (f"{w.get('log_time_scale', 'log_time_scale')}: a ROS bag's times are its stamps (ns), read as such; "
+                "it applies to a CSV log")  # fmt: skip
     if ros_given and (log is None or not is_ros_bag(log)):
         return (
             f"{w.get('ros', 'ros')}: need {w.get('log', 'log')} naming a ROS bag (a .bag file, a ROS 2 bag "
@@ -341,8 +351,8 @@ def compare(
             continue
         if math.isnan(s.cond):
             notes.append(
-                f"{s.backend}: the analytic force check needs tau and q, and the log has no finite tau or q "
-                "over the steady window; analytic check undefined"
+                f"{s.backend}: the analytic force check needs tau and q, and the log has "
+                f"{_missing_of(traces[s.backend])} over the steady window; analytic check undefined"
             )
         elif not s.cond < COND_MAX:
             notes.append(f"{s.backend}: J_poc is singular at the steady-state pose; analytic check undefined")

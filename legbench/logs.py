@@ -271,6 +271,9 @@ def load_log(
         written = _written_header(path)
     except Exception as exc:  # parser errors come in several types
         raise ResultsError(str(path), f"not a readable CSV file ({type(exc).__name__}: {exc})") from exc
+    if raw.shape[1] == 1 and any(sep in str(raw.columns[0]) for sep in ";\t"):  # read as one column
+        raise ResultsError(str(path), f"one column, its header {str(raw.columns[0])[:60]!r}: separated by ';' or "
+                                      "tabs? a log is read as comma-separated CSV")  # fmt: skip
     _check_unique_header(path, written if len(written) == raw.shape[1] else list(map(str, raw.columns)))
     cmap = dict(column_map or {})
     unknown_targets = sorted(set(cmap.values()) - set(RUN_COLUMNS))
@@ -302,10 +305,16 @@ def load_log(
     if factor["t"] != 1.0 and time_scale != 1.0:  # both would scale the time
         raise LegbenchError(f"{words.time_scale} {time_scale!r}: {path}'s header gives the time's unit already "
                             f"({[c for c, t in rename.items() if t == 't'][0]!r}); give one or the other")  # fmt: skip
+    scale = time_scale * factor["t"]
+    if scale != 1.0:  # in seconds before it is checked, so an error reads its times in s
+        try:
+            df = df.assign(t=pd.to_numeric(df["t"], errors="raise") * scale)
+        except (ValueError, TypeError):
+            pass  # not numbers: result_from_frame says so, naming the column
     trace = result_from_frame(df, path.stem, str(path), required)  # validates
     data = trace.data * np.array([factor.get(c, 1.0) for c in LABELS])
     ee = trace.ee * np.array([factor.get(c, 1.0) for c in EE_COLUMNS])
-    t = trace.t * (time_scale * factor["t"])
+    t = trace.t
     _check_plausible(t, data, str(path), ee)
     out = {"t": t}
     out |= {c: data[:, i] for i, c in enumerate(LABELS)}

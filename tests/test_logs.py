@@ -396,3 +396,29 @@ def test_a_unit_in_a_csv_header_is_read_or_refused_never_ignored(tmp_path: Path)
     with pytest.raises(ResultsError, match=r"column 'q1 \[grad\]': unit \[grad\] is not one legbench reads for q1 "
                                            r"\(rad, deg\)"):  # fmt: skip
         logs.load_log(odd)
+
+
+def test_a_logs_time_errors_read_in_seconds_and_a_semicolon_file_is_named_as_such(tmp_path: Path) -> None:
+    """A ms log with a repeated time said 't = 2000 s after 2002 s' (checked before the scale); it reads in
+    seconds now. A semicolon-separated file was told to map its columns (one column, 't;q1;q2;q3'): it is told
+    what it looks like."""
+    ms = tmp_path / "ms.csv"
+    ms.write_text("t,q1,q2,q3\n0,0,0,0\n2002,0,0,0\n2000,0,0,0\n")
+    with pytest.raises(ResultsError, match=r"not strictly increasing at data row 3 \(t = 2 s after 2.002 s\)"):
+        logs.load_log(ms, time_scale=1e-3)
+    semi = tmp_path / "semi.csv"
+    semi.write_text("t;q1;q2;q3\n0;0;0;0\n0.001;0;0;0\n")
+    with pytest.raises(ResultsError, match="one column, its header 't;q1;q2;q3': separated by ';' or tabs"):
+        logs.load_log(semi)
+
+
+def test_a_time_scale_given_with_a_bag_is_refused_not_ignored(tmp_path: Path) -> None:
+    """--log-time-scale with a bag was silently ignored (its stamps are ns): refused, naming the option."""
+    from legbench.compare import log_settings_problem
+
+    bag = tmp_path / "run.bag"
+    words = {"log": "--reference-log", "log_time_scale": "--log-time-scale"}
+    said = log_settings_problem(bag, None, False, 1e-3, False, words)
+    assert said is not None and said.startswith("--log-time-scale: a ROS bag's times are its stamps (ns)")
+    assert log_settings_problem(bag, None, False, 1.0, False, words) is None
+    assert log_settings_problem(tmp_path / "log.csv", None, False, 1e-3, False, words) is None
