@@ -96,6 +96,13 @@ def _positive(value: object, name: str, hint: str) -> float:
     return float(value)
 
 
+def _finite(value: object, name: str, hint: str) -> float:
+    """A finite number (not a bool)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise LegbenchError(f"{name} {reprlib.repr(value)}: must be a finite number {hint}")
+    return float(value)
+
+
 _CONTACT_MODES = ("native", "reference", "both")
 _SCENARIO = "a bundled scenario's name, a scenario file (str or os.PathLike)"
 
@@ -157,7 +164,8 @@ def _check_compare_args(kwargs: Mapping[str, Any], method: str) -> None:
     for name, value in kwargs.items():
         _COMPARE_ARGS[name](value, name)
     problem = log_settings_problem(kwargs.get("log"), kwargs.get("column_map"), bool(kwargs.get("log_is_reference")),
-                                   kwargs.get("log_time_scale", 1.0), kwargs.get("ros") is not None)  # fmt: skip
+                                   kwargs.get("log_time_scale", 1.0), kwargs.get("ros") is not None,
+                                   log_t0=kwargs.get("log_t0"))  # fmt: skip
     if problem is not None:  # as legbench compare refuses them
         raise LegbenchError(problem)
 
@@ -215,6 +223,7 @@ _COMPARE_ARGS: dict[str, _Check] = {
     "log_name": _optional(_check_log_name),
     "column_map": _optional(_check_column_map),
     "log_time_scale": lambda v, n: _positive(v, n, "(1e-3 for ms)"),
+    "log_t0": _optional(lambda v, n: _finite(v, n, "[s] (the log's time at the run's t = 0)")),
     "log_is_reference": _flag,
     "ros": _optional(_check_ros),
     "all_pairs": _flag,

@@ -400,7 +400,7 @@ def add_run(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 #: compare's log arguments as ``legbench compare`` names them (:func:`legbench.compare.log_settings_problem`).
 _LOG_WORDS = {"log": "--reference-log", "column_map": "--log-columns", "log_is_reference": "--log-is-reference",
-              "log_time_scale": "--log-time-scale"}  # fmt: skip
+              "log_time_scale": "--log-time-scale", "log_t0": "--log-t0"}  # fmt: skip
 
 
 def _compare(args: argparse.Namespace) -> int:
@@ -419,7 +419,8 @@ def _compare(args: argparse.Namespace) -> int:
                                         ("--ros-wrench-topic", args.ros_wrench_topic),
                                         ("--ros-force-sign", args.ros_force_sign)) if value is not None]  # fmt: skip
     problem = log_settings_problem(args.reference_log, args.log_columns, args.log_is_reference, args.log_time_scale,
-                                   bool(ros_given), {**_LOG_WORDS, "ros": " / ".join(ros_given)})  # fmt: skip
+                                   bool(ros_given), {**_LOG_WORDS, "ros": " / ".join(ros_given)},
+                                   args.log_t0)  # fmt: skip
     if problem is not None:
         raise LegbenchError(problem)
     column_map: dict[str, str] = {}
@@ -444,6 +445,7 @@ def _compare(args: argparse.Namespace) -> int:
         ros=ros,
         column_map=column_map or None,
         log_time_scale=args.log_time_scale,
+        log_t0=args.log_t0,
         log_is_reference=args.log_is_reference,
         lag=args.lag,
         all_pairs=args.all_pairs,
@@ -486,6 +488,14 @@ def add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
         type=yamlfile.positive_float,
         default=1.0,
         help="factor taking the log's time unit to seconds (e.g. 1e-3 for ms; default 1: seconds)",
+    )
+    p.add_argument(
+        "--log-t0",
+        type=yamlfile.finite_float,
+        default=None,
+        metavar="SECONDS",
+        help="the log's time [s, after --log-time-scale] that is the run's t = 0 (a log stamped in epoch seconds, "
+        "or started before the run; default: 0 for a CSV, a bag's first joint-state sample)",
     )
     p.add_argument(
         "--log-is-reference",

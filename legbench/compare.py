@@ -234,6 +234,7 @@ def log_settings_problem(
     log_time_scale: float,
     ros_given: bool,
     words: Mapping[str, str] | None = None,
+    log_t0: float | None = None,
 ) -> str | None:
     """Why :func:`compare`'s log settings cannot apply, or None: settings that shape a log given without one (they
     would be ignored), or ROS options without a log that is a ROS bag. ``column_map`` counts as given when truthy
@@ -242,7 +243,8 @@ def log_settings_problem(
     w = dict(words or {})
     if log is None:
         given = [w.get(n, n) for n, on in (("column_map", bool(column_map)), ("log_is_reference", log_is_reference),
-                                          ("log_time_scale", log_time_scale != 1.0)) if on]  # fmt: skip
+                                          ("log_time_scale", log_time_scale != 1.0),
+                                          ("log_t0", log_t0 is not None)) if on]  # fmt: skip
         if given:
             return f"{', '.join(given)}: need {w.get('log', 'log')} (they describe that log)"
     if log is not None and log_time_scale != 1.0 and is_ros_bag(log):  # bag stamps are ns: it would be ignored
@@ -263,6 +265,7 @@ def compare(
     log_name: str | None = None,
     column_map: Mapping[str, str] | None = None,
     log_time_scale: float = 1.0,
+    log_t0: float | None = None,
     log_is_reference: bool = False,
     ros: RosOptions | None = None,
     all_pairs: bool = False,
@@ -279,6 +282,8 @@ def compare(
         log_name: its name in tables and plots (default: ``log:<file stem>``).
         column_map: header name -> legbench column, for the log.
         log_time_scale: factor taking the log's time unit to seconds.
+        log_t0: the log's time [s, after ``log_time_scale``] that is the run's t = 0 (a CSV stamped in epoch
+            seconds, a bag's clock); None: 0 for a CSV, a bag's first joint-state sample.
         log_is_reference: measure every backend against the log instead of the
             scenario's reference backend.
         ros: topics and joints of a ROS bag log (:class:`legbench.logs.RosOptions`).
@@ -311,7 +316,7 @@ def compare(
         name = log_key = log_name or f"log:{Path(log).stem}"
         if name in traces:
             raise ResultsError(str(log), f"log name '{name}' is already a backend of {run.path}; pass another name")
-        traces[name] = result_from_frame(load_log(log, column_map, log_time_scale, ros), name, str(log))
+        traces[name] = result_from_frame(load_log(log, column_map, log_time_scale, ros, log_t0), name, str(log))
         end = float(traces[name].t[-1])
         if run.skip > 0.0 and end <= run.skip + T_EPS:  # every metric would be n/a, and said nowhere
             raise ResultsError(str(log), f"ends at t = {end:.4g} s, before the run's skip ({run.skip:g} s, its "

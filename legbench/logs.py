@@ -219,6 +219,7 @@ def load_log(
     column_map: Mapping[str, str] | None = None,
     time_scale: float = 1.0,
     ros: RosOptions | None = None,
+    t0: float | None = None,
 ) -> pd.DataFrame:
     """Read an external log, a CSV file or a ROS bag (:func:`is_ros_bag`), into the run columns, as one more "backend".
 
@@ -244,6 +245,8 @@ def load_log(
         path: the CSV file.
         column_map: header name in the file -> legbench column name.
         time_scale: factor taking the file's time unit to seconds (1e-3 for ms).
+        t0: the log's time [s, after the scale] that is the run's t = 0 (a log stamped in epoch seconds, or
+            started before the run); None: 0. For a bag, :attr:`RosOptions.t0` (None: its first sample).
 
     Returns:
         DataFrame with the columns of :data:`RUN_COLUMNS` (controller "" if absent).
@@ -259,6 +262,8 @@ def load_log(
     words = _WORDS.get()
     if is_ros_bag(path):
         opts = ros or RosOptions()
+        if t0 is not None:
+            opts = RosOptions(opts.joint_topic, opts.wrench_topic, opts.joints, opts.force_sign, t0)
         if column_map:
             opts = RosOptions(opts.joint_topic, opts.wrench_topic, _joints_from_map(path, column_map),
                               opts.force_sign, opts.t0)  # fmt: skip
@@ -305,10 +310,10 @@ def load_log(
     if factor["t"] != 1.0 and time_scale != 1.0:  # both would scale the time
         raise LegbenchError(f"{words.time_scale} {time_scale!r}: {path}'s header gives the time's unit already "
                             f"({[c for c, t in rename.items() if t == 't'][0]!r}); give one or the other")  # fmt: skip
-    scale = time_scale * factor["t"]
-    if scale != 1.0:  # in seconds before it is checked, so an error reads its times in s
+    scale, shift = time_scale * factor["t"], float(t0 or 0.0)
+    if scale != 1.0 or shift:  # in the run's seconds before it is checked, so an error reads its times so
         try:
-            df = df.assign(t=pd.to_numeric(df["t"], errors="raise") * scale)
+            df = df.assign(t=pd.to_numeric(df["t"], errors="raise") * scale - shift)
         except (ValueError, TypeError):
             pass  # not numbers: result_from_frame says so, naming the column
     trace = result_from_frame(df, path.stem, str(path), required)  # validates

@@ -789,3 +789,13 @@ def test_an_unknown_backend_key_lists_the_backends_it_has(result: api.Result) ->
         with pytest.raises(KeyError) as exc:
             result[key]  # type: ignore[index]
         assert exc.value.args[0] == f"no backend {shown} in this run; its backends: pinocchio, mujoco"
+
+
+def test_log_t0_is_checked_and_needs_a_log(result: api.Result, tmp_path: Path) -> None:
+    """Result.compare(log_t0=...) takes what `--log-t0` takes: a finite number [s], with a log."""
+    with pytest.raises(LegbenchError) as exc:
+        result.compare(log_t0=2.0)
+    assert str(exc.value) == "log_t0: need log (they describe that log)"
+    with pytest.raises(LegbenchError) as exc:
+        result.compare(log=tmp_path / "x.csv", log_t0=float("inf"))
+    assert str(exc.value) == "log_t0 inf: must be a finite number [s] (the log's time at the run's t = 0)"

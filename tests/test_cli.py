@@ -1052,3 +1052,25 @@ def test_a_bundled_scenarios_bare_name_says_where_the_file_is(
     assert cli.main(["run", "nothere", "--out", str(tmp_path / "out")]) == 2
     assert capsys.readouterr().err.strip() == "legbench: error: nothere: no such file"
     assert not (tmp_path / "out").exists()
+
+
+def test_log_t0_shifts_a_csv_log_onto_the_run_and_needs_a_log(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--log-t0`: a log that starts 2 s before the run (its t = 2 at the run's 0) is compared where it belongs
+    (exit 0; its deviation from the run it copies 0); without --reference-log it is refused, exit 2."""
+    import numpy as np
+    from fakerun import base_signals, frame, write_run
+
+    d = write_run(tmp_path / "s", {"ref": None})
+    t = np.arange(0, 2.0 + 1e-9, 1e-3)
+    df = frame(t, base_signals(t))
+    df["t"] = t + 2.0
+    df.to_csv(tmp_path / "late.csv", index=False)
+    assert cli.main(["compare", str(d), "--reference-log", str(tmp_path / "late.csv"), "--log-t0", "2"]) == 0
+    doc = json.loads((d / "metrics.json").read_text())
+    sim = [m["value"] for m in doc["metrics"] if m["backend"] == "log:late" and m["metric"] == "max_abs"]
+    assert sim and max(sim) < 1e-9, sim
+    capsys.readouterr()
+    assert cli.main(["compare", str(d), "--log-t0", "2"]) == 2
+    assert "--log-t0: need --reference-log" in capsys.readouterr().err

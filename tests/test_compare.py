@@ -893,3 +893,27 @@ def test_a_centre_poc_backend_is_checked_at_the_centre() -> None:
     assert np.abs(s.residual).max() < 0.02  # [N]
     np.testing.assert_allclose(s.residual, s.force - s.analytic_centre, rtol=0, atol=0)
     assert np.abs(s.force - s.analytic_poc).max() > 0.5  # what the J_poc check showed
+
+
+def test_a_log_stamped_in_epoch_seconds_is_compared_with_log_t0(tmp_path: Path) -> None:
+    """A hardware CSV stamped in epoch milliseconds failed (exit 2, 'do not overlap' with spans rounded to 1.7e+09)
+    and one started 2 s before the run was compared misaligned: --log-t0 (log_t0) gives the log's time that is
+    the run's t = 0, after the time scale. The same log shifted back reads as the run's own copy (0 deviation);
+    without a log it is refused as the other log settings are."""
+    d = write_run(tmp_path / "s", {"ref": None})
+    t = np.arange(0, 2.0 + 1e-9, DT)
+    epoch = 1.7e12  # [ms]
+    log = tmp_path / "hw.csv"
+    df = frame(t, base_signals(t))
+    df["t"] = np.round(epoch + t * 1e3, 3)
+    df.to_csv(log, index=False)
+    res = C.compare(d, log=log, log_time_scale=1e-3, log_t0=epoch * 1e-3)
+    p = res.pair("log:hw")
+    assert p is not None
+    # the same samples, their times rounded to a double near 1.7e12 ms (spacing 2.4e-4 ms): off by at most
+    # that times each signal's slope
+    x = base_signals(t)
+    slope = np.max(np.abs(np.diff(x, axis=0)), axis=0) / DT
+    assert np.all(p.max_abs <= 2.5e-7 * slope), p.max_abs / slope
+    assert C.log_settings_problem(None, None, False, 1.0, False, {"log": "--reference-log", "log_t0": "--log-t0"},
+                                  log_t0=3.0) == "--log-t0: need --reference-log (they describe that log)"  # fmt: skip
