@@ -185,6 +185,19 @@ def test_body_sleeping_is_off_in_matched_and_dartpys_own_in_engine_defaults() ->
             backend.close()
 
 
+def test_info_gives_the_pairs_friction_as_dart_combines_it() -> None:
+    """info()'s contact.friction read the foot's coefficient alone; DART slides with min(mu_foot, mu_ground): a
+    ground made slipperier than the foot (0.3 against 0.7) reads 0.3."""
+    backend = load("dart", Physics(), {}, "matched")
+    try:
+        assert backend.info()["contact"]["friction"] == pytest.approx(0.7)
+        ground = backend.ground.getBodyNode(0)  # type: ignore[attr-defined]
+        ground.getShapeNode(0).getDynamicsAspect().setFrictionCoeff(0.3)
+        assert backend.info()["contact"]["friction"] == pytest.approx(0.3)
+    finally:
+        backend.close()
+
+
 def test_info_gives_the_contact_rows_delassus_from_the_engines_own_mass_matrix() -> None:
     """info()'s at_end.delassus, W = J M^-1 J^T at the sphere's lowest point with the engine's own mass matrix
     (what the calibration's creep closed form is built on), equals the spec leg's (Pinocchio's M) to 1e-6 of its

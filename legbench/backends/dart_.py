@@ -394,10 +394,12 @@ class DartBackend(Backend):
         """Engine, version and every setting actually used, read back from the world where DART allows."""
         world, c = self.world, self.physics.contact
         solver = world.getConstraintSolver()
-        foot_dyn = [
-            self.foot.getShapeNode(i).getDynamicsAspect()
-            for i in range(self.foot.getNumShapeNodes())
-            if self.foot.getShapeNode(i).hasDynamicsAspect()
+        # the pair's coefficient as DART combines them, min(mu_foot, mu_ground): the foot's shapes and the ground's
+        pair_dyn = [
+            body.getShapeNode(i).getDynamicsAspect()
+            for body in (self.foot, self.ground.getBodyNode(0))
+            for i in range(body.getNumShapeNodes())
+            if body.getShapeNode(i).hasDynamicsAspect()
         ]
         return {
             "engine": "dart",
@@ -424,7 +426,7 @@ class DartBackend(Backend):
                     solver.getSecondaryBoxedLcpSolver().getType() if solver.getSecondaryBoxedLcpSolver() else None
                 ),
                 "collision_detector": solver.getCollisionDetector().getType(),
-                "friction": min([d.getFrictionCoeff() for d in foot_dyn] or [c.mu_s]),
+                "friction": min([d.getFrictionCoeff() for d in pair_dyn] or [c.mu_s]),
                 "restitution": 0.0,
                 "Kp": None,
                 "Kd": None,
