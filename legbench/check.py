@@ -510,12 +510,13 @@ def _trace_checks(sc: str, base_dir: Path, new_dir: Path, backends: Mapping[str,
 
 #: The keys of run.json's ``scenario`` that make the task (the leg's physics, its controllers, what is compared):
 #: a baseline that differs in one is another experiment. The backends' settings are not among them: an engine's
-#: setting changed (a sub-step) is what the check is for; the comparison's tolerances neither (the new run's apply).
+#: setting changed (a sub-step) is what the check is for; the comparison's tolerances neither (the new run's apply),
+#: nor its published rows (a source's numbers shown beside the runs).
 TASK_KEYS = ("duration", "control_rate", "contact_mode", "profile", "gravity", "gains", "initial", "contact", "events")
 
 
 def _task_of(sc: Mapping[str, Any]) -> dict[str, Any]:
-    cmp_ = {k: v for k, v in (sc.get("comparison") or {}).items() if k != "tolerances"}
+    cmp_ = {k: v for k, v in (sc.get("comparison") or {}).items() if k not in ("tolerances", "published")}
     return {**{k: sc[k] for k in TASK_KEYS if k in sc}, "comparison": cmp_}
 
 

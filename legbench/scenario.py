@@ -652,14 +652,17 @@ def _check_speed(ctx: YamlContext, path: list[str | int], ev: Event, q_start: tu
 
 
 def _published(ctx: YamlContext, rows: Any) -> tuple[dict[str, Any], ...]:
-    """``comparison.published``: a list of ``{source, qd_abs?, force?, note?}`` rows, each vector of 3 numbers,
-    ``note`` a caveat the report prints beside the row (e.g. the source's own doubt about it)."""
+    """``comparison.published``: a list of ``{source, qd_abs?, force?, tau_switch?, first_contact?, note?}`` rows,
+    each vector of 3 numbers (``tau_switch`` [N m]: the torque at the switch to effort control), ``first_contact``
+    a time [s], ``note`` a caveat the report prints beside the row (e.g. the source's own doubt about it)."""
     path: list[str | int] = ["comparison", "published"]
     if not isinstance(rows, list):
         raise ctx.error(path, "expected a list of {source, qd_abs, force} rows")
     out = []
     for i, row in enumerate(rows):
-        check_keys(ctx, [*path, i], row, ["source", "qd_abs", "force", "note"], ["source"])
+        check_keys(
+            ctx, [*path, i], row, ["source", "qd_abs", "force", "tau_switch", "first_contact", "note"], ["source"]
+        )
         if not isinstance(row["source"], str):
             raise ctx.error([*path, i, "source"], "expected text naming the source")
         item: dict[str, Any] = {"source": row["source"]}
@@ -667,7 +670,9 @@ def _published(ctx: YamlContext, rows: Any) -> tuple[dict[str, Any], ...]:
             if not isinstance(row["note"], str) or not row["note"].strip():
                 raise ctx.error([*path, i, "note"], "expected text: the caveat shown beside the row")
             item["note"] = row["note"]
-        for key in ("qd_abs", "force"):
+        if "first_contact" in row:
+            item["first_contact"] = number(ctx, [*path, i, "first_contact"], row["first_contact"], positive=True)
+        for key in ("qd_abs", "force", "tau_switch"):
             if key in row:
                 vec = row[key]
                 if not isinstance(vec, list) or len(vec) != 3:

@@ -9,6 +9,7 @@ so the tolerance is JSON's round trip (1e-12 relative).
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from legbench import backends, cli, metrics, results
+from legbench import backends, cli, kinematics, metrics, results
 from legbench.exceptions import ScenarioError
 from legbench.studies import reproduce as rp
 
@@ -156,11 +157,17 @@ def with_metrics(repro: tuple[Path, dict[str, rp.Table], str]) -> Path:
 
 def test_reproduce_writes_the_tables_and_ordinary_run_directories(repro: tuple[Path, dict[str, rp.Table], str]) -> None:
     out, tabs, md = repro
-    assert set(tabs) == {"table10", "table11", "table12", "sim_error_position", "sim_error_ellipse"}
+    assert set(tabs) == {"table10", "steady_force", "steady_fn", "sim_error_position", "sim_error_ellipse"}
     for f in ("reproduce.md", "reproduce.html", "reproduce.json"):
         assert (out / f).stat().st_size > 500
-    for title in ("Table 10", "Table 11", "Table 12", "Simulation error %, task position", "task ellipse"):
+    for title in ("Table 10", "Steady ground force and its analytic check, task effort (legbench's; the source names "
+                  "no table of it)", "Steady normal ground force per task (legbench's", "Simulation error %, task "
+                  "position", "task ellipse"):  # fmt: skip
         assert title in md
+    assert "Table 11" not in md and "Table 12" not in md  # the source's table 10 alone is described
+    # strict JSON: an n/a cell is null (a bare NaN token is no JSON value)
+    doc = json.loads((out / "reproduce.json").read_text(), parse_constant=lambda c: pytest.fail(f"{c} in JSON"))
+    assert any(v is None for t in doc["tables"].values() for r in t["rows"] for v in r)
     assert "lab report, table 10: Gazebo (ODE, Coulomb friction)" in md
     meta = results.read_meta(out / "effort")
     assert meta["backends"]["pinocchio"]["info"]["profile"] == "matched"
@@ -186,8 +193,8 @@ def test_table10_published_rows_and_steady_qd_equal_the_metrics(with_metrics: Pa
     assert str(ghost_row[0]).startswith("missing:")
 
 
-def test_table11_force_check_and_compensation_equal_the_metrics(with_metrics: Path, repro: Any) -> None:
-    rows = {r[0]: r[1:] for r in repro[1]["table11"].rows}
+def test_steady_force_check_and_compensation_equal_the_metrics(with_metrics: Path, repro: Any) -> None:
+    rows = {r[0]: r[1:] for r in repro[1]["steady_force"].rows}
     run_ = results.load_run(with_metrics / "effort")
     for label, name, at in (("Simscape: pinocchio (matched)", "pinocchio", "true"),
                             ("Gazebo: mujoco (engine-defaults)", "mujoco", "true, 0.5 y above")):  # fmt: skip
@@ -203,21 +210,21 @@ def test_table11_force_check_and_compensation_equal_the_metrics(with_metrics: Pa
     assert str(rows[f"custom sim: {GHOST} (engine-defaults)"][0]).startswith("missing:")
 
 
-def test_table11_compensates_a_centre_poc_backend(with_metrics: Path, repro: Any) -> None:
+def test_the_steady_force_table_compensates_a_centre_poc_backend(with_metrics: Path, repro: Any) -> None:
     """A backend whose law takes the poc at the sphere centre: comp. F = F + (-h(J_poc)) - (-h(J_E))."""
     run_ = results.load_run(with_metrics / "effort")
     st = run_.backends["pinocchio"]
     centre = results.Run(**{**run_.__dict__, "backends": {**run_.backends, "pinocchio": results.BackendStatus(
         st.name, st.status, st.reason, {**st.info, "contact": {**st.info["contact"], "poc": "centre"}})}})  # fmt: skip
     plan = rp.Plan("<memory>", (rp.Framework("Simscape", "pinocchio", "matched"),), "matched", ())
-    (row,) = rp.table11(plan, centre, ["pinocchio"]).rows
+    (row,) = rp.steady_force_table(plan, centre, ["pinocchio"]).rows
     s = metrics.steady_state(run_.traces["pinocchio"], run_.steady_window, "centre")
     assert row[1] == "centre" and s.analytic_centre is not None
     np.testing.assert_allclose(row[8:11], s.force + s.analytic_poc - s.analytic_centre, rtol=RTOL)
 
 
-def test_table12_fn_equals_the_metrics_per_task(with_metrics: Path, repro: Any) -> None:
-    t12 = repro[1]["table12"]
+def test_steady_fn_equals_the_metrics_per_task(with_metrics: Path, repro: Any) -> None:
+    t12 = repro[1]["steady_fn"]
     assert t12.header == ("backend", "Fn, effort", "Fn, combined")
     rows = {r[0]: r[1:] for r in t12.rows}
     for label, name in (("Simscape: pinocchio (matched)", "pinocchio"), ("Gazebo: mujoco (engine-defaults)", "mujoco")):
@@ -234,9 +241,12 @@ def test_sim_error_between_frameworks_equals_the_metrics(with_metrics: Path, rep
     # mujoco against pinocchio (the scenarios' reference): metrics.json has it
     from_json = _metric(with_metrics / task, "mujoco", "q", "sim_error_pct", "pinocchio")
     np.testing.assert_allclose(rows[("Gazebo", "Simscape")], from_json, rtol=RTOL)
+    # the other way round: the same number (one denominator, the scenario reference's peak; docs/metrics.md);
+    # it was divided by b's own peak (0.1517 against 0.1516 % in a review's run)
+    np.testing.assert_allclose(rows[("Simscape", "Gazebo")], rows[("Gazebo", "Simscape")], rtol=1e-12)
     run_ = results.load_run(with_metrics / task)
-    pm = metrics.pair_metrics(run_.traces["pinocchio"], run_.traces["mujoco"], run_.skip)
-    np.testing.assert_allclose(rows[("Simscape", "Gazebo")], pm.sim_error_pct[:3], rtol=RTOL)
+    own = metrics.pair_metrics(run_.traces["pinocchio"], run_.traces["mujoco"], run_.skip)  # mujoco's own peak
+    assert not np.allclose(own.sim_error_pct[:3], rows[("Simscape", "Gazebo")], rtol=1e-9, atol=0)
     assert rows[("Gazebo", "Simscape")][0] > 0.0  # two engines: not identical traces
     assert str(rows[("Simscape", "custom sim")][0]).startswith(f"{GHOST} missing:")
     assert len(table.rows) == 6  # every ordered pair of the three frameworks
@@ -316,3 +326,27 @@ def test_reproduce_replaces_its_finished_runs_only_with_force(
     assert cli.main(_reproduce(fw)) == 0  # the default, results/reproduce
     assert cli.main(_reproduce(fw)) == 2
     assert "holds a finished run; pass --out DIR for a new one, or --force" in capsys.readouterr().err
+
+
+def test_the_switch_table_sets_the_report_s_task_4_beside_each_backend(tmp_path: Path) -> None:
+    """The report's task 4 in Gazebo (first contact about 1.29 s; tau [1.04247, 0.186749, -0.30101] N m right
+    after the switch, h_d still 0) was run as combined_ros but shown nowhere: the switch table gives the published
+    row, then each backend's first contact (Fn > 0.5 N) and its torque at the switch (2.013 s), which with h_d = 0
+    is G(q) there (the effort law's gravity term alone; unsaturated)."""
+    doc = {"frameworks": [{"name": "Simscape", "backend": "pinocchio", "profile": "matched",
+                           "note": "the spec's law, legbench's ABA"}],
+           "tasks": [{"file": str(SCENARIOS / "combined_ros.yaml"), "tables": ["switch"]}]}  # fmt: skip
+    plan = rp.load_plan(_write(tmp_path, doc))
+    tabs, runs = rp.reproduce(plan, tmp_path / "out", ["pinocchio"], reports=False)
+    (table,) = tabs
+    assert table.key == "switch_combined_ros"
+    published, mine = table.rows
+    assert published[0].startswith("lab report, task 4: Gazebo") and list(published[1:]) == [
+        1.29, 1.04247, 0.186749, -0.30101]  # fmt: skip
+    tr = runs[0].traces["pinocchio"]
+    k = int(np.searchsorted(tr.t, 2.013 - 1e-9))
+    assert tr.t[k] == pytest.approx(2.013) and mine[1] == pytest.approx(1.139, abs=1e-3)
+    np.testing.assert_allclose(mine[2:], tr.tau[k], rtol=0, atol=0)
+    np.testing.assert_allclose(mine[2:], kinematics.gravity(tr.q[k]), rtol=1e-9, atol=1e-9)
+    page = (tmp_path / "out" / "reproduce.md").read_text()
+    assert "Simscape -> pinocchio with profile matched (the spec's law, legbench's ABA)" in page

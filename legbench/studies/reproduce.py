@@ -7,17 +7,18 @@ framework, which tasks to run and which of the report's tables each task feeds;
 nothing here names an engine::
 
     frameworks:                    # in table order
-      - {name: Gazebo, backend: <name>, profile: <one of its profiles>}
+      - {name: Gazebo, backend: <name>, profile: <one of its profiles>, note: <optional: what it is not>}
     others: matched                # profile of every other backend that runs
     tasks:                         # scenario files, relative to this file
-      - {file: effort.yaml, tables: [steady]}
+      - {file: effort.yaml, tables: [steady]}     # steady, force, sim_error, switch
 
-Table roles: ``steady`` (the report's tables 10 and 11: steady |qd| beside the
-scenario's published rows, and the steady ground force with the analytic check
-h = (J_poc^T)^-1 (tau - G) and the centre-poc compensation), ``force`` (table 12:
-the steady Fn, one column per task) and ``sim_error`` (sections 7.1 and 7.2: the
-simulation error % of each framework analogue against each other, per joint,
-after the scenario's ``comparison.skip``).
+Table roles: ``steady`` (the report's table 10, steady |qd| beside the scenario's published rows, and
+legbench's table of the steady ground force with the analytic check h = (J_poc^T)^-1 (tau - G) and the
+centre-poc compensation: the source names no table of it), ``force`` (legbench's: the steady Fn, one column
+per task), ``switch`` (the combined task as the report saw it: first contact and the torque at the switch to
+effort control, beside the scenario's published row) and ``sim_error`` (tasks 1 and 2: the simulation error %
+of each framework analogue against each other, per joint, after the scenario's ``comparison.skip``, over the
+scenario reference's peak as every simulation error % of legbench).
 
 Every task runs once on every backend through :func:`legbench.run.run_many`
 (the framework backends with their profile as ``backends.<name>.profile``), into
@@ -41,6 +42,7 @@ import numpy as np
 from legbench import backends as registry
 from legbench import report, resources, results, run, scenario, yamlfile
 from legbench.backends.base import PROFILES, contact_point
+from legbench.compare import first_contact
 from legbench.exceptions import BackendNotFound, LegbenchError, ScenarioError
 from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK
 from legbench.metrics import SteadyState, pair_metrics, steady_state
@@ -50,8 +52,9 @@ from legbench.signals import SLICE
 
 FRAMEWORKS_FILE = resources.scenario("reproduce")
 DEFAULT_OUT = Path("results") / "reproduce"
-#: What a task can feed: tables 10 and 11, table 12, sections 7.1 / 7.2.
-ROLES = ("steady", "force", "sim_error")
+#: What a task can feed: table 10 and the steady force, the steady Fn per task, the simulation error % between the
+#: framework analogues, the combined task's contact and switch torque.
+ROLES = ("steady", "force", "sim_error", "switch")
 #: The pages of a reproduce, beside its run directories in OUT.
 PAGES = ("reproduce.md", "reproduce.html", "reproduce.json")
 
@@ -67,6 +70,7 @@ class Framework:
     name: str
     backend: str
     profile: str
+    note: str = ""  # what the analogue is and is not (the page prints it beside the mapping)
 
 
 @dataclass(frozen=True)
@@ -122,8 +126,12 @@ def load_plan(path: str | Path = FRAMEWORKS_FILE) -> Plan:
     known = list(dict.fromkeys([*registry.BUILTIN, *registry.available()]))
     frameworks: list[Framework] = []
     for i, fw in enumerate(fws):
-        yamlfile.check_keys(ctx, ["frameworks", i], fw, ["name", "backend", "profile"], ["name", "backend", "profile"])
+        yamlfile.check_keys(ctx, ["frameworks", i], fw, ["name", "backend", "profile", "note"],
+                            ["name", "backend", "profile"])  # fmt: skip
         name, backend, profile = (fw[k] for k in ("name", "backend", "profile"))
+        note = fw.get("note", "")
+        if not isinstance(note, str):
+            raise ctx.error(["frameworks", i, "note"], "expected text: what the analogue is and is not")
         if not isinstance(name, str) or not name:
             raise ctx.error(["frameworks", i, "name"], "expected the framework's name")
         if any(f.name == name for f in frameworks):  # the tables' rows and columns are named by it
@@ -139,7 +147,7 @@ def load_plan(path: str | Path = FRAMEWORKS_FILE) -> Plan:
         if not isinstance(profile, str) or (offered is not None and profile not in offered):
             raise ctx.error(["frameworks", i, "profile"], f"{backend} offers the profiles {', '.join(offered or [])}, "
                                                           f"got {profile!r}")  # fmt: skip
-        frameworks.append(Framework(name, backend, profile))
+        frameworks.append(Framework(name, backend, profile, note))
     others = doc.get("others", PROFILES[0])
     if others not in PROFILES:
         raise ctx.error(
@@ -217,7 +225,7 @@ class Table:
     """One of the report's tables: numbers where a backend ran, text where it did not.
 
     Attributes:
-        key: ``table10``, ``table11``, ``table12``, ``sim_error_<task>``.
+        key: ``table10``, ``steady_force``, ``steady_fn``, ``sim_error_<task>``, ``switch_<task>``.
         title: heading.
         caption: what the numbers are, with units.
         header: column names.
@@ -238,6 +246,10 @@ def _cell(v: Any) -> str:
     if isinstance(v, float | np.floating):
         return "-" if math.isnan(v) else f"{v:.4g}"
     return str(v)
+
+
+def _json_cell(v: Any) -> Any:
+    return None if isinstance(v, float | np.floating) and math.isnan(v) else v
 
 
 def _status(run_: Run, name: str) -> str | None:
@@ -273,8 +285,9 @@ def table10(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
     """Steady |qd| per joint: the scenario's published rows, then each backend."""
     rows: list[tuple[Any, ...]] = []
     for pub in (run_.meta.get("scenario") or {}).get("comparison", {}).get("published") or []:
-        if "qd_abs" in pub:
-            rows.append((pub["source"], *(float(x) for x in pub["qd_abs"])))
+        if "qd_abs" in pub:  # with the source's own caveat, where the scenario gives one
+            source = f"{pub['source']} ({pub['note']})" if pub.get("note") else pub["source"]
+            rows.append((source, *(float(x) for x in pub["qd_abs"])))
     for n in names:
         label = f"legbench, {plan.label(n, _profile(run_, n))}"
         why = _status(run_, n)
@@ -282,13 +295,15 @@ def table10(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
     return Table(
         "table10",
         f"Table 10: steady joint velocities, task {run_.name}",
-        f"mean |qd| over the last {run_.steady_window:g} s [rad/s]; the lab report's published rows first",
+        f"|mean qd| over the last {run_.steady_window:g} s [rad/s]; the lab report's published rows first. The "
+        "law's v_th was fitted to the Simscape row (docs/contact_law.md): the law backends' agreement with it is "
+        "by construction, a consistency check, not a validation",
         ("source", "|qd1|", "|qd2|", "|qd3|"),
         tuple(rows),
     )
 
 
-def table11(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
+def steady_force_table(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
     """Steady ground force, the analytic check h at the point each backend's force acts (the true poc, raised by
     its declared ``contact.lift``), and the centre-poc compensated force."""
     rows: list[tuple[Any, ...]] = []
@@ -304,8 +319,8 @@ def table11(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
         at = poc if lift == 0.0 else f"{poc}, {lift:.3g} y above"
         rows.append((label, at, *s.force.tolist(), *s.analytic_poc.tolist(), *comp.tolist()))
     return Table(
-        "table11",
-        f"Table 11: steady ground force, task {run_.name}",
+        "steady_force",
+        f"Steady ground force and its analytic check, task {run_.name} (legbench's; the source names no table of it)",
         f"means over the last {run_.steady_window:g} s, ground force on the foot in W [N]: measured F; the "
         "analytic check -h with h = (J_poc^T)^-1 (tau - G(q)) at the true poc (raised by the fraction of the "
         "penetration y the poc column says, where an engine's own contact acts above the lowest point); for a "
@@ -316,7 +331,7 @@ def table11(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
     )
 
 
-def table12(plan: Plan, runs: Sequence[Run], names: Sequence[str]) -> Table:
+def steady_fn_table(plan: Plan, runs: Sequence[Run], names: Sequence[str]) -> Table:
     """Steady Fn per backend, one column per task."""
     rows: list[tuple[Any, ...]] = []
     for n in names:
@@ -326,8 +341,8 @@ def table12(plan: Plan, runs: Sequence[Run], names: Sequence[str]) -> Table:
             cells.append(why if why else float(steady_of(r, n).force[2]))
         rows.append((plan.label(n, next((p for r in runs if (p := _profile(r, n))), None)), *cells))
     return Table(
-        "table12",
-        "Table 12: steady normal ground force",
+        "steady_fn",
+        "Steady normal ground force per task (legbench's; the source names no table of it)",
         "mean Fn over each task's last steady window [N]",
         ("backend", *(f"Fn, {r.name}" for r in runs)),
         tuple(rows),
@@ -335,7 +350,11 @@ def table12(plan: Plan, runs: Sequence[Run], names: Sequence[str]) -> Table:
 
 
 def sim_error_table(plan: Plan, run_: Run) -> Table:
-    """Simulation error % of q, each framework analogue against each other (the second is the reference)."""
+    """Simulation error % of q, each framework analogue against each other: max |q_a - q_b| over the scenario
+    reference's peak (docs/metrics.md: one denominator, so a against b is b against a), b's own peak where the
+    reference did not run."""
+    ref = run_.traces.get(run_.reference)
+    peak = None if ref is None else pair_metrics(ref, ref, run_.skip).ref_peak
     rows: list[tuple[Any, ...]] = []
     for a in plan.frameworks:
         for b in plan.frameworks:
@@ -346,13 +365,48 @@ def sim_error_table(plan: Plan, run_: Run) -> Table:
                 missing = a.backend if _status(run_, a.backend) else b.backend
                 rows.append((a.name, b.name, f"{missing} {why}", "", ""))
                 continue
-            pm = pair_metrics(run_.traces[a.backend], run_.traces[b.backend], run_.skip)
+            pm = pair_metrics(run_.traces[a.backend], run_.traces[b.backend], run_.skip, peak=peak)
             rows.append((a.name, b.name, *pm.sim_error_pct[SLICE["q"]].tolist()))
     return Table(
         f"sim_error_{run_.name}",
         f"Simulation error %, task {run_.name}",
-        f"max_t |q_a - q_b| / max_t |q_b| x 100 per joint, t >= {run_.skip:g} s (docs/metrics.md)",
+        f"max_t |q_a - q_b| / max_t |q_ref| x 100 per joint, t >= {run_.skip:g} s, q_ref the scenario's reference "
+        f"({run_.reference}{'' if ref is not None else ': it did not run, so q_b'}; docs/metrics.md). All analogues "
+        "run legbench's one leg model (the report's three frameworks each had their own): the Simscape and "
+        "custom-sim analogues differ by integration and where the contact force acts only",
         ("framework a", "against b", "q1 %", "q2 %", "q3 %"),
+        tuple(rows),
+    )
+
+
+def switch_table(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
+    """The combined task as the report saw it: each backend's first contact (Fn > 0.5 N, as metrics.json's
+    ``first_contact``) and its torque at the tick of the switch to effort control (the last effort event's
+    switch, its delay included), beside the scenario's published rows (``first_contact``, ``tau_switch``)."""
+    switch = next((e.t for e in reversed(run_.events) if e.controller == "effort"), math.nan)
+    rows: list[tuple[Any, ...]] = []
+    for pub in (run_.meta.get("scenario") or {}).get("comparison", {}).get("published") or []:
+        if "first_contact" in pub or "tau_switch" in pub:
+            source = f"{pub['source']} ({pub['note']})" if pub.get("note") else pub["source"]
+            tau = [float(x) for x in pub.get("tau_switch") or [math.nan] * 3]
+            rows.append((source, float(pub.get("first_contact", math.nan)), *tau))
+    for n in names:
+        label = plan.label(n, _profile(run_, n))
+        why = _status(run_, n)
+        if why:
+            rows.append((label, why, "", "", ""))
+            continue
+        tr = run_.traces[n]
+        k = int(np.searchsorted(tr.t, switch - 1e-9)) if math.isfinite(switch) else len(tr.t)
+        touch = first_contact(tr)
+        tau = tr.tau[k].tolist() if k < len(tr.t) else [math.nan] * 3
+        rows.append((label, math.nan if touch is None else touch, *tau))
+    return Table(
+        f"switch_{run_.name}",
+        f"Contact and the switch to effort control, task {run_.name}",
+        f"first contact [s] (Fn > 0.5 N) and tau [N m] at the switch to effort control, t = {switch:g} s; the lab "
+        "report's published row first",
+        ("source", "first contact [s]", "tau1", "tau2", "tau3"),
         tuple(rows),
     )
 
@@ -362,13 +416,16 @@ def tables(plan: Plan, runs: Sequence[Run], names: Sequence[str]) -> list[Table]
     out: list[Table] = []
     for task, r in zip(plan.tasks, runs, strict=True):
         if "steady" in task.tables:
-            out += [table10(plan, r, names), table11(plan, r, names)]
+            out += [table10(plan, r, names), steady_force_table(plan, r, names)]
     force_runs = [r for task, r in zip(plan.tasks, runs, strict=True) if "force" in task.tables]
     if force_runs:
-        out.append(table12(plan, force_runs, names))
+        out.append(steady_fn_table(plan, force_runs, names))
     for task, r in zip(plan.tasks, runs, strict=True):
         if "sim_error" in task.tables:
             out.append(sim_error_table(plan, r))
+    for task, r in zip(plan.tasks, runs, strict=True):
+        if "switch" in task.tables:
+            out.append(switch_table(plan, r, names))
     return out
 
 
@@ -379,7 +436,10 @@ def page_items(plan: Plan, tabs: Sequence[Table]) -> list[report.PageItem]:
         "Framework analogues ("
         + plan.file
         + "): "
-        + "; ".join(f"{fw.name} -> {fw.backend} with profile {fw.profile}" for fw in plan.frameworks)
+        + "; ".join(
+            f"{fw.name} -> {fw.backend} with profile {fw.profile}" + (f" ({fw.note})" if fw.note else "")
+            for fw in plan.frameworks
+        )
         + f"; every other backend with profile {plan.others}.",
     ]
     for t in tabs:
@@ -445,8 +505,9 @@ def reproduce(
         "frameworks": [fw.__dict__ for fw in plan.frameworks],
         "backends": list(names),
         "runs": {r.name: str(r.path) for r in runs},
-        "tables": {
-            t.key: {"title": t.title, "header": list(t.header), "rows": [list(r) for r in t.rows]} for t in tabs
+        "tables": {  # n/a as null: strict JSON (a NaN token is no JSON value)
+            t.key: {"title": t.title, "header": list(t.header), "rows": [[_json_cell(v) for v in r] for r in t.rows]}
+            for t in tabs
         },
     }
     results.write_json(doc, out / "reproduce.json")
@@ -459,8 +520,9 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
         "reproduce",
         help="the lab report's comparison in one command: its tables from the framework analogues",
         description="Run the lab report's four tasks on the backends standing for its frameworks (a framework "
-        "file) and on every other backend; print and write tables 10, 11, 12 and the simulation error % "
-        "between frameworks (OUT/reproduce.{md,html,json}; one ordinary run directory per task).",
+        "file) and on every other backend; print and write its table 10, the steady force and Fn, the combined "
+        "task's contact and switch torque and the simulation error % between frameworks "
+        "(OUT/reproduce.{md,html,json}; one ordinary run directory per task).",
     )
     p.add_argument("--frameworks", default=str(FRAMEWORKS_FILE), metavar="FILE",
                    help="which backend and profile stands for which framework, and the tasks "
