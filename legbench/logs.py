@@ -316,7 +316,14 @@ def load_log(
             df = df.assign(t=pd.to_numeric(df["t"], errors="raise") * scale - shift)
         except (ValueError, TypeError):
             pass  # not numbers: result_from_frame says so, naming the column
-    trace = result_from_frame(df, path.stem, str(path), required)  # validates
+    try:
+        trace = result_from_frame(df, path.stem, str(path), required)  # validates
+    except ResultsError as exc:  # name a column as the file's header does, with legbench's name for it
+        problem = exc.problem
+        for col, target in rename.items():
+            if col != target:
+                problem = problem.replace(f"column '{target}'", f"column '{col}' ({target})")
+        raise ResultsError(exc.file, problem, exc.key) from None
     data = trace.data * np.array([factor.get(c, 1.0) for c in LABELS])
     ee = trace.ee * np.array([factor.get(c, 1.0) for c in EE_COLUMNS])
     t = trace.t

@@ -422,3 +422,12 @@ def test_a_time_scale_given_with_a_bag_is_refused_not_ignored(tmp_path: Path) ->
     assert said is not None and said.startswith("--log-time-scale: a ROS bag's times are its stamps (ns)")
     assert log_settings_problem(bag, None, False, 1.0, False, words) is None
     assert log_settings_problem(tmp_path / "log.csv", None, False, 1e-3, False, words) is None
+
+
+def test_a_log_error_names_the_column_as_the_files_header_does(tmp_path: Path) -> None:
+    """A review's log with a 'knee' column mapped to q3 was told "column 'q3' holds inf": the file has no q3. The
+    error names the header and legbench's column: "column 'knee' (q3)"."""
+    log = tmp_path / "hw.csv"
+    log.write_text("time,hip_aa,hip_fe,knee\n0,0,0,0\n0.001,0,0,inf\n")
+    with pytest.raises(ResultsError, match=r"column 'knee' \(q3\) holds inf at data row 2 \(t = 0.001 s\)"):
+        logs.load_log(log, {"hip_aa": "q1", "hip_fe": "q2", "knee": "q3"})
