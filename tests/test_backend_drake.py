@@ -484,3 +484,18 @@ def test_a_hydroelastic_mesh_finer_than_a_millimetre_is_refused() -> None:
     assert err.value.key == "backends.drake.resolution_hint" and "must be >= 0.001, got 0.0002" in err.value.problem
     for ok in (1e-3, 5e-3):
         assert scenario.parse({**base, "backends": {"drake": {"resolution_hint": ok}}}, "s.yaml").backends["drake"]
+
+
+def test_a_run_whose_sliding_foot_sap_lifts_says_so() -> None:
+    """A Drake maintainer's review: SAP's convex approximation adds mu Kd |v_t| to the normal force while the foot
+    slides (its relaxation time Kd/Kp is 200 sub-steps long), lifting it, and only the sliding verification's
+    failing row said so. Every matched run now warns with the largest share of Fn it reached: the drag 17 N,
+    over 100 % of Fn; engine-defaults (lagged, Hunt-Crossley) has no such term and does not warn."""
+    from legbench.studies import sliding_case as S
+
+    tr, _ = S.drag("drake", "matched")
+    (said,) = [w for w in tr.info["warnings"] if "SAP's point contact added mu Kd |v_t|" in w]
+    share = float(said.split(" % of Fn")[0].rsplit(", ", 1)[1])
+    assert share > 100.0 and "at t = 0.3" in said, said
+    tr, _ = S.drag("drake", "engine-defaults")
+    assert not any("SAP" in w for w in tr.info["warnings"]), tr.info["warnings"]

@@ -146,6 +146,9 @@ CONTACT_MODELS = ("point", "hydroelastic")
 #: SAP's friction regularisation over the Delassus estimate, R_t = sigma w: a constant of Drake's (``sap_driver.cc``,
 #: ``constexpr double sigma = 1.0e-3``), not a setting.
 SAP_SIGMA = 1.0e-3
+#: SAP's sliding term mu Kd |v_t| as a share of Fn above which a run warns (it lifts a sliding foot: docs/backends/
+#: drake.md), measured where Fn exceeds SAP_LIFT_FN [N] (a share of a smaller force says nothing of the task).
+SAP_LIFT_SAID, SAP_LIFT_FN = 0.01, 1.0
 #: Foot stiffness over Kp in the matched point contact: the foot is near-rigid, the ground carries the spring.
 FOOT_STIFFNESS_RATIO = 1.0e8
 #: Ways of setting the contact parameters: the mapping of the module docstring, or the usual user way.
@@ -322,6 +325,10 @@ class DrakeBackend(Backend):
         self.cfg, self.physics = cfg, physics
         self.reference = physics.contact_mode == "reference"
         self.continuous = cfg["solver"] == "continuous"
+        # SAP's point contact adds mu Kd |v_t| to the normal force while the foot slides (its convex
+        # approximation): the largest share of Fn it reached, and when, for warnings()
+        self._sap_point = (cfg["solver"], cfg["contact_model"], self.reference) == ("sap", "point", False)
+        self._sap_lift, self._sap_lift_t, self._sap_lift_n = 0.0, math.nan, 0.0
         self.refuse_settings(cfg, physics.contact_mode)
         self.n_sub = 1 if self.continuous else sub_step_count(self.name, cfg["dt"], physics.control_dt)
         c = physics.contact
@@ -491,6 +498,7 @@ class DrakeBackend(Backend):
         _set(self._gen, np.zeros(3))
         self.simulator.Initialize()
         self.tick = 0
+        self._sap_lift, self._sap_lift_t, self._sap_lift_n = 0.0, math.nan, 0.0
         self._read()
         if self.reference:
             self._reference_force()
@@ -549,12 +557,22 @@ class DrakeBackend(Backend):
         results = self._results_port.Eval(self.ctx)
         force, foot = self._force, self._foot_index
         force[:] = 0.0
+        slip = 0.0
         for i in range(results.num_point_pair_contacts()):
             info = results.point_pair_contact_info(i)
             if int(info.bodyB_index()) == foot:
                 force += info.contact_force()
             elif int(info.bodyA_index()) == foot:
                 force -= info.contact_force()
+            else:
+                continue
+            slip = max(slip, float(info.slip_speed()))
+        if self._sap_point and force[2] > SAP_LIFT_FN:
+            c = self.physics.contact
+            extra = getattr(c, self.slides_with()) * c.Kd * slip  # [N]
+            if extra / force[2] > self._sap_lift:
+                t = (self.tick + 1) * self.physics.control_dt  # the period's end, before tick counts it
+                self._sap_lift, self._sap_lift_t, self._sap_lift_n = extra / force[2], t, extra
         for i in range(results.num_hydroelastic_contacts()):
             info = results.hydroelastic_contact_info(i)
             f_A = info.F_Ac_W().translational()
@@ -751,11 +769,17 @@ class DrakeBackend(Backend):
         # reference_friction is the contact mode's business (a scenario run in both modes gives it for one)
         unused = self._unused_settings() - {"reference_friction"}
         given = sorted(k for k in unused if k in base and self.cfg.get(k) != base[k])
-        if not given:
-            return []
-        what = ", ".join(f"{k} {self.cfg[k]!r}" for k in given)
-        return [f"drake: {what}: not read by solver '{self.cfg['solver']}' with {self.cfg['contact_model']} "
-                "contact, so without effect"]  # fmt: skip
+        out = []
+        if given:
+            what = ", ".join(f"{k} {self.cfg[k]!r}" for k in given)
+            out.append(f"drake: {what}: not read by solver '{self.cfg['solver']}' with {self.cfg['contact_model']} "
+                       "contact, so without effect")  # fmt: skip
+        if self._sap_lift > SAP_LIFT_SAID:
+            out.append(f"drake: SAP's point contact added mu Kd |v_t| to the normal force while the foot slid (its "
+                       f"convex approximation; the spec's law has none): up to {self._sap_lift_n:.3g} N, "
+                       f"{100 * self._sap_lift:.3g} % of Fn, at t = {self._sap_lift_t:.3f} s "
+                       "(docs/backends/drake.md)")  # fmt: skip
+        return out
 
     # ------------------------------------------------------- declared abilities
     def slides_with(self) -> str:
