@@ -259,7 +259,7 @@ def _load_scenario(source: str | Path | Mapping[str, Any], overrides: Mapping[st
         scenario_mod.apply_overrides(doc, overrides, "overrides")
         return scenario_mod.parse(doc, "<mapping>", overridden=tuple(overrides or ()), origin="overrides")
     path = Path(source)
-    if not path.exists() and resources.scenario(str(source)).is_file():
+    if not path.is_file() and resources.scenario(str(source)).is_file():  # a folder of that name is no scenario
         path = resources.scenario(str(source))
     return scenario_mod.load(path, overrides, "overrides")
 

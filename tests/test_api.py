@@ -799,3 +799,14 @@ def test_log_t0_is_checked_and_needs_a_log(result: api.Result, tmp_path: Path) -
     with pytest.raises(LegbenchError) as exc:
         result.compare(log=tmp_path / "x.csv", log_t0=float("inf"))
     assert str(exc.value) == "log_t0 inf: must be a finite number [s] (the log's time at the run's t = 0)"
+
+
+def test_a_folder_named_as_a_bundled_scenario_does_not_shadow_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """run_scenario("effort") failed with "effort: is a directory, not a file" where the working directory held
+    a folder named effort (a run's own output): a folder is no scenario file, so the bundled name is taken."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "effort").mkdir()
+    sc = api.load_scenario("effort")
+    assert sc.name == "effort" and sc.duration == 3.0
