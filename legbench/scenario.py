@@ -410,6 +410,8 @@ def parse(
                                 "LEGBENCH_MODEL)")  # fmt: skip
     check_keys(ctx, [], doc, TOP_KEYS, ["name", "duration", "events"])
     name = doc["name"]
+    if isinstance(name, int | float) and not isinstance(name, bool):  # YAML read it as a number
+        raise ctx.error(["name"], f"a name is text: quote it ('{name}'), or YAML reads it as the number {name!r}")
     if not isinstance(name, str) or not NAME_RE.fullmatch(name) or set(name) == {"."}:
         raise ctx.error(["name"], f"expected a plain name (letters, digits, - _ ., at most 64), got {name!r}")
     why = name_problem(name)

@@ -305,8 +305,9 @@ def _yaml11_number(text: str) -> str:
     if _OCTAL.fullmatch(text) and text.lstrip("+-").strip("0_"):
         value = yaml_load(text)
         plain = text.lstrip("+-").lstrip("0_") or "0"
+        octal = f", {value!r} for the octal one" if str(value) != plain else ""
         return (f"{text}: YAML 1.1 reads a leading 0 as octal ({value!r}); write {plain} for the decimal "
-                f"number, or {value!r}")  # fmt: skip
+                f"number{octal}, or quote it ('{text}') for text")  # fmt: skip
     return ""
 
 

@@ -130,7 +130,8 @@ def test_cli_prints_the_table_and_reports_a_mismatch(monkeypatch: pytest.MonkeyP
 
     monkeypatch.setattr(backends.get("pinocchio"), "load", load)
     assert args.func(args) == 1
-    assert "pinocchio holds q1_abad.lower" in capsys.readouterr().out
+    got = capsys.readouterr()  # the table on stdout, the error on stderr (it was printed into the table's stream)
+    assert "pinocchio holds q1_abad.lower" in got.err and "holds q1_abad.lower" not in got.out
 
 
 def test_a_backend_that_reads_nothing_back_is_not_called_in_parity(
@@ -249,9 +250,10 @@ def test_a_plug_in_that_raises_in_the_pre_flight_fails_alone(
         "legbench: 1 run(s) did not finish ok (run/loadraises); the others' results are written"
     )
     assert cli.main(["doctor", str(EFFORT), "--backends", "pinocchio,loadraises"]) == 3
-    shown = capsys.readouterr().out
-    assert "legbench: error: parity check: loadraises failed to load: AttributeError" in shown
-    assert "pinocchio" in shown.splitlines()[0] and "loadraises" not in shown.splitlines()[0]
+    got = capsys.readouterr()
+    assert "legbench: error: parity check: loadraises failed to load: AttributeError" in got.err
+    shown = got.out
+    assert "pinocchio" in shown.splitlines()[0] and "loadraises" not in shown
 
 
 def test_a_cache_every_engine_needs_is_named_as_it_is(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -293,7 +295,7 @@ def test_a_mismatch_names_the_active_parameter_file(
         assert "the spec (copy.yaml and the scenario) says" in str(err.value)
         assert "models/leg.yaml" not in str(err.value)
         assert cli.main(["--model", str(copy), "doctor", str(EFFORT), "--backends", "pinocchio"]) == 1
-        assert "the spec (copy.yaml and the scenario) says" in capsys.readouterr().out
+        assert "the spec (copy.yaml and the scenario) says" in capsys.readouterr().err
     finally:
         resources.select_model(None)
     err_bundled = doctor.ParityError("pinocchio", "q1_abad.lower", 0.0, 1.0, "rad")

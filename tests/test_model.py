@@ -750,3 +750,49 @@ def test_another_of_legbenchs_files_given_to_model_is_named(name: str, words: st
     with pytest.raises(ModelError) as exc:
         model.load_params(path)
     assert f"{path}: {words}" in str(exc.value)
+
+
+def test_model_check_ends_with_its_verdict_and_names_a_foreign_legs_references(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`model check` printed the bundled leg's foot position as 'spec' beside any --model's FK(q*), the file's
+    G_star as 'report', and exited 1 with no line saying it failed: the last line is PASS or FAIL (naming the
+    joints off by more than 5 %), and another leg's references are its own."""
+    import re
+
+    from legbench import cli, resources
+
+    monkeypatch.setenv(resources.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.delenv(resources.MODEL_ENV, raising=False)
+    assert cli.main(["model", "check"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert "the lab report's foot at q*" in out[0] and out[-1] == "PASS: G(q*) within 5 % of G_star in every joint"
+    text, n = re.subn(r"G_star: \[1\.0426,", "G_star: [2.0,", resources.bundled_model().read_text())
+    assert n == 1
+    path = tmp_path / "heavy.yaml"
+    path.write_text(text)
+    try:
+        assert cli.main(["--model", str(path), "model", "check"]) == 1
+    finally:
+        resources.select_model(None)
+    out = capsys.readouterr().out.splitlines()
+    assert "lab report" not in out[0] and "(calibration.G_star: [2.0," in out[1], out
+    assert out[-1].startswith("FAIL: G(q*) more than 5 % off G_star in joint 1 ("), out
+
+
+def test_model_calibrate_refuses_factors_no_leg_has(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A G_star of the wrong sign printed scale factors of -55.6 (which the parameter file then refuses) with
+    exit 0, and a q_star where a link's weight moves no joint factors of 2e16: both are one line, exit 2."""
+    import re
+
+    from legbench import cli, resources
+
+    text = resources.bundled_model().read_text()
+    bad, n = re.subn(r"G_star: \[1\.0426,", "G_star: [-5.0,", text)
+    assert n == 1
+    path = tmp_path / "neg.yaml"
+    path.write_text(bad)
+    assert cli.main(["model", "calibrate", "--params", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"legbench: error: {path}: calibration.G_star at q_star needs a link") and "\n" not in err
+    assert "not a physical one (> 0 and < 1000)" in err

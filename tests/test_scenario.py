@@ -413,7 +413,19 @@ def test_backend_settings_that_are_no_mapping_are_refused(tmp_path: Path, settin
 @pytest.mark.parametrize(
     ("key", "text", "says"),
     [
-        ("control_rate", "01750", "01750: YAML 1.1 reads a leading 0 as octal (1000); write 1750"),
+        (
+            "control_rate",
+            "01750",
+            "01750: YAML 1.1 reads a leading 0 as octal (1000); write 1750 for the decimal "
+            "number, 1000 for the octal one, or quote it ('01750') for text",
+        ),
+        # 007 is 7 either way: the message offered '7, or 7'
+        (
+            "duration",
+            "007",
+            "007: YAML 1.1 reads a leading 0 as octal (7); write 7 for the decimal number, or "
+            "quote it ('007') for text",
+        ),
         ("duration", "1:30", "1:30: YAML 1.1 reads this as the base-60 number 90; write 90 if that is meant"),
     ],
 )
@@ -641,3 +653,14 @@ def test_the_default_steady_window_is_the_last_half_second_or_the_whole_of_a_sho
     with pytest.raises(ScenarioError) as err:
         scenario.parse({**BASE, "duration": 0.3, "comparison": {"steady_window": 0.5}})
     assert err.value.key == "comparison.steady_window" and "--set comparison.steady_window=" in err.value.problem
+
+
+def test_a_numeric_name_is_told_to_be_quoted(tmp_path: Path) -> None:
+    """`name: 123` said "expected a plain name (letters, digits, ...), got 123" though 123 is digits: YAML read a
+    number; the line says to quote it, and the quoted name loads."""
+    with pytest.raises(ScenarioError) as err:
+        scenario.load(_write(tmp_path, {**BASE, "name": 123}))
+    assert err.value.key == "name" and err.value.problem == (
+        "a name is text: quote it ('123'), or YAML reads it as the number 123"
+    )
+    assert scenario.load(_write(tmp_path, {**BASE, "name": "123"})).name == "123"

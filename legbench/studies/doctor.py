@@ -27,6 +27,7 @@ import json
 import logging
 import math
 import numbers
+import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -336,12 +337,13 @@ def _cli(args: argparse.Namespace) -> int:
         print("  ".join(_cell(v).ljust(width[c]) for c, v in zip(shown.columns, r, strict=True)))
     if not args.all:
         print(f"({int((t['status'] == 'info').sum())} settings rows not shown; --all shows them)")
+    sys.stdout.flush()  # the table first, then what failed, on stderr (a script reading the table gets the table)
     for line in failed.values():
-        print(f"legbench: error: {line}")
+        print(f"legbench: error: {line}", file=sys.stderr)
     try:
         check(t)
     except ParityError as exc:
-        print(f"legbench: error: {exc}")
+        print(f"legbench: error: {exc}", file=sys.stderr)
         return 1
     if failed:
         return EXIT_BACKEND_FAILED
