@@ -730,7 +730,7 @@ _NEED_LOG = "need log (they describe that log)"
         ({"split_dir": 5}, "split_dir 5: expected a run directory (str or os.PathLike), 'auto' or None, not int"),
         (
             {"bogus": 1},
-            "bogus: not an argument of {method} (it takes log, log_name, column_map, log_time_scale, "
+            "bogus: not an argument of {method} (it takes log, log_name, column_map, log_time_scale, log_t0, "
             "log_is_reference, ros, all_pairs, lag, max_lag, lag_signals, split_dir)",
         ),  # fmt: skip
     ],

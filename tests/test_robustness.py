@@ -65,7 +65,7 @@ CASES: list[tuple[str, Any, str, str]] = [
     ("name", "../escape", "name", "plain name"),
     ("name", "a/b", "name", "plain name"),
     ("name", "..", "name", "plain name"),
-    ("name", 42, "name", "plain name"),
+    ("name", 42, "name", "a name is text: quote it"),
     ("name", _DELETE, "", "missing required key 'name'"),
     ("events", [], "events", "non-empty list"),
     ("events", "go", "events", "non-empty list"),
