@@ -312,3 +312,29 @@ def test_friction_chatter_is_read_from_reversals_reversed_again_within_two_ticks
         s[1000 : 1000 + burst] = np.where(np.arange(burst) % 2 == 0, -1.0, 1.0)
         f = np.column_stack([0.7 * fm * s, np.zeros(m), fm])
         assert bool(friction_chatter("b", tm, f, p)) is said, burst
+
+
+def test_friction_chatter_boundaries_two_ticks_120_degrees_and_both_ticks_engaged() -> None:
+    """The rule's three boundaries, each one side and the other (a mutation audit found them untried): a reversal
+    undone two ticks later (+, +, -, -, ...) counts, three ticks later does not; a turn of 130 deg tick to tick
+    counts, of 100 deg does not; a reversal between a tick near the bound and one at a tenth of mu_k Fn does not."""
+    from legbench.contact import ContactParams, friction_chatter
+
+    p = ContactParams()
+    n = 1200
+    t = np.arange(n) * 1e-3
+    fn = np.full(n, 50.0)
+    k = np.arange(n)
+
+    def along(sign: np.ndarray, size: np.ndarray | float = 0.7) -> np.ndarray:
+        return np.column_stack([size * fn * sign, np.zeros(n), fn])
+
+    assert friction_chatter("b", t, along(np.where(k // 2 % 2 == 0, 1.0, -1.0)), p)  # period 4: back in 2
+    assert friction_chatter("b", t, along(np.where(k // 3 % 2 == 0, 1.0, -1.0)), p) == []  # period 6: back in 3
+    for deg, said in ((130.0, True), (100.0, False)):
+        a = np.radians(deg) * k
+        turning = np.column_stack([0.7 * fn * np.cos(a), 0.7 * fn * np.sin(a), fn])
+        assert bool(friction_chatter("b", t, turning, p)) is said, deg
+    alternate = np.where(k % 2 == 0, 1.0, -1.0)
+    size = np.where(k % 2 == 0, 0.7, 0.1 * p.mu_k)  # every other tick far from the bound
+    assert friction_chatter("b", t, along(alternate, size), p) == []

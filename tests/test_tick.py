@@ -62,6 +62,11 @@ HOLD = (0.0, -0.5, -0.5)  # foot centre 9 cm above the ground
         ((math.nan, -0.5, -0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), T.NOT_FINITE),
         ((*HOLD, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf), T.NOT_FINITE),
         ((*HOLD, 0.0, -1.001 * MAX_JOINT_SPEED, 0.0, 0.0, 0.0, 0.0), T.TOO_FAST),
+        # each joint's speed, either sign, and each force component (a mutation audit: only qd2 and fz were tried)
+        ((*HOLD, -1.001 * MAX_JOINT_SPEED, 0.0, 0.0, 0.0, 0.0, 0.0), T.TOO_FAST),
+        ((*HOLD, 0.0, 0.0, 1.001 * MAX_JOINT_SPEED, 0.0, 0.0, 0.0), T.TOO_FAST),
+        ((*HOLD, 0.0, 0.0, 0.0, math.nan, 0.0, 0.0), T.NOT_FINITE),
+        ((*HOLD, 0.0, 0.0, 0.0, 0.0, -math.inf, 0.0), T.NOT_FINITE),
         ((0.0, -math.pi / 2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), T.TOO_DEEP),  # leg straight down: z_W = -7.6 cm
     ],
 )
@@ -95,3 +100,35 @@ def test_a_nan_torque_passes_the_saturation_as_nan() -> None:
     p[2] = math.nan  # Kp of joint 1
     assert TICK(0, 0.2, -0.9, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, p, s, c, log, u) == T.OK
     assert math.isnan(log[0, 9]) and np.isfinite(log[0, 10:]).all()
+
+
+def test_too_deep_is_the_foot_centre_below_the_bound_at_any_abduction() -> None:
+    """The depth check against the forward kinematics on 400 poses drawn around the bound, abduction up to 0.8 rad
+    (a mutation audit: the check's cos(q1) could be dropped with q1 = 0 and 0.2 rad the only ones tried)."""
+    from legbench import kinematics
+
+    g = load_params().geometry
+    bound = g.R_foot - MAX_PENETRATION
+    rng = np.random.default_rng(7)
+    seen = set()
+    for _ in range(400):
+        q = np.array([rng.uniform(-0.8, 0.8), rng.uniform(-1.6, -0.6), rng.uniform(-2.2, -0.2)])
+        z = float(kinematics.fk(q)[2])
+        if abs(z - bound) > 0.03:
+            continue
+        p, s, c, log, u = _arrays()
+        code = TICK(0, *q, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, p, s, c, log, u)
+        assert code == (T.TOO_DEEP if z < bound else T.OK), (q, z, bound, code)
+        seen.add((z < bound, abs(q[0]) > 0.4))
+    assert seen == {(True, True), (True, False), (False, True), (False, False)}, seen  # every case was drawn
+
+
+def test_each_joints_torque_is_clipped_at_its_own_limit_both_ways() -> None:
+    """A law torque beyond every limit, positive then negative, is clipped to (3, 4, 5) and (-3, -4, -5) N m:
+    each joint at its own limit (a mutation audit: joint 3's upper clip at joint 2's limit went unseen)."""
+    for q in ((-0.4, -1.6, -2.0), (0.4, -0.4, -0.3)):
+        p, s, c, log, u = _arrays()
+        assert TICK(0, *q, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, p, s, c, log, u) == T.OK
+        sign = np.sign(log[0, 9:])
+        assert (sign == sign[0]).all() and sign[0] != 0.0, log[0, 9:]
+        np.testing.assert_array_equal(log[0, 9:], sign * np.array(LIMITS))
