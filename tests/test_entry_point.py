@@ -30,6 +30,15 @@ EFFORT = Path(__file__).resolve().parents[1] / "scenarios" / "effort.yaml"
 pytestmark = pytest.mark.skipif("pinocchio" not in backends.available(), reason="the plug-in subclasses pinocchio")
 
 
+def _install(site: Path, dist: str, entry_points: str) -> None:
+    """A distribution ``dist`` as pip leaves one on ``sys.path`` in ``site``: its METADATA, and its
+    ``legbench.backends`` entry points (``entry_points``: lines ``name = module:Class``)."""
+    info = site / f"{dist.replace('-', '_')}-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(f"[legbench.backends]\n{entry_points}")
+
+
 @pytest.fixture(scope="module")
 def plugin(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """Install the plug-in distribution on sys.path for this module's tests."""
@@ -56,11 +65,8 @@ def plugin(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
                 import imaginary_engine  # noqa: F401
         ''')
     )
-    dist = root / "legbench_rebadged-0.1.dist-info"
-    dist.mkdir()
-    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: legbench-rebadged\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text(f"[legbench.backends]\n{NAME} = legbench_rebadged:RebadgedBackend\n"
-                                           "needs-engine = legbench_rebadged:NeedsEngineBackend\n")  # fmt: skip
+    _install(root, "legbench-rebadged", f"{NAME} = legbench_rebadged:RebadgedBackend\n"
+                                        "needs-engine = legbench_rebadged:NeedsEngineBackend\n")  # fmt: skip
     mp = pytest.MonkeyPatch()
     mp.syspath_prepend(str(root))
     yield NAME
@@ -204,10 +210,7 @@ def test_an_interrupt_while_an_engine_imports_is_an_interrupt(
     if kind == "built-in":
         monkeypatch.setitem(backends.BUILTIN, name, (module, "SigBackend", "'sig>=1'"))
     else:
-        dist = tmp_path / f"{module}-0.1.dist-info"
-        dist.mkdir()
-        (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {module}\nVersion: 0.1\n")
-        (dist / "entry_points.txt").write_text(f"[legbench.backends]\n{name} = {module}:SigBackend\n")
+        _install(tmp_path, module, f"{name} = {module}:SigBackend\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     with pytest.raises(KeyboardInterrupt):
         backends.get(name)
@@ -242,12 +245,7 @@ def test_resolving_named_backends_imports_no_other_engine(tmp_path: Path) -> Non
         "import os\n\nos.environ['LEGBENCH_LOUD_IMPORTED'] = '1'\n"
         "raise RuntimeError('a plug-in nobody named was imported')\n"
     )
-    dist = tmp_path / "legbench_quiet-0.1.dist-info"
-    dist.mkdir()
-    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: legbench-quiet\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text(
-        "[legbench.backends]\nquiet = legbench_quiet:QuietBackend\nloud = legbench_loud:LoudBackend\n"
-    )
+    _install(tmp_path, "legbench-quiet", "quiet = legbench_quiet:QuietBackend\nloud = legbench_loud:LoudBackend\n")
     root = Path(__file__).resolve().parents[1]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(root)])}
     out = subprocess.run([sys.executable, "-c", _NAMED_ONLY, "pinocchio,quiet"], env=env, capture_output=True,
@@ -291,12 +289,7 @@ def test_an_entry_point_that_names_no_runnable_backend_is_unavailable_with_why(
     (tmp_path / "legbench_halfdone.py").write_text(
         "from legbench.backends.base import Backend\n\n\nclass HalfBackend(Backend):\n    name = 'halfdone'\n"
     )
-    dist = tmp_path / "legbench_halfdone-0.1.dist-info"
-    dist.mkdir()
-    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: legbench-halfdone\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text(
-        "[legbench.backends]\nnotclass = pathlib:Path\nhalfdone = legbench_halfdone:HalfBackend\n"
-    )
+    _install(tmp_path, "legbench-halfdone", "notclass = pathlib:Path\nhalfdone = legbench_halfdone:HalfBackend\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     missing = backends.unavailable()
     assert missing["notclass"] == "entry point pathlib:Path names <class 'pathlib.Path'>, not a subclass of " \
