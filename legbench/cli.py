@@ -141,6 +141,9 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     for name in wanted:
         module, func = COMMANDS[name].split(":")
         getattr(importlib.import_module(module), func)(sub)
+        page = sub.choices.get(name)
+        if page is not None and not page.description:  # `legbench NAME --help` says what it does, as the list does
+            page.description = SUMMARY[name][:1].upper() + SUMMARY[name][1:] + "."
     return parser
 
 

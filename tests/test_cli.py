@@ -1074,3 +1074,15 @@ def test_log_t0_shifts_a_csv_log_onto_the_run_and_needs_a_log(
     capsys.readouterr()
     assert cli.main(["compare", str(d), "--log-t0", "2"]) == 2
     assert "--log-t0: need --reference-log" in capsys.readouterr().err
+
+
+def test_every_subcommands_help_page_says_what_it_does() -> None:
+    """`legbench doctor --help` (and most others) showed usage and options with no line saying what the command
+    does: each page now opens with its one-line summary (the one `legbench --help` lists), where it has no
+    description of its own."""
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for name, page in sub.choices.items():
+        assert page.description, name
+        if name in cli.SUMMARY and not name.startswith(("bench", "reproduce", "completion")):
+            assert page.description.lower().startswith(cli.SUMMARY[name][:20].lower()), (name, page.description)
