@@ -213,6 +213,22 @@ def _coverage_notes(log: RunResult, run_end: float, window: float) -> list[str]:
     return notes
 
 
+def _sign_note(log: RunResult, ref: RunResult) -> list[str]:
+    """A log whose normal force has the opposite sign of the reference's where the reference pushes (> 1 N): the
+    foot's force on the ground, where legbench logs the ground's on the foot. Said, not changed."""
+    t = ref.t[ref.f[:, 2] > 1.0]
+    if len(t) < 2 or not np.isfinite(log.f[:, 2]).any():
+        return []
+    fz = np.interp(t, log.t, log.f[:, 2], left=np.nan, right=np.nan)
+    fz = fz[np.isfinite(fz)]
+    if len(fz) < 2 or not np.median(fz) < -1.0:
+        return []
+    return [f"{log.backend}: its normal force is negative where the reference's foot is pressed (median "
+            f"{np.median(fz):.3g} N against {np.median(ref.f[ref.f[:, 2] > 1.0, 2]):.3g} N): the foot's force on the "
+            "ground? legbench compares the ground's force on the foot (a ROS bag: its force sign option, "
+            "--ros-force-sign -1; a CSV: negate fx, fy, fz)"]  # fmt: skip
+
+
 def _contact_law(run: Run) -> ContactParams | None:
     """The contact law the run was meant to follow (run.json ``scenario.contact``, whose keys
     :func:`legbench.results.load_run` has checked), None where it names none."""
@@ -345,6 +361,8 @@ def compare(
     unreached: set[str] = set()  # a log ending before the steady window: the coverage note says so
     if log_key is not None:
         notes += _coverage_notes(traces[log_key], run_end, run.steady_window)
+        if run.reference in traces and log_key != run.reference:
+            notes += _sign_note(traces[log_key], traces[run.reference])
         if float(traces[log_key].t[-1]) < run_end - run.steady_window - T_EPS:
             unreached.add(log_key)
     infos = {n: b.info for n, b in run.backends.items()}

@@ -917,3 +917,21 @@ def test_a_log_stamped_in_epoch_seconds_is_compared_with_log_t0(tmp_path: Path) 
     assert np.all(p.max_abs <= 2.5e-7 * slope), p.max_abs / slope
     assert C.log_settings_problem(None, None, False, 1.0, False, {"log": "--reference-log", "log_t0": "--log-t0"},
                                   log_t0=3.0) == "--log-t0: need --reference-log (they describe that log)"  # fmt: skip
+
+
+def test_a_log_whose_force_is_the_foot_on_the_ground_is_told_so(tmp_path: Path) -> None:
+    """A review's log with the wrench of the foot on the ground (steady fz -52.5 N against the run's +52.5 N) got
+    no hint: a note names the sign and the way to turn it; a log of the right sign gets none."""
+    d = write_run(tmp_path / "s", {"ref": None})
+    t = np.arange(0, 2.0 + 1e-9, DT)
+    said: dict[str, list[str]] = {}
+    for name, sign in (("flipped", -1.0), ("right", 1.0)):
+        df = frame(t, base_signals(t))
+        for c in ("fx", "fy", "fz"):
+            df[c] = sign * df[c]
+        df.to_csv(tmp_path / f"{name}.csv", index=False)
+        notes = C.compare(d, log=tmp_path / f"{name}.csv").notes
+        said[name] = [n for n in notes if "its normal force is negative where the reference's foot is pressed" in n]
+    assert said["right"] == [] and len(said["flipped"]) == 1, said
+    assert said["flipped"][0].endswith("(a ROS bag: its force sign option, --ros-force-sign -1; a CSV: negate fx, "
+                                       "fy, fz)")  # fmt: skip
