@@ -51,7 +51,8 @@ lint: $(STAMP)
 
 ## the main job: four tasks x all backends x both contact modes (matched profile) and the engine-defaults profile
 ## (native contact), verification and contact calibration (both profiles) -> results/latest/report.html
-compare: runs
+compare: $(STAMP)
+	$(RUN_TASKS) --out results/latest --force || [ $$? = 3 ]  # a backend that failed (exit 3): said, the rest goes on
 	$(VERIFY) --out results/latest/verification; $(FAILING_CHECKS_ONLY)
 	$(VERIFY) --profile engine-defaults --out results/latest/verification__engine-defaults; $(FAILING_CHECKS_ONLY)
 	$(LEGBENCH) calibrate-contact --out results/latest/calibration --jobs $(JOBS) --force
@@ -84,8 +85,9 @@ baseline: compare
 		for d in $$t $${t}__reference $${t}__engine-defaults; do \
 		mkdir -p ../baseline/$$d && cp $$d/metrics.json $$d/run.json ../baseline/$$d; done; done
 
-## the lab report's comparison (tables 10, 11, 12, simulation error % between its frameworks' analogues,
-## as scenarios/reproduce.yaml maps them) -> results/reproduce/reproduce.{md,html,json}
+## the lab report's comparison (its table 10, legbench's steady force and Fn tables, task 4's contact and switch
+## torque, simulation error % between its frameworks' analogues, as scenarios/reproduce.yaml maps them)
+## -> results/reproduce/reproduce.{md,html,json}
 reproduce: $(STAMP)
 	$(LEGBENCH) reproduce --out results/reproduce --jobs $(JOBS) --quiet --force
 

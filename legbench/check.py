@@ -57,10 +57,12 @@ from legbench.results import (
     enclosing_run,
     load_run,
     log_digests,
+    profile_of,
     read_log,
     read_meta,
     read_metrics,
     run_dirs,
+    run_label,
     tolerances_of,
 )
 from legbench.scenario import TOLERANCE_METRICS, is_leg_parameter_file, validate_tolerances
@@ -516,8 +518,34 @@ TASK_KEYS = ("duration", "control_rate", "contact_mode", "profile", "gravity", "
 
 
 def _task_of(sc: Mapping[str, Any]) -> dict[str, Any]:
-    cmp_ = {k: v for k, v in (sc.get("comparison") or {}).items() if k not in ("tolerances", "published")}
-    return {**{k: sc[k] for k in TASK_KEYS if k in sc}, "comparison": cmp_}
+    task = {k: sc[k] for k in TASK_KEYS if k in sc}
+    if isinstance(sc.get("comparison"), Mapping):  # an older run.json without it: not compared
+        task["comparison"] = {k: v for k, v in sc["comparison"].items() if k not in ("tolerances", "published")}
+    return task
+
+
+def _first_difference(old: Any, new: Any, path: str) -> tuple[str, Any, Any]:
+    """The first key path (``contact.v_th``) under which two values of run.json differ, and the two values there."""
+    if isinstance(old, Mapping) and isinstance(new, Mapping):
+        for k in sorted(set(old) | set(new), key=str):
+            if old.get(k) != new.get(k):
+                return _first_difference(old.get(k), new.get(k), f"{path}.{k}")
+    if isinstance(old, list) and isinstance(new, list) and len(old) == len(new):
+        for i, (a, b) in enumerate(zip(old, new, strict=True)):
+            if a != b:
+                return _first_difference(a, b, f"{path}[{i}]")
+    return path, old, new
+
+
+def _label(d: Path, doc: Mapping[str, Any], key: str) -> str:
+    """A run directory's label (:func:`legbench.results.run_label`) from its run.json, where it has one (a
+    metrics.json written before labels named the profile says ``effort`` for ``effort__engine-defaults``), else
+    its metrics.json's ``scenario``."""
+    if not (d / "run.json").is_file():
+        return str(doc.get("scenario", key))
+    meta = read_meta(d)
+    sc = meta.get("scenario") or {}
+    return run_label(str(sc.get("name", key)), profile_of(meta), str(sc.get("contact_mode") or "native"))
 
 
 def _same_inputs(bdir: Path, ndir: Path) -> None:
@@ -531,7 +559,8 @@ def _same_inputs(bdir: Path, ndir: Path) -> None:
         return  # a baseline of metrics.json alone: nothing to compare
     b, n = read_meta(bdir), read_meta(ndir)
     bt, nt = _task_of(b.get("scenario") or {}), _task_of(n.get("scenario") or {})
-    diffs = [(f"the scenario's {k}", bt[k], nt[k]) for k in sorted(bt.keys() & nt.keys()) if bt[k] != nt[k]]
+    diffs = [_first_difference(bt[k], nt[k], k) for k in sorted(bt.keys() & nt.keys()) if bt[k] != nt[k]]
+    diffs = [(f"the scenario's {where}", old, new) for where, old, new in diffs]
     if b.get("urdf") and n.get("urdf") and b["urdf"] != n["urdf"]:
         diffs.append(("the leg model (urdf)", b["urdf"], n["urdf"]))
     if diffs:
@@ -544,7 +573,7 @@ def _same_inputs(bdir: Path, ndir: Path) -> None:
 
 def _short(v: Any) -> str:
     text = json.dumps(v, sort_keys=True, default=str) if not isinstance(v, str) else v
-    return text if len(text) <= 60 else text[:57] + "..."
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | None = None) -> CheckReport:
@@ -584,19 +613,25 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
             continue
         ndir = nd[key]
         bmeta, bdf, brun = _metrics(bdir)
-        lost = [b for b in (brun.backends.values() if brun is not None else ()) if b.status == "missing"]
+        ran = (brun.meta.get("backends") or {}) if brun is not None else {}
+        # a log run.json says was written and is gone (not a backend that was missing when the baseline ran)
+        lost = [b for b in (brun.backends.values() if brun is not None else ())
+                if b.status == "missing" and (ran.get(b.name) or {}).get("status") == "ok"]  # fmt: skip
         if lost:  # its numbers would be n/a, and every new row of that backend would pass unchecked
             raise ResultsError(str(bdir), f"a baseline with a log missing (backend '{lost[0].name}': {lost[0].reason});"
                                           " restore it, or choose another --baseline")  # fmt: skip
         _check_baseline_rows(bdir, bmeta, bdf)
         nmeta, ndf, nrun = _metrics(ndir)
         nmeta = _with_run_statuses(nmeta, nrun)
-        bname, nname = str(bmeta.get("scenario", key)), str(nmeta.get("scenario", key))
+        bname, nname = _label(bdir, bmeta, key), _label(ndir, nmeta, key)
         if bname != nname:  # another scenario's baseline: name the mismatch instead of 66 "regressions"
             raise ResultsError(str(ndir), f"holds scenario {nname!r} but the baseline {bdir} holds {bname!r}: "
                                           "not the same scenario; choose the matching --baseline")  # fmt: skip
         _same_inputs(bdir, ndir)
         sc = nname
+        # the rows pair by the run's label: a baseline's metrics.json written before labels named the profile
+        # (effort__engine-defaults labelled effort) is the same run
+        bdf, ndf = bdf.assign(scenario=sc), ndf.assign(scenario=sc)
         keys = (str(nmeta.get("name", sc)), sc)
         used.update(keys)
         layers, sources[sc] = _tolerances(ndir, keys, common, per, tfile)

@@ -115,30 +115,37 @@ def _normalise_header(col: str) -> str:
 #: The units a header may give each signal's columns in, each with its factor to legbench's unit
 #: (:data:`~legbench.signals.UNITS`); written lower case, spaces as one.
 HEADER_UNITS: dict[str, dict[str, float]] = {
-    "t": {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6},
-    "q": {"rad": 1.0, "deg": math.pi / 180.0},
-    "qd": {"rad/s": 1.0, "deg/s": math.pi / 180.0},
-    "tau": {"n m": 1.0, "nm": 1.0, "n*m": 1.0, "n.m": 1.0},
+    "t": {"s": 1.0, "sec": 1.0, "seconds": 1.0, "ms": 1e-3, "us": 1e-6},
+    "q": {"rad": 1.0, "deg": math.pi / 180.0, "degrees": math.pi / 180.0},
+    "qd": {"rad/s": 1.0, "rad/sec": 1.0, "deg/s": math.pi / 180.0, "deg/sec": math.pi / 180.0},
+    "tau": {"n m": 1.0, "nm": 1.0, "n*m": 1.0, "n.m": 1.0, "n-m": 1.0, "n·m": 1.0},
     "force": {"n": 1.0},
     "ee": {"m": 1.0, "mm": 1e-3},
 }
+#: Units legbench does not convert, refused where a header gives one (read as legbench's own they would be off by
+#: their factor); bracketed text that is no unit (``pos[0]``, ``q1 (measured)``) is part of the name.
+OTHER_UNITS = frozenset({"rpm", "rev", "rev/s", "grad", "mrad", "cm", "km", "ns", "min", "h", "kn", "mn", "lbf", "ft",
+                         "in", "kgf", "n mm", "nmm", "mm/s", "m/s", "m/s^2", "rad/s^2", "deg/s^2", "%"})  # fmt: skip
 
 
-def _unit_factor(path: Path, col: str, target: str) -> float:
+def _unit_factor(path: Path, col: str, target: str) -> float | None:
     """The factor taking header column ``col`` (legbench's column ``target``) to legbench's unit, from the unit it
-    writes after its name (``"q1 [deg]"``: pi/180; none written: 1). A unit legbench does not read for that signal
-    is refused: read as its own unit it would be compared silently off by the unit's factor."""
+    writes after its name (``"q1 [deg]"``: pi/180), or None where it writes none (bracketed text that is no unit,
+    ``pos[0]``, is part of the name). A unit legbench does not read for that signal (another signal's, or one of
+    :data:`OTHER_UNITS`) is refused: read as its own unit it would be compared silently off by the unit's factor."""
     m = re.search(r"[\[(]\s*(.*?)\s*[\])]\s*$", str(col))
     if m is None or target == "controller":
-        return 1.0
+        return None
     signal = "t" if target == "t" else "ee" if target in EE_COLUMNS else SIGNAL_OF[LABELS.index(target)]
     unit = " ".join(m.group(1).lower().split())
     known = HEADER_UNITS[signal]
-    if unit not in known:
+    if unit in known:
+        return known[unit]
+    if unit in OTHER_UNITS or any(unit in units for units in HEADER_UNITS.values()):
         raise ResultsError(str(path), f"column {col!r}: unit [{m.group(1)}] is not one legbench reads for "
                                       f"{target} ({', '.join(known)}); convert the column, or write its unit as "
                                       "one of these")  # fmt: skip
-    return known[unit]
+    return None
 
 
 #: Largest magnitude a logged value may have [SI units]: beyond it the column is not a physical signal.
@@ -306,8 +313,9 @@ def load_log(
         header = list(map(str, raw.columns))
         raise ResultsError(str(path), f"no column matches {unmatched} in the header {header}; map them with "
                                       f"{words.map_columns}")  # fmt: skip
-    factor = {target: _unit_factor(path, col, target) for col, target in rename.items()}
-    if factor["t"] != 1.0 and time_scale != 1.0:  # both would scale the time
+    given = {target: _unit_factor(path, col, target) for col, target in rename.items()}
+    factor = {target: 1.0 if f is None else f for target, f in given.items()}
+    if given["t"] is not None and time_scale != 1.0:  # both say the time's unit: one would be ignored or doubled
         raise LegbenchError(f"{words.time_scale} {time_scale!r}: {path}'s header gives the time's unit already "
                             f"({[c for c, t in rename.items() if t == 't'][0]!r}); give one or the other")  # fmt: skip
     scale, shift = time_scale * factor["t"], float(t0 or 0.0)

@@ -188,10 +188,10 @@ def sim_class(
         return "", "", ()
     ceiling = keyed([tolerances.get("max_sim_error_pct")], signal, joint, math.inf)
     if math.isfinite(ceiling):
-        shown = num_apart(value, (ceiling,))
+        shown, limit = num_apart(value, (ceiling,)), num_apart(ceiling, (value,))  # each apart from the other
         if value > ceiling:
-            return "over", f"{shown} % exceeds the scenario's limit {num(ceiling)} %", (ceiling,)
-        return "within", f"{shown} % within the scenario's limit {num(ceiling)} %", (ceiling,)
+            return "over", f"{shown} % exceeds the scenario's limit {limit} %", (ceiling,)
+        return "within", f"{shown} % within the scenario's limit {limit} %", (ceiling,)
     if small is not None:
         peak, largest = small
         rel = value * peak / largest if largest > 0.0 else math.nan

@@ -157,6 +157,7 @@ table { border-collapse: collapse; font-size: 0.82em; }
 th, td { border: 1px solid #d0d0d0; padding: 2px 5px; text-align: right; white-space: nowrap; }
 thead th { background: #f0f0f0; position: sticky; top: 0; z-index: 1; }
 tbody th { background: #fff; position: sticky; left: 0; font-weight: normal; }
+thead th:first-child { left: 0; z-index: 2; }
 .text { text-align: left; white-space: normal; } .short { white-space: nowrap; }
 td:first-child, th:first-child { text-align: left; white-space: nowrap; }
 tr.group th { background: #f7f7f7; font-weight: 600; text-align: left; }

@@ -378,15 +378,15 @@ def test_a_baseline_of_another_task_is_refused_naming_what_differs(baseline: Pat
     _edit_meta(base / "fake", lambda m: m.update(urdf="leg.urdf"))
     same = tree(tmp_path / "same")  # an older run.json, without urdf: that key is not compared
     assert K.check(same, base).passed
-    edits = {
-        "the scenario's contact": lambda m: m["scenario"]["contact"].update(Kp=2e4),
-        "the scenario's comparison": lambda m: m["scenario"]["comparison"].update(skip=0.5),
-        "the leg model (urdf)": lambda m: m.update(urdf="leg-0123456789abcdef.urdf"),
+    edits = {  # each named down to the key that differs (a review: the first 60 characters of two dicts read alike)
+        "the scenario's contact.Kp is 20000.0, the baseline's": lambda m: m["scenario"]["contact"].update(Kp=2e4),
+        "the scenario's comparison.skip is 0.5": lambda m: m["scenario"]["comparison"].update(skip=0.5),
+        "the leg model (urdf) is leg-0123456789abcdef.urdf": lambda m: m.update(urdf="leg-0123456789abcdef.urdf"),
     }
-    for what, edit in edits.items():
-        new = tree(tmp_path / what.split()[-1].strip("()"))
+    for i, (what, edit) in enumerate(edits.items()):
+        new = tree(tmp_path / f"edit{i}")
         _edit_meta(new / "fake", edit)
-        with pytest.raises(ResultsError, match=re.escape(f"{what} is ") + ".*compares runs of one task"):
+        with pytest.raises(ResultsError, match=re.escape(what) + ".*compares runs of one task"):
             K.check(new, base)
         assert cli.main(["check", str(new), "--baseline", str(base)]) == 2
     for ok, edit in (("settings", lambda m: m["backends"]["a"]["info"]["settings"].update(dt=2e-4)),
@@ -397,6 +397,27 @@ def test_a_baseline_of_another_task_is_refused_naming_what_differs(baseline: Pat
         assert K.check(new, base).passed, ok
     _edit_meta(same / "fake", lambda m: m.update(urdf="leg.urdf"))
     assert K.check(same, base).passed
+    older = tree(tmp_path / "older")  # a run.json without comparison (older): that key is not compared
+    _edit_meta(older / "fake", lambda m: m["scenario"].pop("comparison"))
+    assert K.check(same, older).passed
+
+
+def test_a_baseline_labelled_before_labels_named_the_profile_is_the_same_run(baseline: Path, tmp_path: Path) -> None:
+    """A baseline written before run labels named the profile (an engine-defaults run's metrics.json saying
+    'fake', its run.json's profile engine-defaults) was refused as another scenario by today's runs: the label
+    comes from run.json where there is one, and the rows pair; a missing-engine backend in a baseline (status
+    'missing' in its run.json) is no lost log."""
+    old = shutil.copytree(baseline, tmp_path / "old")
+    _edit_meta(old / "fake", lambda m: m["scenario"].update(profile="engine-defaults"))
+    new = tree(tmp_path / "new")
+    _edit_meta(new / "fake", lambda m: m["scenario"].update(profile="engine-defaults"))
+    results.write_metrics(C.compare(new / "fake").to_json(), new / "fake" / "metrics.json")
+    assert json.loads((old / "fake" / "metrics.json").read_text())["scenario"] == "fake"
+    assert json.loads((new / "fake" / "metrics.json").read_text())["scenario"] == "fake__engine-defaults"
+    report = K.check(new, old)
+    assert report.passed and {r.scenario for r in report.rows} == {"fake__engine-defaults", "other"}, report.rows
+    _edit_meta(old / "fake", lambda m: m["backends"].update(gone={"status": "missing", "reason": "not installed"}))
+    assert K.check(new, old).passed
 
 
 def test_an_engine_defaults_run_is_labelled_by_its_profile_and_not_checked_against_the_matched(

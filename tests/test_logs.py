@@ -394,7 +394,7 @@ def test_a_unit_in_a_csv_header_is_read_or_refused_never_ignored(tmp_path: Path)
     odd = tmp_path / "odd.csv"
     odd.write_text("t,q1 [grad],q2,q3\n0,0,0,0\n0.001,0,0,0\n")
     with pytest.raises(ResultsError, match=r"column 'q1 \[grad\]': unit \[grad\] is not one legbench reads for q1 "
-                                           r"\(rad, deg\)"):  # fmt: skip
+                                           r"\(rad, deg, degrees\)"):  # fmt: skip
         logs.load_log(odd)
 
 
@@ -431,3 +431,25 @@ def test_a_log_error_names_the_column_as_the_files_header_does(tmp_path: Path) -
     log.write_text("time,hip_aa,hip_fe,knee\n0,0,0,0\n0.001,0,0,inf\n")
     with pytest.raises(ResultsError, match=r"column 'knee' \(q3\) holds inf at data row 2 \(t = 0.001 s\)"):
         logs.load_log(log, {"hip_aa": "q1", "hip_fe": "q2", "knee": "q3"})
+
+
+def test_bracketed_text_that_is_no_unit_stays_part_of_the_name(tmp_path: Path) -> None:
+    """A review: headers pos[0], pos[1], pos[2] given in the column map, and 'q1 (measured)', loaded before header
+    units were read, then were refused as units [0] and [measured]. Bracketed text that is no unit is part of
+    the name again; common spellings (rad/sec, N-m, seconds) are read; a 't [s]' header with a time scale is
+    refused as a 't [ms]' one is (the two disagree about the unit)."""
+    idx = tmp_path / "idx.csv"
+    idx.write_text(
+        "t,pos[0],pos[1],pos[2],qd1 (measured),tau1 [N-m]\n0,0.1,0.2,0.3,1.0,2.0\n0.001,0.1,0.2,0.3,1.0,2.0\n"
+    )
+    df = logs.load_log(idx, {"pos[0]": "q1", "pos[1]": "q2", "pos[2]": "q3"})
+    assert df["q1"].tolist() == [0.1, 0.1] and df["qd1"].tolist() == [1.0, 1.0] and df["tau1"].tolist() == [2.0, 2.0]
+    sec = tmp_path / "sec.csv"
+    sec.write_text("t [seconds],q1,q2,q3,qd1 [rad/sec]\n0,0,0,0,1\n0.001,0,0,0,1\n")
+    assert logs.load_log(sec)["t"].tolist() == [0.0, 0.001]
+    with pytest.raises(LegbenchError, match="header gives the time's unit already"):
+        logs.load_log(sec, time_scale=1e-3)
+    rpm = tmp_path / "rpm.csv"
+    rpm.write_text("t,q1,q2,q3,qd1 [rpm]\n0,0,0,0,1\n0.001,0,0,0,1\n")
+    with pytest.raises(ResultsError, match=r"column 'qd1 \[rpm\]': unit \[rpm\] is not one legbench reads for qd1"):
+        logs.load_log(rpm)

@@ -288,6 +288,10 @@ def test_a_number_held_to_a_bound_is_written_apart_from_it() -> None:
     cls, why, bounds = R.sim_class(100.04, "q", "1", tol)
     assert (cls, bounds) == ("over", (100.0,)) and why.startswith("100.04 % exceeds the scenario's limit 100 %")
     assert R.sim_class(0.99996, "q", "1", {})[1].startswith("0.99996 %: < 1 %")  # the band's edge, 6 digits
+    # a limit that needs the digits too (a review: "100.03 % within the scenario's limit 100 %")
+    assert R.sim_class(100.03, "q", "1", {"max_sim_error_pct": 100.04})[1] == (
+        "100.03 % within the scenario's limit 100.04 %"
+    )
     assert R._residual_text(1.01003, "friction_ratio") == "1.01003"  # beyond 1 + 0.01
     assert R._residual_marks(1.01003, "friction_ratio")[0] == "fail"
     assert R._error_cell({"error": 0.010004, "tolerance": 0.01}) == "0.010004"

@@ -327,7 +327,13 @@ class DrakeBackend(Backend):
         self.continuous = cfg["solver"] == "continuous"
         # SAP's point contact adds mu Kd |v_t| to the normal force while the foot slides (its convex
         # approximation): the largest share of Fn it reached, and when, for warnings()
-        self._sap_point = (cfg["solver"], cfg["contact_model"], self.reference) == ("sap", "point", False)
+        # (with the mapped parameters: the pair's damping is then the spec's Kd, which the estimate takes)
+        self._sap_point = (cfg["solver"], cfg["contact_model"], self.reference, cfg["contact_params"]) == (
+            "sap",
+            "point",
+            False,
+            "mapped",
+        )
         self._sap_lift, self._sap_lift_t, self._sap_lift_n = 0.0, math.nan, 0.0
         self.refuse_settings(cfg, physics.contact_mode)
         self.n_sub = 1 if self.continuous else sub_step_count(self.name, cfg["dt"], physics.control_dt)
