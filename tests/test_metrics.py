@@ -260,3 +260,19 @@ def test_a_force_acting_above_the_lowest_point_is_checked_there_and_at_the_spec_
     assert plain.analytic_lowest is None and plain.lift_compensation is None
     airborne = metrics.steady_state(_pressing(0.0, depth=-0.01)[0], 0.5, "true", lift=0.5)  # the foot 10 mm up
     assert airborne.lift == 0.0 and airborne.analytic_lowest is None  # no penetration to lift the point into
+
+
+def test_the_flat_correlation_threshold_is_1e3_between_its_peak_and_the_window_ends() -> None:
+    """Docstring: no lag where the correlation's peak is within 1e-3 of both window ends (slow motions correlate
+    at any lag). Sines lagging 5 ms over a 2 s window: with a 16 s period the peak stands more than 1e-3 above
+    the ends and 5 ms is found (to 1e-3 ms); with a 40 s period it does not, and no lag is identified (a mutation
+    audit: a threshold of 1e-6 passed every test)."""
+    t = np.arange(0.0, 2.0 + 1e-12, 1e-3)
+
+    def slow(period: float, lag: float) -> np.ndarray:
+        return np.column_stack([np.sin(2 * np.pi * (t - lag) / period + p) for p in (0.0, 1.0, 2.0)])
+
+    found = metrics.estimate_lag(_trace("a", t, slow(16.0, 0.005)), _trace("ref", t, slow(16.0, 0.0)))
+    assert abs(found.seconds - 0.005) < 1e-6 and found.note == ""
+    flat = metrics.estimate_lag(_trace("a", t, slow(40.0, 0.005)), _trace("ref", t, slow(40.0, 0.0)))
+    assert math.isnan(flat.seconds) and "flat over the search window" in flat.note
