@@ -144,14 +144,14 @@ def add_model(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg
 
     def joint_cmd(name: str, fn: Callable[[argparse.Namespace], int], help_: str) -> None:
         p = msub.add_parser(name, help=help_)
-        p.add_argument("q", nargs=3, type=yamlfile.finite_float, metavar="Q", help="joint angles q1 q2 q3 [rad]")
+        p.add_argument("q", nargs=3, type=yamlfile.physical_float, metavar="Q", help="joint angles q1 q2 q3 [rad]")
         p.add_argument("--json", action="store_true", help="print one JSON object")
         p.set_defaults(func=fn)
 
     joint_cmd("fk", _model_fk, "foot centre in W for joint angles")
     joint_cmd("gravity", _model_gravity, "gravity torque G(q)")
     p = msub.add_parser("ik", help="every joint solution for a foot-centre point in W")
-    p.add_argument("p", nargs=3, type=yamlfile.finite_float, metavar="P", help="foot centre x y z in W [m]")
+    p.add_argument("p", nargs=3, type=yamlfile.physical_float, metavar="P", help="foot centre x y z in W [m]")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_model_ik)
     p = msub.add_parser("urdf", help="regenerate the URDF of the parameter file (models/leg.urdf for the bundled leg)")

@@ -567,6 +567,18 @@ def finite_float(text: str) -> float:
     return x
 
 
+def physical_float(text: str) -> float:
+    """A command-line number that must be finite and within the files' magnitude limits (:func:`check_magnitude`:
+    a joint angle of 1e308 rad is no pose), or argparse's one-line error (exit status 2)."""
+    x = finite_float(text)
+
+    def refuse(why: str) -> None:
+        raise argparse.ArgumentTypeError(why)
+
+    check_magnitude(x, refuse)
+    return x
+
+
 def positive_float(text: str) -> float:
     """A command-line number that must be finite and > 0 (durations, scale factors)."""
     x = finite_float(text)

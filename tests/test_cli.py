@@ -1086,3 +1086,15 @@ def test_every_subcommands_help_page_says_what_it_does() -> None:
         assert page.description, name
         if name in cli.SUMMARY and not name.startswith(("bench", "reproduce", "completion")):
             assert page.description.lower().startswith(cli.SUMMARY[name][:20].lower()), (name, page.description)
+
+
+@pytest.mark.parametrize("argv", [["model", "fk", "1e308", "0", "0"], ["model", "ik", "0", "1e300", "0"],
+                                  ["model", "gravity", "0", "0", "1e13"]])  # fmt: skip
+def test_a_model_command_refuses_a_number_no_pose_has(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    """`model fk 1e308 0 0` printed a meaningless pose with exit 0 (ik: 'distance inf m'): a number beyond the
+    files' limit (1e12) is refused on the command line too, one line, exit 2."""
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert "is beyond +-1e+12, more than any physical value here (limit float_abs)" in err and "\n" not in err
