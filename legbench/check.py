@@ -537,27 +537,31 @@ def _first_difference(old: Any, new: Any, path: str) -> tuple[str, Any, Any]:
     return path, old, new
 
 
-def _label(d: Path, doc: Mapping[str, Any], key: str) -> str:
-    """A run directory's label (:func:`legbench.results.run_label`) from its run.json, where it has one (a
+def _run_json(d: Path) -> dict[str, Any] | None:
+    """A run directory's run.json, read once for :func:`_label` and :func:`_same_inputs`; None where it has none (a
+    baseline of metrics.json alone)."""
+    return read_meta(d) if (d / "run.json").is_file() else None
+
+
+def _label(meta: Mapping[str, Any] | None, doc: Mapping[str, Any], key: str) -> str:
+    """A run directory's label (:func:`legbench.results.run_label`) from its run.json ``meta``, where it has one (a
     metrics.json written before labels named the profile says ``effort`` for ``effort__engine-defaults``), else
-    its metrics.json's ``scenario``."""
-    if not (d / "run.json").is_file():
+    its metrics.json's ``scenario`` (``doc``)."""
+    if meta is None:
         return str(doc.get("scenario", key))
-    meta = read_meta(d)
     sc = meta.get("scenario") or {}
     return run_label(str(sc.get("name", key)), profile_of(meta), str(sc.get("contact_mode") or "native"))
 
 
-def _same_inputs(bdir: Path, ndir: Path) -> None:
+def _same_inputs(b: Mapping[str, Any] | None, n: Mapping[str, Any] | None, bdir: Path, ndir: Path) -> None:
     """Refuse a baseline made from another task than the new run: its scenario's physics, controllers or
     comparison (:data:`TASK_KEYS` of run.json's ``scenario``, with any ``--set``) or its leg model (run.json's
     ``urdf``, named by the parameter file's digest where it is not the bundled leg). Its metrics would move as the
     task did, and pass or fail as regressions of the engines: a gains change of 20 % passed, a shank 10 % heavier
     passed. A backend's settings may differ (what the check measures). Either side without the key (an older
-    run.json) is not compared."""
-    if not (bdir / "run.json").is_file() or not (ndir / "run.json").is_file():
+    run.json) is not compared; ``b``, ``n``: the two run.json (:func:`_run_json`)."""
+    if b is None or n is None:
         return  # a baseline of metrics.json alone: nothing to compare
-    b, n = read_meta(bdir), read_meta(ndir)
     bt, nt = _task_of(b.get("scenario") or {}), _task_of(n.get("scenario") or {})
     diffs = [_first_difference(bt[k], nt[k], k) for k in sorted(bt.keys() & nt.keys()) if bt[k] != nt[k]]
     diffs = [(f"the scenario's {where}", old, new) for where, old, new in diffs]
@@ -623,11 +627,12 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
         _check_baseline_rows(bdir, bmeta, bdf)
         nmeta, ndf, nrun = _metrics(ndir)
         nmeta = _with_run_statuses(nmeta, nrun)
-        bname, nname = _label(bdir, bmeta, key), _label(ndir, nmeta, key)
+        bjson, njson = _run_json(bdir), _run_json(ndir)
+        bname, nname = _label(bjson, bmeta, key), _label(njson, nmeta, key)
         if bname != nname:  # another scenario's baseline: name the mismatch instead of 66 "regressions"
             raise ResultsError(str(ndir), f"holds scenario {nname!r} but the baseline {bdir} holds {bname!r}: "
                                           "not the same scenario; choose the matching --baseline")  # fmt: skip
-        _same_inputs(bdir, ndir)
+        _same_inputs(bjson, njson, bdir, ndir)
         sc = nname
         # the rows pair by the run's label: a baseline's metrics.json written before labels named the profile
         # (effort__engine-defaults labelled effort) is the same run

@@ -118,8 +118,8 @@ def _model_check(args: argparse.Namespace) -> int:
     G = kinematics.gravity(q_star)
     ee = kinematics.fk(q_star)
     bundled = resources.is_bundled(resources.model_file())
-    ref = "the lab report's foot at q*: [0.16669, -0.00001, 0.0225]" if bundled else "the foot centre at q_star"
-    print(f"FK(q*) = {np.round(ee, 5).tolist()} m ({ref}; on the ground it is at z = R_foot = {p.geometry.R_foot:g})")
+    foot = "the lab report's foot at q*: [0.16669, -0.00001, 0.0225]" if bundled else "the foot centre at q_star"
+    print(f"FK(q*) = {np.round(ee, 5).tolist()} m ({foot}; on the ground it is at z = R_foot = {p.geometry.R_foot:g})")
     print(
         f"G(q*)  = {np.round(G, 4).tolist()} N m (calibration.G_star{', the report' if bundled else ''}: "
         f"{list(p.G_star)})"

@@ -216,7 +216,8 @@ def _coverage_notes(log: RunResult, run_end: float, window: float) -> list[str]:
 def _sign_note(log: RunResult, ref: RunResult) -> list[str]:
     """A log whose normal force has the opposite sign of the reference's where the reference pushes (> 1 N): the
     foot's force on the ground, where legbench logs the ground's on the foot. Said, not changed."""
-    t = ref.t[ref.f[:, 2] > 1.0]
+    pressed = ref.f[:, 2] > 1.0
+    t = ref.t[pressed]
     if len(t) < 2 or not np.isfinite(log.f[:, 2]).any():
         return []
     fz = np.interp(t, log.t, log.f[:, 2], left=np.nan, right=np.nan)
@@ -224,7 +225,7 @@ def _sign_note(log: RunResult, ref: RunResult) -> list[str]:
     if len(fz) < 2 or not np.median(fz) < -1.0:
         return []
     return [f"{log.backend}: its normal force is negative where the reference's foot is pressed (median "
-            f"{np.median(fz):.3g} N against {np.median(ref.f[ref.f[:, 2] > 1.0, 2]):.3g} N): the foot's force on the "
+            f"{np.median(fz):.3g} N against {np.median(ref.f[pressed, 2]):.3g} N): the foot's force on the "
             "ground? legbench compares the ground's force on the foot (a ROS bag: its force sign option, "
             "--ros-force-sign -1; a CSV: negate fx, fy, fz)"]  # fmt: skip
 

@@ -398,8 +398,8 @@ def law_step_warnings(backend: str, h: float, fn_peak: float, q_peak: list[float
 #: A friction force that reverses between consecutive control ticks (turning by more than 120 deg, both ticks'
 #: |F_t| above half of mu_k Fn) and reverses again within two ticks, on at least this many ticks and this share of
 #: the ticks in contact, is chatter (:func:`friction_chatter`): a slide rubbed back and forth reverses once per half
-#: period (every 5 ticks even at 100 Hz), and the runs of the four tasks on every engine reverse at most once (the
-#: combined task's swing); the law stepped too coarsely for its slope did so at 308 of 3000 ticks.
+#: period (every 5 ticks even at 100 Hz), and the 84 task runs of `make compare` reverse at most once (the combined
+#: task's swing); the law stepped too coarsely for its slope did so at 308 of 3000 ticks.
 CHATTER_TICKS = 10
 CHATTER_SHARE = 0.01
 
@@ -423,12 +423,13 @@ def friction_chatter(backend: str, t: np.ndarray, force: np.ndarray, p: ContactP
         return []
     ft, fn = force[:, :2], force[:, 2]
     mag = np.hypot(ft[:, 0], ft[:, 1])
-    engaged = (fn > 0.5) & (mag > 0.5 * p.mu_k * fn)  # in contact, the friction well within reach of its bound
+    touching = fn > 0.5
+    engaged = touching & (mag > 0.5 * p.mu_k * fn)  # in contact, the friction well within reach of its bound
     both = engaged[:-1] & engaged[1:]
     turned = (ft[:-1] * ft[1:]).sum(axis=1) < -0.5 * mag[:-1] * mag[1:]  # cos < -1/2: by more than 120 deg
     flips = np.flatnonzero(both & turned)
     back = flips[:-1][np.diff(flips) <= 2]  # reversals reversed again within two ticks
-    in_contact = int(np.count_nonzero(fn > 0.5))
+    in_contact = int(np.count_nonzero(touching))
     if len(back) < CHATTER_TICKS or len(back) < CHATTER_SHARE * in_contact:
         return []
     return [

@@ -1825,7 +1825,7 @@ def _study_blocks(root: Path) -> list[Block]:
             header = tuple(f"{c} [{STUDY_UNITS[c]}]" if c in STUDY_UNITS else c for c in cols)
             blocks.append(Heading(2, f"{heading}, {profile} profile: {_rows(len(records), 'backend')} measured"))
             blocks.append(Details(f"the {_rows(len(records))}", (Table(header, rows, caption),)))
-            blocks.append(Nav(((f"{md}", md), (f"{js}", js))))
+            blocks.append(Nav(((md, md), (js, js))))
             continue
         status = [_status(r) for r in records]
         shown = {"pass": "yes", "fail": "NO", "not-applicable": "n/a"}
@@ -1873,7 +1873,7 @@ def _study_blocks(root: Path) -> list[Block]:
                                     titles={key: h for key, h in hover.items() if h}))  # fmt: skip
         table = Table(cols, rows, caption, classes=classes, titles=titles)
         blocks.append(Details(f"all {len(records)} checks", (table,), "fail" if failed else ""))
-        blocks.append(Nav(((f"{md}", md), (f"{js}", js))))
+        blocks.append(Nav(((md, md), (js, js))))
     return blocks
 
 

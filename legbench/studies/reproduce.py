@@ -114,11 +114,9 @@ def load_plan(path: str | Path = FRAMEWORKS_FILE) -> Plan:
     """
     doc, root = yamlfile.read_yaml(path)
     ctx = yamlfile.YamlContext(str(path), root)
-    if isinstance(doc, Mapping) and "frameworks" not in doc:  # another of legbench's files, given as a framework file
-        for key, kind, command in (("events", "a scenario", "legbench run"), ("studies", "a sweep file",
-                                                                                "legbench sweep")):  # fmt: skip
-            if key in doc:
-                raise ctx.error([], f"is {kind} (it has '{key}'), not a framework file: run it with {command}")
+    other = yamlfile.other_file(doc, "a framework file")  # another of legbench's files, given as a framework file
+    if other is not None and "frameworks" not in doc:
+        raise ctx.error([], other)
     yamlfile.check_keys(ctx, [], doc, ["frameworks", "others", "tasks"], ["frameworks", "tasks"])
     fws = doc["frameworks"]
     if not isinstance(fws, list) or not fws:
@@ -252,6 +250,13 @@ def _json_cell(v: Any) -> Any:
     return None if isinstance(v, float | np.floating) and math.isnan(v) else v
 
 
+def _published(run_: Run) -> list[tuple[str, Mapping[str, Any]]]:
+    """The scenario's published rows (``comparison.published``), each with its label: the source, and its own
+    caveat beside it where the scenario gives one."""
+    rows = (run_.meta.get("scenario") or {}).get("comparison", {}).get("published") or []
+    return [(f"{pub['source']} ({pub['note']})" if pub.get("note") else pub["source"], pub) for pub in rows]
+
+
 def _status(run_: Run, name: str) -> str | None:
     """None if ``name`` ran to the end in ``run_``, else a sentence saying what happened."""
     if name in run_.traces:
@@ -284,9 +289,8 @@ def steady_of(run_: Run, name: str) -> SteadyState:
 def table10(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
     """Steady |qd| per joint: the scenario's published rows, then each backend."""
     rows: list[tuple[Any, ...]] = []
-    for pub in (run_.meta.get("scenario") or {}).get("comparison", {}).get("published") or []:
-        if "qd_abs" in pub:  # with the source's own caveat, where the scenario gives one
-            source = f"{pub['source']} ({pub['note']})" if pub.get("note") else pub["source"]
+    for source, pub in _published(run_):
+        if "qd_abs" in pub:
             rows.append((source, *(float(x) for x in pub["qd_abs"])))
     for n in names:
         label = f"legbench, {plan.label(n, _profile(run_, n))}"
@@ -385,9 +389,8 @@ def switch_table(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
     switch, its delay included), beside the scenario's published rows (``first_contact``, ``tau_switch``)."""
     switch = next((e.t for e in reversed(run_.events) if e.controller == "effort"), math.nan)
     rows: list[tuple[Any, ...]] = []
-    for pub in (run_.meta.get("scenario") or {}).get("comparison", {}).get("published") or []:
+    for source, pub in _published(run_):
         if "first_contact" in pub or "tau_switch" in pub:
-            source = f"{pub['source']} ({pub['note']})" if pub.get("note") else pub["source"]
             tau = [float(x) for x in pub.get("tau_switch") or [math.nan] * 3]
             rows.append((source, float(pub.get("first_contact", math.nan)), *tau))
     for n in names:

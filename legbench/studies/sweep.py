@@ -73,7 +73,7 @@ from legbench.studies import horizon
 from legbench.studies.executors import DEFAULT_PRELOAD, EXECUTORS, Executor, make_executor, warm_up
 from legbench.studies.horizon import HorizonResult
 from legbench.studies.tasks import RunTask, TaskResult, run_task
-from legbench.yamlfile import YamlContext, check_keys, limit, read_yaml
+from legbench.yamlfile import YamlContext, check_keys, limit, other_file, read_yaml
 
 __all__ = [
     "COMPONENTS",
@@ -193,8 +193,9 @@ def load_sweep(path: str | Path) -> Sweep:
     path = Path(path)
     raw, root = read_yaml(path)
     doc = YamlContext(str(path), root)
-    if isinstance(raw, Mapping) and "events" in raw and "studies" not in raw:  # a scenario given as a sweep
-        raise doc.error([], "is a scenario (it has 'events'), not a sweep: run it with legbench run")
+    other = other_file(raw, "a sweep")  # another of legbench's files (a scenario) given as a sweep
+    if other is not None and "studies" not in raw:
+        raise doc.error([], other)
     check_keys(doc, [], raw, TOP_KEYS, ["name", "scenario", "studies"])
     name = raw["name"]
     if not isinstance(name, str) or not NAME_RE.fullmatch(name) or set(name) == {"."}:  # a directory name

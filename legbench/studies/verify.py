@@ -675,10 +675,9 @@ def check_small_oscillation(backends: Sequence[str], scenario_file: Path = OSCIL
     Ts = sc.control_dt
     Kp, Kd = np.diag(sc.gains.Kp), np.diag(sc.gains.Kd)
     q_des = np.array(sc.events[0].joint)
-    leg = model.Dynamics(sc.gravity)  # the scenario's gravity, as the runs' physics
-    q_eq = equilibrium(q_des, Kp, np.array(sc.q0), leg=leg)
-    energy = _Energy(sc.gravity)
-    M, Kg = energy.mass_matrix(q_eq), gravity_stiffness(q_eq, leg=leg)
+    energy = _Energy(sc.gravity)  # the leg at the scenario's gravity, as the runs' physics
+    q_eq = equilibrium(q_des, Kp, np.array(sc.q0), leg=energy)
+    M, Kg = energy.mass_matrix(q_eq), gravity_stiffness(q_eq, leg=energy)
     Mi = np.linalg.inv(M)
     s_cont = np.linalg.eigvals(np.block([[np.zeros((3, 3)), np.eye(3)], [-Mi @ (Kp + Kg), -Mi @ Kd]]))
     physics = physics_of(sc)
