@@ -3,8 +3,8 @@
 Forward dynamics qdd = aba(q, qd, tau + tau_c + tau_lim): tau_c = J_poc^T F is the
 analytic ground force (:mod:`legbench.contact`) applied at the point of contact,
 equivalent to an external force on the foot; tau_lim is a stiff one-sided
-spring-damper at the revolute joint limits (ABA knows no limits;
-:mod:`legbench.backends.joint_limits`), which makes
+spring-damper at the revolute joint limits (ABA knows no limits; Pinocchio's own
+constraint models and solvers, rigid, are not used: :mod:`legbench.backends.joint_limits`), which makes
 the knee stop like the engines' limit constraints: 10 N m pushing the knee into
 its 2.229 rad limit rests at 2.230 rad (1e4 N m/rad); MuJoCo rests at 2.2292
 after overshooting to 2.252, PyBullet's hard limit peaks at 2.2293.
@@ -448,7 +448,8 @@ class PinocchioBackend(Backend):
             "engine": "pinocchio",
             "version": pin.__version__,
             "dynamics": (
-                "legbench's ABA compiled with numba on Pinocchio's model (agrees with pin.aba to 1e-12 rad); "
+                "legbench's ABA compiled with numba on Pinocchio's model (its qdd agrees with pin.aba to round-off, "
+                "its runs with the pin.aba path's to 1e-12 rad); "
                 "legbench's integrator and contact law"
                 if compiled
                 else "pin.aba (Pinocchio); legbench's integrator and contact law"
@@ -524,7 +525,8 @@ class PinocchioBackend(Backend):
         return integ if integ in ("euler", "rk4") else "adaptive"
 
     def engine_contact(self) -> bool:
-        """No contact model of its own: native and reference mode both apply the analytic law."""
+        """The contact is legbench's analytic law in both modes: Pinocchio's ABA has none, and Pinocchio's
+        own constraint solvers (rigid point contacts in a friction cone, ADMM or PGS) are not used."""
         return False
 
     def sub_steps(self) -> int:
