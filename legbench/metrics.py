@@ -68,6 +68,9 @@ T_EPS = 1e-9
 LAG_MODES = ("off", "report", "remove")
 #: Jacobians with a larger condition number are treated as singular in the analytic check.
 COND_MAX = 1e8
+#: A steady foot whose point of contact moves slower than this has no direction of slide [m/s]
+#: (MuJoCo's matched foot: 1e-17 m/s; the slowest that slides, DART's, 2e-8 m/s).
+SLIDE_FLOOR = 1e-9
 
 
 # --------------------------------------------------------------------------- #
@@ -192,6 +195,20 @@ class SteadyState:
     def poc_compensation(self) -> np.ndarray | None:
         """Analytic force with J_poc minus with J_E [N] (None unless the run's poc is the centre)."""
         return None if self.analytic_centre is None else self.analytic_poc - self.analytic_centre
+
+    @property
+    def slide_cosine(self) -> float:
+        """Cosine between the mean horizontal velocity of the point where the force acts (J(q) qd at the window's
+        mean q and qd) and the mean friction force (Fx, Fy) on the foot [1]: -1 for a foot creeping against its
+        friction, as the law's does; towards +1 for one moving along it (a solver's drift, not friction). NaN
+        where the point moves slower than :data:`SLIDE_FLOOR`, carries no friction, or q or qd is not finite."""
+        if not (np.isfinite(self.q).all() and np.isfinite(self.qd).all() and np.isfinite(self.force[:2]).all()):
+            return math.nan
+        v = (kinematics.jacobian_at(self.q, self.poc, self.lift) @ self.qd)[:2]
+        speed, friction = float(np.linalg.norm(v)), float(np.linalg.norm(self.force[:2]))
+        if not speed > SLIDE_FLOOR or not friction > 0.0:
+            return math.nan
+        return float(v @ self.force[:2]) / (speed * friction)
 
     @property
     def lift_compensation(self) -> np.ndarray | None:

@@ -220,19 +220,24 @@ def test_a_component_at_rest_does_not_steer_the_lag_and_a_lag_that_hurts_is_not_
     assert p.lag is not None and p.lag_removed == 0.0 and p.lag.note.startswith("not removed")
 
 
-def _pressing(lift: float, depth: float = 0.005) -> tuple[results.RunResult, np.ndarray]:
-    """The leg at rest with its foot ``depth`` [m] in the ground, the ground force F on the foot acting ``lift``
-    of that depth above the sphere's lowest point: tau = G(q) - J_lift^T F."""
+def _pressing(
+    lift: float, depth: float = 0.005, v: tuple[float, float] = (0.0, 0.0)
+) -> tuple[results.RunResult, np.ndarray]:
+    """The leg with its foot ``depth`` [m] in the ground, the ground force F on the foot acting ``lift``
+    of that depth above the sphere's lowest point: tau = G(q) - J_lift^T F; the joints move so that point moves
+    at ``v`` [m/s] in W x, y (0 along z; at rest by default)."""
     from legbench import kinematics
     from legbench.model import load_params
 
     r_foot = load_params().geometry.R_foot
     q = kinematics.ik_nearest(np.array([0.1667, 0.0, r_foot - depth]), np.array([0.0, -1.0, -1.2]))
     F = np.array([4.0, -3.0, 50.0])  # ground force on the foot, in W [N]; 5 N of friction
-    tau = kinematics.gravity(q) - kinematics.jacobian_at(q, "true", lift).T @ F
+    J = kinematics.jacobian_at(q, "true", lift)
+    tau = kinematics.gravity(q) - J.T @ F
+    qd = np.linalg.solve(J, [*v, 0.0])
     t = np.arange(0.0, 1.0 + 1e-12, 1e-3)
     row = dict(zip(["q1", "q2", "q3", "qd1", "qd2", "qd3", "tau1", "tau2", "tau3", "fx", "fy", "fz"],
-                   [*q, 0.0, 0.0, 0.0, *tau, *F], strict=True))  # fmt: skip
+                   [*q, *qd, *tau, *F], strict=True))  # fmt: skip
     df = pd.DataFrame({"t": t, **{k: np.full(t.size, v) for k, v in row.items()}})
     return results.result_from_frame(df, "a", required=REQUIRED), F
 
@@ -260,6 +265,18 @@ def test_a_force_acting_above_the_lowest_point_is_checked_there_and_at_the_spec_
     assert plain.analytic_lowest is None and plain.lift_compensation is None
     airborne = metrics.steady_state(_pressing(0.0, depth=-0.01)[0], 0.5, "true", lift=0.5)  # the foot 10 mm up
     assert airborne.lift == 0.0 and airborne.analytic_lowest is None  # no penetration to lift the point into
+
+
+def test_the_slide_cosine_is_the_direction_of_the_point_s_slide_against_the_friction_force() -> None:
+    """The foot pressed 5 mm in with 5 N of friction (4, -3) N acting y/2 above its lowest point: its point
+    moving at 1e-4 m/s against the friction gives -1, along it +1, across it 0 (each to 1e-9: the velocity is
+    taken at the point the force acts, the lifted one); slower than SLIDE_FLOOR (5e-10 m/s) no direction (NaN)."""
+    f_t = np.array([4.0, -3.0]) / 5.0
+    for v, want in ((-1e-4 * f_t, -1.0), (1e-4 * f_t, 1.0), (1e-4 * np.array([f_t[1], -f_t[0]]), 0.0)):
+        s = metrics.steady_state(_pressing(0.5, v=(float(v[0]), float(v[1])))[0], 0.5, "true", lift=0.5)
+        assert s.slide_cosine == pytest.approx(want, abs=1e-9)
+    still = metrics.steady_state(_pressing(0.5, v=(-4e-10, 3e-10))[0], 0.5, "true", lift=0.5)
+    assert math.isnan(still.slide_cosine) and metrics.SLIDE_FLOOR > 5e-10
 
 
 def test_the_flat_correlation_threshold_is_1e3_between_its_peak_and_the_window_ends() -> None:

@@ -45,7 +45,7 @@ from legbench.backends.base import PROFILES, contact_point
 from legbench.compare import first_contact
 from legbench.exceptions import BackendNotFound, LegbenchError, ScenarioError
 from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK
-from legbench.metrics import SteadyState, pair_metrics, steady_state
+from legbench.metrics import SLIDE_FLOOR, SteadyState, pair_metrics, steady_state
 from legbench.results import Run, load_run
 from legbench.scenario import Scenario
 from legbench.signals import SLICE
@@ -287,29 +287,38 @@ def steady_of(run_: Run, name: str) -> SteadyState:
 
 
 def table10(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
-    """Steady |qd| per joint: the scenario's published rows, then each backend."""
+    """Steady |qd| per joint: the scenario's published rows, then each backend with the direction of its foot's
+    slide against its friction force (:attr:`~legbench.metrics.SteadyState.slide_cosine`)."""
     rows: list[tuple[Any, ...]] = []
     for source, pub in _published(run_):
         if "qd_abs" in pub:
-            rows.append((source, *(float(x) for x in pub["qd_abs"])))
+            rows.append((source, *(float(x) for x in pub["qd_abs"]), ""))
     for n in names:
         label = f"legbench, {plan.label(n, _profile(run_, n))}"
         why = _status(run_, n)
-        rows.append((label, why, "", "") if why else (label, *np.abs(steady_of(run_, n).qd).tolist()))
+        if why:
+            rows.append((label, why, "", "", ""))
+            continue
+        s = steady_of(run_, n)
+        rows.append((label, *np.abs(s.qd).tolist(), s.slide_cosine))
     return Table(
         "table10",
         f"Table 10: steady joint velocities, task {run_.name}",
         f"|mean qd| over the last {run_.steady_window:g} s [rad/s]; the lab report's published rows first. The "
-        "law's v_th was fitted to the Simscape row (docs/contact_law.md): the law backends' agreement with it is "
-        "by construction, a consistency check, not a validation",
-        ("source", "|qd1|", "|qd2|", "|qd3|"),
+        "law's v_th was fitted to the Simscape row (docs/contact_law.md): the agreement of the law backends at the "
+        "true poc with it is by construction, a consistency check, not a validation; the custom-sim row (centre "
+        "poc) was not fitted. cos(v, F_t): the cosine between the foot's mean horizontal velocity at its point "
+        "of contact and its mean friction force, -1 for a foot creeping against its friction as the law's does, "
+        f"towards +1 for one drifting along it; - where the foot moves under {SLIDE_FLOOR:g} m/s",
+        ("source", "|qd1|", "|qd2|", "|qd3|", "cos(v, F_t)"),
         tuple(rows),
     )
 
 
 def steady_force_table(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
-    """Steady ground force, the analytic check h at the point each backend's force acts (the true poc, raised by
-    its declared ``contact.lift``), and the centre-poc compensated force."""
+    """Steady ground force, its analytic check h at the point each backend's force acts (the true poc, raised by
+    its declared ``contact.lift``, or the sphere centre for a law taking the poc there), and for the latter the
+    force its joint torques hold at the true poc."""
     rows: list[tuple[Any, ...]] = []
     for n in names:
         label = plan.label(n, _profile(run_, n))
@@ -318,19 +327,24 @@ def steady_force_table(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
             rows.append((label, why, *[""] * 9))
             continue
         s = steady_of(run_, n)
-        comp = s.force + s.poc_compensation if s.poc_compensation is not None else np.full(3, np.nan)
+        if s.poc == "centre" and s.analytic_centre is not None:
+            check, at_true = s.analytic_centre, s.analytic_poc
+        else:
+            check, at_true = s.analytic_poc, np.full(3, np.nan)
         poc, lift = backend_poc(run_, n)
         at = poc if lift == 0.0 else f"{poc}, {lift:.3g} y above"
-        rows.append((label, at, *s.force.tolist(), *s.analytic_poc.tolist(), *comp.tolist()))
+        rows.append((label, at, *s.force.tolist(), *check.tolist(), *at_true.tolist()))
     return Table(
         "steady_force",
         f"Steady ground force and its analytic check, task {run_.name} (legbench's; the source names no table of it)",
         f"means over the last {run_.steady_window:g} s, ground force on the foot in W [N]: measured F; the "
-        "analytic check -h with h = (J_poc^T)^-1 (tau - G(q)) at the true poc (raised by the fraction of the "
-        "penetration y the poc column says, where an engine's own contact acts above the lowest point); for a "
-        "backend whose law takes the poc at the sphere centre, its F compensated to the true poc: "
-        "F + (-h(J_poc)) - (-h(J_E))",
-        ("backend", "poc", "Fx", "Fy", "Fn", "check Fx", "check Fy", "check Fn", "comp. Fx", "comp. Fy", "comp. Fn"),
+        "analytic check -h with h = (J^T)^-1 (tau - G(q)) at the point the backend's force acts, the poc column's: "
+        "the true poc (raised by the fraction of the penetration y it says, where an engine's own contact acts "
+        "above the lowest point) or the sphere centre E (J_E, the report's analytic model). For a centre row, "
+        "'at true poc' is -h(J_poc): the force the same torques hold at the true poc, in the same pose. It is "
+        "not what the law taken at the true poc settles to, whose pose and creep differ: that run is the "
+        "Simscape analogue's row",
+        ("backend", "poc", *(f"{at}F{c}" for at in ("", "check ", "at true poc ") for c in "xyn")),
         tuple(rows),
     )
 
