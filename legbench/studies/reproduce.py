@@ -368,28 +368,28 @@ def steady_fn_table(plan: Plan, runs: Sequence[Run], names: Sequence[str]) -> Ta
 
 
 def sim_error_table(plan: Plan, run_: Run) -> Table:
-    """Simulation error % of q, each framework analogue against each other: max |q_a - q_b| over the scenario
-    reference's peak (docs/metrics.md: one denominator, so a against b is b against a), b's own peak where the
-    reference did not run."""
+    """Simulation error % of q between the framework analogues: max |q_a - q_b| over the scenario reference's
+    peak (docs/metrics.md: one denominator, so a against b is b against a, and each pair is shown once), every
+    ordered pair over b's own peak where the reference did not run."""
     ref = run_.traces.get(run_.reference)
     peak = None if ref is None else pair_metrics(ref, ref, run_.skip).ref_peak
+    fws = plan.frameworks
+    pairs = [(a, b) for i, a in enumerate(fws) for j, b in enumerate(fws) if (i < j if ref is not None else i != j)]
     rows: list[tuple[Any, ...]] = []
-    for a in plan.frameworks:
-        for b in plan.frameworks:
-            if a is b:
-                continue
-            why = _status(run_, a.backend) or _status(run_, b.backend)
-            if why:
-                missing = a.backend if _status(run_, a.backend) else b.backend
-                rows.append((a.name, b.name, f"{missing} {why}", "", ""))
-                continue
-            pm = pair_metrics(run_.traces[a.backend], run_.traces[b.backend], run_.skip, peak=peak)
-            rows.append((a.name, b.name, *pm.sim_error_pct[SLICE["q"]].tolist()))
+    for a, b in pairs:
+        why = _status(run_, a.backend) or _status(run_, b.backend)
+        if why:
+            missing = a.backend if _status(run_, a.backend) else b.backend
+            rows.append((a.name, b.name, f"{missing} {why}", "", ""))
+            continue
+        pm = pair_metrics(run_.traces[a.backend], run_.traces[b.backend], run_.skip, peak=peak)
+        rows.append((a.name, b.name, *pm.sim_error_pct[SLICE["q"]].tolist()))
+    whose = "; each pair once: a against b is b against a" if ref is not None else ": it did not run, so q_b's own"
     return Table(
         f"sim_error_{run_.name}",
         f"Simulation error %, task {run_.name}",
         f"max_t |q_a - q_b| / max_t |q_ref| x 100 per joint, t >= {run_.skip:g} s, q_ref the scenario's reference "
-        f"({run_.reference}{'' if ref is not None else ': it did not run, so q_b'}; docs/metrics.md). All analogues "
+        f"({run_.reference}{whose}; docs/metrics.md). All analogues "
         "run legbench's one leg model (the report's three frameworks each had their own): the Simscape and "
         "custom-sim analogues differ by integration and where the contact force acts only",
         ("framework a", "against b", "q1 %", "q2 %", "q3 %"),
