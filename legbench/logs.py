@@ -130,19 +130,22 @@ OTHER_UNITS = frozenset({"rpm", "rev", "rev/s", "grad", "mrad", "cm", "km", "ns"
 
 def _unit_factor(path: Path, col: str, target: str) -> float | None:
     """The factor taking header column ``col`` (legbench's column ``target``) to legbench's unit, from the unit it
-    writes after its name (``"q1 [deg]"``: pi/180), or None where it writes none (bracketed text that is no unit,
-    ``pos[0]``, is part of the name). A unit legbench does not read for that signal (another signal's, or one of
-    :data:`OTHER_UNITS`) is refused: read as its own unit it would be compared silently off by the unit's factor."""
-    m = re.search(r"[\[(]\s*(.*?)\s*[\])]\s*$", str(col))
+    writes after its name (``"q1 [deg]"``: pi/180), or None where it writes none. A unit legbench does not read for
+    that signal is refused: read as its own unit it would be compared silently off by the unit's factor. Text in
+    square brackets is a unit (``q1 [arcmin]`` refused), unless it is an index (``pos[0]``, part of the name); text
+    in parentheses is a unit where it is one of :data:`HEADER_UNITS` or :data:`OTHER_UNITS`, else part of the name
+    (``q1 (measured)``)."""
+    m = re.search(r"([\[(])\s*(.*?)\s*[\])]\s*$", str(col))
     if m is None or target == "controller":
         return None
     signal = "t" if target == "t" else "ee" if target in EE_COLUMNS else SIGNAL_OF[LABELS.index(target)]
-    unit = " ".join(m.group(1).lower().split())
+    unit = " ".join(m.group(2).lower().split())
     known = HEADER_UNITS[signal]
     if unit in known:
         return known[unit]
-    if unit in OTHER_UNITS or any(unit in units for units in HEADER_UNITS.values()):
-        raise ResultsError(str(path), f"column {col!r}: unit [{m.group(1)}] is not one legbench reads for "
+    square = m.group(1) == "[" and unit != "" and not unit.isdigit()
+    if square or unit in OTHER_UNITS or any(unit in units for units in HEADER_UNITS.values()):
+        raise ResultsError(str(path), f"column {col!r}: unit [{m.group(2)}] is not one legbench reads for "
                                       f"{target} ({', '.join(known)}); convert the column, or write its unit as "
                                       "one of these")  # fmt: skip
     return None

@@ -424,6 +424,21 @@ def test_a_time_scale_given_with_a_bag_is_refused_not_ignored(tmp_path: Path) ->
     assert log_settings_problem(tmp_path / "log.csv", None, False, 1e-3, False, words) is None
 
 
+def test_any_unit_in_square_brackets_that_legbench_does_not_read_is_refused(tmp_path: Path) -> None:
+    """A review: 'q1 [furlong]' was read as radians with exit 0, 'q1 [arcmin]' gave 3934 % errors and a warning
+    only: text in square brackets is a unit unless it is an index, and one legbench does not read is refused;
+    'q1 (measured)' (parentheses, no unit legbench knows) and pos[0] stay names."""
+    for unit in ("furlong", "arcmin", "Rad/min"):
+        log = tmp_path / "u.csv"
+        log.write_text(f"t,q1 [{unit}],q2,q3\n0,0,0,0\n0.001,0,0,0\n")
+        with pytest.raises(ResultsError, match=rf"column 'q1 \[{unit}\]': unit \[{unit}\] is not one legbench reads"):
+            logs.load_log(log)
+    named = tmp_path / "named.csv"
+    named.write_text("t,q1 (measured),q2 [],pos[2]\n0,0.5,0.25,0.125\n0.001,0.5,0.25,0.125\n")
+    df = logs.load_log(named, {"pos[2]": "q3"})
+    assert (df["q1"].tolist(), df["q2"].tolist(), df["q3"].tolist()) == ([0.5, 0.5], [0.25, 0.25], [0.125, 0.125])
+
+
 def test_a_log_error_names_the_column_as_the_files_header_does(tmp_path: Path) -> None:
     """A review's log with a 'knee' column mapped to q3 was told "column 'q3' holds inf": the file has no q3. The
     error names the header and legbench's column: "column 'knee' (q3)"."""
