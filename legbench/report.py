@@ -1518,7 +1518,7 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
         Para(
             "Simulation error % = max_t |x_a - x_ref| / max_t |x_ref| x 100 per signal component, each backend "
             "against its scenario's reference backend (n/a: the reference signal is zero, or missing). "
-            + _reference_text(entries)
+            + _reference_text(_series(entries)[0])
             + colours
             + " Hover a cell for its exact value; run names link to their reports."
         ),
@@ -1529,10 +1529,33 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
         blocks.append(Heading(2, "Backends that did not run"))
         blocks.append(Table(("scenario", "backend", "status", "reason"), tuple(problems)))
     blocks += _task_blocks(entries)
-    blocks += _step_blocks(entries)
-    blocks += _profile_blocks(entries)
+    series, aside = _series(entries)
+    if aside:
+        blocks.append(Para(
+            f"Left out of the tables across runs below: {', '.join(aside)}, another run of a scenario, profile and "
+            "contact mode that a run under the tree's own name for them (the scenario's name, with __<profile> and "
+            "__reference) holds; listed in its task's table above."
+        ))  # fmt: skip
+    blocks += _step_blocks(series)
+    blocks += _profile_blocks(series)
     blocks += _bench_blocks(root)
     return blocks, dirs
+
+
+def _series(entries: Sequence[_Entry]) -> tuple[list[_Entry], list[str]]:
+    """One run per scenario, profile and contact mode for the tables across runs (the step table, the profiles
+    side by side, the reference's description), and the labels of the others: where several runs share those, the
+    one under the tree's own name for them (:func:`~legbench.results.run_label`: ``effort__engine-defaults``),
+    else none of them. A user's run of the effort task kept beside ``make compare``'s as ``myrun`` took the effort
+    rows of the profile table (its Fn for pinocchio's, n/a for the backends it did not run)."""
+    groups: dict[tuple[str, str, str], list[_Entry]] = {}
+    for e in entries:
+        groups.setdefault((e.name, e.profile, e.mode), []).append(e)
+    kept: set[str] = set()  # labels: unique in a tree
+    for (name, profile, mode), group in groups.items():
+        own = {e.label for e in group if e.label == run_label(name, profile, mode)}
+        kept |= {group[0].label} if len(group) == 1 else own
+    return [e for e in entries if e.label in kept], [e.label for e in entries if e.label not in kept]
 
 
 def _reference_text(entries: Sequence[_Entry]) -> str:

@@ -586,6 +586,15 @@ def test_index_sets_the_two_profiles_side_by_side(tmp_path: Path) -> None:
         fz = df[(df.backend == "mujoco") & (df.metric == "steady_mean") & (df.signal == "force") & (df.joint == "z")]
         assert float(cells[col]) == pytest.approx(float(fz["value"].iloc[0]), rel=5e-4)
     assert "| [effort__engine-defaults](effort__engine-defaults/report.html) | engine-defaults | native |" in md
+    # a user's own run of the same task beside them (a README review: it took the effort rows, its Fn for
+    # pinocchio's and n/a for mujoco's) is listed in the task's table and left out of the tables across runs
+    argv_mine = [*argv[:3], "pinocchio", "--out", str(tmp_path / "myrun"), "-q", "--no-preflight", "--set",
+                 "duration=0.6", "--set", "backends.pinocchio.dt=2.5e-5"]  # fmt: skip
+    assert cli.main(argv_mine) == 0 and cli.main(["compare", str(tmp_path)]) == 0
+    again = (tmp_path / "report.md").read_text()
+    assert next(line for line in again.splitlines() if line.startswith("| effort | mujoco |")) == row
+    assert "Left out of the tables across runs below: myrun," in again and "varies by task" not in again
+    assert "| [myrun](myrun/report.html) | matched | native |" in again
 
 
 def test_write_page_renders_headings_paragraphs_and_tables(tmp_path: Path) -> None:
