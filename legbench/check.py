@@ -123,8 +123,9 @@ class CheckRow:
         baseline: baseline value (NaN if none).
         new: new value (NaN if none).
         allowed: largest change allowed (NaN if not applicable).
-        status: ``pass``, ``improved``, ``moved`` (within tolerance), ``new``, or a
-            failing one of :data:`FAILING`.
+        status: ``pass``, ``improved``, ``moved`` (within tolerance), ``new``, ``unchecked`` (an imported log the
+            baseline was compared with and the new run was not: an input, not a result), or a failing one of
+            :data:`FAILING`.
         message: one sentence naming the signal and the numbers.
     """
 
@@ -460,6 +461,17 @@ def _check_rows(sc: str, base: pd.DataFrame, new: pd.DataFrame, layers: Sequence
     return rows
 
 
+def _baseline_only_logs(base_meta: Mapping[str, Any], new_meta: Mapping[str, Any]) -> list[str]:
+    """The imported logs (``legbench compare --reference-log``: metrics.json's ``source: log``) in the baseline's
+    metrics and not in the new run's: what was compared against them is not the code's result, so it is left
+    unchecked rather than failed (a README review: a run given a hardware log, used as a baseline, failed every
+    fresh run with 31 regressions)."""
+    nb = new_meta.get("backends") or {}
+    return [
+        name for name, b in (base_meta.get("backends") or {}).items() if b.get("source") == "log" and name not in nb
+    ]
+
+
 def _status_rows(sc: str, base_meta: Mapping[str, Any], new_meta: Mapping[str, Any]) -> list[CheckRow]:
     rows = []
     bb, nb = base_meta.get("backends") or {}, new_meta.get("backends") or {}
@@ -640,6 +652,13 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
         keys = (str(nmeta.get("name", sc)), sc)
         used.update(keys)
         layers, sources[sc] = _tolerances(ndir, keys, common, per, tfile)
+        logs = _baseline_only_logs(bmeta, nmeta)
+        for name in logs:
+            rows.append(CheckRow(sc, name, "", "-", "-", "status", nan, nan, nan, "unchecked",
+                                 f"{sc}/{name}: an imported log the baseline was compared with and this run was not; "
+                                 "compare it with the same --reference-log to check it"))  # fmt: skip
+        bmeta = {**bmeta, "backends": {k: v for k, v in (bmeta.get("backends") or {}).items() if k not in logs}}
+        bdf = bdf[~(bdf["backend"].isin(logs) | bdf["reference"].isin(logs))]
         rows += _status_rows(sc, bmeta, nmeta)
         rows += _check_rows(sc, bdf, ndf, layers)
         traces += _trace_checks(sc, bdir, ndir, nmeta.get("backends") or {})
@@ -657,7 +676,7 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
 
 
 def _moved(r: CheckRow) -> bool:
-    return r.failed or r.status in ("moved", "improved", "new")
+    return r.failed or r.status in ("moved", "improved", "new", "unchecked")
 
 
 def _table_rows(report: CheckReport, all_rows: bool) -> list[list[str]]:
@@ -754,7 +773,7 @@ def write_junit(report: CheckReport, path: str | Path) -> Path:
         by_sc.setdefault(r.scenario, []).append(r)
     for sc, rows in by_sc.items():
         fails = sum(r.failed for r in rows)
-        skipped = sum(r.status == "new" for r in rows)
+        skipped = sum(r.status in ("new", "unchecked") for r in rows)
         suite = ET.SubElement(
             suites, "testsuite", name=f"legbench.{sc}", tests=str(len(rows)), failures=str(fails), skipped=str(skipped)
         )
@@ -767,7 +786,7 @@ def write_junit(report: CheckReport, path: str | Path) -> Path:
             case = ET.SubElement(suite, "testcase", classname=f"legbench.{sc}.{r.backend}", name=name)
             if r.failed:
                 ET.SubElement(case, "failure", message=r.message, type=r.status).text = r.message
-            elif r.status == "new":
+            elif r.status in ("new", "unchecked"):
                 ET.SubElement(case, "skipped", message=r.message)
     suites.set("tests", str(len(report.rows)))
     suites.set("failures", str(len(report.regressions)))
