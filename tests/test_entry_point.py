@@ -283,20 +283,28 @@ def test_an_entry_point_that_names_no_runnable_backend_is_unavailable_with_why(
 ) -> None:
     """An entry point naming pathlib.Path crashed `legbench backends` with "AttributeError: type object 'Path' has
     no attribute 'profiles'", and a Backend subclass lacking abstract methods was listed as runnable (its run
-    failed at load): both are unavailable now, each with why, and `--backends` naming one is one line, exit 2."""
+    failed at load), and one without the engine-defaults profile ran alone and stopped `--backends all` runs of
+    that profile: all are unavailable now, each with why, and `--backends` naming one is one line, exit 2."""
     from legbench import cli
 
     (tmp_path / "legbench_halfdone.py").write_text(
-        "from legbench.backends.base import Backend\n\n\nclass HalfBackend(Backend):\n    name = 'halfdone'\n"
+        "from legbench.backends.base import Backend\nfrom legbench.backends.pinocchio_ import PinocchioBackend\n\n\n"
+        "class HalfBackend(Backend):\n    name = 'halfdone'\n\n\n"
+        "class OnlyMatched(PinocchioBackend):\n    name = 'onlymatched'\n    profiles = {'matched': {}}\n"
     )
-    _install(tmp_path, "legbench-halfdone", "notclass = pathlib:Path\nhalfdone = legbench_halfdone:HalfBackend\n")
+    _install(tmp_path, "legbench-halfdone", "notclass = pathlib:Path\nhalfdone = legbench_halfdone:HalfBackend\n"
+                                            "onlymatched = legbench_halfdone:OnlyMatched\n")  # fmt: skip
     monkeypatch.syspath_prepend(str(tmp_path))
     missing = backends.unavailable()
     assert missing["notclass"] == "entry point pathlib:Path names <class 'pathlib.Path'>, not a subclass of " \
                                   "legbench's Backend"  # fmt: skip
     half = "entry point legbench_halfdone:HalfBackend: HalfBackend does not implement ground_force, info, "
     assert missing["halfdone"].startswith(half + "integrator_family, limits, load, ")
-    assert "notclass" not in backends.available() and "halfdone" not in backends.available()
+    # a review: one lacking engine-defaults was listed and ran, then stopped every make compare (exit 2)
+    assert missing["onlymatched"] == ("entry point legbench_halfdone:OnlyMatched: OnlyMatched.profiles has no "
+                                      "'engine-defaults' (every backend offers matched and engine-defaults; it may "
+                                      "add its own)")  # fmt: skip
+    assert not {"notclass", "halfdone", "onlymatched"} & set(backends.available())
     assert cli.main(["backends"]) == 0
     assert cli.main(["run", str(EFFORT), "--backends", "notclass", "--out", str(tmp_path / "out")]) == 2
     assert not (tmp_path / "out").exists()
