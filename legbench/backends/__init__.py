@@ -49,7 +49,7 @@ __all__ = [
 ]
 
 #: Built-in backends: name -> (module, class, pip requirement that provides the engine, with pyproject.toml's
-#: pin (tests/test_registry.py keeps them equal), or the whole install command where a pip package is not enough,
+#: pin (tests/test_entry_point.py keeps them equal), or the whole install command where a pip package is not enough,
 #: e.g. a system library too).
 BUILTIN: dict[str, tuple[str, str, str]] = {
     "pinocchio": ("legbench.backends.pinocchio_", "PinocchioBackend", "'pin>=3.0'"),
