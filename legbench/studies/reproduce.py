@@ -342,8 +342,8 @@ def steady_force_table(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
         "the true poc (raised by the fraction of the penetration y it says, where an engine's own contact acts "
         "above the lowest point) or the sphere centre E (J_E, the report's analytic model). For a centre row, "
         "'at true poc' is -h(J_poc): the force the same torques hold at the true poc, in the same pose. It is "
-        "not what the law taken at the true poc settles to, whose pose and creep differ: that run is the "
-        "Simscape analogue's row",
+        "not what the law taken at the true poc settles to, whose pose and creep differ (a row of the law "
+        "at the true poc shows that)",
         ("backend", "poc", *(f"{at}F{c}" for at in ("", "check ", "at true poc ") for c in "xyn")),
         tuple(rows),
     )
