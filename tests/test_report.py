@@ -728,12 +728,12 @@ def test_index_shows_each_backends_step_and_integrator_per_profile(tmp_path: Pat
     """From each native run's run.json: the step with its sub-steps per control period (or 'adaptive') and the
     integrator, with the solver where the backend names one, one column pair per profile."""
     root = tmp_path / "tree"
-    d = write_run(root / "one", {"ref": None, "a": scale(1.01)})
+    d = write_run(root / "one", {"ref": None, "a": scale(1.01)}, name="one")
     meta = json.loads((d / "run.json").read_text())
     meta["backends"]["ref"]["info"] |= {"dt": 5e-5, "sub_steps": 20, "integrator": "euler"}
     meta["backends"]["a"]["info"] |= {"dt": 1e-4, "sub_steps": 10, "integrator": "euler", "solver": "sap"}
     (d / "run.json").write_text(json.dumps(meta))
-    e = write_run(root / "two", {"ref": None, "a": scale(1.02)})
+    e = write_run(root / "two", {"ref": None, "a": scale(1.02)}, name="two")
     meta = json.loads((e / "run.json").read_text())
     meta["backends"]["ref"]["info"] |= {"dt": 5e-5, "sub_steps": 20, "integrator": "euler"}
     meta["backends"]["a"]["info"] |= {"dt": None, "sub_steps": 1, "integrator": "rk45"}
