@@ -300,3 +300,17 @@ def test_a_mismatch_names_the_active_parameter_file(
         resources.select_model(None)
     err_bundled = doctor.ParityError("pinocchio", "q1_abad.lower", 0.0, 1.0, "rad")
     assert f"the spec ({resources.shown(resources.bundled_model())} and the scenario)" in str(err_bundled)
+
+
+def test_doctor_reads_back_the_scenario_as_set_overrides_it(capsys: pytest.CaptureFixture[str]) -> None:
+    """`legbench doctor --set` checks what `legbench run --set` would run (a review: doctor had no --set, so a
+    run's overridden step or profile could not be pre-flighted): MuJoCo's dt 1e-4 is read back as 0.0001 s with
+    10 sub-steps per 1 ms period, and a misspelt key is one line naming it, exit 2."""
+    from legbench import cli
+
+    assert cli.main(["doctor", str(EFFORT), "--backends", "mujoco", "--all", "--set", "backends.mujoco.dt=1e-4"]) == 0
+    rows = {tuple(line.split()[:2]): line.split() for line in capsys.readouterr().out.splitlines() if line}
+    assert rows[("settings", "dt")][-2] == "0.0001" and rows[("settings", "sub_steps")][-2] == "10"
+    assert cli.main(["doctor", str(EFFORT), "--backends", "mujoco", "--set", "gravty=1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "gravty: unknown key" in err and "(from --set gravty)" in err

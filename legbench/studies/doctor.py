@@ -36,13 +36,12 @@ import numpy as np
 import pandas as pd
 
 from legbench import backends as registry
-from legbench import model, resources
+from legbench import model, resources, yamlfile
 from legbench import scenario as scenario_mod
 from legbench.backends.base import Backend
 from legbench.exceptions import BackendNotFound, LegbenchError, ModelError
 from legbench.exitcodes import EXIT_BACKEND_FAILED
 from legbench.scenario import Scenario, physics_of
-from legbench.yamlfile import one_line
 
 logger = logging.getLogger(__name__)
 #: The pre-flight's warnings given in this process (each once).
@@ -187,7 +186,7 @@ _FIXED = ("group", "row", "unit", "spec", "tolerance", "status")
 
 
 def _engine_error(name: str, what: str, exc: BaseException) -> str:
-    return one_line(f"parity check: {name} failed to {what}: {type(exc).__name__}: {exc}")
+    return yamlfile.one_line(f"parity check: {name} failed to {what}: {type(exc).__name__}: {exc}")
 
 
 def table(
@@ -327,9 +326,10 @@ def _cell(v: Any) -> str:
 
 
 def _cli(args: argparse.Namespace) -> int:
+    sc = scenario_mod.load(args.scenario, yamlfile.parse_overrides(args.set))  # what `legbench run --set` runs
     names = registry.resolve(args.backends)
     failed: dict[str, str] = {}
-    t = table(args.scenario, names, failed=failed)
+    t = table(sc, names, failed=failed)
     shown = t if args.all else t[t["status"] != "info"]
     width = {c: max(len(c), *(len(_cell(v)) for v in shown[c])) for c in shown.columns}
     print("  ".join(c.ljust(width[c]) for c in shown.columns))
@@ -352,9 +352,12 @@ def _cli(args: argparse.Namespace) -> int:
 
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Register ``legbench doctor SCENARIO [--backends all] [--all]``."""
+    """Register ``legbench doctor SCENARIO [--backends all] [--all] [--set KEY=VALUE ...]``."""
     p = subparsers.add_parser("doctor", help="parity pre-flight: what each engine holds, read back, side by side")
     p.add_argument("scenario", help="scenario YAML file")
     p.add_argument("--backends", default="all", help="comma-separated backend names, or 'all' (default)")
     p.add_argument("--all", action="store_true", help="also show every setting each backend reports")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario key as legbench run does, e.g. --set profile=engine-defaults or "
+                        "--set backends.<name>.dt=1e-4")  # fmt: skip
     p.set_defaults(func=_cli)
