@@ -339,3 +339,53 @@ def test_penetration_rel_is_the_median_over_contact_samples() -> None:
     r = residuals(t, q, qd, f, P)
     assert r.n_contact == 9
     assert r.penetration_rel == pytest.approx(0.25, rel=0, abs=1e-12)
+
+
+def test_penetration_max_is_the_largest_residual_also_where_it_is_negative() -> None:
+    """A spring that pushes too hard at one sample: at y = 4 mm, rising (ydot < 0, no damping, Fn_spring = Fn),
+    normal forces of 0.75, 1.5, 0.9375 and 1 Kp y leave y - Fn / Kp = +1, -2, +0.25 and 0 mm. penetration_max is
+    the largest |.|, 2 mm, not the largest signed residual, 1 mm (1e-15 m: y from the forward kinematics is 4 mm to
+    a few ulp of the 0.2 m links). A mutation audit found no test with a negative largest residual."""
+    qd_dir = np.array([1.0, 0.0, 0.0])
+    t, q, qd, f = _synthetic(qd_dir, np.linspace(2 * P.v_th, 0.1, 4) / 0.4)
+    ydot = -(kinematics.jacobian_poc(q) @ qd[..., None])[:, 2, 0]
+    assert ydot.max() < 0  # rising: the whole normal force is the spring's
+    y = 0.004  # [m]: _synthetic's depth
+    f = f.copy()
+    f[:, 2] = np.array([0.75, 1.5, 0.9375, 1.0]) * P.Kp * y  # [N]: 30, 60, 37.5, 40
+    r = residuals(t, q, qd, f, P)
+    assert r.n_contact == 4
+    assert r.penetration_max == pytest.approx(2e-3, rel=0, abs=1e-15)
+
+
+def test_a_spring_too_stiff_everywhere_has_a_positive_relative_penetration_error() -> None:
+    """Fn = 1.25 Kp y on every sample at y = 4 mm (rising, no damping): |y Kp / Fn - 1| = |0.8 - 1| = 0.2, so
+    penetration_rel reads 0.2 (1e-12: y from the forward kinematics is 4 mm to ~1e-16 m, 2.5e-14 of y), a 20 %
+    spring error, not -0.2, which a one-sided check such as test_residuals_on_the_effort_task's < 0.01 would pass.
+    A mutation audit found that the signed error passed every test."""
+    qd_dir = np.array([1.0, 0.0, 0.0])
+    t, q, qd, f = _synthetic(qd_dir, np.linspace(2 * P.v_th, 0.1, 5) / 0.4)
+    ydot = -(kinematics.jacobian_poc(q) @ qd[..., None])[:, 2, 0]
+    assert ydot.max() < 0  # rising: Fn_spring = Fn
+    f = f.copy()
+    f[:, 2] = 1.25 * P.Kp * 0.004  # [N]: 50
+    r = residuals(t, q, qd, f, P)
+    assert r.n_contact == 5
+    assert r.penetration_rel == pytest.approx(0.2, rel=0, abs=1e-12)
+
+
+def test_friction_direction_is_scored_from_a_slip_of_1e4_m_per_s() -> None:
+    """V_DIRECTION = 1e-4 m/s: below it a sticking foot's direction is numerical noise. Of the law's own samples
+    slipping at 0.5 and 0.9 x 1e-4 m/s and at 1.1 and 2 x 1e-4 m/s (slip speeds to ~1e-16 m/s from the
+    Jacobian), only the last two are scored for direction (n_direction 2), each with the law's angle, 0 deg
+    (1e-6 deg); all four are in contact. A mutation audit found that a threshold of 1e-3 m/s passed every test."""
+    qd_dir = np.array([1.0, 0.0, 0.0])
+    slip = np.array([0.5, 0.9, 1.1, 2.0]) * 1e-4  # [m/s]
+    t, q, qd, f = _synthetic(qd_dir, slip / _slip_gain(qd_dir))
+    v = (kinematics.jacobian_poc(q) @ qd[..., None])[:, :2, 0]
+    np.testing.assert_allclose(np.hypot(v[:, 0], v[:, 1]), slip, rtol=1e-9)
+    assert (np.hypot(f[:, 0], f[:, 1]) > 1.0).all()  # [N]: every sample carries friction (the law's creep, 1.4-5.6 N)
+    r = residuals(t, q, qd, f, P)
+    assert r.n_contact == 4
+    assert r.n_direction == 2
+    assert r.angle_max == pytest.approx(0.0, abs=1e-6)

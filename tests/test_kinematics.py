@@ -249,3 +249,21 @@ def test_jacobian_at_a_lifted_point_is_the_shank_point_at_that_depth() -> None:
     half = K.jacobian_at(q, "true", 0.5)
     assert np.abs(half[:-1] - J_poc[:-1]).max() > 1e-4  # [m/rad]: 2.5 mm of lever makes a difference
     np.testing.assert_array_equal(half[-1], J_poc[-1])  # out of the ground: the lowest point
+
+
+def test_nearest_does_not_wrap_the_knee() -> None:
+    """The knee is revolute (limits +-2.229 rad, a span of 4.46 rad > pi): its distance from the reference is the
+    plain difference, never the short way round. The only solution (0, 0.5, 2.1) seen from (0, 0.5, -2.1) comes
+    back as it is (knee 2.1, inside the limits), not as the knee 4.2 - 2 pi rad from the reference (-4.18 rad,
+    beyond its lower limit); and of (0, 0.5, 2.1), 4.2 rad of knee away, and (0, 2.5, -1), 2 rad of hip and 1.1
+    of knee away (2.28 rad), the second is nearer (by the wrapped knee the first would be, 2.08 rad). Exact: the
+    answer is the reference plus float differences of numbers of the same magnitude (to 1e-15 rad). A mutation
+    audit found that wrapping the knee here passed every test."""
+    lo, hi = model.load_params().lower[2], model.load_params().upper[2]
+    assert hi - lo > np.pi and not model.load_params().continuous[2]
+    q_ref = np.array([0.0, 0.5, -2.1])
+    one = K.nearest(np.array([[0.0, 0.5, 2.1]]), q_ref)
+    np.testing.assert_allclose(one, [0.0, 0.5, 2.1], rtol=0, atol=1e-15)
+    assert lo <= one[2] <= hi
+    two = K.nearest(np.array([[0.0, 0.5, 2.1], [0.0, 2.5, -1.0]]), q_ref)
+    np.testing.assert_allclose(two, [0.0, 2.5, -1.0], rtol=0, atol=1e-15)

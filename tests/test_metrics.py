@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -293,3 +294,103 @@ def test_the_flat_correlation_threshold_is_1e3_between_its_peak_and_the_window_e
     assert abs(found.seconds - 0.005) < 1e-6 and found.note == ""
     flat = metrics.estimate_lag(_trace("a", t, slow(40.0, 0.005)), _trace("ref", t, slow(40.0, 0.0)))
     assert math.isnan(flat.seconds) and "flat over the search window" in flat.note
+
+
+def _run(traces: dict[str, results.RunResult], skip: float, mode: str) -> results.Run:
+    """A run directory's contents in memory: reference backend ``ref``, the metrics' window from ``skip`` [s]."""
+    return results.Run(path=Path("fake"), meta={}, name="fake", label="fake", contact_mode=mode, poc="true",
+                       reference="ref", skip=skip, steady_window=0.5, duration=1.0, events=(), backends={},
+                       traces=traces)  # fmt: skip
+
+
+def test_the_contact_split_measures_from_skip_as_the_deviation_it_splits() -> None:
+    """ModeSplit works over t >= skip. With skip = 0.5 s, backend a's native trace is 1 rad off every joint
+    before skip and 0.03 rad after; its reference-mode trace and the reference backend (in both modes) follow the
+    swing exactly. Over the measured window the native and contact parts are 0.03 rad (RMS, 1e-12 relative) and
+    the integration and drift parts exactly 0; the native part's RMS and % equal pair_metrics' with the same skip
+    (1e-12 relative). A mutation audit found that measuring from the first sample (RMS 0.71 rad) passed every
+    test."""
+    t = np.arange(0.0, 1.0 + 1e-12, 1e-3)
+    x = _swing(t, 0.0)
+    early = t < 0.5 - metrics.T_EPS
+    an = _trace("a", t, x + np.where(early, 1.0, 0.03)[:, None])
+    rn, ar, rr = _trace("ref", t, x), _trace("a", t, x), _trace("ref", t, x)
+    native = _run({"ref": rn, "a": an}, 0.5, "native")
+    (m,) = metrics.contact_split(native, _run({"ref": rr, "a": ar}, 0.5, "reference"))
+    q = slice(0, 3)
+    np.testing.assert_allclose(m.native_rms[q], 0.03, rtol=1e-12)
+    np.testing.assert_allclose(m.contact_rms[q], 0.03, rtol=1e-12)
+    np.testing.assert_array_equal(m.integration_rms[q], 0.0)
+    np.testing.assert_array_equal(m.drift_rms[q], 0.0)
+    np.testing.assert_array_equal(m.integration_pct[q], 0.0)
+    np.testing.assert_array_equal(m.drift_pct[q], 0.0)
+    p = metrics.pair_metrics(an, rn, skip=0.5)
+    np.testing.assert_allclose(m.native_rms[q], p.rms[q], rtol=1e-12)
+    np.testing.assert_allclose(m.native_pct[q], p.sim_error_pct[q], rtol=1e-12)
+    np.testing.assert_allclose(m.contact_pct[q], p.sim_error_pct[q], rtol=1e-12)
+
+
+def test_a_backend_component_at_rest_is_left_out_of_the_lag_correlation() -> None:
+    """The reference swings all three joints; backend a holds q1 at one value (a joint clamped at rest) while its
+    q2 and q3 swing 5 ms late. Its q1 has no correlation to give (variance 0): it is left out as the docstring
+    says, so the lag is 5 ms (1e-3 sample) and the correlation is that of q2 and q3 alone, 1 (1e-6), equal to the
+    estimate with q1 at rest in both traces (1e-12 relative); counted as a 0 it would read 2/3. A mutation audit
+    found that leaving out only the reference's resting components passed every test."""
+    t = np.arange(0.0, 2.0 + 1e-12, 1e-3)
+    ref, late = _swing(t, 0.0), _swing(t, 0.005)
+    late[:, 0] = 0.05  # [rad]: q1 at rest in the backend
+    est = metrics.estimate_lag(_trace("a", t, late), _trace("ref", t, ref))
+    ref_rest = ref.copy()
+    ref_rest[:, 0] = 0.05
+    alone = metrics.estimate_lag(_trace("a", t, late), _trace("ref", t, ref_rest))
+    assert abs(est.samples - 5.0) < 1e-3 and est.note == ""
+    assert est.correlation == pytest.approx(1.0, abs=1e-6)
+    assert est.correlation == pytest.approx(alone.correlation, rel=1e-12)
+
+
+def test_the_percentage_is_undefined_for_a_reference_peak_at_or_below_1e12() -> None:
+    """PEAK_FLOOR = 1e-12: a reference whose peak is 1e-12 (q1) has no simulation error % (NaN), one whose peak
+    is 1.5e-12 (q3) has one, 100 max |d| / peak with max |d| = 1e-13 (1e-9 relative: the difference of two
+    numbers near 1.6e-12 is exact to ~2e-28). A mutation audit found that a floor of 1e-11 passed every test."""
+    t = np.arange(0.0, 0.1 + 1e-12, 1e-3)
+    ref = np.tile([1e-12, 2.6, 1.5e-12], (len(t), 1))
+    p = metrics.pair_metrics(_trace("a", t, ref + 1e-13), _trace("ref", t, ref))
+    np.testing.assert_array_equal(p.ref_peak[:3], [1e-12, 2.6, 1.5e-12])
+    assert math.isnan(p.sim_error_pct[0])
+    assert p.sim_error_pct[2] == pytest.approx(100 * 1e-13 / 1.5e-12, rel=1e-9)
+
+
+def _static(q: np.ndarray, F: np.ndarray) -> results.RunResult:
+    """The leg at rest at ``q`` for 1 s at 1 kHz, the ground force ``F`` [N] on the foot's lowest point:
+    tau = G(q) - J_poc^T F."""
+    from legbench import kinematics
+
+    tau = kinematics.gravity(q) - kinematics.jacobian_at(q, "true", 0.0).T @ F
+    t = np.arange(0.0, 1.0 + 1e-12, 1e-3)
+    cols = dict(zip(["q1", "q2", "q3", "qd1", "qd2", "qd3", "tau1", "tau2", "tau3", "fx", "fy", "fz"],
+                    [*q, 0.0, 0.0, 0.0, *tau, *F], strict=True))  # fmt: skip
+    df = pd.DataFrame({"t": t, **{k: np.full(t.size, v) for k, v in cols.items()}})
+    return results.result_from_frame(df, "a", required=REQUIRED)
+
+
+def test_the_analytic_check_holds_up_to_a_condition_number_of_1e8() -> None:
+    """COND_MAX = 1e8: near the pose where J_poc loses rank (q1 = 0, q2 = 1.82988, q3 = 2.96971, test_compare's
+    singular pose; cond(J_poc) ~ 3.37 / dq3), the knee moved so that cond is 5e7 (between 4e7 and 1e8 as measured
+    by steady_state) still gets the check, which gives the force back (1e-3 N: the solve loses ~cond x 1e-16 of
+    the torques; measured 4.4e-5 N); moved so that cond is 2e8 (between 1e8 and 2.5e8) it is singular: NaN. A
+    mutation audit found that COND_MAX = 1e7 passed every test."""
+    from legbench import kinematics
+
+    q_sing = np.array([0.0, 1.8298834292396862, 2.969711102182886])
+
+    def moved(dq3: float) -> np.ndarray:
+        return q_sing + np.array([0.0, 0.0, dq3])
+
+    gain = float(np.linalg.cond(kinematics.jacobian_at(moved(1e-5), "true", 0.0))) * 1e-5  # cond x dq3 [rad]
+    F = np.array([4.0, -3.0, 50.0])  # [N]
+    below = metrics.steady_state(_static(moved(gain / 5e7), F), 0.5)
+    assert 4e7 < below.cond < 1e8
+    np.testing.assert_allclose(below.analytic_poc, F, rtol=0, atol=1e-3)
+    above = metrics.steady_state(_static(moved(gain / 2e8), F), 0.5)
+    assert 1e8 < above.cond < 2.5e8
+    assert np.isnan(above.analytic_poc).all()

@@ -1745,3 +1745,21 @@ def test_a_run_page_links_the_same_scenarios_other_runs_in_its_tree(tmp_path: Pa
     assert '<a href="../fake/report.html">matched, native</a>' in (root / "fake__reference" / "report.html").read_text()
     assert "[matched, reference](../fake__reference/report.md)" in (root / "fake" / "report.md").read_text()
     assert "matched, " not in (root / "other" / "report.html").read_text().split("<h1>")[0]
+
+
+def test_an_infinite_number_reads_n_a() -> None:
+    """num writes +-inf as it writes NaN, "n/a" (with any number of digits), and num_apart too: an infinite value
+    in a table does not stop the report (a check for NaN alone would split "inf" at its "e" and raise ValueError).
+    A mutation audit found that only NaN was tested."""
+    for x in (math.inf, -math.inf):
+        assert num(x) == "n/a" and num(x, 3) == "n/a"
+        assert num_apart(x, (1.0,)) == "n/a"
+
+
+def test_a_number_equal_to_its_bound_keeps_its_four_digits() -> None:
+    """num_apart adds digits only to set a number apart from a bound it differs from; a number equal to its bound
+    (1/3 against 1/3, 2/3 against 2/3 and 100.04) is written with the four digits, "0.3333" and "0.6667", not the 12
+    digits of a search that could never tell it from itself. A mutation audit found that the existing case, 0.01
+    against 0.01, reads "0.01" at any number of digits."""
+    assert num_apart(1 / 3, (1 / 3,)) == "0.3333"
+    assert num_apart(2 / 3, (100.04, 2 / 3)) == "0.6667"
