@@ -49,12 +49,14 @@ def write_bag(
     extra_joint_topic: str | None = None,
     joint_stamp0_ns: int = T_BAG0_NS,
     wrench_stamped: bool = True,
+    force_recorded: np.ndarray | None = None,
 ) -> Path:
     """A bag of JointState messages at times t [s from T_BAG0_NS] carrying data[:, 0:9] (q, qd, tau of joints 1..3)
     under ``names`` (message slot i holds legbench joint order[i]; a slot with order -1 is another joint, 0.5 rad),
     and WrenchStamped messages of ``force`` at ``force_t``. Header stamps count from ``joint_stamp0_ns`` for the
     joint states (another clock, e.g. simulation time, when not T_BAG0_NS) and T_BAG0_NS for the wrench (zero
-    without ``wrench_stamped``); recording times from T_BAG0_NS, 3 ms after the time."""
+    without ``wrench_stamped``); recording times from T_BAG0_NS, 3 ms after the time (for the wrench, 3 ms after
+    ``force_recorded`` [s] where given: the order the messages are written in)."""
     ts, writer, ser, _ = _writer(kind, path)
     JointState = ts.types["sensor_msgs/msg/JointState"]
     Wrench = ts.types["geometry_msgs/msg/WrenchStamped"]
@@ -85,10 +87,11 @@ def write_bag(
             if ec is not None:
                 events.append((tt, 1, ec, msg))
         if force is not None and force_t is not None:
-            for k, (tt, f) in enumerate(zip(force_t, force, strict=True)):
+            rec_t = force_t if force_recorded is None else force_recorded
+            for k, (tt, rt, f) in enumerate(zip(force_t, rec_t, force, strict=True)):
                 w = WrenchBody(force=Vector3(x=f[0], y=f[1], z=f[2]), torque=Vector3(x=0.0, y=0.0, z=0.0))
                 events.append(
-                    (tt, 2, wc, Wrench(header=header(tt, k, T_BAG0_NS if wrench_stamped else None), wrench=w))
+                    (rt, 2, wc, Wrench(header=header(tt, k, T_BAG0_NS if wrench_stamped else None), wrench=w))
                 )
         for tt, _, conn, msg in sorted(events, key=lambda e: (e[0], e[1])):
             rec = T_BAG0_NS + round((tt + 0.003) * 1e9)  # recorded 3 ms after the stamp: stamps must win
@@ -171,6 +174,39 @@ def test_defaults_force_sign_and_ros2_file_path(tmp_path: Path) -> None:
     np.testing.assert_array_equal(df[["fx", "fy", "fz"]].to_numpy(), -np.ones((len(t), 3)))
     no_force = write_bag("ros1", tmp_path / "nf.bag", t, data, own, (0, 1, 2))
     assert logs.load_log(no_force)[["fx", "fy", "fz"]].isna().all().all()
+
+
+def test_a_bag_s_t0_in_seconds_is_its_time_zero(tmp_path: Path) -> None:
+    """``RosOptions.t0`` is the bag time [s] that is the run's t = 0: joint states stamped from 100 s (every 1 ms)
+    read with t0 = 99.5 s start at t = 0.5 s, each 1 ms after the last (to 1e-12 s: stamps are integer ns,
+    t0 * 1e9 ns an integer); load_log's t0 does the same. A mutation audit found no test setting a bag's t0 (t0
+    taken in ms passed)."""
+    t = np.arange(0, 0.01, 1e-3)
+    bag = write_bag("ros1", tmp_path / "a.bag", t, _signals(t), logs.DEFAULT_JOINTS, (0, 1, 2),
+                    joint_stamp0_ns=100_000_000_000)  # fmt: skip
+    np.testing.assert_allclose(logs.load_log(bag)["t"], t, rtol=0, atol=1e-12)  # no t0: the first sample
+    df = logs.load_log(bag, ros=logs.RosOptions(t0=99.5))
+    assert df["t"].iloc[0] == 0.5
+    np.testing.assert_allclose(df["t"], 0.5 + t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(logs.load_log(bag, t0=99.5)["t"], 0.5 + t, rtol=0, atol=1e-12)
+
+
+def test_wrench_messages_written_out_of_time_order_are_read_in_stamp_order(tmp_path: Path) -> None:
+    """A wrench topic's messages in the bag in another order than their stamps (a sensor's messages arriving late:
+    stamped 4.5, 0.5, 6.5, 2.5, 8.5 ms, written in that order) are sorted by stamp before the force is
+    interpolated onto the joint-state ticks (every 1 ms, 0 .. 9 ms): fz = 1000 x its stamp in s comes back as the
+    tick's time in ms (to 1e-9 N) from 1 to 8 ms, NaN at 0 and 9 ms (outside 0.5 .. 8.5 ms). A mutation audit found
+    no bag written out of order (interpolating in the file's order passed)."""
+    t = np.arange(10) * 1e-3
+    ft = np.array([4.5, 0.5, 6.5, 2.5, 8.5]) * 1e-3
+    force = np.column_stack([np.zeros(5), -ft, 1e3 * ft])
+    bag = write_bag("ros1", tmp_path / "late.bag", t, _signals(t), logs.DEFAULT_JOINTS, (0, 1, 2), ft, force,
+                    force_recorded=np.arange(5) * 2e-3)  # fmt: skip
+    df = logs.load_log(bag)
+    inside = slice(1, 9)
+    np.testing.assert_allclose(df["fz"].to_numpy()[inside], 1e3 * t[inside], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(df["fy"].to_numpy()[inside], -t[inside], rtol=0, atol=1e-12)
+    assert df.loc[[0, 9], ["fx", "fy", "fz"]].isna().all().all()
 
 
 def test_bag_foot_position_is_the_run_s_own_from_q(tmp_path: Path) -> None:

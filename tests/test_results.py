@@ -3,6 +3,7 @@ metrics.json is one line naming the file, the key and the problem, exit 2, and n
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -10,6 +11,8 @@ import stat
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import pandas as pd
 import pytest
 from fakerun import scale, write_run
 
@@ -380,3 +383,111 @@ def test_a_full_disk_names_the_output_it_was_writing(tmp_path: Path, capsys: pyt
         assert cli.main(["compare", str(d)]) == 4
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"legbench: I/O error: {d}") and "No space left on device" in err[0]
+
+
+# --------------------------------------------------------------------------- #
+# What a result holds, what run.json says of it, and the readers' limits
+
+
+def test_a_signal_with_some_missing_samples_is_still_present() -> None:
+    """``RunResult.has`` is true with at least one finite sample: an imported log whose force is NaN in 2 of its 5
+    rows (a ROS bag's wrench span shorter than the joint states') still has a force, and gets its figure; NaN in
+    every row (or no column) is no force. A mutation audit found no test holding it (``.all()`` passed)."""
+    t = np.arange(5) * 1e-3
+    fz = np.array([np.nan, 20.0, 21.0, 22.0, np.nan])
+    df = pd.DataFrame({"t": t, "q1": 0.1, "q2": -1.0, "q3": -1.2, "fx": 0.0, "fy": 0.0, "fz": fz})
+    df.loc[[0, 4], ["fx", "fy"]] = np.nan
+    tr = results.result_from_frame(df, "log")
+    assert int(np.isnan(tr.signal("force")).any(axis=1).sum()) == 2
+    assert tr.has("force") and tr.has("q")
+    assert not tr.has("tau")  # no tau column: NaN in all 5 rows
+    df["fx"] = df["fy"] = df["fz"] = np.nan
+    assert not results.result_from_frame(df, "log").has("force")
+
+
+def test_run_json_rtf_is_simulated_time_over_wall_time(tmp_path: Path) -> None:
+    """run.json's ``rtf`` (the real-time factor the report's backend table shows) is simulated time / wall time:
+    2 s simulated in 0.5 s of wall time is 4.0 (0.25 is the inverse), read back as 4.0 by load_run. A mutation
+    audit found no test holding it."""
+    from legbench import scenario
+
+    sc = scenario.parse({"name": "fake", "duration": 2.0, "events": [{"t": 0.0, "position": {"joint": [0, -1, -1]}}]})
+    n = 5
+    t = np.linspace(0.0, 2.0, n)
+    zeros = np.zeros((n, 3))
+    tr = results.RunResult("a", t, zeros, zeros, zeros, zeros, np.full(n, "position", dtype=object), wall_time=0.5)
+    out = results.write_run(sc, [tr], tmp_path / "fake")
+    entry = json.loads((out / "run.json").read_text())["backends"]["a"]
+    assert (entry["wall_time"], entry["rtf"]) == (0.5, 4.0)
+    assert results.load_run(out).backends["a"].rtf == 4.0
+
+
+@pytest.mark.parametrize(("rows_cut", "last_t", "refused"), [(2, 1.998, True), (1, 1.999, True), (0, 1.9996, False)],
+                         ids=["2 periods short", "1 period short", "0.4 period short"])  # fmt: skip
+def test_an_ok_log_may_end_at_most_half_a_control_period_before_the_duration(
+    tmp_path: Path, rows_cut: int, last_t: float, refused: bool
+) -> None:
+    """An ok backend's log spans 0 .. duration to half a control period (0.5 ms at 1 kHz): of a 2 s run, a log
+    ending at 1.998 s (two periods short, the last two rows lost) or 1.999 s is cut short, one ending 0.4 ms early
+    (1.9996 s) is whole. A mutation audit found only a log cut to 10 of 2001 rows tested (a tolerance of 5 periods
+    passed)."""
+    run = write_run(tmp_path / "one", {"ref": None, "a": scale(1.1)}, name="one")
+    log = run / "a.parquet"
+    df = pd.read_parquet(log)
+    df = df.iloc[: len(df) - rows_cut].copy()
+    df.loc[df.index[-1], "t"] = last_t
+    df.to_parquet(log, index=False)
+    if not refused:
+        assert results.load_run(run).traces["a"].t[-1] == 1.9996
+        return
+    with pytest.raises(ResultsError) as exc:
+        results.load_run(run)
+    assert str(exc.value).startswith(f"{log}: column 't' spans 0 .. {last_t:g} s ({2001 - rows_cut} rows), not the "
+                                     "scenario's 0 .. 2 s")  # fmt: skip
+    assert str(exc.value).endswith("the log is cut short")
+
+
+def test_a_steady_window_longer_than_the_run_is_refused_and_one_as_long_is_read(tmp_path: Path) -> None:
+    """run.json's steady_window may be as long as the run, not longer: of a 1 s run, 1.5 s is refused naming the
+    key ("1.5 s is longer than the run (1 s)"), 1.0 s is read. A mutation audit found only 9 s of a 2 s run
+    tested (a limit of twice the run passed)."""
+    run = write_run(tmp_path / "one", {"ref": None}, name="one", duration=1.0)
+    rj = run / "run.json"
+    _set(rj, "scenario.comparison.steady_window", 1.5)
+    with pytest.raises(ResultsError) as exc:
+        results.read_meta(run)
+    assert str(exc.value) == f"{rj}: scenario.comparison.steady_window: 1.5 s is longer than the run (1 s)"
+    _set(rj, "scenario.comparison.steady_window", 1.0)
+    assert results.load_run(run).steady_window == 1.0
+
+
+def test_a_gravity_given_as_a_boolean_is_not_a_gravity(tmp_path: Path) -> None:
+    """run.json's scenario.gravity [m/s^2] is a number: ``true`` is not 1 m/s^2 (Python's bool is an int) but no
+    gravity, so the leg file's 9.81 is taken, as when the key is absent; 3.71 and the integer 4 are read as given.
+    A mutation audit found no test holding it."""
+    from legbench.model import load_params
+
+    run = write_run(tmp_path / "one", {"ref": None}, name="one", gravity=3.71)
+    assert results.load_run(run).gravity == 3.71
+    _set(run / "run.json", "scenario.gravity", 4)
+    assert results.load_run(run).gravity == 4.0
+    _set(run / "run.json", "scenario.gravity", True)
+    assert load_params().gravity == 9.81
+    assert results.load_run(run).gravity == 9.81
+
+
+@pytest.mark.parametrize(("digits", "refused"), [(32, True), (63, True), (64, False), (65, True)])
+def test_a_metrics_log_digest_is_64_hex_digits(tmp_path: Path, digits: int, refused: bool) -> None:
+    """metrics.json's ``logs`` maps each log to its SHA-256, 64 hex digits (what ``legbench check`` compares to
+    tell whether a log changed): a 32-digit digest (an MD5's length), 63 or 65 digits are refused, 64 read. A
+    mutation audit found only a 3-letter digest tested (32 to 64 digits passed)."""
+    d = tmp_path / "metrics.json"
+    digest = (hashlib.sha256(b"a log").hexdigest() + "0")[:digits]
+    doc = {"schema": results.METRICS_SCHEMA, "backends": {}, "logs": {"a.parquet": digest}, "metrics": []}
+    results.write_metrics(doc, d)
+    if not refused:
+        assert results.read_metrics(d)[0]["logs"] == {"a.parquet": digest}
+        return
+    with pytest.raises(ResultsError) as exc:
+        results.read_metrics(d)
+    assert str(exc.value) == f"{d}: logs: must be an object of log file name -> SHA-256 (64 hex digits)"

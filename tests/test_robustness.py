@@ -710,6 +710,44 @@ def test_run_with_out_never_replaces_a_finished_run_without_force(
     assert meta["complete"] is True and meta["backends"]["fake"]["status"] == "ok"
 
 
+def test_an_interrupted_run_of_another_leg_is_not_resumed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An interrupted run (fake finished, fake2 interrupted) of the bundled leg, rerun with ``--model`` of another
+    leg (gravity 9.0 instead of 9.81; the same scenario, hash and backends): resuming it would put two legs' logs in
+    one run, so it is an interrupted run of other settings, refused in one line naming --force (exit 2), the
+    directory as it was; run.json's ``urdf`` names the leg it is of. The bundled leg resumes it. A mutation audit
+    found no test of the resume with another leg (only of a finished run's comparison)."""
+    f = _fake_run(tmp_path, monkeypatch)
+    reg = registry._registry
+    monkeypatch.setattr(
+        registry, "_registry", lambda: {**reg(), "fake2": type("fake2", (FakeBackend,), {"name": "fake2"})}
+    )
+    out = tmp_path / "r"
+    argv = ["run", str(f), "--backends", "fake,fake2", "--out", str(out), "-q", "--no-compare", "--no-preflight"]
+    assert cli.main(argv) == 0
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["urdf"] == resources.urdf_name()  # the bundled leg's
+    meta["complete"] = False
+    meta["backends"]["fake2"] |= {"status": "interrupted", "reason": "interrupted at t = 1.0000 s"}
+    (out / "run.json").write_text(json.dumps(meta))
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    other = tmp_path / "leg2.yaml"
+    other.write_text(resources.bundled_model().read_text().replace("gravity: 9.81", "gravity: 9.0", 1))
+    capsys.readouterr()
+    try:
+        assert cli.main(["--model", str(other), *argv]) == 2
+    finally:
+        resources.select_model(None)
+    err = capsys.readouterr().err
+    assert err == (f"legbench: error: {out} holds an interrupted run of other settings (it resumes only with the same "
+                   "scenario and options); choose another --out for a new one, or --force to replace it\n")  # fmt: skip
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert cli.main(argv) == 0  # the leg it is of: resumed, fake's log kept
+    assert (out / "fake.parquet").read_bytes() == before["fake.parquet"]
+    assert json.loads((out / "run.json").read_text())["complete"] is True
+
+
 def test_check_replaces_an_existing_summary_or_junit_file_only_with_force(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -792,6 +830,53 @@ def test_temporaries_of_killed_runs_are_cleaned(tmp_path: Path) -> None:
     results.clean_stale(tmp_path)
     assert sorted(p.name for p in tmp_path.iterdir()) == [f".live.tmp-{os.getpid()}", "position"]
     assert (tmp_path / "position" / "run.json").is_file()
+
+
+def test_a_stale_displaced_copy_never_replaces_the_current_result(tmp_path: Path) -> None:
+    """A ``.<name>.old-<dead pid>`` is put back only where ``<name>`` is missing (a kill between the two renames of
+    a swap): beside an existing ``<name>`` (the swap's new result went in, the kill came before the old one was
+    removed) it is removed, and the current result stays byte for byte: a run directory whose run.json reads
+    "new" and a file reading "new", each beside an "old" copy. A mutation audit found only the missing-target case
+    tested (renaming the stale copy back over the file passed)."""
+    dead = _dead_pid()
+    (tmp_path / "position").mkdir()
+    (tmp_path / "position" / "run.json").write_bytes(b"new")
+    (tmp_path / f".position.old-{dead}").mkdir()
+    (tmp_path / f".position.old-{dead}" / "run.json").write_bytes(b"old")
+    (tmp_path / "report.md").write_bytes(b"new")
+    (tmp_path / f".report.md.old-{dead}").write_bytes(b"old")
+    removed = results.clean_stale(tmp_path)
+    assert (tmp_path / "report.md").read_bytes() == b"new"
+    assert (tmp_path / "position" / "run.json").read_bytes() == b"new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["position", "report.md"]
+    assert sorted(p.name for p in removed) == [f".position.old-{dead}", f".report.md.old-{dead}"]
+
+
+def test_temporaries_of_another_users_live_process_are_kept(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``os.kill(pid, 0)`` raising PermissionError means the process exists and belongs to another user (a shared
+    results folder): its temporaries are that live run's, kept. PID 4194303 (Linux's largest), with os.kill
+    patched to answer EPERM: a ``.effort.tmp-`` directory holding a log, a ``.metrics.json.tmp-`` file and a
+    ``.position.old-`` directory stay as they were, and nothing is reported removed. A mutation audit found no test
+    holding it (taking EPERM for a dead process passed)."""
+    import errno
+
+    pid = 4194303
+    asked: list[tuple[int, int]] = []
+
+    def not_yours(p: int, sig: int) -> None:
+        asked.append((p, sig))
+        raise PermissionError(errno.EPERM, os.strerror(errno.EPERM))
+
+    (tmp_path / f".effort.tmp-{pid}").mkdir()
+    (tmp_path / f".effort.tmp-{pid}" / "pinocchio.parquet").write_bytes(b"x" * 100)
+    (tmp_path / f".metrics.json.tmp-{pid}").write_text("{")
+    (tmp_path / f".position.old-{pid}").mkdir()
+    before = sorted(p.name for p in tmp_path.iterdir())
+    monkeypatch.setattr(os, "kill", not_yours)
+    assert results.clean_stale(tmp_path) == []
+    assert asked == [(pid, 0)] * 3
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    assert (tmp_path / f".effort.tmp-{pid}" / "pinocchio.parquet").read_bytes() == b"x" * 100
 
 
 _FULL_DISK = """
@@ -928,6 +1013,49 @@ def test_external_logs_with_implausible_values_or_units(tmp_path: Path, caplog: 
     caplog.clear()
     logs.load_log(csv("fine.csv", t, -1.0))
     assert caplog.text == ""
+
+
+def test_a_log_value_beyond_1e9_is_refused_and_1e9_is_read(tmp_path: Path) -> None:
+    """The plausibility limit of an external log is 1e9 (SI units) in every column: a ground force fz of exactly
+    1e9 N is read, 1.5e9 N is refused naming the column, its row and time and the limit. A mutation audit found
+    only 1e308 tested (a limit of 1e10 passed)."""
+    import pandas as pd
+
+    from legbench import logs
+    from legbench.exceptions import ResultsError
+
+    f = tmp_path / "log.csv"
+    for fz in (1e9, 1.5e9):
+        pd.DataFrame({"t": [0.0, 1e-3, 2e-3], "q1": 0.1, "q2": -1.0, "q3": -1.2, "fz": [20.0, fz, 20.0]}).to_csv(
+            f, index=False
+        )
+        if fz == 1e9:
+            assert logs.load_log(f)["fz"].tolist() == [20.0, 1e9, 20.0]
+            continue
+        with pytest.raises(ResultsError) as exc:
+            logs.load_log(f)
+        assert str(exc.value) == (f"{f}: column 'fz' reaches 1.5e+09 at data row 2 (t = 0.001 s): not a physical "
+                                  "value (limit 1e+09)")  # fmt: skip
+
+
+def test_the_degrees_warning_starts_just_above_2_pi_plus_0_1_rad(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A log's joint angles beyond 2 pi + 0.1 rad (6.3832) are likely degrees, said in a warning; a knee at 6.38
+    rad gives none, one at 6.39 rad the warning with that value. A mutation audit found only 57 rad tested (a
+    threshold of 4 pi passed)."""
+    import pandas as pd
+
+    from legbench import logs
+
+    f = tmp_path / "log.csv"
+    for q3, warned in ((6.38, False), (6.39, True)):
+        pd.DataFrame({"t": [0.0, 1e-3, 2e-3], "q1": 0.1, "q2": -1.0, "q3": [0.0, q3, 0.0]}).to_csv(f, index=False)
+        caplog.clear()
+        with caplog.at_level("WARNING", logger="legbench.logs"):
+            logs.load_log(f)
+        said = f"{f}: joint angles reach {q3:.4g}: above 2 pi rad, are they in degrees?"
+        assert (said in caplog.text) is warned and ("degrees" in caplog.text) is warned, caplog.text
 
 
 @pytest.mark.parametrize(
