@@ -1073,6 +1073,7 @@ def _check_run_json(meta: Mapping[str, Any], rj: Path) -> None:
     _string_at(sc, "contact_mode", "scenario.contact_mode", rj, ("native", "reference"))
     duration = _number_at(sc, "duration", "scenario.duration", rj, math.inf, positive=True)
     _number_at(sc, "control_rate", "scenario.control_rate", rj, 1.0, positive=True)
+    _number_at(sc, "gravity", "scenario.gravity", rj, 0.0)  # true or "3.71" became the leg file's 9.81, silently
     events = sc.get("events")
     if events is not None and not isinstance(events, list):
         raise ResultsError(str(rj), f"must be a list of events, not {type(events).__name__} {events!r:.40}",

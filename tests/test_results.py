@@ -461,19 +461,23 @@ def test_a_steady_window_longer_than_the_run_is_refused_and_one_as_long_is_read(
     assert results.load_run(run).steady_window == 1.0
 
 
-def test_a_gravity_given_as_a_boolean_is_not_a_gravity(tmp_path: Path) -> None:
-    """run.json's scenario.gravity [m/s^2] is a number: ``true`` is not 1 m/s^2 (Python's bool is an int) but no
-    gravity, so the leg file's 9.81 is taken, as when the key is absent; 3.71 and the integer 4 are read as given.
-    A mutation audit found no test holding it."""
+@pytest.mark.parametrize("bad", [True, "3.71", -9.81, None])
+def test_run_json_gravity_is_a_number_or_refused(tmp_path: Path, bad: Any) -> None:
+    """run.json's scenario.gravity [m/s^2] is read as given (3.71, the integer 4); absent (null), the leg file's
+    9.81. ``true`` (Python's bool is an int: 1 m/s^2?), the string "3.71" or a negative number are refused naming
+    the key: they were read as the leg file's 9.81, silently (a mutation audit, then a review of its finding)."""
     from legbench.model import load_params
 
     run = write_run(tmp_path / "one", {"ref": None}, name="one", gravity=3.71)
     assert results.load_run(run).gravity == 3.71
     _set(run / "run.json", "scenario.gravity", 4)
     assert results.load_run(run).gravity == 4.0
-    _set(run / "run.json", "scenario.gravity", True)
-    assert load_params().gravity == 9.81
-    assert results.load_run(run).gravity == 9.81
+    _set(run / "run.json", "scenario.gravity", bad)
+    if bad is None:
+        assert results.load_run(run).gravity == load_params().gravity == 9.81
+        return
+    with pytest.raises(ResultsError, match=r"run\.json: scenario\.gravity: must be a finite number >= 0"):
+        results.load_run(run)
 
 
 @pytest.mark.parametrize(("digits", "refused"), [(32, True), (63, True), (64, False), (65, True)])
