@@ -32,7 +32,7 @@ import pandas as pd
 from legbench import kinematics
 from legbench.exceptions import LegbenchError, ResultsError
 from legbench.results import result_from_frame
-from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS, SIGNAL_OF
+from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS, SIGNAL_OF, UNITS
 from legbench.yamlfile import file_kind
 
 __all__ = ["API_WORDS", "CLI_WORDS", "JOINT_STATE", "WRENCH", "LogWords", "RosOptions", "is_ros_bag", "load_log",
@@ -116,14 +116,15 @@ def _normalise_header(col: str) -> str:
 #: (:data:`~legbench.signals.UNITS`); written lower case, spaces as one.
 HEADER_UNITS: dict[str, dict[str, float]] = {
     "t": {"s": 1.0, "sec": 1.0, "seconds": 1.0, "ms": 1e-3, "us": 1e-6},
-    "q": {"rad": 1.0, "deg": math.pi / 180.0, "degrees": math.pi / 180.0},
-    "qd": {"rad/s": 1.0, "rad/sec": 1.0, "deg/s": math.pi / 180.0, "deg/sec": math.pi / 180.0},
+    "q": {"rad": 1.0, "radians": 1.0, "deg": math.pi / 180.0, "degrees": math.pi / 180.0},
+    "qd": {"rad/s": 1.0, "rad/sec": 1.0, "radians/s": 1.0, "deg/s": math.pi / 180.0, "deg/sec": math.pi / 180.0},
     "tau": {"n m": 1.0, "nm": 1.0, "n*m": 1.0, "n.m": 1.0, "n-m": 1.0, "n·m": 1.0},
     "force": {"n": 1.0},
     "ee": {"m": 1.0, "mm": 1e-3},
 }
 #: Units legbench does not convert, refused where a header gives one (read as legbench's own they would be off by
-#: their factor); bracketed text that is no unit (``pos[0]``, ``q1 (measured)``) is part of the name.
+#: their factor); an index in square brackets (``pos[0]``) is part of the name, and other text in parentheses
+#: (``q1 (measured)``) is read as a note (:func:`_unit_factor`).
 OTHER_UNITS = frozenset({"rpm", "rev", "rev/s", "grad", "mrad", "cm", "km", "ns", "min", "h", "kn", "mn", "lbf", "ft",
                          "in", "kgf", "n mm", "nmm", "mm/s", "m/s", "m/s^2", "rad/s^2", "deg/s^2", "%"})  # fmt: skip
 
@@ -132,22 +133,29 @@ def _unit_factor(path: Path, col: str, target: str) -> float | None:
     """The factor taking header column ``col`` (legbench's column ``target``) to legbench's unit, from the unit it
     writes after its name (``"q1 [deg]"``: pi/180), or None where it writes none. A unit legbench does not read for
     that signal is refused: read as its own unit it would be compared silently off by the unit's factor. Text in
-    square brackets is a unit (``q1 [arcmin]`` refused), unless it is an index (``pos[0]``, part of the name); text
-    in parentheses is a unit where it is one of :data:`HEADER_UNITS` or :data:`OTHER_UNITS`, else part of the name
-    (``q1 (measured)``)."""
-    m = re.search(r"([\[(])\s*(.*?)\s*[\])]\s*$", str(col))
+    square brackets is a unit (``q1 [arcmin]`` refused), unless it is an integer index (``pos[0]``, ``pos[-1]``);
+    text in parentheses is a unit where it is one of :data:`HEADER_UNITS` or :data:`OTHER_UNITS`, else a note the
+    column is read without (``q1 (measured)``, in legbench's unit: a warning says so); brackets that do not pair,
+    ``q1 [deg)``, are refused."""
+    m = re.search(r"([\[(])\s*([^\[\]()]*?)\s*([\])])\s*$", str(col))
     if m is None or target == "controller":
         return None
     signal = "t" if target == "t" else "ee" if target in EE_COLUMNS else SIGNAL_OF[LABELS.index(target)]
     unit = " ".join(m.group(2).lower().split())
     known = HEADER_UNITS[signal]
+    if (m.group(1), m.group(3)) not in (("[", "]"), ("(", ")")):
+        raise ResultsError(str(path), f"column {col!r}: its brackets do not pair ({m.group(1)} ... {m.group(3)}); "
+                                      "write the unit as [unit] or (unit)")  # fmt: skip
     if unit in known:
         return known[unit]
-    square = m.group(1) == "[" and unit != "" and not unit.isdigit()
-    if square or unit in OTHER_UNITS or any(unit in units for units in HEADER_UNITS.values()):
+    if unit == "" or re.fullmatch(r"-?[0-9]+", unit):  # an index, or nothing: part of the name
+        return None
+    if m.group(1) == "[" or unit in OTHER_UNITS or any(unit in units for units in HEADER_UNITS.values()):
         raise ResultsError(str(path), f"column {col!r}: unit [{m.group(2)}] is not one legbench reads for "
                                       f"{target} ({', '.join(known)}); convert the column, or write its unit as "
                                       "one of these")  # fmt: skip
+    logger.warning("legbench: warning: %s: column %r: (%s) is not a unit legbench reads; the column is read in %s",
+                   path, col, m.group(2), UNITS[signal])  # fmt: skip
     return None
 
 

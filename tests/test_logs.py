@@ -4,6 +4,7 @@ columns, and compared from the command line."""
 from __future__ import annotations
 
 import json
+import math
 import os
 from pathlib import Path
 
@@ -430,7 +431,7 @@ def test_a_unit_in_a_csv_header_is_read_or_refused_never_ignored(tmp_path: Path)
     odd = tmp_path / "odd.csv"
     odd.write_text("t,q1 [grad],q2,q3\n0,0,0,0\n0.001,0,0,0\n")
     with pytest.raises(ResultsError, match=r"column 'q1 \[grad\]': unit \[grad\] is not one legbench reads for q1 "
-                                           r"\(rad, deg, degrees\)"):  # fmt: skip
+                                           r"\(rad, radians, deg, degrees\)"):  # fmt: skip
         logs.load_log(odd)
 
 
@@ -460,19 +461,34 @@ def test_a_time_scale_given_with_a_bag_is_refused_not_ignored(tmp_path: Path) ->
     assert log_settings_problem(tmp_path / "log.csv", None, False, 1e-3, False, words) is None
 
 
-def test_any_unit_in_square_brackets_that_legbench_does_not_read_is_refused(tmp_path: Path) -> None:
+def test_any_unit_in_square_brackets_that_legbench_does_not_read_is_refused(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
     """A review: 'q1 [furlong]' was read as radians with exit 0, 'q1 [arcmin]' gave 3934 % errors and a warning
-    only: text in square brackets is a unit unless it is an index, and one legbench does not read is refused;
-    'q1 (measured)' (parentheses, no unit legbench knows) and pos[0] stay names."""
-    for unit in ("furlong", "arcmin", "Rad/min"):
+    only. Text in square brackets is a unit unless it is an integer index (pos[2], pos[-1]), and one legbench does
+    not read is refused ('[²]' too: no digit); brackets that do not pair ('[deg)') are refused; the last bracket
+    pair is the unit ('pos[0] [deg]' converted, 0.5 deg = 8.7266e-3 rad to 1e-15). Text in parentheses that is no
+    unit legbench knows ('q1 (measured)', 'q1 (arcmin)') is read in legbench's unit, with a warning naming it."""
+
+    def load(header: str, row: str = "0,0.5,0.25,0.125", cmap: dict[str, str] | None = None) -> pd.DataFrame:
         log = tmp_path / "u.csv"
-        log.write_text(f"t,q1 [{unit}],q2,q3\n0,0,0,0\n0.001,0,0,0\n")
+        log.write_text(f"t,{header}\n{row}\n0.001,{row.split(',', 1)[1]}\n")
+        return logs.load_log(log, cmap)
+
+    for unit in ("furlong", "arcmin", "Rad/min", "²"):
         with pytest.raises(ResultsError, match=rf"column 'q1 \[{unit}\]': unit \[{unit}\] is not one legbench reads"):
-            logs.load_log(log)
-    named = tmp_path / "named.csv"
-    named.write_text("t,q1 (measured),q2 [],pos[2]\n0,0.5,0.25,0.125\n0.001,0.5,0.25,0.125\n")
-    df = logs.load_log(named, {"pos[2]": "q3"})
-    assert (df["q1"].tolist(), df["q2"].tolist(), df["q3"].tolist()) == ([0.5, 0.5], [0.25, 0.25], [0.125, 0.125])
+            load(f"q1 [{unit}],q2,q3")
+    with pytest.raises(ResultsError, match=r"column 'q1 \[deg\)': its brackets do not pair"):
+        load("q1 [deg),q2,q3")
+    df = load("pos[0] [deg],q2 [],pos[-1],q3 [radians]", "0,0.5,0.25,7,0.125", {"pos[0] [deg]": "q1"})
+    assert df["q1"].tolist() == pytest.approx([math.radians(0.5)] * 2, abs=1e-15)
+    assert df["q2"].tolist() == [0.25, 0.25] and df["q3"].tolist() == [0.125, 0.125]
+    with caplog.at_level("WARNING", logger="legbench.logs"):
+        df = load("q1 (measured),q2 (arcmin),q3")
+    assert (df["q1"].tolist(), df["q2"].tolist()) == ([0.5, 0.5], [0.25, 0.25])
+    said = [r.getMessage() for r in caplog.records]
+    assert len(said) == 2 and "column 'q2 (arcmin)': (arcmin) is not a unit legbench reads; the column is read in " \
+                              "rad" in said[1]  # fmt: skip
 
 
 def test_a_log_error_names_the_column_as_the_files_header_does(tmp_path: Path) -> None:
