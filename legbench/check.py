@@ -653,6 +653,10 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
         used.update(keys)
         layers, sources[sc] = _tolerances(ndir, keys, common, per, tfile)
         logs = _baseline_only_logs(bmeta, nmeta)
+        if bmeta.get("reference") in logs:  # every pair metric is against the log: none to check against
+            raise ResultsError(str(bdir), f"the baseline was compared with {bmeta['reference']} as its reference "
+                                          f"(--log-is-reference) and {ndir} was not: compare it the same way, or "
+                                          "choose another --baseline")  # fmt: skip
         for name in logs:
             rows.append(CheckRow(sc, name, "", "-", "-", "status", nan, nan, nan, "unchecked",
                                  f"{sc}/{name}: an imported log the baseline was compared with and this run was not; "
@@ -714,6 +718,7 @@ def format_table(report: CheckReport, all_rows: bool = False) -> str:
         lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
     else:
         lines.append("no metric moved")
+    lines += [r.message for r in report.rows if r.status == "unchecked"]
     for t in report.traces:
         if t.status == "changed":
             lines.append(f"{t.scenario}/{t.backend}: time series changed ({t.detail})")
@@ -742,6 +747,9 @@ def write_markdown(report: CheckReport, path: str | Path) -> Path:
     lines = [f"# legbench check: {report.new} against {report.baseline}", "", f"**{_verdict(report)}**", ""]
     if report.regressions:
         lines += ["## Regressions", ""] + [f"- {r.message}" for r in report.regressions] + [""]
+    unchecked = [r.message for r in report.rows if r.status == "unchecked"]
+    if unchecked:
+        lines += ["## Not checked", ""] + [f"- {m}" for m in unchecked] + [""]
     rows = _table_rows(report, all_rows=False)
     lines += ["## What moved", ""]
     if rows:
