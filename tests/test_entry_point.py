@@ -290,10 +290,12 @@ def test_an_entry_point_that_names_no_runnable_backend_is_unavailable_with_why(
     (tmp_path / "legbench_halfdone.py").write_text(
         "from legbench.backends.base import Backend\nfrom legbench.backends.pinocchio_ import PinocchioBackend\n\n\n"
         "class HalfBackend(Backend):\n    name = 'halfdone'\n\n\n"
-        "class OnlyMatched(PinocchioBackend):\n    name = 'onlymatched'\n    profiles = {'matched': {}}\n"
+        "class OnlyMatched(PinocchioBackend):\n    name = 'onlymatched'\n    profiles = {'matched': {}}\n\n\n"
+        "class NoProfiles(PinocchioBackend):\n    name = 'noprofiles'\n    profiles = None\n"
     )
     _install(tmp_path, "legbench-halfdone", "notclass = pathlib:Path\nhalfdone = legbench_halfdone:HalfBackend\n"
-                                            "onlymatched = legbench_halfdone:OnlyMatched\n")  # fmt: skip
+                                            "onlymatched = legbench_halfdone:OnlyMatched\n"
+                                            "noprofiles = legbench_halfdone:NoProfiles\n")  # fmt: skip
     monkeypatch.syspath_prepend(str(tmp_path))
     missing = backends.unavailable()
     assert missing["notclass"] == "entry point pathlib:Path names <class 'pathlib.Path'>, not a subclass of " \
@@ -304,7 +306,9 @@ def test_an_entry_point_that_names_no_runnable_backend_is_unavailable_with_why(
     assert missing["onlymatched"] == ("entry point legbench_halfdone:OnlyMatched: OnlyMatched.profiles has no "
                                       "'engine-defaults' (every backend offers matched and engine-defaults; it may "
                                       "add its own)")  # fmt: skip
-    assert not {"notclass", "halfdone", "onlymatched"} & set(backends.available())
+    assert missing["noprofiles"] == ("entry point legbench_halfdone:NoProfiles: NoProfiles.profiles is NoneType, "
+                                     "not a mapping of profile name to settings")  # fmt: skip
+    assert not {"notclass", "halfdone", "onlymatched", "noprofiles"} & set(backends.available())
     assert cli.main(["backends"]) == 0
     assert cli.main(["run", str(EFFORT), "--backends", "notclass", "--out", str(tmp_path / "out")]) == 2
     assert not (tmp_path / "out").exists()

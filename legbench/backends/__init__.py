@@ -114,6 +114,10 @@ def _load_plugin(ep: metadata.EntryPoint) -> type[Backend] | None:
         missing = ", ".join(sorted(getattr(obj, "__abstractmethods__", ())))
         _MISSING[ep.name] = f"entry point {ep.value}: {obj.__name__} does not implement {missing}"
         return None
+    if not isinstance(obj.profiles, Mapping):  # `p in None` crashed `legbench backends` with a TypeError
+        _MISSING[ep.name] = (f"entry point {ep.value}: {obj.__name__}.profiles is {type(obj.profiles).__name__}, not "
+                             "a mapping of profile name to settings")  # fmt: skip
+        return None
     lacking = [p for p in PROFILES if p not in obj.profiles]
     if lacking:  # it ran alone, then stopped every `--backends all` run of that profile (make compare) with exit 2
         _MISSING[ep.name] = (f"entry point {ep.value}: {obj.__name__}.profiles has no {' or '.join(map(repr, lacking))}"
