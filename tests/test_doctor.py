@@ -305,7 +305,8 @@ def test_a_mismatch_names_the_active_parameter_file(
 def test_doctor_reads_back_the_scenario_as_set_overrides_it(capsys: pytest.CaptureFixture[str]) -> None:
     """`legbench doctor --set` checks what `legbench run --set` would run (a review: doctor had no --set, so a
     run's overridden step or profile could not be pre-flighted): MuJoCo's dt 1e-4 is read back as 0.0001 s with
-    10 sub-steps per 1 ms period, and a misspelt key is one line naming it, exit 2."""
+    10 sub-steps per 1 ms period; a misspelt key, or a control rate the sub-step does not divide, is one line naming
+    it as `run` does, exit 2."""
     from legbench import cli
 
     assert cli.main(["doctor", str(EFFORT), "--backends", "mujoco", "--all", "--set", "backends.mujoco.dt=1e-4"]) == 0
@@ -314,3 +315,8 @@ def test_doctor_reads_back_the_scenario_as_set_overrides_it(capsys: pytest.Captu
     assert cli.main(["doctor", str(EFFORT), "--backends", "mujoco", "--set", "gravty=1"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "gravty: unknown key" in err and "(from --set gravty)" in err
+    # a control rate the default sub-step does not divide: named as `run` names it (it blamed backends.mujoco.dt)
+    assert cli.main(["doctor", str(EFFORT), "--backends", "mujoco", "--set", "control_rate=700"]) == 2
+    err = capsys.readouterr().err
+    assert "control_rate: 700 Hz does not suit the default (or profile) sub-step of mujoco" in err
+    assert err.rstrip().endswith("(from --set control_rate)")

@@ -326,8 +326,8 @@ def _cell(v: Any) -> str:
 
 
 def _cli(args: argparse.Namespace) -> int:
-    sc = scenario_mod.load(args.scenario, yamlfile.parse_overrides(args.set))  # what `legbench run --set` runs
-    names = registry.resolve(args.backends)
+    names = registry.resolve(args.backends)  # the options' errors first, as every command's
+    sc = scenario_mod.load(args.scenario, yamlfile.parse_overrides(args.set), engines=names)  # what `run --set` runs
     failed: dict[str, str] = {}
     t = table(sc, names, failed=failed)
     shown = t if args.all else t[t["status"] != "info"]
