@@ -1508,6 +1508,7 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
             if b.get("status") != "ok":
                 problems.append((e.label, bname, str(b.get("status")), str(b.get("reason") or "")))
     tasks = list(dict.fromkeys(e.name for e in entries))
+    series, aside = _series(entries)
     legend = "; ".join(why for _, _, why in BANDS)
     limits = any(e.tolerances.get("max_sim_error_pct") for e in entries)
     colours = (f"Colours: the scenario's limits (comparison.tolerances.max_sim_error_pct) where it sets them, else "
@@ -1518,7 +1519,7 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
         Para(
             "Simulation error % = max_t |x_a - x_ref| / max_t |x_ref| x 100 per signal component, each backend "
             "against its scenario's reference backend (n/a: the reference signal is zero, or missing). "
-            + _reference_text(_series(entries)[0])
+            + _reference_text(series)
             + colours
             + " Hover a cell for its exact value; run names link to their reports."
         ),
@@ -1529,12 +1530,11 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
         blocks.append(Heading(2, "Backends that did not run"))
         blocks.append(Table(("scenario", "backend", "status", "reason"), tuple(problems)))
     blocks += _task_blocks(entries)
-    series, aside = _series(entries)
     if aside:
         blocks.append(Para(
-            f"Left out of the tables across runs below: {', '.join(aside)}, another run of a scenario, profile and "
-            "contact mode that a run under the tree's own name for them (the scenario's name, with __<profile> and "
-            "__reference) holds; listed in its task's table above."
+            f"Left out of the tables across runs below: {', '.join(aside)}, each one of several runs of a scenario in "
+            "one profile and contact mode (the tables take the one under the tree's own name for them, the "
+            "scenario's name with __<profile> and __reference, where there is one); listed in its task's table above."
         ))  # fmt: skip
     blocks += _step_blocks(series)
     blocks += _profile_blocks(series)

@@ -744,6 +744,21 @@ def test_index_shows_each_backends_step_and_integrator_per_profile(tmp_path: Pat
     assert "| a | varies by task | varies by task |" in md  # 100 us x 10 (euler, sap) in one, rk45 in two
 
 
+def test_two_runs_of_one_scenario_neither_under_its_own_name_are_both_left_out_of_the_tables_across_runs(
+    tmp_path: Path,
+) -> None:
+    """Two runs of the scenario 'fake' (matched, native) as 'a' and 'b', neither named 'fake': no run stands for
+    the scenario there, so the step table has no row from them and the index names both, saying why; each keeps
+    its row in the task's table."""
+    root = tmp_path / "tree"
+    for label, k in (("a", 1.01), ("b", 1.02)):
+        write_run(root / label, {"ref": None, "a": scale(k)})
+    md = R.write_index(root).markdown.read_text()
+    assert "Left out of the tables across runs below: a, b, each one of several runs of a scenario" in md
+    assert "How each backend integrates" not in md
+    assert "| a | matched | native | a | ref |" in md and "| b | matched | native | a | ref |" in md
+
+
 # --------------------------------------------------------------------------- #
 # What the sentences and tables claim, against the numbers they come from
 
