@@ -71,6 +71,9 @@ COND_MAX = 1e8
 #: A steady foot whose point of contact moves slower than this has no direction of slide [m/s]
 #: (MuJoCo's matched foot: 1e-17 m/s; the slowest that slides, DART's, 2e-8 m/s).
 SLIDE_FLOOR = 1e-9
+#: A steady foot carrying less friction than this has no friction direction to compare its slide with [N] (a
+#: round-off 1e-13 N gave a cosine of 0.9955).
+FRICTION_FLOOR = 1e-6
 
 
 # --------------------------------------------------------------------------- #
@@ -201,12 +204,13 @@ class SteadyState:
         """Cosine between the mean horizontal velocity of the point where the force acts (J(q) qd at the window's
         mean q and qd) and the mean friction force (Fx, Fy) on the foot [1]: -1 for a foot creeping against its
         friction, as the law's does; towards +1 for one moving along it (a solver's drift, not friction). NaN
-        where the point moves slower than :data:`SLIDE_FLOOR`, carries no friction, or q or qd is not finite."""
+        where the point moves slower than :data:`SLIDE_FLOOR`, carries less friction than :data:`FRICTION_FLOOR`
+        (an airborne foot none), or q or qd is not finite."""
         if not (np.isfinite(self.q).all() and np.isfinite(self.qd).all() and np.isfinite(self.force[:2]).all()):
             return math.nan
         v = (kinematics.jacobian_at(self.q, self.poc, self.lift) @ self.qd)[:2]
         speed, friction = float(np.linalg.norm(v)), float(np.linalg.norm(self.force[:2]))
-        if not speed > SLIDE_FLOOR or not friction > 0.0:
+        if not speed > SLIDE_FLOOR or not friction > FRICTION_FLOOR:
             return math.nan
         return float(v @ self.force[:2]) / (speed * friction)
 

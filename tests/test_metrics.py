@@ -271,13 +271,19 @@ def test_a_force_acting_above_the_lowest_point_is_checked_there_and_at_the_spec_
 def test_the_slide_cosine_is_the_direction_of_the_point_s_slide_against_the_friction_force() -> None:
     """The foot pressed 5 mm in with 5 N of friction (4, -3) N acting y/2 above its lowest point: its point
     moving at 1e-4 m/s against the friction gives -1, along it +1, across it 0 (each to 1e-9: the velocity is
-    taken at the point the force acts, the lifted one); slower than SLIDE_FLOOR (5e-10 m/s) no direction (NaN)."""
+    taken at the point the force acts, the lifted one); slower than SLIDE_FLOOR (5e-10 m/s), or with friction under
+    FRICTION_FLOOR, no direction (NaN)."""
     f_t = np.array([4.0, -3.0]) / 5.0
     for v, want in ((-1e-4 * f_t, -1.0), (1e-4 * f_t, 1.0), (1e-4 * np.array([f_t[1], -f_t[0]]), 0.0)):
         s = metrics.steady_state(_pressing(0.5, v=(float(v[0]), float(v[1])))[0], 0.5, "true", lift=0.5)
         assert s.slide_cosine == pytest.approx(want, abs=1e-9)
     still = metrics.steady_state(_pressing(0.5, v=(-4e-10, 3e-10))[0], 0.5, "true", lift=0.5)
     assert math.isnan(still.slide_cosine) and metrics.SLIDE_FLOOR > 5e-10
+    # a friction force of round-off (1e-13 N: it gave 0.9955) or none (the foot in the air): no direction either
+    for f_t in ((8e-14, -6e-14), (0.0, 0.0)):
+        trace = _pressing(0.5, v=(1e-4, 0.0))[0]
+        trace.data[:, 9:11] = f_t  # fx, fy of the log [N]
+        assert math.isnan(metrics.steady_state(trace, 0.5, "true", lift=0.5).slide_cosine)
 
 
 def test_the_flat_correlation_threshold_is_1e3_between_its_peak_and_the_window_ends() -> None:

@@ -197,7 +197,7 @@ def test_table10_published_rows_and_steady_qd_equal_the_metrics(with_metrics: Pa
     assert str(ghost_row[0]).startswith("missing:")
 
 
-def test_steady_force_check_and_compensation_equal_the_metrics(with_metrics: Path, repro: Any) -> None:
+def test_steady_force_and_its_check_equal_the_metrics(with_metrics: Path, repro: Any) -> None:
     rows = {r[0]: r[1:] for r in repro[1]["steady_force"].rows}
     run_ = results.load_run(with_metrics / "effort")
     for label, name, at in (("Simscape: pinocchio (matched)", "pinocchio", "true"),

@@ -465,7 +465,8 @@ def test_a_steady_window_longer_than_the_run_is_refused_and_one_as_long_is_read(
 def test_run_json_gravity_is_a_number_or_refused(tmp_path: Path, bad: Any) -> None:
     """run.json's scenario.gravity [m/s^2] is read as given (3.71, the integer 4); absent (null), the leg file's
     9.81. ``true`` (Python's bool is an int: 1 m/s^2?), the string "3.71" or a negative number are refused naming
-    the key: they were read as the leg file's 9.81, silently (a mutation audit, then a review of its finding)."""
+    the key (the first two were read as the leg file's 9.81, silently, the last as given: a mutation audit, then a
+    review of its finding)."""
     from legbench.model import load_params
 
     run = write_run(tmp_path / "one", {"ref": None}, name="one", gravity=3.71)

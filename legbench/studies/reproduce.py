@@ -12,12 +12,13 @@ nothing here names an engine::
     tasks:                         # scenario files, relative to this file
       - {file: effort.yaml, tables: [steady]}     # steady, force, sim_error, switch
 
-Table roles: ``steady`` (the report's table 10, steady |qd| beside the scenario's published rows, and
-legbench's table of the steady ground force with the analytic check h = (J_poc^T)^-1 (tau - G) and the
-centre-poc compensation: the source names no table of it), ``force`` (legbench's: the steady Fn, one column
+Table roles: ``steady`` (the report's table 10, steady |qd| beside the scenario's published rows with the
+direction of each foot's slide against its friction, and legbench's table of the steady ground force with the
+analytic check h = (J^T)^-1 (tau - G) where each backend's force acts and, for a centre-poc law, the force its
+torques hold at the true poc: the source names no table of it), ``force`` (legbench's: the steady Fn, one column
 per task), ``switch`` (the combined task as the report saw it: first contact and the torque at the switch to
 effort control, beside the scenario's published row) and ``sim_error`` (tasks 1 and 2: the simulation error %
-of each framework analogue against each other, per joint, after the scenario's ``comparison.skip``, over the
+between the framework analogues, each pair once, per joint, after the scenario's ``comparison.skip``, over the
 scenario reference's peak as every simulation error % of legbench).
 
 Every task runs once on every backend through :func:`legbench.run.run_many`
@@ -45,7 +46,7 @@ from legbench.backends.base import PROFILES, contact_point
 from legbench.compare import first_contact
 from legbench.exceptions import BackendNotFound, LegbenchError, ScenarioError
 from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK
-from legbench.metrics import SLIDE_FLOOR, SteadyState, pair_metrics, steady_state
+from legbench.metrics import FRICTION_FLOOR, SLIDE_FLOOR, SteadyState, pair_metrics, steady_state
 from legbench.results import Run, load_run
 from legbench.scenario import Scenario
 from legbench.signals import SLICE
@@ -309,7 +310,8 @@ def table10(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
         "true poc with it is by construction, a consistency check, not a validation; the custom-sim row (centre "
         "poc) was not fitted. cos(v, F_t): the cosine between the foot's mean horizontal velocity at its point "
         "of contact and its mean friction force, -1 for a foot creeping against its friction as the law's does, "
-        f"towards +1 for one drifting along it; - where the foot moves under {SLIDE_FLOOR:g} m/s",
+        f"towards +1 for one drifting along it; - where the foot moves under {SLIDE_FLOOR:g} m/s or carries under "
+        f"{FRICTION_FLOOR:g} N of friction",
         ("source", "|qd1|", "|qd2|", "|qd3|", "cos(v, F_t)"),
         tuple(rows),
     )
@@ -327,10 +329,8 @@ def steady_force_table(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
             rows.append((label, why, *[""] * 9))
             continue
         s = steady_of(run_, n)
-        if s.poc == "centre" and s.analytic_centre is not None:
-            check, at_true = s.analytic_centre, s.analytic_poc
-        else:
-            check, at_true = s.analytic_poc, np.full(3, np.nan)
+        check = s.force - s.residual  # the analytic force where its force acts (SteadyState.residual's choice)
+        at_true = s.analytic_poc if s.poc_compensation is not None else np.full(3, np.nan)
         poc, lift = backend_poc(run_, n)
         at = poc if lift == 0.0 else f"{poc}, {lift:.3g} y above"
         rows.append((label, at, *s.force.tolist(), *check.tolist(), *at_true.tolist()))
@@ -390,8 +390,8 @@ def sim_error_table(plan: Plan, run_: Run) -> Table:
         f"Simulation error %, task {run_.name}",
         f"max_t |q_a - q_b| / max_t |q_ref| x 100 per joint, t >= {run_.skip:g} s, q_ref the scenario's reference "
         f"({run_.reference}{whose}; docs/metrics.md). All analogues "
-        "run legbench's one leg model (the report's three frameworks each had their own): the Simscape and "
-        "custom-sim analogues differ by integration and where the contact force acts only",
+        "run legbench's one leg model (the report's frameworks each had their own): two analogues with the same "
+        "law differ by integration and where the contact force acts only",
         ("framework a", "against b", "q1 %", "q2 %", "q3 %"),
         tuple(rows),
     )
