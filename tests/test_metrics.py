@@ -280,9 +280,9 @@ def test_the_slide_cosine_is_the_direction_of_the_point_s_slide_against_the_fric
     still = metrics.steady_state(_pressing(0.5, v=(-4e-10, 3e-10))[0], 0.5, "true", lift=0.5)
     assert math.isnan(still.slide_cosine) and metrics.SLIDE_FLOOR > 5e-10
     # a friction force of round-off (1e-13 N: it gave 0.9955) or none (the foot in the air): no direction either
-    for f_t in ((8e-14, -6e-14), (0.0, 0.0)):
+    for friction in ((8e-14, -6e-14), (0.0, 0.0)):
         trace = _pressing(0.5, v=(1e-4, 0.0))[0]
-        trace.data[:, 9:11] = np.array(f_t)  # fx, fy of the log [N]
+        trace.data[:, 9:11] = np.array(friction)  # fx, fy of the log [N]
         assert math.isnan(metrics.steady_state(trace, 0.5, "true", lift=0.5).slide_cosine)
 
 
