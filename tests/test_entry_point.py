@@ -137,6 +137,23 @@ def test_the_install_command_of_a_missing_built_in_engine_carries_pyproject_s_pi
         assert package.startswith("'") and package.endswith("'") and package.strip("'") in reqs, (name, package)
 
 
+def test_a_run_records_the_version_of_every_installed_engine() -> None:
+    """run.json's ``versions`` (and the bench's Machine line) hold each built-in engine's distribution with its
+    installed version: the distribution named by its requirement (pin, dartpy, ode-python), as importlib.metadata
+    gives it. The requirements took pyproject's pins on 27 Nov and the versions lost every engine ("'pin>=3.0'" is
+    no distribution) until 28 Nov."""
+    from importlib import metadata
+
+    from legbench import backends, results
+
+    assert backends.engine_packages() == ["pin", "mujoco", "pybullet", "drake", "dartpy", "sympy", "ode-python"]
+    recorded = results.versions()
+    for name in backends.available():
+        if name in backends.BUILTIN:
+            dist = backends.engine_packages()[list(backends.BUILTIN).index(name)]
+            assert recorded[dist] == metadata.version(dist), name
+
+
 def test_all_says_once_which_known_engines_are_not_installed(
     monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import logging
+import re
 from collections.abc import Mapping
 from importlib import metadata
 from typing import Any
@@ -149,8 +150,17 @@ def _registry() -> dict[str, type[Backend]]:
 
 
 def engine_packages() -> list[str]:
-    """Distribution names of the built-in backends' engines (whose versions a run records)."""
-    return list(dict.fromkeys(package for _, _, package in BUILTIN.values()))
+    """Distribution names of the built-in backends' engines (whose versions a run records): each requirement's name
+    (``'pin>=3.0'`` -> ``pin``; an install command's last ``pip install`` package). The requirements carried their
+    pins from 27 Nov, and run.json's versions lost every engine until 28 Nov."""
+    return list(dict.fromkeys(_distribution(package) for _, _, package in BUILTIN.values()))
+
+
+def _distribution(requirement: str) -> str:
+    """The distribution a pip requirement or an install command names: ``'drake>=1.51,<2'`` -> ``drake``,
+    ``apt-get install -y libode8 && pip install ode-python`` -> ``ode-python``."""
+    spec = requirement.rsplit("pip install ", 1)[-1].strip().strip("'\"")
+    return re.split(r"[<>=!~\[;,\s]", spec, maxsplit=1)[0]
 
 
 def module_of(name: str) -> str | None:
