@@ -733,12 +733,16 @@ def format_table(report: CheckReport, all_rows: bool = False) -> str:
 
 
 def _verdict(report: CheckReport) -> str:
-    n = sum(r.metric != "status" for r in report.rows)
+    """The one-line verdict: how many metrics had a baseline to be checked against (a new one, not in the baseline,
+    passes unchecked and is counted apart), and the regressions."""
+    metrics = [r for r in report.rows if r.metric != "status"]
+    new = sum(r.status == "new" for r in metrics)
+    n = f"{len(metrics) - new} metrics checked" + (f" ({new} new, not in the baseline)" if new else "")
     reg = report.regressions
     if not reg:
-        return f"PASS: {n} metrics checked against {report.baseline}, no regression"
+        return f"PASS: {n} against {report.baseline}, no regression"
     named = "; ".join(r.message for r in reg[:10]) + ("; ..." if len(reg) > 10 else "")
-    return f"FAIL: {len(reg)} regression(s) of {n} metrics checked against {report.baseline}: {named}"
+    return f"FAIL: {len(reg)} regression(s) of {n} against {report.baseline}: {named}"
 
 
 def write_markdown(report: CheckReport, path: str | Path) -> Path:

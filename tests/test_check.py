@@ -383,6 +383,21 @@ def test_a_missing_scenario_fails_and_a_new_one_does_not(baseline: Path, tmp_pat
     assert any(r.scenario == "third" and r.status == "new" for r in report.rows)
 
 
+def test_the_verdict_counts_new_metrics_apart_from_those_checked(baseline: Path, tmp_path: Path) -> None:
+    """A backend c the baseline lacks: its metrics pass as 'new', unchecked, and the verdict counts them apart
+    ("2232 metrics checked" counted them as checked): the checked count is the baseline's, unchanged."""
+    new = tree(tmp_path / "new")
+    write_run(new / "fake", {"ref": None, "a": scale(1.02), "b": offset(0.01), "c": scale(1.03)})
+    report = K.check(new, baseline)
+    added = [r for r in report.rows if r.backend == "c" and r.metric != "status"]
+    assert added and all(r.status == "new" for r in added)
+    same = K.check(tree(tmp_path / "same"), baseline)
+    checked = sum(r.metric != "status" for r in same.rows)
+    assert K.format_table(report).splitlines()[-1] == (
+        f"PASS: {checked} metrics checked ({len(added)} new, not in the baseline) against {baseline}, no regression"
+    )
+
+
 def test_absolute_ceiling_on_sim_error(baseline: Path, tmp_path: Path) -> None:
     """max_sim_error_pct {tau: 1.5}: a's unchanged 2 % torque error is OVER LIMIT; the scenario names it."""
     new = tree(tmp_path / "new", tolerances={"max_sim_error_pct": {"tau": 1.5}})
