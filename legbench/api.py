@@ -616,11 +616,11 @@ def run_scenario(
     if out_path is not None:  # as the command line's --out: a regular file is one error, not NotADirectoryError
         check_out_path(out_path, "out", run_dir_ok=True)
     root = out_path if out_path is not None else Path(tempfile.mkdtemp(prefix=f"legbench-{sc.name}-"))
-    if contact_mode == "both":
-        plan = [(sc, m, out_dir_for(root, sc, m)) for m in ("native", "reference")]
+    if contact_mode == "both":  # each mode in the scenario it records (scenario.in_contact_mode), as the CLI's
+        plan = [(scenario_mod.in_contact_mode(sc, m), m, out_dir_for(root, sc, m)) for m in ("native", "reference")]
         run_mod.check_tree(root, [d.name for *_, d in plan], "out")
     else:
-        plan = [(sc, contact_mode or sc.contact_mode, root)]
+        plan = [(scenario_mod.in_contact_mode(sc, contact_mode), contact_mode or sc.contact_mode, root)]
     # as the command line: another scenario's run or a foreign folder is refused outright, a finished run of this
     # one is replaced only when asked
     run_mod.check_outs(plan, force, "choose another out", "force=True", "out", backends=names)

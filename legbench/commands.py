@@ -208,10 +208,14 @@ def _run(args: argparse.Namespace) -> int:
         profiles = list(PROFILES) if args.profile == "both" else [args.profile or sc.profile]
         variants = args.variant or [(prof, mode) for prof in profiles for mode in modes]
         loaded = {sc.profile: sc}
-        for prof, mode in variants:  # a profile other than the file's is an override, so it is in the scenario's hash
+        for prof, mode in variants:  # a profile or mode other than the file's is an override: in the scenario's hash
             if prof not in loaded:
                 loaded[prof] = scenario.load(path, {**overrides, "profile": prof}, engines=names)
-            runs.append((loaded[prof], mode))
+            base = loaded[prof]
+            if mode is not None and mode != base.contact_mode:  # checked as if the file gave it, then recorded so
+                given = f"--variant {prof}:{mode}" if args.variant else f"--contact-mode {args.contact_mode}"
+                scenario.check_contact_mode(base, names, mode, given)
+            runs.append((scenario.in_contact_mode(base, mode), mode))
     single = len(runs) == 1
     root = Path(args.out) if args.out else Path("results") / "latest"
     plan = [(sc, mode, root if (single and args.out) else results.out_dir_for(root, sc, mode)) for sc, mode in runs]
@@ -222,10 +226,6 @@ def _run(args: argparse.Namespace) -> int:
         out for sc, mode, out in plan if results.comparison_pending(sc, out, mode, names, csv=args.csv)}  # fmt: skip
     _check_plan(plan, names, args, pending)
     plan_run = [p for p in plan if p[2] not in pending]
-    for sc, mode in runs:  # a mode the file does not give, checked as if it did (with or without the pre-flight)
-        if mode is not None and mode != sc.contact_mode:
-            given = f"--variant {sc.profile}:{mode}" if args.variant else f"--contact-mode {args.contact_mode}"
-            scenario.check_contact_mode(sc, names, mode, given)
     # the workers (no more than the runs) import the engines while the pre-flight runs here (one run needs none)
     n_runs = len(plan_run) * len(names)
     pool = run.start_pool(args.jobs, tasks=n_runs, backend_names=names) if n_runs > 1 else None

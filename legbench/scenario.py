@@ -1160,6 +1160,19 @@ def shorten_each(scs: Sequence[Scenario], duration: float, option: str = "--dura
     return [shorten(sc, duration, option) for sc in scs]
 
 
+def in_contact_mode(sc: Scenario, contact_mode: str | None) -> Scenario:
+    """The scenario as run in ``contact_mode`` (None or its own: itself): its document with
+    ``physics.contact_mode`` set, so the mode a run was asked for is in the scenario run.json records (``raw``) and in
+    its hash, as a profile given on the command line is. Re-running a reference-mode run's recorded scenario ran it
+    natively, and ``effort`` and ``effort__reference`` had one hash. Check the mode first
+    (:func:`check_contact_mode`): this does not."""
+    if contact_mode is None or contact_mode == sc.contact_mode:
+        return sc
+    doc = dict(sc.raw)
+    doc["physics"] = {**dict(doc.get("physics") or {}), "contact_mode": contact_mode}
+    return parse(doc, sc.file)
+
+
 def physics_of(scenario: Scenario, contact_mode: str | None = None) -> Physics:
     """Physics every backend gets for this scenario (``contact_mode`` overrides the scenario's)."""
     lim = load_params().effort

@@ -1098,3 +1098,29 @@ def test_a_model_command_refuses_a_number_no_pose_has(argv: list[str], capsys: p
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip()
     assert "is beyond +-1e+12, more than any physical value here (limit float_abs)" in err and "\n" not in err
+
+
+def test_a_run_in_a_contact_mode_the_file_does_not_give_records_it_in_its_scenario(tmp_path: Path) -> None:
+    """`--contact-mode both`: the reference run's recorded scenario (run.json's raw, and its hash) says reference, as
+    a profile given on the command line is recorded; re-run from that document alone it runs in reference mode
+    again, bit for bit (a provenance review: re-running it ran natively, and the two runs shared one hash)."""
+    import hashlib
+
+    argv = ["run", str(SCENARIOS / "effort.yaml"), "--backends", "pinocchio,mujoco", "--contact-mode", "both",
+            "--set", "duration=0.05", "--set", "comparison.steady_window=0.02", "-q", "--no-compare",
+            "--no-preflight"]  # fmt: skip
+    assert cli.main([*argv, "--out", str(tmp_path / "a")]) == 0
+    native, ref = (json.loads((tmp_path / "a" / d / "run.json").read_text())["scenario"]
+                   for d in ("effort", "effort__reference"))  # fmt: skip
+    assert ref["raw"]["physics"]["contact_mode"] == "reference" and ref["contact_mode"] == "reference"
+    assert "contact_mode" not in native["raw"].get("physics", {}) and native["sha256"] != ref["sha256"]
+    again = tmp_path / "again.yaml"
+    again.write_text(yaml.safe_dump(ref["raw"]))
+    rerun_argv = ["run", str(again), "--backends", "pinocchio,mujoco", "-q", "--no-compare", "--no-preflight"]
+    assert cli.main([*rerun_argv, "--out", str(tmp_path / "b")]) == 0
+    rerun = json.loads((tmp_path / "b" / "run.json").read_text())["scenario"]
+    assert rerun["contact_mode"] == "reference" and rerun["sha256"] == ref["sha256"]
+    for b in ("pinocchio", "mujoco"):
+        digests = {hashlib.sha256((d / f"{b}.parquet").read_bytes()).hexdigest()
+                   for d in (tmp_path / "a" / "effort__reference", tmp_path / "b")}  # fmt: skip
+        assert len(digests) == 1, b
