@@ -44,6 +44,34 @@ def test_ticks_are_exactly_on_the_control_grid_and_logged_once_each() -> None:
     assert len(be.steps) == 500  # the last row is logged, not stepped
 
 
+def test_the_tick_is_loaded_before_the_clock_on_scratch_copies(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The tick's compiled code loads on its first call (numba's cache, ~0.3 s once per process), which was charged
+    to the wall time of the first backend a process ran (a provenance review: Pinocchio's RTF 1.26 run first, 24.3
+    second). simulate makes that call before its clock, on a scratch log row and copies of the controller's arrays:
+    the clock starts after it, and the log is each tick's once (the seven backends' effort logs stayed equal to
+    the last bit with it, 28 Nov)."""
+    from legbench import tick
+
+    calls: list[tuple[int, tuple[int, ...], float]] = []
+    real = tick.tick
+    clock = [0.0]
+
+    def counting(k: int, *args: Any) -> int:
+        calls.append((k, args[-2].shape, clock[0]))
+        return int(real(k, *args))
+
+    def perf_counter() -> float:  # a clock that counts its reads: the tick calls made before each read
+        clock[0] += 1.0
+        return clock[0]
+
+    monkeypatch.setattr(tick, "tick", counting)
+    monkeypatch.setattr(run.time, "perf_counter", perf_counter)
+    tr, _ = _simulate(DOC)
+    assert calls[0][:2] == (0, (1, 12)) and calls[0][2] == 0.0  # the scratch call, before the clock's first read
+    assert [c[:2] for c in calls[1:]] == [(k, (501, 12)) for k in range(501)]  # then each tick once, on the log
+    assert len(tr.t) == 501
+
+
 def test_logged_torque_is_what_the_backend_received_and_state_follows_zoh() -> None:
     """Row k: q_{k+1} = q_k + qd_k T + tau_k T^2/(2I) exactly (fake double integrator)."""
     tr, be = _simulate(DOC)
