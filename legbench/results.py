@@ -29,9 +29,10 @@ import os
 import platform
 import re
 import shutil
+import subprocess
 from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, fields
-from functools import cached_property
+from functools import cache, cached_property
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -207,15 +208,46 @@ class RunResult:
 # Provenance
 
 
+#: The packages besides the engines whose versions decide a run's numbers or files: numba and llvmlite compile the
+#: tick and the kernels, pyarrow writes the logs, PyYAML reads the scenario.
+CORE_PACKAGES = ("legbench", "numpy", "scipy", "pandas", "numba", "llvmlite", "pyarrow", "PyYAML")
+
+
 def versions() -> dict[str, str]:
-    """Versions of legbench, Python and every engine package that imports."""
+    """Versions of legbench (with ``legbench_commit``, :func:`source_commit`, where it runs from a git checkout),
+    Python, :data:`CORE_PACKAGES` and every engine package that imports."""
     out = {"python": platform.python_version()}
-    for pkg in ("legbench", "numpy", "scipy", "pandas", *registry.engine_packages()):
+    for pkg in (*CORE_PACKAGES, *registry.engine_packages()):
         try:
             out[pkg] = metadata.version(pkg)
         except metadata.PackageNotFoundError:
             continue
+    commit = source_commit()
+    if commit:
+        out["legbench_commit"] = commit
     return out
+
+
+@cache
+def source_commit(root: Path | None = None) -> str:
+    """The git commit of the checkout legbench runs from (``root``: the package's parent directory), with
+    `` (uncommitted changes)`` where tracked files differ from it; "" outside a git checkout (an installed wheel:
+    its version says what it is) or without git. legbench's version alone said 0.1.0 over every commit, so a
+    result directory could not say which code made it. Read once per process."""
+    root = Path(__file__).resolve().parent.parent if root is None else root
+    if not (root / ".git").exists():
+        return ""
+    try:
+
+        def git(*args: str) -> str:
+            return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, timeout=30,
+                                  check=True).stdout.strip()  # fmt: skip
+
+        commit = git("rev-parse", "HEAD")
+        dirty = git("status", "--porcelain", "--untracked-files=no") != ""
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return commit + (" (uncommitted changes)" if dirty else "")
 
 
 def platform_info() -> dict[str, Any]:

@@ -496,3 +496,41 @@ def test_a_metrics_log_digest_is_64_hex_digits(tmp_path: Path, digits: int, refu
     with pytest.raises(ResultsError) as exc:
         results.read_metrics(d)
     assert str(exc.value) == f"{d}: logs: must be an object of log file name -> SHA-256 (64 hex digits)"
+
+
+def test_the_source_commit_names_the_checkout_and_its_uncommitted_changes(tmp_path: Path) -> None:
+    """run.json's versions carry ``legbench_commit`` where legbench runs from a git checkout (a provenance review:
+    its version said 0.1.0 over every commit): the checkout's HEAD, with " (uncommitted changes)" once a tracked
+    file differs from it (an untracked one does not count); "" outside a checkout."""
+    import subprocess
+
+    assert results.source_commit(tmp_path) == ""
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", "-C", str(tmp_path), "-c", "user.name=t", "-c", "user.email=t@t", *args],
+                              capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
+
+    git("init", "-q")
+    (tmp_path / "a.txt").write_text("one\n")
+    git("add", "a.txt")
+    git("commit", "-q", "-m", "one")
+    head = git("rev-parse", "HEAD")
+    assert len(head) == 40
+    results.source_commit.cache_clear()
+    (tmp_path / "untracked.txt").write_text("x\n")
+    assert results.source_commit(tmp_path) == head
+    results.source_commit.cache_clear()
+    (tmp_path / "a.txt").write_text("two\n")
+    assert results.source_commit(tmp_path) == f"{head} (uncommitted changes)"
+    results.source_commit.cache_clear()
+    recorded = results.versions()  # this checkout's, where the tests run from one
+    checkout = Path(results.__file__).resolve().parent.parent
+    if (checkout / ".git").exists():
+        assert (
+            recorded["legbench_commit"].split()[0]
+            == subprocess.run(
+                ["git", "-C", str(checkout), "rev-parse", "HEAD"], capture_output=True, text=True, check=True
+            ).stdout.strip()
+        )
+    else:
+        assert "legbench_commit" not in recorded
