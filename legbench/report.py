@@ -1001,15 +1001,46 @@ def _residual_table(result: ComparisonResult) -> Table:
     )
 
 
+def _event_text(e: Any) -> str:
+    """One event of run.json's scenario in a few words: its controller and time, its delay, and what it holds (a
+    force [N], a joint target [rad], a Cartesian target [m]), as the file gave it."""
+    if not isinstance(e, Mapping):
+        return str(e)
+    ctrl = str(e.get("controller", "?"))
+    body = e.get(ctrl)
+    what = ""
+    if isinstance(body, Mapping):
+        what = ", ".join(f"{k} {v}" for k, v in body.items() if not isinstance(v, Mapping | list) or len(str(v)) < 60)
+    delay = f" (+{num(e['delay'])} s delay)" if e.get("delay") else ""
+    return f"{ctrl} @ {num(e.get('t', math.nan))} s{delay}" + (f": {what}" if what else "")
+
+
 def _scenario_table(result: ComparisonResult) -> Table:
     run = result.run
     sc = run.meta.get("scenario", {})
     contact = sc.get("contact") or {}
+    gains = sc.get("gains") or {}
+    initial = sc.get("initial") or {}
     rows = [
-        ("scenario file", f"{sc.get('file', '')} (sha256 {str(sc.get('sha256', ''))[:12]})"),
+        ("scenario file", str(sc.get("file", ""))),
+        (
+            "scenario as run, sha256",
+            f"{str(sc.get('sha256', ''))[:12]} (run.json's scenario.raw: the file with its "
+            "overrides, a command-line profile or contact mode included)",
+        ),
         ("profile", run.profile),
         ("duration [s]", num(run.duration)),
         ("control rate [Hz]", num(sc.get("control_rate", math.nan))),
+        *(
+            (f"gains {k} [{u}]", ", ".join(num(x) for x in gains[k]))
+            for k, u in (("Kp", "N m/rad"), ("Kd", "N m s/rad"), ("Ki", "N m/(rad s)"))
+            if isinstance(gains.get(k), list)
+        ),
+        *(
+            (f"initial {k} [{u}]", ", ".join(num(x) for x in initial[k]))
+            for k, u in (("q", "rad"), ("qd", "rad/s"))
+            if isinstance(initial.get(k), list)
+        ),
         ("contact mode", run.contact_mode),
         *(
             (
@@ -1021,8 +1052,16 @@ def _scenario_table(result: ComparisonResult) -> Table:
         ("reference", result.reference),
         ("skip [s]", num(run.skip)),
         ("steady window [s]", num(run.steady_window)),
-        ("events", ", ".join(f"{e.controller} @ {num(e.t)} s" for e in run.events)),
-        ("legbench version", str(run.meta.get("legbench_version", ""))),
+        (
+            "events",
+            "; ".join(_event_text(e) for e in sc.get("events") or ())
+            or ", ".join(f"{e.controller} @ {num(e.t)} s" for e in run.events),
+        ),
+        (
+            "legbench version",
+            str(run.meta.get("legbench_version", ""))
+            + (f", commit {commit}" if (commit := (run.meta.get("versions") or {}).get("legbench_commit")) else ""),
+        ),
         *((f"platform {k}", v) for k, v in _flat(run.meta.get("platform") or {}).items() if v not in ("", None)),
     ]
     return Table(("item", "value"), tuple(rows), "Scenario")

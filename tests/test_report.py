@@ -1778,3 +1778,22 @@ def test_a_number_equal_to_its_bound_keeps_its_four_digits() -> None:
     against 0.01, reads "0.01" at any number of digits."""
     assert num_apart(1 / 3, (1 / 3,)) == "0.3333"
     assert num_apart(2 / 3, (100.04, 2 / 3)) == "0.6667"
+
+
+def test_the_scenario_table_shows_the_scenario_as_run_with_its_overrides(tmp_path: Path) -> None:
+    """A run with `--set gains.Kp=20` and the push's force set to -50 N: the run page's Scenario table gives the
+    gains, the initial state and each event's force as run (a provenance review: it showed the file's -100 N and
+    no gains), and names the hash as the scenario's as run, not the file's."""
+    out = tmp_path / "r"
+    argv = ["run", str(SCENARIOS / "effort.yaml"), "--backends", "pinocchio", "--out", str(out), "-q",
+            "--no-preflight", "--set", "duration=0.05", "--set", "comparison.steady_window=0.02", "--set",
+            "gains.Kp=20", "--set", "events.0.effort.force=[0, 0, -50]"]  # fmt: skip
+    assert cli.main(argv) == 0
+    rows = dict(line.strip("|").split("|")[:2] for line in (out / "report.md").read_text().splitlines()
+                if line.startswith("| ") and line.count("|") == 3)  # fmt: skip
+    rows = {k.strip(): v.strip() for k, v in rows.items()}
+    assert rows["gains Kp [N m/rad]"] == "20, 20, 20" and rows["gains Kd [N m s/rad]"] == "1, 1, 1"
+    assert rows["events"] == "effort @ 0 s: force [0, 0, -50]"
+    assert rows["initial q [rad]"] == "-0.0025, -1.19, -1.26"
+    sha = json.loads((out / "run.json").read_text())["scenario"]["sha256"]
+    assert rows["scenario as run, sha256"].startswith(f"{sha[:12]} (run.json's scenario.raw")
