@@ -568,7 +568,8 @@ def _label(meta: Mapping[str, Any] | None, doc: Mapping[str, Any], key: str) -> 
 def _same_inputs(b: Mapping[str, Any] | None, n: Mapping[str, Any] | None, bdir: Path, ndir: Path) -> None:
     """Refuse a baseline made from another task than the new run: its scenario's physics, controllers or
     comparison (:data:`TASK_KEYS` of run.json's ``scenario``, with any ``--set``) or its leg model (run.json's
-    ``urdf``, named by the parameter file's digest where it is not the bundled leg). Its metrics would move as the
+    ``leg`` digest where both have one, else its ``urdf``, named by the parameter file's digest where it is not the
+    bundled leg). Its metrics would move as the
     task did, and pass or fail as regressions of the engines: a gains change of 20 % passed, a shank 10 % heavier
     passed. A backend's settings may differ (what the check measures). Either side without the key (an older
     run.json) is not compared; ``b``, ``n``: the two run.json (:func:`_run_json`)."""
@@ -577,7 +578,12 @@ def _same_inputs(b: Mapping[str, Any] | None, n: Mapping[str, Any] | None, bdir:
     bt, nt = _task_of(b.get("scenario") or {}), _task_of(n.get("scenario") or {})
     diffs = [_first_difference(bt[k], nt[k], k) for k in sorted(bt.keys() & nt.keys()) if bt[k] != nt[k]]
     diffs = [(f"the scenario's {where}", old, new) for where, old, new in diffs]
-    if b.get("urdf") and n.get("urdf") and b["urdf"] != n["urdf"]:
+    bleg, nleg = (r.get("leg") or {} for r in (b, n))
+    if bleg.get("digest") and nleg.get("digest"):  # the parameters' digest: a byte copy under another name is the leg
+        if bleg["digest"] != nleg["digest"]:
+            diffs.append(("the leg model (its parameters' digest)", f"{bleg['digest']} ({bleg.get('parameters')})",
+                          f"{nleg['digest']} ({nleg.get('parameters')})"))  # fmt: skip
+    elif b.get("urdf") and n.get("urdf") and b["urdf"] != n["urdf"]:
         diffs.append(("the leg model (urdf)", b["urdf"], n["urdf"]))
     if diffs:
         what, old, new = diffs[0]

@@ -228,6 +228,15 @@ def versions() -> dict[str, str]:
     return out
 
 
+def leg_model() -> dict[str, str]:
+    """The leg parameter file active now, as outputs name it (:func:`~legbench.resources.shown`), and its digest
+    (:func:`~legbench.resources.param_digest`, the stamp of its URDF): run.json recorded only the URDF's name, which is
+    ``leg.urdf`` for the bundled leg whatever its numbers (the leg file changed five times) and another name for a
+    byte copy of it; ``legbench check`` compares the digests where both runs have them."""
+    params = resources.model_file()
+    return {"parameters": resources.shown(params), "digest": resources.param_digest(params)}
+
+
 @cache
 def source_commit(root: Path | None = None) -> str:
     """The git commit of the checkout legbench runs from (``root``: the package's parent directory), with
@@ -848,6 +857,7 @@ def write_run(scenario: Scenario, results: Sequence[RunResult], out_dir: Path, c
             "platform": platform_info(),
             "legbench_version": vers.get("legbench", "unknown"),
             "urdf": resources.urdf_name(),  # the model active now (--model selects it after import)
+            "leg": leg_model(),
         }
         write_json(meta, tmp / "run.json")
     return out_dir

@@ -449,6 +449,19 @@ def test_a_baseline_of_another_task_is_refused_naming_what_differs(baseline: Pat
         assert K.check(new, base).passed, ok
     _edit_meta(same / "fake", lambda m: m.update(urdf="leg.urdf"))
     assert K.check(same, base).passed
+    # run.json's leg digest, where both have one, decides: a byte copy of the leg under another name (another URDF
+    # name) is the same leg (a provenance review: it was refused), another digest is another leg
+    leg = {"parameters": "models/leg.yaml", "digest": "0123456789abcdef"}
+    _edit_meta(base / "fake", lambda m: m.update(leg=leg))
+    copy = tree(tmp_path / "copy")
+    _edit_meta(
+        copy / "fake", lambda m: m.update(urdf="mine-0123456789abcdef.urdf", leg={**leg, "parameters": "mine.yaml"})
+    )
+    assert K.check(copy, base).passed
+    heavier = tree(tmp_path / "heavier")
+    _edit_meta(heavier / "fake", lambda m: m.update(urdf="leg.urdf", leg={**leg, "digest": "fedcba9876543210"}))
+    with pytest.raises(ResultsError, match=r"the leg model \(its parameters' digest\) is fedcba9876543210 \(models"):
+        K.check(heavier, base)
     older = tree(tmp_path / "older")  # a run.json without comparison (older): that key is not compared
     _edit_meta(older / "fake", lambda m: m["scenario"].pop("comparison"))
     assert K.check(same, older).passed
