@@ -1062,6 +1062,7 @@ def _scenario_table(result: ComparisonResult) -> Table:
             str(run.meta.get("legbench_version", ""))
             + (f", commit {commit}" if (commit := (run.meta.get("versions") or {}).get("legbench_commit")) else ""),
         ),
+        *((("written (UTC)", str(run.meta["written"])),) if run.meta.get("written") else ()),
         *((f"platform {k}", v) for k, v in _flat(run.meta.get("platform") or {}).items() if v not in ("", None)),
     ]
     return Table(("item", "value"), tuple(rows), "Scenario")

@@ -21,6 +21,7 @@ file and the problem on a missing, malformed or foreign directory.
 from __future__ import annotations
 
 import contextlib
+import datetime
 import hashlib
 import json
 import logging
@@ -260,9 +261,16 @@ def source_commit(root: Path | None = None) -> str:
 
 
 def platform_info() -> dict[str, Any]:
-    """The machine: system, architecture, processor, CPU count and host name."""
+    """The machine: system, architecture, processor, its CPU model (Linux's /proc/cpuinfo; ``processor``, which is
+    empty on Linux, elsewhere), CPU count and host name."""
+    cpu = platform.processor()
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
     return {"system": platform.system(), "machine": platform.machine(), "processor": platform.processor(),
-            "cpus": os.cpu_count(), "node": platform.node()}  # fmt: skip
+            "cpu_model": cpu, "cpus": os.cpu_count(), "node": platform.node()}  # fmt: skip
 
 
 def json_default(o: Any) -> Any:
@@ -855,6 +863,7 @@ def write_run(scenario: Scenario, results: Sequence[RunResult], out_dir: Path, c
             "backends": meta_backends,
             "versions": vers,
             "platform": platform_info(),
+            "written": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),  # UTC
             "legbench_version": vers.get("legbench", "unknown"),
             "urdf": resources.urdf_name(),  # the model active now (--model selects it after import)
             "leg": leg_model(),

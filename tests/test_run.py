@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 from fakes import FakeBackend, install_crashing_engine
 
-from legbench import backends, kinematics, results, run, scenario, signals
+from legbench import backends, kinematics, resources, results, run, scenario, signals
 from legbench.exceptions import LegbenchError
 from legbench.model import load_params
 
@@ -108,6 +108,16 @@ def test_outputs_parquet_csv_and_run_json(tmp_path: Path, monkeypatch: pytest.Mo
     assert meta["scenario"]["name"] == "fake"
     assert meta["backends"]["fake"]["status"] == "ok"
     assert "numpy" in meta["versions"]
+    # provenance (a review): when it was written, in UTC; the leg file and its digest; the CPU model where Linux
+    # says it (/proc/cpuinfo's model name: platform.processor() is empty there)
+    import datetime
+
+    assert datetime.datetime.fromisoformat(meta["written"]).utcoffset() == datetime.timedelta(0)
+    assert meta["leg"]["digest"] == resources.param_digest(resources.model_file())
+    cpuinfo = Path("/proc/cpuinfo")
+    if cpuinfo.is_file():
+        model = next(x.split(":", 1)[1].strip() for x in cpuinfo.read_text().splitlines() if x.startswith("model name"))
+        assert meta["platform"]["cpu_model"] == model
     assert not list(tmp_path.glob(".*tmp*"))  # no half-written temp dir left behind
 
 

@@ -758,20 +758,12 @@ def run_bench(
 
 
 def machine() -> dict[str, Any]:
-    """The machine: platform, CPU model and count, Python build."""
-    cpu = platform.processor()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    """The machine: platform with its CPU model (:func:`~legbench.results.platform_info`), usable CPUs, load, Python
+    build."""
     aff = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     load = os.getloadavg() if hasattr(os, "getloadavg") else None
     return {
         **platform_info(),
-        "cpu_model": cpu,
         "cpus_usable": aff,
         "load_average": list(load) if load else None,
         "python_build": " ".join(platform.python_build()),
