@@ -168,6 +168,8 @@ def test_reproduce_writes_the_tables_and_ordinary_run_directories(repro: tuple[P
     # strict JSON: an n/a cell is null (a bare NaN token is no JSON value)
     doc = json.loads((out / "reproduce.json").read_text(), parse_constant=lambda c: pytest.fail(f"{c} in JSON"))
     assert any(v is None for t in doc["tables"].values() for r in t["rows"] for v in r)
+    # what made it (a provenance review: no versions, and nothing said the tasks were cut to 0.2 s)
+    assert doc["duration"] == 0.2 and doc["versions"] == results.versions() and doc["platform"]["cpus"] >= 1
     assert "lab report, table 10: Gazebo (ODE, Coulomb friction)" in md
     meta = results.read_meta(out / "effort")
     assert meta["backends"]["pinocchio"]["info"]["profile"] == "matched"

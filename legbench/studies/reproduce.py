@@ -521,7 +521,11 @@ def reproduce(
         "framework_file": plan.file,
         "frameworks": [fw.__dict__ for fw in plan.frameworks],
         "backends": list(names),
-        "runs": {r.name: str(r.path) for r in runs},
+        "duration": duration,  # [s] each task cut to it (--duration), None: whole
+        "overrides": dict(overrides or {}),  # --set, in every task
+        "runs": {r.name: str(r.path) for r in runs},  # each run's run.json: its scenario as run, versions, platform
+        "versions": results.versions(),
+        "platform": results.platform_info(),
         "tables": {  # n/a as null: strict JSON (a NaN token is no JSON value)
             t.key: {"title": t.title, "header": list(t.header), "rows": [[_json_cell(v) for v in r] for r in t.rows]}
             for t in tabs
