@@ -705,3 +705,16 @@ def test_a_full_run_measured_faster_than_its_replay_never_shows_a_negative_overh
     if verdict in ("within noise", "faster"):  # faster: no harness cost at all, said so beside the ratio's (faster)
         assert harness == {"within noise": "within noise", "faster": "none (faster)"}[verdict]
     assert _ratios(row)["full / replay"]["verdict"] == verdict and line["full / replay"] == cell
+
+
+def test_the_recorded_command_keeps_the_global_options_and_their_quoting(monkeypatch: pytest.MonkeyPatch) -> None:
+    """bench.json's command is the command line as run (a provenance review: a global option before 'bench', such as
+    --model, shrank it to "legbench bench"), quoted as a shell needs; from the API, "legbench bench"."""
+    import sys
+
+    from legbench.studies import bench
+
+    monkeypatch.setattr(sys, "argv", ["legbench", "--model", "my leg.yaml", "bench", "--repeats", "1"])
+    assert bench._command() == "legbench --model 'my leg.yaml' bench --repeats 1"
+    monkeypatch.setattr(sys, "argv", ["script.py"])
+    assert bench._command() == "legbench bench"

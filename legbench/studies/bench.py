@@ -64,6 +64,7 @@ import multiprocessing
 import os
 import platform
 import resource
+import shlex
 import sys
 import time
 import tracemalloc
@@ -757,6 +758,12 @@ def run_bench(
 # Output
 
 
+def _command() -> str:
+    """The command line that ran the bench, its global options (``--model``) included and quoted as a shell would
+    need; "legbench bench" where it did not come from the command line (the API)."""
+    return shlex.join(["legbench", *sys.argv[1:]]) if "bench" in sys.argv[1:] else "legbench bench"
+
+
 def machine() -> dict[str, Any]:
     """The machine: platform with its CPU model (:func:`~legbench.results.platform_info`), usable CPUs, load, Python
     build."""
@@ -1048,7 +1055,7 @@ def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[typ
 
 def _meta(settings: Mapping[str, Any]) -> dict[str, Any]:
     return {
-        "command": " ".join(["legbench", "bench", *sys.argv[2:]]) if sys.argv[1:2] == ["bench"] else "legbench bench",
+        "command": _command(),
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "settings": dict(settings),
         "versions": versions(),
@@ -1128,7 +1135,7 @@ def _cli(args: argparse.Namespace) -> int:
     met = targets_met(results)
     counts = target_counts(results)
     meta = {
-        "command": " ".join(["legbench", "bench", *sys.argv[2:]]) if sys.argv[1:2] == ["bench"] else "legbench bench",
+        "command": _command(),
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "settings": settings,
         "targets_met": met,
