@@ -186,6 +186,8 @@ class CheckReport:
         rows: every metric and status checked.
         traces: bit-for-bit comparisons of time series.
         tolerance_sources: scenario -> where its tolerances came from.
+        versions: the packages whose versions differ between the two sides' run.json (``numpy 2.4.6 -> 2.5.0``),
+            what a moved metric may come from; empty where they agree or a side records none. Not a failure.
     """
 
     new: Path
@@ -193,6 +195,7 @@ class CheckReport:
     rows: tuple[CheckRow, ...]
     traces: tuple[TraceCheck, ...]
     tolerance_sources: Mapping[str, str]
+    versions: tuple[str, ...] = ()
 
     @property
     def regressions(self) -> tuple[CheckRow, ...]:
@@ -593,6 +596,21 @@ def _same_inputs(b: Mapping[str, Any] | None, n: Mapping[str, Any] | None, bdir:
                                       "(make baseline) or choose the matching --baseline")  # fmt: skip
 
 
+def _version_changes(b: Mapping[str, Any] | None, n: Mapping[str, Any] | None) -> list[str]:
+    """The packages whose versions differ between two run.json (``mujoco 4.0.0 -> 4.1.0``; legbench's commit to 12
+    digits), each side's ``versions``; none where either records none."""
+    bv, nv = ((r or {}).get("versions") or {} for r in (b, n))
+    if not bv or not nv:
+        return []
+    out = []
+    for k in (*bv, *(k for k in nv if k not in bv)):
+        old, new = str(bv.get(k, "none")), str(nv.get(k, "none"))
+        if old != new:
+            short = (lambda v: v[:12] + v[40:]) if k == "legbench_commit" else (lambda v: v)
+            out.append(f"{k} {short(old)} -> {short(new)}")
+    return out
+
+
 def _short(v: Any) -> str:
     text = json.dumps(v, sort_keys=True, default=str) if not isinstance(v, str) else v
     return text if len(text) <= 80 else text[:77] + "..."
@@ -626,6 +644,7 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
     rows: list[CheckRow] = []
     traces: list[TraceCheck] = []
     sources: dict[str, str] = {}
+    changed: dict[str, None] = {}  # the version changes, in order, once each
     used: set[str] = set()  # scenario names and run labels checked, for the file's scenarios sections
     nan = math.nan
     for key, bdir in bd.items():
@@ -651,6 +670,8 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
             raise ResultsError(str(ndir), f"holds scenario {nname!r} but the baseline {bdir} holds {bname!r}: "
                                           "not the same scenario; choose the matching --baseline")  # fmt: skip
         _same_inputs(bjson, njson, bdir, ndir)
+        for change in _version_changes(bjson, njson):
+            changed.setdefault(change)
         sc = nname
         # the rows pair by the run's label: a baseline's metrics.json written before labels named the profile
         # (effort__engine-defaults labelled effort) is the same run
@@ -678,7 +699,7 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
     if unused:  # a typo, or a section for results not checked here, would otherwise be silently not applied
         raise ScenarioError(tfile, f"scenarios.{unused[0]}",
                             f"matches no scenario checked here; valid: {sorted(used)}")  # fmt: skip
-    return CheckReport(new, baseline, tuple(rows), tuple(traces), sources)
+    return CheckReport(new, baseline, tuple(rows), tuple(traces), sources, tuple(changed))
 
 
 # --------------------------------------------------------------------------- #
@@ -734,6 +755,8 @@ def format_table(report: CheckReport, all_rows: bool = False) -> str:
             f"time series against the baseline: {counts['identical']} identical, {counts['changed']} changed, "
             f"{counts['no baseline log']} without a baseline log"
         )
+    if report.versions:
+        lines.append(f"versions differ from the baseline's (not a failure): {'; '.join(report.versions)}")
     lines.append(_verdict(report))
     return "\n".join(lines)
 
@@ -777,6 +800,8 @@ def write_markdown(report: CheckReport, path: str | Path) -> Path:
         ]
         lines += [f"| {t.scenario} | {t.backend} | {t.status} | {t.detail} |" for t in report.traces]
         lines.append("")
+    if report.versions:
+        lines += ["## Versions that differ from the baseline's", ""] + [f"- {v}" for v in report.versions] + [""]
     lines += ["## Tolerances", ""] + [f"- {sc}: {src}" for sc, src in report.tolerance_sources.items()] + [""]
     atomic_write_text(path, "\n".join(lines))
     return path

@@ -932,3 +932,21 @@ def test_a_creep_ten_times_faster_is_a_regression(baseline: Path, tmp_path: Path
         new = _committed(baseline / "fake", tmp_path / name, {("b", "qd2", "steady_mean"): plant})
         row = _row(K.check(new, base), "b", "qd2", "steady_mean")
         assert row.allowed == pytest.approx(2.5e-8, rel=1e-9) and row.status == status, (name, row.message)
+
+
+def test_versions_that_differ_from_the_baseline_s_are_named_not_failed(baseline: Path, tmp_path: Path) -> None:
+    """A provenance review: the check passed silently against a baseline of other engine versions. The packages
+    whose versions differ are named (stdout and check.md), what a moved metric may come from; the check still
+    passes or fails on the metrics alone. Where a side records no versions, nothing is said."""
+    base = shutil.copytree(baseline, tmp_path / "base")
+    _edit_meta(base / "fake", lambda m: m.update(versions={"numpy": "2.4.6", "mujoco": "4.0.0"}))
+    new = tree(tmp_path / "new")
+    _edit_meta(new / "fake", lambda m: m.update(versions={"numpy": "2.4.6", "mujoco": "4.1.0", "pin": "4.1.0"}))
+    report = K.check(new, base)
+    assert report.passed and report.versions == ("mujoco 4.0.0 -> 4.1.0", "pin none -> 4.1.0")
+    assert "versions differ from the baseline's (not a failure): mujoco 4.0.0 -> 4.1.0; pin none -> 4.1.0" in (
+        K.format_table(report)
+    )
+    K.write_markdown(report, tmp_path / "check.md")
+    assert "- mujoco 4.0.0 -> 4.1.0" in (tmp_path / "check.md").read_text()
+    assert K.check(tree(tmp_path / "plain"), base).versions == ()
