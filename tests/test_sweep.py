@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from legbench import backends
+from legbench import backends, scenario
 from legbench.backends.base import Physics
 from legbench.exceptions import LegbenchError, ScenarioError
 from legbench.results import RunResult
@@ -90,6 +90,10 @@ def test_timestep_sweep_writes_table_fits_and_plots(timestep: sweep.SweepResult)
     pd.testing.assert_frame_equal(back, timestep.table, check_dtype=False)
     meta = json.loads((out / "sweep.json").read_text())
     assert meta["name"] == "timestep" and len(meta["fits"]) == len(timestep.fits)
+    # the base scenario as loaded, its document and hash (a provenance review: only its path was recorded); parsed
+    # back it is that scenario, hash for hash
+    base = scenario.parse(meta["scenario_raw"])
+    assert meta["scenario_sha256"] == base.sha256 == scenario.load(timestep.sweep.scenario).sha256
     runs = timestep.table[timestep.table["role"] == "run"]
     assert (runs["status"] == "ok").all()
     assert (runs["wall_per_sim_s"] > 0).all() and np.isfinite(runs["rtf"]).all()

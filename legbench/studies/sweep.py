@@ -158,6 +158,10 @@ class Sweep:
     short_horizon: float | None  # window [s]
     studies: tuple[Study, ...]
     raw: Mapping[str, Any] = field(default_factory=dict, hash=False, compare=False)
+    #: the base scenario as the sweep was loaded with it: its hash and document (sweep.json records both, so the
+    #: sweep can be repeated after the scenario file changed; the runs' own logs are not written)
+    base_sha256: str = ""
+    base_raw: Mapping[str, Any] = field(default_factory=dict, hash=False, compare=False)
 
 
 def _number(doc: YamlContext, path: list[str | int], v: Any, positive: bool = False) -> float:
@@ -281,7 +285,7 @@ def load_sweep(path: str | Path) -> Sweep:
         if window > duration:
             raise doc.error(["short_horizon", "window"], f"{window:g} s is longer than the runs ({duration:g} s)")
     return Sweep(name, description, str(path), scenario, common, mode, tuple(signals), skip, metric, fit, window,
-                 studies, raw)  # fmt: skip
+                 studies, raw, base_scenario.sha256, dict(base_scenario.raw))  # fmt: skip
 
 
 def _check_values(doc: YamlContext, scenario: Path, common: Mapping[str, Any], studies: Sequence[Study]) -> None:
@@ -1053,6 +1057,8 @@ def write_sweep(
             "description": sw.description,
             "file": sw.file,
             "scenario": resources.shown(sw.scenario),
+            "scenario_sha256": sw.base_sha256,  # the base scenario's document as loaded (its runs' overrides aside)
+            "scenario_raw": dict(sw.base_raw),
             "sweep": dict(sw.raw),
             "metric": sw.metric,
             "runs": int((result.table["role"] == "run").sum()),
