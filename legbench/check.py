@@ -106,6 +106,9 @@ DEFAULT_TOLERANCES: dict[str, Any] = dict(
 ONE_SIDED = ("sim_error_pct", "rms")
 #: Row statuses that fail the check.
 FAILING = ("REGRESSION", "MISSING", "FAILED", "OVER LIMIT")
+#: Statuses that pass without a baseline value to check against: a metric not in the baseline, an imported log only
+#: the baseline was compared with (JUnit: skipped).
+UNCHECKED = ("new", "unchecked")
 _KEYS = ["scenario", "backend", "reference", "signal", "joint", "metric"]
 
 
@@ -603,11 +606,12 @@ def _version_changes(b: Mapping[str, Any] | None, n: Mapping[str, Any] | None) -
     if not bv or not nv:
         return []
     out = []
-    for k in (*bv, *(k for k in nv if k not in bv)):
+    for k in dict.fromkeys([*bv, *nv]):
         old, new = str(bv.get(k, "none")), str(nv.get(k, "none"))
         if old != new:
-            short = (lambda v: v[:12] + v[40:]) if k == "legbench_commit" else (lambda v: v)
-            out.append(f"{k} {short(old)} -> {short(new)}")
+            if k == "legbench_commit":  # 12 of the 40 digits, and any " (uncommitted changes)"
+                old, new = old[:12] + old[40:], new[:12] + new[40:]
+            out.append(f"{k} {old} -> {new}")
     return out
 
 
@@ -707,7 +711,7 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
 
 
 def _moved(r: CheckRow) -> bool:
-    return r.failed or r.status in ("moved", "improved", "new", "unchecked")
+    return r.failed or r.status in ("moved", "improved", *UNCHECKED)
 
 
 def _table_rows(report: CheckReport, all_rows: bool) -> list[list[str]]:
@@ -816,7 +820,7 @@ def write_junit(report: CheckReport, path: str | Path) -> Path:
         by_sc.setdefault(r.scenario, []).append(r)
     for sc, rows in by_sc.items():
         fails = sum(r.failed for r in rows)
-        skipped = sum(r.status in ("new", "unchecked") for r in rows)
+        skipped = sum(r.status in UNCHECKED for r in rows)
         suite = ET.SubElement(
             suites, "testsuite", name=f"legbench.{sc}", tests=str(len(rows)), failures=str(fails), skipped=str(skipped)
         )
@@ -829,7 +833,7 @@ def write_junit(report: CheckReport, path: str | Path) -> Path:
             case = ET.SubElement(suite, "testcase", classname=f"legbench.{sc}.{r.backend}", name=name)
             if r.failed:
                 ET.SubElement(case, "failure", message=r.message, type=r.status).text = r.message
-            elif r.status in ("new", "unchecked"):
+            elif r.status in UNCHECKED:
                 ET.SubElement(case, "skipped", message=r.message)
     suites.set("tests", str(len(report.rows)))
     suites.set("failures", str(len(report.regressions)))

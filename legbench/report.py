@@ -1593,8 +1593,8 @@ def _series(entries: Sequence[_Entry]) -> tuple[list[_Entry], list[str]]:
         groups.setdefault((e.name, e.profile, e.mode), []).append(e)
     kept: set[str] = set()  # labels: unique in a tree
     for (name, profile, mode), group in groups.items():
-        own = {e.label for e in group if e.label == run_label(name, profile, mode)}
-        kept |= {group[0].label} if len(group) == 1 else own
+        own = run_label(name, profile, mode)
+        kept |= {e.label for e in group if len(group) == 1 or e.label == own}
     return [e for e in entries if e.label in kept], [e.label for e in entries if e.label not in kept]
 
 

@@ -46,7 +46,7 @@ from legbench.backends.base import PROFILES, contact_point
 from legbench.compare import first_contact
 from legbench.exceptions import BackendNotFound, LegbenchError, ScenarioError
 from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK
-from legbench.metrics import FRICTION_FLOOR, SLIDE_FLOOR, SteadyState, pair_metrics, steady_state
+from legbench.metrics import FRICTION_FLOOR, SLIDE_FLOOR, T_EPS, SteadyState, pair_metrics, steady_state
 from legbench.results import Run, load_run
 from legbench.scenario import Scenario
 from legbench.signals import SLICE
@@ -414,7 +414,7 @@ def switch_table(plan: Plan, run_: Run, names: Sequence[str]) -> Table:
             rows.append((label, why, "", "", ""))
             continue
         tr = run_.traces[n]
-        k = int(np.searchsorted(tr.t, switch - 1e-9)) if math.isfinite(switch) else len(tr.t)
+        k = int(np.searchsorted(tr.t, switch - T_EPS)) if math.isfinite(switch) else len(tr.t)
         touch = first_contact(tr)
         tau = tr.tau[k].tolist() if k < len(tr.t) else [math.nan] * 3
         rows.append((label, math.nan if touch is None else touch, *tau))

@@ -64,7 +64,7 @@ from legbench import progress, resources
 from legbench import scenario as scenario_mod
 from legbench.contact import CONTACT_MODES
 from legbench.exceptions import LegbenchError, ScenarioError
-from legbench.metrics import signal_errors
+from legbench.metrics import T_EPS, signal_errors
 from legbench.results import RunResult, atomic_dir, platform_info, versions
 from legbench.run import crashed, deferred_interrupts
 from legbench.scenario import NAME_RE
@@ -687,7 +687,7 @@ def _horizon_columns(h: HorizonResult | None, skip: float = 0.0) -> dict[str, fl
     """The short-horizon columns ``sh_<component>_max``: the largest peak deviation over the windows that start
     at or after ``skip`` [s] (the sweep's skip, as its other columns; every window is in the windows table)."""
     out: dict[str, float] = {}
-    kept = None if h is None else np.asarray(h.t0) >= skip - 1e-9
+    kept = None if h is None else np.asarray(h.t0) >= skip - T_EPS
     for s in horizon.SIGNALS:
         peak = None if h is None else np.asarray(h.peak[s])[kept]
         for j, c in enumerate(COMPONENTS[s]):
