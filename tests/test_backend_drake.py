@@ -441,15 +441,17 @@ def test_info_reports_the_spring_the_foot_rests_on(profile: str, pair: float) ->
 
 
 def test_reference_contact_reports_no_engine_friction_and_no_lift() -> None:
-    """Reference contact registers no ground (legbench applies the law): info() has no engine friction pair to
-    read back (None: the law's mu_s, mu_k apply) and the law's poc, lift 0. It failed there with a TypeError,
-    which failed every reference-mode Drake run."""
+    """Reference contact registers no ground (legbench applies the law): info() reads back no engine friction pair
+    (it failed there with a TypeError, which failed every reference-mode Drake run) and names the law's mu_s, mu_k,
+    its poc and lift 0."""
     backend = load("drake", Physics(contact_mode="reference"), {}, "matched")
     try:
         contact = backend.info()["contact"]
     finally:
         backend.close()
-    assert (contact["mu_static"], contact["mu_dynamic"], contact["poc"], contact["lift"]) == (None, None, "true", 0.0)
+    assert "mu_static" not in contact and "mu_dynamic" not in contact
+    law = Physics().contact
+    assert (contact["mu_s"], contact["mu_k"], contact["poc"], contact["lift"]) == (law.mu_s, law.mu_k, "true", 0.0)
 
 
 @pytest.mark.parametrize(

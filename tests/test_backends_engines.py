@@ -531,6 +531,36 @@ def test_only_the_foot_touches_the_ground(make: Make, engine: str, mode: str) ->
     assert pairs == (foot if mode == "native" else set())
 
 
+@pytest.mark.parametrize("engine", [e for e in ENGINES if e != "lagrange"])  # lagrange: no engine contact
+def test_reference_mode_info_names_the_law_not_the_engines_contact(make: Make, engine: str) -> None:
+    """Reference mode: run.json's contact is the law legbench applies (its poc, Kp, Kd, mu_s, mu_k, v_th, how it is
+    applied and read), none of the engine's own contact settings (off, they act on nothing: MuJoCo's pyramidal cone
+    was listed as 'diamond' on a run that applied the law's round cone), and no native friction shape; DART, rigid
+    natively, declares the law's stiffness, not 'rigid' (Kp null). Native mode keeps the engine's own."""
+    law = ContactParams(poc="centre", mu_k=0.5)
+    cone = {"cone": "pyramidal", "friction_solref": "contact"} if engine == "mujoco" else {}
+    reference = make(engine, Physics(contact=law, contact_mode="reference"), **cone).info()
+    contact = dict(reference["contact"])
+    assert contact.pop("reference_law").startswith("J_poc^T F")
+    assert contact == {
+        "enabled": False,
+        "poc": "centre",
+        "lift": 0.0,
+        "Kp": law.Kp,
+        "Kd": law.Kd,
+        "mu_s": law.mu_s,
+        "mu_k": 0.5,
+        "v_th": law.v_th,
+        "force_readout": "the law at the end state",
+    }
+    assert "friction_cone" not in reference
+    native = make(engine, Physics(contact=law), **cone).info()
+    assert native["contact"]["enabled"] is True and "reference_law" not in native["contact"]
+    assert len(native["contact"]) > 7  # the engine's own settings, as loaded
+    if engine == "mujoco":
+        assert native["friction_cone"] == "diamond"
+
+
 @pytest.mark.parametrize("engine", ENGINES)
 def test_instances_are_isolated_and_deterministic(make: Make, engine: str) -> None:
     """Two instances stepped in lockstep with different torques: each equals a solo run bit for bit."""

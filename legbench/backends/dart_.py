@@ -54,7 +54,16 @@ import dartpy as dart
 import numpy as np
 
 from legbench import kinematics
-from legbench.backends.base import Backend, Limits, Physics, check_finite, clamp_torque, held, sub_step_count
+from legbench.backends.base import (
+    Backend,
+    Limits,
+    Physics,
+    check_finite,
+    clamp_torque,
+    held,
+    reference_contact,
+    sub_step_count,
+)
 from legbench.contact import ReferenceContact
 from legbench.exceptions import LegbenchError
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine
@@ -404,7 +413,7 @@ class DartBackend(Backend):
         return {
             "engine": "dart",
             "version": metadata.version("dartpy"),
-            "friction_cone": friction_shape(self.cfg["lcp_solver"]),
+            **({} if self.reference else {"friction_cone": friction_shape(self.cfg["lcp_solver"])}),
             **(
                 {"friction_axes": friction_axes()}
                 if not self.reference and friction_shape(self.cfg["lcp_solver"]) == "pyramid"
@@ -416,9 +425,11 @@ class DartBackend(Backend):
             "integrator": "euler",  # World.step: semi-implicit Euler (the family verification predicts by)
             "gravity": -float(world.getGravity()[2]),
             "contact_mode": self.physics.contact_mode,
-            "contact": {
-                "enabled": not self.reference,
-                "poc": c.poc if self.reference else "true",  # rigid: the sphere's lowest point, on the ground
+            "contact": reference_contact(c, "J_poc^T F added to the joint forces per sub-step")
+            if self.reference
+            else {
+                "enabled": True,
+                "poc": "true",  # rigid: the sphere's lowest point, on the ground
                 "lift": 0.0,
                 "model": f"rigid (boxed LCP), Coulomb friction {friction_shape(self.cfg['lcp_solver'])}",
                 "lcp_solver": solver.getBoxedLcpSolver().getType(),
@@ -431,12 +442,9 @@ class DartBackend(Backend):
                 "Kp": None,
                 "Kd": None,
                 "Kp_Kd_note": "rigid contact: DART has no contact stiffness or damping; Kp, Kd do not apply",
-                "constraint_force_mixing": None if self.reference else DART_CFM,
-                "reference_law": "J_poc^T F added to the joint forces per sub-step" if self.reference else None,
+                "constraint_force_mixing": DART_CFM,
                 "force_readout": (
-                    "the law at the end state"
-                    if self.reference
-                    else "contact impulse over the control period / the period"
+                    "contact impulse over the control period / the period"
                     if self._period_mean
                     else "last sub-step's contact impulse / dt"
                 ),

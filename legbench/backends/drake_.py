@@ -131,6 +131,7 @@ from legbench.backends.base import (
     check_finite,
     clamp_torque,
     held,
+    reference_contact,
     sub_step_count,
 )
 from legbench.contact import ContactParams, ReferenceContact
@@ -614,10 +615,12 @@ class DrakeBackend(Backend):
             "scheme": self._integrator_name(),
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
-            "contact": {
-                "enabled": not self.reference,
-                "poc": c.poc if self.reference else "true",
-                "lift": 0.0 if self.reference else self._lift(),
+            "contact": reference_contact(c, "J_poc^T F via the applied generalized force port per sub-step")
+            if self.reference
+            else {
+                "enabled": True,
+                "poc": "true",
+                "lift": self._lift(),
                 "model": str(plant.get_contact_model()),
                 "discrete_contact_approximation": (
                     str(plant.get_discrete_contact_approximation()) if not self.continuous else None
@@ -629,14 +632,11 @@ class DrakeBackend(Backend):
                 # solvers slide with the dynamic one alone (matched sets it to mu_s)
                 **self._pair_friction(),
                 **self._pair_point_contact(),
-                "sap_sigma": SAP_SIGMA if self._sap_family() and not self.reference else None,
+                "sap_sigma": SAP_SIGMA if self._sap_family() else None,
                 "normal_law": "linear Kelvin-Voigt Kp (x + tau_d xdot)_+"
                 if self.cfg["solver"] == "sap"
                 else "Hunt-Crossley k x (1 + d xdot)_+",
                 "properties": self.contact_props,
-                "reference_law": "J_poc^T F via the applied generalized force port per sub-step"
-                if self.reference
-                else None,
             },  # fmt: skip
         }
         out["at_end"] = {"delassus_w": self._delassus_estimate()}  # the state the run ended in, not a setting

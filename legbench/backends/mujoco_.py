@@ -100,7 +100,7 @@ import mujoco
 import numpy as np
 
 from legbench import kinematics
-from legbench.backends.base import Backend, Limits, Physics, held, sub_step_count
+from legbench.backends.base import Backend, Limits, Physics, held, reference_contact, sub_step_count
 from legbench.contact import ReferenceContact, law_step_warnings
 from legbench.exceptions import LegbenchError, SimulationDiverged, Unreachable
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine, load_params
@@ -655,20 +655,22 @@ class MujocoBackend(Backend):
             # (sliding_case.diamond_friction; within about 15 deg of an axis: sliding_case.DIAMOND_AXIS_DEG);
             # with noslip (matched) |F_x| + |F_y| = 0.700 Fn at the end read,
             # |F_t| = 0.608 Fn, alternating at the edge (mean read 0.599 Fn): not sliding at the bound
-            "friction_cone": "cone" if self.cfg["cone"] == "elliptic" else "diamond",
+            **({} if self.reference else {"friction_cone": "cone" if self.cfg["cone"] == "elliptic" else "diamond"}),
             # the diamond's axes t1, t2 (W y, -W x), read back from a contact on the ground (_friction_axes)
             **({"friction_axes": self._axes} if self._axes is not None else {}),
             "sub_steps": self.n_sub,
             "timestep": float(m.opt.timestep),
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
-            "contact": {
+            "contact": reference_contact(c, "J_poc^T F via qfrc_applied per sub-step")
+            if self.reference
+            else {
                 "method": "explicit foot-ground pair, direct solref",
-                "enabled": not self.reference,
-                "poc": c.poc if self.reference else "true",
+                "enabled": True,
+                "poc": "true",
                 # MuJoCo places a contact halfway between the two surfaces (mjContact.pos): its force acts, and its
                 # slip is taken, y/2 above the sphere's lowest point
-                "lift": 0.0 if self.reference else 0.5,
+                "lift": 0.5,
                 "solref": m.pair_solref[0].tolist() if m.npair else None,
                 "solreffriction": m.pair_solreffriction[0].tolist() if m.npair else None,
                 "solimp": m.pair_solimp[0].tolist() if m.npair else None,
@@ -681,7 +683,6 @@ class MujocoBackend(Backend):
                 "impratio": float(m.opt.impratio),
                 "noslip_iterations": int(m.opt.noslip_iterations),
                 "force_readout": self.cfg["force_readout"],
-                "reference_law": "J_poc^T F via qfrc_applied per sub-step" if self.reference else None,
             },
             "joint_limits": {"solref": list(LIMIT_SOLREF), "solimp": list(LIMIT_SOLIMP)},
             "solver": {

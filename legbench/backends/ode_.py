@@ -75,7 +75,16 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from legbench.backends.base import Backend, Limits, Physics, Range, check_finite, clamp_torque, sub_step_count
+from legbench.backends.base import (
+    Backend,
+    Limits,
+    Physics,
+    Range,
+    check_finite,
+    clamp_torque,
+    reference_contact,
+    sub_step_count,
+)
 from legbench.contact import ReferenceContact
 from legbench.exceptions import LegbenchError
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine
@@ -584,10 +593,12 @@ class OdeBackend(Backend):
             },
             **({"friction_axes": friction_axes()} if self._collide_on else {}),
             "contact_mode": self.physics.contact_mode,
-            "contact": {
+            "contact": reference_contact(self.physics.contact, "J_poc^T F added to the hinge torques per sub-step")
+            if self.reference
+            else {
                 "enabled": self._collide_on,
                 # dCollideSpherePlane puts the contact at the sphere's lowest point (centre - R n)
-                "poc": self.physics.contact.poc if self.reference else "true",
+                "poc": "true",
                 "lift": 0.0,
                 "Kp": self.physics.contact.Kp,
                 "Kd": self.physics.contact.Kd,
@@ -599,7 +610,6 @@ class OdeBackend(Backend):
                 "mu2": self.contacts[0].surface.mu2,
                 "friction": "pyramid (dContactApprox1: bound mu x normal force per tangent direction)",
                 "force_reported": "dJointFeedback of the last sub-step",
-                "reference_law": "J_poc^T F added to the hinge torques per sub-step" if self.reference else None,
             },
         }
 

@@ -82,7 +82,16 @@ from typing import Any, ClassVar
 import numpy as np
 
 from legbench import kinematics
-from legbench.backends.base import Backend, Limits, Physics, check_finite, clamp_torque, held, sub_step_count
+from legbench.backends.base import (
+    Backend,
+    Limits,
+    Physics,
+    check_finite,
+    clamp_torque,
+    held,
+    reference_contact,
+    sub_step_count,
+)
 from legbench.contact import ReferenceContact, law_step_warnings
 from legbench.model import FOOT_FRAME, LINK_NAMES, Inertial, combine
 
@@ -548,10 +557,12 @@ class PybulletBackend(Backend):
             "step_calls_per_period": 1 if self.engine_sub else self.n_sub,
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
-            "contact": {
-                "enabled": not self.reference,
+            "contact": reference_contact(c, "J_poc^T F added to the torque per sub-step")
+            if self.reference
+            else {
+                "enabled": True,
                 # Bullet applies and reports the impulse at the foot's witness point, the sphere's lowest
-                "poc": c.poc if self.reference else "true",
+                "poc": "true",
                 "lift": 0.0,  # measured: the statics hold there to 1e-7 N (docs/metrics.md)
                 # the values the pair combines (getDynamicsInfo's -1, "unset", replaced by Bullet's own defaults)
                 "foot_stiffness": k_foot,
@@ -576,7 +587,6 @@ class PybulletBackend(Backend):
                 "solver_residual_threshold": PYBULLET_RESIDUAL_THRESHOLD,
                 "Kp": c.Kp,
                 "Kd": c.Kd,
-                "reference_law": "J_poc^T F added to the torque per sub-step" if self.reference else None,
             },
             "damping": {"linear": 0.0, "angular": 0.0, "joint": 0.0},
             "max_joint_velocity": MAX_JOINT_VELOCITY,
