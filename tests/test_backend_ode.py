@@ -10,6 +10,8 @@ from __future__ import annotations
 import ctypes
 import importlib.abc
 import importlib.util
+import re
+import shutil
 import sys
 from collections.abc import Iterator
 from typing import Any
@@ -409,3 +411,18 @@ def test_missing_libode_is_an_import_error_and_the_registry_names_the_install_co
     with pytest.raises(BackendNotFound, match=r"apt-get install -y libode8 && pip install ode-python"):
         registry.get("ode")
     assert OdeBackend.install == "apt-get install -y libode8 && pip install ode-python"
+
+
+def test_version_names_the_release_and_the_library_file_loaded() -> None:
+    """libode names no version of its own (its soname spans releases): the info's version is the release of the
+    system package owning the file this process loaded (dpkg), then that file; a file no package owns (a library
+    built from source) says so instead of guessing."""
+    version = ode_._ode_version()
+    path = ode_._loaded_library()
+    assert path is not None and "/libode.so" in path and f"; {path}; " in version
+    owner = ode_._package_release(path)
+    if shutil.which("dpkg-query") is not None:  # Debian, as make installs it
+        assert owner is not None and re.fullmatch(r"\d+\.\d+(\.\d+)?", owner[0]), owner
+        assert version.startswith(f"{owner[0]} ({owner[1]}; ")
+    assert ode_._package_release("/nonexistent/libode.so.8") is None
+    assert ode_._package_release(None) is None

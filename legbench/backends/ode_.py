@@ -66,7 +66,9 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import functools
 import math
+import subprocess
 import threading
 from collections.abc import Mapping
 from importlib import metadata
@@ -789,10 +791,44 @@ def _init_ode() -> None:
         _THREAD.ready = True
 
 
+@functools.cache
 def _ode_version() -> str:
-    """The ODE library file and its configuration string (precision etc.)."""
-    config = ctypes.cast(ode.dGetConfiguration(), ctypes.c_char_p).value or b""
-    return f"{ctypes.util.find_library('ode')} ({config.decode()})"
+    """ODE's release, the library file loaded and its configuration string (precision etc.). libode names no
+    version of its own (its soname, libode.so.8, spans releases), so the release is the one of the system package
+    that owns the loaded file, where the package manager knows it: "0.16.2 (Debian libode8 2:0.16.2-1;
+    /usr/lib/.../libode.so.8.0.2; ODE ... ODE_double_precision)"."""
+    config = (ctypes.cast(ode.dGetConfiguration(), ctypes.c_char_p).value or b"").decode()
+    path = _loaded_library()
+    release, package = _package_release(path) or ("release unknown", "no package owns it")
+    return f"{release} ({package}; {path or ctypes.util.find_library('ode')}; {config})"
+
+
+def _loaded_library() -> str | None:
+    """The path of the libode file this process loaded (Linux: /proc/self/maps), or None where it cannot be read."""
+    try:
+        with open("/proc/self/maps", encoding="utf-8") as maps:
+            paths = {line.split()[-1] for line in maps if "/libode.so" in line}
+    except OSError:
+        return None
+    return min(paths) if paths else None
+
+
+def _package_release(path: str | None) -> tuple[str, str] | None:
+    """The upstream release of the Debian package owning ``path`` and the package as dpkg names it ("0.16.2",
+    "Debian libode8 2:0.16.2-1"), or None without dpkg or an owner (a library built from source)."""
+    if path is None:
+        return None
+    try:
+        owner = subprocess.run(["dpkg-query", "-S", path], capture_output=True, text=True, timeout=30, check=True)
+        package = owner.stdout.split(": ", 1)[0].split(":", 1)[0].strip()
+        shown = subprocess.run(["dpkg-query", "-W", "-f=${Version}", package], capture_output=True, text=True,
+                               timeout=30, check=True).stdout.strip()  # fmt: skip
+    except (OSError, subprocess.SubprocessError):
+        return None
+    if not package or not shown:
+        return None
+    release = shown.split(":", 1)[-1].rsplit("-", 1)[0]  # the epoch and the Debian revision dropped
+    return release, f"Debian {package} {shown}"
 
 
 __all__ = ["OdeBackend", "kp_kd_to_erp_cfm"]
