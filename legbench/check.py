@@ -467,15 +467,26 @@ def _check_rows(sc: str, base: pd.DataFrame, new: pd.DataFrame, layers: Sequence
     return rows
 
 
-def _baseline_only_logs(base_meta: Mapping[str, Any], new_meta: Mapping[str, Any]) -> list[str]:
-    """The imported logs (``legbench compare --reference-log``: metrics.json's ``source: log``) in the baseline's
-    metrics and not in the new run's: what was compared against them is not the code's result, so it is left
-    unchecked rather than failed (a README review: a run given a hardware log, used as a baseline, failed every
-    fresh run with 31 regressions)."""
+def _unmatched_logs(base_meta: Mapping[str, Any], new_meta: Mapping[str, Any]) -> dict[str, str]:
+    """The imported logs (``legbench compare --reference-log``: metrics.json's ``source: log``) of the baseline's
+    metrics that the new run was not compared with, each with why: not given to the new run, or given under the
+    same name holding another recording (their ``sha256`` differ; a metrics.json without one is taken at its name).
+    What was compared against them is not the code's result, so it is left unchecked rather than failed (a README
+    review: a run given a hardware log, used as a baseline, failed every fresh run with 31 regressions)."""
     nb = new_meta.get("backends") or {}
-    return [
-        name for name, b in (base_meta.get("backends") or {}).items() if b.get("source") == "log" and name not in nb
-    ]
+    out = {}
+    for name, b in (base_meta.get("backends") or {}).items():
+        if b.get("source") != "log":
+            continue
+        now = nb.get(name)
+        if now is None:
+            out[name] = ("an imported log the baseline was compared with and this run was not; compare it with the "
+                         "same --reference-log to check it")  # fmt: skip
+        elif b.get("sha256") and now.get("sha256") and b["sha256"] != now["sha256"]:
+            out[name] = (f"an imported log of the baseline's name holding another recording (SHA-256 "
+                         f"{now['sha256'][:12]}... against the baseline's {b['sha256'][:12]}...): its metrics compare "
+                         "other data; compare the baseline's log to check it")  # fmt: skip
+    return out
 
 
 def _status_rows(sc: str, base_meta: Mapping[str, Any], new_meta: Mapping[str, Any]) -> list[CheckRow]:
@@ -683,17 +694,17 @@ def check(new: str | Path, baseline: str | Path, tolerance_file: str | Path | No
         keys = (str(nmeta.get("name", sc)), sc)
         used.update(keys)
         layers, sources[sc] = _tolerances(ndir, keys, common, per, tfile)
-        logs = _baseline_only_logs(bmeta, nmeta)
+        logs = _unmatched_logs(bmeta, nmeta)
         if bmeta.get("reference") in logs:  # every pair metric is against the log: none to check against
-            raise ResultsError(str(bdir), f"the baseline was compared with {bmeta['reference']} as its reference "
-                                          f"(--log-is-reference) and {ndir} was not: compare it the same way, or "
-                                          "choose another --baseline")  # fmt: skip
-        for name in logs:
-            rows.append(CheckRow(sc, name, "", "-", "-", "status", nan, nan, nan, "unchecked",
-                                 f"{sc}/{name}: an imported log the baseline was compared with and this run was not; "
-                                 "compare it with the same --reference-log to check it"))  # fmt: skip
+            ref = bmeta["reference"]
+            raise ResultsError(str(bdir), f"the baseline was compared with {ref} as its reference (--log-is-reference)"
+                                          f": {logs[ref]} ({ndir}), or choose another --baseline")  # fmt: skip
+        for name, why in logs.items():
+            rows.append(CheckRow(sc, name, "", "-", "-", "status", nan, nan, nan, "unchecked", f"{sc}/{name}: {why}"))
         bmeta = {**bmeta, "backends": {k: v for k, v in (bmeta.get("backends") or {}).items() if k not in logs}}
+        nmeta = {**nmeta, "backends": {k: v for k, v in (nmeta.get("backends") or {}).items() if k not in logs}}
         bdf = bdf[~(bdf["backend"].isin(logs) | bdf["reference"].isin(logs))]
+        ndf = ndf[~(ndf["backend"].isin(logs) | ndf["reference"].isin(logs))]
         rows += _status_rows(sc, bmeta, nmeta)
         rows += _check_rows(sc, bdf, ndf, layers)
         traces += _trace_checks(sc, bdir, ndir, nmeta.get("backends") or {})

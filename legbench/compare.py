@@ -28,7 +28,7 @@ from legbench.backends.base import contact_point
 from legbench.contact import ContactParams
 from legbench.contact_residuals import FN_MIN, ContactResiduals, residuals
 from legbench.exceptions import ResultsError
-from legbench.logs import RosOptions, is_ros_bag, load_log
+from legbench.logs import RosOptions, digest, is_ros_bag, load_log
 from legbench.metrics import (
     COND_MAX,
     T_EPS,
@@ -40,6 +40,7 @@ from legbench.metrics import (
     pair_metrics,
     steady_state,
 )
+from legbench.resources import shown
 from legbench.results import FRAME_COLUMNS, METRICS_SCHEMA, Run, RunResult, load_run, log_digests, result_from_frame
 from legbench.signals import JOINT_OF, LABELS, SIGNAL_OF
 
@@ -128,9 +129,10 @@ class ComparisonResult:
             backends[name] = {"status": b.status, "reason": b.reason, "source": "run"}
             if b.info.get("integrator_family"):  # what the headline says of a deviation's cause
                 backends[name]["integrator_family"] = b.info["integrator_family"]
-        for name in self.traces:
-            if name not in run.backends:
-                backends[name] = {"status": "ok", "reason": None, "source": "log"}
+        for name, tr in self.traces.items():
+            if name not in run.backends:  # an imported log, and which recording it was
+                recorded = {k: tr.info[k] for k in ("file", "sha256") if k in tr.info}
+                backends[name] = {"status": "ok", "reason": None, "source": "log", **recorded}
         for s in self.steady:  # where its force acted, as the force check and the residuals took it
             backends[s.backend]["contact_lift"] = s.lift
             backends[s.backend]["contact_poc"] = s.poc
@@ -334,6 +336,8 @@ def compare(
         if name in traces:
             raise ResultsError(str(log), f"log name '{name}' is already a backend of {run.path}; pass another name")
         traces[name] = result_from_frame(load_log(log, column_map, log_time_scale, ros, log_t0), name, str(log))
+        # which recording it was (metrics.json), so a log re-recorded under the same name is not taken for it
+        traces[name].info.update(file=shown(log), sha256=digest(log))
         end = float(traces[name].t[-1])
         if run.skip > 0.0 and end <= run.skip + T_EPS:  # every metric would be n/a, and said nowhere
             raise ResultsError(str(log), f"ends at t = {end:.4g} s, before the run's skip ({run.skip:g} s, its "

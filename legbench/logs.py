@@ -15,6 +15,7 @@ Either becomes a DataFrame of :data:`~legbench.signals.RUN_COLUMNS` (then a
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import math
 import re
@@ -35,8 +36,8 @@ from legbench.results import result_from_frame
 from legbench.signals import EE_COLUMNS, LABELS, RUN_COLUMNS, SIGNAL_OF, UNITS
 from legbench.yamlfile import file_kind
 
-__all__ = ["API_WORDS", "CLI_WORDS", "JOINT_STATE", "WRENCH", "LogWords", "RosOptions", "is_ros_bag", "load_log",
-           "load_ros_bag", "worded"]  # fmt: skip
+__all__ = ["API_WORDS", "CLI_WORDS", "JOINT_STATE", "WRENCH", "LogWords", "RosOptions", "digest", "is_ros_bag",
+           "load_log", "load_ros_bag", "worded"]  # fmt: skip
 
 #: The message types read from a bag (rosbags' names, the same for ROS 1 and ROS 2).
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -390,6 +391,20 @@ def is_ros_bag(path: str | Path) -> bool:
     if path.is_dir():
         return (path / "metadata.yaml").is_file()
     return path.suffix in (".db3", ".mcap")
+
+
+def digest(path: str | Path) -> str:
+    """SHA-256 [hex] of what a log holds: a file's bytes, or for a ROS 2 bag directory each of its files' name
+    (relative to the directory) and SHA-256, in name order; so a log re-recorded under the same name is told from
+    the one a result was computed with (metrics.json records it; ``legbench check`` compares it)."""
+    path = Path(path)
+    if not path.is_dir():
+        with path.open("rb") as stream:
+            return hashlib.file_digest(stream, "sha256").hexdigest()
+    h = hashlib.sha256()
+    for f in sorted(p for p in path.rglob("*") if p.is_file()):
+        h.update(f"{f.relative_to(path).as_posix()}\0{digest(f)}\n".encode())
+    return h.hexdigest()
 
 
 def _joints_from_map(path: Path, column_map: Mapping[str, str]) -> tuple[str, str, str]:

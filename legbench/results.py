@@ -1087,7 +1087,8 @@ def _string_at(doc: Mapping[str, Any], key: str, path: str, file: Path, choices:
 
 
 def _check_backends(doc: Mapping[str, Any], file: Path) -> None:
-    """``backends``: an object of name -> object with a known ``status``, a text or null ``reason``."""
+    """``backends``: an object of name -> object with a known ``status``, a text or null ``reason`` (an imported
+    log's ``sha256``: 64 hex digits)."""
     if doc.get("backends") is None:
         raise ResultsError(str(file), "missing key 'backends'" if "backends" not in doc else "must be an object, "
                            "not null", "" if "backends" not in doc else "backends")  # fmt: skip
@@ -1104,6 +1105,9 @@ def _check_backends(doc: Mapping[str, Any], file: Path) -> None:
         _string_at(b, "file", f"{key}.file", file)
         _string_at(b, "source", f"{key}.source", file, ("run", "log"))
         _mapping_at(b, "info", f"{key}.info", file)
+        sha = b.get("sha256")  # an imported log's recording (metrics.json)
+        if sha is not None and not (isinstance(sha, str) and re.fullmatch(r"[0-9a-f]{64}", sha)):
+            raise ResultsError(str(file), f"must be a SHA-256 (64 hex digits), not {sha!r:.40}", f"{key}.sha256")
 
 
 def _check_run_json(meta: Mapping[str, Any], rj: Path) -> None:

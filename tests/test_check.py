@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import hashlib
 import io
 import json
 import math
@@ -104,6 +105,46 @@ def test_a_log_the_baseline_was_compared_with_is_unchecked_not_a_regression(base
     results.write_metrics(as_ref.to_json(), base / "fake" / "metrics.json")
     with pytest.raises(ResultsError, match=r"compared with log:hw as its reference \(--log-is-reference\)"):
         K.check(new, base)
+
+
+def test_a_log_re_recorded_under_the_baseline_s_name_is_unchecked_naming_both_recordings(
+    baseline: Path, tmp_path: Path
+) -> None:
+    """A log's identity was its name: the same --reference-log path holding a new recording (a re-run on the
+    hardware) read as the engines' regressions against it. metrics.json records the recording's SHA-256 (and the
+    file); a different one leaves the log's rows unchecked, naming both digests, and every engine's own metric
+    checked as before; the same recording is checked like a backend; a baseline whose reference was the other
+    recording is refused."""
+    log = tmp_path / "hw.csv"
+    frame = pd.read_parquet(baseline / "fake" / "a.parquet")[["t", "q1", "q2", "q3"]]
+    frame.to_csv(log, index=False)
+    recorded = hashlib.sha256(log.read_bytes()).hexdigest()
+    base, same, other = (tmp_path / n for n in ("base", "same", "other"))
+    for d in (base, same, other):
+        shutil.copytree(baseline, d)
+    for d in (base, same):
+        results.write_metrics(C.compare(d / "fake", log=log).to_json(), d / "fake" / "metrics.json")
+    doc, _ = results.read_metrics(base / "fake" / "metrics.json")
+    assert doc["backends"]["log:hw"]["sha256"] == recorded and doc["backends"]["log:hw"]["file"].endswith("hw.csv")
+    same_report = K.check(same, base)
+    assert same_report.passed and any(r.backend == "log:hw" and r.status == "pass" for r in same_report.rows)
+    assert any(r.backend == "log:hw" and r.metric != "status" for r in same_report.rows)  # checked like a backend
+    frame.assign(q2=frame["q2"] + 0.05).to_csv(log, index=False)  # the re-recording: 0.05 rad off on the hip
+    results.write_metrics(C.compare(other / "fake", log=log).to_json(), other / "fake" / "metrics.json")
+    report = K.check(other, base)
+    assert report.passed, [r.message for r in report.regressions]
+    (row,) = [r for r in report.rows if r.backend == "log:hw"]
+    assert row.status == "unchecked" and recorded[:12] in row.message and "another recording" in row.message
+    assert not any(r.reference == "log:hw" or (r.backend == "log:hw" and r.metric != "status") for r in report.rows)
+    shutil.copytree(baseline, tmp_path / "plain")
+    engines = {(r.backend, r.reference, r.label, r.metric) for r in K.check(tmp_path / "plain", baseline).rows}
+    assert engines == {(r.backend, r.reference, r.label, r.metric) for r in report.rows if r.backend != "log:hw"}
+    results.write_metrics(C.compare(base / "fake", log=tmp_path / "hw.csv", log_is_reference=True).to_json(),
+                          base / "fake" / "metrics.json")  # fmt: skip
+    old = results.read_metrics(base / "fake" / "metrics.json")[0]["backends"]["log:hw"]["sha256"]
+    assert old != recorded  # the baseline now holds the new recording as reference; 'same' the first one
+    with pytest.raises(ResultsError, match=r"as its reference \(--log-is-reference\): an imported log of the baseline"):
+        K.check(same, base)
 
 
 def test_checking_a_directory_against_itself_is_refused(

@@ -3,9 +3,11 @@ columns, and compared from the command line."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -520,3 +522,21 @@ def test_bracketed_text_that_is_no_unit_stays_part_of_the_name(tmp_path: Path) -
     rpm.write_text("t,q1,q2,q3,qd1 [rpm]\n0,0,0,0,1\n0.001,0,0,0,1\n")
     with pytest.raises(ResultsError, match=r"column 'qd1 \[rpm\]': unit \[rpm\] is not one legbench reads for qd1"):
         logs.load_log(rpm)
+
+
+def test_digest_is_a_files_sha256_and_tells_a_bag_directory_s_recordings_apart(tmp_path: Path) -> None:
+    """A log's digest (metrics.json's sha256 of an imported log): a file's SHA-256 as hashlib computes it; for a
+    ROS 2 bag directory, one that changes when any of its files' bytes or names change and not otherwise."""
+    f = tmp_path / "hw.csv"
+    f.write_text("t,q1\n0,0\n")
+    assert logs.digest(f) == hashlib.sha256(f.read_bytes()).hexdigest()
+    bag = tmp_path / "bag"
+    (bag / "sub").mkdir(parents=True)
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    (bag / "sub" / "bag_0.db3").write_bytes(b"\x00" * 10)
+    first = logs.digest(bag)
+    assert logs.digest(bag) == first and re.fullmatch(r"[0-9a-f]{64}", first)
+    (bag / "sub" / "bag_0.db3").write_bytes(b"\x00" * 9 + b"\x01")
+    second = logs.digest(bag)
+    (bag / "sub" / "bag_0.db3").rename(bag / "sub" / "bag_1.db3")
+    assert len({first, second, logs.digest(bag)}) == 3
