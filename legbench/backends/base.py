@@ -158,13 +158,17 @@ def rigid_contact(info: Mapping[str, Any]) -> bool:
     return isinstance(contact, Mapping) and "Kp" in contact and contact["Kp"] is None
 
 
-def reference_contact(contact: ContactParams, applied: str) -> dict[str, Any]:
+def reference_contact(contact: ContactParams, applied: str, friction: str) -> dict[str, Any]:
     """:meth:`Backend.info`'s ``contact`` in reference contact mode: the engine's contact off, the law legbench
     applies (its poc and constants: compliant, whatever the engine's own contact is) and how the backend applies it
-    (``applied``); its force is read as the law at the state a step ended in. The engine's own contact settings
-    act on nothing there and are left out, so the report's settings table does not list them beside the law's."""
+    (``applied``, with its ``reference_friction`` setting ``friction``: the law's friction slope explicit, or
+    linearly implicit over each sub-step); its force is read as the law at the state a step ended in. The engine's
+    own contact settings act on nothing there and are left out, so the report's settings table does not list them
+    beside the law's."""
+    how = (", less K dqd: the friction slope K linearly implicit over the sub-step, dqd from the leg's model "
+           "(docs/contact_law.md)" if friction == "implicit" else ", the friction slope explicit")  # fmt: skip
     return {"enabled": False, "poc": contact.poc, "lift": 0.0, "Kp": contact.Kp, "Kd": contact.Kd,
-            "mu_s": contact.mu_s, "mu_k": contact.mu_k, "v_th": contact.v_th, "reference_law": applied,
+            "mu_s": contact.mu_s, "mu_k": contact.mu_k, "v_th": contact.v_th, "reference_law": applied + how,
             "force_readout": "the law at the end state"}  # fmt: skip
 
 

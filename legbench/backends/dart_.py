@@ -425,7 +425,9 @@ class DartBackend(Backend):
             "integrator": "euler",  # World.step: semi-implicit Euler (the family verification predicts by)
             "gravity": -float(world.getGravity()[2]),
             "contact_mode": self.physics.contact_mode,
-            "contact": reference_contact(c, "J_poc^T F added to the joint forces per sub-step")
+            "contact": reference_contact(
+                c, "J_poc^T F added to the joint forces per sub-step", self.cfg["reference_friction"]
+            )
             if self.reference
             else {
                 "enabled": True,

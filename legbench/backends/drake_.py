@@ -615,7 +615,9 @@ class DrakeBackend(Backend):
             "scheme": self._integrator_name(),
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
-            "contact": reference_contact(c, "J_poc^T F via the applied generalized force port per sub-step")
+            "contact": reference_contact(
+                c, "J_poc^T F via the applied generalized force port per sub-step", self.cfg["reference_friction"]
+            )
             if self.reference
             else {
                 "enabled": True,

@@ -662,7 +662,7 @@ class MujocoBackend(Backend):
             "timestep": float(m.opt.timestep),
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
-            "contact": reference_contact(c, "J_poc^T F via qfrc_applied per sub-step")
+            "contact": reference_contact(c, "J_poc^T F via qfrc_applied per sub-step", self.cfg["reference_friction"])
             if self.reference
             else {
                 "method": "explicit foot-ground pair, direct solref",

@@ -595,7 +595,11 @@ class OdeBackend(Backend):
             },
             **({"friction_axes": friction_axes()} if self._collide_on else {}),
             "contact_mode": self.physics.contact_mode,
-            "contact": reference_contact(self.physics.contact, "J_poc^T F added to the hinge torques per sub-step")
+            "contact": reference_contact(
+                self.physics.contact,
+                "J_poc^T F added to the hinge torques per sub-step",
+                self.cfg["reference_friction"],
+            )
             if self.reference
             else {
                 "enabled": self._collide_on,

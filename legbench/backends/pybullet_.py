@@ -557,7 +557,9 @@ class PybulletBackend(Backend):
             "step_calls_per_period": 1 if self.engine_sub else self.n_sub,
             "gravity": self.physics.gravity,
             "contact_mode": self.physics.contact_mode,
-            "contact": reference_contact(c, "J_poc^T F added to the torque per sub-step")
+            "contact": reference_contact(
+                c, "J_poc^T F added to the torque per sub-step", self.cfg["reference_friction"]
+            )
             if self.reference
             else {
                 "enabled": True,
