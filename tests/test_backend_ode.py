@@ -426,3 +426,48 @@ def test_version_names_the_release_and_the_library_file_loaded() -> None:
         assert version.startswith(f"{owner[0]} ({owner[1]}; ")
     assert ode_._package_release("/nonexistent/libode.so.8") is None
     assert ode_._package_release(None) is None
+
+
+@pytest.mark.parametrize("mode", ["native", "reference"])
+@pytest.mark.parametrize(("profile", "row_order"), [("engine-defaults", "advancing"), ("gazebo", "repeated")])
+def test_quick_step_row_order_advances_as_odes_or_repeats_each_step_as_gazebos_fixed_order(
+    loaded: list[Backend], monkeypatch: pytest.MonkeyPatch, mode: str, profile: str, row_order: str
+) -> None:
+    """Quick step shuffles its constraint rows with ODE's one global generator. The backend re-seeded it before
+    every step in every profile, so stock ODE's own behaviour (engine-defaults), a new order each step, was never
+    run. ``row_order: advancing`` (the default) seeds at reset and carries the instance's generator on: the seed
+    set before a control period is where the previous one left it, and a reset starts afresh. ``repeated``
+    (gazebo: Gazebo's fork does not reorder, so one fixed order per step is the nearest) seeds before every step.
+    Either way a reset run repeats bit for bit, and two instances stepped in lockstep in contact each equal a solo
+    run bit for bit."""
+    physics = Physics(contact_mode=mode)
+    a, b, solo = (load(loaded, physics, profile) for _ in range(3))
+    assert solo.info()["row_order"] == row_order
+    set_seeds: list[int] = []
+    real_set = ode_.ode.dRandSetSeed
+
+    def recording_set(seed: int) -> None:
+        set_seeds.append(int(seed))
+        real_set(seed)
+
+    monkeypatch.setattr(ode_.ode, "dRandSetSeed", recording_set)
+    runs = [press(x, np.array([4.0, 0.0, -20.0]), duration=0.2) for x in (solo, solo)]  # a run, and after a reset
+    assert len(set_seeds) == 400  # one per control period (one 1 ms step each)
+    if row_order == "advancing":
+        assert set_seeds[0] == set_seeds[200] == ode_.SEED and len(set(set_seeds[:200])) == 200
+    else:
+        assert set(set_seeds) == {ode_.SEED}
+    for key in ("q", "F"):
+        np.testing.assert_array_equal(runs[0][key], runs[1][key])
+    assert runs[0]["F"][-1, 2] > 15.0  # [N] in contact: the quick step solves contact rows to shuffle
+    q0 = kinematics.ik_nearest(START, np.array(PARAMS.q_star))
+    for x in (a, b, solo):
+        x.reset(q0, np.zeros(3))
+    tau = model.gravity_torque(q0) + kinematics.jacobian_poc(q0).T @ np.array([4.0, 0.0, -20.0])
+    for _ in range(200):
+        a.step(tau)
+        b.step(tau * 0.5)
+        solo.step(tau)
+    np.testing.assert_array_equal(a.state()[0], solo.state()[0])
+    np.testing.assert_array_equal(a.ground_force(), solo.ground_force())
+    assert not np.array_equal(a.state()[0], b.state()[0])

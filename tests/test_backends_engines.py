@@ -534,9 +534,10 @@ def test_only_the_foot_touches_the_ground(make: Make, engine: str, mode: str) ->
 @pytest.mark.parametrize("engine", [e for e in ENGINES if e != "lagrange"])  # lagrange: no engine contact
 def test_reference_mode_info_names_the_law_not_the_engines_contact(make: Make, engine: str) -> None:
     """Reference mode: run.json's contact is the law legbench applies (its poc, Kp, Kd, mu_s, mu_k, v_th, how it is
-    applied, its friction slope implicit or explicit, and how it is read), none of the engine's own contact settings (off, they act on nothing: MuJoCo's pyramidal cone
-    was listed as 'diamond' on a run that applied the law's round cone), and no native friction shape; DART, rigid
-    natively, declares the law's stiffness, not 'rigid' (Kp null). Native mode keeps the engine's own."""
+    applied, its friction slope implicit or explicit, and how it is read), none of the engine's own contact
+    settings (off, they act on nothing: MuJoCo's pyramidal cone was listed as 'diamond' on a run that applied the
+    law's round cone), and no native friction shape; DART, rigid natively, declares the law's stiffness, not
+    'rigid' (Kp null). Native mode keeps the engine's own."""
     law = ContactParams(poc="centre", mu_k=0.5)
     cone = {"cone": "pyramidal", "friction_solref": "contact"} if engine == "mujoco" else {}
     reference = make(engine, Physics(contact=law, contact_mode="reference"), **cone).info()

@@ -52,8 +52,13 @@ maximal coordinates: body velocities v += h M^-1 (f + J^T lambda) with the
 joint constraints solved at velocity level (with ERP position correction),
 then positions x += h v. :meth:`integrator_family` is ``first-order``, see there.
 Quick-step randomly reorders its constraint rows with ODE's one global random
-generator; the seed is reset before every step so that runs are deterministic
-and instances do not disturb each other.
+generator (stock ODE 0.16 compiles the shuffle in). Setting ``row_order``:
+``advancing`` (default) keeps each instance's generator state, seeded at reset, set
+before each control period's steps and read back after them, so the permutations
+advance from step to step as in ODE; ``repeated`` (the ``gazebo`` profile) re-seeds
+before every step, so every step solves its rows in one fixed order, the nearest
+stock ODE comes to Gazebo's fork, which does not reorder. Either way runs repeat bit
+for bit and instances do not disturb each other.
 
 Profiles: ``matched`` (the spec's physics: direct solver, rigid joints (CFM 0),
 ERP 0.2, 0.05 ms sub-step), ``engine-defaults`` (ODE's documented defaults: quick step
@@ -103,7 +108,8 @@ except Exception as exc:  # odepy raises its own OdePyError when libode is absen
 MAX_CONTACTS = 4
 #: ODE's world defaults in double precision (ode/src/objects.cpp: dxWorld::dxWorld).
 ODE_ERP, ODE_CFM = 0.2, 1e-10
-#: Fixed seed of ODE's global random generator, reset before every step (quick-step row reordering).
+#: The seed of an instance's random generator at reset (quick-step row reordering), and before every step with
+#: ``row_order: repeated``.
 SEED = 0
 
 _STEPPERS = ("world", "quick")
@@ -159,9 +165,13 @@ class OdeBackend(Backend):
         # dxDampingParameters, ode/src/util.cpp dxStepBody)
         "damping": 0.0,
         "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
+        # quick step's row shuffle: ODE's generator carried on from step to step (stock ODE), or re-seeded before
+        # every step (one fixed order per step, as near as stock ODE comes to Gazebo's fork, which does not reorder)
+        "row_order": "advancing",
     }
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "stepper": _STEPPERS,
+        "row_order": ("advancing", "repeated"),
         "reference_friction": ("implicit", "explicit"),
     }
     #: The ranges the ODE manual gives: an ERP in [0, 1] (above 1 the correction overshoots and the joints
@@ -210,6 +220,9 @@ class OdeBackend(Backend):
             # damping to its <velocity_decay> (Link::GetLinearDamping: 0 by default, link.sdf), which switches
             # ODE's damping off for that body (dBodySetLinearDamping / dBodySetAngularDamping with 0)
             "damping": 0.0,
+            # the fork's quick step does not reorder its rows (deps/opende/src/quickstep.cpp: '// #define
+            # RANDOMLY_REORDER_CONSTRAINTS 1'); stock ODE always does, so one fixed order per step is the nearest
+            "row_order": "repeated",
         },
     }
 
@@ -228,12 +241,14 @@ class OdeBackend(Backend):
         if case == "small_oscillation" and info.get("stepper") == "quick" and isinstance(iterations, int) and (
                 iterations < 200):  # fmt: skip
             return (f"known: the quick step's {iterations} SOR iterations leave each hinge off its axis under the "
-                    "leg's weight, held there by ERP (measured at 1 ms: 4-88 urad at 20 iterations, 1.2-10 at 50, "
-                    "0.09-0.78 at 100, under 0.005 at 200), as large as the 100 urad oscillation; "
-                    "dJointGetHingeAngle reads sign(theta) sqrt(theta^2 + e^2), so near zero the hip reading jumps "
-                    "(+-4.2 urad at 20 iterations) and the PD's derivative term turns each jump into a flicker near "
-                    "500 Hz. With a converged solve (stepper: world, or 200 iterations) the 1 ms step meets "
-                    "semi-implicit Euler's poles to 0.03 % (docs/backends/ode.md)")  # fmt: skip
+                    "leg's weight, held there by ERP (measured at 1 ms, ODE's advancing row order: 2-42 urad, up to "
+                    "75, at 20 iterations, 0.4-6 at 50, 0.03-0.33 at 100, under 0.003 at 200; one row order per "
+                    "step: 4-87, 1.2-10, 0.09-0.77), as large as the 100 urad oscillation; dJointGetHingeAngle reads "
+                    "sign(theta) sqrt(theta^2 + e^2), so near zero the hip reading jumps by that error and the PD's "
+                    "derivative term turns the jumps into torque noise the pencil fits as spurious modes (130-150 Hz "
+                    "with the advancing order, near 500 Hz with a repeated one). With a converged solve (stepper: "
+                    "world, or 200 iterations) the 1 ms step meets semi-implicit Euler's poles to 0.03 % "
+                    "(docs/backends/ode.md)")  # fmt: skip
         return None
 
     # ----------------------------------------------------------------- load
@@ -328,6 +343,8 @@ class OdeBackend(Backend):
         self._q = np.zeros(3)
         self._qd = np.zeros(3)
         self._step = self._step_reference if self.reference else self._step_native
+        self._rng = SEED  # ODE's random generator state of this instance (quick step's row reordering)
+        self._repeat = cfg["row_order"] == "repeated"
         self.t = 0.0
 
     def _build(self, urdf: Path, physics: Physics, cfg: Mapping[str, Any]) -> None:
@@ -428,6 +445,7 @@ class OdeBackend(Backend):
             T_parent, o_parent = T, o
         ode.dJointGroupEmpty(self.contact_group)
         self._n_contacts = 0
+        self._rng = SEED  # the row-reordering generator starts afresh: a reset run repeats bit for bit
         self._q[:] = q  # the unwrapping reference for the hip
         self._read()
         self.t = 0.0
@@ -447,13 +465,16 @@ class OdeBackend(Backend):
     def _step_native(self) -> None:
         world, h, joints = self.world, self.h, self.joints
         add, step, quick = ode.dJointAddHingeTorque, self._world_step, self._quick
-        group, empty, seed = self.contact_group, ode.dJointGroupEmpty, ode.dRandSetSeed
+        group, empty = self.contact_group, ode.dJointGroupEmpty
         g1, g2 = self._pair
         contact_geoms, contacts = self._contact_geoms, self._add_contacts
         t0, t1, t2 = self._u
         j0, j1, j2 = joints
         collide_on = self._collide_on
         n = 0
+        advancing, repeated, seed = quick and not self._repeat, quick and self._repeat, ode.dRandSetSeed
+        if advancing:  # this instance's generator, where its last period left it
+            seed(self._rng)
         for _ in range(self.n_sub):
             empty(group)
             if collide_on:
@@ -465,9 +486,11 @@ class OdeBackend(Backend):
             add(j0, t0)
             add(j1, t1)
             add(j2, t2)
-            if quick:
+            if repeated:
                 seed(SEED)
             step(world, h)
+        if advancing:
+            self._rng = ode.dRandGetSeed()
         self._n_contacts = n
         self._read()
         self._native_force()
@@ -494,11 +517,14 @@ class OdeBackend(Backend):
 
     def _step_reference(self) -> None:
         world, h, joints = self.world, self.h, self.joints
-        add, step, quick, seed = ode.dJointAddHingeTorque, self._world_step, self._quick, ode.dRandSetSeed
+        add, step, quick = ode.dJointAddHingeTorque, self._world_step, self._quick
         angle, rate = ode.dJointGetHingeAngle, ode.dJointGetHingeAngleRate
         law, law_i, implicit = self.contact.generalized, self.contact.implicit_generalized, self._implicit
         j0, j1, j2 = joints
         u1, u2, u3 = self._u
+        advancing, repeated, seed = quick and not self._repeat, quick and self._repeat, ode.dRandSetSeed
+        if advancing:  # this instance's generator, where its last period left it
+            seed(self._rng)
         for _ in range(self.n_sub):
             q1, q2, q3, qd1, qd2, qd3 = angle(j0), angle(j1), angle(j2), rate(j0), rate(j1), rate(j2)
             if implicit:  # the friction slope linearly implicit over the sub-step (docs/pinocchio.md)
@@ -508,9 +534,11 @@ class OdeBackend(Backend):
             add(j0, u1 + t1)
             add(j1, u2 + t2)
             add(j2, u3 + t3)
-            if quick:
+            if repeated:
                 seed(SEED)
             step(world, h)
+        if advancing:
+            self._rng = ode.dRandGetSeed()
         self._read()
         self._reference_force()
 
