@@ -216,7 +216,8 @@ def test_info_lists_only_settings_that_acted_and_the_compiler_options() -> None:
     ``noslip_iterations 10`` beside ``noslip false``, read as noslip on. info() leaves out what the load does not
     read (as Drake's does) and records the URDF compiler options it loaded: fusestatic="false", where MuJoCo's URDF
     default is "true", sets the foot body's inverse weight (2.2101 1/kg; fused into link 3, 0.8431) that the
-    engine-defaults raw solref is per unit of."""
+    engine-defaults raw solref is per unit of; and opt.disableflags by name (mjDSBL_AUTORESET, where MuJoCo's
+    default is none), which engine-defaults did not list among what departs from MuJoCo's defaults."""
     sc = scenario.load(ROOT / "scenarios" / "effort.yaml")
     for profile in ("matched", "engine-defaults"):
         backend = registry.load("mujoco", physics_of(sc, "native"), {}, profile)
@@ -227,6 +228,9 @@ def test_info_lists_only_settings_that_acted_and_the_compiler_options() -> None:
             assert "reference_friction" not in info  # native contact: the law is not applied
             assert info["compiler"]["fusestatic"] == "false" and info["compiler"]["urdf_default_fusestatic"] == "true"
             assert m.body("foot").id != m.body("link3").id  # the foot not fused, as the info says
+            # opt.disableflags by name: mjDSBL_AUTORESET, not MuJoCo's default (none), in both profiles
+            assert info["disableflags"] == ["mjDSBL_AUTORESET"]
+            assert m.opt.disableflags == int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         finally:
             backend.close()
 
@@ -248,3 +252,111 @@ def test_the_pyramidal_cone_is_recorded_as_the_diamond_it_is() -> None:
             assert abs(l1.mean() - 0.7) < 2e-3 and l2.mean() < 0.65, (l1.mean(), l2.mean())
         else:
             assert abs(l2.mean() - 0.7) < 2e-3, l2.mean()
+
+
+@pytest.mark.parametrize(("cone", "impratio"), [("pyramidal", 1.0), ("pyramidal", 10.0), ("elliptic", 10.0)])
+def test_the_usual_solref_closed_forms_meet_mujocos_own_rows(cone: str, impratio: float) -> None:
+    """``usual_rest_depth`` and ``usual_creep`` against MuJoCo's own constraint rows, engine-defaults (raw solref,
+    default impedance) at impratio 1 and 10.
+
+    At rest (qvel 0, so J qacc = 0 in the steady state) each row's force is efc_aref / efc_R; the rows' normal
+    forces add up to Fn (the pyramid's four n +- mu t_i rows each carry 1 of the normal; the elliptic cone's normal
+    row alone). With the foot 0.42 mm deep (the effort task's rest), the closed form's depth for that Fn is the
+    pose's: measured <= 4e-16 relative at every impratio, held to 1e-9. It fails with the pyramid's R taken without
+    impratio (MuJoCo: R[1] = R[0] / impratio, R_py = 2 mu^2 / impratio R[0]): 10 times too soft at impratio 10, y
+    2.38 mm instead of 0.42. The creep: with the contact slipping along t1 at 20 mm/s, usual_creep of the rows'
+    Fn and Ft = mu (f_+ - f_-) is the rows' own slip (efc_vel_+ - efc_vel_-) / (2 mu): measured 2e-16, held to
+    1e-9 (at impratio 10 it was 5.9 times the slip, through the wrong y)."""
+    from legbench import kinematics
+    from legbench.backends.mujoco_ import usual_creep, usual_rest_depth
+    from legbench.model import load_params
+
+    sc = scenario.load(ROOT / "scenarios" / "effort.yaml")
+    p = load_params()
+    q_star = np.asarray(p.q_star, float)
+    e, y0 = kinematics.fk(q_star), 4.2e-4  # [m], [m]
+    q = kinematics.ik_nearest(np.array([e[0], e[1], p.geometry.R_foot - y0]), q_star)
+    backend = registry.load("mujoco", physics_of(sc, "native"), {"cone": cone, "impratio": impratio},
+                            "engine-defaults")  # fmt: skip
+    try:
+        assert isinstance(backend, MujocoBackend)
+        m, d, contact = backend.model, backend.data, backend.info()["contact"]
+        assert contact["impratio"] == impratio and contact["cone"] == f"mjCONE_{cone.upper()}"
+        d.qpos[:], d.qvel[:] = q, 0.0
+        mujoco.mj_forward(m, d)
+        assert d.ncon == 1
+        n = d.nefc
+        f = d.efc_aref[:n] / d.efc_R[:n]  # [N]: each row's steady force
+        fn = float(f.sum()) if cone == "pyramidal" else float(f[0])
+        y = -float(d.efc_pos[0])  # [m]
+        assert y == pytest.approx(y0, rel=1e-9)
+        y_closed, k_closed = usual_rest_depth(contact, fn)
+        assert y_closed == pytest.approx(y, rel=1e-9)
+        assert k_closed == pytest.approx(fn / y, rel=1e-9)  # [N/m]
+        if cone == "pyramidal":
+            mu = float(contact["friction"][0])
+            site = m.site("E").id
+            jac = np.zeros((3, m.nv))
+            mujoco.mj_jacSite(m, d, jac, None, site)
+            t1 = np.asarray(backend._axes[0], float)  # type: ignore[index]
+            d.qvel[:] = np.linalg.lstsq(jac, 0.02 * t1, rcond=None)[0]  # the foot centre at 20 mm/s along t1
+            mujoco.mj_forward(m, d)
+            f = d.efc_aref[:n] / d.efc_R[:n]
+            slip = float(d.efc_vel[0] - d.efc_vel[1]) / (2.0 * mu)  # [m/s]: the contact point along t1
+            assert slip > 0.01
+            ft = mu * float(f[0] - f[1])  # [N]: against the slip
+            assert ft < 0.0
+            assert usual_creep(contact, float(f.sum()), -ft) == pytest.approx(slip, rel=1e-9)
+    finally:
+        backend.close()
+
+
+@pytest.mark.parametrize(
+    ("settings", "k40"),
+    [({}, 1.264e5), ({"impratio": 10.0, "dt": 5.0e-5, "force_readout": "mean"}, 1.114e6)],
+)
+def test_the_raw_solref_note_gives_the_stiffness_measured_at_rest(
+    tmp_path: Path, settings: dict[str, float], k40: float
+) -> None:
+    """engine-defaults gives Kp, Kd to solref as (-Kp, -Kd), which are not N/m and N s/m in MuJoCo; info() said
+    contact.Kp 10000 (the report's settings table: [N/m]) with nothing beside it. Its contact.Kp_Kd_note says so
+    and gives the stiffness at rest MuJoCo has, computed from the loaded model, here held to the calibration's two
+    rests (20 and 40 N under the effort controller, means over 0.2 s): the model's closed form at the measured Fn
+    within 1e-6 of the measured Fn / y (measured 1e-8 and 1.6e-9 at impratio 1: 115,448.59 and 126,389.75 N/m;
+    3.3e-9 at impratio 10, 1.114e6 N/m at 40 N, where the formula without impratio said 1.114e5), and the note's
+    4-digit numbers are the measured ones rounded. Impratio 10 at 50 us: at the profile's 1 ms step its tenfold
+    stiffer pyramid chatters (std of Fn 6.7 N), no rest. The matched profile's scaled solref gives Kp in N/m: no
+    note."""
+    import yaml
+
+    from legbench import kinematics
+    from legbench.backends.mujoco_ import usual_rest_depth
+    from legbench.model import load_params
+    from legbench.studies import calibrate_contact as cc
+
+    path = tmp_path / "push.yaml"
+    base = yaml.safe_load(Path(cc.SCENARIO).read_text())
+    path.write_text(yaml.safe_dump({**base, "backends": {"mujoco": {"cone": "pyramidal", "friction_solref":
+                                                                    "contact", **settings}}}))  # fmt: skip
+    program = cc.Program()
+    log, saturated = cc.push("mujoco", program, path, profile="engine-defaults")
+    assert saturated == 0
+    contact = log.info["contact"]
+    assert contact["impratio"] == settings.get("impratio", 1.0)
+    note = contact["Kp_Kd_note"]
+    assert "not its stiffness" in note
+    y = load_params().geometry.R_foot - kinematics.fk(log.q)[:, 2]
+    for end, load in ((program.phase, program.F1), (2 * program.phase, program.F2)):
+        w = (log.t > end - 1e-3 - program.window - 1e-9) & (log.t <= end - 1e-3 + 1e-9)
+        fn, depth = float(log.f[w, 2].mean()), float(y[w].mean())
+        assert fn == pytest.approx(load, rel=1e-6)  # [N]: at rest under h_d
+        k = fn / depth  # [N/m]
+        assert k > 10.0 * contact["Kp"]  # not Kp: 11-13 times it at impratio 1
+        assert usual_rest_depth(contact, fn)[1] == pytest.approx(k, rel=1e-6)
+        assert f"{k:.4g} N/m at {load:g} N" in note
+    assert f"{k40:.4g} N/m at 40 N" in note
+    matched = registry.load("mujoco", physics_of(scenario.load(cc.SCENARIO), "native"), {}, "matched")
+    try:
+        assert "Kp_Kd_note" not in matched.info()["contact"]
+    finally:
+        matched.close()

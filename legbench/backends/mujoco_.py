@@ -7,9 +7,9 @@ at the foot centre E; a site ``E`` marks that point (MuJoCo's URDF default ``fus
 would fuse the foot into link 3; the ``engine-defaults`` force depends on it, see below). On the
 spec we add the ground plane z_W = 0, one ``motor`` actuator per joint (gear 1, control range
 = torque limit), stiff joint limits (docs/contact_mapping.md: solref (0.002, 1), solimp
-(0.99, 0.999, ...): the knee driven into its 2.229 rad limit with 10 N m rests
-at 2.2292 rad after a 0.02 rad overshoot) and collision filters so that only
-the foot sphere touches the ground (no link-link or other link-ground contact).
+(0.99, 0.999, ...): the knee driven from q = (0, 0, 1.8) rad into its 2.229 rad limit with 10 N m, gravity
+off, matched profile, peaks at 2.2547 rad (0.026 rad over, at 25 ms) and rests at 2.2292 rad) and collision
+filters so that only the foot sphere touches the ground (no link-link or other link-ground contact).
 
 Native contact (``contact_mode = "native"``), on one explicit contact pair per
 foot geom (``<pair>``: its parameters bypass the two-geom mixing rules; no
@@ -19,9 +19,10 @@ other geom collides). Profiles (docs/contact_mapping.md has the study):
   with the impedance pinned at ``d = 1e-4`` (``solimp = (1e-4, 1e-4, 0.001, 0.5, 2)``)
   makes the normal force ``Kp pen + Kd pen_rate`` in newtons, where
   ``A = body_invweight0[foot, 0]`` is the inverse inertia MuJoCo uses for the
-  contact's regulariser (frozen at qpos0); on the pyramidal cone, whose rows
-  share 2 (mu^2 / impratio) (1 + mu^2) times that regulariser, the solref is
-  scaled by that factor over 2 as well, so the law is the same on either cone. Friction: elliptic cone with
+  contact's regulariser (frozen at qpos0); on the pyramidal cone, whose four rows
+  each take 2 (mu^2 / impratio) (1 + mu^2) times that regulariser, the solref is
+  scaled by that factor over 4 as well (the four rows' normal forces add up), so the law is the same on
+  either cone (measured Fn / y 10,001 N/m on both, impratio 1 and 10). Friction: elliptic cone with
   ``mu_s`` (condim 3), the noslip post-pass (``noslip``, 10 iterations) and
   "deadbeat" friction rows, ``solreffriction = (-1, -dmax / h)``: the friction
   rows' reference acceleration -v_t / h asks the unregularised noslip pass to
@@ -39,9 +40,11 @@ other geom collides). Profiles (docs/contact_mapping.md has the study):
   (``mj_diagApprox`` takes the contact geom's body), so it depends on ``fusestatic="false"``:
   MuJoCo's URDF default (foot fused into link 3, A = 0.8431 instead of 2.2101 1/kg) gives
   Fn 75.0 N instead of 59.0 N in the effort task (docs/contact_mapping.md). So besides the
-  1 ms step this profile keeps two things that are not MuJoCo's defaults: that compiler option
-  and the stiff joint limits above (MuJoCo's: solref (0.02, 1), solimp (0.9, 0.95, ...); none
-  of the four tasks reaches a limit).
+  1 ms step this profile keeps three things that are not MuJoCo's defaults: that compiler option,
+  the stiff joint limits above (MuJoCo's: solref (0.02, 1), solimp (0.9, 0.95, ...); none
+  of the four tasks reaches a limit) and ``mjDSBL_AUTORESET`` (below; ``info()['disableflags']``).
+  Kp and Kd are then not the contact's stiffness and damping: ``info()['contact']['Kp_Kd_note']``
+  gives the stiffness at rest MuJoCo has (1.264e5 N/m at 40 N).
 
 Ground force read-out (setting ``force_readout``): ``end`` (default) is the force
 at the end state of the control period (one more ``mj_forward`` after the sub-steps, whose position
@@ -163,6 +166,16 @@ def compiler_options(text: str) -> dict[str, str]:
     return dict(element.attrib) if element is not None else {}
 
 
+#: The normal loads [N] at which ``contact.Kp_Kd_note`` of the raw solref gives MuJoCo's stiffness at rest.
+RAW_NOTE_LOADS = (20.0, 40.0, 60.0)
+
+
+def disabled_flags(flags: int) -> list[str]:
+    """The names of the ``mjtDisableBit`` bits set in ``opt.disableflags`` (e.g. ``["mjDSBL_AUTORESET"]``)."""
+    bits = mujoco.mjtDisableBit.__members__.items()
+    return [name for name, bit in bits if name.startswith("mjDSBL_") and int(flags) & int(bit)]
+
+
 def _impedance(solimp: Sequence[float], y: float) -> float:
     """MuJoCo's impedance d(y) [1] at penetration ``y`` [m] for ``solimp`` (dmin, dmax, width, midpoint, power)
     (MuJoCo's modelling documentation, "Solver parameters"); the Python binding does not expose it."""
@@ -177,21 +190,28 @@ def usual_rest_depth(contact: Mapping[str, Any], fn: float) -> tuple[float, floa
     records it (raw solref (-Kp, -Kd), solimp, A = the foot body's ``body_invweight0``, friction, cone): the
     penetration y [m] at which the soft constraint's force balances ``fn``, and its stiffness Fn / y [N/m].
 
-    At rest the reference acceleration -k r with k = Kp (raw solref) balances through the impedance d(y) and the
-    regulariser R = (1 - d) / d A: Fn = Kp d^2 y / (dmax^2 (1 - d) A) on an elliptic cone; a pyramidal cone's
-    rows n +- mu t_i share R (x 2 / (mu^2 (1 + mu^2)), 2.74 at mu 0.7) (MuJoCo's modelling documentation,
-    "Solver parameters"; docs/contact_mapping.md: 1.264e5 N/m measured against 1.263e5 at 40 N)."""
-    from scipy.optimize import brentq  # 0.3 s to import, for a verification row's note: not in every run
+    At rest (no motion, a = J qacc = 0) each row's force is its reference acceleration over its regulariser,
+    f = aref / R, with aref = K d(y) y, K = Kp / dmax^2 (raw solref), and R = (1 - d) / d A (A the contact's
+    ``mj_diagApprox``, the foot body's ``body_invweight0``): Fn = Kp d^2 y / (dmax^2 (1 - d) A) on an elliptic
+    cone (impratio divides only its friction rows' R). A pyramidal cone's four rows n +- mu t_i each take
+    R_py = 2 mu_r^2 R_0 with R_0 = (1 - d) / d (1 + mu^2) A (their diagApprox) and mu_r^2 = mu^2 / impratio
+    (src/engine/engine_core_constraint.c, mj_diagApprox and mj_makeImpedance: R[1] = R[0] / impratio,
+    mu_r = mu sqrt(R[1] / R[0])), and their normal forces add up: x 4 R / R_py = 2 impratio / (mu^2 (1 + mu^2))
+    (2.74 at mu 0.7 and impratio 1; 27.4 at impratio 10). Met by MuJoCo's own efc_aref / efc_R at 0.42 mm to
+    4e-16 (tests/test_backend_mujoco.py holds it to 1e-9), and by the engine-defaults calibration's rest at 40 N,
+    Fn / y 126,389.75 N/m measured against 126,389.75 (1.6e-9; docs/contact_mapping.md)."""
+    from scipy.optimize import brentq  # imported where it is used: the trajectory controller's scipy brings it
 
     dmax = float(contact["solimp"][1])
     kp, a_inv, mu = -float(contact["solref"][0]), float(contact["A"]), float(contact["friction"][0])
-    share = 2.0 / (mu**2 * (1.0 + mu**2)) if contact.get("cone") == "mjCONE_PYRAMIDAL" else 1.0
+    impratio = float(contact.get("impratio", 1.0))
+    share = 2.0 * impratio / (mu**2 * (1.0 + mu**2)) if contact.get("cone") == "mjCONE_PYRAMIDAL" else 1.0
 
     def stiffness(y: float) -> float:
         d = _impedance(contact["solimp"], y)
         return kp * d**2 / (dmax**2 * (1.0 - d) * a_inv) * share
 
-    y = float(brentq(lambda y: stiffness(y) * y - fn, 1e-12, 1.0, xtol=1e-15, rtol=1e-12))
+    y = float(brentq(lambda y: stiffness(y) * y - fn, 1e-12, 1.0, xtol=1e-18, rtol=4 * np.finfo(float).eps))
     return y, stiffness(y)
 
 
@@ -204,8 +224,9 @@ def usual_creep(contact: Mapping[str, Any], fn: float, ft: float) -> float:
     whose steady force is its reference acceleration over its regulariser, f = (-B v_row - K d(y) (-y)) / R, with
     K = Kp / dmax^2 and B = Kd / dmax (raw solref). Along the slip the rows move at v_row = +- mu v: their forces
     sum to Fn = 4 K d y / R and differ by 2 B mu v / R, and Ft = mu (f+ - f-); so v = 2 (Ft / Fn) Kp d y /
-    (Kd dmax mu^2), whatever R (checked against the solver's own efc_aref and efc_R at the end of the
-    calibration: 40.99 against 41.00 mm/s, 0.03 %)."""
+    (Kd dmax mu^2), whatever R: impratio enters only through y (checked against the solver's own efc_aref and
+    efc_R at the end of the calibration: 40.99 against 41.00 mm/s, 0.03 %; at impratio 1 and 10 against a slipping
+    foot's efc quantities: tests/test_backend_mujoco.py)."""
     y, _ = usual_rest_depth(contact, fn)
     dmax, mu = float(contact["solimp"][1]), float(contact["friction"][0])
     kp, kd = -float(contact["solref"][0]), -float(contact["solref"][1])
@@ -253,8 +274,9 @@ class MujocoBackend(Backend):
     #: ``engine-defaults``: MuJoCo's documented option defaults (2 ms is replaced by the control
     #: period: a step must divide it), Kp and Kd as the usual direct solref (-Kp, -Kd) with the
     #: default solimp, mu as the pair friction (``pair_friction`` of the explicit pair, like all
-    #: its parameters). Not MuJoCo's defaults: ``fusestatic="false"`` (:data:`COMPILER`) and the
-    #: stiff joint limits (:data:`LIMIT_SOLREF`, :data:`LIMIT_SOLIMP`).
+    #: its parameters). Not MuJoCo's defaults: ``fusestatic="false"`` (:data:`COMPILER`), the
+    #: stiff joint limits (:data:`LIMIT_SOLREF`, :data:`LIMIT_SOLIMP`) and ``mjDSBL_AUTORESET`` in
+    #: ``opt.disableflags`` (MuJoCo's default 0; ``info()['disableflags']``).
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "matched": {},
         "engine-defaults": {
@@ -284,8 +306,8 @@ class MujocoBackend(Backend):
             y, k = usual_rest_depth(contact, expected * float(contact["Kp"]))
             return held(f"known: the usual solref (-Kp, -Kd) is not Kp N/m: it goes through the impedance d(y) "
                         f"{tuple(contact['solimp'])} and the constraint's mass, and MuJoCo's steady state is Fn / y = "
-                        f"Kp d^2 / (dmax^2 (1 - d) A) (x 2 / (mu^2 (1 + mu^2)) on the pyramidal cone; a secant, "
-                        f"rising with the load through d(y)): {k:.4g} N/m, y = {y:.4g} m for this Fn",
+                        f"Kp d^2 / (dmax^2 (1 - d) A) (x 2 impratio / (mu^2 (1 + mu^2)) on the pyramidal cone; a "
+                        f"secant, rising with the load through d(y)): {k:.4g} N/m, y = {y:.4g} m for this Fn",
                         measured, y, tolerance, " (docs/contact_mapping.md)")  # fmt: skip
         load = info.get("load")
         if (case == "creep" and usual and isinstance(contact, Mapping) and contact.get("cone") == "mjCONE_PYRAMIDAL"
@@ -357,6 +379,7 @@ class MujocoBackend(Backend):
         opt.iterations = int(cfg["iterations"])
         opt.impratio = float(cfg["impratio"])
         opt.noslip_iterations = int(cfg["noslip_iterations"]) if cfg["noslip"] else 0
+        # not MuJoCo's default (disableflags 0), in every profile: a bad acceleration raises instead of resetting
         opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
         if self.reference:
             opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
@@ -639,7 +662,8 @@ class MujocoBackend(Backend):
         return (*self._qpos.tolist(), *self._qvel.tolist(), *self._force.tolist())
 
     def info(self) -> dict[str, Any]:
-        """Engine, version, sub-stepping and every contact and limit setting actually used."""
+        """Engine, version, sub-stepping, every contact and limit setting actually used and ``opt.disableflags`` by
+        name; with the raw solref, ``contact.Kp_Kd_note`` (:meth:`_raw_solref_note`)."""
         m, c = self.model, self.physics.contact
         unused = self._unused_settings()
         return {
@@ -683,7 +707,10 @@ class MujocoBackend(Backend):
                 "impratio": float(m.opt.impratio),
                 "noslip_iterations": int(m.opt.noslip_iterations),
                 "force_readout": self.cfg["force_readout"],
+                **({"Kp_Kd_note": self._raw_solref_note()} if self.cfg["contact_solref"] == "raw" else {}),
             },
+            # opt.disableflags by name (MuJoCo's default: none): mjDSBL_AUTORESET always, mjDSBL_CONTACT in reference
+            "disableflags": disabled_flags(m.opt.disableflags),
             "joint_limits": {"solref": list(LIMIT_SOLREF), "solimp": list(LIMIT_SOLIMP)},
             "solver": {
                 "type": mujoco.mjtSolver(m.opt.solver).name,
@@ -691,6 +718,22 @@ class MujocoBackend(Backend):
                 "tolerance": float(m.opt.tolerance),
             },
         }
+
+    def _raw_solref_note(self) -> str:
+        """``contact.Kp_Kd_note`` of :meth:`info` for ``contact_solref: raw``: Kp and Kd given to solref as
+        (-Kp, -Kd) in MuJoCo's units, and the stiffness at rest Fn / y [N/m] that this model has for them
+        (:func:`usual_rest_depth` on the loaded pair: impedance, A, cone, friction, impratio) at normal loads of
+        20, 40 and 60 N (the calibration's two rests, about the effort task's 59 N)."""
+        m = self.model
+        contact = {"solref": m.pair_solref[0].tolist(), "solimp": m.pair_solimp[0].tolist(), "A": self.A,
+                   "friction": m.pair_friction[0].tolist(), "cone": mujoco.mjtCone(m.opt.cone).name,
+                   "impratio": float(m.opt.impratio)}  # fmt: skip
+        k = {fn: usual_rest_depth(contact, fn)[1] for fn in RAW_NOTE_LOADS}
+        at = ", ".join(f"{k[fn]:.4g} N/m at {fn:g} N" for fn in RAW_NOTE_LOADS)
+        return (f"Kp, Kd are the spec's numbers given to solref as (-Kp, -Kd) in MuJoCo's units (solref[0] 1/s^2, "
+                f"solref[1] 1/s, through the impedance d(y) and the regulariser (1 - d) / d A, A = body_invweight0 "
+                f"{self.A:.4g} 1/kg), not its stiffness [N/m] or damping [N s/m]: MuJoCo's stiffness at rest Fn / y "
+                f"is {at} (a secant, rising with the load; docs/contact_mapping.md)")  # fmt: skip
 
     def _unused_settings(self) -> set[str]:
         """Settings this load does not read, left out of :meth:`info` so the report's settings table lists only

@@ -59,7 +59,7 @@ sub-stepping is therefore used only where that accumulator comes back to exactly
 (:func:`bullet_substeps_exact`: every n_sub from 1 to 60, the default 20 among them); elsewhere the
 backend steps n_sub times itself, which is bit-identical. Bullet's
 contact sticks without chatter, and the read-out matches the leg's statics over the effort task's
-last 0.5 s to 2e-7 of Fn (matched) and 3e-7 (engine-defaults). Reference contact needs the law at
+last 0.5 s to 2e-9 of Fn (2e-7 %; matched) and 3e-9 (engine-defaults). Reference contact needs the law at
 every sub-step's start state, so there the backend calls ``stepSimulation`` per sub-step
 (``numSubSteps = 1``) and adds the law to the command before each call. Bullet
 applies a ``TORQUE_CONTROL`` command only to the next ``stepSimulation`` and
