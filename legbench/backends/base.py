@@ -56,9 +56,9 @@ INFO_KEYS = {
     "friction_axes": "a pyramid's or diamond's two tangent axes t1, t2 in W as the engine builds them for a contact "
     "on the ground plane z = 0 with normal +z (2 x 3 floats: unit, orthogonal, horizontal), which the sliding "
     "verification projects the slip and the force onto (none declared: W x and W y)",
-    "at_end": "quantities of the state the run ended in, not settings (a mapping), which the backend's "
-    "known_deviation may read (e.g. the contact's Delassus matrix J M^-1 J^T); the report's settings table leaves "
-    "them out",
+    "at_end": "quantities the run measured, not settings (a mapping): of the state it ended in (e.g. the contact's "
+    "Delassus matrix J M^-1 J^T) or recorded over it (e.g. a largest share), which the backend's known_deviation may "
+    "read; the report's settings table leaves them out",
     "max_step": "an adaptive solver's largest step [s] (a number)",
     "rtol": "an adaptive solver's relative tolerance (a number)",
     "atol": "an adaptive solver's absolute tolerance (a number)",

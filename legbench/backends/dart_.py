@@ -85,6 +85,12 @@ GROUND_SIZE = (20.0, 20.0, 1.0)
 #: times (1 + cfm), the impulse acts through the dynamics without it, so a sticking friction row keeps a velocity
 #: -cfm A_ii x_i, which no position correction removes (the error reduction acts on the normal row only).
 DART_CFM = 1.0e-5
+#: DART's error reduction on a contact's normal row (ContactConstraint.cpp: ``DART_ERP`` 0.01, capped at
+#: ``DART_MAX_ERV`` 1e-3 m/s): the bias velocity ERP y / h that pushes a penetration y out over a step h.
+DART_ERP, DART_MAX_ERV = 0.01, 1.0e-3
+#: A foot slipping slower than this at the run's end [m/s] is held (the sliding case's drag slides at 0.1-0.3 m/s;
+#: Dantzig's held foot creeps at 5e-7 m/s at 1 ms, 3e-8 at 50 us, DART's constraint force mixing).
+HELD_SLIP = 1.0e-4
 
 
 def friction_shape(lcp_solver: str) -> str:
@@ -157,16 +163,23 @@ class DartBackend(Backend):
     @classmethod
     def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any], measured: float = math.nan,
                         expected: float = math.nan, tolerance: float = math.nan) -> str | None:  # fmt: skip
-        """The Dantzig solver's friction bound: the sliding drag sticks (docs/backends/dart.md)."""
-        if case == "sliding" and info.get("lcp_solver") == "dantzig":
-            return ("known: DART's Dantzig LCP (ODE's lcp.cpp) sets each friction row's bound once, mu times the "
-                    "normal impulse solved before any friction row, not mu times the final normal force; on this "
-                    "rigid contact the drag's W y then holds 0.83 Fn (mu_s 0.7) and the foot does not slide, so "
-                    "its W x force is not the sliding pyramid's either "
-                    "(lcp_solver: nsgs, the matched profile's, slides at 0.700 Fn; docs/backends/dart.md)")  # fmt: skip
+        """The Dantzig solver's friction bound, where the run shows it: the sliding drag held (docs/backends/dart.md);
+        the creep of DART's constraint force mixing."""
         contact, load, h, at_end = info.get("contact"), info.get("load"), info.get("timestep"), info.get("at_end")
         contact = contact if isinstance(contact, Mapping) else {}
+        if case == "sliding" and info.get("lcp_solver") == "dantzig":
+            return cls._known_dantzig_hold(quantity, at_end, contact, measured, tolerance)
         W = at_end.get("delassus") if isinstance(at_end, Mapping) else None
+        if (case == "rest_penetration" and isinstance(load, Mapping) and "Fn" in load and isinstance(W, list)
+                and isinstance(h, float)):  # fmt: skip
+            # at rest the normal row's velocity is 0: the bias ERP y / h equals the mixed-in cfm A_nn Fn h
+            cfm, A_nn, fn = float(contact["constraint_force_mixing"]), float(W[2][2]), float(load["Fn"])
+            sink = cfm * A_nn * fn * h * h / DART_ERP
+            if DART_ERP * sink / h > DART_MAX_ERV:  # the bias capped: no closed form of the rest
+                return None
+            return held(f"known: rigid: sink = cfm A_nn Fn h^2 / ERP (DART's constraint force mixing cfm {cfm:g}, "
+                        f"A_nn = {A_nn:.4g} 1/kg, Fn = {fn:.4g} N, h = {h:g} s, error reduction {DART_ERP:g}) = "
+                        f"{sink:.4g} m", measured, sink, tolerance, " (docs/backends/dart.md)")  # fmt: skip
         if (case == "creep" and info.get("lcp_solver") in ("dantzig", "nsgs") and isinstance(load, Mapping)
                 and "F" in load and isinstance(W, list) and isinstance(h, float)):  # fmt: skip
             # the exact solvers only: Dantzig, and NSGS, whose local solve is exact for the one contact here; PGS
@@ -178,6 +191,37 @@ class DartBackend(Backend):
                         f"-cfm A_ii x_i and the foot creeps at cfm h |sum_i A_ii F_i t_i| = {1e3 * v:.4g} mm/s",
                         measured, float(v), tolerance, " (docs/backends/dart.md)")  # fmt: skip
         return None
+
+    @classmethod
+    def _known_dantzig_hold(cls, quantity: str, at_end: object, contact: Mapping[str, Any], measured: float,
+                            tolerance: float) -> str | None:  # fmt: skip
+        """A sliding row's miss as Dantzig's friction bound, where the run ended held: the foot at the run's end
+        (``at_end``: ``slip``, the lowest point's horizontal speed [m/s], ``force``, the read ground force [N] in W)
+        slipping below :data:`HELD_SLIP` with |F_t| above mu Fn (``contact.friction``), which a Coulomb bound of mu
+        Fn cannot hold; and the row's ``measured`` value the held foot's, within the row's ``tolerance``: the slip
+        acceleration 0, the friction ratio along (W y) or across (W x) the drag the one it held at the end. None
+        otherwise (a foot that slides, or a row the hold does not account for)."""
+        if not isinstance(at_end, Mapping) or not isinstance(at_end.get("force"), list):
+            return None
+        slip, (fx, fy, fn) = float(at_end.get("slip", math.nan)), (float(x) for x in at_end["force"])
+        mu = float(contact.get("friction", math.nan))
+        if not (fn > 0.0 and slip <= HELD_SLIP and math.hypot(fx, fy) > mu * fn):
+            return None
+        if quantity.startswith("slip acceleration"):
+            predicted = 0.0
+        elif quantity.startswith("friction along the drag |F_y| / Fn"):
+            predicted = abs(fy) / fn
+        elif quantity.startswith("friction across the drag F_x / Fn"):
+            predicted = fx / fn
+        else:
+            return None
+        return held(f"known: DART's Dantzig LCP (ODE's lcp.cpp) sets each friction row's bound once, mu times the "
+                    f"normal impulse solved before any friction row, not mu times the final normal force; on this "
+                    f"rigid contact the foot held |F_y| = {abs(fy) / fn:.3g} Fn and F_x = {fx / fn:.3g} Fn "
+                    f"(mu {mu:g}) slipping {slip:.2g} m/s at the run's end, so it does not slide and the row reads "
+                    f"the held foot's {predicted:.4g}", measured, predicted, tolerance,
+                    " (lcp_solver: nsgs, the matched profile's, slides at 0.700 Fn; docs/backends/dart.md)",
+                    )  # fmt: skip
 
     # ----------------------------------------------------------------- load
     def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
@@ -399,6 +443,13 @@ class DartBackend(Backend):
         J = kinematics.jacobian_at(self._q, "true")
         return np.asarray(J @ np.linalg.solve(self.skel.getMassMatrix(), J.T)).tolist()
 
+    def _slip(self) -> float:
+        """The horizontal speed [m/s] of the sphere's lowest point in the present state (NaN for a state that is not
+        finite)."""
+        if not np.all(np.isfinite(self._q) & np.isfinite(self._qd)):
+            return math.nan
+        return float(np.linalg.norm((kinematics.jacobian_at(self._q, "true") @ self._qd)[:2]))
+
     def info(self) -> dict[str, Any]:
         """Engine, version and every setting actually used, read back from the world where DART allows."""
         world, c = self.world, self.physics.contact
@@ -459,8 +510,9 @@ class DartBackend(Backend):
                 np.isfinite(self.skel.getVelocityLowerLimit(i)) or np.isfinite(self.skel.getVelocityUpperLimit(i))
                 for i in self.dofs
             ),
-            # J M^-1 J^T at the lowest point in W, in the state the run ended in, with DART's mass matrix [1/kg]
-            "at_end": {"delassus": self._delassus()},
+            # the state the run ended in: J M^-1 J^T at the lowest point in W with DART's mass matrix [1/kg], the
+            # lowest point's horizontal speed [m/s] and the read ground force [N] (known_deviation reads them)
+            "at_end": {"delassus": self._delassus(), "slip": self._slip(), "force": self._force.tolist()},
         }
 
     # ------------------------------------------------------- declared abilities

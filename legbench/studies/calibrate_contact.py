@@ -160,16 +160,17 @@ class Calibration:
         backend: backend name.
         Kp, Kd, mu_s, v_th: the spec's (scenario's) normal stiffness [N/m], damping [N s/m],
             static friction coefficient and stick-slip threshold speed [m/s].
-        k_eff: effective normal stiffness [N/m] (inf for a rigid contact that did not sink under the added load).
-        c_eff: effective normal damping while pressing in [N s/m].
+        k_eff: effective normal stiffness [N/m] (NaN, not applicable, for a rigid contact: the note gives its
+            sink).
+        c_eff: effective normal damping while pressing in [N s/m] (NaN for a rigid contact).
         Fn: normal force at the end of the hold [N].
         Ft: tangential force at the end of the hold [N].
         creep: horizontal speed of the point of contact at the end of the hold [m/s].
         creep_law: the spec's law's creep for the same Fn and Ft, v_th Ft / (mu_s Fn) [m/s].
         c_tangential: Ft / creep [N s/m] (inf when the foot sticks: creep below :data:`STICK_SPEED`).
         compliant: the backend's native contact declares a stiffness (``info()["contact"]["Kp"]`` is
-            not None); a rigid one (e.g. an LCP engine) has no Kp or Kd to match, and its k_eff only
-            says how rigid it is.
+            not None); a rigid one (e.g. an LCP engine) has no Kp or Kd to match: its k_eff and c_eff are
+            NaN (the report's n/a) and the note gives the rests' sink and the backend's closed form of it.
         note: saturation or fit problems.
     """
 
@@ -213,19 +214,20 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     k_eff = float((f[w2, 2].mean() - f[w1, 2].mean()) / dy) if abs(dy) > 0 else math.nan
     tr = (t >= program.phase) & (t < program.phase + program.transient) & (ydot > 1e-3)
     notes = []
+    compliant = not rigid_contact(log.info)
     if tr.sum() >= 3 and math.isfinite(k_eff):
         r = f[tr, 2] - k_eff * y[tr]
         c_eff = float(r @ ydot[tr] / (ydot[tr] @ ydot[tr]))
     else:
         c_eff = math.nan
-        notes.append("too few pressing-in samples for the damping fit")
+        if compliant:  # a rigid contact's damping does not apply whatever the fit (below)
+            notes.append("too few pressing-in samples for the damping fit")
     end = window(program.duration)
     Fn = float(f[end, 2].mean())
     Ft = float(np.hypot(f[end, 0], f[end, 1]).mean())
     creep = float(np.hypot(v[end, 0], v[end, 1]).mean())
     if saturated:
         notes.append(f"{saturated} ticks saturated a joint torque: h_d was not fully applied")
-    compliant = not rigid_contact(log.info)
     if compliant and math.isfinite(k_eff) and abs(k_eff / contact.Kp - 1.0) > K_EFF_RTOL:
         # the second rest is the verification's rest case (y = Fn/Kp): the backend's measured explanation of a
         # miss there, held to its own closed form at this rest, says why the stiffness is not Kp
@@ -242,10 +244,18 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
         if known:
             notes.append(known)
     if not compliant:
-        notes.append("rigid contact: no Kp, Kd to match")
-        if dy <= 0.0:  # no sinking under the added load: a stiffness beyond what the log resolves, not a negative one
-            k_eff = math.inf
-            notes.append(f"the foot did not sink under the second push (y changed by {dy:.2g} m): k eff inf")
+        # no spring to fit: what the rests' dFn/dy measures is the engine's constraint regularisation, and a rest
+        # that moves the other way (the pose settling) gave "inf"; the backend's closed form of its sink, if any
+        fitted = f"dFn/dy {k_eff:.4g} N/m" if dy > 0.0 else "no dFn/dy"
+        y2, f2 = float(y[w2].mean()), float(f[w2, 2].mean())
+        known = _known(log, "rest_penetration", "penetration R_foot - z_E", {**log.info, "load": {"Fn": f2}}, y2,
+                       0.0, K_EFF_RTOL * abs(y2))  # fmt: skip
+        notes.append(f"rigid contact: no Kp, Kd to match, so k eff and c eff do not apply (n/a): the rests moved by "
+                     f"{dy:.2g} m under the added {f[w2, 2].mean() - f[w1, 2].mean():.3g} N ({fitted}): the "
+                     f"engine's constraint regularisation and the pose settling, not a spring; y = {y2:.3g} m at Fn = "
+                     f"{f2:.3g} N"
+                     + (f"; {known}" if known else ""))  # fmt: skip
+        k_eff = c_eff = math.nan
     return Calibration(
         backend=log.backend, Kp=contact.Kp, Kd=contact.Kd, mu_s=contact.mu_s, v_th=contact.v_th, k_eff=k_eff,
         c_eff=c_eff, Fn=Fn, Ft=Ft, creep=creep, creep_law=creep_law,
