@@ -129,6 +129,9 @@ class ComparisonResult:
             backends[name] = {"status": b.status, "reason": b.reason, "source": "run"}
             if b.info.get("integrator_family"):  # what the headline says of a deviation's cause
                 backends[name]["integrator_family"] = b.info["integrator_family"]
+            n_sub = b.info.get("sub_steps")
+            if b.info.get("integrator_family") != "adaptive" and isinstance(n_sub, int) and n_sub >= 1:
+                backends[name]["step"] = run.control_dt / n_sub  # [s] a fixed step, beside its family
         for name, tr in self.traces.items():
             if name not in run.backends:  # an imported log, and which recording it was
                 recorded = {k: tr.info[k] for k in ("file", "sha256") if k in tr.info}

@@ -1263,6 +1263,47 @@ def test_a_higher_order_backend_s_reference_mode_deviation_is_put_on_the_first_o
         assert (note in text) == said, text
 
 
+def test_engines_sharing_a_coarser_step_put_their_free_space_deviation_on_the_step(tmp_path: Path) -> None:
+    """Position task, engine-defaults: dart, drake, mujoco, ode and pybullet all deviate by 3.965 % in tau1, each
+    at its own 1 ms step against the reference's 50 us sub-steps, and the headline named ode for it (a report
+    review). Where the backends that deviate most share one fixed step at least twice the reference's, all first
+    order, the sentence says the deviation is mostly that step's; metrics.json records each fixed step (control
+    period / sub-steps), none for an adaptive solve; a step under twice the reference's, or two steps, get no note."""
+
+    def airborne(t: np.ndarray) -> np.ndarray:
+        data = base_signals(t)
+        data[:, 9:] = 0.0  # no ground force: the foot in the air
+        return data
+
+    cases = (
+        ((20, 1, 1), True),
+        ((20, 20, 20), False),
+        ((20, 1, 2), False),
+        ((20, 10, 10), True),
+        ((20, 15, 15), False),
+    )
+    for k, ((n_ref, n_a, n_b), said) in enumerate(cases):
+        d = write_run(tmp_path / f"fake{k}", {"ref": None, "a": scale(1.01), "b": scale(1.01)}, base=airborne)
+        meta = json.loads((d / "run.json").read_text())
+        meta["scenario"]["contact"] = {"Kp": 1e4, "Kd": 100.0, "mu_s": 0.7, "mu_k": 0.6, "v_th": 1e-3, "poc": "true"}
+        for name, n_sub, family in (("ref", n_ref, "euler"), ("a", n_a, "euler"), ("b", n_b, "first-order")):
+            info = meta["backends"][name].get("info", {})
+            meta["backends"][name]["info"] = {**info, "integrator_family": family, "sub_steps": n_sub}
+        (d / "run.json").write_text(json.dumps(meta))
+        res = compare(d)
+        doc = res.to_json()
+        assert doc["backends"]["a"]["step"] == pytest.approx(res.run.control_dt / n_a)
+        text = R.sentence(doc, res.frame())
+        assert "deviate as much" in text, text  # a and b tied
+        note = (f"a and b all step at {R.num(res.run.control_dt / n_a, 3)} s against the reference's "
+                f"{R.num(res.run.control_dt / 20, 3)} s (first-order integration each): in free space")  # fmt: skip
+        assert (note in text) == said, (k, text)
+        assert ("coarser step's error" in text) == said, (k, text)
+    meta["backends"]["a"]["info"]["integrator_family"] = "adaptive"
+    (d / "run.json").write_text(json.dumps(meta))
+    assert "step" not in compare(d).to_json()["backends"]["a"]
+
+
 def test_the_index_says_from_when_a_task_s_errors_are_measured(tmp_path: Path) -> None:
     """The ellipse's percentages are over t >= 1 s (its approach left out): its run page said so, the index did
     not. The index table's caption names the scenario's skip where it is not 0, and nothing where it is."""
