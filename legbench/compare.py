@@ -139,6 +139,8 @@ class ComparisonResult:
         for s in self.steady:  # where its force acted, as the force check and the residuals took it
             backends[s.backend]["contact_lift"] = s.lift
             backends[s.backend]["contact_poc"] = s.poc
+            # [rad/s] the steady window's largest joint speed: whether its means are statics (the index says so)
+            backends[s.backend]["steady_qd_max"] = _json_value(s.qd_max)
         for name, tr in self.traces.items():  # when a deviation is a touch-down transient (the report says so)
             backends[name]["first_contact"] = first_contact(tr)
         return {
