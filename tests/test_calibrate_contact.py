@@ -158,13 +158,16 @@ def test_engine_defaults_calibration_measures_what_the_defaults_give(
     # each stiffness off Kp carries its backend's explanation of the rest, held to the engine's own closed form
     if "drake" in k:
         assert k["drake"] == pytest.approx(1.0 / (1e-4 + 1e-6), rel=1e-3)
-        assert note["drake"].startswith("known: the ground, registered with friction only"), note["drake"]
+        assert note["drake"].startswith("k eff is the chord between the two rests; at the second (Fn = 40"), note
+        assert "): known: the ground, registered with friction only" in note["drake"], note["drake"]
         # its creep (0.067 mm/s, 0.14x the law's) is the lagged approximation's own, held to 1 % (measured 5e-8)
         assert "known: the lagged approximation's friction is mu_k Fn v / sqrt(v^2 + eps^2)" in note["drake"]
         assert "= 0.06696 mm/s, met to" in note["drake"], note["drake"]
     if "mujoco" in k:
         assert k["mujoco"] == pytest.approx(1.4e5, rel=0.02)
-        assert note["mujoco"].startswith("known: the usual solref (-Kp, -Kd) is not Kp N/m"), note["mujoco"]
+        # the column is the chord between the rests (1.396e5), the note's closed form a secant at the second
+        assert note["mujoco"].startswith("k eff is the chord between the two rests; at the second (Fn = 40"), note
+        assert "): known: the usual solref (-Kp, -Kd) is not Kp N/m" in note["mujoco"], note["mujoco"]
         # its pyramid creeps (41 mm/s, 87x the law's 0.47) at its own steady creep, to 0.1 % (measured 0.03 %)
         from legbench.backends.mujoco_ import usual_creep
 

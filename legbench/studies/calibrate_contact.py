@@ -234,7 +234,9 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
         y2, f2 = float(y[w2].mean()), float(f[w2, 2].mean())
         known = _known(log, "rest_penetration", "penetration R_foot - z_E", log.info, y2, f2 / contact.Kp,
                        K_EFF_RTOL * y2)  # fmt: skip
-        notes.append(known or f"k eff {100 * (k_eff / contact.Kp - 1.0):+.3g} % off Kp")
+        # k eff is the chord between the two rests; the backend's closed form, a stiffness at one rest, is said so
+        where = f"k eff is the chord between the two rests; at the second (Fn = {f2:.4g} N): "
+        notes.append(where + known if known else f"k eff {100 * (k_eff / contact.Kp - 1.0):+.3g} % off Kp")
     creep_law = contact.v_th * Ft / (contact.mu_s * Fn) if Fn > 0.0 else math.nan  # the foot off the ground: none
     if creep > STICK_SPEED and math.isfinite(creep_law) and not math.isclose(creep, creep_law, rel_tol=CREEP_RTOL):
         # the engine's own tangential law, where it has one in closed form, held to the measured creep
