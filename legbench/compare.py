@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from legbench.backends.base import contact_point
+from legbench.backends.base import contact_point, rigid_contact
 from legbench.contact import ContactParams
 from legbench.contact_residuals import FN_MIN, ContactResiduals, residuals
 from legbench.exceptions import ResultsError
@@ -129,6 +129,8 @@ class ComparisonResult:
             backends[name] = {"status": b.status, "reason": b.reason, "source": "run"}
             if b.info.get("integrator_family"):  # what the headline says of a deviation's cause
                 backends[name]["integrator_family"] = b.info["integrator_family"]
+            if run.contact_mode == "native" and rigid_contact(b.info):  # no spring: the headline says so
+                backends[name]["contact_rigid"] = True
             n_sub = b.info.get("sub_steps")
             if b.info.get("integrator_family") != "adaptive" and isinstance(n_sub, int) and n_sub >= 1:
                 backends[name]["step"] = run.control_dt / n_sub  # [s] a fixed step, beside its family

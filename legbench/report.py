@@ -423,6 +423,11 @@ def sentence(meta: Mapping[str, Any], df: pd.DataFrame) -> str:
         text += " The foot never touches the ground, so what differs is integration and dynamics."
     elif meta.get("contact_mode") == "reference":
         text += " Every engine runs the same contact law here, so what differs is integration and dynamics."
+    if top >= BANDS[0][0] and not airborne and ((meta.get("backends") or {}).get(b) or {}).get("contact_rigid"):
+        text += (
+            f" {b}'s own contact is rigid (no stiffness: run.json's contact.Kp null), so the reference's sinking "
+            "into its spring, and the joint motion that comes with it, has no counterpart there."
+        )
     if top >= BANDS[0][0] and (airborne or meta.get("contact_mode") == "reference"):  # the step error differs
         where = "in free space" if airborne else "in reference contact mode"
         text += _higher_order_note(meta, b, ref, where) or _coarser_step_note(meta, [b, *tied], ref, where)

@@ -1310,6 +1310,24 @@ def test_engines_sharing_a_coarser_step_put_their_free_space_deviation_on_the_st
     assert "step" not in compare(d).to_json()["backends"]["a"]
 
 
+def test_a_rigid_backend_s_contact_deviation_says_its_contact_has_no_spring(tmp_path: Path) -> None:
+    """Effort task: DART's rigid contact leads the headline with qd3 at 100 % (it does not sink, the reference's
+    foot sinks into its spring), which read as a failure of DART (a report review). Where the backend that deviates
+    most declares its native contact rigid (run.json contact.Kp null), the sentence says so; a compliant one, or
+    the same backend in reference contact (the law applied, compliant), gets no such note."""
+    for mode, kp, said in (("native", None, True), ("native", 1e4, False), ("reference", None, False)):
+        d = write_run(tmp_path / f"{mode}{kp}", {"ref": None, "a": scale(1.5)}, contact_mode=mode)
+        meta = json.loads((d / "run.json").read_text())
+        meta["backends"]["a"]["info"] = {**meta["backends"]["a"].get("info", {}), "contact": {"Kp": kp, "poc": "true"}}
+        (d / "run.json").write_text(json.dumps(meta))
+        res = compare(d)
+        doc = res.to_json()
+        assert doc["backends"]["a"].get("contact_rigid", False) == said
+        text = R.sentence(doc, res.frame())
+        assert text.startswith("Largest difference: a's"), text
+        assert ("a's own contact is rigid (no stiffness: run.json's contact.Kp null)" in text) == said, text
+
+
 def test_the_index_says_from_when_a_task_s_errors_are_measured(tmp_path: Path) -> None:
     """The ellipse's percentages are over t >= 1 s (its approach left out): its run page said so, the index did
     not. The index table's caption names the scenario's skip where it is not 0, and nothing where it is."""
