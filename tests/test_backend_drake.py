@@ -533,7 +533,8 @@ def test_the_sliding_miss_is_explained_only_where_the_run_glided_out() -> None:
     (at_end.sap_glide): the estimated term at 0.9 Fn or more, where the foot glides out of the ground (the drag:
     118 %), and Drake's Fn - (Kp y + Kd ydot) within 0.3 % of it (the drag: 4e-5). The drag's row says so; the same
     run with the term at 50 % of Fn, with Fn - (Kp y + Kd ydot) 1 % off the estimate, or with no record (a run
-    before this field, another solver's) is not explained."""
+    before this field, another solver's) is not explained; nor is a miss on the other side (a slide slower than
+    the closed form: a foot gliding out loses friction and slides faster)."""
     from legbench.studies import sliding_case as S
 
     tr, physics = S.drag("drake", "matched")
@@ -553,3 +554,6 @@ def test_the_sliding_miss_is_explained_only_where_the_run_glided_out() -> None:
                *args[1:]) is None  # fmt: skip
     assert ask("sliding", args[0], with_glide(measured=1.01 * glide["estimated"]), *args[1:]) is None
     assert ask("sliding", args[0], {**info, "at_end": {"delassus_w": 3.6}}, *args[1:]) is None
+    measured, expected, tol = args[1:]
+    assert measured - expected > tol  # the drag's own miss: faster than the closed form
+    assert ask("sliding", args[0], with_glide(), expected - 2.0 * tol, expected, tol) is None  # slower: not this

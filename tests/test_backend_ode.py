@@ -429,9 +429,13 @@ def test_version_names_the_release_and_the_library_file_loaded() -> None:
 
 
 @pytest.mark.parametrize("mode", ["native", "reference"])
-@pytest.mark.parametrize(("profile", "row_order"), [("engine-defaults", "advancing"), ("gazebo", "repeated")])
+@pytest.mark.parametrize(
+    ("profile", "row_order", "dt"),
+    [("engine-defaults", "advancing", 1e-3), ("engine-defaults", "advancing", 5e-4), ("gazebo", "repeated", 1e-3),
+     ("gazebo", "repeated", 5e-4)],
+)  # fmt: skip
 def test_quick_step_row_order_advances_as_odes_or_repeats_each_step_as_gazebos_fixed_order(
-    loaded: list[Backend], monkeypatch: pytest.MonkeyPatch, mode: str, profile: str, row_order: str
+    loaded: list[Backend], monkeypatch: pytest.MonkeyPatch, mode: str, profile: str, row_order: str, dt: float
 ) -> None:
     """Quick step shuffles its constraint rows with ODE's one global generator. The backend re-seeded it before
     every step in every profile, so stock ODE's own behaviour (engine-defaults), a new order each step, was never
@@ -439,20 +443,22 @@ def test_quick_step_row_order_advances_as_odes_or_repeats_each_step_as_gazebos_f
     set before a control period is where the previous one left it, and a reset starts afresh. ``repeated``
     (gazebo: Gazebo's fork does not reorder, so one fixed order per step is the nearest) seeds before every step.
     Either way a reset run repeats bit for bit, and two instances stepped in lockstep in contact each equal a solo
-    run bit for bit."""
+    run bit for bit. At two steps per control period (dt 0.5 ms) ``advancing`` still sets the seed once a period
+    (the two steps draw on in between) and ``repeated`` before each step."""
     physics = Physics(contact_mode=mode)
-    a, b, solo = (load(loaded, physics, profile) for _ in range(3))
+    a, b, solo = (load(loaded, physics, profile, dt=dt) for _ in range(3))
     assert solo.info()["row_order"] == row_order
     set_seeds: list[int] = []
-    real_set = ode_.ode.dRandSetSeed
+    real_set = ode_._set_seed
 
     def recording_set(seed: int) -> None:
         set_seeds.append(int(seed))
         real_set(seed)
 
-    monkeypatch.setattr(ode_.ode, "dRandSetSeed", recording_set)
+    monkeypatch.setattr(ode_, "_set_seed", recording_set)
     runs = [press(x, np.array([4.0, 0.0, -20.0]), duration=0.2) for x in (solo, solo)]  # a run, and after a reset
-    assert len(set_seeds) == 400  # one per control period (one 1 ms step each)
+    per_period = 1 if row_order == "advancing" else round(1e-3 / dt)  # once a period, or before every step
+    assert len(set_seeds) == 400 * per_period
     if row_order == "advancing":
         assert set_seeds[0] == set_seeds[200] == ode_.SEED and len(set(set_seeds[:200])) == 200
     else:

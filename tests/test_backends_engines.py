@@ -9,6 +9,7 @@ and why.
 from __future__ import annotations
 
 import functools
+import json
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -347,6 +348,7 @@ def check_delassus(name: str, rows: np.ndarray, diverge: Callable[[Backend], Non
         assert np.allclose(W, W.T, atol=1e-12) and np.all(np.linalg.eigvalsh(W) > 0)
         diverge(backend)
         assert backend.info()["at_end"]["delassus"] is None
+        json.dumps(backend.info(), allow_nan=False)  # run.json holds no NaN anywhere in the info (strict JSON)
     finally:
         backend.close()
 

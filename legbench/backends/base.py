@@ -341,9 +341,11 @@ class Backend(ABC):
         units; ``expected`` is the case's closed form) and say nothing when it does not: a miss it does not
         account for is not explained. Consulted by every verification case for its failing rows
         (:func:`explained_note`), and by the contact calibration for a stiffness off Kp (case
-        ``rest_penetration``, as the verification's) and a creep off the law's (case ``creep``: ``measured`` the
-        creep [m/s], ``expected`` the law's, ``info`` with the held load ``load``: Fn, Ft and the mean contact force
-        F in W [N])."""
+        ``rest_penetration``, as the verification's: ``measured`` the second rest's penetration [m]; for a rigid
+        contact, ``expected`` 0 and ``info`` with ``load``: its Fn [N]) and a creep off the law's (case ``creep``:
+        ``measured`` the creep [m/s], ``expected`` the law's, ``info`` with the held load ``load``: Fn, Ft and the
+        mean contact force F in W [N]). Its explanations may hold the row to what the run recorded in ``at_end``
+        as well (the state it ended in, or a largest share over it)."""
         return None
 
     @classmethod

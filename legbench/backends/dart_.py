@@ -170,10 +170,11 @@ class DartBackend(Backend):
         if case == "sliding" and info.get("lcp_solver") == "dantzig":
             return cls._known_dantzig_hold(quantity, at_end, contact, measured, tolerance)
         W = at_end.get("delassus") if isinstance(at_end, Mapping) else None
+        cfm_set = contact.get("constraint_force_mixing")
         if (case == "rest_penetration" and isinstance(load, Mapping) and "Fn" in load and isinstance(W, list)
-                and isinstance(h, float)):  # fmt: skip
+                and isinstance(h, float) and isinstance(cfm_set, float)):  # fmt: skip
             # at rest the normal row's velocity is 0: the bias ERP y / h equals the mixed-in cfm A_nn Fn h
-            cfm, A_nn, fn = float(contact["constraint_force_mixing"]), float(W[2][2]), float(load["Fn"])
+            cfm, A_nn, fn = cfm_set, float(W[2][2]), float(load["Fn"])
             sink = cfm * A_nn * fn * h * h / DART_ERP
             if DART_ERP * sink / h > DART_MAX_ERV:  # the bias capped: no closed form of the rest
                 return None
@@ -181,10 +182,11 @@ class DartBackend(Backend):
                         f"A_nn = {A_nn:.4g} 1/kg, Fn = {fn:.4g} N, h = {h:g} s, error reduction {DART_ERP:g}) = "
                         f"{sink:.4g} m", measured, sink, tolerance, " (docs/backends/dart.md)")  # fmt: skip
         if (case == "creep" and info.get("lcp_solver") in ("dantzig", "nsgs") and isinstance(load, Mapping)
-                and "F" in load and isinstance(W, list) and isinstance(h, float)):  # fmt: skip
+                and "F" in load and isinstance(W, list) and isinstance(h, float)
+                and isinstance(cfm_set, float)):  # fmt: skip
             # the exact solvers only: Dantzig, and NSGS, whose local solve is exact for the one contact here; PGS
             # and FBF leave their own residuals (docs/backends/dart.md)
-            cfm, A, F = float(contact["constraint_force_mixing"]), np.array(W), np.asarray(load["F"], float)
+            cfm, A, F = cfm_set, np.array(W), np.asarray(load["F"], float)
             v = cfm * h * np.linalg.norm(sum((t @ A @ t) * (F @ t) * t for t in np.array(friction_axes())))
             return held(f"known: DART mixes a constraint force into its contact rows (cfm {cfm:g}): the LCP solves "
                         f"with A_ii (1 + cfm), the impulse acts without it, so each sticking friction row keeps "
@@ -202,8 +204,10 @@ class DartBackend(Backend):
         acceleration 0, the friction ratio along (W y) or across (W x) the drag the one it held at the end. None
         otherwise (a foot that slides, or a row the hold does not account for)."""
         if not isinstance(at_end, Mapping) or not isinstance(at_end.get("force"), list):
-            return None
-        slip, (fx, fy, fn) = float(at_end.get("slip", math.nan)), (float(x) for x in at_end["force"])
+            return None  # an older run.json, or a state that was not finite (None)
+        slip_at = at_end.get("slip")
+        slip = float(slip_at) if isinstance(slip_at, (int, float)) else math.nan
+        fx, fy, fn = (float(x) for x in at_end["force"])
         mu = float(contact.get("friction", math.nan))
         if not (fn > 0.0 and slip <= HELD_SLIP and math.hypot(fx, fy) > mu * fn):
             return None
@@ -443,11 +447,11 @@ class DartBackend(Backend):
         J = kinematics.jacobian_at(self._q, "true")
         return np.asarray(J @ np.linalg.solve(self.skel.getMassMatrix(), J.T)).tolist()
 
-    def _slip(self) -> float:
-        """The horizontal speed [m/s] of the sphere's lowest point in the present state (NaN for a state that is not
-        finite)."""
+    def _slip(self) -> float | None:
+        """The horizontal speed [m/s] of the sphere's lowest point in the present state (None for a state that is not
+        finite, as :meth:`_delassus`: run.json holds no NaN)."""
         if not np.all(np.isfinite(self._q) & np.isfinite(self._qd)):
-            return math.nan
+            return None
         return float(np.linalg.norm((kinematics.jacobian_at(self._q, "true") @ self._qd)[:2]))
 
     def info(self) -> dict[str, Any]:
@@ -512,7 +516,11 @@ class DartBackend(Backend):
             ),
             # the state the run ended in: J M^-1 J^T at the lowest point in W with DART's mass matrix [1/kg], the
             # lowest point's horizontal speed [m/s] and the read ground force [N] (known_deviation reads them)
-            "at_end": {"delassus": self._delassus(), "slip": self._slip(), "force": self._force.tolist()},
+            "at_end": {
+                "delassus": self._delassus(),
+                "slip": self._slip(),
+                "force": self._force.tolist() if np.all(np.isfinite(self._force)) else None,
+            },  # fmt: skip
         }
 
     # ------------------------------------------------------- declared abilities

@@ -260,7 +260,7 @@ class DrakeBackend(Backend):
         contact = info.get("contact")
         contact = contact if isinstance(contact, Mapping) else {}
         if case == "sliding" and quantity.startswith("slip acceleration") and run == ("sap", "point", "native"):
-            return cls._known_glide(info)
+            return cls._known_glide(info, measured, expected, tolerance)
         if case == "creep":
             return cls._known_creep(info, contact, measured, tolerance)
         pair, kp = contact.get("pair_stiffness"), contact.get("Kp")
@@ -276,11 +276,15 @@ class DrakeBackend(Backend):
         return None
 
     @classmethod
-    def _known_glide(cls, info: Mapping[str, Any]) -> str | None:
+    def _known_glide(cls, info: Mapping[str, Any], measured: float, expected: float, tolerance: float) -> str | None:
         """The sliding case's slip-acceleration miss as SAP's gliding (:func:`sap_glide_force`), where the run shows
-        it: its largest estimated term (``at_end.sap_glide``) reached :data:`SAP_GLIDE_OUT` of Fn, where the foot
-        glides out of the ground, and there the engine's Fn less Kp y + Kd ydot met the estimate within
-        :data:`SAP_GLIDE_TOL`; None otherwise (a miss with a smaller or an unconfirmed term is not this one)."""
+        it: the row's ``measured`` acceleration above the ``expected`` one by more than its ``tolerance`` (a foot
+        gliding out of the ground loses its friction and slides faster; a slower slide is another miss), its
+        largest estimated term (``at_end.sap_glide``) reached :data:`SAP_GLIDE_OUT` of Fn, where the foot glides
+        out, and there the engine's Fn less Kp y + Kd ydot met the estimate within :data:`SAP_GLIDE_TOL`; None
+        otherwise (a miss with a smaller or an unconfirmed term is not this one)."""
+        if not measured - expected > tolerance:
+            return None
         at_end = info.get("at_end")
         glide = at_end.get("sap_glide") if isinstance(at_end, Mapping) else None
         if not isinstance(glide, Mapping):
@@ -380,7 +384,11 @@ class DrakeBackend(Backend):
             "mapped",
         )
         self._sap_lift, self._sap_lift_t, self._sap_lift_n = 0.0, math.nan, 0.0
-        self._sap_glide: dict[str, float] | None = None
+        # the period of the largest share: Drake's Fn [N] and slip [m/s], the end state (preallocated: the hot path
+        # copies into them) and the foot radius [m] the measurement takes the penetration with
+        self._glide_fn, self._glide_slip = math.nan, math.nan
+        self._glide_q, self._glide_qd = np.zeros(3), np.zeros(3)
+        self._r_foot = load_params().geometry.R_foot
         self.refuse_settings(cfg, physics.contact_mode)
         self.n_sub = 1 if self.continuous else sub_step_count(self.name, cfg["dt"], physics.control_dt)
         c = physics.contact
@@ -551,7 +559,7 @@ class DrakeBackend(Backend):
         self.simulator.Initialize()
         self.tick = 0
         self._sap_lift, self._sap_lift_t, self._sap_lift_n = 0.0, math.nan, 0.0
-        self._sap_glide = None
+        self._glide_fn, self._glide_slip = math.nan, math.nan
         self._read()
         if self.reference:
             self._reference_force()
@@ -626,7 +634,9 @@ class DrakeBackend(Backend):
             if extra / force[2] > self._sap_lift:
                 t = (self.tick + 1) * self.physics.control_dt  # the period's end, before tick counts it
                 self._sap_lift, self._sap_lift_t, self._sap_lift_n = extra / force[2], t, extra
-                self._sap_glide = self._glide_sample(float(force[2]), slip, extra, t)
+                self._glide_fn, self._glide_slip = float(force[2]), slip
+                self._glide_q[:] = self._q
+                self._glide_qd[:] = self._qd
         for i in range(results.num_hydroelastic_contacts()):
             info = results.hydroelastic_contact_info(i)
             f_A = info.F_Ac_W().translational()
@@ -635,17 +645,18 @@ class DrakeBackend(Backend):
             else:
                 force -= f_A
 
-    def _glide_sample(self, fn: float, slip: float, estimated: float, t: float) -> dict[str, float]:
-        """info's ``at_end.sap_glide`` at the period that set the run's largest estimated gliding share: ``t`` [s],
-        Drake's ``fn`` [N] and ``slip`` [m/s], the ``estimated`` term mu (Kd + Kp h) |v_t| [N]
-        (:func:`sap_glide_force`) and the ``measured`` one, fn - (Kp y + Kd ydot) [N] with y and ydot the sphere's
-        penetration and its rate from the period's end state (legbench's kinematics, the lowest point)."""
-        c = self.physics.contact
-        R = load_params().geometry.R_foot
-        y = R - float(kinematics.fk(self._q)[2])
-        ydot = -float((kinematics.jacobian_below(self._q, R) @ self._qd)[2])
-        return {"t": t, "fn": fn, "slip": slip, "estimated": estimated,
-                "measured": fn - (c.Kp * y + c.Kd * ydot)}  # fmt: skip
+    def _glide_sample(self) -> dict[str, float] | None:
+        """info's ``at_end.sap_glide``, the period that set the run's largest estimated gliding share (None where
+        none did): its end ``t`` [s], Drake's ``fn`` [N] and ``slip`` [m/s], the ``estimated`` term mu (Kd + Kp h)
+        |v_t| [N] (:func:`sap_glide_force`) and the ``measured`` one, fn - (Kp y + Kd ydot) [N] with y and ydot the
+        sphere's penetration and its rate from that period's end state (legbench's kinematics, the lowest point)."""
+        if not math.isfinite(self._glide_fn):
+            return None
+        c, q, qd, R = self.physics.contact, self._glide_q, self._glide_qd, self._r_foot
+        y = R - float(kinematics.fk(q)[2])
+        ydot = -float((kinematics.jacobian_below(q, R) @ qd)[2])
+        return {"t": self._sap_lift_t, "fn": self._glide_fn, "slip": self._glide_slip,
+                "estimated": self._sap_lift_n, "measured": self._glide_fn - (c.Kp * y + c.Kd * ydot)}  # fmt: skip
 
     # ----------------------------------------------------------------- read
     def state(self) -> tuple[np.ndarray, np.ndarray]:
@@ -701,7 +712,7 @@ class DrakeBackend(Backend):
             },  # fmt: skip
         }
         # the state the run ended in, not a setting; sap_glide: the largest gliding share up to the end (SAP point)
-        out["at_end"] = {"delassus_w": self._delassus_estimate(), "sap_glide": self._sap_glide}
+        out["at_end"] = {"delassus_w": self._delassus_estimate(), "sap_glide": self._glide_sample()}
         if self.continuous:
             integ = self.simulator.get_integrator()
             out["target_accuracy"] = integ.get_target_accuracy()

@@ -108,6 +108,8 @@ except Exception as exc:  # odepy raises its own OdePyError when libode is absen
 MAX_CONTACTS = 4
 #: ODE's world defaults in double precision (ode/src/objects.cpp: dxWorld::dxWorld).
 ODE_ERP, ODE_CFM = 0.2, 1e-10
+#: Settings only ``dWorldQuickStep`` reads (left out of :meth:`OdeBackend.info` under ``dWorldStep``).
+QUICK_ONLY = ("iterations", "sor", "row_order")
 #: The seed of an instance's random generator at reset (quick-step row reordering), and before every step with
 #: ``row_order: repeated``.
 SEED = 0
@@ -119,6 +121,7 @@ _CONTACT_STRIDE = ctypes.sizeof(ode.dContact)
 _attach = ode.loadOde("dJointAttach", None, ode.dJointID, ode.dBodyID, ode.dBodyID)
 _collide, _geom_body = ode.dCollide, ode.dGeomGetBody
 _create_contact, _set_feedback = ode.dJointCreateContact, ode.dJointSetFeedback
+_set_seed, _get_seed = ode.dRandSetSeed, ode.dRandGetSeed
 
 
 def friction_axes(normal: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> list[list[float]]:
@@ -472,7 +475,7 @@ class OdeBackend(Backend):
         j0, j1, j2 = joints
         collide_on = self._collide_on
         n = 0
-        advancing, repeated, seed = quick and not self._repeat, quick and self._repeat, ode.dRandSetSeed
+        advancing, repeated, seed, get_seed = quick and not self._repeat, quick and self._repeat, _set_seed, _get_seed
         if advancing:  # this instance's generator, where its last period left it
             seed(self._rng)
         for _ in range(self.n_sub):
@@ -490,7 +493,7 @@ class OdeBackend(Backend):
                 seed(SEED)
             step(world, h)
         if advancing:
-            self._rng = ode.dRandGetSeed()
+            self._rng = get_seed()
         self._n_contacts = n
         self._read()
         self._native_force()
@@ -522,7 +525,7 @@ class OdeBackend(Backend):
         law, law_i, implicit = self.contact.generalized, self.contact.implicit_generalized, self._implicit
         j0, j1, j2 = joints
         u1, u2, u3 = self._u
-        advancing, repeated, seed = quick and not self._repeat, quick and self._repeat, ode.dRandSetSeed
+        advancing, repeated, seed, get_seed = quick and not self._repeat, quick and self._repeat, _set_seed, _get_seed
         if advancing:  # this instance's generator, where its last period left it
             seed(self._rng)
         for _ in range(self.n_sub):
@@ -538,7 +541,7 @@ class OdeBackend(Backend):
                 seed(SEED)
             step(world, h)
         if advancing:
-            self._rng = ode.dRandGetSeed()
+            self._rng = get_seed()
         self._read()
         self._reference_force()
 
@@ -605,7 +608,8 @@ class OdeBackend(Backend):
             "engine": "ode",
             "version": _ode_version(),
             "binding": f"ode-python {metadata.version('ode-python')}",
-            **{k: self.cfg[k] for k in self.defaults},
+            # the quick step's own settings only where it steps (the report's settings table lists what acted)
+            **{k: self.cfg[k] for k in self.defaults if self._quick or k not in QUICK_ONLY},
             "integrator": f"ODE {'dWorldStep' if not self._quick else 'dWorldQuickStep'} (semi-implicit, first order)",
             "integrator_family": self.integrator_family(),
             "sub_steps": self.n_sub,
