@@ -234,6 +234,9 @@ class Controller(ABC):
     def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
         """Activate at time t [s] from the measured q [rad], qd [rad/s]."""
 
+    def prepare(self) -> None:  # noqa: B027 (a hook: most controllers' start() needs no import)
+        """Import what :meth:`start` needs, so the run loop can do it before its clock starts (nothing here)."""
+
     def torque(self, k: int, q1: float, q2: float, q3: float, qd1: float, qd2: float, qd3: float) -> tuple[float, ...]:
         """Torque (tau1, tau2, tau3) [N m] at control tick k (t = k Ts) for the measured q [rad], qd [rad/s]."""
         return control_law(k, q1, q2, q3, qd1, qd2, qd3, self.params, self.state)
@@ -353,8 +356,13 @@ class TrajectoryController(Controller):
         """Integral of the tracking error [rad s]."""
         return self.state[S_I : S_I + 3].copy()
 
+    def prepare(self) -> None:
+        """scipy.interpolate (0.5-0.9 s to import once per process), before the run loop's clock: in start() it was
+        charged to the wall time of the first backend a process ran a trajectory on (a harness review)."""
+        import scipy.interpolate  # noqa: F401
+
     def start(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
-        from scipy.interpolate import CubicHermiteSpline  # 0.9 s of imports: only where a trajectory starts
+        from scipy.interpolate import CubicHermiteSpline  # imported by prepare(): only where a trajectory starts
 
         Qw = joint_waypoints(np.array(self.event.waypoints), q, self.leg)
         Q = np.vstack([q, Qw])
@@ -415,7 +423,8 @@ class EffortController(Controller):
 
 
 class TorqueController(Controller):
-    """Open loop: tau_i = A_i sin(2 pi f_i (t - t_event) + phi_i) [N m], whatever the state (:func:`torque_law`).
+    """Open loop: tau_i = A_i sin(2 pi f_i (t - t_s) + phi_i) [N m], whatever the state (:func:`torque_law`), t_s
+    the tick the event switches at (its ``t`` plus any delay: :meth:`start`).
 
     The torque of tick k is the value at t = k Ts (held over the period by the backend).
     """

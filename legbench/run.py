@@ -5,7 +5,15 @@ events due (an event with a ``delay`` at its tick round((t + delay) / Ts), the
 previous controller running until then), computes the active controller's torque, saturates it at the joint
 limits, logs the tick into preallocated arrays, and steps the backend one
 control period under that torque (zero-order hold). Row k of the log holds the
-state and ground force at t_k and the torque applied over [t_k, t_k + Ts).
+state at t_k, the ground force as the backend reads it at t_k, and the torque applied over [t_k, t_k + Ts).
+
+That force is each backend's own read-out (run.json info, ``contact.force_readout`` where a backend names it):
+the law at the state (Pinocchio, the symbolic model, every backend in reference contact), an engine's constraint
+force at that state (MuJoCo's default), the last sub-step's impulse over its length (ODE, PyBullet, Drake's discrete
+plant, DART's default), or the period's mean (about half a period behind; MuJoCo and DART with ``force_readout:
+mean``): the same in steady contact, up to a sub-step or half a period apart in an impact. Row 0's is the reset
+state's: an engine whose force is a step's impulse reads 0 there even where the foot starts in contact (no
+bundled task does), where the law's backends read the law.
 """
 
 from __future__ import annotations
@@ -119,6 +127,8 @@ def simulate(
     # scratch copies, before the clock, so the first backend a process runs is not charged for it in wall_time
     (a1, a2, a3), (v1, v2, v3) = (float(x) for x in scenario.q0), (float(x) for x in scenario.qd0)
     control(0, a1, a2, a3, v1, v2, v3, 0.0, 0.0, 0.0, p.copy(), s.copy(), consts, np.full((1, 12), np.nan), np.zeros(3))
+    for c in controllers:  # what their start() imports (a trajectory's scipy.interpolate), before the clock too
+        c.prepare()
     start = time.perf_counter()
     try:
         try:

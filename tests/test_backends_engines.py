@@ -568,6 +568,21 @@ def test_reference_mode_info_names_the_law_not_the_engines_contact(make: Make, e
 
 
 @pytest.mark.parametrize("engine", ENGINES)
+def test_a_runaway_joint_passes_the_run_loops_divergence_bound(make: Make, engine: str) -> None:
+    """The run loop stops a backend as diverged once a joint passes MAX_JOINT_SPEED (1000 rad/s, a strict test).
+    PyBullet clamped joint speed at exactly 1000 rad/s, so a runaway PyBullet run sat at the bound, never tripped
+    it and stayed 'ok' where every other engine was stopped (a harness review). Free space, no gravity, no torque:
+    the hip set spinning at twice the bound is still past it after a tick in every engine (no engine clamps a
+    joint speed at or under the bound; the spin hands some of its energy to the other joints)."""
+    from legbench.scenario import MAX_JOINT_SPEED
+
+    backend = make(engine, Physics(gravity=0.0))
+    backend.reset(np.zeros(3), np.array([0.0, 2.0 * MAX_JOINT_SPEED, 0.0]))
+    backend.step(np.zeros(3))
+    assert abs(backend.state()[1][1]) > MAX_JOINT_SPEED, backend.state()[1]
+
+
+@pytest.mark.parametrize("engine", ENGINES)
 def test_instances_are_isolated_and_deterministic(make: Make, engine: str) -> None:
     """Two instances stepped in lockstep with different torques: each equals a solo run bit for bit."""
     a, b, solo = make(engine), make(engine), make(engine)

@@ -136,8 +136,11 @@ def _import_quietly() -> Any:
 
 p = _import_quietly()
 
-#: Joint-speed clamp [rad/s]: Bullet's default of 100 replaced by a bound the leg cannot reach.
-MAX_JOINT_VELOCITY = 1000.0
+#: Joint-speed clamp [rad/s]: Bullet's default of 100 replaced by a bound the leg cannot reach, ten times the run
+#: loop's divergence bound (1000 rad/s, ``scenario.MAX_JOINT_SPEED``): at 1000 itself a runaway PyBullet run sat
+#: clamped at exactly the bound, which the loop's strict test never trips, and stayed 'ok' where every other
+#: engine was stopped as diverged (a harness review).
+MAX_JOINT_VELOCITY = 1.0e4
 #: PyBullet's contact slop [m] (PhysicsServerCommandProcessor.cpp: ``m_linearSlop = 0.00001``; Bullet's own
 #: btContactSolverInfo default is 0): added to the contact distance (btMultiBodyConstraintSolver.cpp), so a
 #: resting contact sinks that much deeper. ``contact_margins: zero`` sets it to 0.
