@@ -666,7 +666,7 @@ class MujocoBackend(Backend):
         name; with the raw solref, ``contact.Kp_Kd_note`` (:meth:`_raw_solref_note`)."""
         m, c = self.model, self.physics.contact
         unused = self._unused_settings()
-        return {
+        out = {
             "engine": "mujoco",
             "version": mujoco.__version__,
             **{k: self.cfg[k] for k in self.defaults if k not in unused},
@@ -707,7 +707,6 @@ class MujocoBackend(Backend):
                 "impratio": float(m.opt.impratio),
                 "noslip_iterations": int(m.opt.noslip_iterations),
                 "force_readout": self.cfg["force_readout"],
-                **({"Kp_Kd_note": self._raw_solref_note()} if self.cfg["contact_solref"] == "raw" else {}),
             },
             # opt.disableflags by name (MuJoCo's default: none): mjDSBL_AUTORESET always, mjDSBL_CONTACT in reference
             "disableflags": disabled_flags(m.opt.disableflags),
@@ -718,16 +717,15 @@ class MujocoBackend(Backend):
                 "tolerance": float(m.opt.tolerance),
             },
         }
+        if not self.reference and self.cfg["contact_solref"] == "raw":
+            out["contact"]["Kp_Kd_note"] = self._raw_solref_note(out["contact"])
+        return out
 
-    def _raw_solref_note(self) -> str:
+    def _raw_solref_note(self, contact: Mapping[str, Any]) -> str:
         """``contact.Kp_Kd_note`` of :meth:`info` for ``contact_solref: raw``: Kp and Kd given to solref as
         (-Kp, -Kd) in MuJoCo's units, and the stiffness at rest Fn / y [N/m] that this model has for them
-        (:func:`usual_rest_depth` on the loaded pair: impedance, A, cone, friction, impratio) at normal loads of
-        20, 40 and 60 N (the calibration's two rests, about the effort task's 59 N)."""
-        m = self.model
-        contact = {"solref": m.pair_solref[0].tolist(), "solimp": m.pair_solimp[0].tolist(), "A": self.A,
-                   "friction": m.pair_friction[0].tolist(), "cone": mujoco.mjtCone(m.opt.cone).name,
-                   "impratio": float(m.opt.impratio)}  # fmt: skip
+        (:func:`usual_rest_depth` on info's ``contact``, the loaded pair: impedance, A, cone, friction, impratio)
+        at normal loads of 20, 40 and 60 N (the calibration's two rests, about the effort task's 59 N)."""
         k = {fn: usual_rest_depth(contact, fn)[1] for fn in RAW_NOTE_LOADS}
         at = ", ".join(f"{k[fn]:.4g} N/m at {fn:g} N" for fn in RAW_NOTE_LOADS)
         return (f"Kp, Kd are the spec's numbers given to solref as (-Kp, -Kd) in MuJoCo's units (solref[0] 1/s^2, "
