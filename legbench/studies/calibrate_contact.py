@@ -210,8 +210,9 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
         return (t > end - program.window - 1e-9) & (t <= end + 1e-9)
 
     w1, w2 = window(program.phase - 1e-3), window(2 * program.phase - 1e-3)
-    dy = y[w2].mean() - y[w1].mean()
-    k_eff = float((f[w2, 2].mean() - f[w1, 2].mean()) / dy) if abs(dy) > 0 else math.nan
+    (y1, f1), (y2, f2) = ((float(y[w].mean()), float(f[w, 2].mean())) for w in (w1, w2))  # the two rests [m, N]
+    dy = y2 - y1
+    k_eff = (f2 - f1) / dy if abs(dy) > 0 else math.nan
     tr = (t >= program.phase) & (t < program.phase + program.transient) & (ydot > 1e-3)
     notes = []
     compliant = not rigid_contact(log.info)
@@ -231,7 +232,6 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     if compliant and math.isfinite(k_eff) and abs(k_eff / contact.Kp - 1.0) > K_EFF_RTOL:
         # the second rest is the verification's rest case (y = Fn/Kp): the backend's measured explanation of a
         # miss there, held to its own closed form at this rest, says why the stiffness is not Kp
-        y2, f2 = float(y[w2].mean()), float(f[w2, 2].mean())
         known = _known(log, "rest_penetration", "penetration R_foot - z_E", log.info, y2, f2 / contact.Kp,
                        K_EFF_RTOL * y2)  # fmt: skip
         # k eff is the chord between the two rests; the backend's closed form, a stiffness at one rest, is said so
@@ -249,11 +249,10 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
         # no spring to fit: what the rests' dFn/dy measures is the engine's constraint regularisation, and a rest
         # that moves the other way (the pose settling) gave "inf"; the backend's closed form of its sink, if any
         fitted = f"dFn/dy {k_eff:.4g} N/m" if dy > 0.0 else "no dFn/dy"
-        y2, f2 = float(y[w2].mean()), float(f[w2, 2].mean())
         known = _known(log, "rest_penetration", "penetration R_foot - z_E", {**log.info, "load": {"Fn": f2}}, y2,
                        0.0, K_EFF_RTOL * abs(y2))  # fmt: skip
         notes.append(f"rigid contact: no Kp, Kd to match, so k eff and c eff do not apply (n/a): the rests moved by "
-                     f"{dy:.2g} m under the added {f[w2, 2].mean() - f[w1, 2].mean():.3g} N ({fitted}): the "
+                     f"{dy:.2g} m under the added {f2 - f1:.3g} N ({fitted}): the "
                      f"engine's constraint regularisation and the pose settling, not a spring; y = {y2:.3g} m at Fn = "
                      f"{f2:.3g} N"
                      + (f"; {known}" if known else ""))  # fmt: skip
