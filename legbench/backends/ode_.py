@@ -347,7 +347,10 @@ class OdeBackend(Backend):
         self._qd = np.zeros(3)
         self._step = self._step_reference if self.reference else self._step_native
         self._rng = SEED  # ODE's random generator state of this instance (quick step's row reordering)
-        self._repeat = cfg["row_order"] == "repeated"
+        # the quick step's row order (row_order): this instance's generator carried over the periods, or re-seeded
+        # before every step
+        self._advancing = self._quick and cfg["row_order"] == "advancing"
+        self._repeated = self._quick and cfg["row_order"] == "repeated"
         self.t = 0.0
 
     def _build(self, urdf: Path, physics: Physics, cfg: Mapping[str, Any]) -> None:
@@ -467,7 +470,7 @@ class OdeBackend(Backend):
 
     def _step_native(self) -> None:
         world, h, joints = self.world, self.h, self.joints
-        add, step, quick = ode.dJointAddHingeTorque, self._world_step, self._quick
+        add, step = ode.dJointAddHingeTorque, self._world_step
         group, empty = self.contact_group, ode.dJointGroupEmpty
         g1, g2 = self._pair
         contact_geoms, contacts = self._contact_geoms, self._add_contacts
@@ -475,7 +478,7 @@ class OdeBackend(Backend):
         j0, j1, j2 = joints
         collide_on = self._collide_on
         n = 0
-        advancing, repeated, seed, get_seed = quick and not self._repeat, quick and self._repeat, _set_seed, _get_seed
+        advancing, repeated, seed, get_seed = self._advancing, self._repeated, _set_seed, _get_seed
         if advancing:  # this instance's generator, where its last period left it
             seed(self._rng)
         for _ in range(self.n_sub):
@@ -520,12 +523,12 @@ class OdeBackend(Backend):
 
     def _step_reference(self) -> None:
         world, h, joints = self.world, self.h, self.joints
-        add, step, quick = ode.dJointAddHingeTorque, self._world_step, self._quick
+        add, step = ode.dJointAddHingeTorque, self._world_step
         angle, rate = ode.dJointGetHingeAngle, ode.dJointGetHingeAngleRate
         law, law_i, implicit = self.contact.generalized, self.contact.implicit_generalized, self._implicit
         j0, j1, j2 = joints
         u1, u2, u3 = self._u
-        advancing, repeated, seed, get_seed = quick and not self._repeat, quick and self._repeat, _set_seed, _get_seed
+        advancing, repeated, seed, get_seed = self._advancing, self._repeated, _set_seed, _get_seed
         if advancing:  # this instance's generator, where its last period left it
             seed(self._rng)
         for _ in range(self.n_sub):
