@@ -289,7 +289,7 @@ class DrakeBackend(Backend):
         glide = at_end.get("sap_glide") if isinstance(at_end, Mapping) else None
         if not isinstance(glide, Mapping):
             return None
-        fn, estimated, measured = (float(glide[k]) for k in ("fn", "estimated", "measured"))
+        fn, estimated, carried = (float(glide[k]) for k in ("fn", "estimated", "measured"))  # [N]
         if not (fn > 0.0 and estimated >= SAP_GLIDE_OUT * fn):
             return None
         h = info.get("timestep")
@@ -297,8 +297,8 @@ class DrakeBackend(Backend):
                     f"approximation's separation speed mu |v_t| through its relaxation time and step, h = "
                     f"{h if isinstance(h, float) else math.nan:g} s), so the foot leaves the ground once that term "
                     f"reaches the load: at t = {float(glide['t']):.3f} s, slipping at {float(glide['slip']):.3g} "
-                    f"m/s, Drake's Fn = {fn:.4g} N carried {measured:.4g} N over Kp y + Kd ydot against the "
-                    f"{estimated:.4g} N estimated ({100 * estimated / fn:.3g} % of Fn)", measured, estimated,
+                    f"m/s, Drake's Fn = {fn:.4g} N carried {carried:.4g} N over Kp y + Kd ydot against the "
+                    f"{estimated:.4g} N estimated ({100 * estimated / fn:.3g} % of Fn)", carried, estimated,
                     SAP_GLIDE_TOL * estimated,
                     "; Drake's default approximation, lagged (a Hunt-Crossley normal law, not the spec's linear "
                     "one), slides without lifting and meets the closed form to 0.16 %; matched keeps SAP for the "
