@@ -215,9 +215,10 @@ def jacobian_at(q: np.ndarray, poc: str = "true", lift: float = 0.0, params: Leg
 
 
 def is_singular(q: np.ndarray, params: LegParams | None = None, tol: float = 1e-6) -> np.ndarray:
-    """True where the Jacobian loses rank: straight knee (s3 = 0) or E on the ab/ad axis.
+    """True where the Jacobian loses rank: straight knee (s3 = 0), or E in the plane of the ab/ad and hip axes.
 
-    The second condition is L23 s2 + L3E s23 = 0 (spec section 5).
+    The second condition is zero reach, L23 s2 + L3E s23 = 0: there the ab/ad and hip columns of J are
+    parallel. (E itself never reaches the ab/ad axis: its distance from it is at least L_12.)
     """
     g = _params(params).geometry
     q = np.asarray(q, float)

@@ -85,7 +85,7 @@ class PinocchioBackend(Backend):
         "atol": 1.0e-10,
         "max_step": 1.0e-4,  # [s], adaptive only (the report's ode45 setting)
         "limit_stiffness": joint_limits.STIFFNESS,  # [N m/rad]
-        "limit_damping": joint_limits.DAMPING,  # [N m s/rad], about critical for the knee (I ~ 0.01 kg m^2)
+        "limit_damping": joint_limits.DAMPING,  # [N m s/rad], over-damped for the knee (damping ratio 1.15-1.25)
         "friction": "implicit",  # euler only: friction slope linearly implicit (docs/pinocchio.md)
         "kernel": "compiled",  # euler, rk4, rk45: one compiled call per control period (pinocchio_kernel), or python
     }
