@@ -9,9 +9,23 @@ torques come from the harness, so replaying them is exact), and the deviation
 accumulated within the window is measured. Only the public Backend API is used
 (``reset``, ``step``, ``state``, ``ground_force``).
 
+The reset floor: a backend whose engine state is more than its joint coordinates
+(maximal coordinates: bodies held on their joints by constraints with ERP
+position correction) carries a constraint drift through a free run that
+``reset(q, qd)`` removes, putting the bodies exactly on their joints. Replaying
+its own log on itself then does not give zero, and that part of the windowed
+error against the reference is ``reset``'s artefact, not the step's local
+error. So every backend's own free-running log is replayed on itself with the
+same windows (one more replay per backend, as many steps as its free run; none
+more for the reference, whose replay on itself is that) and the result, the
+reset floor, is reported beside the local error; a row whose floor is not below
+:data:`FLOOR_FRACTION` of its local error is marked (:func:`reset_limited`):
+there the local error cannot be told from the reset artefact. A backend whose
+state is its generalized coordinates has a floor of exactly zero.
+
 Data flow: reference :class:`~legbench.results.RunResult` -> :func:`replay`
 (:class:`HorizonResult`, numpy) -> :func:`short_horizon` (a pandas table with
-the free-running deviation beside the windowed one). Deviations are
+the free-running deviation beside the windowed one and the reset floor). Deviations are
 :func:`legbench.metrics.deviation` (hip wrapped).
 """
 
@@ -34,10 +48,14 @@ from legbench.run import run_backend
 from legbench.scenario import Scenario, physics_of
 from legbench.signals import COLUMNS, UNITS
 
-__all__ = ["SIGNALS", "HorizonResult", "replay", "replay_task", "short_horizon"]
+__all__ = ["FLOOR_FRACTION", "SIGNALS", "HorizonResult", "replay", "replay_task", "reset_limited", "short_horizon"]
 
 #: Signals compared per window: joint positions [rad], velocities [rad/s], ground force in W [N].
 SIGNALS = ("q", "qd", "force")
+#: A local error is told from ``reset``'s artefact only where the reset floor (the backend's own log replayed on
+#: itself) is below this fraction of it (the largest over the windows, both): a floor of 10 % or more of the local
+#: error is a share of it that the backend's step did not make (:func:`reset_limited`).
+FLOOR_FRACTION = 0.1
 
 
 @dataclass(frozen=True)
@@ -119,6 +137,29 @@ def replay(backend: Backend, reference: RunResult, window: float) -> HorizonResu
     return HorizonResult(window, np.asarray(t, float)[starts], end, peak, status, reason)
 
 
+def reset_limited(local_max: float, floor_max: float) -> bool:
+    """Whether a local error ``local_max`` cannot be told from the reset floor ``floor_max`` (both the largest over
+    the windows, in the signal's units): the floor is above zero and not below :data:`FLOOR_FRACTION` of the local
+    error. A floor of exactly zero (``reset`` restores the state a run was in) never limits; NaN (either not
+    measured: a replay failed) does not either."""
+    return floor_max > 0.0 and not math.isnan(local_max) and not floor_max < FLOOR_FRACTION * local_max
+
+
+def _floor_note(local_max: float, floor_max: float, unit: str) -> str:
+    """The marked row's note: the floor, named with its size against the local error."""
+    share = f"{floor_max / local_max:.2f}x the local error" if local_max > 0.0 else "while the local error is 0"
+    return (f"reset-limited: reset floor {floor_max:.3g} {unit} (its own log replayed on itself), {share} "
+            f"({local_max:.3g} {unit}; told apart below {FLOOR_FRACTION:g}x): reset() puts the engine in a state its "
+            "free run is not in, and this local error cannot be told from that artefact")  # fmt: skip
+
+
+def _peak_stats(col: np.ndarray) -> tuple[float, float]:
+    """Largest and median of a component's in-window peaks over the windows measured (NaN where none was)."""
+    if not np.isfinite(col).any():
+        return math.nan, math.nan
+    return float(np.nanmax(col)), float(np.nanmedian(col))
+
+
 def _load(scenario: Scenario, name: str, contact_mode: str | None) -> Backend:
     return registry.load(name, physics_of(scenario, contact_mode), scenario.backends.get(name, {}))
 
@@ -152,7 +193,8 @@ def short_horizon(
     Args:
         scenario: the scenario to run.
         backend_names: backends to compare (the reference among them is compared with itself,
-            which must give zero local error: a check of determinism and of ``reset``).
+            which gives its reset floor as its local error: zero for a backend whose state is
+            its generalized coordinates, a check of determinism and of ``reset``).
         window: re-initialisation period [s].
         reference: reference backend (default: the scenario's ``comparison.reference``).
         contact_mode: override of the scenario's contact mode.
@@ -160,7 +202,14 @@ def short_horizon(
     Returns:
         ``summary``: one row per backend, signal and component with ``free_max`` (max
         free-running deviation), ``local_max`` and ``local_median`` (over windows of the
-        in-window maximum), units; ``windows``: one row per backend, window and component.
+        in-window maximum), ``reset_floor_max`` and ``reset_floor_median`` (the same for the
+        backend's own free-running log replayed on itself: what ``reset`` alone contributes),
+        ``reset_limited`` (:func:`reset_limited`) and ``note`` (the floor named, where marked;
+        else empty), all in ``unit``; ``windows``: one row per backend, window and component
+        (``end`` and ``peak`` of the local error, ``floor_end`` and ``floor_peak`` of the floor).
+
+        Cost: one replay more per backend than the local error alone (the reference's replay on
+        itself is its floor), as many steps as the backend's free run.
 
     Raises:
         ScenarioError: the window is not a whole number of control periods.
@@ -184,20 +233,28 @@ def short_horizon(
         backend = _load(scenario, name, contact_mode)
         try:
             res = replay(backend, ref, window)
+            floor = res if tr is ref else replay(backend, tr, window)  # the reset floor: its own log on itself
         finally:
             backend.close()
         for s in SIGNALS:
             free = _free_deviation(tr, ref, s)
             for j, comp in enumerate(COLUMNS[s]):
-                col = res.peak[s][:, j]
+                local_max, local_median = _peak_stats(res.peak[s][:, j])
+                floor_max, floor_median = _peak_stats(floor.peak[s][:, j])
+                limited = reset_limited(local_max, floor_max)
+                note = _floor_note(local_max, floor_max, UNITS[s]) if limited else ""
+                if floor.status != "ok":
+                    note = f"reset floor not measured in full: {floor.reason}"
                 rows.append({
                     "backend": name, "reference": ref_name, "window": window, "signal": s, "component": comp,
-                    "unit": UNITS[s], "free_max": float(free[j]),
-                    "local_max": float(np.nanmax(col)) if np.isfinite(col).any() else math.nan,
-                    "local_median": float(np.nanmedian(col)) if np.isfinite(col).any() else math.nan,
-                    "status": res.status, "reason": res.reason,
+                    "unit": UNITS[s], "free_max": float(free[j]), "local_max": local_max, "local_median": local_median,
+                    "reset_floor_max": floor_max, "reset_floor_median": floor_median, "reset_limited": limited,
+                    "status": res.status, "reason": res.reason, "note": note,
                 })  # fmt: skip
                 for w, t0 in enumerate(res.t0):
+                    mine = w < len(floor.t0)  # the same windows: both logs have the scenario's ticks
                     wrows.append({"backend": name, "t0": float(t0), "signal": s, "component": comp,
-                                  "end": float(res.end[s][w, j]), "peak": float(res.peak[s][w, j])})  # fmt: skip
+                                  "end": float(res.end[s][w, j]), "peak": float(res.peak[s][w, j]),
+                                  "floor_end": float(floor.end[s][w, j]) if mine else math.nan,
+                                  "floor_peak": float(floor.peak[s][w, j]) if mine else math.nan})  # fmt: skip
     return pd.DataFrame(rows), pd.DataFrame(wrows)
