@@ -564,3 +564,28 @@ def test_the_short_horizon_columns_leave_out_the_windows_before_the_skip() -> No
     s = horizon.SIGNALS[0]
     assert every[f"sh_{s}_max"] == 9.0 and kept[f"sh_{s}_max"] == 3.0
     assert math.isnan(sweep._horizon_columns(None, 0.1)[f"sh_{s}_max"])  # a reference row: no windows
+
+
+@pytest.mark.parametrize("name", ["mujoco", "ode"])
+def test_a_sweeps_short_horizon_carries_each_runs_reset_floor(name: str) -> None:
+    """A sweep's short-horizon row has the reset floor beside its local error (legbench.studies.horizon): the
+    run's own log replayed on its backend in the same windows. MuJoCo's state is its joint coordinates: floor
+    exactly 0, not reset-limited. ODE's is not (maximal coordinates): in 10 ms windows over 0.2 s of free space
+    its q floor is 7.3e-6 rad (held within 2e-6..3e-5) against a local error of 7.4e-6 rad against Pinocchio,
+    0.99x, so its q and qd are marked reset-limited (the floor is 0.1x the local error or more)."""
+    from legbench.studies import horizon, tasks
+
+    if name not in backends.available() or "pinocchio" not in backends.available():
+        pytest.skip(f"{name} or pinocchio not installed")
+    fs = Path(__file__).resolve().parents[1] / "scenarios" / "verification" / "free_space.yaml"
+    ref = tasks.run_task(tasks.RunTask(0, str(fs), {"duration": 0.2}, "pinocchio")).run
+    res = tasks.run_task(tasks.RunTask(1, str(fs), {"duration": 0.2}, name, replay_window=0.01, reference=ref))
+    assert res.horizon is not None and res.floor is not None and len(res.floor.t0) == len(res.horizon.t0) == 20
+    cols = sweep._horizon_columns(res.horizon, 0.0, res.floor)
+    if name == "mujoco":
+        assert all(cols[f"sh_floor_{s}_max"] == 0.0 for s in horizon.SIGNALS)
+        assert not any(cols[f"sh_{s}_reset_limited"] for s in horizon.SIGNALS)
+    else:
+        assert 2e-6 < cols["sh_floor_q_max"] < 3e-5
+        assert cols["sh_q_reset_limited"] and cols["sh_qd_reset_limited"]
+        assert cols["sh_floor_q_max"] >= horizon.FLOOR_FRACTION * cols["sh_q_max"]

@@ -683,18 +683,32 @@ def run_metrics(res: RunResult, ref: RunResult, signals: Sequence[str], skip: fl
     return out
 
 
-def _horizon_columns(h: HorizonResult | None, skip: float = 0.0) -> dict[str, float]:
-    """The short-horizon columns ``sh_<component>_max``: the largest peak deviation over the windows that start
-    at or after ``skip`` [s] (the sweep's skip, as its other columns; every window is in the windows table)."""
+def _peak_columns(h: HorizonResult | None, skip: float, prefix: str) -> dict[str, float]:
+    """``<prefix><component>_max`` and ``<prefix><signal>_max``: the largest peak deviation of ``h`` over the
+    windows that start at or after ``skip`` [s] (NaN without ``h``)."""
     out: dict[str, float] = {}
     kept = None if h is None else np.asarray(h.t0) >= skip - T_EPS
     for s in horizon.SIGNALS:
         peak = None if h is None else np.asarray(h.peak[s])[kept]
         for j, c in enumerate(COMPONENTS[s]):
             col = None if peak is None else peak[:, j]
-            out[f"sh_{c}_max"] = float(np.nanmax(col)) if col is not None and np.isfinite(col).any() else math.nan
-        vals = [out[f"sh_{c}_max"] for c in COMPONENTS[s]]
-        out[f"sh_{s}_max"] = max(vals) if all(math.isfinite(v) for v in vals) else math.nan
+            out[f"{prefix}{c}_max"] = float(np.nanmax(col)) if col is not None and np.isfinite(col).any() else math.nan
+        vals = [out[f"{prefix}{c}_max"] for c in COMPONENTS[s]]
+        out[f"{prefix}{s}_max"] = max(vals) if all(math.isfinite(v) for v in vals) else math.nan
+    return out
+
+
+def _horizon_columns(
+    h: HorizonResult | None, skip: float = 0.0, floor: HorizonResult | None = None
+) -> dict[str, float | bool]:
+    """The short-horizon columns: ``sh_<component>_max``, the largest peak deviation over the windows that start
+    at or after ``skip`` [s] (the sweep's skip, as its other columns; every window is in the windows table);
+    ``sh_floor_<component>_max`` the same for the reset floor ``floor`` (the run's own log replayed on its
+    backend); ``sh_<signal>_reset_limited``, whether the signal's local error cannot be told from that floor
+    (:func:`legbench.studies.horizon.reset_limited`)."""
+    out: dict[str, float | bool] = {**_peak_columns(h, skip, "sh_"), **_peak_columns(floor, skip, "sh_floor_")}
+    for s in horizon.SIGNALS:
+        out[f"sh_{s}_reset_limited"] = horizon.reset_limited(float(out[f"sh_{s}_max"]), float(out[f"sh_floor_{s}_max"]))
     return out
 
 
@@ -734,16 +748,20 @@ def tabulate(sweep: Sweep, p: Plan, results: Mapping[int, TaskResult]) -> tuple[
                         for m in ("max", "pct")})  # fmt: skip
         if sweep.short_horizon is not None:
             h = task.horizon if r.role == "run" else None
-            rec.update(_horizon_columns(h, sweep.skip))
+            fl = task.floor if r.role == "run" else None
+            rec.update(_horizon_columns(h, sweep.skip, fl))
             rec["sh_status"] = h.status if h else ""
             if h is not None:
+                nf = 0 if fl is None else len(fl.t0)  # the same windows: both logs have the scenario's ticks
                 for w, t0 in enumerate(np.asarray(h.t0)):
                     for s in horizon.SIGNALS:
                         for j, c in enumerate(COMPONENTS[s]):
                             end, peak = float(h.end[s][w, j]), float(h.peak[s][w, j])
+                            f_end = float(fl.end[s][w, j]) if fl is not None and w < nf else math.nan
+                            f_peak = float(fl.peak[s][w, j]) if fl is not None and w < nf else math.nan
                             windows.append({"run": r.run, "ref": r.ref, "label": r.label, "backend": r.backend,
                                             "t0": float(t0), "signal": s, "component": c, "end": end,
-                                            "peak": peak})  # fmt: skip
+                                            "peak": peak, "floor_end": f_end, "floor_peak": f_peak})  # fmt: skip
         records.append(rec)
     table = pd.DataFrame.from_records(records)
     for c in param_cols:  # one type per column, so Parquet can hold it

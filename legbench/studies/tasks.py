@@ -46,18 +46,21 @@ class RunTask:
 
 @dataclass(frozen=True)
 class TaskResult:
-    """What a task gave: its index, the run, and the short-horizon replay if one was asked for."""
+    """What a task gave: its index, the run, and the short-horizon replay if one was asked for, with its reset
+    floor (the run's own log replayed on its backend in the same windows, :mod:`legbench.studies.horizon`)."""
 
     index: int
     run: RunResult
     horizon: HorizonResult | None = None
+    floor: HorizonResult | None = None
 
 
 def run_task(task: RunTask) -> TaskResult:
     """Run one task; never raises for a simulation problem (it is reported in the run's status)."""
     sc = scenario_mod.load(task.scenario, dict(task.overrides))
     tr = run_backend(sc, task.backend, task.contact_mode)
-    h = None
+    h = floor = None
     if task.replay_window is not None and task.reference is not None and tr.status == "ok":
         h = horizon.replay_task(sc, task.backend, task.reference, task.replay_window, task.contact_mode)
-    return TaskResult(task.index, tr, h)
+        floor = horizon.replay_task(sc, task.backend, tr, task.replay_window, task.contact_mode)
+    return TaskResult(task.index, tr, h, floor)
