@@ -190,7 +190,7 @@ _KEPT = "what finished is kept (lines above), rerun the same command to finish"
 #: What an interrupt leaves, by subcommand: the runs keep what finished; the studies write only at the end.
 _INTERRUPTED: dict[str, str] = {
     "run": _KEPT,
-    "sweep": _KEPT,
+    "sweep": "what finished is kept (lines above); a sweep is not resumed: rerun it with --force to replace it",
     "reproduce": _KEPT,
     **dict.fromkeys(("verify", "calibrate-contact", "bench"), "nothing was written (it writes when all is done)"),
 }

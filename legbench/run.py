@@ -70,6 +70,7 @@ def simulate(
     backend: Backend,
     physics: Physics,
     progress: Callable[[float], None] | None = None,
+    keep_interrupted: bool = False,
 ) -> RunResult:
     """Run one scenario on one loaded-and-ready backend; a divergence ends the log early, marked failed.
 
@@ -88,10 +89,17 @@ def simulate(
         backend: a backend already :meth:`~Backend.load`-ed with ``physics``.
         physics: the physics the backend was loaded with (torque limits [N m]).
         progress: called with the fraction done (0..1) about 50 times per run.
+        keep_interrupted: on Ctrl-C (SIGTERM: the CLI's handler raises the same), return the rows up to that
+            tick marked ``interrupted`` (a run directory keeps them and resumes); False (the studies, which
+            keep nothing of an interrupted study): the KeyboardInterrupt propagates, so an interrupt is never
+            read as the engine's failure.
 
     Returns:
         The log; ``status`` ``failed`` (divergence or an engine error) or
-        ``interrupted`` (Ctrl-C) with the rows up to that tick.
+        ``interrupted`` (Ctrl-C, with ``keep_interrupted``) with the rows up to that tick.
+
+    Raises:
+        KeyboardInterrupt: interrupted, without ``keep_interrupted``.
     """
     from legbench import tick  # numba: imported by the process that runs, not by every command
 
@@ -180,6 +188,8 @@ def simulate(
             status, reason = "failed", one_line(f"{type(cause).__name__} at t = {k * Ts:.4f} s: {cause}")
         n = k + 1 if isinstance(exc, _EngineError) and exc.logged else k  # the state read at t_k is the log's
     except KeyboardInterrupt:
+        if not keep_interrupted:
+            raise
         status, reason = "interrupted", f"interrupted at t = {k * Ts:.4f} s"
         n = k
     wall = time.perf_counter() - start
@@ -277,7 +287,7 @@ def run_backend(scenario: Scenario, name: str, contact_mode: str | None = None, 
         return RunResult.empty(name, "failed", one_line(f"load failed: {type(exc).__name__}: {exc}"))
     bar = _ProgressBar(f"{scenario.name}/{name}") if progress else None
     try:
-        return simulate(scenario, backend, physics, bar)
+        return simulate(scenario, backend, physics, bar, keep_interrupted=True)
     finally:
         if bar is not None:
             bar.done()

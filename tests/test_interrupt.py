@@ -281,6 +281,7 @@ def test_interrupt_of_a_sweep_keeps_the_finished_runs(tmp_path: Path, gated: tup
     table = pd.read_csv(out / "sweep.csv")
     assert int((table["status"] == "ok").sum()) == 1 and set(table["status"]) == {"ok", "interrupted"}
     assert "interrupted: sweep s: 1 of 6 runs finished and kept" in err, err
+    assert "a sweep is not resumed: rerun it with --force" in err, err  # not 'rerun the same command', refused
     assert not list(tmp_path.glob(".*"))
 
     # one job: the run in this process is stopped while it waits at the gate (the first, none finished before);
@@ -296,3 +297,32 @@ def test_interrupt_of_a_sweep_keeps_the_finished_runs(tmp_path: Path, gated: tup
     assert "Traceback" not in err, err
     assert "interrupted: sweep s: 0 of 6 runs finished and kept, nothing written" in err, err
     assert not out1.exists()
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["verify", "--backends", "gated-pinocchio", "--cases", "rest_penetration,static_balance"],
+        ["bench", str(SCENARIOS / "effort.yaml"), "--backends", "gated-pinocchio", "--repeats", "1", "--no-memory"],
+    ],
+    ids=["verify", "bench"],
+)
+def test_an_interrupted_study_in_one_process_writes_nothing(
+    tmp_path: Path, gated: tuple[Path, dict[str, str]], args: list[str]
+) -> None:
+    """verify and bench with one job run their engines in the command's own process: the signal comes while a
+    run waits at the gate, mid-simulation. It stops the study (exit 130, nothing written, no traceback) instead
+    of ending that run as the engine's failure and writing a finished-looking result (it was: rows 'failed:
+    interrupted at t = ...', exit 1 or 3, and the result then refused a rerun without --force)."""
+    where, env = gated
+    out = tmp_path / "out"
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        for marker in waiting(where):
+            marker.unlink()
+        cmd = Command([*LEGBENCH_CLI, *args, "--out", str(out)], env, group=True)
+        cmd.wait_until("a run waiting at the gate", lambda: len(waiting(where)) == 1)
+        err = cmd.interrupt(sig)
+        assert cmd.proc.returncode == 130, err
+        assert "Traceback" not in err and "failed" not in err, err
+        assert not out.exists(), sorted(p.name for p in out.iterdir())
+        assert not list(tmp_path.glob(".*"))
