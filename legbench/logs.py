@@ -291,7 +291,7 @@ def load_log(
         raise LegbenchError(f"{words.time_scale} {time_scale!r}: must be a finite number > 0 (1e-3 for ms)")
     _check_regular(path)
     try:
-        raw = pd.read_csv(path)
+        raw = pd.read_csv(path, index_col=False)  # a trailing comma on every row: no index column
         written = _written_header(path)
     except Exception as exc:  # parser errors come in several types
         raise ResultsError(str(path), f"not a readable CSV file ({type(exc).__name__}: {exc})") from exc

@@ -370,6 +370,16 @@ def test_unnamed_csv_columns_are_not_a_repeated_header(tmp_path: Path) -> None:
     pd.testing.assert_frame_equal(logs.load_log(padded), logs.load_log(plain))
 
 
+def test_a_trailing_comma_on_every_data_row_shifts_no_column(tmp_path: Path) -> None:
+    """A writer that ends every data row with a comma (the header without one): pandas took the first column as
+    the index and shifted every column left, so q1 was read as time (a review: 'time is not strictly increasing
+    at data row 2 (t = -0.0025 s)', q1's values). Now the rows read as the plain file's."""
+    plain, trailing = tmp_path / "plain.csv", tmp_path / "trailing.csv"
+    plain.write_text("t,q1,q2,q3\n" + CSV_ROWS)
+    trailing.write_text("t,q1,q2,q3\n" + "".join(line + ",\n" for line in CSV_ROWS.splitlines()))
+    pd.testing.assert_frame_equal(logs.load_log(trailing), logs.load_log(plain))
+
+
 @pytest.mark.parametrize("cell", ["", "NaN", "n/a"])
 def test_a_missing_value_in_a_csv_log_is_a_missing_sample_not_an_error(tmp_path: Path, cell: str) -> None:
     """Deliberate (docs/metrics.md: a NaN sample is an imported log's missing value, left out of the metrics that
