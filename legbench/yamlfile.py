@@ -290,10 +290,12 @@ def other_file(doc: Any, expected: str) -> str | None:
 
 
 _NUMBER_TAGS = ("tag:yaml.org,2002:int", "tag:yaml.org,2002:float")
-#: YAML 1.1 number forms that read as something else than they look: base 60 (``1:30`` is 90) and octal
-#: (``01750`` is 1000). YAML 1.2 reads neither; PyYAML reads both silently.
+#: YAML 1.1 number forms that read as something else than they look: base 60 (``1:30`` is 90), octal
+#: (``01750`` is 1000), binary (``0b11`` is 3) and digits grouped by ``_`` (``1_0`` is 10). YAML 1.2 reads none
+#: of them as numbers; PyYAML reads all silently. (Hexadecimal, ``0x10``, is 16 in both and looks it.)
 _BASE60 = re.compile(r"[-+]?[0-9][0-9_]*(?::[0-5]?[0-9])+(?:\.[0-9_]*)?")
 _OCTAL = re.compile(r"[-+]?0[0-7_]+")
+_BINARY = re.compile(r"[-+]?0b[01_]+")
 
 
 def _yaml11_number(text: str) -> str:
@@ -308,6 +310,14 @@ def _yaml11_number(text: str) -> str:
         octal = f", {value!r} for the octal one" if str(value) != plain else ""
         return (f"{text}: YAML 1.1 reads a leading 0 as octal ({value!r}); write {plain} for the decimal "
                 f"number{octal}, or quote it ('{text}') for text")  # fmt: skip
+    if _BINARY.fullmatch(text):
+        value = yaml_load(text)
+        return (f"{text}: YAML 1.1 reads this as the binary number {value!r}; write {value!r} if that is meant, "
+                f"or quote it ('{text}') for text")  # fmt: skip
+    if "_" in text and not text.lower().lstrip("+-").startswith("0x"):
+        value = yaml_load(text)
+        return (f"{text}: YAML 1.1 drops the '_' and reads {value!r}; write {value!r} if that is meant, "
+                f"or quote it ('{text}') for text")  # fmt: skip
     return ""
 
 
