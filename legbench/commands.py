@@ -478,7 +478,7 @@ def _compare(args: argparse.Namespace) -> int:
         progress=lambda page: print(f"wrote {page}", flush=True),  # each page as it is put in place (after all render)
     )
     missing = results.missing_logs(args.dir)  # reported without that backend, as a failed one would be
-    for line in missing:
+    for line in [*missing, *results.incomplete_runs(args.dir)]:
         print(f"legbench: {line}", file=sys.stderr)
     return EXIT_BACKEND_FAILED if missing else EXIT_OK
 

@@ -74,6 +74,7 @@ __all__ = [
     "check_out_path",
     "check_study_out",
     "enclosing_run",
+    "incomplete_runs",
     "is_index",
     "check_out_tree",
     "checks_summary",
@@ -1246,6 +1247,25 @@ def missing_logs(root: str | Path) -> list[str]:
             fname = _log_name(bname, b)
             if str(b["status"]) == "ok" and not (d / fname).exists():
                 out.append(f"{bname} missing: {_missing_log(d, fname)}")
+    return out
+
+
+def incomplete_runs(root: str | Path) -> list[str]:
+    """The run directories under ``root`` (or ``root`` itself) that an interrupt left unfinished (run.json's
+    ``"complete": false``), one line each naming the directory and its interrupted backends; reads run.json only.
+
+    Raises:
+        ResultsError: as :func:`run_dirs` and :func:`read_meta`.
+    """
+    out = []
+    for d in run_dirs(root).values():
+        if not (d / "run.json").is_file():
+            continue
+        meta = read_meta(d)
+        if meta.get("complete", True) is False:
+            cut = sorted(b for b, e in meta["backends"].items() if str(e["status"]) == "interrupted")
+            out.append(f"{resources.shown(d)}: an interrupted run ({', '.join(cut)} not finished), compared as far "
+                       "as it went; rerun the same legbench run command to finish it")  # fmt: skip
     return out
 
 
