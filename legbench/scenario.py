@@ -422,11 +422,16 @@ def parse(
         raise ctx.error(["description"], "expected text")
     duration = number(ctx, ["duration"], doc["duration"], positive=True)
     rate = number(ctx, ["control_rate"], doc.get("control_rate", 1000.0), positive=True)
+    # a problem of the two together is the duration's, unless only the rate was overridden (then the file's
+    # duration line did not change and the override is what to blame)
+    pair: list[str | int] = (
+        ["control_rate"] if "control_rate" in ctx.overridden and "duration" not in ctx.overridden else ["duration"]
+    )
     if exact_d and exact_r and duration * rate > limit("ticks"):
-        raise ctx.error(["duration"], f"{duration} s at {rate} Hz is more than {limit('ticks'):.0e} control ticks "
-                                      "(limit ticks: LEGBENCH_LIMITS=ticks=N raises it)")  # fmt: skip
+        raise ctx.error(pair, f"{duration} s at {rate} Hz is more than {limit('ticks'):.0e} control ticks "
+                              "(limit ticks: LEGBENCH_LIMITS=ticks=N raises it)")  # fmt: skip
     if exact_d and exact_r and abs(duration * rate - round(duration * rate)) > 1e-6:
-        raise ctx.error(["duration"], f"{duration} s is not a whole number of control periods at {rate} Hz")
+        raise ctx.error(pair, f"{duration} s is not a whole number of control periods at {rate} Hz")
 
     gains_d = doc.get("gains", {})
     check_keys(ctx, ["gains"], gains_d, *SECTION_KEYS["gains"])

@@ -84,6 +84,8 @@ def limit(name: str) -> int:
         key, sep, value = item.partition("=")
         if not item.strip():
             continue
+        if not sep and key.strip() in LIMITS:
+            raise ScenarioError("LEGBENCH_LIMITS", key.strip(), f"no value: write {key.strip()}=N")
         if not sep or key.strip() not in LIMITS:  # a typo would leave the limit as it was
             raise ScenarioError("LEGBENCH_LIMITS", item.strip(), f"unknown limit; known: {', '.join(LIMITS)}")
         try:

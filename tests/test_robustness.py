@@ -312,6 +312,16 @@ def test_tick_limit_can_be_raised(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
     monkeypatch.setenv("LEGBENCH_LIMITS", "tick=3e7")  # a typo would silently leave the limit as it was
     with pytest.raises(ScenarioError, match="LEGBENCH_LIMITS: tick=3e7: unknown limit; known: file_bytes"):
         scenario.parse(doc, "x.yaml")
+    monkeypatch.delenv("LEGBENCH_LIMITS")
+    # the rate alone set on the command line: the error blamed the file's duration line, which did not change
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(GOOD))
+    with pytest.raises(ScenarioError) as exc:
+        scenario.load(path, {"control_rate": 1e9})
+    assert exc.value.key == "control_rate" and str(exc.value).endswith("(from --set control_rate)"), exc.value
+    monkeypatch.setenv("LEGBENCH_LIMITS", "ticks")  # a known limit without its value was called unknown
+    with pytest.raises(ScenarioError, match="LEGBENCH_LIMITS: ticks: no value: write ticks=N$"):
+        scenario.parse(doc, "x.yaml")
 
 
 @pytest.mark.parametrize(
