@@ -283,6 +283,9 @@ def test_a_number_held_to_a_bound_is_written_apart_from_it() -> None:
     assert num_apart(0.010004, (0.01,)) == "0.010004"
     assert num_apart(0.01, (0.01,)) == "0.01" and num_apart(5.12345, (1.0, 10.0)) == "5.123"
     assert num_apart(1.0 + 1e-15, (1.0,)) == "1"  # beyond 12 digits: the 12-digit form, as near as it can say
+    # the fewest digits that part it from the bound, not all 12 (a review: a search that never added a digit
+    # passed the examples above, whose 12-digit forms are the same text)
+    assert num_apart(100.0412345, (100.0,)) == "100.04" and num_apart(0.0100041234, (0.01,)) == "0.010004"
     assert num_apart(math.nan, (1.0,)) == "n/a" and num_apart(2.0, (math.inf,)) == "2"
     tol = {"max_sim_error_pct": 100.0}
     cls, why, bounds = R.sim_class(100.04, "q", "1", tol)

@@ -953,10 +953,15 @@ _cli_docs = st.fixed_dictionaries(
                                                                   HealthCheck.function_scoped_fixture])  # fmt: skip
 @given(doc=_cli_docs, good_events=st.booleans())
 def test_generated_documents_through_the_cli_exit_0_or_2_never_a_traceback(
-    tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch, doc: dict[str, Any], good_events: bool
+    tmp_path_factory: pytest.TempPathFactory,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    doc: dict[str, Any],
+    good_events: bool,
 ) -> None:
     """``legbench validate`` and ``legbench run`` (the fake backend, 10 ms) on generated documents: every
-    outcome is exit 0 or a one-line exit 2; anything else (a traceback) fails the test."""
+    outcome is exit 0 or exit 2 with one line per problem on stderr, each 'legbench: error: ' and no traceback;
+    anything else fails the test."""
     reg = registry._registry
     monkeypatch.setattr(registry, "_registry", lambda: {**reg(), "fake": FakeBackend})
     if good_events:
@@ -967,8 +972,15 @@ def test_generated_documents_through_the_cli_exit_0_or_2_never_a_traceback(
     for argv in (["validate", str(f)],
                  ["run", str(f), "--backends", "fake", "--out", str(d / "out"), "-q", "--no-compare",
                   "--no-preflight"]):  # fmt: skip
+        capsys.readouterr()
         status = cli.main(argv)
+        err = capsys.readouterr().err
         assert status in (0, 2), argv
+        if status == 2:
+            lines = err.splitlines()
+            assert lines and all(line.startswith("legbench: error: ") for line in lines), (argv, err)
+            assert "Traceback" not in err, (argv, err)
+            assert argv[0] == "validate" or len(lines) == 1, (argv, err)  # run: the first problem, one line
 
 
 def test_schema_accepts_every_bundled_scenario_and_refuses_bad_ones(capsys: pytest.CaptureFixture[str]) -> None:
