@@ -527,33 +527,32 @@ def test_the_glide_estimate_carries_sap_s_time_step_term() -> None:
     assert glide["measured"] > 1.05 * c.mu_s * c.Kd * glide["slip"], glide
 
 
-def test_the_sliding_miss_is_explained_only_where_the_run_glided_out() -> None:
-    """base.py's contract: known_deviation says nothing where its explanation does not hold. The SAP sliding
-    explanation was attached to any failing slip-acceleration row; it now needs the run's own measurement
-    (at_end.sap_glide): the estimated term at 0.9 Fn or more, where the foot glides out of the ground (the drag:
-    118 %), and Drake's Fn - (Kp y + Kd ydot) within 0.3 % of it (the drag: 4e-5). The drag's row says so; the same
-    run with the term at 50 % of Fn, with Fn - (Kp y + Kd ydot) 1 % off the estimate, or with no record (a run
-    before this field, another solver's) is not explained; nor is a miss on the other side (a slide slower than
-    the closed form: a foot gliding out loses friction and slides faster)."""
+def test_the_sliding_miss_is_a_plain_miss_with_its_lift_off_counted() -> None:
+    """base.py's contract: an explanation holds the row's own measured value. SAP's glide explanation held the
+    normal force's excess at one instant (t = 0.371 s, 'met to 0.0043 %') and the sign of the row's miss, not the
+    row's 4.218 m/s^2, so it is gone. The sliding case scores the acceleration only where the central difference's
+    stencil is in contact and counts the window's samples out of contact: the drag reads 0 N at 5 of its 51
+    samples (from 0.373 s). The row still misses (measured 4.116 against 3.710 m/s^2): the sample at 0.371 s reads
+    contact at 0.370, 0.371 and 0.372 s (the force at each period's last sub-step), but Drake's foot left the ground
+    between the sub-steps of the period ending 0.372 s (the slip accelerates at 20.6 m/s^2 there), which a 1 kHz
+    log cannot show. Up to that sample (0.33-0.370 s) it meets the closed form (within 0.2 %, measured 0.13 %).
+    The row is a plain miss: no explanation for any value, the old 4.218 included."""
     from legbench.studies import sliding_case as S
 
     tr, physics = S.drag("drake", "matched")
     (row,) = [r for r in S.score(tr, physics) if r["quantity"] == "slip acceleration along the slip (mean)"]
-    assert not row["passed"] and row["note"].startswith("known: SAP's normal force while sliding is Kp y + Kd ydot "
-                                                        "+ (Kd + Kp h) mu |v_t|"), row["note"]  # fmt: skip
-    assert "met to" in row["note"]
-    ask, info = DrakeBackend.known_deviation, tr.info
-    args = (row["quantity"], row["measured"], row["expected"], row["tolerance"])
-    glide = info["at_end"]["sap_glide"]
-
-    def with_glide(**change: float) -> dict[str, object]:
-        return {**info, "at_end": {**info["at_end"], "sap_glide": {**glide, **change}}}
-
-    assert ask("sliding", args[0], with_glide(), *args[1:]) is not None
-    assert ask("sliding", args[0], with_glide(estimated=0.5 * glide["fn"], measured=0.5 * glide["fn"]),
-               *args[1:]) is None  # fmt: skip
-    assert ask("sliding", args[0], with_glide(measured=1.01 * glide["estimated"]), *args[1:]) is None
-    assert ask("sliding", args[0], {**info, "at_end": {"delassus_w": 3.6}}, *args[1:]) is None
-    measured, expected, tol = args[1:]
-    assert measured - expected > tol  # the drag's own miss: faster than the closed form
-    assert ask("sliding", args[0], with_glide(), expected - 2.0 * tol, expected, tol) is None  # slower: not this
+    assert not row["passed"] and "known: " not in row["note"], row
+    on = tr.f[:, 2] > S.FN_MIN
+    k = np.flatnonzero((tr.t >= S.WINDOW[0] - 1e-9) & (tr.t <= S.WINDOW[1] + 1e-9))
+    assert row["window_samples"] == len(k) == 51
+    assert (
+        row["out_of_contact"] == int((~on[k]).sum()) >= 2 and row["acceleration_samples"] < 51 - row["out_of_contact"]
+    )
+    assert f"{row['out_of_contact']} out (Fn <= {S.FN_MIN:g} N)" in row["note"], row["note"]
+    first_off = float(tr.t[k[~on[k]][0]])
+    steady = {r["quantity"]: r for r in S.score(tr, physics, (S.WINDOW[0], first_off - 0.0025))}
+    acc = steady["slip acceleration along the slip (mean)"]
+    assert acc["passed"] and abs(acc["measured"] / acc["expected"] - 1.0) <= 0.002 and acc["out_of_contact"] == 0, acc
+    ask, q = DrakeBackend.known_deviation, row["quantity"]
+    for measured in (row["measured"], 4.218, 8.0, -50.0):
+        assert ask("sliding", q, tr.info, measured, row["expected"], row["tolerance"]) is None, measured

@@ -360,3 +360,44 @@ def test_the_raw_solref_note_gives_the_stiffness_measured_at_rest(
         assert "Kp_Kd_note" not in matched.info()["contact"]
     finally:
         matched.close()
+
+
+def test_the_hop_explains_the_sliding_row_only_where_its_closed_form_meets_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """base.py's contract: an explanation holds the row's own measured value to a closed form. The engine-defaults
+    drag's note was a fixed text ('Fn 0 at 4 of 51 samples', 'mean +20 m/s^2') returned for any failing value
+    (0.13 or -40 alike). The sliding case now scores only central differences whose stencil is in contact and counts
+    the samples out of contact (4 of 51 here); the row still misses the closed form at k (measured -3.978 against
+    -3.609 m/s^2), and MuJoCo's step applying the force read at its start gives the central difference's closed form
+    as the mean over its two steps (-3.966, 0.31 %): said there, with the counts the run measured, and nowhere
+    else."""
+    from legbench.studies import sliding_case as S
+
+    asked: dict[str, object] = {}
+    real = S.explained_note
+
+    def spy(cls: type, case: str, quantity: str, info: object, *rest: object) -> str:
+        asked[quantity] = info
+        return real(cls, case, quantity, info, *rest)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(S, "explained_note", spy)
+    tr, physics = S.drag("mujoco", "engine-defaults")
+    *_, row = S.score(tr, physics)
+    info = asked[row["quantity"]]
+    assert isinstance(info, dict)
+    drag = info["drag"]
+    assert row["out_of_contact"] == drag["out_of_contact"] >= 2 and row["window_samples"] == 51
+    on = tr.f[:, 2] > S.FN_MIN
+    k = np.flatnonzero((tr.t >= S.WINDOW[0] - 1e-9) & (tr.t <= S.WINDOW[1] + 1e-9))
+    assert row["out_of_contact"] == int((~on[k]).sum())
+    assert row["acceleration_samples"] == int((on[k - 1] & on[k] & on[k + 1]).sum()) < 51 - row["out_of_contact"]
+    assert not row["passed"] and abs(row["measured"] - drag["over_steps"]) <= row["tolerance"], (row, drag)
+    assert row["note"].startswith("known: ") and "hops" in row["note"] and "met to" in row["note"], row["note"]
+    assert f"out of contact at {row['out_of_contact']} of the window's 51 samples" in row["note"]
+    ask, q = MujocoBackend.known_deviation, row["quantity"]
+    args = (row["expected"], row["tolerance"])
+    assert ask("sliding", q, info, row["measured"], *args) is not None
+    for far in (0.13, -40.0, row["expected"]):
+        assert ask("sliding", q, info, far, *args) is None, far
+    # nothing measured (the old fixed text's case): nothing said
+    bare = {k: v for k, v in info.items() if k != "drag"}
+    assert ask("sliding", q, bare, row["measured"], *args) is None

@@ -477,3 +477,60 @@ def test_quick_step_row_order_advances_as_odes_or_repeats_each_step_as_gazebos_f
     np.testing.assert_array_equal(a.state()[0], solo.state()[0])
     np.testing.assert_array_equal(a.ground_force(), solo.ground_force())
     assert not np.array_equal(a.state()[0], b.state()[0])
+
+
+def _scored_with_context(monkeypatch: pytest.MonkeyPatch, profile: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The ODE drag scored (sliding_case.score): its slip-acceleration row and the info its known_deviation was
+    asked with (the run's info with ``drag``, what the scoring measured of the run)."""
+    from legbench.studies import sliding_case as S
+
+    asked: dict[str, Any] = {}
+    real = S.explained_note
+
+    def spy(cls: type[Backend], case: str, quantity: str, info: Any, *rest: Any) -> str:
+        asked[quantity] = info
+        return real(cls, case, quantity, info, *rest)
+
+    monkeypatch.setattr(S, "explained_note", spy)
+    tr, physics = S.drag("ode", profile)
+    (row,) = [r for r in S.score(tr, physics) if r["quantity"].startswith("slip acceleration")]
+    return row, asked[row["quantity"]]
+
+
+def test_the_dantzig_bound_explains_the_sliding_row_only_where_its_closed_form_meets_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """base.py's contract: an explanation holds the row's own measured value to a closed form. dWorldStep's was a
+    fixed text (0.7068 Fn, 11 % less) returned for any failing value (m = 3.62, 8.0 or -50 alike). It now takes the
+    bound the run slid with (mean |F_y| / Fn where the pyramid slides that axis: measured 0.7068, mu_s 0.7) and
+    the pyramid's closed form with it (3.616 m/s^2 against the measured 3.620, 0.13 %; 4.076 at mu), and says
+    nothing where the row is far from it or the run's measurement is missing."""
+    row, info = _scored_with_context(monkeypatch, "matched")
+    drag = info["drag"]
+    assert drag["friction_bound"] == pytest.approx(0.7068, abs=5e-4) and drag["mu"] == 0.7
+    assert drag["at_bound"] == pytest.approx(row["measured"], rel=0.005)
+    assert not row["passed"] and row["expected"] == pytest.approx(4.076, abs=0.005), row
+    assert row["note"].startswith("known: dWorldStep's Dantzig LCP") and "met to" in row["note"], row["note"]
+    assert f"slid at {drag['friction_bound']:.4g} Fn" in row["note"] and f"{drag['at_bound']:.4g} m/s^2" in row["note"]
+    ask = OdeBackend.known_deviation
+    q, expected, tol = row["quantity"], row["expected"], row["tolerance"]
+    assert ask("sliding", q, info, row["measured"], expected, tol) is not None
+    for far in (8.0, -50.0, expected):  # far from the closed form at the measured bound (4.076: the one at mu)
+        assert ask("sliding", q, info, far, expected, tol) is None, far
+    # the old fixed text came with nothing measured: none now
+    assert ask("sliding", q, {"stepper": "world"}, 3.62, expected, tol) is None
+    assert ask("sliding", q, {**info, "drag": {**drag, "friction_bound": 0.69}}, row["measured"], expected, tol) is None
+    assert ask("sliding", q, {**info, "stepper": "quick"}, row["measured"], expected, tol) is None
+
+
+def test_the_quick_steps_pole_misses_are_plain_misses() -> None:
+    """The engine-defaults quick step's six pole rows carried a fixed text (130-150 Hz spurious modes, hinge errors
+    typed from another run) for any value: no closed form of a fitted pole holds them, so nothing is said now."""
+    info = {"stepper": "quick", "iterations": 20, "row_order": "advancing"}
+    for quantity, measured, expected in (
+        ("mode 1 frequency", 129.6, 1.755),
+        ("mode 2 decay rate", 23.9, 10.64),
+        ("mode 1 damping ratio", 0.0035, 0.638),
+        ("mode 1 frequency", -50.0, 1.755),
+    ):
+        assert OdeBackend.known_deviation("small_oscillation", quantity, info, measured, expected, 0.01) is None

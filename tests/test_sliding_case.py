@@ -113,9 +113,11 @@ def test_drake_engine_defaults_is_scored_with_its_dynamic_coefficient() -> None:
 
 def test_mujoco_engine_defaults_slides_on_the_diamonds_vertex_and_hops() -> None:
     """MuJoCo's default pyramidal cone (info ``friction_cone`` 'diamond') slides with F_t = (0, -mu_s Fn), the
-    vertex, while the slip is up to 10 deg off W y: the diamond's rows pass. Its acceleration row misses (the
-    foot hops for single 1 ms steps without contact) and says so; the contact steps themselves meet the closed
-    form: forward differences under the force read at each step's start within 1 % (measured 0.3 %)."""
+    vertex, while the slip is up to 10 deg off W y: the diamond's rows pass. The foot hops for single 1 ms steps
+    without contact (counted: the rows' ``out_of_contact``); its acceleration row, scored where the stencil is in
+    contact, still misses the closed form at k and is explained by the step's lag, held to the row (tests/
+    test_backend_mujoco.py); the contact steps themselves meet the closed form: forward differences under the
+    force read at each step's start within 1 % (measured 0.3 %)."""
     _need("mujoco")
     tr, physics = S.drag("mujoco", "engine-defaults")
     assert tr.info["friction_cone"] == "diamond"
@@ -123,6 +125,7 @@ def test_mujoco_engine_defaults_slides_on_the_diamonds_vertex_and_hops() -> None
     assert ratio["passed"] and angle["passed"] and "diamond)" in ratio["quantity"], (ratio, angle)
     assert "up to 10 deg off -slip" in ratio["note"]
     assert not acc["passed"] and acc["note"].startswith("known: ") and "hops" in acc["note"]
+    assert "met to" in acc["note"] and acc["out_of_contact"] >= 2
     poc, lift = tr.info["contact"]["poc"], tr.info["contact"]["lift"]
     v = np.einsum("nij,nj->ni", kinematics.jacobian_at(tr.q, poc, lift), tr.qd)[:, :2]
     k = np.flatnonzero((tr.t >= S.WINDOW[0] - 1e-9) & (tr.t <= S.WINDOW[1] + 1e-9) & (tr.f[:, 2] > S.FN_MIN))
@@ -291,3 +294,32 @@ def test_a_friction_chattering_about_mu_fails_the_ratio_row_it_passed_on_its_mea
     rows = {r["quantity"]: r for r in S.score(dataclasses.replace(tr, f=f), physics)}
     chattering = rows["friction |F_t| / Fn while sliding (worst sample)"]
     assert not chattering["passed"] and abs(chattering["measured"] / 0.6 - 1.0) == pytest.approx(0.15), chattering
+
+
+def test_an_acceleration_sample_counts_only_where_its_whole_stencil_is_in_contact() -> None:
+    """A review: the score kept a sample when Fn > 0.5 N at k, but its central difference uses k-1 and k+1, so a
+    sample beside a step without contact fed that step's frictionless drag into the mean (MuJoCo's hops: +90
+    m/s^2 steps). Pinocchio's drag with one sample of the window turned into a hop (Fn 0, and the slip 0.09 m/s
+    faster from there on, a 90 m/s^2 step) moved the mean by 0.9 m/s^2 and failed its 2 % (0.14 m/s^2); now the
+    samples whose stencil holds the hop are left out (3 of them: the hop and its two neighbours), the row passes
+    as the unedited run does, and the hop is counted (``out_of_contact`` 1, said in the note)."""
+    import dataclasses
+
+    tr, physics = S.drag("pinocchio")
+    clean = S.score(tr, physics)
+    assert all(r["out_of_contact"] == 0 and r["window_samples"] == r["acceleration_samples"] == 51 for r in clean)
+    k0 = int(np.flatnonzero(tr.t >= 0.355 - 1e-9)[0])
+    J = kinematics.jacobian_at(tr.q[k0], "true", 0.0)[:2]
+    v0 = J @ tr.qd[k0]
+    dq = np.linalg.pinv(J) @ (0.09 * v0 / np.linalg.norm(v0))  # the slip 0.09 m/s faster along itself
+    qd, f = tr.qd.copy(), tr.f.copy()
+    qd[k0:] += dq
+    f[k0] = 0.0
+    hop = S.score(dataclasses.replace(tr, qd=qd, f=f), physics)
+    acc, acc_clean = hop[2], clean[2]
+    assert acc["out_of_contact"] == 1 and acc["acceleration_samples"] == 48 and "1 out (Fn <= 0.5 N)" in acc["note"]
+    assert acc["passed"] and acc["measured"] == pytest.approx(acc_clean["measured"], abs=0.02), (acc, acc_clean)
+    # the sample before the hop (Fn > 0.5 N at k, the hop at k + 1) would carry half the step: 45 m/s^2 more
+    u = v0 / np.linalg.norm(v0)
+    v = np.einsum("nij,nj->ni", kinematics.jacobian_at(tr.q, "true", 0.0), qd)[:, :2]
+    assert ((v[k0] - v[k0 - 2]) / (2 * physics.control_dt)) @ u > acc_clean["measured"] + 40.0

@@ -86,8 +86,11 @@ def _failures(df: pd.DataFrame) -> str:
 #: Verified quantities a backend is known to miss, each investigated and reported, not hidden: the test
 #: asserts they still fail (so a fix is noticed) and that everything else passes.
 #: Drake (SAP, matched): the sliding foot leaves the ground at 0.372 s (slip 0.245 m/s, where mu_s Kd v is
-#: about Fn: SAP's convex approximation), so the window's mean slip acceleration (4.22 m/s^2) is not the closed
-#: form's (1.16); up to the lift-off it agrees to 0.13 % (docs/backends/drake.md, tests/test_backend_drake.py).
+#: about Fn: SAP's convex approximation). Scored only where the central difference's three samples are in contact,
+#: the window's mean slip acceleration is 4.116 m/s^2 against the closed form's 3.710 (5 of 51 samples out of
+#: contact): the lift-off falls between the sub-steps of the period ending 0.372 s, which a 1 kHz log cannot show;
+#: up to 0.370 s it agrees to 0.13 % (docs/backends/drake.md). No closed form of that is built: a plain miss
+#: (UNEXPLAINED), no "known: " note.
 #: ODE (dWorldStep): the Dantzig LCP bounds each friction row by mu times the normal impulse solved before any
 #: friction row, not the final one: the drag axis holds 0.7068 Fn (the slip accelerates 11 % less than the
 #: pyramid's closed form); with ODE's quick stepper it meets the closed form (test_the_pyramid_closed_form_below).
@@ -97,6 +100,8 @@ KNOWN_DISCREPANCIES = {
     ("sliding", "drake", "slip acceleration along the slip (mean)"),
     ("sliding", "ode", "slip acceleration along the drag (mean; pyramid)"),
 }
+#: The known misses no backend explains (no closed form held to the row's measured value).
+UNEXPLAINED = {("sliding", "drake", "slip acceleration along the slip (mean)")}
 
 
 @pytest.mark.parametrize("case", verify.CASES)
@@ -118,8 +123,9 @@ def test_case_passes_on_every_backend(results: tuple[pd.DataFrame, Path], case: 
     known = rows.apply(lambda r: (r["case"], r["backend"], r["quantity"]) in KNOWN_DISCREPANCIES, axis=1)
     assert not rows[known]["pass"].any(), "a known discrepancy now passes: remove it from KNOWN_DISCREPANCIES"
     # the backend explains exactly its known misses beside the row (Backend.known_deviation), and nothing else
-    assert rows[known]["note"].str.startswith("known: ").all()
-    assert not rows[~known]["note"].str.contains("known: ", regex=False).any()
+    plain = rows.apply(lambda r: (r["case"], r["backend"], r["quantity"]) in UNEXPLAINED, axis=1)
+    assert rows[known & ~plain]["note"].str.startswith("known: ").all()
+    assert not rows[~known | plain]["note"].str.contains("known: ", regex=False).any()
     rows = rows[~known]
     assert rows["pass"].all(), _failures(rows)
     assert np.isfinite(rows["measured"]).all()
@@ -303,17 +309,18 @@ def test_engine_defaults_verification_runs_each_engine_as_its_defaults_have_it(
 
 @pytest.mark.skipif(not {"pybullet", "ode"} <= set(backends.available()), reason="pybullet or ode not installed")
 def test_an_engine_defaults_miss_carries_its_backends_explanation_and_still_fails() -> None:
-    """The engine-defaults verification's misses are the defaults', each measured and explained by its backend
-    (``Backend.known_deviation``, now asked by every case, not only the sliding drag): PyBullet's default contact
-    slop (1e-5 m) rests the foot one slop deeper than Fn/Kp (+9.83 um, tolerance 5.2 um); ODE's quick step at its
-    default 20 iterations leaves the hinges off their axes by as much as the 100 urad oscillation, and no pole is
-    right (spurious modes of 130-150 Hz with ODE's own advancing row order; near 500 Hz with one order per
+    """The engine-defaults verification's misses are the defaults', each measured and, where a closed form holds
+    it, explained by its backend (``Backend.known_deviation``, asked by every case, not only the sliding drag):
+    PyBullet's default contact slop (1e-5 m) rests the foot one slop deeper than Fn/Kp (+9.83 um, tolerance
+    5.2 um); ODE's quick step at its default 20 iterations leaves the hinges off their axes by as much as the
+    100 urad oscillation, and no pole is right, with no closed form of the fitted poles, so no explanation
+    (spurious modes of 130-150 Hz with ODE's own advancing row order; near 500 Hz with one order per
     step). The rows still fail; the matched rows of the same cases pass with no such note."""
     (rest,) = [c for c in verify.check_rest(["pybullet"], profile="engine-defaults") if c.case == "rest_penetration"]
     assert not rest.passed and rest.note.startswith("known: with a contact stiffness set, Bullet springs"), rest
     assert rest.measured - rest.expected == pytest.approx(1e-5, abs=3e-7)  # one slop deeper
     poles = verify.check_small_oscillation(["ode"], profile="engine-defaults")
-    assert poles and all(not c.passed and c.note.startswith("known: the quick step's 20 SOR") for c in poles)
+    assert poles and all(not c.passed and "known: " not in c.note for c in poles)  # no closed form of the poles
     assert max(c.measured for c in poles if c.quantity.endswith("frequency")) > 100.0  # [Hz]: the leg's are < 2 Hz
     matched = verify.check_rest(["pybullet"]) + verify.check_small_oscillation(["ode"], integrators=None)
     assert all(c.passed and not c.note.startswith("known") for c in matched)

@@ -153,12 +153,12 @@ SAP_SIGMA = 1.0e-3
 #: lifts a sliding foot: docs/backends/drake.md), estimated where Fn exceeds SAP_LIFT_FN [N] (a share of a smaller
 #: force says nothing of the task).
 SAP_LIFT_SAID, SAP_LIFT_FN = 0.01, 1.0
-#: The sliding verification's miss is SAP's gliding (:meth:`DrakeBackend.known_deviation`) only where the run's
-#: estimated term reached this share of Fn (the foot glides out of the ground where it reaches the load less the
-#: damping of the rising foot: measured onsets at 1.01-1.58 Fn, Kd 25-200 N s/m) and the engine's own normal force
-#: carried it: Fn - (Kp y + Kd ydot) at the foot's state within SAP_GLIDE_TOL of the estimate (relative; measured
-#: 4.3e-5 at 50 us and 1.0e-3 at 1 ms in the drag, where the estimate without Kp h misses by 0.50 % and 10.1 %).
-SAP_GLIDE_OUT, SAP_GLIDE_TOL = 0.9, 0.003
+#: How near the engine's own normal force carries the estimated gliding term (relative): Fn - (Kp y + Kd ydot) at
+#: the foot's state of the run's largest share (``at_end.sap_glide``; measured 4.3e-5 at 50 us and 1.0e-3 at 1 ms in
+#: the drag, where the estimate without Kp h misses by 0.50 % and 10.1 %). Not an explanation of the sliding
+#: verification's rows: the glide is a normal force, not the row's acceleration, and the window's samples out of
+#: contact are counted by the sliding case itself.
+SAP_GLIDE_TOL = 0.003
 #: Foot stiffness over Kp in the matched point contact: the foot is near-rigid, the ground carries the spring.
 FOOT_STIFFNESS_RATIO = 1.0e8
 #: Ways of setting the contact parameters: the mapping of the module docstring, or on the foot alone over Drake's
@@ -254,13 +254,12 @@ class DrakeBackend(Backend):
     @classmethod
     def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any], measured: float = math.nan,
                         expected: float = math.nan, tolerance: float = math.nan) -> str | None:  # fmt: skip
-        """SAP point contact in native mode lifts the sliding foot (docs/backends/drake.md), where the run's
-        ``at_end.sap_glide`` shows it did; the creep of a held foot; the engine-defaults ground's default stiffness."""
-        run = (info.get("solver"), info.get("contact_model"), info.get("contact_mode"))
+        """The creep of a held foot; the engine-defaults ground's default stiffness. Not the sliding drag: SAP's
+        point contact lifts the sliding foot (docs/backends/drake.md, the run's ``at_end.sap_glide``), but that holds
+        the normal force, not the slip-acceleration row's measured value, so its miss stays a plain one (the sliding
+        case counts the window's samples out of contact)."""
         contact = info.get("contact")
         contact = contact if isinstance(contact, Mapping) else {}
-        if case == "sliding" and quantity.startswith("slip acceleration") and run == ("sap", "point", "native"):
-            return cls._known_glide(info, measured, expected, tolerance)
         if case == "creep":
             return cls._known_creep(info, contact, measured, tolerance)
         pair, kp = contact.get("pair_stiffness"), contact.get("Kp")
@@ -274,35 +273,6 @@ class DrakeBackend(Backend):
                         f"Fn/pair_stiffness", measured, expected * kp / pair, tolerance,
                         " (info contact.pair_stiffness)")  # fmt: skip
         return None
-
-    @classmethod
-    def _known_glide(cls, info: Mapping[str, Any], measured: float, expected: float, tolerance: float) -> str | None:
-        """The sliding case's slip-acceleration miss as SAP's gliding (:func:`sap_glide_force`), where the run shows
-        it: the row's ``measured`` acceleration above the ``expected`` one by more than its ``tolerance`` (a foot
-        gliding out of the ground loses its friction and slides faster; a slower slide is another miss), its
-        largest estimated term (``at_end.sap_glide``) reached :data:`SAP_GLIDE_OUT` of Fn, where the foot glides
-        out, and there the engine's Fn less Kp y + Kd ydot met the estimate within :data:`SAP_GLIDE_TOL`; None
-        otherwise (a miss with a smaller or an unconfirmed term is not this one)."""
-        if not measured - expected > tolerance:
-            return None
-        at_end = info.get("at_end")
-        glide = at_end.get("sap_glide") if isinstance(at_end, Mapping) else None
-        if not isinstance(glide, Mapping):
-            return None
-        fn, estimated, carried = (float(glide[k]) for k in ("fn", "estimated", "measured"))  # [N]
-        if not (fn > 0.0 and estimated >= SAP_GLIDE_OUT * fn):
-            return None
-        h = info.get("timestep")
-        return held(f"known: SAP's normal force while sliding is Kp y + Kd ydot + (Kd + Kp h) mu |v_t| (its convex "
-                    f"approximation's separation speed mu |v_t| through its relaxation time and step, h = "
-                    f"{h if isinstance(h, float) else math.nan:g} s), so the foot leaves the ground once that term "
-                    f"reaches the load: at t = {float(glide['t']):.3f} s, slipping at {float(glide['slip']):.3g} "
-                    f"m/s, Drake's Fn = {fn:.4g} N carried {carried:.4g} N over Kp y + Kd ydot against the "
-                    f"{estimated:.4g} N estimated ({100 * estimated / fn:.3g} % of Fn)", carried, estimated,
-                    SAP_GLIDE_TOL * estimated,
-                    "; Drake's default approximation, lagged (a Hunt-Crossley normal law, not the spec's linear "
-                    "one), slides without lifting and meets the closed form to 0.16 %; matched keeps SAP for the "
-                    "spec's linear normal law (docs/backends/drake.md)")  # fmt: skip
 
     @classmethod
     def _known_creep(cls, info: Mapping[str, Any], contact: Mapping[str, Any], measured: float,

@@ -298,7 +298,8 @@ class MujocoBackend(Backend):
                         expected: float = math.nan, tolerance: float = math.nan) -> str | None:  # fmt: skip
         """The usual normal mapping (raw solref, default impedance): the rest is MuJoCo's own steady state, not Fn/Kp
         (said where the row's measured rest meets :func:`usual_rest_depth`); at a 1 ms step the sliding foot hops,
-        and the sliding case's central differences then span steps without contact (docs/contact_mapping.md)."""
+        and the sliding case's central differences at the landings lag the closed form at their sample by half a step
+        (:meth:`_known_step_lag`, held to the row; docs/contact_mapping.md)."""
         usual = (info.get("contact_mode"), info.get("contact_solref"), info.get("contact_solimp")) == (
             "native", "raw", "default")  # fmt: skip
         contact = info.get("contact")
@@ -318,14 +319,34 @@ class MujocoBackend(Backend):
                         f"by the slip's damping term alone, so Ft creeps at 2 (Ft / Fn) Kp d y / (Kd dmax mu^2) = "
                         f"{1e3 * v:.4g} mm/s", measured, v, tolerance, " (docs/contact_mapping.md)")  # fmt: skip
         if case == "sliding" and quantity.startswith("slip acceleration") and usual and info.get("dt", 0) >= 1e-3:
-            return ("known: with the raw solref (-Kp, -Kd), MuJoCo's default impedance and a 1 ms step the sliding "
-                    "foot hops: Fn reads 0 at 4 of the window's 51 samples (every 9-12 ms, the sphere's centre "
-                    "0.01-0.03 mm above R_foot), steps without friction in which the drag accelerates the slip at "
-                    "+90 m/s^2, and the central differences of the 8 contact samples beside them carry that (mean "
-                    "+20 m/s^2). The contact steps meet the closed form: each one's forward difference under the "
-                    "force read at its start, which acts over that 1 ms step, averages -3.85 against -3.83 m/s^2 "
-                    "(0.3 %; pyramidal cone, elliptic -3.69 against -3.73)")  # fmt: skip
+            return cls._known_step_lag(info.get("drag"), measured, tolerance)
         return None
+
+    @classmethod
+    def _known_step_lag(cls, drag: object, measured: float, tolerance: float) -> str | None:
+        """The sliding case's slip-acceleration miss at a 1 ms step with the usual normal mapping, held to the row:
+        the force read at a sample (the end state's ``mj_forward``, ``force_readout: end``) is the one the next step
+        applies (its ``mj_forwardSkip`` from the acceleration stage keeps that solve), so the central
+        difference at sample k spans the steps under the forces read at k - 1 and k; where the acceleration varies
+        fast over a step (the foot landing after each hop of the soft contact) the mean of the closed form at the two
+        (the run's ``drag.over_steps``, as the sliding case computed it) is the row's closed form, not the one at k.
+        Said where the row's ``measured`` meets it within the row's ``tolerance``, with the window's samples out of
+        contact (``drag.out_of_contact``) counted; None otherwise."""
+        if not isinstance(drag, Mapping):
+            return None
+        steps = float(drag.get("over_steps", math.nan))
+        if not math.isfinite(steps):
+            return None
+        n, out, acc = (int(drag.get(key, 0)) for key in ("window_samples", "out_of_contact", "acceleration_samples"))
+        hops = (f"the sliding foot hops (out of contact at {out} of the window's {n} samples) and each landing's "
+                "contact force changes the acceleration step by step" if out else
+                f"the sliding foot stays in contact (at the window's {n} samples)")  # fmt: skip
+        return held(f"known: with the raw solref (-Kp, -Kd), MuJoCo's default impedance and a 1 ms step {hops}; "
+                    f"MuJoCo's step applies the force read at its "
+                    f"start, so the central difference at k spans the steps under the forces read at k - 1 and k: "
+                    f"the closed form's mean over those two steps, at the {acc} samples whose stencil is in "
+                    f"contact, is {steps:.4g} m/s^2", measured, steps, tolerance,
+                    " (the row's tolerance; docs/contact_mapping.md)")  # fmt: skip
 
     @classmethod
     def settings_problem(

@@ -24,9 +24,12 @@ sample (q, qd, tau, Fn):
   backend.
 
 The measured friction is the backend's reported ground force, held to the closed form at the window's worst
-sample (a friction that chatters about mu does not pass on its mean); the measured
-acceleration is the central difference of the poc's horizontal velocity J_poc qd of
-the 1 kHz log. :func:`sliding_case` returns one row per quantity. A backend that
+sample (a friction that chatters about mu does not pass on its mean), at the window's samples in contact (Fn above
+:data:`FN_MIN`); the measured acceleration is the central difference of the poc's horizontal velocity J_poc qd of
+the 1 kHz log, (v[k+1] - v[k-1]) / 2 Ts, at the samples whose whole stencil k-1, k, k+1 is in contact (a sample
+beside a step without contact carries that step's frictionless acceleration). The window's samples out of contact
+are counted, not scored: each row carries the counts (:data:`COUNT_KEYS`) and its note says them, so a foot that
+hops is measured. :func:`sliding_case` returns one row per quantity. A backend that
 applies the law itself (no contact of its own, or reference contact mode:
 :func:`applies_law`; Pinocchio, Lagrange) reports the law evaluated at the logged
 state, so its friction and angle rows read the law back (they check the read-out,
@@ -73,6 +76,10 @@ FN_MIN = 0.5
 DIAMOND_AXIS_DEG = 15.0
 
 ROW_KEYS = ("case", "backend", "quantity", "unit", "measured", "expected", "error", "tolerance", "passed", "note")
+#: The window's counts every row carries beside :data:`ROW_KEYS`: its samples, those out of contact (Fn <=
+#: :data:`FN_MIN`: a lift-off, measured) and those whose central difference's stencil k-1, k, k+1 is all in contact
+#: (the slip acceleration's samples).
+COUNT_KEYS = ("window_samples", "out_of_contact", "acceleration_samples")
 
 
 def _scenario(duration: float = WINDOW[1] + 0.01, overrides: Mapping[str, Any] | None = None) -> Any:
@@ -145,7 +152,7 @@ def sliding_case(backend: str, profile: str = "matched") -> list[dict[str, Any]]
     """Run the drag on ``backend`` (native contact, ``profile``) and score it against the closed form.
 
     Returns:
-        Rows with :data:`ROW_KEYS`: friction coefficient, friction angle to the slip, slip
+        Rows with :data:`ROW_KEYS` and :data:`COUNT_KEYS`: friction coefficient, friction angle to the slip, slip
         acceleration along the slip; a backend that cannot run gives one failed row saying why.
     """
     tr, physics = drag(backend, profile)
@@ -156,8 +163,7 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     """Score a drag run (:func:`drag`) over ``window`` [s] against the closed form: the rows of :func:`sliding_case`."""
     case, backend = "sliding", tr.backend
     if tr.status != "ok":
-        return [dict(zip(ROW_KEYS, (case, backend, "run", "", math.nan, math.nan, math.nan, 0.0, False,
-                                    f"{tr.status}: {tr.reason}"), strict=True))]  # fmt: skip
+        return [_failed_row(backend, f"{tr.status}: {tr.reason}", (0, 0, 0))]
     cls = registry.get(backend)
     p = physics.contact
     coef = sliding_coefficient(tr.info, cls)
@@ -168,32 +174,42 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     v = np.einsum("nij,nj->ni", J, tr.qd)[:, :2]
     k = np.flatnonzero((tr.t >= window[0] - 1e-9) & (tr.t <= window[1] + 1e-9))
     k = k[(k > 0) & (k < len(tr.t) - 1)]
-    n_window = len(k)
-    # samples in contact only (an engine's foot may hop: the closed form is for sliding contact)
-    k = k[tr.f[k, 2] > FN_MIN]
+    # samples in contact only (an engine's foot may hop: the closed form is for sliding contact); those out of it
+    # are counted (a lift-off, measured), and the acceleration takes only the samples whose whole central
+    # difference k-1, k, k+1 is in contact (:func:`_stencil`)
+    touching = tr.f[:, 2] > FN_MIN
+    counts = (len(k), int(np.count_nonzero(~touching[k])), 0)
+    k = k[touching[k]]
     shape = str(tr.info.get("friction_cone", cls.friction_cone))
     if shape == "pyramid" and len(k):
-        return _score_pyramid(tr, physics, cls, coef, mu, v, k, n_window, lift, poc)
+        return _score_pyramid(tr, physics, cls, coef, mu, v, k, touching, counts, lift, poc)
     k = k[np.linalg.norm(v[k], axis=1) > 0.0]
     if len(k) == 0:
-        return [dict(zip(ROW_KEYS, (case, backend, "run", "", math.nan, math.nan, math.nan, 0.0, False,
-                                    "no sample of the window in sliding contact"), strict=True))]  # fmt: skip
+        return [_failed_row(backend, f"no sample of the window in sliding contact; {_contact_text(counts)}", counts)]
     fn = tr.f[k, 2]
     ft = tr.f[k, :2]
     vk = v[k]
     speed = np.linalg.norm(vk, axis=1)
-    slip = (f"slip {_span(1e3 * speed)} mm/s, Fn {fn.mean():.3g} N, "
-            f"{len(k)} of {n_window} samples in contact")  # fmt: skip
     if shape == "diamond":  # scored on its own closed form (the cone's below would be computed for nothing)
-        return _score_diamond(tr, physics, cls, coef, mu, v, k, slip, lift, poc)
+        return _score_diamond(tr, physics, cls, coef, mu, v, k, touching, counts, lift, poc)
     u = vk / speed[:, None]
     ratio, _ = _worst(np.linalg.norm(ft, axis=1) / fn, mu)
     cosang = -np.sum(ft * u, axis=1) / np.linalg.norm(ft, axis=1)
     angle = float(np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0))).max())
-    a_meas = (v[k + 1] - v[k - 1]) / (2 * Ts)
-    f_pred = np.column_stack([-mu * fn[:, None] * u, fn])
-    a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift, poc, physics.gravity)
-    am, ap = float(np.mean(np.sum(a_meas * u, axis=1))), float(np.mean(np.sum(a_pred * u, axis=1)))
+    s = _stencil(touching, k)
+    counts = (counts[0], counts[1], int(s.sum()))
+    slip = f"slip {_span(1e3 * speed)} mm/s, Fn {fn.mean():.3g} N, {_contact_text(counts)}"
+    ka, ua = k[s], u[s]
+    a_meas = (v[ka + 1] - v[ka - 1]) / (2 * Ts)
+    f_pred = np.column_stack([-mu * fn[s, None] * ua, fn[s]])
+    a_pred = predicted_acceleration(tr.q[ka], tr.qd[ka], tr.tau[ka], f_pred, lift, poc, physics.gravity)
+    am, ap = _mean(np.sum(a_meas * ua, axis=1)), _mean(np.sum(a_pred * ua, axis=1))
+    kb = ka - 1  # the step before: the closed form under the force read at its start (:func:`_over_steps`)
+    vb = v[kb]
+    ub = vb / np.where(np.linalg.norm(vb, axis=1) > 0.0, np.linalg.norm(vb, axis=1), math.nan)[:, None]
+    f_before = np.column_stack([-mu * tr.f[kb, 2, None] * ub, tr.f[kb, 2]])
+    a_before = predicted_acceleration(tr.q[kb], tr.qd[kb], tr.tau[kb], f_before, lift, poc, physics.gravity)
+    steps = _over_steps(a_pred, a_before, ua)
     # a law backend's force is the law evaluated at the logged state: its ratio and angle are the law read back
     law = ("the law read back (the force is the law at the logged state): checks the read-out, not an engine; "
            if applies_law(tr.info, physics) else "")  # fmt: skip
@@ -205,7 +221,7 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
         _relative(case, backend, "slip acceleration along the slip (mean)", "m/s^2", am, ap, TOL_ACC,
                   f"closed form M^-1 (tau - nle + J_poc^T F), F = mu Fn vs the slip{_at(poc)}; {slip}"),
     ]  # fmt: skip
-    return _with_known(cls, tr, [dict(zip(ROW_KEYS, r, strict=True)) for r in rows])
+    return _with_known(cls, tr, rows, counts, {"over_steps": steps})
 
 
 def sliding_coefficient(info: Mapping[str, Any], cls: type[Backend]) -> str:
@@ -280,26 +296,31 @@ def diamond_friction(v: np.ndarray, fn: np.ndarray, mu: float, axes: np.ndarray 
 
 
 def _score_diamond(tr: RunResult, physics: Physics, cls: type[Backend], coef: str, mu: float, v: np.ndarray,
-                   k: np.ndarray, slip: str, lift: float, poc: str) -> list[dict[str, Any]]:  # fmt: skip
+                   k: np.ndarray, touching: np.ndarray, counts: tuple[int, int, int], lift: float,
+                   poc: str) -> list[dict[str, Any]]:  # fmt: skip
     """The drag scored against the friction diamond's closed form (:func:`diamond_friction`) on the run's declared
     tangent axes (:func:`friction_axes`) at the samples ``k`` in sliding contact: |F_t1| + |F_t2| = mu Fn (at every
     sample: the boundary holds at any slip direction), the tangential force's angle to the closed form's (the
     vertex against the slip's larger component) and the slip acceleration along the slip under that force, at the
     samples whose slip is within :data:`DIAMOND_AXIS_DEG` of a tangent axis (the vertex is a soft pyramid's force
-    only there)."""
+    only there) and whose central difference's stencil is in contact (``touching``, :func:`_stencil`); ``counts``:
+    the window's (:data:`COUNT_KEYS`)."""
     case, backend = "sliding", tr.backend
     Ts = physics.control_dt
     E = drag_frame(friction_axes(tr.info))  # rows: the axis across the drag, the axis along it
     l1, _ = _worst(np.sum(np.abs(tr.f[k, :2] @ E.T), axis=1) / tr.f[k, 2], mu)
     n_contact = len(k)
+    speed, fn_mean = np.linalg.norm(v[k], axis=1), float(tr.f[k, 2].mean())  # of every sample sliding in contact
     sk = np.abs(v[k] @ E.T)
     off_axis = np.degrees(np.arctan2(sk.min(axis=1), sk.max(axis=1)))
     k = k[off_axis <= DIAMOND_AXIS_DEG]
     if len(k) == 0:
         why = (f"no sample slips within {DIAMOND_AXIS_DEG:g} deg of a tangent axis (from {off_axis.min():.3g} deg): "
                "the diamond's vertex is not the soft pyramid's force there")  # fmt: skip
-        return [dict(zip(ROW_KEYS, (case, backend, "run", "", math.nan, math.nan, math.nan, 0.0, False, why),
-                         strict=True))]  # fmt: skip
+        return [_failed_row(backend, why, counts)]
+    s = _stencil(touching, k)
+    counts = (counts[0], counts[1], int(s.sum()))
+    slip = f"slip {_span(1e3 * speed)} mm/s, Fn {fn_mean:.3g} N, {_contact_text(counts)}"
     fn, ft, vk = tr.f[k, 2], tr.f[k, :2], v[k]
     u = vk / np.linalg.norm(vk, axis=1)[:, None]
     ft_pred = diamond_friction(vk, fn, mu, E)
@@ -313,10 +334,15 @@ def _score_diamond(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
            f"against the slip's larger component (the axis along the drag at {along} of {len(k)} samples), up to "
            f"{off:.3g} deg off -slip; angle and acceleration at the {len(k)} of {n_contact} samples within "
            f"{DIAMOND_AXIS_DEG:g} deg of an axis; {slip}")  # fmt: skip
-    a_meas = (v[k + 1] - v[k - 1]) / (2 * Ts)
-    f_pred = np.column_stack([ft_pred, fn])
-    a_pred = predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], f_pred, lift, poc, physics.gravity)
-    am, ap = float(np.mean(np.sum(a_meas * u, axis=1))), float(np.mean(np.sum(a_pred * u, axis=1)))
+    ka, ua = k[s], u[s]
+    a_meas = (v[ka + 1] - v[ka - 1]) / (2 * Ts)
+    f_pred = np.column_stack([ft_pred[s], fn[s]])
+    a_pred = predicted_acceleration(tr.q[ka], tr.qd[ka], tr.tau[ka], f_pred, lift, poc, physics.gravity)
+    am, ap = _mean(np.sum(a_meas * ua, axis=1)), _mean(np.sum(a_pred * ua, axis=1))
+    kb = ka - 1  # the step before: the closed form under the force read at its start (:func:`_over_steps`)
+    f_before = np.column_stack([diamond_friction(v[kb], tr.f[kb, 2], mu, E), tr.f[kb, 2]])
+    a_before = predicted_acceleration(tr.q[kb], tr.qd[kb], tr.tau[kb], f_before, lift, poc, physics.gravity)
+    steps = _over_steps(a_pred, a_before, ua)
     rows = [
         _relative(case, backend, "friction (|F_x| + |F_y|) / Fn while sliding (worst sample; diamond)", "1", l1, mu,
                   TOL_MU,
@@ -326,7 +352,7 @@ def _score_diamond(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
         _relative(case, backend, "slip acceleration along the slip (mean; diamond)", "m/s^2", am, ap, TOL_ACC,
                   f"closed form M^-1 (tau - nle + J_poc^T F), F the diamond's{_at(poc)}; {ctx}"),
     ]  # fmt: skip
-    return _with_known(cls, tr, [dict(zip(ROW_KEYS, r, strict=True)) for r in rows])
+    return _with_known(cls, tr, rows, counts, {"over_steps": steps})
 
 
 def _worst(measured: np.ndarray, expected: np.ndarray | float) -> tuple[float, float]:
@@ -344,14 +370,59 @@ def _span(x: np.ndarray) -> str:
     return lo if lo == hi else f"{lo}-{hi}"
 
 
-def _with_known(cls: type[Backend], tr: RunResult, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """``rows`` with each failing row's measured and explained miss (``Backend.known_deviation``:
-    :func:`~legbench.backends.base.explained_note`) before its note; the row still fails."""
-    for r in rows:
-        r["note"] = explained_note(cls, "sliding", str(r["quantity"]), tr.info, bool(r["passed"]),
+def _with_known(cls: type[Backend], tr: RunResult, rows: list[tuple[Any, ...]], counts: tuple[int, int, int],
+                measured: Mapping[str, float] | None = None) -> list[dict[str, Any]]:  # fmt: skip
+    """``rows`` (tuples of :data:`ROW_KEYS`) as mappings with the window's ``counts`` (:data:`COUNT_KEYS`) and each
+    failing row's measured and explained miss (``Backend.known_deviation``:
+    :func:`~legbench.backends.base.explained_note`) before its note; the row still fails. The backend is asked
+    with the run's info and, under ``drag``, what this scoring measured of the run: the counts and ``measured``
+    (a pyramid's friction bound and its closed form there, :func:`_score_pyramid`; a cone's or diamond's closed form
+    of the central difference with each step under the force read at its start, ``over_steps``:
+    :func:`_over_steps`), which its explanation may hold the row's measured value to."""
+    context = {**tr.info, "drag": {**dict(zip(COUNT_KEYS, counts, strict=True)), **(measured or {})}}
+    out = []
+    for row in rows:
+        r = {**dict(zip(ROW_KEYS, row, strict=True)), **dict(zip(COUNT_KEYS, counts, strict=True))}
+        r["note"] = explained_note(cls, "sliding", str(r["quantity"]), context, bool(r["passed"]),
                                    float(r["measured"]), float(r["expected"]), float(r["tolerance"]),
                                    str(r["note"]))  # fmt: skip
-    return rows
+        out.append(r)
+    return out
+
+
+def _failed_row(backend: str, why: str, counts: tuple[int, int, int]) -> dict[str, Any]:
+    """The one row of a drag that could not be scored (a failed run, no sample to score), saying ``why``."""
+    row = ("sliding", backend, "run", "", math.nan, math.nan, math.nan, 0.0, False, why)
+    return {**dict(zip(ROW_KEYS, row, strict=True)), **dict(zip(COUNT_KEYS, counts, strict=True))}
+
+
+def _stencil(touching: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """Which of the samples ``k`` (each 0 < k < n - 1) have the whole central difference k-1, k, k+1 in contact
+    (``touching``: Fn above :data:`FN_MIN` at each sample of the log): the slip acceleration's samples. A contact
+    sample beside a step without contact carries that step's frictionless drag (MuJoCo's engine-defaults hop,
+    SAP's glide), which is not the closed form's sliding contact."""
+    return touching[k - 1] & touching[k] & touching[k + 1]
+
+
+def _contact_text(counts: tuple[int, int, int]) -> str:
+    """The window's counts (:data:`COUNT_KEYS`) in words for a note."""
+    n, out, acc = counts
+    return (f"{n - out} of {n} samples in contact, {out} out (Fn <= {FN_MIN:g} N); acceleration at the {acc} whose "
+            "difference stencil k-1, k, k+1 is in contact")  # fmt: skip
+
+
+def _over_steps(a_at: np.ndarray, a_before: np.ndarray, u: np.ndarray) -> float:
+    """The closed form of the central difference (v[k+1] - v[k-1]) / 2 Ts where each control period's step
+    applies the force read at its start (an engine stepped once per period whose logged force is the one its next
+    step applies, MuJoCo's 1 ms step): the mean over the samples k of the closed form at k and at k - 1 (``a_at``,
+    ``a_before``, n x 2 in W), each along the slip at k (``u``, n x 2). Where the acceleration varies little over a
+    step it is the closed form at k; where it varies fast (a foot landing after a hop) it lags it by half a step."""
+    return _mean(np.sum(0.5 * (a_at + a_before) * u, axis=1))
+
+
+def _mean(x: np.ndarray) -> float:
+    """The mean of ``x``, NaN where it is empty (no sample to score: the row then fails, unexplained)."""
+    return float(np.mean(x)) if len(x) else math.nan
 
 
 def _relative(case: str, backend: str, quantity: str, unit: str, measured: float, expected: float, rel: float,
@@ -408,7 +479,7 @@ def pyramid_friction(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, fn: np.ndar
 
 
 def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: str, mu: float, v: np.ndarray,
-                   k: np.ndarray, n_window: int, lift: float = 0.0,
+                   k: np.ndarray, touching: np.ndarray, counts: tuple[int, int, int], lift: float = 0.0,
                    poc: str = "true") -> list[dict[str, Any]]:  # fmt: skip
     """The drag scored against the friction pyramid's closed form (:func:`pyramid_friction`) on the run's declared
     tangent axes (:func:`friction_axes`; rows below by :func:`drag_frame`: the axis along the drag, W y for
@@ -416,7 +487,13 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
     closed form's (which holds that axis: an engine with no friction along W x passed a bound |F_x| <= mu Fn, and
     its W y acceleration moved by 1.6 % only, within 2 %), the slip acceleration along the drag's axis; ``coef``:
     the coefficient the backend slides with (:func:`sliding_coefficient`); ``lift``, ``poc``: where its force
-    acts (:func:`~legbench.backends.base.contact_point`)."""
+    acts (:func:`~legbench.backends.base.contact_point`); the acceleration at the samples whose central difference
+    is in contact (``touching``, :func:`_stencil`); ``counts``: the window's (:data:`COUNT_KEYS`).
+
+    The backend's explanation of a miss is asked with what the run measured (:func:`_with_known`, ``drag``):
+    ``friction_bound``, the friction the axis along the drag slid with, mean |F_along| / Fn over the samples where
+    the closed form slides it, and ``at_bound``, the closed form's mean acceleration with that bound in place of mu
+    (NaN where no sample slides)."""
     case, backend = "sliding", tr.backend
     Ts = physics.control_dt
     E = drag_frame(friction_axes(tr.info))  # rows: the axis across the drag, the axis along it
@@ -427,21 +504,29 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
     # at its worst sample against the closed form's there (mu where it slides, the force that holds it elsewhere)
     along, expected_along = _worst(np.abs(f_meas[k, 1]) / fn, np.abs(ft_pred[:, 1]) / fn)
     across, across_pred = float(np.mean(f_meas[k, 0] / fn)), float(np.mean(ft_pred[:, 0] / fn))
-    a_meas = (v_ax[k + 1, 1] - v_ax[k - 1, 1]) / (2 * Ts)
-    am, ap = float(np.mean(a_meas)), float(np.mean(a_pred[:, 1]))
+    s = _stencil(touching, k)
+    counts = (counts[0], counts[1], int(s.sum()))
+    ka = k[s]
+    a_meas = (v_ax[ka + 1, 1] - v_ax[ka - 1, 1]) / (2 * Ts)
+    am, ap = _mean(a_meas), _mean(a_pred[s, 1])
+    # the bound the engine slid with along the drag, measured, and the closed form with it in place of mu
+    bound = float(np.mean(np.abs(f_meas[k[slides], 1]) / fn[slides])) if slides.any() else math.nan
+    at_bound = math.nan
+    if math.isfinite(bound) and len(ka):
+        _, a_bound = pyramid_friction(tr.q[ka], tr.qd[ka], tr.tau[ka], fn[s], bound, lift, poc, E, physics.gravity)
+        at_bound = _mean((a_bound @ E.T)[:, 1])
     speed = np.abs(v_ax[k, 1])
     ctx = (f"pyramid on {_axes_text(tr.info)}, {coef} = {mu:g}; the closed form slides the axis along the drag at "
            f"{int(slides.sum())} of {len(k)} samples; slip along it {_span(1e3 * speed)} mm/s, "
-           f"Fn {fn.mean():.3g} N, {len(k)} of {n_window} samples in "
-           "contact")  # fmt: skip
+           f"Fn {fn.mean():.3g} N, {_contact_text(counts)}")  # fmt: skip
     acc = f"closed form M^-1 (tau - nle + J_poc^T F), F the pyramid's{_at(poc)}; {ctx}"
     if ap != 0.0:
         acc_row = _relative(case, backend, "slip acceleration along the drag (mean; pyramid)", "m/s^2", am, ap,
                             TOL_ACC, acc)  # fmt: skip
     else:  # the closed form holds both axes: the scale is the acceleration the drag gives without friction
-        free = np.column_stack([np.zeros((len(k), 2)), fn])
-        scale = float(np.mean(np.abs((predicted_acceleration(tr.q[k], tr.qd[k], tr.tau[k], free, lift, poc,
-                                                             physics.gravity) @ E.T)[:, 1])))  # fmt: skip
+        free = np.column_stack([np.zeros((len(ka), 2)), fn[s]])
+        scale = _mean(np.abs((predicted_acceleration(tr.q[ka], tr.qd[ka], tr.tau[ka], free, lift, poc,
+                                                     physics.gravity) @ E.T)[:, 1]))  # fmt: skip
         acc_row = (case, backend, "slip acceleration along the drag (mean; pyramid)", "m/s^2", am, 0.0, abs(am),
                    TOL_ACC * scale, abs(am) <= TOL_ACC * scale,
                    f"{acc}; tolerance {100 * TOL_ACC:g} % of the frictionless acceleration")  # fmt: skip
@@ -456,10 +541,11 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
          "of mu"),
         acc_row,
     ]  # fmt: skip
-    return _with_known(cls, tr, [dict(zip(ROW_KEYS, r, strict=True)) for r in rows])
+    return _with_known(cls, tr, rows, counts, {"mu": mu, "friction_bound": bound, "at_bound": at_bound})
 
 
 __all__ = [
+    "COUNT_KEYS",
     "ROW_KEYS",
     "applies_law",
     "diamond_friction",
