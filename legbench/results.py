@@ -569,7 +569,7 @@ def _profiled(name: str, profile: str) -> str:
 
 #: Columns of a study's output shown in another unit than the file's SI value, and the factor: the contact
 #: calibration's creep [m/s] in mm/s, as on the run pages' contact-law residuals (its own page and the index's table).
-SHOWN_SCALE = {"creep": 1e3, "creep_law": 1e3}
+SHOWN_SCALE = {"creep": 1e3, "jitter": 1e3, "creep_law": 1e3}
 #: What ``legbench check`` writes by default into the results it checks (a tree's root, or a run directory).
 CHECK_OUTPUTS = ("check.md", "check-junit.xml")
 #: The title of a results tree's index: the first line of its report.md, the <title> of its report.html.

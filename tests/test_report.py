@@ -914,14 +914,16 @@ def test_calibration_table_shows_a_stuck_foot_as_inf_with_units_and_notes(tmp_pa
     write_run(root / "fake", {"ref": None, "a": scale(1.02)})
     (root / "calibration").mkdir()
     row = {"backend": "a", "Kp": 1e4, "k_eff": 1e4, "Kd": 100.0, "c_eff": math.nan, "mu_s": 0.7, "Fn": 40.0, "Ft": 13.0,
-           "creep": 0.0, "creep_law": 4.7e-4, "c_tangential": math.inf, "note": "rigid contact"}  # fmt: skip
+           "creep": 0.0, "jitter": 2e-6, "creep_law": 4.7e-4, "c_tangential": math.inf,
+           "note": "rigid contact"}  # fmt: skip
     (root / "calibration" / "calibration.json").write_text(json.dumps({"rows": [row]}))
     R.write_all(root)
     md = (root / "report.md").read_text()
     header = next(line for line in md.splitlines() if line.startswith("| backend | Kp"))
     assert "| c_tangential [N s/m] |" in header and "| k_eff [N/m] |" in header and "| creep [mm/s] |" in header
+    assert "| jitter [mm/s] |" in header
     line = next(line for line in md.splitlines() if line.startswith("| a | 10000 |"))
-    assert line.endswith("| n/a | 0.7 | 40 | 13 | 0 | 0.47 | inf | rigid contact |"), line  # mm/s, as the run pages
+    assert line.endswith("| n/a | 0.7 | 40 | 13 | 0 | 0.002 | 0.47 | inf | rigid contact |"), line  # mm/s
 
 
 def test_the_profile_paragraph_names_the_backends_that_keep_their_step(tmp_path: Path) -> None:

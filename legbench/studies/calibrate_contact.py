@@ -6,16 +6,25 @@ controller tau = Jv^T h_d + G, driven directly through the Backend API:
 1. static push, h_d = (0, 0, -F1) then a step to (0, 0, -F2): the effective
    normal stiffness is k = (Fn2 - Fn1) / (y2 - y1) from the two rests
    (penetration y = R_foot - z_E), and the effective damping c is the
-   least-squares fit of Fn - k y = c ydot over the pressing-in part of the
-   step's transient (ydot > 1 mm/s; the spec's damping acts only while
-   pressing in);
+   least-squares fit of Fn - (k y + b) = c ydot over the pressing-in part of
+   the step's transient (ydot > 1 mm/s; the spec's damping acts only while
+   pressing in), k y + b being the chord through the two rests: exact for a
+   normal law linear in y, from the origin or from an offset (PyBullet's
+   slop). Where the chord misses the origin by more than
+   :data:`CHORD_INTERCEPT_RTOL` of F1 the normal law is not linear in the
+   depth and no spring-damper fits the step: c is n/a (NaN) and the note
+   gives the intercept b;
 2. slow tangential load: F_x of h_d ramps from 0 to ``ratio`` mu_s F2 (below
-   the friction limit) over ``ramp`` seconds and is held; the creep velocity
-   is the mean horizontal speed of the point of contact over the end of the
-   hold. The spec's stick-slip law creeps at v = v_th F_t / (mu_s Fn) (the
-   linear part of mu(v)); a Coulomb engine sticks; an engine with a
-   regularised (soft) friction cone creeps at about F_t / Kd (the lab
-   report). The effective tangential damping F_t / v is printed too.
+   the friction limit) over ``ramp`` seconds and is held; the creep is the
+   net slip of the point of contact over the end of the hold: the magnitude
+   of the mean of its horizontal velocity v_t (= J_poc qd), its slip
+   integrated over the window divided by the window's length, so a contact
+   that jitters about a slow drift reads the drift. The jitter is the RMS of
+   v_t about that mean. The spec's stick-slip law creeps at
+   v = v_th F_t / (mu_s Fn) (the linear part of mu(v)); a Coulomb engine
+   sticks; an engine with a regularised (soft) friction cone creeps at about
+   F_t / Kd (the lab report). The effective tangential damping F_t / creep
+   is printed too.
 
 Data flow: :func:`push` (one backend, a :class:`~legbench.results.RunResult`) ->
 :func:`estimate` (:class:`Calibration`, frozen) -> :func:`calibrate` (a
@@ -58,7 +67,17 @@ from legbench.scenario import Event, physics_of
 from legbench.studies.executors import DEFAULT_PRELOAD, make_executor
 from legbench.yamlfile import one_line
 
-__all__ = ["STICK_SPEED", "Calibration", "Program", "add_cli", "calibrate", "estimate", "push", "write_calibration"]
+__all__ = [
+    "CHORD_INTERCEPT_RTOL",
+    "STICK_SPEED",
+    "Calibration",
+    "Program",
+    "add_cli",
+    "calibrate",
+    "estimate",
+    "push",
+    "write_calibration",
+]
 
 SCENARIO = resources.scenario("effort")
 #: Below this creep [m/s] the foot is taken to stick (``c_tangential`` = inf): 1 um in 1000 s, six orders
@@ -72,6 +91,16 @@ K_EFF_RTOL = 1e-3
 #: ``creep``), and an explanation that is a closed form must meet the measured creep within it: the closed forms
 #: are steady states, and over the hold the creeping leg's configuration moves on (MuJoCo: 0.03 %).
 CREEP_RTOL = 1e-2
+#: The chord between the rests, k y + b, may miss the origin by this share of F1 (|b| / F1) before the normal law
+#: counts as not linear in the depth and c eff is n/a. Measured |b| / F1: matched profile at most 3.2e-7 (Lagrange;
+#: the others 1e-12 to 2e-8); engine-defaults ODE 3.1e-4 (its quick step's jittering rests), PyBullet 5.0e-3 (its
+#: 1e-5 m slop: a linear spring from an offset, Kp slop = 0.1 N, whose line through the rests gives c = 100.15
+#: against its pair damping 100.1 N s/m), MuJoCo 0.209 (the usual solref through the impedance: nonlinear; the
+#: origin fit read 522.5 N s/m, with k free 1681, with k and b free 30.5). Below it, a power law Fn ~ y^p curved
+#: enough to move b by 1e-2 F1 (p = 0.993 or 1.007) biases the fit through the chord by under 0.5 % (0.08 % on the
+#: matched profile's transient, 0.44 % on a monotone rise: tests/test_calibrate_contact.py), where the fit through
+#: the origin it replaces was 2 % and 10 % off.
+CHORD_INTERCEPT_RTOL = 1e-2
 
 
 @dataclass(frozen=True)
@@ -162,12 +191,17 @@ class Calibration:
             static friction coefficient and stick-slip threshold speed [m/s].
         k_eff: effective normal stiffness [N/m] (NaN, not applicable, for a rigid contact: the note gives its
             sink).
-        c_eff: effective normal damping while pressing in [N s/m] (NaN for a rigid contact).
+        c_eff: effective normal damping while pressing in [N s/m], fitted through the chord between the rests (NaN
+            for a rigid contact, and for a normal law not linear in the depth: the chord misses the origin by more
+            than :data:`CHORD_INTERCEPT_RTOL` of F1, the note giving by how much).
         Fn: normal force at the end of the hold [N].
         Ft: tangential force at the end of the hold [N].
-        creep: horizontal speed of the point of contact at the end of the hold [m/s].
+        creep: net slip speed of the point of contact at the end of the hold, |mean v_t| over the window (its slip
+            over the window divided by the window's length) [m/s].
+        jitter: RMS of the point of contact's horizontal velocity v_t about its mean over the same window [m/s]
+            (0 to round-off for a steady creep; an unconverged solver's contact shakes about its drift).
         creep_law: the spec's law's creep for the same Fn and Ft, v_th Ft / (mu_s Fn) [m/s].
-        c_tangential: Ft / creep [N s/m] (inf when the foot sticks: creep below :data:`STICK_SPEED`).
+        c_tangential: Ft / creep, the net creep [N s/m] (inf when the foot sticks: creep below :data:`STICK_SPEED`).
         compliant: the backend's native contact declares a stiffness (``info()["contact"]["Kp"]`` is
             not None); a rigid one (e.g. an LCP engine) has no Kp or Kd to match: its k_eff and c_eff are
             NaN (the report's n/a) and the note gives the rests' sink and the backend's closed form of it.
@@ -186,6 +220,7 @@ class Calibration:
     creep: float
     creep_law: float
     c_tangential: float
+    jitter: float = math.nan
     compliant: bool = True
     note: str = ""
 
@@ -213,11 +248,12 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     (y1, f1), (y2, f2) = ((float(y[w].mean()), float(f[w, 2].mean())) for w in (w1, w2))  # the two rests [m, N]
     dy = y2 - y1
     k_eff = (f2 - f1) / dy if abs(dy) > 0 else math.nan
+    b = f1 - k_eff * y1  # the chord's force at y = 0 [N]: 0 for a spring linear in y from the origin
     tr = (t >= program.phase) & (t < program.phase + program.transient) & (ydot > 1e-3)
     notes = []
     compliant = not rigid_contact(log.info)
     if tr.sum() >= 3 and math.isfinite(k_eff):
-        r = f[tr, 2] - k_eff * y[tr]
+        r = f[tr, 2] - (k_eff * y[tr] + b)  # the spring taken as the chord through the rests, offset and all
         c_eff = float(r @ ydot[tr] / (ydot[tr] @ ydot[tr]))
     else:
         c_eff = math.nan
@@ -226,7 +262,10 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     end = window(program.duration)
     Fn = float(f[end, 2].mean())
     Ft = float(np.hypot(f[end, 0], f[end, 1]).mean())
-    creep = float(np.hypot(v[end, 0], v[end, 1]).mean())
+    vt = v[end, :2]
+    v_net = vt.mean(axis=0)  # the slip over the window / its length [m/s]: what a jittering contact nets
+    creep = float(np.hypot(*v_net))
+    jitter = float(np.sqrt(np.mean(np.sum((vt - v_net) ** 2, axis=1))))
     if saturated:
         notes.append(f"{saturated} ticks saturated a joint torque: h_d was not fully applied")
     if compliant and math.isfinite(k_eff) and abs(k_eff / contact.Kp - 1.0) > K_EFF_RTOL:
@@ -237,6 +276,11 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
         # k eff is the chord between the two rests; the backend's closed form, a stiffness at one rest, is said so
         where = f"k eff is the chord between the two rests; at the second (Fn = {f2:.4g} N): "
         notes.append(where + known if known else f"k eff {100 * (k_eff / contact.Kp - 1.0):+.3g} % off Kp")
+    if compliant and math.isfinite(c_eff) and abs(b) > CHORD_INTERCEPT_RTOL * abs(f1):
+        notes.append(f"c eff n/a: the normal law is not linear in the depth: the chord between the rests (k eff) meets "
+                     f"y = 0 at {b:.3g} N ({b / f1:+.2g} of F1, beyond {CHORD_INTERCEPT_RTOL:g}), so no spring-damper "
+                     f"fits the step (the fit through that chord read {c_eff:.4g} N s/m)")  # fmt: skip
+        c_eff = math.nan
     creep_law = contact.v_th * Ft / (contact.mu_s * Fn) if Fn > 0.0 else math.nan  # the foot off the ground: none
     if creep > STICK_SPEED and math.isfinite(creep_law) and not math.isclose(creep, creep_law, rel_tol=CREEP_RTOL):
         # the engine's own tangential law, where it has one in closed form, held to the measured creep
@@ -260,7 +304,8 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     return Calibration(
         backend=log.backend, Kp=contact.Kp, Kd=contact.Kd, mu_s=contact.mu_s, v_th=contact.v_th, k_eff=k_eff,
         c_eff=c_eff, Fn=Fn, Ft=Ft, creep=creep, creep_law=creep_law,
-        c_tangential=Ft / creep if creep > STICK_SPEED else math.inf, compliant=compliant, note="; ".join(notes),
+        c_tangential=Ft / creep if creep > STICK_SPEED else math.inf, jitter=jitter, compliant=compliant,
+        note="; ".join(notes),
     )  # fmt: skip
 
 
@@ -337,13 +382,14 @@ def calibrate(
 _HEADERS = {
     "backend": "backend", "Kp": "Kp spec [N/m]", "k_eff": "k eff: dFn/dy between the rests [N/m]",
     "Kd": "Kd spec [N s/m]", "c_eff": "c eff [N s/m]", "mu_s": "mu_s", "Fn": "Fn [N]", "Ft": "Ft [N]",
-    "creep": "creep [mm/s]", "creep_law": "law creep [mm/s]", "c_tangential": "Ft/creep [N s/m] (inf: sticks)",
+    "creep": "creep: net slip [mm/s]", "jitter": "jitter: RMS slip about it [mm/s]", "creep_law": "law creep [mm/s]",
+    "c_tangential": "Ft/creep [N s/m] (inf: sticks)",
 }  # fmt: skip
 
 
 def markdown(df: pd.DataFrame) -> str:
-    """The calibration table as Markdown (creep in mm/s; n/a where a value is undefined, e.g. a rigid contact's
-    damping)."""
+    """The calibration table as Markdown (creep and jitter in mm/s; n/a where a value is undefined, e.g. a rigid
+    contact's damping, or a nonlinear normal law's)."""
     lines = ["| " + " | ".join(_HEADERS.values()) + " |", "|" + "---|" * len(_HEADERS)]
     for r in df.to_dict(orient="records"):
         cells = [
