@@ -631,16 +631,21 @@ def test_an_edited_law_recompiles_the_cached_period(tmp_path: Path) -> None:
     assert counts == [(0, 1), (1, 0), (0, 1)]  # compiled, loaded, compiled again after the edit
 
 
-@pytest.mark.parametrize("where", ["int", "/dev/null", "file", "under-file"])
+@pytest.mark.parametrize("where", ["int", "/dev/null", "file", "under-file", "run", "under-run"])
 def test_a_cache_dir_that_cannot_hold_the_equations_is_refused_naming_the_key(tmp_path: Path, where: str,
                                                                                make: Any) -> None:  # fmt: skip
     """backends.lagrange.cache_dir was never checked: 5, /dev/null or an existing regular file passed validate and
     the run then failed (TypeError: expected str ... not int; exit 3). The loader refuses each naming the key
     (exit 2 before any work), and so does the backend's load (LegbenchError, not a TypeError); a directory not
-    made yet passes."""
+    made yet passes. A run directory (or a folder in one) is refused too: the cache's file went among a finished
+    run's, which `legbench run --force` then refused to replace as holding a file not legbench's (a review)."""
     file = tmp_path / "plain.txt"
     file.write_text("x")
-    value: Any = {"int": 5, "/dev/null": "/dev/null", "file": str(file), "under-file": str(file / "sub")}[where]
+    run = tmp_path / "finished"
+    run.mkdir()
+    (run / "run.json").write_text("{}")
+    value: Any = {"int": 5, "/dev/null": "/dev/null", "file": str(file), "under-file": str(file / "sub"),
+                  "run": str(run), "under-run": str(run / "eom")}[where]  # fmt: skip
     doc = {"name": "t", "duration": 1.0, "events": [{"t": 0.0, "position": {"joint": [0, 0, 0]}}]}
     with pytest.raises(ScenarioError) as err:
         scenario.parse({**doc, "backends": {"lagrange": {"cache_dir": value}}}, "s.yaml")

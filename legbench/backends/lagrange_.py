@@ -103,9 +103,11 @@ class LagrangeBackend(Backend):
     def settings_problem(
         cls, settings: Mapping[str, Any], contact_mode: str
     ) -> tuple[str | tuple[str, ...], str] | None:
-        """``cache_dir`` that cannot hold the generated equations: not text, a ``~user`` that names no user, or a
-        path that exists (or whose nearest existing ancestor is) not a directory (``/dev/null``, a regular file); any
-        contact mode. A leading ``~`` is the home directory, as in the shell (:func:`_cache_dir`)."""
+        """``cache_dir`` that cannot hold the generated equations: not text, a ``~user`` that names no user, a
+        path that exists (or whose nearest existing ancestor is) not a directory (``/dev/null``, a regular file), or
+        one in a legbench run directory (it or an ancestor holds ``run.json``: the cache's file would sit among the
+        run's, which a later run there then refuses to replace); any contact mode. A leading ``~`` is the home
+        directory, as in the shell (:func:`_cache_dir`)."""
         cache = settings.get("cache_dir", "")
         if not isinstance(cache, str):
             return "cache_dir", f"expected a directory path as text ('' for the default cache), got {cache!r}"
@@ -119,6 +121,10 @@ class LagrangeBackend(Backend):
                 if existing == path:
                     return "cache_dir", f"{cache!r} exists and is not a directory (the generated equations' cache)"
                 return "cache_dir", f"{cache!r} cannot be made a directory: {str(existing)!r} is not one"
+            run = next((p for p in (path, *path.parents) if os.path.isfile(p / "run.json")), None)
+            if run is not None:
+                return "cache_dir", (f"{cache!r} is in the legbench run directory {str(run)!r}; give the equations' "
+                                     "cache a directory of its own")  # fmt: skip
         return None
 
     # ----------------------------------------------------------------- load
