@@ -45,13 +45,23 @@ def test_matched_steady_normal_force_agrees_within_1_5_percent(task: str) -> Non
 
 
 def test_stick_slip_creep_matches_table_10() -> None:
-    """v_th derived from table 10 (docs/contact_law.md) reproduces its Simscape row's |qd| to 15 %."""
+    """v_th derived from table 10 (docs/contact_law.md) reproduces its Simscape row's qd, signs (-, +, -) included.
+
+    Measured (mean over the last 0.5 s, deterministic): qd = (-3.782e-4, 8.629e-4, -6.177e-4) rad/s, |qd| -2.2 %
+    from the row's 1.152e-3, per joint -5.4 %, -0.8 %, -3.5 %. Held to 5 % on |qd| and 8 %, 2.5 %, 7 % per joint,
+    so a few % change of the creep either way fails (v_th x 0.97: |qd| -5.1 %, qd1 -8.3 %; x 1.05: qd2 +4.1 %),
+    where 15 % let a 10 % one pass (v_th x 1.1: |qd| +7.5 %).
+
+    The residual is no error of the law, which creeps along -F_t to 0.02 deg; it is the derivation's inputs: the
+    speed is 1.4 % below the row's (the derivation took |F_t| / Fn = 0.2045 from PyBullet, the Pinocchio run's
+    is 0.2023, and v_th 1.003e-3 rounded to 1.0e-3), and the row's creep points 1.55 deg off the law's direction
+    (123.54 deg against 121.99 deg in the ground plane), which takes 5.4 % off qd1 (mostly the foot's x-speed)."""
     _need("pinocchio")
     s = _run("effort", "pinocchio")
     ref = math.sqrt(sum(x * x for x in TABLE10_SIMSCAPE))
-    assert abs(s.qd_norm / ref - 1.0) <= 0.15, (s.qd, ref)
-    # and per joint the sign pattern (-, +, -) of a creep along the ground, each within 15 %
-    assert np.allclose(np.abs(s.qd), TABLE10_SIMSCAPE, rtol=0.15), s.qd
+    assert abs(s.qd_norm / ref - 1.0) <= 0.05, (s.qd, ref)
+    signed = np.array(TABLE10_SIMSCAPE) * (-1.0, 1.0, -1.0)  # the creep along the ground runs (-, +, -)
+    assert np.all(np.abs(s.qd / signed - 1.0) <= (0.08, 0.025, 0.07)), (s.qd, s.qd / signed - 1.0)
 
 
 def test_stick_slip_creep_in_the_combined_task_is_the_laws_from_the_statics() -> None:

@@ -15,6 +15,17 @@ suite = importlib.util.module_from_spec(_SPEC)
 _SPEC.loader.exec_module(suite)
 
 
+def test_the_hostile_suite_builds_its_cases(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The suite's bad inputs are there to be run (152 built, over 100 held), each under its own id, so that a
+    case lost, or two under one id, does not pass the test below unnoticed."""
+    monkeypatch.chdir(tmp_path)
+    with suite.fake_backend():
+        cases = suite.build(tmp_path)
+    assert len(cases) > 100, len(cases)
+    ids = [cid for cid, _, _ in cases]
+    assert len(set(ids)) == len(ids), sorted(i for i in set(ids) if ids.count(i) > 1)
+
+
 def test_every_hostile_case_is_handled_cleanly(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
@@ -24,7 +35,6 @@ def test_every_hostile_case_is_handled_cleanly(
     bad = []
     with suite.fake_backend():
         cases = suite.build(tmp_path)
-        assert len(cases) > 100
         for cid, argv, ok in cases:
             caplog.clear()
             status, err, _ = suite.run_case(argv, guard=False)

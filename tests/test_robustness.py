@@ -104,6 +104,14 @@ CASES: list[tuple[str, Any, str, str]] = [
 ]
 
 
+def test_the_malformed_scenario_cases_are_many_and_distinct() -> None:
+    """The table the test below runs over (and the random values' key paths): 49 cases, each its own change to
+    the good document. It guards the test data, once, rather than in each case."""
+    assert len(CASES) >= 30, len(CASES)
+    changes = [(path, repr(value)) for path, value, _, _ in CASES]
+    assert len(set(changes)) == len(changes), "a case is listed twice"
+
+
 @pytest.mark.parametrize(
     ("path", "value", "key", "words"),
     CASES,
@@ -114,7 +122,6 @@ def test_malformed_scenario_exits_2_naming_the_key(
 ) -> None:
     f = tmp_path / "bad.yaml"
     f.write_text(yaml.safe_dump(_set(GOOD, path, value)))
-    assert len(CASES) >= 30
     assert cli.main(["validate", str(f)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0, "one line"
