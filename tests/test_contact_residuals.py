@@ -212,10 +212,12 @@ def test_residuals_on_the_effort_task(backend: str) -> None:
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_sliding_case_passes(backend: str) -> None:
     _need(backend)
-    from legbench.studies.sliding_case import ROW_KEYS, sliding_case
+    from legbench.studies.sliding_case import COUNT_KEYS, ROW_KEYS, sliding_case
 
     rows = sliding_case(backend)
-    assert len(rows) == 3 and all(tuple(r) == ROW_KEYS for r in rows)
+    assert len(rows) == 3 and all(tuple(r) == ROW_KEYS + COUNT_KEYS for r in rows)
+    # the foot stays on the ground through the window: every sample in contact, every difference scored
+    assert all(r["out_of_contact"] == 0 and r["acceleration_samples"] == r["window_samples"] == 51 for r in rows), rows
     assert all(r["passed"] for r in rows), rows
     mu = rows[0]["expected"]
     assert mu == (P.mu_k if backend == "pinocchio" else P.mu_s)
