@@ -235,3 +235,22 @@ def test_the_dantzig_sliding_miss_is_explained_only_where_the_foot_held() -> Non
     along = rows[0]
     assert ask("sliding", along["quantity"], tr.info, along["measured"] + 2 * along["tolerance"], along["expected"],
                along["tolerance"]) is None  # fmt: skip
+
+
+def test_rest_sink_is_the_regularisations_closed_form_where_it_holds() -> None:
+    """rest_sink(info, Fn) = cfm A_nn Fn h^2 / ERP from the run's info (contact.constraint_force_mixing 1e-5,
+    at_end.delassus's normal entry, timestep; ERP 0.01): 4.769 1/kg, 51.31 N at 50 us give 6.117e-10 m, at 1 ms
+    2.447e-7 m; None without those entries (reference contact, a diverged run's null Delassus) and where the bias
+    ERP y / h would exceed DART's cap of 1e-3 m/s (no closed form of the rest: here above Fn = 2.1e4 N at 1 ms)."""
+    from legbench.backends.dart_ import DartBackend
+
+    W = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 4.769]]
+    info = {"timestep": 5e-5, "contact": {"constraint_force_mixing": 1e-5}, "at_end": {"delassus": W}}
+    assert DartBackend.rest_sink(info, 51.31) == pytest.approx(1e-5 * 4.769 * 51.31 * 5e-5**2 / 0.01, rel=1e-12)
+    assert DartBackend.rest_sink(info, 51.31) == pytest.approx(6.117e-10, rel=1e-3)
+    slow = {**info, "timestep": 1e-3}
+    assert DartBackend.rest_sink(slow, 51.31) == pytest.approx(2.447e-7, rel=1e-3)
+    assert DartBackend.rest_sink(slow, 2.0e4) is not None and DartBackend.rest_sink(slow, 2.2e4) is None
+    assert DartBackend.rest_sink({**info, "at_end": {"delassus": None}}, 51.31) is None
+    assert DartBackend.rest_sink({**info, "contact": {"enabled": False, "Kp": 1e4}}, 51.31) is None
+    assert "= 6.117e-10 m" in DartBackend.rest_sink_text(info, 51.31)

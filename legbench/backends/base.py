@@ -349,6 +349,18 @@ class Backend(ABC):
         return None
 
     @classmethod
+    def rest_sink(cls, info: Mapping[str, Any], fn: float) -> float | None:
+        """A rigid native contact's own closed form of the foot's rest penetration [m] under the normal force ``fn``
+        [N], run as ``info`` says (its :meth:`info`): what its regularisation lets the foot sink (the verification's
+        rest row expects it); None where the backend has none (a compliant contact: the spec's Fn / Kp applies)."""
+        return None
+
+    @classmethod
+    def rest_sink_text(cls, info: Mapping[str, Any], fn: float) -> str:
+        """:meth:`rest_sink` in words with its numbers, for a row's note ('' where it gives None)."""
+        return ""
+
+    @classmethod
     def resolve_settings(cls, given: Mapping[str, Any], profile: str = "matched") -> dict[str, Any]:
         """Defaults, overlaid with the profile's settings, overlaid with the scenario's ``given``.
 
