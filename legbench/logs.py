@@ -20,6 +20,7 @@ import logging
 import math
 import re
 import stat
+import warnings
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -291,8 +292,15 @@ def load_log(
         raise LegbenchError(f"{words.time_scale} {time_scale!r}: must be a finite number > 0 (1e-3 for ms)")
     _check_regular(path)
     try:
-        raw = pd.read_csv(path, index_col=False)  # a trailing comma on every row: no index column
+        with warnings.catch_warnings():
+            # index_col=False: a trailing comma on every data row (an empty extra field) is no index column; a
+            # non-empty extra value, which pandas would drop with a ParserWarning, is refused below
+            warnings.simplefilter("error", pd.errors.ParserWarning)
+            raw = pd.read_csv(path, index_col=False)
         written = _written_header(path)
+    except pd.errors.ParserWarning:
+        raise ResultsError(str(path), "data rows hold more values than the header names: name every column, or "
+                                      "drop the extra values (a trailing comma is fine)") from None  # fmt: skip
     except Exception as exc:  # parser errors come in several types
         raise ResultsError(str(path), f"not a readable CSV file ({type(exc).__name__}: {exc})") from exc
     if raw.shape[1] == 1 and any(sep in str(raw.columns[0]) for sep in ";\t"):  # read as one column

@@ -378,6 +378,11 @@ def test_a_trailing_comma_on_every_data_row_shifts_no_column(tmp_path: Path) -> 
     plain.write_text("t,q1,q2,q3\n" + CSV_ROWS)
     trailing.write_text("t,q1,q2,q3\n" + "".join(line + ",\n" for line in CSV_ROWS.splitlines()))
     pd.testing.assert_frame_equal(logs.load_log(trailing), logs.load_log(plain))
+    # a value there (a column without a name) was dropped with only a pandas warning: refused, saying so
+    extra = tmp_path / "extra.csv"
+    extra.write_text("t,q1,q2,q3\n" + "".join(line + ",9\n" for line in CSV_ROWS.splitlines()))
+    with pytest.raises(ResultsError, match=r"data rows hold more values than the header names"):
+        logs.load_log(extra)
 
 
 @pytest.mark.parametrize("cell", ["", "NaN", "n/a"])
