@@ -642,7 +642,7 @@ def test_a_cache_dir_that_cannot_hold_the_equations_is_refused_naming_the_key(tm
     file = tmp_path / "plain.txt"
     file.write_text("x")
     run = tmp_path / "finished"
-    run.mkdir()
+    run.mkdir(exist_ok=True)
     (run / "run.json").write_text("{}")
     value: Any = {"int": 5, "/dev/null": "/dev/null", "file": str(file), "under-file": str(file / "sub"),
                   "run": str(run), "under-run": str(run / "eom")}[where]  # fmt: skip
@@ -653,6 +653,11 @@ def test_a_cache_dir_that_cannot_hold_the_equations_is_refused_naming_the_key(tm
     with pytest.raises(LegbenchError, match=r"^backends\.lagrange\.cache_dir: "):
         make(cache_dir=value)
     assert scenario.parse({**doc, "backends": {"lagrange": {"cache_dir": str(tmp_path / "new" / "dir")}}})
+    # beside a run, not in it (RUN/../x), is fine; a link into a run is in it
+    assert scenario.parse({**doc, "backends": {"lagrange": {"cache_dir": str(run / ".." / "eom")}}})
+    (tmp_path / "link").symlink_to(run)
+    with pytest.raises(ScenarioError, match="is in the legbench run directory"):
+        scenario.parse({**doc, "backends": {"lagrange": {"cache_dir": str(tmp_path / "link" / "eom")}}}, "s.yaml")
 
 
 def test_a_cache_dir_with_a_tilde_is_under_the_home_directory(

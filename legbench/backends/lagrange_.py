@@ -121,7 +121,8 @@ class LagrangeBackend(Backend):
                 if existing == path:
                     return "cache_dir", f"{cache!r} exists and is not a directory (the generated equations' cache)"
                 return "cache_dir", f"{cache!r} cannot be made a directory: {str(existing)!r} is not one"
-            run = next((p for p in (path, *path.parents) if os.path.isfile(p / "run.json")), None)
+            real = path.resolve()  # links and '..' resolved: RUN/../x is not in RUN, a link into RUN is
+            run = next((p for p in (real, *real.parents) if os.path.isfile(p / "run.json")), None)
             if run is not None:
                 return "cache_dir", (f"{cache!r} is in the legbench run directory {str(run)!r}; give the equations' "
                                      "cache a directory of its own")  # fmt: skip
