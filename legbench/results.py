@@ -1265,7 +1265,7 @@ def incomplete_runs(root: str | Path) -> list[str]:
         if meta.get("complete", True) is False:
             cut = sorted(b for b, e in meta["backends"].items() if str(e["status"]) == "interrupted")
             out.append(f"{resources.shown(d)}: an interrupted run ({', '.join(cut)} not finished), compared as far "
-                       "as it went; rerun the same legbench run command to finish it")  # fmt: skip
+                       "as it went; rerun the command that wrote it to finish it")  # fmt: skip
     return out
 
 

@@ -294,7 +294,7 @@ def other_file(doc: Any, expected: str) -> str | None:
 _NUMBER_TAGS = ("tag:yaml.org,2002:int", "tag:yaml.org,2002:float")
 #: YAML 1.1 number forms that read as something else than they look: base 60 (``1:30`` is 90), octal
 #: (``01750`` is 1000), binary (``0b11`` is 3) and digits grouped by ``_`` (``1_0`` is 10). YAML 1.2 reads none
-#: of them as numbers; PyYAML reads all silently. (Hexadecimal, ``0x10``, is 16 in both and looks it.)
+#: of them as numbers; PyYAML reads all silently. (Hexadecimal without ``_``, ``0x10``, is 16 in both and looks it.)
 _BASE60 = re.compile(r"[-+]?[0-9][0-9_]*(?::[0-5]?[0-9])+(?:\.[0-9_]*)?")
 _OCTAL = re.compile(r"[-+]?0[0-7_]+")
 _BINARY = re.compile(r"[-+]?0b[01_]+")
@@ -302,6 +302,8 @@ _BINARY = re.compile(r"[-+]?0b[01_]+")
 
 def _yaml11_number(text: str) -> str:
     """Why the plain scalar ``text`` must not be read as YAML 1.1 reads it ('' if it may)."""
+    if "_" in text and text.strip("+-_").lower() in ("", "0b", "0x", "0"):  # 0b_, 0x_: no digit, no number
+        return f"{text}: not a number (YAML 1.1 reads it as one with no digits); quote it ('{text}') for text"
     if _BASE60.fullmatch(text):
         value = yaml_load(text)
         return (f"{text}: YAML 1.1 reads this as the base-60 number {value!r}; write {value!r} if that is meant, "
@@ -316,7 +318,7 @@ def _yaml11_number(text: str) -> str:
         value = yaml_load(text)
         return (f"{text}: YAML 1.1 reads this as the binary number {value!r}; write {value!r} if that is meant, "
                 f"or quote it ('{text}') for text")  # fmt: skip
-    if "_" in text and not text.lower().lstrip("+-").startswith("0x"):
+    if "_" in text:  # hexadecimal too: YAML 1.2 reads 0x1_0 as text
         value = yaml_load(text)
         return (f"{text}: YAML 1.1 drops the '_' and reads {value!r}; write {value!r} if that is meant, "
                 f"or quote it ('{text}') for text")  # fmt: skip

@@ -67,7 +67,7 @@ def test_reset_floor_marks_a_local_error_it_explains() -> None:
     """ODE against Pinocchio in free space (0.5 s, 10 ms windows): its local error in q, 4.08e-5 rad at most
     (q3; median 6.3e-6), is what its own log replayed on itself gives, 4.22e-5 rad (median 6.6e-6): the floor
     is 1.03x the local error (asserted 0.5x..2x) and at least FLOOR_FRACTION (0.1x) of it in every q and qd
-    column (measured 0.91x..1.2x), so every one is marked reset-limited, and the local error is not ODE's step.
+    column (measured 0.91x..1.17x), so every one is marked reset-limited, and the local error is not ODE's step.
     The values are held within 10 % of the measured ones (each run repeats bit for bit).
     """
     _needs("pinocchio", "ode")

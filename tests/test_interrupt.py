@@ -185,7 +185,7 @@ def test_interrupt_keeps_data_marked_incomplete_and_rerun_completes(
                              timeout=600, check=False)  # fmt: skip
         assert cmp.returncode == 0, cmp.stderr
         assert cmp.stderr == (f"legbench: {out}: an interrupted run (gated-pinocchio not finished), compared as far "
-                              "as it went; rerun the same legbench run command to finish it\n")  # fmt: skip
+                              "as it went; rerun the command that wrote it to finish it\n")  # fmt: skip
 
     ungated = {k: v for k, v in env.items() if k != gate.ENV}
     done = subprocess.run(_cmd(out), capture_output=True, text=True, cwd=ROOT, env=ungated, timeout=600,

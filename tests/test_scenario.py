@@ -431,6 +431,9 @@ def test_backend_settings_that_are_no_mapping_are_refused(tmp_path: Path, settin
         ("duration", "0b11", "0b11: YAML 1.1 reads this as the binary number 3; write 3 if that is meant"),
         ("duration", "1_0", "1_0: YAML 1.1 drops the '_' and reads 10; write 10 if that is meant"),
         ("duration", "1_0.5", "1_0.5: YAML 1.1 drops the '_' and reads 10.5; write 10.5 if that is meant"),
+        ("duration", "0x1_0", "0x1_0: YAML 1.1 drops the '_' and reads 16; write 16 if that is meant"),
+        # no digits at all: the generic conversion error named neither the line nor the key
+        ("duration", "0b_", "0b_: not a number (YAML 1.1 reads it as one with no digits)"),
     ],
 )
 def test_yaml_11_numbers_that_read_as_something_else_are_refused(tmp_path: Path, key: str, text: str,

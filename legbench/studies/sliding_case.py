@@ -206,7 +206,9 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     am, ap = _mean(np.sum(a_meas * ua, axis=1)), _mean(np.sum(a_pred * ua, axis=1))
     kb = ka - 1  # the step before: the closed form under the force read at its start (:func:`_over_steps`)
     vb = v[kb]
-    ub = vb / np.where(np.linalg.norm(vb, axis=1) > 0.0, np.linalg.norm(vb, axis=1), math.nan)[:, None]
+    nb = np.linalg.norm(vb, axis=1)[:, None]
+    # a stalled step before (no slip: no friction direction) takes the slip's at k: one such sample made the mean NaN
+    ub = np.divide(vb, nb, out=ua.copy(), where=nb > 0.0)
     f_before = np.column_stack([-mu * tr.f[kb, 2, None] * ub, tr.f[kb, 2]])
     a_before = predicted_acceleration(tr.q[kb], tr.qd[kb], tr.tau[kb], f_before, lift, poc, physics.gravity)
     steps = _over_steps(a_pred, a_before, ua)

@@ -77,7 +77,7 @@ answer computed here from the leg's reference model (:class:`legbench.model.Dyna
     met to 2.5e-6 of it, 2.448e-7 m at 1 ms, to 3e-8), within 0.1 % of it (the
     contact solver's share, as a compliant rest's); one with no closed form is
     expected not to sink, y = 0, within :data:`RIGID_REST_BOUND` (1 um; it was
-    0.1 % of Fn / Kp plus that spring's damping, 5.1 um, 8400 times DART's sink
+    0.1 % of Fn / Kp plus that spring's damping, 5.1 um, 8300 times DART's sink
     at 50 us). A law backend (one that applies the
     spec's law itself: no contact of its own, ``Backend.engine_contact()`` False,
     or reference contact mode; :func:`applies_law`) reads Fn as the law at the
