@@ -205,36 +205,23 @@ def test_info_gives_the_contact_rows_delassus_from_the_engines_own_mass_matrix()
     check_delassus("dart", np.eye(3), lambda b: b._q.fill(math.nan))  # type: ignore[attr-defined]
 
 
-def test_the_dantzig_sliding_miss_is_explained_only_where_the_foot_held() -> None:
-    """base.py's contract: known_deviation says nothing where its explanation does not hold. The Dantzig
-    explanation (its friction bound from the normal impulse solved before friction: the drag holds and does not
-    slide) was attached to every failing sliding row; it now needs the run's end state (info at_end: the lowest
-    point's slip and the read force) to show a held foot beyond the Coulomb bound, slip under HELD_SLIP (1e-4
-    m/s; measured 5.3e-7) with |F_t| > mu Fn (measured |F_y| = 0.833 Fn, mu 0.7), and each row's measured value to
-    be the held foot's within the row's tolerance: slip acceleration 0 (measured 1.6e-9 m/s^2), |F_y| / Fn and
-    F_x / Fn those of the end (0.8328, 0.0228). The engine-defaults drag (Dantzig, 1 ms) explains its three rows;
-    a foot sliding at the end, one held within mu Fn, or a row off the held foot's value is not explained."""
+def test_the_dantzig_sliding_miss_is_a_plain_miss() -> None:
+    """The engine-defaults drag (Dantzig, 1 ms): the foot holds beyond the Coulomb bound and does not slide (its end
+    state in info at_end: slip 5.3e-7 m/s, |F_y| = 0.833 Fn against mu 0.7), and the three rows fail with no
+    explanation. One was attached until 28 Nov, 'met to' the held foot's own end state, which is the run read
+    back, not a closed form of the bound (base.py's contract; a review): nothing here predicts the 0.833."""
     from legbench.backends.dart_ import DartBackend
     from legbench.studies import sliding_case as S
 
     tr, physics = S.drag("dart", "engine-defaults")
     rows = S.score(tr, physics)
     assert len(rows) == 3 and not any(r["passed"] for r in rows), rows
-    assert all(r["note"].startswith("known: DART's Dantzig LCP") and "met to" in r["note"] for r in rows), rows
+    assert not any("known: " in r["note"] for r in rows), rows
     at_end = tr.info["at_end"]
     assert at_end["slip"] < 1e-6 and abs(at_end["force"][1]) / at_end["force"][2] == pytest.approx(0.833, abs=1e-3)
-    ask = DartBackend.known_deviation
-    acc = rows[2]
-    args = (acc["quantity"], acc["measured"], acc["expected"], acc["tolerance"])
-    assert ask("sliding", args[0], tr.info, *args[1:]) is not None
-    sliding = {**tr.info, "at_end": {**at_end, "slip": 0.3}}
-    assert ask("sliding", args[0], sliding, *args[1:]) is None
-    fx, fy, fn = at_end["force"]
-    within = {**tr.info, "at_end": {**at_end, "force": [fx, 0.6 * fn, fn]}}  # |F_t| < mu Fn: Coulomb holds it
-    assert ask("sliding", args[0], within, *args[1:]) is None
-    along = rows[0]
-    assert ask("sliding", along["quantity"], tr.info, along["measured"] + 2 * along["tolerance"], along["expected"],
-               along["tolerance"]) is None  # fmt: skip
+    for r in rows:
+        assert DartBackend.known_deviation("sliding", r["quantity"], tr.info, r["measured"], r["expected"],
+                                           r["tolerance"]) is None  # fmt: skip
 
 
 def test_rest_sink_is_the_regularisations_closed_form_where_it_holds() -> None:

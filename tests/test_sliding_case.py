@@ -138,15 +138,14 @@ def test_mujoco_engine_defaults_slides_on_the_diamonds_vertex_and_hops() -> None
     assert forward == pytest.approx(pred, rel=0.01)
 
 
-def test_dart_engine_defaults_says_why_its_dantzig_pyramid_does_not_slide() -> None:
+def test_dart_engine_defaults_dantzig_pyramid_holds_the_drag_unexplained() -> None:
     """DART's engine-defaults Dantzig LCP bounds friction by the frictionless normal impulse: the foot holds
-    0.83 Fn and does not slide. The rows still fail, each with that explanation, held to the run's own end (the
-    foot's |F_y| / Fn, F_x / Fn there, and no slip acceleration: "met to")."""
+    0.83 Fn and does not slide. The rows fail as plain misses: no closed form of that bound is built (the note
+    held to the run's own end state, attached until 28 Nov, read the run back)."""
     _need("dart")
     rows = S.sliding_case("dart", "engine-defaults")
     assert rows[0]["measured"] == pytest.approx(0.833, abs=0.005)
-    assert all(not r["passed"] and r["note"].startswith("known: ") and "|F_y| = 0.833 Fn" in r["note"]
-               and "met to" in r["note"] for r in rows)  # fmt: skip
+    assert all(not r["passed"] and "known: " not in r["note"] for r in rows), rows
 
 
 def _rot_z(deg: float) -> np.ndarray:

@@ -436,8 +436,9 @@ def test_the_pyramid_closed_form_is_met_where_the_bound_is_the_current_normal_fo
     """A friction pyramid whose solver bounds each friction row by mu times the current normal force (DART's
     PGS, ODE's quick step) meets the pyramid's closed form within the case's tolerances (measured: slip
     acceleration within 0.1 % and 0.06 %, friction along the drag 0.700 Fn); the Dantzig LCP that bounds by the
-    normal impulse solved before the friction rows does not (DART holds 0.83 Fn and does not slide; ODE slides
-    at 0.7068 Fn, 11 % less acceleration), and says so."""
+    normal impulse solved before the friction rows does not (DART holds 0.83 Fn and does not slide, a plain miss:
+    no closed form of its bound; ODE slides at 0.7068 Fn, 11 % less acceleration, explained by the pyramid's closed
+    form at that bound)."""
     if name not in backends.available():
         pytest.skip(f"{name} not installed")
     from legbench.studies import sliding_case as S
@@ -449,7 +450,7 @@ def test_the_pyramid_closed_form_is_met_where_the_bound_is_the_current_normal_fo
     tr, physics = S.drag(name, settings=dantzig)
     along, _, slip = S.score(tr, physics)
     assert along["measured"] == pytest.approx(0.833 if name == "dart" else 0.7068, abs=0.005)
-    assert not slip["passed"] and slip["note"].startswith("known: ")
+    assert not slip["passed"] and slip["note"].startswith("known: ") == (name == "ode")
     assert slip["error"] > (0.9 if name == "dart" else 0.08) * slip["expected"]
 
 

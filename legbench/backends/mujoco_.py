@@ -346,7 +346,7 @@ class MujocoBackend(Backend):
                     f"start, so the central difference at k spans the steps under the forces read at k - 1 and k: "
                     f"the closed form's mean over those two steps, at the {acc} samples whose stencil is in "
                     f"contact, is {steps:.4g} m/s^2", measured, steps, tolerance,
-                    " (the row's tolerance; docs/contact_mapping.md)")  # fmt: skip
+                    " (within the row's tolerance of that closed form; docs/contact_mapping.md)")  # fmt: skip
 
     @classmethod
     def settings_problem(

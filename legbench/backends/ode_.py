@@ -259,7 +259,8 @@ class OdeBackend(Backend):
                     f"the axis along the drag slid at {bound:.4g} Fn in this run (mu_s {mu:g}, "
                     f"{100 * (bound / mu - 1):+.2g} %), and the pyramid's closed form with that bound gives "
                     f"{at_bound:.4g} m/s^2", measured, at_bound, tolerance,
-                    " (the row's tolerance; stepper: quick bounds with the current normal force; "
+                    " (within the row's tolerance of that closed form, whose bound is the one measured, not "
+                    "predicted; stepper: quick bounds with the current normal force; "
                     "docs/backends/ode.md)")  # fmt: skip
 
     # ----------------------------------------------------------------- load
