@@ -1240,14 +1240,19 @@ def missing_logs(root: str | Path) -> list[str]:
         ResultsError: as :func:`run_dirs` and :func:`read_meta`.
     """
     out = []
-    for d in run_dirs(root).values():
-        if not (d / "run.json").is_file():
-            continue
-        for bname, b in read_meta(d)["backends"].items():
+    for d, meta in _run_metas(root):
+        for bname, b in meta["backends"].items():
             fname = _log_name(bname, b)
             if str(b["status"]) == "ok" and not (d / fname).exists():
                 out.append(f"{bname} missing: {_missing_log(d, fname)}")
     return out
+
+
+def _run_metas(root: str | Path) -> Iterator[tuple[Path, dict[str, Any]]]:
+    """Each run directory under ``root`` (or ``root`` itself) that holds a run.json, with its validated run.json."""
+    for d in run_dirs(root).values():
+        if (d / "run.json").is_file():
+            yield d, read_meta(d)
 
 
 def incomplete_runs(root: str | Path) -> list[str]:
@@ -1258,10 +1263,7 @@ def incomplete_runs(root: str | Path) -> list[str]:
         ResultsError: as :func:`run_dirs` and :func:`read_meta`.
     """
     out = []
-    for d in run_dirs(root).values():
-        if not (d / "run.json").is_file():
-            continue
-        meta = read_meta(d)
+    for d, meta in _run_metas(root):
         if meta.get("complete", True) is False:
             cut = sorted(b for b, e in meta["backends"].items() if str(e["status"]) == "interrupted")
             out.append(f"{resources.shown(d)}: an interrupted run ({', '.join(cut)} not finished), compared as far "

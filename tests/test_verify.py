@@ -9,10 +9,11 @@ assertion.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -44,23 +45,13 @@ def verify_runs() -> list[SimulatedRun]:
 @pytest.fixture(scope="module")
 def results(tmp_path_factory: pytest.TempPathFactory, verify_runs: list[SimulatedRun]) -> tuple[pd.DataFrame, Path]:
     out = tmp_path_factory.mktemp("verification")
-    simulate = verify._simulate
-
-    def keep(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any], profile: str) -> RunResult:
-        tr = simulate(scenario, name, physics, settings, profile)
-        verify_runs.append((scenario, name, physics, tr))
-        return tr
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(verify, "_simulate", keep)  # verify runs in this process (jobs = 1)
+    with _recording(verify_runs):  # verify runs in this process (jobs = 1)
         return verify.verify(out), out
 
 
-@pytest.fixture(scope="module")
-def engine_defaults_rest() -> tuple[pd.DataFrame, list[SimulatedRun]]:
-    """The rest cases (rest_penetration, static_balance) of every available backend in the engine-defaults profile,
-    and the runs they simulated (one per backend, in order)."""
-    runs: list[SimulatedRun] = []
+@contextlib.contextmanager
+def _recording(runs: list[SimulatedRun]) -> Iterator[None]:
+    """verify's runs appended to ``runs`` as it simulates them, in order (its ``_simulate`` wrapped meanwhile)."""
     simulate = verify._simulate
 
     def keep(scenario: Any, name: str, physics: Physics, settings: Mapping[str, Any], profile: str) -> RunResult:
@@ -70,6 +61,15 @@ def engine_defaults_rest() -> tuple[pd.DataFrame, list[SimulatedRun]]:
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(verify, "_simulate", keep)
+        yield
+
+
+@pytest.fixture(scope="module")
+def engine_defaults_rest() -> tuple[pd.DataFrame, list[SimulatedRun]]:
+    """The rest cases (rest_penetration, static_balance) of every available backend in the engine-defaults profile,
+    and the runs they simulated (one per backend, in order)."""
+    runs: list[SimulatedRun] = []
+    with _recording(runs):
         df = verify.verify(None, None, ["rest_penetration", "static_balance"], profile="engine-defaults")
     return df, runs
 
