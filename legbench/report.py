@@ -1864,15 +1864,15 @@ STUDIES: tuple[tuple[str, str, str, str, tuple[str, ...], str], ...] = (
         ),
         "legbench calibrate-contact: effective normal stiffness k_eff from the rests under two pushes (20 N, 40 N), "
         "damping c_eff from the step's pressing-in transient, creep under a tangential load Ft below mu_s Fn (half "
-        "of it, 14 N, commanded through the sphere centre's Jacobian: Ft is what reached the ground, 13.2-13.35 N "
-        "where an engine's force acts below the centre, 14 N where the law acts at it): the point of contact's net "
-        "slip over the last 0.2 s divided by 0.2 s, jitter the RMS of its slip velocity about that mean, beside the "
-        "spec (Kp, Kd, mu_s) and the law's own creep v_th Ft / (mu_s Fn); c_eff fitted through the chord between the "
-        "rests (n/a for a rigid contact, and where the chord misses the origin by more than 1 % of the 20 N rest's "
-        "force: a normal law not linear in the depth); c_tangential = Ft / creep (inf: the foot sticks, a creep "
-        "below 1e-6 mm/s); calibration.json holds SI units (creep, jitter, creep_law in m/s); a note 'known: ...' is "
-        "the backend's closed form of a stiffness off Kp or a creep off the law's, given only where it meets the "
-        "measurement",
+        "of it, 14 N, commanded through the sphere centre's Jacobian: Ft is what reached the ground, a little less "
+        "where an engine's force acts below the centre, all of it where the law acts at the centre): the point of "
+        "contact's net slip over the last 0.2 s divided by 0.2 s, jitter the RMS of its slip velocity about that "
+        "mean, beside the spec (Kp, Kd, mu_s) and the law's own creep v_th Ft / (mu_s Fn); c_eff fitted through the "
+        "chord between the rests (n/a for a rigid contact, and where the chord misses the origin by more than 1 % of "
+        "the 20 N rest's force: a normal law not linear in the depth); c_tangential = Ft / creep (inf: the foot "
+        "sticks, a creep below 1e-6 mm/s); calibration.json holds SI units (creep, jitter, creep_law in m/s); a note "
+        "'known: ...' is the backend's closed form of a stiffness off Kp or a creep off the law's, given only where "
+        "it meets the measurement",
     ),
 )
 
