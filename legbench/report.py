@@ -1864,7 +1864,7 @@ STUDIES: tuple[tuple[str, str, str, str, tuple[str, ...], str], ...] = (
         ),
         "legbench calibrate-contact: effective normal stiffness k_eff from the rests under two pushes (20 N, 40 N), "
         "damping c_eff from the step's pressing-in transient, creep under a tangential load Ft below mu_s Fn (half "
-        "of it, 14 N, commanded through the sphere centre's Jacobian: Ft is what reached the ground, a little less "
+        "of it commanded through the sphere centre's Jacobian: Ft is what reached the ground, a little less "
         "where an engine's force acts below the centre, all of it where the law acts at the centre): the point of "
         "contact's net slip over the last 0.2 s divided by 0.2 s, jitter the RMS of its slip velocity about that "
         "mean, beside the spec (Kp, Kd, mu_s) and the law's own creep v_th Ft / (mu_s Fn); c_eff fitted through the "
