@@ -165,12 +165,14 @@ def _load(scenario: Scenario, name: str, contact_mode: str | None) -> Backend:
 
 
 def replay_task(
-    scenario: Scenario, name: str, reference: RunResult, window: float, contact_mode: str | None = None
-) -> HorizonResult:
-    """Load backend ``name`` for ``scenario`` and :func:`replay` the ``reference`` run in windows of ``window`` [s]."""
+    scenario: Scenario, name: str, references: Sequence[RunResult], window: float, contact_mode: str | None = None
+) -> list[HorizonResult]:
+    """Load backend ``name`` for ``scenario`` once and :func:`replay` each of the ``references`` runs on it in
+    windows of ``window`` [s] (a sweep's task: the reference's run, then its own for the reset floor; each replay
+    resets the backend at every window, so one instance serves them all)."""
     backend = _load(scenario, name, contact_mode)
     try:
-        return replay(backend, reference, window)
+        return [replay(backend, reference, window) for reference in references]
     finally:
         backend.close()
 

@@ -61,6 +61,5 @@ def run_task(task: RunTask) -> TaskResult:
     tr = run_backend(sc, task.backend, task.contact_mode)
     h = floor = None
     if task.replay_window is not None and task.reference is not None and tr.status == "ok":
-        h = horizon.replay_task(sc, task.backend, task.reference, task.replay_window, task.contact_mode)
-        floor = horizon.replay_task(sc, task.backend, tr, task.replay_window, task.contact_mode)
+        h, floor = horizon.replay_task(sc, task.backend, [task.reference, tr], task.replay_window, task.contact_mode)
     return TaskResult(task.index, tr, h, floor)
