@@ -168,7 +168,6 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     p = physics.contact
     coef = sliding_coefficient(tr.info, cls)
     mu = float(getattr(p, coef))
-    Ts = physics.control_dt
     poc, lift = contact_point(tr.info, p.poc)
     J = kinematics.jacobian_at(tr.q, poc, lift)  # the slip where the force acted
     v = np.einsum("nij,nj->ni", J, tr.qd)[:, :2]
@@ -200,18 +199,12 @@ def score(tr: RunResult, physics: Physics, window: tuple[float, float] = WINDOW)
     counts = (counts[0], counts[1], int(s.sum()))
     slip = f"slip {_span(1e3 * speed)} mm/s, Fn {fn.mean():.3g} N, {_contact_text(counts)}"
     ka, ua = k[s], u[s]
-    a_meas = (v[ka + 1] - v[ka - 1]) / (2 * Ts)
-    f_pred = np.column_stack([-mu * fn[s, None] * ua, fn[s]])
-    a_pred = predicted_acceleration(tr.q[ka], tr.qd[ka], tr.tau[ka], f_pred, lift, poc, physics.gravity)
-    am, ap = _mean(np.sum(a_meas * ua, axis=1)), _mean(np.sum(a_pred * ua, axis=1))
-    kb = ka - 1  # the step before: the closed form under the force read at its start (:func:`_over_steps`)
-    vb = v[kb]
+    vb = v[ka - 1]
     nb = np.linalg.norm(vb, axis=1)[:, None]
     # a stalled step before (no slip: no friction direction) takes the slip's at k: one such sample made the mean NaN
     ub = np.divide(vb, nb, out=ua.copy(), where=nb > 0.0)
-    f_before = np.column_stack([-mu * tr.f[kb, 2, None] * ub, tr.f[kb, 2]])
-    a_before = predicted_acceleration(tr.q[kb], tr.qd[kb], tr.tau[kb], f_before, lift, poc, physics.gravity)
-    steps = _over_steps(a_pred, a_before, ua)
+    am, ap, steps = _accelerations(tr, physics, v, ka, ua, -mu * fn[s, None] * ua,
+                                   -mu * tr.f[ka - 1, 2, None] * ub, lift, poc)  # fmt: skip
     # a law backend's force is the law evaluated at the logged state: its ratio and angle are the law read back
     law = ("the law read back (the force is the law at the logged state): checks the read-out, not an engine; "
            if applies_law(tr.info, physics) else "")  # fmt: skip
@@ -308,7 +301,6 @@ def _score_diamond(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
     only there) and whose central difference's stencil is in contact (``touching``, :func:`_stencil`); ``counts``:
     the window's (:data:`COUNT_KEYS`)."""
     case, backend = "sliding", tr.backend
-    Ts = physics.control_dt
     E = drag_frame(friction_axes(tr.info))  # rows: the axis across the drag, the axis along it
     l1, _ = _worst(np.sum(np.abs(tr.f[k, :2] @ E.T), axis=1) / tr.f[k, 2], mu)
     n_contact = len(k)
@@ -336,15 +328,9 @@ def _score_diamond(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
            f"against the slip's larger component (the axis along the drag at {along} of {len(k)} samples), up to "
            f"{off:.3g} deg off -slip; angle and acceleration at the {len(k)} of {n_contact} samples within "
            f"{DIAMOND_AXIS_DEG:g} deg of an axis; {slip}")  # fmt: skip
-    ka, ua = k[s], u[s]
-    a_meas = (v[ka + 1] - v[ka - 1]) / (2 * Ts)
-    f_pred = np.column_stack([ft_pred[s], fn[s]])
-    a_pred = predicted_acceleration(tr.q[ka], tr.qd[ka], tr.tau[ka], f_pred, lift, poc, physics.gravity)
-    am, ap = _mean(np.sum(a_meas * ua, axis=1)), _mean(np.sum(a_pred * ua, axis=1))
-    kb = ka - 1  # the step before: the closed form under the force read at its start (:func:`_over_steps`)
-    f_before = np.column_stack([diamond_friction(v[kb], tr.f[kb, 2], mu, E), tr.f[kb, 2]])
-    a_before = predicted_acceleration(tr.q[kb], tr.qd[kb], tr.tau[kb], f_before, lift, poc, physics.gravity)
-    steps = _over_steps(a_pred, a_before, ua)
+    ka = k[s]
+    am, ap, steps = _accelerations(tr, physics, v, ka, u[s], ft_pred[s],
+                                   diamond_friction(v[ka - 1], tr.f[ka - 1, 2], mu, E), lift, poc)  # fmt: skip
     rows = [
         _relative(case, backend, "friction (|F_x| + |F_y|) / Fn while sliding (worst sample; diamond)", "1", l1, mu,
                   TOL_MU,
@@ -411,6 +397,33 @@ def _contact_text(counts: tuple[int, int, int]) -> str:
     n, out, acc = counts
     return (f"{n - out} of {n} samples in contact, {out} out (Fn <= {FN_MIN:g} N); acceleration at the {acc} whose "
             "difference stencil k-1, k, k+1 is in contact")  # fmt: skip
+
+
+def _accelerations(
+    tr: RunResult,
+    physics: Physics,
+    v: np.ndarray,
+    ka: np.ndarray,
+    u: np.ndarray,
+    ft_at: np.ndarray,
+    ft_before: np.ndarray,
+    lift: float,
+    poc: str,
+) -> tuple[float, float, float]:
+    """The slip acceleration along the slip ``u`` (n x 2 in W) at the samples ``ka`` (each with its stencil in
+    contact, :func:`_stencil`) as the row measures it and its closed forms [m/s^2]: the mean central difference of
+    the poc's horizontal velocity ``v``, the mean closed form M^-1 (tau - nle + J_poc^T F) with the tangential force
+    ``ft_at`` (n x 2) and the logged Fn at each sample, and the mean over the difference's two steps
+    (:func:`_over_steps`) with ``ft_before`` the force at the sample before each."""
+    a_meas = (v[ka + 1] - v[ka - 1]) / (2 * physics.control_dt)
+    kb = ka - 1  # the step before: the closed form under the force read at its start
+
+    def closed_form(j: np.ndarray, ft: np.ndarray) -> np.ndarray:
+        f = np.column_stack([ft, tr.f[j, 2]])
+        return predicted_acceleration(tr.q[j], tr.qd[j], tr.tau[j], f, lift, poc, physics.gravity)
+
+    a_at, a_before = closed_form(ka, ft_at), closed_form(kb, ft_before)
+    return _mean(np.sum(a_meas * u, axis=1)), _mean(np.sum(a_at * u, axis=1)), _over_steps(a_at, a_before, u)
 
 
 def _over_steps(a_at: np.ndarray, a_before: np.ndarray, u: np.ndarray) -> float:
