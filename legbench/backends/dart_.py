@@ -506,7 +506,8 @@ class DartBackend(Backend):
                 for i in self.dofs
             ),
             # the state the run ended in: J M^-1 J^T at the lowest point in W with DART's mass matrix [1/kg], the
-            # lowest point's horizontal speed [m/s] and the read ground force [N] (known_deviation reads them)
+            # lowest point's horizontal speed [m/s] and the read ground force [N] (whether the foot ended held, and
+            # at what share of Fn: the Dantzig hold docs/backends/dart.md reports)
             "at_end": {
                 "delassus": self._delassus(),
                 "slip": self._slip(),
