@@ -48,7 +48,16 @@ from legbench.run import run_backend
 from legbench.scenario import Scenario, physics_of
 from legbench.signals import COLUMNS, UNITS
 
-__all__ = ["FLOOR_FRACTION", "SIGNALS", "HorizonResult", "replay", "replay_task", "reset_limited", "short_horizon"]
+__all__ = [
+    "FLOOR_FRACTION",
+    "SIGNALS",
+    "HorizonResult",
+    "largest_peak",
+    "replay",
+    "replay_task",
+    "reset_limited",
+    "short_horizon",
+]
 
 #: Signals compared per window: joint positions [rad], velocities [rad/s], ground force in W [N].
 SIGNALS = ("q", "qd", "force")
@@ -153,11 +162,15 @@ def _floor_note(local_max: float, floor_max: float, unit: str) -> str:
             "free run is not in, and this local error cannot be told from that artefact")  # fmt: skip
 
 
+def largest_peak(col: np.ndarray) -> float:
+    """The largest of a component's in-window peaks over the windows measured (NaN where none was: no finite one)."""
+    return float(np.nanmax(col)) if np.isfinite(col).any() else math.nan
+
+
 def _peak_stats(col: np.ndarray) -> tuple[float, float]:
-    """Largest and median of a component's in-window peaks over the windows measured (NaN where none was)."""
-    if not np.isfinite(col).any():
-        return math.nan, math.nan
-    return float(np.nanmax(col)), float(np.nanmedian(col))
+    """Largest (:func:`largest_peak`) and median of a component's in-window peaks (NaN where none was measured)."""
+    top = largest_peak(col)
+    return top, math.nan if math.isnan(top) else float(np.nanmedian(col))
 
 
 def _load(scenario: Scenario, name: str, contact_mode: str | None) -> Backend:

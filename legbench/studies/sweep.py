@@ -692,7 +692,7 @@ def _peak_columns(h: HorizonResult | None, skip: float, prefix: str) -> dict[str
         peak = None if h is None else np.asarray(h.peak[s])[kept]
         for j, c in enumerate(COMPONENTS[s]):
             col = None if peak is None else peak[:, j]
-            out[f"{prefix}{c}_max"] = float(np.nanmax(col)) if col is not None and np.isfinite(col).any() else math.nan
+            out[f"{prefix}{c}_max"] = horizon.largest_peak(col) if col is not None else math.nan
         vals = [out[f"{prefix}{c}_max"] for c in COMPONENTS[s]]
         out[f"{prefix}{s}_max"] = max(vals) if all(math.isfinite(v) for v in vals) else math.nan
     return out
