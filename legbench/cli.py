@@ -23,6 +23,7 @@ import argparse
 import gc
 import importlib
 import os
+import re
 import select
 import signal
 import sys
@@ -30,7 +31,7 @@ import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import CodeType
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from legbench import __version__, resources
 from legbench.exceptions import LegbenchError, ModelError
@@ -108,9 +109,19 @@ def add_completion(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     p.set_defaults(func=_completion)
 
 
+#: What reads as a negative number, not an option: argparse's own matcher (Python 3.11) takes -1 and -0.5 but not
+#: -1e-3, so ``legbench model fk 0.1 -1e-3 0.2`` was refused as an unknown option -1e-3.
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
 class _Parser(argparse.ArgumentParser):
-    """argparse's parser with its errors on one line (argparse prints the usage block first), exit status 2.
-    Subcommand parsers are of the same class (``add_subparsers`` makes them so)."""
+    """argparse's parser with its errors on one line (argparse prints the usage block first), exit status 2, and
+    a negative number in exponent notation read as a value (:data:`_NEGATIVE_NUMBER`; argparse has no public
+    setting for it). Subcommand parsers are of the same class (``add_subparsers`` makes them so)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER
 
     def error(self, message: str) -> NoReturn:
         self.exit(EXIT_USER_ERROR, f"{self.prog}: error: {message} (see {self.prog} --help)\n")

@@ -1100,6 +1100,21 @@ def test_a_model_command_refuses_a_number_no_pose_has(argv: list[str], capsys: p
     assert "is beyond +-1e+12, more than any physical value here (limit float_abs)" in err and "\n" not in err
 
 
+def test_a_negative_number_in_exponent_notation_is_a_value(capsys: pytest.CaptureFixture[str]) -> None:
+    """`model fk 0.1 -1e-3 0.2` was refused: argparse (3.11) reads -1e-3 as an unknown option, where it reads -0.001
+    as a number. Both give the same pose to the printed 6 digits; an option's value in that notation is judged as a
+    value (--jobs -1e13: not an int), not as a missing argument."""
+    out = []
+    for q2 in ("-1e-3", "-0.001", "-1E-3", "-.1e-2"):
+        assert cli.main(["model", "fk", "0.1", q2, "0.2"]) == 0
+        out.append(capsys.readouterr().out)
+    assert len(set(out)) == 1 and out[0].startswith("foot centre E in W [m]: x = "), out
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["run", "x.yaml", "--jobs", "-1e13"])
+    assert exc.value.code == 2
+    assert "argument --jobs: invalid int value: '-1e13'" in capsys.readouterr().err
+
+
 def test_a_run_in_a_contact_mode_the_file_does_not_give_records_it_in_its_scenario(tmp_path: Path) -> None:
     """`--contact-mode both`: the reference run's recorded scenario (run.json's raw, and its hash) says reference, as
     a profile given on the command line is recorded; re-run from that document alone it runs in reference mode
