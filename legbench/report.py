@@ -1860,6 +1860,8 @@ STUDIES: tuple[tuple[str, str, str, str, tuple[str, ...], str], ...] = (
             "jitter",
             "creep_law",
             "c_tangential",
+            "status",
+            "against_spec",
             "note",
         ),
         "legbench calibrate-contact: effective normal stiffness k_eff from the rests under two pushes (20 N, 40 N), "
@@ -1871,8 +1873,11 @@ STUDIES: tuple[tuple[str, str, str, str, tuple[str, ...], str], ...] = (
         "chord between the rests (n/a for a rigid contact, and where the chord misses the origin by more than 1 % of "
         "the 20 N rest's force: a normal law not linear in the depth); c_tangential = Ft / creep (inf: the foot "
         "sticks, a creep below 1e-6 mm/s); calibration.json holds SI units (creep, jitter, creep_law in m/s); a note "
-        "'known: ...' is the backend's closed form of a stiffness off Kp or a creep off the law's, given only where "
-        "it meets the measurement",
+        "'known: ...' is the backend's closed form of a stiffness off Kp, a damping off Kd or a creep off the law's, "
+        "given only where it meets the measurement; status against the spec: as specified (k_eff within 0.1 % of "
+        "Kp, c_eff within 1 % of Kd, creep within 1 % of the law's), explained (each value off it has its "
+        "backend's closed form, or is a rigid contact's n/a, or a Coulomb foot that sticks where the law creeps), "
+        "not explained (against_spec names the value), failed",
     ),
 )
 
@@ -1949,8 +1954,16 @@ def _study_blocks(root: Path) -> list[Block]:
         if "pass" not in cols:
             rows = tuple(tuple(_cell(r.get(c, ""), SHOWN_SCALE.get(c, 1.0)) for c in cols) for r in records)
             header = tuple(f"{c} [{STUDY_UNITS[c]}]" if c in STUDY_UNITS else c for c in cols)
-            blocks.append(Heading(2, f"{heading}, {profile} profile: {_rows(len(records), 'backend')} measured"))
-            blocks.append(Details(f"the {_rows(len(records))}", (Table(header, rows, caption),)))
+            # a calibration row's status against the spec: a deviation without an explanation is a failure to read
+            at = cols.index("status") if "status" in cols else -1
+            css = {"as specified": "pass", "not explained": "fail", "failed": "fail"}
+            marks = {(i, at): css[st] for i, r in enumerate(records) if (st := str(r.get("status"))) in css}
+            bad = sum(v == "fail" for v in marks.values())
+            open_ = f", {bad} not explained or failed" if bad else ""
+            blocks.append(Heading(2, f"{heading}, {profile} profile: {_rows(len(records), 'backend')} measured"
+                                     f"{open_}"))  # fmt: skip
+            blocks.append(Details(f"the {_rows(len(records))}", (Table(header, rows, caption, classes=marks),),
+                                  "fail" if bad else ""))  # fmt: skip
             blocks.append(Nav(((md, md), (js, js))))
             continue
         status = [_status(r) for r in records]

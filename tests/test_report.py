@@ -923,7 +923,28 @@ def test_calibration_table_shows_a_stuck_foot_as_inf_with_units_and_notes(tmp_pa
     assert "| c_tangential [N s/m] |" in header and "| k_eff [N/m] |" in header and "| creep [mm/s] |" in header
     assert "| jitter [mm/s] |" in header
     line = next(line for line in md.splitlines() if line.startswith("| a | 10000 |"))
-    assert line.endswith("| n/a | 0.7 | 40 | 13 | 0 | 0.002 | 0.47 | inf | rigid contact |"), line  # mm/s
+    assert line.endswith("| n/a | 0.7 | 40 | 13 | 0 | 0.002 | 0.47 | inf |  |  | rigid contact |"), line  # mm/s
+
+
+def test_calibration_rows_not_explained_are_counted_and_marked(tmp_path: Path) -> None:
+    """A calibration row off the spec with no explanation (status 'not explained') is counted in its heading and
+    its status cell marked as a failure; 'as specified' is marked as a pass; 'explained' neither."""
+    root = tmp_path / "results"
+    write_run(root / "fake", {"ref": None, "a": scale(1.02)})
+    (root / "calibration").mkdir()
+    base = {"Kp": 1e4, "k_eff": 1e4, "Kd": 100.0, "c_eff": 100.0, "mu_s": 0.7, "Fn": 40.0, "Ft": 13.0,
+            "creep": 4.7e-4, "jitter": 0.0, "creep_law": 4.7e-4, "c_tangential": 2.8e4, "note": ""}  # fmt: skip
+    rows = [{**base, "backend": "a", "status": "as specified", "against_spec": ""},
+            {**base, "backend": "b", "status": "explained", "against_spec": "creep 2x the law's"},
+            {**base, "backend": "c", "status": "not explained", "against_spec": "c eff 0.7x Kd: not explained"}]
+    (root / "calibration" / "calibration.json").write_text(json.dumps({"rows": rows}))
+    R.write_all(root)
+    md = (root / "report.md").read_text()
+    assert "## Contact calibration, matched profile: 3 backends measured, 1 not explained or failed" in md, md
+    assert "| not explained | c eff 0.7x Kd: not explained |" in md
+    page = (root / "report.html").read_text()
+    assert '<td class="text short fail">not explained</td>' in page
+    assert '<td class="text short pass">as specified</td>' in page and '<td class="text short">explained</td>' in page
 
 
 def test_the_profile_paragraph_names_the_backends_that_keep_their_step(tmp_path: Path) -> None:

@@ -344,8 +344,10 @@ class Backend(ABC):
         ``rest_penetration``, as the verification's: ``measured`` the second rest's penetration [m]; for a rigid
         contact, ``expected`` 0 and ``info`` with ``load``: its Fn [N]) and a creep off the law's (case ``creep``:
         ``measured`` the creep [m/s], ``expected`` the law's, ``info`` with the held load ``load``: Fn, Ft and the
-        mean contact force F in W [N]). Its explanations may hold the row to what the run recorded in ``at_end``
-        as well (the state it ended in, or a largest share over it)."""
+        mean contact force F in W [N]) and a damping off Kd (case ``damping``: ``measured`` the fitted c eff
+        [N s/m], ``expected`` Kd, ``info`` with ``transient``: ``depth``, the fit's samples' penetration weighted as
+        the fit weights them, sum(y ydot^2) / sum(ydot^2) [m]). Its explanations may hold the row to what the run
+        recorded in ``at_end`` as well (the state it ended in, or a largest share over it)."""
         return None
 
     @classmethod

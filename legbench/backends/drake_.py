@@ -262,6 +262,8 @@ class DrakeBackend(Backend):
         contact = contact if isinstance(contact, Mapping) else {}
         if case == "creep":
             return cls._known_creep(info, contact, measured, tolerance)
+        if case == "damping":
+            return cls._known_damping(info, contact, measured, tolerance)
         pair, kp = contact.get("pair_stiffness"), contact.get("Kp")
         ground = (contact.get("properties") or {}).get("ground") or {}
         defaulted = "material.point_contact_stiffness" not in ground  # the scene graph's default, not legbench's
@@ -273,6 +275,26 @@ class DrakeBackend(Backend):
                         f"Fn/pair_stiffness", measured, expected * kp / pair, tolerance,
                         " (info contact.pair_stiffness)")  # fmt: skip
         return None
+
+    @classmethod
+    def _known_damping(cls, info: Mapping[str, Any], contact: Mapping[str, Any], measured: float,
+                       tolerance: float) -> str | None:  # fmt: skip
+        """The normal damping of Hunt-Crossley's law (every approximation but SAP's linear one), fn = k x (1 + d
+        xdot): dfn/dxdot = k d x, the pair's stiffness and dissipation (``contact.pair_stiffness``,
+        ``pair_dissipation``) at the depth x, so a damping fitted over a pressing-in transient reads k d at the
+        fit's weighted depth (the calibration's case ``damping``, ``info["transient"]["depth"]`` [m]), where the
+        measured c eff [N s/m] meets it within ``tolerance``."""
+        transient = info.get("transient")
+        depth = transient.get("depth") if isinstance(transient, Mapping) else None
+        k, d = contact.get("pair_stiffness"), contact.get("pair_dissipation")
+        approx = str(contact.get("discrete_contact_approximation"))
+        if approx.endswith("kSap") or not (isinstance(depth, float) and isinstance(k, float) and isinstance(d, float)):
+            return None
+        c = k * d * depth
+        return held(f"known: Hunt-Crossley's normal force k x (1 + d xdot) damps at k d x, not a constant Kd: k = "
+                    f"{k:.6g} N/m, d = {d:.4g} s/m (the pair's), x = {1e3 * depth:.4g} mm (the fit's samples' depth, "
+                    f"weighted as the fit weights them): {c:.4g} N s/m", measured, c, tolerance,
+                    " (docs/backends/drake.md)")  # fmt: skip
 
     @classmethod
     def _known_creep(cls, info: Mapping[str, Any], contact: Mapping[str, Any], measured: float,
