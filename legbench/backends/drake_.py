@@ -254,7 +254,8 @@ class DrakeBackend(Backend):
     @classmethod
     def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any], measured: float = math.nan,
                         expected: float = math.nan, tolerance: float = math.nan) -> str | None:  # fmt: skip
-        """The creep of a held foot; the engine-defaults ground's default stiffness. Not the sliding drag: SAP's
+        """The creep of a held foot; Hunt-Crossley's damping k d x; the engine-defaults ground's default stiffness.
+        Not the sliding drag: SAP's
         point contact lifts the sliding foot (docs/backends/drake.md, the run's ``at_end.sap_glide``), but that holds
         the normal force, not the slip-acceleration row's measured value, so its miss stays a plain one (the sliding
         case counts the window's samples out of contact)."""
