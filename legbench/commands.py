@@ -272,8 +272,8 @@ def _run(args: argparse.Namespace) -> int:
                 f"q_end [{', '.join(f'{x:+.4f}' for x in tr.q[-1])}] rad  "
                 f"F_end [{', '.join(f'{x:+.2f}' for x in tr.f[-1])}] N"
             )
-            for w in tr.info.get("warnings") or ():
-                print(f"  {tr.backend:<10} warning: {w}")
+            for w in tr.info.get("warnings") or ():  # each begins with the backend's name (run.backend_info)
+                print(f"  warning: {w}")
     if not args.no_compare:
         if single:
             files = report.write_report(plan[0][2])

@@ -1160,8 +1160,8 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
     for n in result.notes:
         b.append(Para(n, warn=True))
     for bk in result.run.backends.values():
-        for w in bk.info.get("warnings") or ():
-            b.append(Para(f"{bk.name}: {w}", warn=True))
+        for w in bk.info.get("warnings") or ():  # each begins with the backend's name (run.backend_info)
+            b.append(Para(str(w), warn=True))
     b.append(Heading(2, "Settings", "tables"))
     b.append(_scenario_table(result))
     b += _backend_tables(result)

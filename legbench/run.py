@@ -258,7 +258,8 @@ def backend_info(backend: Backend) -> dict[str, Any]:
     """What run.json records of a backend: its :meth:`~Backend.info`, the ``profile`` it was loaded with,
     its declared ``integrator_family``, ``sub_steps``, ``engine_contact`` and ``sliding_coefficient``
     (:data:`_DECLARED`), and its
-    :meth:`~Backend.warnings` after the run (e.g. a sub-step too coarse for the contact law).
+    :meth:`~Backend.warnings` after the run (e.g. a sub-step too coarse for the contact law), each beginning with the
+    backend's name (added where the backend's sentence does not begin with it), as every reader shows them.
 
     Raises:
         LegbenchError: the backend's info breaks what legbench reads of it
@@ -273,7 +274,9 @@ def backend_info(backend: Backend) -> dict[str, Any]:
     problem = declared_problem(declared["integrator_family"], declared["sub_steps"], declared["sliding_coefficient"])
     if problem is not None:
         raise LegbenchError(f"{backend.name}: {problem}")
-    return {**info, "profile": backend.profile, **declared, "warnings": backend.warnings()}
+    named = f"{backend.name}: "
+    warnings = [w if w.startswith(named) else named + w for w in backend.warnings()]
+    return {**info, "profile": backend.profile, **declared, "warnings": warnings}
 
 
 def run_backend(scenario: Scenario, name: str, contact_mode: str | None = None, progress: bool = False) -> RunResult:

@@ -934,9 +934,11 @@ def test_calibration_rows_not_explained_are_counted_and_marked(tmp_path: Path) -
     (root / "calibration").mkdir()
     base = {"Kp": 1e4, "k_eff": 1e4, "Kd": 100.0, "c_eff": 100.0, "mu_s": 0.7, "Fn": 40.0, "Ft": 13.0,
             "creep": 4.7e-4, "jitter": 0.0, "creep_law": 4.7e-4, "c_tangential": 2.8e4, "note": ""}  # fmt: skip
-    rows = [{**base, "backend": "a", "status": "as specified", "against_spec": ""},
-            {**base, "backend": "b", "status": "explained", "against_spec": "creep 2x the law's"},
-            {**base, "backend": "c", "status": "not explained", "against_spec": "c eff 0.7x Kd: not explained"}]
+    rows = [
+        {**base, "backend": "a", "status": "as specified", "against_spec": ""},
+        {**base, "backend": "b", "status": "explained", "against_spec": "creep 2x the law's"},
+        {**base, "backend": "c", "status": "not explained", "against_spec": "c eff 0.7x Kd: not explained"},
+    ]
     (root / "calibration" / "calibration.json").write_text(json.dumps({"rows": rows}))
     R.write_all(root)
     md = (root / "report.md").read_text()

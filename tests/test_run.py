@@ -618,3 +618,24 @@ def test_a_pool_for_named_backends_preloads_only_their_engines(tmp_path: Path) -
     )
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, check=True)
     assert out.stdout.strip() == "[['pinocchio'], ['pinocchio']]", out.stdout + out.stderr
+
+
+def test_a_warning_is_named_for_its_backend_once(tmp_path: Path) -> None:
+    """A backend's warning carries its name once, whether its sentence begins with it (the built-ins' do) or not (a
+    plug-in's need not): run.json, and so the report's paragraph, which read 'drake: drake: SAP's point contact ...'
+    when the report added the name again."""
+    from legbench import report
+
+    class Warns(FakeBackend):
+        def warnings(self) -> list[str]:
+            return ["fake: the step is coarse", "the contact is soft"]
+
+    sc = scenario.parse(DOC)
+    be = Warns()
+    be.load(Path("unused"), scenario.physics_of(sc), {})
+    assert run.backend_info(be)["warnings"] == ["fake: the step is coarse", "fake: the contact is soft"]
+    tr = run.simulate(sc, be, scenario.physics_of(sc))
+    results.write_run(sc, [tr], tmp_path / "r")
+    md = report.write_report(tmp_path / "r").markdown.read_text()
+    assert md.count("fake: the step is coarse") == 1 and "fake: fake:" not in md, md
+    assert "fake: the contact is soft" in md
