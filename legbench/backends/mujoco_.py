@@ -451,6 +451,11 @@ class MujocoBackend(Backend):
             # and damping (2.74 at mu 0.7, impratio 1): scaled back, Fn = Kp y + Kd ydot in newtons on either cone
             scale *= 0.5 * c.mu_s**2 * (1.0 + c.mu_s**2) / float(cfg["impratio"])
         solimp = _SOLIMPS[cfg["contact_solimp"]]
+        if cfg["contact_solref"] == "scaled" and cfg["contact_solimp"] == "pinned":
+            # at rest the row's force is aref / R with aref = k d y, k = -solref[0] / d^2, and R = A (1 - d) / d
+            # (d = dmax, pinned): Kp y / (1 - d) for solref[0] = -Kp A, the damping likewise; (1 - d) makes the rest
+            # force Kp y exactly, where it was 1 + 1e-4 times it (k eff 10001 N/m, the rest 6.4e-7 m shallow)
+            scale *= 1.0 - solimp[1]
         if cfg["friction_solref"] == "deadbeat":
             # friction rows' reference acceleration aref = -B v_t with B = -solreffriction[1] / dmax:
             # B = 1 / h asks the unregularised noslip pass to stop the slip within one sub-step
