@@ -347,6 +347,27 @@ def implicit_note(infos: Mapping[str, Mapping[str, Any]]) -> str:
     )
 
 
+def coefficient_note(infos: Mapping[str, Mapping[str, Any]], reference: str) -> str:
+    """The sentence on the Coulomb coefficient, for a native-contact run whose foot touches the ground: the backends
+    whose run.json info declares a ``friction_coefficient`` (one Coulomb coefficient) and slides with another
+    coefficient (``sliding_coefficient``) than the ``reference`` backend's, which the law sets. Empty where none
+    does."""
+    ref = str((infos.get(reference) or {}).get("sliding_coefficient", ""))
+    names = sorted(n for n, info in infos.items() if n != reference and "friction_coefficient" in (info or {})
+                   and str(info.get("sliding_coefficient")) not in ("", ref))  # fmt: skip
+    if not names or not ref:
+        return ""
+    theirs = {str(infos[n].get("sliding_coefficient")) for n in names}
+    coef = theirs.pop() if len(theirs) == 1 else "their coefficient"
+    verb = "slides" if len(names) == 1 else "slide"
+    return (
+        f"{_names(names)} {verb} with {coef} (friction_coefficient: one Coulomb coefficient), where {reference} "
+        f"slides with {ref}: wherever both feet slide (an onset, a push) their friction differs by |{coef} - {ref}| "
+        "Fn. The other coefficient keeps the sliding friction and gives up the stick limit; docs/contact_mapping.md "
+        "measures both on every task."
+    )
+
+
 def _rows(n: int, what: str = "row") -> str:
     """``n`` rows (or ``what``s), for a summary: "1 row", "3 rows", "1 backend"."""
     return f"{n} {what}" if n == 1 else f"{n} {what}s"
@@ -1155,6 +1176,8 @@ def _blocks(result: ComparisonResult, figures: Sequence[Any], index: str | None)
     airborne = _airborne(df)  # the sentence's rule: without residuals (no contact law) not known to be
     if run.contact_mode == "reference" and _touches(df) and (shared := implicit_note(_infos(run))):
         b.append(Para(shared))
+    if run.contact_mode == "native" and _touches(df) and (coef := coefficient_note(_infos(run), run.reference)):
+        b.append(Para(coef))
     if run.profile != "matched" and airborne:
         b.append(Para(_free_space_steps(result)))
     for n in result.notes:

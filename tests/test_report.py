@@ -1890,3 +1890,38 @@ def test_the_scenario_table_shows_the_scenario_as_run_with_its_overrides(tmp_pat
     assert rows["initial q [rad]"] == "-0.0025, -1.19, -1.26"
     sha = json.loads((out / "run.json").read_text())["scenario"]["sha256"]
     assert rows["scenario as run, sha256"].startswith(f"{sha[:12]} (run.json's scenario.raw")
+
+
+def test_the_page_says_which_coulomb_engines_slide_with_another_coefficient_than_the_reference() -> None:
+    """A Coulomb engine has one coefficient (its friction_coefficient setting) and slides with it, the law with
+    mu_k: in a native run on the ground that is the onset's friction difference, and the page names the engines
+    that slide with another coefficient than the reference, not one that slides with the same, nor one without the
+    setting (it has no choice to make)."""
+    infos = {"ref": {"sliding_coefficient": "mu_k"},
+             "a": {"sliding_coefficient": "mu_s", "friction_coefficient": "mu_s"},
+             "b": {"sliding_coefficient": "mu_k", "friction_coefficient": "mu_k"},
+             "c": {"sliding_coefficient": "mu_s"},
+             "d": {"sliding_coefficient": "mu_s", "friction_coefficient": "mu_s"}}  # fmt: skip
+    note = R.coefficient_note(infos, "ref")
+    assert note.startswith("a and d slide with mu_s (friction_coefficient: one Coulomb coefficient), where ref "
+                           "slides with mu_k: wherever both feet slide (an onset, a push) their friction differs by "
+                           "|mu_s - mu_k| Fn."), note  # fmt: skip
+    assert R.coefficient_note({**infos, "a": infos["b"], "d": infos["b"]}, "ref") == ""
+    assert R.coefficient_note(infos, "missing") == ""
+
+
+def test_a_native_page_on_the_ground_carries_the_coefficient_note(tmp_path: Path) -> None:
+    """The note is on a native run's page where a foot touches the ground, and not on its reference-mode twin
+    (there every backend applies the law)."""
+    root = tmp_path / "tree"
+    for label, mode in (("fake", "native"), ("fake__reference", "reference")):
+        d = write_run(root / label, {"ref": None, "a": scale(1.01)}, contact_mode=mode)
+        meta = json.loads((d / "run.json").read_text())
+        meta["backends"]["ref"]["info"]["sliding_coefficient"] = "mu_k"
+        meta["backends"]["a"]["info"] |= {"sliding_coefficient": "mu_s", "friction_coefficient": "mu_s"}
+        (d / "run.json").write_text(json.dumps(meta))
+    res = compare(root / "fake")
+    assert R._touches(res.frame())
+    assert "a slides with mu_s (friction_coefficient" in R.write_report(root / "fake", res).markdown.read_text()
+    ref_md = R.write_report(root / "fake__reference", compare(root / "fake__reference")).markdown.read_text()
+    assert "friction_coefficient: one Coulomb coefficient" not in ref_md

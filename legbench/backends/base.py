@@ -36,6 +36,12 @@ FAMILY_TEXT = {"euler": "semi-implicit euler", "implicit": "implicit euler", "rk
 #: The two profiles every backend offers (a backend may add its own, e.g. ``gazebo``).
 PROFILES = ("matched", "engine-defaults")
 
+#: The ContactParams coefficients a Coulomb contact with one coefficient may be given (a backend's
+#: ``friction_coefficient`` setting, :meth:`Backend.slides_with`): ``mu_s``, the foot holds up to mu_s Fn as the law
+#: does and slides at mu_s where the law slides at mu_k; ``mu_k``, it slides as the law does above 1.5 v_th and holds
+#: only to mu_k Fn, where the law holds to mu_s Fn.
+FRICTION_COEFFICIENTS = ("mu_s", "mu_k")
+
 #: The keys of :meth:`Backend.info` that legbench reads (verification, calibration, the report), and what each
 #: holds; any is optional, every other key is the backend's own and only recorded (run.json).
 INFO_KEYS = {
@@ -446,9 +452,11 @@ class Backend(ABC):
 
     def slides_with(self) -> str:
         """The ContactParams coefficient this loaded backend's native contact slides with (``mu_k`` or ``mu_s``):
-        :attr:`sliding_coefficient`, unless its settings change it (recorded in run.json; the contact residuals'
-        friction ratio is taken against it)."""
-        return self.sliding_coefficient
+        its ``friction_coefficient`` setting where it has one (:data:`FRICTION_COEFFICIENTS`: the one coefficient of
+        a Coulomb contact), else :attr:`sliding_coefficient`; a backend whose other settings change it overrides
+        this (recorded in run.json; the contact residuals' friction ratio is taken against it)."""
+        coefficient = getattr(self, "cfg", {}).get("friction_coefficient")
+        return coefficient if coefficient in FRICTION_COEFFICIENTS else self.sliding_coefficient
 
     def engine_contact(self) -> bool:
         """True if the engine has a contact model of its own, which ``native`` mode uses; False if it has

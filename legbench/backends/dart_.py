@@ -55,6 +55,7 @@ import numpy as np
 
 from legbench import kinematics
 from legbench.backends.base import (
+    FRICTION_COEFFICIENTS,
     Backend,
     Limits,
     Physics,
@@ -143,12 +144,14 @@ class DartBackend(Backend):
         # period's end, as every backend reports), or "mean", the period's contact impulse / the control period,
         # which keeps an impact that a rigid contact resolves inside a period (docs/backends/dart.md)
         "force_readout": "last",
+        "friction_coefficient": "mu_s",  # both shapes' coefficient: mu_s (holds to mu_s Fn) or mu_k (slides at it)
     }
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "lcp_solver": _LCP,
         "collision_detector": tuple(_DETECTORS),
         "reference_friction": ("implicit", "explicit"),
         "force_readout": ("last", "mean"),
+        "friction_coefficient": FRICTION_COEFFICIENTS,
     }
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "matched": {},
@@ -239,6 +242,7 @@ class DartBackend(Backend):
         self.cfg, self.physics, self.n_sub = cfg, physics, n_sub
         self.reference = physics.contact_mode == "reference"
         c = physics.contact
+        mu = float(getattr(c, cfg["friction_coefficient"]))  # DART takes the smaller of the two shapes'
 
         loader = dart.utils.DartLoader()
         options = dart.utils.DartLoader.Options()
@@ -271,7 +275,7 @@ class DartBackend(Backend):
             if self.reference:
                 sn.removeCollisionAspect()
             elif sn.hasDynamicsAspect():
-                sn.getDynamicsAspect().setFrictionCoeff(c.mu_s)
+                sn.getDynamicsAspect().setFrictionCoeff(mu)
                 sn.getDynamicsAspect().setRestitutionCoeff(0.0)
 
         self.ground = ground = dart.dynamics.Skeleton("ground")
@@ -280,7 +284,7 @@ class DartBackend(Backend):
         sn = box_body.createShapeNode(box)
         sn.createCollisionAspect()
         dyn = sn.createDynamicsAspect()
-        dyn.setFrictionCoeff(c.mu_s)
+        dyn.setFrictionCoeff(mu)
         dyn.setRestitutionCoeff(0.0)
         T = np.eye(4)
         T[2, 3] = -GROUND_SIZE[2] / 2.0
@@ -485,7 +489,7 @@ class DartBackend(Backend):
                     solver.getSecondaryBoxedLcpSolver().getType() if solver.getSecondaryBoxedLcpSolver() else None
                 ),
                 "collision_detector": solver.getCollisionDetector().getType(),
-                "friction": min([d.getFrictionCoeff() for d in pair_dyn] or [c.mu_s]),
+                "friction": min([d.getFrictionCoeff() for d in pair_dyn] or [getattr(c, self.slides_with())]),
                 "restitution": 0.0,
                 "Kp": None,
                 "Kd": None,

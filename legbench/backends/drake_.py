@@ -126,6 +126,7 @@ from pydrake.systems.framework import DiagramBuilder
 
 from legbench import kinematics
 from legbench.backends.base import (
+    FRICTION_COEFFICIENTS,
     Backend,
     Limits,
     Physics,
@@ -229,6 +230,9 @@ class DrakeBackend(Backend):
         "resolution_hint": 5.0e-3,  # hydroelastic: mesh edge length of the foot sphere [m]
         "sap_near_rigid_threshold": 1.0,  # SAP's near-rigid regime threshold (Drake's default)
         "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
+        # the discrete solvers' one coefficient (Drake's dynamic friction, mapped parameters): mu_s (holds to mu_s Fn)
+        # or mu_k (slides at it); the continuous plant's Stribeck curve has both
+        "friction_coefficient": "mu_s",
     }
     #: A regularisation speed is > 0; null: :func:`stiction_tolerance` (the law's slope near zero slip).
     #: ``resolution_hint`` >= 1 mm: the foot's hydroelastic mesh grows as (R_foot / hint)^3 tetrahedra; measured
@@ -243,6 +247,7 @@ class DrakeBackend(Backend):
         "contact_model": CONTACT_MODELS,
         "contact_params": CONTACT_PARAMS,
         "reference_friction": ("implicit", "explicit"),
+        "friction_coefficient": FRICTION_COEFFICIENTS,
     }
     profiles: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "matched": {},
@@ -496,9 +501,10 @@ class DrakeBackend(Backend):
         return plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(), HalfSpace(), "ground", props)
 
     def _friction(self) -> Any:
-        """Discrete solvers use the dynamic coefficient only: (mu_s, mu_s); continuous: (mu_s, mu_k)."""
+        """Discrete solvers use the dynamic coefficient only: (mu_s, the ``friction_coefficient``, mu_s unless it
+        says mu_k); continuous: (mu_s, mu_k)."""
         c = self.physics.contact
-        return CoulombFriction(c.mu_s, c.mu_k if self.continuous else c.mu_s)
+        return CoulombFriction(c.mu_s, c.mu_k if self.continuous else getattr(c, self.cfg["friction_coefficient"]))
 
     def _foot_props(self, c: Any, usual: bool) -> ProximityProperties:
         """The foot sphere's proximity properties (module docstring)."""
@@ -827,6 +833,8 @@ class DrakeBackend(Backend):
             unused.add("resolution_hint")
         if not self.reference:
             unused.add("reference_friction")
+        if self.reference or self.continuous or self.cfg["contact_params"] != "mapped":
+            unused.add("friction_coefficient")  # the law's, Stribeck's or the usual (mu_s, mu_k)
         return unused
 
     def _integrator_name(self) -> str:
@@ -856,10 +864,13 @@ class DrakeBackend(Backend):
 
     # ------------------------------------------------------- declared abilities
     def slides_with(self) -> str:
-        """``mu_s`` for the discrete solvers in the mapped profile (the dynamic coefficient set to mu_s), ``mu_k``
+        """The ``friction_coefficient`` (mu_s unless it says mu_k) for the discrete solvers in the mapped profile
+        (the dynamic coefficient set to it), ``mu_k``
         where the dynamic coefficient is mu_k (the usual parameters, engine-defaults) or for the continuous
         plant's Stribeck friction above 3 v_s."""
-        return "mu_s" if not self.continuous and self.cfg["contact_params"] == "mapped" else "mu_k"
+        if not self.continuous and self.cfg["contact_params"] == "mapped":
+            return str(self.cfg["friction_coefficient"])
+        return "mu_k"
 
     def integrator_family(self) -> str:
         """``adaptive`` (continuous), ``euler`` (discrete: symplectic Euler in free space, see the docs)."""

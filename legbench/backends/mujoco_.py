@@ -103,7 +103,15 @@ import mujoco
 import numpy as np
 
 from legbench import kinematics
-from legbench.backends.base import Backend, Limits, Physics, held, reference_contact, sub_step_count
+from legbench.backends.base import (
+    FRICTION_COEFFICIENTS,
+    Backend,
+    Limits,
+    Physics,
+    held,
+    reference_contact,
+    sub_step_count,
+)
 from legbench.contact import ReferenceContact, law_step_warnings
 from legbench.exceptions import LegbenchError, SimulationDiverged, Unreachable
 from legbench.model import FOOT_FRAME, JOINT_NAMES, LINK_NAMES, Inertial, combine, load_params
@@ -251,8 +259,9 @@ class MujocoBackend(Backend):
         "reference_friction": "implicit",  # reference mode: the law's friction slope implicit (as Pinocchio's)
         "force_readout": "end",  # end: at the end state; last: the last sub-step's; mean: impulse / period
         "contact_solimp": "pinned",  # pinned: d = 1e-4 at every depth; default: MuJoCo's (0.9, 0.95, 0.001, 0.5, 2)
+        "friction_coefficient": "mu_s",  # the cone's one coefficient: mu_s (holds to mu_s Fn) or mu_k (slides at it)
     }
-    #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
+    #: One friction coefficient (mu_s on the cone unless ``friction_coefficient`` says mu_k): it slides with it.
     sliding_coefficient: ClassVar[str] = "mu_s"
 
     @property
@@ -270,6 +279,7 @@ class MujocoBackend(Backend):
         "contact_solimp": tuple(_SOLIMPS),
         "force_readout": ("end", "last", "mean"),
         "reference_friction": ("implicit", "explicit"),
+        "friction_coefficient": FRICTION_COEFFICIENTS,
     }
     #: ``engine-defaults``: MuJoCo's documented option defaults (2 ms is replaced by the control
     #: period: a step must divide it), Kp and Kd as the usual direct solref (-Kp, -Kd) with the
@@ -444,12 +454,13 @@ class MujocoBackend(Backend):
         c = physics.contact
         self.A = float(m.body_invweight0[self.foot_body, 0])
         scale = self.A if cfg["contact_solref"] == "scaled" else 1.0
+        mu = float(getattr(c, cfg["friction_coefficient"]))  # the cone's one coefficient
         if cfg["contact_solref"] == "scaled" and cfg["cone"] == "pyramidal":
             # the pyramid's rows share R = 2 mu_r^2 (1 + mu^2) times the elliptic normal row's regulariser, mu_r^2
             # = mu^2 / impratio the regularised cone's (engine_core_constraint.c: Rpy = 2 mu_r^2 R, R from the
             # edge rows' diagA, (1 + mu^2) A), so the same solref gives 2 / (mu_r^2 (1 + mu^2)) times the stiffness
             # and damping (2.74 at mu 0.7, impratio 1): scaled back, Fn = Kp y + Kd ydot in newtons on either cone
-            scale *= 0.5 * c.mu_s**2 * (1.0 + c.mu_s**2) / float(cfg["impratio"])
+            scale *= 0.5 * mu**2 * (1.0 + mu**2) / float(cfg["impratio"])
         solimp = _SOLIMPS[cfg["contact_solimp"]]
         if cfg["contact_solref"] == "scaled" and cfg["contact_solimp"] == "pinned":
             # at rest the row's force is aref / R with aref = k d y, k = -solref[0] / d^2, and R = A (1 - d) / d
@@ -466,7 +477,7 @@ class MujocoBackend(Backend):
             m.pair_solref[i] = [-c.Kp * scale, -c.Kd * scale]
             m.pair_solreffriction[i] = solreffriction
             m.pair_solimp[i] = solimp
-            m.pair_friction[i] = [c.mu_s, c.mu_s, 0.0, 0.0, 0.0]
+            m.pair_friction[i] = [mu, mu, 0.0, 0.0, 0.0]
             m.pair_margin[i] = 0.0
 
         implicit = self.reference and cfg["reference_friction"] == "implicit"
@@ -767,7 +778,7 @@ class MujocoBackend(Backend):
         unused = set() if self.cfg["noslip"] else {"noslip_iterations"}
         if self.reference:
             unused |= {"impratio", "noslip", "noslip_iterations", "cone", "contact_solref", "friction_solref",
-                       "contact_solimp", "force_readout"}  # fmt: skip
+                       "contact_solimp", "force_readout", "friction_coefficient"}  # fmt: skip
         else:
             unused.add("reference_friction")
         return unused

@@ -83,6 +83,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from legbench.backends.base import (
+    FRICTION_COEFFICIENTS,
     Backend,
     Limits,
     Physics,
@@ -141,7 +142,8 @@ class OdeBackend(Backend):
     """The Open Dynamics Engine (through the odepy ctypes binding) simulating the leg."""
 
     name: ClassVar[str] = "ode"
-    #: ODE's contact friction here is the pyramid mu = mu2 = mu_s (dContactApprox1 on: each bound is mu times
+    #: ODE's contact friction here is the pyramid mu = mu2 = mu_s (or mu_k: ``friction_coefficient``;
+    #: dContactApprox1 on: each bound is mu times
     #: the normal force): one coefficient, each of the two friction directions (-W y and W x for the ground's
     #: normal: dPlaneSpace, :func:`friction_axes`, info ``friction_axes``) limited on its own. dWorldStep's
     #: Dantzig LCP takes the normal force solved without friction for that bound (see :meth:`known_deviation`);
@@ -172,11 +174,13 @@ class OdeBackend(Backend):
         # quick step's row shuffle: ODE's generator carried on from step to step (stock ODE), or re-seeded before
         # every step (one fixed order per step, as near as stock ODE comes to Gazebo's fork, which does not reorder)
         "row_order": "advancing",
+        "friction_coefficient": "mu_s",  # the pyramid's mu = mu2: mu_s (holds to mu_s Fn) or mu_k (slides at it)
     }
     choices: ClassVar[Mapping[str, tuple[str, ...]]] = {
         "stepper": _STEPPERS,
         "row_order": ("advancing", "repeated"),
         "reference_friction": ("implicit", "explicit"),
+        "friction_coefficient": FRICTION_COEFFICIENTS,
     }
     #: The ranges the ODE manual gives: an ERP in [0, 1] (above 1 the correction overshoots and the joints
     #: diverge), a CFM >= 0 (0: a hard constraint), a damping scale in [0, 1], lengths, speeds and the ground's
@@ -256,7 +260,7 @@ class OdeBackend(Backend):
             return None
         return held(f"known: dWorldStep's Dantzig LCP (lcp.cpp) sets each friction row's bound once, mu times the "
                     f"normal impulse solved before any friction row; with friction the normal force ends lower, so "
-                    f"the axis along the drag slid at {bound:.4g} Fn in this run (mu_s {mu:g}, "
+                    f"the axis along the drag slid at {bound:.4g} Fn in this run (mu {mu:g}, "
                     f"{100 * (bound / mu - 1):+.2g} %), and the pyramid's closed form with that bound gives "
                     f"{at_bound:.4g} m/s^2", measured, at_bound, tolerance,
                     " (within the row's tolerance of that closed form, whose bound is the one measured, not "
@@ -321,7 +325,7 @@ class OdeBackend(Backend):
             s = ct.surface
             # dContactMu2: ODE reads mu2 only with it (as Gazebo sets it); mu2 = mu, so either gives the same pyramid
             s.mode = ode.dContactSoftERP | ode.dContactSoftCFM | ode.dContactApprox1 | ode.dContactMu2
-            s.mu, s.mu2 = c.mu_s, c.mu_s
+            s.mu = s.mu2 = float(getattr(c, cfg["friction_coefficient"]))
             s.soft_erp, s.soft_cfm = self.soft_erp, self.soft_cfm
             s.bounce, s.bounce_vel = 0.0, 0.0
         self._contact_geoms = ctypes.cast(

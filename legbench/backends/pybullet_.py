@@ -83,6 +83,7 @@ import numpy as np
 
 from legbench import kinematics
 from legbench.backends.base import (
+    FRICTION_COEFFICIENTS,
     Backend,
     Limits,
     Physics,
@@ -235,8 +236,9 @@ class PybulletBackend(Backend):
         # Bullet's friction anchor (changeDynamics frictionAnchor): off, PyBullet's default; on holds the contact
         # point against the velocity-level friction's drift (module docstring)
         "friction_anchor": "off",
+        "friction_coefficient": "mu_s",  # the foot's lateralFriction: mu_s (holds to mu_s Fn) or mu_k (slides at it)
     }
-    #: One friction coefficient (mu_s on the cone): it slides with mu_s, there is no mu_k.
+    #: One friction coefficient (mu_s on the cone unless ``friction_coefficient`` says mu_k): it slides with it.
     sliding_coefficient: ClassVar[str] = "mu_s"
 
     @property
@@ -251,6 +253,7 @@ class PybulletBackend(Backend):
         "reference_friction": ("implicit", "explicit"),
         "sub_stepping": ("bullet", "python"),
         "friction_anchor": ("off", "on"),
+        "friction_coefficient": FRICTION_COEFFICIENTS,
     }
     #: ``engine-defaults``: one Bullet step per control period, Bullet's plane, slop and
     #: thresholds; Kp, Kd as the foot's contactStiffness/contactDamping, mu as its
@@ -363,7 +366,8 @@ class PybulletBackend(Backend):
         c = physics.contact
         margins = {"contactProcessingThreshold": 0.0} if self.exact_margins else {}
         p.changeDynamics(
-            body, self.foot, contactStiffness=c.Kp, contactDamping=c.Kd, lateralFriction=c.mu_s,
+            body, self.foot, contactStiffness=c.Kp, contactDamping=c.Kd,
+            lateralFriction=float(getattr(c, cfg["friction_coefficient"])),
             spinningFriction=0.0, rollingFriction=0.0, restitution=0.0, physicsClientId=cid,
             frictionAnchor=int(cfg["friction_anchor"] == "on"), **margins,
         )  # fmt: skip
@@ -547,7 +551,8 @@ class PybulletBackend(Backend):
         ground = p.getDynamicsInfo(self.ground, -1, physicsClientId=cid)
         engine = p.getPhysicsEngineParameters(physicsClientId=cid)
         (k_foot, c_foot), (k_plane, c_plane) = _stiffness_damping(foot), _stiffness_damping(ground)
-        unused = {"plane_contact", "plane_friction", "contact_margins", "sub_stepping", "friction_anchor"} if (
+        unused = {"plane_contact", "plane_friction", "contact_margins", "sub_stepping", "friction_anchor",
+                  "friction_coefficient"} if (
             self.reference) else {"reference_friction"}  # fmt: skip
         return {
             "engine": "pybullet",
