@@ -479,6 +479,9 @@ def load_ros_bag(path: str | Path, options: RosOptions | None = None) -> pd.Data
     mode = bag.stat().st_mode
     if not (stat.S_ISDIR(mode) or stat.S_ISREG(mode)):  # a FIFO would block the reader until a writer came
         raise ResultsError(str(path), f"is {file_kind(mode)}, not a regular file (a bag is read only from one)")
+    if stat.S_ISDIR(mode) and bag.suffix == ".bag":  # rosbags takes any '.bag' name for a ROS 1 file
+        raise ResultsError(str(path), "a ROS 2 bag directory named '.bag': rosbags reads that name as a ROS 1 bag "
+                                      "file; rename the directory (e.g. without the suffix)")  # fmt: skip
     joints = opts.joints or DEFAULT_JOINTS
     try:
         reader = AnyReader([bag])

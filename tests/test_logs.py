@@ -240,6 +240,18 @@ def test_bag_errors_name_the_problem(tmp_path: Path) -> None:
         logs.load_log(tmp_path / "junk.bag")
 
 
+def test_a_ros2_bag_directory_named_bag_is_refused_with_the_fix(tmp_path: Path) -> None:
+    """rosbags reads any '.bag' name as a ROS 1 file, so a ROS 2 bag directory named run.bag failed with 'not a
+    readable ROS bag (AnyReaderError: ... Is a directory)'. It is refused saying why and what to do; the same
+    directory renamed reads."""
+    t = np.arange(0, 0.01, 1e-3)
+    bag = write_bag("sqlite3", tmp_path / "run", t, _signals(t), ("hip_aa", "hip_fe", "knee"), (0, 1, 2))
+    named = bag.rename(tmp_path / "run.bag")
+    with pytest.raises(ResultsError, match=r"a ROS 2 bag directory named '\.bag': rosbags reads that name as a ROS 1"):
+        logs.load_log(named)
+    assert len(logs.load_log(named.rename(tmp_path / "run2"), {"hip_aa": "q1", "hip_fe": "q2", "knee": "q3"})) == len(t)
+
+
 @pytest.mark.parametrize("kind", KINDS)
 def test_compare_reads_a_bag_from_the_command_line(tmp_path: Path, kind: str) -> None:
     """Backend a's own log written as a bag (joint names of the lab's, topics named by option) and made the reference:

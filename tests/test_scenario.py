@@ -26,6 +26,15 @@ def test_shipped_tasks_load(task: str) -> None:
     assert len(sc.sha256) == 64
 
 
+@pytest.mark.parametrize("task", ("position", "effort", "validation"))  # the others' events start later
+def test_a_shipped_task_shortened_takes_the_whole_run_as_its_steady_window(task: str) -> None:
+    """The shipped tasks leave comparison.steady_window to its default, the last 0.5 s or the whole of a shorter run,
+    so ``run_scenario("effort", overrides={"duration": 0.2})`` runs (a README reader's check: each file gave 0.5
+    explicitly, and a shorter run was refused as 'longer than the run')."""
+    assert scenario.load(SCENARIOS / f"{task}.yaml").comparison.steady_window == 0.5
+    assert scenario.load(SCENARIOS / f"{task}.yaml", {"duration": 0.2}).comparison.steady_window == pytest.approx(0.2)
+
+
 def test_ellipse_task_runs_two_laps_after_a_one_second_approach() -> None:
     sc = scenario.load(SCENARIOS / "ellipse.yaml")
     (ev,) = sc.events

@@ -475,7 +475,7 @@ def _cli(args: argparse.Namespace) -> int:
         if r["note"]:
             print(f"note: {r['backend']}: {r['note']}")
     print(f"wrote {out} ({args.profile} profile)")
-    return 1 if df["note"].str.startswith("failed:").any() else 0
+    return 1 if (df["status"] == "failed").any() else 0
 
 
 def add_cli(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
