@@ -7,6 +7,7 @@ ground force on the foot must be -h.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -205,23 +206,41 @@ def test_info_gives_the_contact_rows_delassus_from_the_engines_own_mass_matrix()
     check_delassus("dart", np.eye(3), lambda b: b._q.fill(math.nan))  # type: ignore[attr-defined]
 
 
-def test_the_dantzig_sliding_miss_is_a_plain_miss() -> None:
+def test_the_dantzig_sliding_miss_is_explained_by_its_predicted_bound_only() -> None:
     """The engine-defaults drag (Dantzig, 1 ms): the foot holds beyond the Coulomb bound and does not slide (its end
-    state in info at_end: slip 5.3e-7 m/s, |F_y| = 0.833 Fn against mu 0.7), and the three rows fail with no
-    explanation. One was attached until 28 Nov, 'met to' the held foot's own end state, which is the run read
-    back, not a closed form of the bound (base.py's contract; a review): nothing here predicts the 0.833."""
+    state in info at_end: slip 5.3e-7 m/s, |F_y| = 0.833 Fn against mu 0.7). Each row is explained by the pyramid's
+    closed form at the bound re-solved without friction (1.043 Fn: the axis holds) and only there: the row's value
+    moved by twice its tolerance, a run without the prediction (its info's frictionless_fn gone), or another LCP
+    solver, gets nothing (base.py's contract: the note held to the held foot's own end state, attached until 28 Nov,
+    read the run back)."""
     from legbench.backends.dart_ import DartBackend
     from legbench.studies import sliding_case as S
 
     tr, physics = S.drag("dart", "engine-defaults")
     rows = S.score(tr, physics)
     assert len(rows) == 3 and not any(r["passed"] for r in rows), rows
-    assert not any("known: " in r["note"] for r in rows), rows
+    assert all(r["note"].startswith("known: DART's Dantzig boxed LCP") for r in rows), rows
     at_end = tr.info["at_end"]
     assert at_end["slip"] < 1e-6 and abs(at_end["force"][1]) / at_end["force"][2] == pytest.approx(0.833, abs=1e-3)
+    bare = dataclasses.replace(tr, info={k: v for k, v in tr.info.items() if k != "frictionless_fn"})
+    assert not any("known: " in r["note"] for r in S.score(bare, physics))
+    asked: dict[str, Any] = {}
+    real = S.explained_note
+
+    def spy(cls: Any, case: str, quantity: str, info: Any, *rest: Any) -> str:
+        asked[quantity] = info
+        return real(cls, case, quantity, info, *rest)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(S, "explained_note", spy)
+        S.score(tr, physics)
     for r in rows:
-        assert DartBackend.known_deviation("sliding", r["quantity"], tr.info, r["measured"], r["expected"],
-                                           r["tolerance"]) is None  # fmt: skip
+        info, q, tol = asked[r["quantity"]], r["quantity"], r["tolerance"]
+        assert DartBackend.known_deviation("sliding", q, info, r["measured"], r["expected"], tol) is not None
+        far = r["measured"] + 2 * tol + 1e-6
+        assert DartBackend.known_deviation("sliding", q, info, far, r["expected"], tol) is None
+        nsgs = {**info, "lcp_solver": "nsgs"}
+        assert DartBackend.known_deviation("sliding", q, nsgs, r["measured"], r["expected"], tol) is None
 
 
 def test_rest_sink_is_the_regularisations_closed_form_where_it_holds() -> None:

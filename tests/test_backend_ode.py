@@ -500,27 +500,61 @@ def _scored_with_context(monkeypatch: pytest.MonkeyPatch, profile: str) -> tuple
 def test_the_dantzig_bound_explains_the_sliding_row_only_where_its_closed_form_meets_it(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """base.py's contract: an explanation holds the row's own measured value to a closed form. dWorldStep's was a
-    fixed text (0.7068 Fn, 11 % less) returned for any failing value (m = 3.62, 8.0 or -50 alike). It now takes the
-    bound the run slid with (mean |F_y| / Fn where the pyramid slides that axis: measured 0.7068, mu_s 0.7) and
-    the pyramid's closed form with it (3.616 m/s^2 against the measured 3.620, 0.13 %; 4.076 at mu), and says
-    nothing where the row is far from it or the run's measurement is missing."""
+    """base.py's contract: an explanation holds the row's own measured value to a closed form. dWorldStep's Dantzig
+    LCP bounds friction by mu times the normal impulse solved before any friction row: re-solving each scored
+    sample without friction (frictionless_normal, one sub-step with mu = mu2 = 0) predicts that bound, Fn0 / Fn =
+    1.0097, 0.7068 Fn (a reviewer's check, 28 Nov: it was taken from the run's own forces until then; the run slid
+    at 0.7068, to 1e-5), and the pyramid's closed form with it gives 3.617 m/s^2 against the measured 3.620 (0.11 %;
+    4.076 at mu). Nothing is said where the row is far from it, where the prediction is missing, or for the quick
+    step, which bounds by the current normal force."""
     row, info = _scored_with_context(monkeypatch, "matched")
     drag = info["drag"]
-    assert drag["friction_bound"] == pytest.approx(0.7068, abs=5e-4) and drag["mu"] == 0.7
-    assert drag["at_bound"] == pytest.approx(row["measured"], rel=0.005)
+    assert drag["predicted_bound"] == pytest.approx(drag["friction_bound"], abs=1e-4) and drag["mu"] == 0.7
+    assert drag["predicted_bound"] == pytest.approx(0.7068, abs=5e-4) and drag["predicted_holds"] == 0.0
+    assert drag["at_predicted"]["acceleration"] == pytest.approx(row["measured"], rel=0.005)
     assert not row["passed"] and row["expected"] == pytest.approx(4.076, abs=0.005), row
     assert row["note"].startswith("known: dWorldStep's Dantzig LCP") and "met to" in row["note"], row["note"]
-    assert f"slid at {drag['friction_bound']:.4g} Fn" in row["note"] and f"{drag['at_bound']:.4g} m/s^2" in row["note"]
+    assert f"that bound is {drag['predicted_bound']:.4g} Fn (mu 0.7; the run slid at" in row["note"], row["note"]
+    assert f"reads {drag['at_predicted']['acceleration']:.4g}" in row["note"], row["note"]
     ask = OdeBackend.known_deviation
     q, expected, tol = row["quantity"], row["expected"], row["tolerance"]
     assert ask("sliding", q, info, row["measured"], expected, tol) is not None
-    for far in (8.0, -50.0, expected):  # far from the closed form at the measured bound (4.076: the one at mu)
+    for far in (8.0, -50.0, expected):  # far from the closed form at the predicted bound (4.076: the one at mu)
         assert ask("sliding", q, info, far, expected, tol) is None, far
-    # the old fixed text came with nothing measured: none now
+    no_prediction = {k: v for k, v in drag.items() if k not in ("predicted_bound", "predicted_holds", "at_predicted")}
+    assert ask("sliding", q, {**info, "drag": no_prediction}, row["measured"], expected, tol) is None
     assert ask("sliding", q, {"stepper": "world"}, 3.62, expected, tol) is None
-    assert ask("sliding", q, {**info, "drag": {**drag, "friction_bound": 0.69}}, row["measured"], expected, tol) is None
     assert ask("sliding", q, {**info, "stepper": "quick"}, row["measured"], expected, tol) is None
+
+
+def test_the_frictionless_normal_predicts_the_bound_the_drag_slides_at() -> None:
+    """frictionless_normal re-solves one dWorldStep sub-step from a logged state with mu = mu2 = 0; mu times it is
+    the bound the run's friction along the drag had: at every sample of the sliding window 0.7 Fn0 meets the
+    logged |F_y| to 1e-4 of Fn (measured 2e-5), where 0.7 Fn misses it by 1 %. The contact's mu is back
+    afterwards; the quick step (it bounds by the current normal force) and reference contact give None."""
+    from legbench.run import simulate
+    from legbench.scenario import physics_of
+    from legbench.studies import sliding_case as S
+
+    sc = S._scenario()
+    physics = physics_of(sc, "native")
+    b = registry.load("ode", physics, {}, "matched")
+    try:
+        tr = simulate(sc, b, physics)
+        ks = np.flatnonzero((tr.t >= S.WINDOW[0] - 1e-9) & (tr.t <= S.WINDOW[1] + 1e-9))
+        fn0 = np.array([b.frictionless_normal(tr.q[k], tr.qd[k], tr.tau[k]) for k in ks], float)
+        assert b.contacts[0].surface.mu == b.contacts[0].surface.mu2 == physics.contact.mu_s
+    finally:
+        b.close()
+    fn, fy = tr.f[ks, 2], np.abs(tr.f[ks, 1])
+    assert np.abs(0.7 * fn0 - fy).max() < 1e-4 * fn.max(), np.abs(0.7 * fn0 - fy).max()
+    assert np.abs(0.7 * fn - fy).min() > 5e-3 * fn.min()
+    for settings, mode in (({"stepper": "quick"}, "native"), ({}, "reference")):
+        other = registry.load("ode", physics_of(sc, mode), settings, "matched")
+        try:
+            assert other.frictionless_normal(tr.q[ks[0]], tr.qd[ks[0]], tr.tau[ks[0]]) is None
+        finally:
+            other.close()
 
 
 def test_the_quick_steps_pole_misses_are_plain_misses() -> None:

@@ -154,8 +154,37 @@ def held(explanation: str, measured: float, predicted: float, tolerance: float, 
     :meth:`Backend.known_deviation`)."""
     if not abs(measured - predicted) <= tolerance:
         return None
-    met = f"{100 * abs(measured / predicted - 1):.2g} %" if predicted != 0.0 else f"{abs(measured):.2g}"
+    # relative where the prediction stands clear of 0; a prediction within the tolerance of 0 (a held foot's
+    # acceleration, -1e-16) has no scale of its own: the difference itself
+    relative = abs(predicted) > tolerance
+    met = f"{100 * abs(measured / predicted - 1):.2g} %" if relative else f"{abs(measured - predicted):.2g}"
     return f"{explanation}, met to {met}{after}"
+
+
+def solver_bound_note(solver: str, drag: object, quantity: str, measured: float, tolerance: float,
+                      after: str = "") -> str | None:  # fmt: skip
+    """A sliding-case row (``quantity``) explained by a friction bound the contact solver sets from a frictionless
+    normal impulse (:meth:`Backend.frictionless_normal`), held to the row: ``drag`` is what the sliding case computed
+    with that bound (``predicted_bound``, the mean bound / Fn; ``friction_bound``, the one the run slid with,
+    measured; ``predicted_holds``, the share of samples at which the
+    axis along the drag holds under it; ``at_predicted``, the pyramid's closed form with it for the rows ``along``,
+    ``across`` and ``acceleration``), ``solver`` names the solver in the note. None where the run has no prediction,
+    the row is none of the three, or its ``measured`` value misses the closed form by more than ``tolerance``."""
+    if not isinstance(drag, Mapping) or not isinstance(at := drag.get("at_predicted"), Mapping):
+        return None
+    key = ("acceleration" if quantity.startswith("slip acceleration") else "across" if "across the drag" in quantity
+           else "along" if "along the drag" in quantity else None)  # fmt: skip
+    if key is None or key not in at:
+        return None
+    mu, bound, holds = (float(drag.get(k, math.nan)) for k in ("mu", "predicted_bound", "predicted_holds"))
+    state = ("holds under it at every sample" if holds == 1.0 else "slides at it at every sample" if holds == 0.0
+             else f"holds under it at {100 * holds:.0f} % of the samples")  # fmt: skip
+    value, slid = float(at[key]), float(drag.get("friction_bound", math.nan))
+    slid_at = f"; the run slid at {slid:.4g} Fn" if holds == 0.0 and math.isfinite(slid) else ""
+    return held(f"known: {solver} bounds each friction row by mu times the normal impulse solved before any friction "
+                f"row; re-solved without friction at each sample, that bound is {bound:.4g} Fn (mu {mu:g}{slid_at}), "
+                f"and the axis along the drag {state}: the pyramid's closed form with it reads {value:.4g}", measured,
+                value, tolerance, after)  # fmt: skip
 
 
 def rigid_contact(info: Mapping[str, Any]) -> bool:
@@ -354,6 +383,14 @@ class Backend(ABC):
         [N s/m], ``expected`` Kd, ``info`` with ``transient``: ``depth``, the fit's samples' penetration weighted as
         the fit weights them, sum(y ydot^2) / sum(ydot^2) [m]). Its explanations may hold the row to what the run
         recorded in ``at_end`` as well (the state it ended in, or a largest share over it)."""
+        return None
+
+    def frictionless_normal(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> float | None:
+        """For a contact solver that bounds each friction row by mu times the normal impulse it solved without
+        friction (a boxed LCP solved the Dantzig way: ODE's dWorldStep, DART's Dantzig): the normal force [N] of that
+        solve, one engine step from q [rad], qd [rad/s] under tau [N m] with the friction off, so mu times it is the
+        bound the step's friction had; None where the bound is the current normal force or not known (default).
+        Asked by the sliding case after its run, at the scored samples; it may leave the engine anywhere."""
         return None
 
     @classmethod

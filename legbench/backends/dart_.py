@@ -63,6 +63,7 @@ from legbench.backends.base import (
     clamp_torque,
     held,
     reference_contact,
+    solver_bound_note,
     sub_step_count,
 )
 from legbench.contact import ReferenceContact
@@ -163,10 +164,14 @@ class DartBackend(Backend):
     @classmethod
     def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any], measured: float = math.nan,
                         expected: float = math.nan, tolerance: float = math.nan) -> str | None:  # fmt: skip
-        """The rigid rest's sink and the creep of DART's constraint force mixing, each held to its closed form. Not
-        the sliding drag that Dantzig's friction bound holds (docs/backends/dart.md): the bound it holds at (0.833
-        Fn) has no closed form here, and the held foot's own end state is no prediction of the row, so those rows
-        stay plain misses."""
+        """The rigid rest's sink and the creep of DART's constraint force mixing, each held to its closed form; the
+        sliding drag that Dantzig's friction bound holds (docs/backends/dart.md): the bound is mu times the normal
+        impulse solved without friction, predicted by re-solving each sample so (:meth:`frictionless_normal`), and
+        each row is explained where the pyramid's closed form with it meets the row
+        (:func:`~legbench.backends.base.solver_bound_note`)."""
+        if case == "sliding" and info.get("lcp_solver") == "dantzig":
+            return solver_bound_note("DART's Dantzig boxed LCP (DantzigBoxedLcpSolver)", info.get("drag"), quantity,
+                                     measured, tolerance, " (docs/backends/dart.md)")  # fmt: skip
         contact, load, h, at_end = info.get("contact"), info.get("load"), info.get("timestep"), info.get("at_end")
         contact = contact if isinstance(contact, Mapping) else {}
         W = at_end.get("delassus") if isinstance(at_end, Mapping) else None
@@ -419,6 +424,37 @@ class DartBackend(Backend):
                 force += contact.force
             else:
                 force -= contact.force
+
+    def frictionless_normal(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> float | None:
+        """The Dantzig solver's friction bound: DART's boxed LCP (DantzigBoxedLcpSolver, ODE's lcp.cpp) bounds each
+        friction row by mu times the normal impulse solved before any friction row, so the normal force of one step
+        from (q, qd) under tau with both shapes' friction 0 [N], mu times which was the bound; None for the other
+        solvers (NSGS and PGS bound by the current normal impulse) and in reference contact. Resets the engine to
+        (q, qd)."""
+        if self.reference or self.cfg["lcp_solver"] != "dantzig":
+            return None
+        aspects = [sn.getDynamicsAspect() for sn in self._contact_shapes()]
+        kept = [a.getFrictionCoeff() for a in aspects]
+        try:
+            for a in aspects:
+                a.setFrictionCoeff(0.0)
+            self.reset(q, qd)
+            self.skel.setForces(np.array(clamp_torque(tau, self._limit), float))
+            self.world.step()
+            self._native_force()
+            return float(self._force[2])
+        finally:
+            for a, mu in zip(aspects, kept, strict=True):
+                a.setFrictionCoeff(mu)
+
+    def _contact_shapes(self) -> list[Any]:
+        """The shape nodes whose friction the contact takes (DART: the smaller of the two): the foot's, the
+        ground's."""
+        foot = [self.foot.getShapeNode(i) for i in range(self.foot.getNumShapeNodes())]
+        ground = [
+            self.ground.getBodyNode(0).getShapeNode(i) for i in range(self.ground.getBodyNode(0).getNumShapeNodes())
+        ]
+        return [sn for sn in (*foot, *ground) if sn.hasDynamicsAspect()]
 
     # ----------------------------------------------------------------- read
     def state(self) -> tuple[np.ndarray, np.ndarray]:

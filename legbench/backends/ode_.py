@@ -90,8 +90,8 @@ from legbench.backends.base import (
     Range,
     check_finite,
     clamp_torque,
-    held,
     reference_contact,
+    solver_bound_note,
     sub_step_count,
 )
 from legbench.contact import ReferenceContact
@@ -237,35 +237,16 @@ class OdeBackend(Backend):
     @classmethod
     def known_deviation(cls, case: str, quantity: str, info: Mapping[str, Any], measured: float = math.nan,
                         expected: float = math.nan, tolerance: float = math.nan) -> str | None:  # fmt: skip
-        """dWorldStep's friction bound: the sliding drag accelerates less than the pyramid (docs/backends/ode.md),
-        where the pyramid's closed form at the bound the run slid with meets the row (:meth:`_known_dantzig_bound`).
+        """dWorldStep's friction bound: its Dantzig LCP bounds friction by mu times the normal impulse solved without
+        friction, so the sliding drag slides above mu Fn and accelerates less than the pyramid at mu; the row is
+        explained where the pyramid's closed form with that bound, predicted by re-solving each sample without
+        friction (:meth:`frictionless_normal`), meets it (:func:`~legbench.backends.base.solver_bound_note`).
         Nothing else: the quick step's pole misses at engine-defaults have no closed form of the fitted poles, so
         they stay plain misses."""
-        if case == "sliding" and info.get("stepper") == "world" and quantity.startswith("slip acceleration"):
-            return cls._known_dantzig_bound(info.get("drag"), measured, tolerance)
+        if case == "sliding" and info.get("stepper") == "world":
+            return solver_bound_note("dWorldStep's Dantzig LCP (lcp.cpp)", info.get("drag"), quantity, measured,
+                                     tolerance, " (docs/backends/ode.md)")  # fmt: skip
         return None
-
-    @classmethod
-    def _known_dantzig_bound(cls, drag: object, measured: float, tolerance: float) -> str | None:
-        """The sliding case's slip-acceleration miss as dWorldStep's friction bound, held to the row: the run's
-        ``drag`` (what the sliding case measured of it: ``mu``, ``friction_bound``, the mean |F_along| / Fn where the
-        pyramid's closed form slides the axis along the drag, and ``at_bound``, that closed form's mean acceleration
-        with the measured bound in place of mu) shows the axis sliding above mu Fn, and the row's ``measured``
-        acceleration meets ``at_bound`` within the row's ``tolerance``. None otherwise (a bound at or under mu is not
-        this; a miss the measured bound does not account for is not explained)."""
-        if not isinstance(drag, Mapping):
-            return None
-        mu, bound, at_bound = (float(drag.get(key, math.nan)) for key in ("mu", "friction_bound", "at_bound"))
-        if not (math.isfinite(at_bound) and bound > mu > 0.0):
-            return None
-        return held(f"known: dWorldStep's Dantzig LCP (lcp.cpp) sets each friction row's bound once, mu times the "
-                    f"normal impulse solved before any friction row; with friction the normal force ends lower, so "
-                    f"the axis along the drag slid at {bound:.4g} Fn in this run (mu {mu:g}, "
-                    f"{100 * (bound / mu - 1):+.2g} %), and the pyramid's closed form with that bound gives "
-                    f"{at_bound:.4g} m/s^2", measured, at_bound, tolerance,
-                    " (within the row's tolerance of that closed form, whose bound is the one measured, not "
-                    "predicted; stepper: quick bounds with the current normal force; "
-                    "docs/backends/ode.md)")  # fmt: skip
 
     # ----------------------------------------------------------------- load
     def load(self, urdf: Path, physics: Physics, settings: Mapping[str, Any]) -> None:
@@ -513,6 +494,27 @@ class OdeBackend(Backend):
         self._n_contacts = n
         self._read()
         self._native_force()
+
+    def frictionless_normal(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> float | None:
+        """dWorldStep's friction bound: its Dantzig LCP (lcp.cpp) bounds each friction row by mu times the normal
+        impulse solved before any friction row, so the normal force of one sub-step from (q, qd) under tau with mu =
+        mu2 = 0 [N], mu times which was the bound; None for the quick step (it bounds by the current normal force),
+        in reference contact or without a contact. Resets the engine to (q, qd)."""
+        if self.reference or self._quick or not self._collide_on:
+            return None
+        kept, n_sub = [(ct.surface.mu, ct.surface.mu2) for ct in self.contacts], self.n_sub
+        try:
+            for ct in self.contacts:
+                ct.surface.mu = ct.surface.mu2 = 0.0
+            self.reset(q, qd)
+            self._u = clamp_torque(tau, self._limit)
+            self.n_sub = 1
+            self._step_native()
+            return float(self._force[2])
+        finally:
+            self.n_sub = n_sub
+            for ct, (mu, mu2) in zip(self.contacts, kept, strict=True):
+                ct.surface.mu, ct.surface.mu2 = mu, mu2
 
     def _use_pair(self, g1: Any, g2: Any) -> None:
         """Collide the geoms in this order in the native step; their bodies and the foot's feedback side cached

@@ -127,7 +127,10 @@ def drag(
     """Run the drag on ``backend`` (native contact, ``profile`` and backend ``settings``) for ``duration`` [s].
 
     ``overrides``: scenario keys set on top (e.g. ``{"physics.contact.Kd": 50.0}``). A backend that cannot
-    load gives a failed :class:`~legbench.results.RunResult` saying why.
+    load gives a failed :class:`~legbench.results.RunResult` saying why. Where the backend's contact solver bounds
+    friction by a frictionless normal impulse (:meth:`~legbench.backends.base.Backend.frictionless_normal`), the
+    run's info carries it after the run, ``frictionless_fn`` [N] at every logged sample from :data:`T_DRAG` on (NaN
+    before), which the pyramid's scoring predicts the bound from.
     """
     sc = _scenario(duration, overrides)
     physics = physics_of(sc, "native")
@@ -136,9 +139,27 @@ def drag(
     except Exception as exc:
         return RunResult.empty(backend, "failed", f"{type(exc).__name__}: {exc}"), physics
     try:
-        return simulate(sc, b, physics), physics
+        tr = simulate(sc, b, physics)
+        if tr.status == "ok":
+            fn0 = _frictionless(b, tr)
+            if fn0 is not None:
+                tr.info = {**tr.info, "frictionless_fn": fn0.tolist()}
+        return tr, physics
     finally:
         b.close()
+
+
+def _frictionless(b: Backend, tr: RunResult) -> np.ndarray | None:
+    """The backend's frictionless normal force [N] at the run's samples from :data:`T_DRAG` on (NaN before), or None
+    where it gives none (asked after the run: it resets the engine)."""
+    ks = np.flatnonzero(tr.t >= T_DRAG - 1e-9)
+    out = np.full(len(tr.t), math.nan)
+    for k in ks:
+        fn0 = b.frictionless_normal(tr.q[k], tr.qd[k], tr.tau[k])
+        if fn0 is None:
+            return None
+        out[k] = fn0
+    return out
 
 
 def applies_law(info: Mapping[str, Any], physics: Physics) -> bool:
@@ -347,9 +368,15 @@ def _worst(measured: np.ndarray, expected: np.ndarray | float) -> tuple[float, f
     """(measured, expected) at the sample where they differ most: a row held at every sample of the window
     (:data:`TOL_MU`). Where the closed form varies by sample (the pyramid's force along the drag, held below its
     bound at some samples) the largest difference is taken, not the largest ratio (a sample it puts at 0)."""
+    measured_i, expected_i, _ = _worst_at(measured, expected)
+    return measured_i, expected_i
+
+
+def _worst_at(measured: np.ndarray, expected: np.ndarray | float) -> tuple[float, float, int]:
+    """:func:`_worst` and the sample's index in ``measured``."""
     exp = np.broadcast_to(np.asarray(expected, float), measured.shape)
     i = int(np.argmax(np.abs(measured - exp)))
-    return float(measured[i]), float(exp[i])
+    return float(measured[i]), float(exp[i]), i
 
 
 def _span(x: np.ndarray) -> str:
@@ -359,14 +386,15 @@ def _span(x: np.ndarray) -> str:
 
 
 def _with_known(cls: type[Backend], tr: RunResult, rows: list[tuple[Any, ...]], counts: tuple[int, int, int],
-                measured: Mapping[str, float] | None = None) -> list[dict[str, Any]]:  # fmt: skip
+                measured: Mapping[str, Any] | None = None) -> list[dict[str, Any]]:  # fmt: skip
     """``rows`` (tuples of :data:`ROW_KEYS`) as mappings with the window's ``counts`` (:data:`COUNT_KEYS`) and each
     failing row's measured and explained miss (``Backend.known_deviation``:
     :func:`~legbench.backends.base.explained_note`) before its note; the row still fails. The backend is asked
     with the run's info and, under ``drag``, what this scoring measured of the run: the counts and ``measured``
-    (a pyramid's friction bound and its closed form there, :func:`_score_pyramid`; a cone's or diamond's closed form
-    of the central difference with each step under the force read at its start, ``over_steps``:
-    :func:`_over_steps`), which its explanation may hold the row's measured value to."""
+    (a pyramid's friction bound, measured, and where the solver's own bound is predicted the closed form with it,
+    :func:`_score_pyramid`; a cone's or diamond's closed form of the central difference with each step under the
+    force read at its start, ``over_steps``: :func:`_over_steps`), which its explanation may hold the row's measured
+    value to. ``measured`` may hold a mapping (``at_predicted``)."""
     context = {**tr.info, "drag": {**dict(zip(COUNT_KEYS, counts, strict=True)), **(measured or {})}}
     out = []
     for row in rows:
@@ -451,13 +479,15 @@ def _relative(case: str, backend: str, quantity: str, unit: str, measured: float
 
 def pyramid_friction(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, fn: np.ndarray, mu: float,
                      lift: float = 0.0, poc: str = "true", axes: np.ndarray | None = None,
-                     gravity: float | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+                     gravity: float | None = None,
+                     bound: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """The friction pyramid's closed form at each sample: the tangential ground force in W [N] (n x 2, W x and
     W y) and the poc's horizontal acceleration in W [m/s^2] (n x 2) it gives, under tau [N m] and the normal
     force fn [N], at ``gravity`` [m/s^2] (the run's; default the parameter file's).
 
     The pyramid bounds each of its tangent axes ``axes`` on its own, |F . t_i| <= mu Fn (2 x 2 or 2 x 3 rows t1,
-    t2 in W: the run's ``friction_axes``, :func:`friction_axes`; default W x and W y). The acceleration is affine
+    t2 in W: the run's ``friction_axes``, :func:`friction_axes`; default W x and W y), or by ``bound`` [N] per
+    sample where given (a solver's own bound, e.g. mu times a frictionless normal force). The acceleration is affine
     in the force (:func:`predicted_acceleration`); the axes that can hold (|F_i| <= mu Fn with the foot stuck
     along both) hold, an axis that cannot slides with |F_i| = mu Fn in its holding force's direction (against the
     slip), the other is solved again with it (and slides too if it then cannot hold).
@@ -478,16 +508,16 @@ def pyramid_friction(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, fn: np.ndar
     acc = np.empty((n, 2))
     for s in range(n):
         A = np.column_stack([cols_t[0][s], cols_t[1][s]])
-        bound = mu * fn[s]
+        limit = mu * fn[s] if bound is None else float(bound[s])
         f = np.linalg.solve(A, -a0_t[s])  # both axes held
-        over = np.abs(f) > bound
+        over = np.abs(f) > limit
         if over.any():
             i = int(np.argmax(np.abs(f)))  # the axis furthest past its (common) bound slides first
             j = 1 - i
-            f[i] = math.copysign(bound, f[i])
+            f[i] = math.copysign(limit, f[i])
             f[j] = -(a0_t[s, j] + A[j, i] * f[i]) / A[j, j]
-            if abs(f[j]) > bound:
-                f[j] = math.copysign(bound, f[j])
+            if abs(f[j]) > limit:
+                f[j] = math.copysign(limit, f[j])
         ft[s] = f @ E
         acc[s] = a0[s] + np.column_stack([cols[0][s], cols[1][s]]) @ f
     return ft, acc
@@ -506,9 +536,9 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
     is in contact (``touching``, :func:`_stencil`); ``counts``: the window's (:data:`COUNT_KEYS`).
 
     The backend's explanation of a miss is asked with what the run measured (:func:`_with_known`, ``drag``):
-    ``friction_bound``, the friction the axis along the drag slid with, mean |F_along| / Fn over the samples where
-    the closed form slides it, and ``at_bound``, the closed form's mean acceleration with that bound in place of mu
-    (NaN where no sample slides)."""
+    ``mu``; ``friction_bound``, the friction the axis along the drag slid with, mean |F_along| / Fn over the samples
+    where the closed form slides it (NaN where no sample slides); and where the backend's solver bounds friction by
+    a frictionless normal impulse, its bound predicted and the closed form with it (:func:`_at_predicted_bound`)."""
     case, backend = "sliding", tr.backend
     Ts = physics.control_dt
     E = drag_frame(friction_axes(tr.info))  # rows: the axis across the drag, the axis along it
@@ -517,19 +547,16 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
     ft_pred, a_pred, f_meas, v_ax = ft_pred @ E.T, a_pred @ E.T, tr.f[:, :2] @ E.T, v @ E.T  # on (across, along)
     slides = np.abs(ft_pred[:, 1]) >= mu * fn * (1.0 - 1e-12)  # the closed form's along-drag axis at its bound
     # at its worst sample against the closed form's there (mu where it slides, the force that holds it elsewhere)
-    along, expected_along = _worst(np.abs(f_meas[k, 1]) / fn, np.abs(ft_pred[:, 1]) / fn)
+    along, expected_along, worst = _worst_at(np.abs(f_meas[k, 1]) / fn, np.abs(ft_pred[:, 1]) / fn)
     across, across_pred = float(np.mean(f_meas[k, 0] / fn)), float(np.mean(ft_pred[:, 0] / fn))
     s = _stencil(touching, k)
     counts = (counts[0], counts[1], int(s.sum()))
     ka = k[s]
     a_meas = (v_ax[ka + 1, 1] - v_ax[ka - 1, 1]) / (2 * Ts)
     am, ap = _mean(a_meas), _mean(a_pred[s, 1])
-    # the bound the engine slid with along the drag, measured, and the closed form with it in place of mu
+    # the bound the engine slid with along the drag, measured (beside the one its solver predicts, if any)
     bound = float(np.mean(np.abs(f_meas[k[slides], 1]) / fn[slides])) if slides.any() else math.nan
-    at_bound = math.nan
-    if math.isfinite(bound) and len(ka):
-        _, a_bound = pyramid_friction(tr.q[ka], tr.qd[ka], tr.tau[ka], fn[s], bound, lift, poc, E, physics.gravity)
-        at_bound = _mean((a_bound @ E.T)[:, 1])
+    predicted = _at_predicted_bound(tr, physics, mu, k, s, fn, slides, worst, lift, poc, E)
     speed = np.abs(v_ax[k, 1])
     ctx = (f"pyramid on {_axes_text(tr.info)}, {coef} = {mu:g}; the closed form slides the axis along the drag at "
            f"{int(slides.sum())} of {len(k)} samples; slip along it {_span(1e3 * speed)} mm/s, "
@@ -556,7 +583,31 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
          "of mu"),
         acc_row,
     ]  # fmt: skip
-    return _with_known(cls, tr, rows, counts, {"mu": mu, "friction_bound": bound, "at_bound": at_bound})
+    return _with_known(cls, tr, rows, counts, {"mu": mu, "friction_bound": bound, **predicted})
+
+
+def _at_predicted_bound(tr: RunResult, physics: Physics, mu: float, k: np.ndarray, s: np.ndarray, fn: np.ndarray,
+                        slides: np.ndarray, worst: int, lift: float, poc: str,
+                        E: np.ndarray) -> dict[str, Any]:  # fmt: skip
+    """The pyramid's closed form with the bound the backend's solver had, predicted (``frictionless_fn`` in the
+    run's info, :func:`drag`: mu times the frictionless normal force at each sample) rather than measured: its
+    ``predicted_bound`` (mean bound / Fn over the samples the closed form at mu slides, as ``friction_bound`` is
+    measured), ``predicted_holds`` (the share of the scored samples at which the axis along the drag holds under
+    it) and ``at_predicted``, what each row would read: ``along`` at the row's own sample ``worst``, ``across`` and
+    ``acceleration`` as the rows average them. Empty where the run has no prediction."""
+    fn0 = np.asarray(tr.info.get("frictionless_fn", ()), float)
+    if fn0.shape != tr.t.shape or not np.isfinite(fn0[k]).all():
+        return {}
+    limit = mu * fn0[k]
+    ft_b, a_b = pyramid_friction(tr.q[k], tr.qd[k], tr.tau[k], fn, mu, lift, poc, E, physics.gravity, limit)
+    ft_b, a_b = ft_b @ E.T, a_b @ E.T
+    holds = np.abs(ft_b[:, 1]) < limit * (1.0 - 1e-12)
+    return {
+        "predicted_bound": float(np.mean(limit[slides] / fn[slides])) if slides.any() else math.nan,
+        "predicted_holds": float(np.mean(holds)),
+        "at_predicted": {"along": float(np.abs(ft_b[worst, 1]) / fn[worst]),
+                         "across": float(np.mean(ft_b[:, 0] / fn)), "acceleration": _mean(a_b[s, 1])},
+    }  # fmt: skip
 
 
 __all__ = [
