@@ -539,6 +539,7 @@ def test_the_frictionless_normal_predicts_the_bound_the_drag_slides_at() -> None
     sc = S._scenario()
     physics = physics_of(sc, "native")
     b = registry.load("ode", physics, {}, "matched")
+    assert isinstance(b, OdeBackend)
     try:
         tr = simulate(sc, b, physics)
         ks = np.flatnonzero((tr.t >= S.WINDOW[0] - 1e-9) & (tr.t <= S.WINDOW[1] + 1e-9))
