@@ -8,7 +8,8 @@ ground force alone:
   contact, y = R_foot - z_E the foot's penetration [m];
 * friction against mu Fn while sliding (slip speed >= 1.5 v_th, where the law
   gives mu_k): |F_t| / (mu Fn), mu the coefficient the backend slides with (mu_k
-  for the law, mu_s for a single-coefficient Coulomb engine);
+  for the law; a single-coefficient Coulomb engine's one coefficient, mu_s unless its ``friction_coefficient``
+  says mu_k);
 * the angle between the friction force and the slip direction (the law puts
   it exactly opposite the slip) [deg];
 * creep under a sub-limit load (|F_t| < 0.9 min(mu_s, mu_k) Fn, so that kinetic sliding

@@ -363,8 +363,8 @@ def coefficient_note(infos: Mapping[str, Mapping[str, Any]], reference: str) -> 
     return (
         f"{_names(names)} {verb} with {coef} (friction_coefficient: one Coulomb coefficient), where {reference} "
         f"slides with {ref}: wherever both feet slide (an onset, a push) their friction differs by |{coef} - {ref}| "
-        "Fn. The other coefficient keeps the sliding friction and gives up the stick limit; docs/contact_mapping.md "
-        "measures both on every task."
+        "Fn. The other coefficient keeps the sliding friction and gives up the stick limit (--set "
+        "backends.NAME.friction_coefficient=...); docs/contact_mapping.md measures both on every task."
     )
 
 
@@ -1035,9 +1035,10 @@ def _residual_table(result: ComparisonResult) -> Table:
         tuple(rows),
         "Each backend against the contact law it was meant to follow (docs/metrics.md, section Contact-law "
         "residuals): penetration against the spring, Fn_spring = Fn - Kd max(ydot, 0), friction magnitude while "
-        "sliding against mu Fn, mu the coefficient the backend slides with (mu_k for the law, mu_s for a "
-        "single-coefficient Coulomb engine: 1 for both when they slide as they should), friction direction against "
-        "the slip, and creep under a sub-limit load beside the law's v_th |F_t| / (mu_s Fn); the slip taken where "
+        "sliding against mu Fn, mu the coefficient the backend slides with (mu_k for the law, the one coefficient of "
+        "a Coulomb engine, mu_s unless its friction_coefficient says mu_k: 1 for both when they slide as they "
+        "should), friction direction against the slip, and creep under a sub-limit load beside the law's "
+        "v_th |F_t| / (mu_s Fn); the slip taken where "
         "each engine applies its force (run.json: contact.lift); n/a where no sample qualifies; n/a (rigid) for a "
         "backend whose contact reports no stiffness (run.json: contact.Kp null), which has no spring to compare. "
         "The first row gives what a backend following the law reads, and the tolerance: green within it, red "

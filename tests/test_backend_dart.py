@@ -21,6 +21,7 @@ from test_backends_engines import R_FOOT, check_delassus, dop853_reference, run_
 from legbench import kinematics, model, resources  # noqa: E402
 from legbench.backends import load  # noqa: E402
 from legbench.backends.base import Physics  # noqa: E402
+from legbench.scenario import physics_of  # noqa: E402
 
 #: A press with a tangential load inside the friction cone (|F_t| / Fn = 0.09 < mu_s) [N, W].
 PUSH = np.array([3.0, 2.0, -40.0])
@@ -241,6 +242,35 @@ def test_the_dantzig_sliding_miss_is_explained_by_its_predicted_bound_only() -> 
         assert DartBackend.known_deviation("sliding", q, info, far, r["expected"], tol) is None
         nsgs = {**info, "lcp_solver": "nsgs"}
         assert DartBackend.known_deviation("sliding", q, nsgs, r["measured"], r["expected"], tol) is None
+
+
+def test_the_frictionless_normal_leaves_the_friction_as_it_was_and_is_dantzigs_alone() -> None:
+    """frictionless_normal steps once with both shapes' friction at 0 and puts the coefficient back (a reviewer's
+    check: only ODE's restore was tested); its Fn is above the run's where friction pulls the foot up (1.490 Fn in
+    the engine-defaults drag: the bound 1.043 Fn); NSGS (the matched solver) and reference contact give None."""
+    from legbench.backends.dart_ import DartBackend
+    from legbench.run import simulate
+    from legbench.studies import sliding_case as S
+
+    sc = S._scenario()
+    physics = physics_of(sc, "native")
+    b = load("dart", physics, {}, "engine-defaults")
+    assert isinstance(b, DartBackend)
+    try:
+        tr = simulate(sc, b, physics)
+        k = int(np.flatnonzero(tr.t >= 0.35)[0])
+        before = [sn.getDynamicsAspect().getFrictionCoeff() for sn in b._contact_shapes()]
+        fn0 = b.frictionless_normal(tr.q[k], tr.qd[k], tr.tau[k])
+        assert [sn.getDynamicsAspect().getFrictionCoeff() for sn in b._contact_shapes()] == before == [0.7, 0.7]
+        assert fn0 is not None and fn0 / tr.f[k, 2] == pytest.approx(1.490, abs=2e-3), (fn0, tr.f[k, 2])
+    finally:
+        b.close()
+    for profile, mode in (("matched", "native"), ("engine-defaults", "reference")):
+        other = load("dart", physics_of(sc, mode), {}, profile)
+        try:
+            assert other.frictionless_normal(tr.q[k], tr.qd[k], tr.tau[k]) is None
+        finally:
+            other.close()
 
 
 def test_rest_sink_is_the_regularisations_closed_form_where_it_holds() -> None:

@@ -407,6 +407,24 @@ def test_a_setting_the_solver_does_not_read_is_a_warning() -> None:
             backend.close()
 
 
+def test_a_friction_coefficient_the_contact_parameters_do_not_read_says_why() -> None:
+    """friction_coefficient sets the discrete solvers' dynamic coefficient with the mapped contact parameters; under
+    engine-defaults' usual parameters (CoulombFriction(mu_s, mu_k)) it has no effect, and the warning names that
+    cause, not the solver (it said "not read by solver 'lagged'", sending a user to change the solver)."""
+    backend = load("drake", Physics(), {"friction_coefficient": "mu_k"}, "engine-defaults")
+    try:
+        assert backend.warnings() == ["drake: friction_coefficient 'mu_k': not read (contact_params 'usual' gives the "
+                                      "pair CoulombFriction(mu_s, mu_k)), so without effect"]  # fmt: skip
+        assert backend.slides_with() == "mu_k"  # the usual pair's dynamic coefficient, whatever the setting
+    finally:
+        backend.close()
+    backend = load("drake", Physics(), {"friction_coefficient": "mu_k"}, "matched")
+    try:
+        assert backend.warnings() == [] and backend.slides_with() == "mu_k"
+    finally:
+        backend.close()
+
+
 @pytest.mark.parametrize(("profile", "dynamic"), [("matched", "mu_s"), ("engine-defaults", "mu_k")])
 def test_info_reports_the_friction_drake_uses(profile: str, dynamic: str) -> None:
     """The settings table showed the scenario's mu_k 0.6 beside Drake's own coulomb_friction.dynamic 0.7 in the

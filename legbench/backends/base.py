@@ -157,7 +157,7 @@ def held(explanation: str, measured: float, predicted: float, tolerance: float, 
     # relative where the prediction stands clear of 0; a prediction within the tolerance of 0 (a held foot's
     # acceleration, -1e-16) has no scale of its own: the difference itself
     relative = abs(predicted) > tolerance
-    met = f"{100 * abs(measured / predicted - 1):.2g} %" if relative else f"{abs(measured - predicted):.2g}"
+    met = f"{100 * abs(measured / predicted - 1):.2g} %" if relative else f"{abs(measured - predicted):.2g} (absolute)"
     return f"{explanation}, met to {met}{after}"
 
 
@@ -181,8 +181,8 @@ def solver_bound_note(solver: str, drag: object, quantity: str, measured: float,
              else f"holds under it at {100 * holds:.0f} % of the samples")  # fmt: skip
     value, slid = float(at[key]), float(drag.get("friction_bound", math.nan))
     slid_at = f"; the run slid at {slid:.4g} Fn" if holds == 0.0 and math.isfinite(slid) else ""
-    return held(f"known: {solver} bounds each friction row by mu times the normal impulse solved before any friction "
-                f"row; re-solved without friction at each sample, that bound is {bound:.4g} Fn (mu {mu:g}{slid_at}), "
+    return held(f"known: {solver} bounds the friction by mu times the normal impulse solved before the friction "
+                f"rows; re-solved without friction at each sample, that bound is {bound:.4g} Fn (mu {mu:g}{slid_at}), "
                 f"and the axis along the drag {state}: the pyramid's closed form with it reads {value:.4g}", measured,
                 value, tolerance, after)  # fmt: skip
 
@@ -386,11 +386,13 @@ class Backend(ABC):
         return None
 
     def frictionless_normal(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> float | None:
-        """For a contact solver that bounds each friction row by mu times the normal impulse it solved without
-        friction (a boxed LCP solved the Dantzig way: ODE's dWorldStep, DART's Dantzig): the normal force [N] of that
-        solve, one engine step from q [rad], qd [rad/s] under tau [N m] with the friction off, so mu times it is the
-        bound the step's friction had; None where the bound is the current normal force or not known (default).
-        Asked by the sliding case after its run, at the scored samples; it may leave the engine anywhere."""
+        """For a contact solver that bounds the friction rows by mu times the normal impulse it solved before them,
+        without friction (a boxed LCP solved the Dantzig way: ODE's dWorldStep, DART's Dantzig; exactly so for the
+        first friction row): the normal force [N] of that solve, one engine step from q [rad], qd [rad/s] under tau
+        [N m] with the friction off, so mu times it is the bound the step's friction had; None where the bound is the
+        current normal force or not known (default). Asked by the sliding case after its run, at every sample from
+        the drag's start (the sub-step after each logged state, whose force the log reads one sub-step earlier:
+        measured on ODE, the two agree to 2e-5 of Fn); it may leave the engine anywhere."""
         return None
 
     @classmethod

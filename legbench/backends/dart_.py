@@ -24,8 +24,8 @@ the collision detector ``collision_detector`` (``fcl`` default, ``dart``,
 Kp and Kd do not apply (the foot sinks only by DART's fixed constraint regularisation,
 a relative CFM of 1e-5 and an error reduction of 0.01 capped at 1e-3 m/s, not settable
 from dartpy: 5e-10 m under 40 N at 0.05 ms; it reports no Kp y). Friction is
-Coulomb's with DART's combination rule mu = min(mu_foot, mu_ground): both shapes get mu_s; restitution 0. The foot
-sticks below mu_s Fn (no creep), unlike the spec's stick-slip law.
+Coulomb's with DART's combination rule mu = min(mu_foot, mu_ground): both shapes get mu_s (or mu_k:
+``friction_coefficient``); restitution 0. The foot sticks below mu Fn (no creep), unlike the spec's stick-slip law.
 
 Integration: DART's ``World.step`` is semi-implicit Euler (velocities from the
 forward dynamics and the constraint impulses, then positions with the new
@@ -426,11 +426,12 @@ class DartBackend(Backend):
                 force -= contact.force
 
     def frictionless_normal(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> float | None:
-        """The Dantzig solver's friction bound: DART's boxed LCP (DantzigBoxedLcpSolver, ODE's lcp.cpp) bounds each
-        friction row by mu times the normal impulse solved before any friction row, so the normal force of one step
+        """The Dantzig solver's friction bound: DART's boxed LCP (DantzigBoxedLcpSolver, ODE's lcp.cpp) bounds the
+        friction rows by mu times the normal impulse solved before them (the first row's exactly), so the normal
+        force of one step
         from (q, qd) under tau with both shapes' friction 0 [N], mu times which was the bound; None for the other
         solvers (NSGS and PGS bound by the current normal impulse) and in reference contact. Resets the engine to
-        (q, qd)."""
+        (q, qd) and steps it once."""
         if self.reference or self.cfg["lcp_solver"] != "dantzig":
             return None
         aspects = [sn.getDynamicsAspect() for sn in self._contact_shapes()]

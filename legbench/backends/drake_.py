@@ -851,10 +851,18 @@ class DrakeBackend(Backend):
         unused = self._unused_settings() - {"reference_friction"}
         given = sorted(k for k in unused if k in base and self.cfg.get(k) != base[k])
         out = []
+        coefficient = "friction_coefficient" in given
+        given = [k for k in given if k != "friction_coefficient"]
         if given:
             what = ", ".join(f"{k} {self.cfg[k]!r}" for k in given)
             out.append(f"drake: {what}: not read by solver '{self.cfg['solver']}' with {self.cfg['contact_model']} "
                        "contact, so without effect")  # fmt: skip
+        if coefficient:  # its own reason: not the solver's but the contact parameters'
+            why = ("reference contact applies the law's mu_s and mu_k" if self.reference
+                   else "the continuous plant's Stribeck friction takes both mu_s and mu_k" if self.continuous
+                   else "contact_params 'usual' gives the pair CoulombFriction(mu_s, mu_k)")  # fmt: skip
+            out.append(f"drake: friction_coefficient {self.cfg['friction_coefficient']!r}: not read ({why}), so "
+                       "without effect")  # fmt: skip
         if self._sap_lift > SAP_LIFT_SAID:
             out.append(f"drake: SAP's point contact adds mu (Kd + Kp h) |v_t| to the normal force while the foot "
                        f"slides (its convex approximation; the spec's law has none): estimated from Drake's slip "

@@ -29,9 +29,9 @@ manual's spring-damper mapping, the same as Gazebo's; h the ODE step), which
 makes the normal force ``Kp y(t+h) + Kd ydot(t+h)``: an implicit spring-damper
 that also damps while releasing and is clamped at zero, unlike the spec's law.
 Friction is ODE's pyramid: ``dContactApprox1`` (bound mu times the normal
-force) with ``mu = mu2 = mu_s`` along ODE's two tangent directions, so the
-foot sticks (Coulomb) and the largest tangential force is between mu_s Fn and
-sqrt(2) mu_s Fn depending on the direction. Without ``dContactApprox1`` ODE's
+force) with ``mu = mu2 = mu_s`` (or mu_k: ``friction_coefficient``) along ODE's two tangent directions, so the
+foot sticks (Coulomb) and the largest tangential force is between mu Fn and
+sqrt(2) mu Fn depending on the direction. Without ``dContactApprox1`` ODE's
 mu would be a force bound in newtons.
 
 Ground force: ``dJointFeedback`` of the contact joints, which ODE fills during
@@ -496,10 +496,11 @@ class OdeBackend(Backend):
         self._native_force()
 
     def frictionless_normal(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> float | None:
-        """dWorldStep's friction bound: its Dantzig LCP (lcp.cpp) bounds each friction row by mu times the normal
-        impulse solved before any friction row, so the normal force of one sub-step from (q, qd) under tau with mu =
+        """dWorldStep's friction bound: its Dantzig LCP (lcp.cpp) bounds the friction rows by mu times the normal
+        impulse solved before them (the first row's exactly; a later row's after the rows before it are in), so the
+        normal force of one sub-step from (q, qd) under tau with mu =
         mu2 = 0 [N], mu times which was the bound; None for the quick step (it bounds by the current normal force),
-        in reference contact or without a contact. Resets the engine to (q, qd)."""
+        in reference contact or without a contact. Resets the engine to (q, qd) and steps it once."""
         if self.reference or self._quick or not self._collide_on:
             return None
         kept, n_sub = [(ct.surface.mu, ct.surface.mu2) for ct in self.contacts], self.n_sub

@@ -287,53 +287,62 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     if saturated:
         notes.append(f"{saturated} ticks saturated a joint torque: h_d was not fully applied")
     off: list[tuple[str, bool]] = []  # each value off the spec, in words, and whether it is explained
+    k_known = False  # a stiffness off Kp that its backend's closed form explains
     if compliant and not math.isfinite(k_eff):
         off.append(("k eff not measured (the rests did not move apart)", False))
     if compliant and math.isfinite(k_eff) and abs(k_eff / contact.Kp - 1.0) > K_EFF_RTOL:
         # the second rest is the verification's rest case (y = Fn/Kp): the backend's measured explanation of a
         # miss there, held to its own closed form at this rest, says why the stiffness is not Kp
-        known = _known(log, "rest_penetration", "penetration R_foot - z_E", log.info, y2, f2 / contact.Kp,
-                       K_EFF_RTOL * y2)  # fmt: skip
+        known, k_known = _known(log, "rest_penetration", "penetration R_foot - z_E", log.info, y2, f2 / contact.Kp,
+                                K_EFF_RTOL * y2)  # fmt: skip
         # k eff is the chord between the two rests; the backend's closed form, a stiffness at one rest, is said so
         where = f"k eff is the chord between the two rests; at the second (Fn = {f2:.4g} N): "
         notes.append(where + known if known else f"k eff {100 * (k_eff / contact.Kp - 1.0):+.3g} % off Kp")
-        off.append((f"k eff {k_eff / contact.Kp:.4g}x Kp", bool(known)))
+        off.append((f"k eff {k_eff / contact.Kp:.4g}x Kp", k_known))
     if compliant and math.isfinite(c_eff) and abs(b) > CHORD_INTERCEPT_RTOL * abs(f1):
         notes.append(f"c eff n/a: the normal law is not linear in the depth: the chord between the rests (k eff) meets "
                      f"y = 0 at {b:.3g} N ({b / f1:+.2g} of F1, beyond {CHORD_INTERCEPT_RTOL:g}), so no spring-damper "
                      f"fits the step (the fit through that chord read {c_eff:.4g} N s/m)")  # fmt: skip
         c_eff = math.nan
-        # no damping to hold to Kd: the stiffness's own row says whether the law the engine runs is explained
-        off.append(("c eff n/a (the normal law is not linear in the depth)", True))
+        # no damping to hold to Kd: explained where the stiffness off Kp is (the backend's closed form of a normal
+        # law that is not linear, e.g. through an impedance); a curved law beside a Kp-like chord is not
+        off.append(("c eff n/a (the normal law is not linear in the depth)", k_known))
     elif compliant and not math.isfinite(c_eff):
         off.append(("c eff not measured", False))
     elif compliant and abs(c_eff / contact.Kd - 1.0) > C_EFF_RTOL:
         # the engine's own normal damping, where it has one in closed form (e.g. growing with the depth), held to it
-        known = _known(log, "damping", "normal damping c eff while pressing in", {**log.info,
-                       "transient": {"depth": depth}}, c_eff, contact.Kd, C_EFF_RTOL * abs(c_eff))  # fmt: skip
+        known, ok = _known(log, "damping", "normal damping c eff while pressing in", {**log.info,
+                           "transient": {"depth": depth}}, c_eff, contact.Kd, C_EFF_RTOL * abs(c_eff))  # fmt: skip
         if known:
             notes.append(known)
-        off.append((f"c eff {c_eff / contact.Kd:.4g}x Kd", bool(known)))
+        off.append((f"c eff {c_eff / contact.Kd:.4g}x Kd", ok))
     creep_law = contact.v_th * Ft / (contact.mu_s * Fn) if Fn > 0.0 else math.nan  # the foot off the ground: none
     if creep <= STICK_SPEED:
         if math.isfinite(creep_law) and creep_law > 0.0:
-            # Coulomb friction holds a load below mu_s Fn exactly: the law's creep is its regularisation's (v_th)
-            off.append((f"sticks where the law creeps {1e3 * creep_law:.4g} mm/s (Coulomb friction)", True))
+            # Coulomb friction holds a load below its mu Fn exactly, the law's creep being its regularisation's
+            # (v_th): explained for an engine's own contact under such a load; a law backend that sticks is not
+            own = bool(log.info.get("engine_contact", True)) and log.info.get("contact_mode") != "reference"
+            coef = str(log.info.get("sliding_coefficient", "mu_s"))
+            mu = float(getattr(contact, coef if coef in ("mu_s", "mu_k") else "mu_s"))
+            held_below = Ft < mu * Fn
+            why = "Coulomb friction" if own and held_below else "no Coulomb contact to hold it" if not own else (
+                f"Ft above {coef} Fn")  # fmt: skip
+            off.append((f"sticks where the law creeps {1e3 * creep_law:.4g} mm/s ({why})", own and held_below))
     elif math.isfinite(creep_law) and not math.isclose(creep, creep_law, rel_tol=CREEP_RTOL):
         # the engine's own tangential law, where it has one in closed form, held to the measured creep
         load = {"Fn": Fn, "Ft": Ft, "F": f[end].mean(axis=0).tolist()}
-        known = _known(log, "creep", "creep of the point of contact", {**log.info, "load": load}, creep, creep_law,
-                       CREEP_RTOL * creep)  # fmt: skip
+        known, ok = _known(log, "creep", "creep of the point of contact", {**log.info, "load": load}, creep,
+                           creep_law, CREEP_RTOL * creep)  # fmt: skip
         if known:
             notes.append(known)
         ratio = f"{creep / creep_law:.4g}x the law's" if creep_law > 0.0 else f"{1e3 * creep:.4g} mm/s, the law 0"
-        off.append((f"creep {ratio}", bool(known)))
+        off.append((f"creep {ratio}", ok))
     if not compliant:
         # no spring to fit: what the rests' dFn/dy measures is the engine's constraint regularisation, and a rest
         # that moves the other way (the pose settling) gave "inf"; the backend's closed form of its sink, if any
         fitted = f"dFn/dy {k_eff:.4g} N/m" if dy > 0.0 else "no dFn/dy"
-        known = _known(log, "rest_penetration", "penetration R_foot - z_E", {**log.info, "load": {"Fn": f2}}, y2,
-                       0.0, K_EFF_RTOL * abs(y2))  # fmt: skip
+        known, _ = _known(log, "rest_penetration", "penetration R_foot - z_E", {**log.info, "load": {"Fn": f2}}, y2,
+                          0.0, K_EFF_RTOL * abs(y2))  # fmt: skip
         notes.append(f"rigid contact: no Kp, Kd to match, so k eff and c eff do not apply (n/a): the rests moved by "
                      f"{dy:.2g} m under the added {f2 - f1:.3g} N ({fitted}): the "
                      f"engine's constraint regularisation and the pose settling, not a spring; y = {y2:.3g} m at Fn = "
@@ -352,17 +361,19 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
     )  # fmt: skip
 
 
-def _known(log: RunResult, *args: Any) -> str | None:
-    """The explanation the run's backend gives of a deviation (``Backend.known_deviation(*args)``); None from a
-    backend not installed here."""
+def _known(log: RunResult, *args: Any) -> tuple[str | None, bool]:
+    """The explanation the run's backend gives of a deviation (``Backend.known_deviation(*args)``) and whether it is
+    one: (None, False) where it gives none or is not installed here; where it raises, the note saying so and False
+    (a failing explanation explains nothing)."""
     try:
         cls = registry.get(log.backend)
     except BackendNotFound:
-        return None
+        return None, False
     try:
-        return cls.known_deviation(*args)
+        text = cls.known_deviation(*args)
     except Exception as exc:  # a backend's (a plug-in's) explanation failing must not lose the calibration
-        return one_line(f"no explanation: {log.backend}'s known_deviation raised {type(exc).__name__}: {exc}")
+        return one_line(f"no explanation: {log.backend}'s known_deviation raised {type(exc).__name__}: {exc}"), False
+    return text, text is not None
 
 
 def _failed_row(name: str, contact: ContactParams, why: str) -> dict[str, Any]:
