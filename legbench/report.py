@@ -1620,6 +1620,8 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
         ),
     ]
     blocks.append(colour_key(limits))
+    if (made := provenance(root, dirs)) is not None:
+        blocks.append(made)
     blocks += _study_blocks(root)
     if problems:
         blocks.append(Heading(2, "Backends that did not run"))
@@ -1635,6 +1637,43 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
     blocks += _profile_blocks(series)
     blocks += _bench_blocks(root)
     return blocks, dirs
+
+
+def provenance(root: Path, dirs: Sequence[Path]) -> Para | None:
+    """Which legbench commits made the tree's runs (run.json's ``versions.legbench_commit``) and its verification and
+    calibration studies (their JSON's): one sentence naming the commit where one made them all, else each commit
+    with what it made, as a warning (a tree mixing commits compares the results of different code: a reviewer read
+    a tree 41 commits behind its checkout). None for an empty tree."""
+    made: dict[str, list[str]] = {}
+    for d in dirs:
+        try:
+            commit = (read_meta(d).get("versions") or {}).get("legbench_commit")
+        except ResultsError:
+            continue
+        made.setdefault(_commit_text(commit), []).append(d.name)
+    for (study, name, *_), folder in itertools.product(STUDIES, PROFILES):
+        path = study_dir(root, study, folder) / name
+        if path.is_file():
+            doc, _ = read_study(path, "rows" if study == "calibration" else "checks")
+            commit = (doc.get("versions") or {}).get("legbench_commit")
+            made.setdefault(_commit_text(commit), []).append(path.parent.name)
+    if not made:
+        return None
+    if len(made) == 1:
+        (commit,) = made
+        return Para(f"Made by legbench {commit}: every run and study in this tree.")
+    parts = "; ".join(f"{commit}: {', '.join(names)}" for commit, names in made.items())
+    return Para(f"Made by {len(made)} legbench versions, so its tables compare the results of different code: "
+                f"{parts}. `make compare` remakes the tree at one.", warn=True)  # fmt: skip
+
+
+def _commit_text(commit: object) -> str:
+    """run.json's ``legbench_commit`` as the index says it: ``commit 1a2b3c4d5e6f`` (with `` (uncommitted
+    changes)`` where it says so), or ``of no recorded commit`` (an installed wheel, an older file)."""
+    if not isinstance(commit, str) or not commit:
+        return "of no recorded commit"
+    sha, _, rest = commit.partition(" ")
+    return f"commit {sha[:12]}" + (f" {rest}" if rest else "")
 
 
 def _series(entries: Sequence[_Entry]) -> tuple[list[_Entry], list[str]]:

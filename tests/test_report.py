@@ -1925,3 +1925,31 @@ def test_a_native_page_on_the_ground_carries_the_coefficient_note(tmp_path: Path
     assert "a slides with mu_s (friction_coefficient" in R.write_report(root / "fake", res).markdown.read_text()
     ref_md = R.write_report(root / "fake__reference", compare(root / "fake__reference")).markdown.read_text()
     assert "friction_coefficient: one Coulomb coefficient" not in ref_md
+
+
+def test_the_index_says_which_legbench_commits_made_the_tree(tmp_path: Path) -> None:
+    """A reviewer read results/latest built 41 commits behind its checkout, with nothing on the page to say so: the
+    index names the commit that made every run and study, and where they differ, each commit with what it made, as a
+    warning (a tree mixing commits compares the results of different code)."""
+    root = tmp_path / "tree"
+    for label in ("one", "two"):
+        write_run(root / label, {"ref": None, "a": scale(1.01)}, name=label)
+
+    def stamp(label: str, commit: str | None) -> None:
+        meta = json.loads((root / label / "run.json").read_text())
+        meta["versions"] = {k: v for k, v in meta.get("versions", {}).items() if k != "legbench_commit"}
+        if commit is not None:
+            meta["versions"]["legbench_commit"] = commit
+        (root / label / "run.json").write_text(json.dumps(meta))
+
+    stamp("one", "a" * 40)
+    stamp("two", "a" * 40)
+    md = R.write_index(root).markdown.read_text()
+    assert f"Made by legbench commit {'a' * 12}: every run and study in this tree." in md, md
+    stamp("two", "b" * 40 + " (uncommitted changes)")
+    (root / "verification").mkdir()
+    (root / "verification" / "verification.json").write_text(json.dumps({"checks": [], "versions": {}}))
+    md = R.write_index(root).markdown.read_text()
+    assert (f"Made by 3 legbench versions, so its tables compare the results of different code: commit {'a' * 12}: "
+            f"one; commit {'b' * 12} (uncommitted changes): two; of no recorded commit: verification. `make compare` "
+            "remakes the tree at one.") in md, md  # fmt: skip
