@@ -363,8 +363,9 @@ def coefficient_note(infos: Mapping[str, Mapping[str, Any]], reference: str) -> 
     return (
         f"{_names(names)} {verb} with {coef} (friction_coefficient: one Coulomb coefficient), where {reference} "
         f"slides with {ref}: wherever both feet slide (an onset, a push) their friction differs by |{coef} - {ref}| "
-        "Fn. The other coefficient keeps the sliding friction and gives up the stick limit (--set "
-        "backends.NAME.friction_coefficient=...); docs/contact_mapping.md measures both on every task."
+        "Fn, which can be most of a contact task's onset force difference (mu_k is a scenario parameter: the lab "
+        "report gives mu_s alone). The other coefficient keeps the sliding friction and gives up the stick limit "
+        "(--set backends.NAME.friction_coefficient=...); docs/contact_mapping.md measures both on every task."
     )
 
 
@@ -1496,6 +1497,8 @@ def _task_blocks(entries: Sequence[_Entry]) -> list[Block]:
         for e in runs:
             href = f"{e.dir.name}/report.html" if e.has_page else ""
             shared = implicit_note(e.infos) if e.mode == "reference" and _touches(e.df) else ""
+            if e.mode == "native" and _touches(e.df):  # the run page's sentence on the Coulomb coefficient, here too
+                shared = coefficient_note(e.infos, str(e.meta.get("reference", "")))
             blocks.append(Para(f"{e.label} ({e.profile} profile, {e.mode} contact): {sentence(e.meta, e.df)}"
                                + (f" {shared}" if shared else "")))  # fmt: skip
             groups[len(rows)] = f"{e.profile} profile, {e.mode} contact"

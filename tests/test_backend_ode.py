@@ -514,7 +514,10 @@ def test_the_dantzig_bound_explains_the_sliding_row_only_where_its_closed_form_m
     assert drag["at_predicted"]["acceleration"] == pytest.approx(row["measured"], rel=0.005)
     assert not row["passed"] and row["expected"] == pytest.approx(4.076, abs=0.005), row
     assert row["note"].startswith("known: dWorldStep's Dantzig LCP") and "met to" in row["note"], row["note"]
-    assert f"that bound is {drag['predicted_bound']:.4g} Fn (mu 0.7; the run slid at" in row["note"], row["note"]
+    assert (
+        f"that bound is predicted at {drag['predicted_bound']:.4g} Fn (mu 0.7 x Fn0 / Fn; measured, the run slid at"
+        in row["note"]
+    ), row["note"]
     assert f"reads {drag['at_predicted']['acceleration']:.4g}" in row["note"], row["note"]
     ask = OdeBackend.known_deviation
     q, expected, tol = row["quantity"], row["expected"], row["tolerance"]

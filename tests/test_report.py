@@ -1905,7 +1905,8 @@ def test_the_page_says_which_coulomb_engines_slide_with_another_coefficient_than
     note = R.coefficient_note(infos, "ref")
     assert note.startswith("a and d slide with mu_s (friction_coefficient: one Coulomb coefficient), where ref "
                            "slides with mu_k: wherever both feet slide (an onset, a push) their friction differs by "
-                           "|mu_s - mu_k| Fn."), note  # fmt: skip
+                           "|mu_s - mu_k| Fn, which can be most of a contact task's onset force "
+                           "difference"), note  # fmt: skip
     assert R.coefficient_note({**infos, "a": infos["b"], "d": infos["b"]}, "ref") == ""
     assert R.coefficient_note(infos, "missing") == ""
 
@@ -1923,6 +1924,9 @@ def test_a_native_page_on_the_ground_carries_the_coefficient_note(tmp_path: Path
     res = compare(root / "fake")
     assert R._touches(res.frame())
     assert "a slides with mu_s (friction_coefficient" in R.write_report(root / "fake", res).markdown.read_text()
+    # and in the index, beside the run's sentence (a reader of the index alone missed it)
+    assert "fake (matched profile, native contact): " in (index := R.write_index(root).markdown.read_text())
+    assert "a slides with mu_s (friction_coefficient" in index, index
     ref_md = R.write_report(root / "fake__reference", compare(root / "fake__reference")).markdown.read_text()
     assert "friction_coefficient: one Coulomb coefficient" not in ref_md
 

@@ -177,14 +177,17 @@ def solver_bound_note(solver: str, drag: object, quantity: str, measured: float,
     if key is None or key not in at:
         return None
     mu, bound, holds = (float(drag.get(k, math.nan)) for k in ("mu", "predicted_bound", "predicted_holds"))
-    state = ("holds under it at every sample" if holds == 1.0 else "slides at it at every sample" if holds == 0.0
+    along = float(at.get("along", math.nan))
+    state = (f"holds under it at every sample (it needs {along:.4g} Fn there; a held foot's rows do not depend on "
+             "the bound beyond that, so this checks the bound against the hold's need only)" if holds == 1.0
+             else "slides at it at every sample" if holds == 0.0
              else f"holds under it at {100 * holds:.0f} % of the samples")  # fmt: skip
     value, slid = float(at[key]), float(drag.get("friction_bound", math.nan))
-    slid_at = f"; the run slid at {slid:.4g} Fn" if holds == 0.0 and math.isfinite(slid) else ""
+    slid_at = f"; measured, the run slid at {slid:.4g} Fn" if holds == 0.0 and math.isfinite(slid) else ""
     return held(f"known: {solver} bounds the friction by mu times the normal impulse solved before the friction "
-                f"rows; re-solved without friction at each sample, that bound is {bound:.4g} Fn (mu {mu:g}{slid_at}), "
-                f"and the axis along the drag {state}: the pyramid's closed form with it reads {value:.4g}", measured,
-                value, tolerance, after)  # fmt: skip
+                f"rows; re-solved without friction at each sample, that bound is predicted at {bound:.4g} Fn (mu "
+                f"{mu:g} x Fn0 / Fn{slid_at}), and the axis along the drag {state}: the pyramid's closed form with "
+                f"it reads {value:.4g}", measured, value, tolerance, after)  # fmt: skip
 
 
 def rigid_contact(info: Mapping[str, Any]) -> bool:

@@ -558,8 +558,8 @@ def _score_pyramid(tr: RunResult, physics: Physics, cls: type[Backend], coef: st
     bound = float(np.mean(np.abs(f_meas[k[slides], 1]) / fn[slides])) if slides.any() else math.nan
     predicted = _at_predicted_bound(tr, physics, mu, k, s, fn, slides, worst, lift, poc, E)
     speed = np.abs(v_ax[k, 1])
-    ctx = (f"pyramid on {_axes_text(tr.info)}, {coef} = {mu:g}; the closed form slides the axis along the drag at "
-           f"{int(slides.sum())} of {len(k)} samples; slip along it {_span(1e3 * speed)} mm/s, "
+    ctx = (f"pyramid on {_axes_text(tr.info)}, {coef} = {mu:g}; the closed form at {coef} slides the axis along the "
+           f"drag at {int(slides.sum())} of {len(k)} samples; slip along it {_span(1e3 * speed)} mm/s, "
            f"Fn {fn.mean():.3g} N, {_contact_text(counts)}")  # fmt: skip
     acc = f"closed form M^-1 (tau - nle + J_poc^T F), F the pyramid's{_at(poc)}; {ctx}"
     if ap != 0.0:
