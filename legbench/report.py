@@ -1993,8 +1993,9 @@ def _status(r: Mapping[str, Any]) -> str:
 #: What a profile's verification tells, beside the other's (the index's paragraph over its table).
 PROFILE_VERIFIED = {
     PROFILES[0]: "Its closed forms are the spec's physics as each backend declares it runs them (its integrator "
-    "family, the friction shape and coefficient it slides with, its point of contact; a rigid contact expected not "
-    "to sink, where the spec's spring would sink Fn/Kp), with these settings chosen to match the spec: a failure "
+    "family, the friction shape and coefficient it slides with, its point of contact; a rigid contact expected to "
+    "sink by its own regularisation's closed form where it declares one, else not at all, where the spec's spring "
+    "would sink Fn/Kp), with these settings chosen to match the spec: a failure "
     "here is the engine's, or its mapping's; a pass says the engine does what it declares, and how far that is "
     "from the spec is in the declarations (the settings tables).",
     PROFILES[1]: "The same closed forms, with each engine at its own defaults (its integrator and step, Kp, Kd and "
@@ -2024,8 +2025,8 @@ def _study_blocks(root: Path) -> list[Block]:
             at = cols.index("status") if "status" in cols else -1
             css = {"as specified": "pass", "not explained": "fail", "failed": "fail"}
             marks = {(i, at): css[st] for i, r in enumerate(records) if (st := str(r.get("status"))) in css}
-            bad = sum(v == "fail" for v in marks.values())
-            open_ = f", {bad} not explained or failed" if bad else ""
+            bad = [str(records[i].get("backend")) for (i, _), v in marks.items() if v == "fail"]
+            open_ = f", {len(bad)} not explained or failed ({', '.join(bad)})" if bad else ""
             blocks.append(Heading(2, f"{heading}, {profile} profile: {_rows(len(records), 'backend')} measured"
                                      f"{open_}"))  # fmt: skip
             blocks.append(Details(f"the {_rows(len(records))}", (Table(header, rows, caption, classes=marks),),

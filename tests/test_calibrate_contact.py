@@ -75,7 +75,10 @@ def test_every_matched_row_is_as_specified_or_explained(table: pd.DataFrame) -> 
             assert (rows.loc[law, "status"], rows.loc[law, "against_spec"]) == ("as specified", ""), law
     for r in rows.itertuples():
         if r.creep < calibrate_contact.STICK_SPEED:
-            assert f"sticks where the law creeps {1e3 * r.creep_law:.4g} mm/s (Coulomb friction)" in r.against_spec
+            assert (
+                f"sticks where the law creeps {1e3 * r.creep_law:.4g} mm/s (held by the engine's contact below its "
+                "mu Fn, as Coulomb friction holds)"
+            ) in r.against_spec
         elif not math.isclose(r.creep, r.creep_law, rel_tol=calibrate_contact.CREEP_RTOL):
             assert f"creep {r.creep / r.creep_law:.4g}x the law's" in r.against_spec and "known: " in r.note, r
         if not r.compliant:
@@ -107,7 +110,7 @@ def test_a_foot_that_sticks_to_round_off_has_infinite_tangential_damping() -> No
     ("info", "force", "status", "why"),
     [
         ({"engine_contact": True, "contact_mode": "native", "sliding_coefficient": "mu_s"}, 5.0, "explained",
-         "(Coulomb friction)"),
+         "as Coulomb friction holds)"),
         ({"engine_contact": False, "contact_mode": "native", "sliding_coefficient": "mu_k"}, 5.0, "not explained",
          "(no Coulomb contact to hold it): not explained"),
         ({"engine_contact": True, "contact_mode": "reference", "sliding_coefficient": "mu_s"}, 5.0, "not explained",
@@ -223,7 +226,11 @@ def test_engine_defaults_calibration_measures_what_the_defaults_give(
     # each stiffness off Kp carries its backend's explanation of the rest, held to the engine's own closed form
     if "drake" in k:
         assert k["drake"] == pytest.approx(1.0 / (1e-4 + 1e-6), rel=1e-3)
-        assert note["drake"].startswith("k eff is the chord between the two rests; at the second (Fn = 40"), note
+        # the chord: the backend's closed form holds both rests (a secant at one is not the chord of a curved law)
+        assert note["drake"].startswith(
+            "k eff is the chord between the two rests; the backend's closed form holds "
+            "the first (Fn = 20 N) too; at the second (Fn = 40"
+        ), note
         assert "): known: the ground, registered with friction only" in note["drake"], note["drake"]
         # its springs in series are linear (the chord meets y = 0 at 1.7e-6 N, 8e-8 of F1): Hunt-Crossley's
         # dissipation keeps its fitted damping, 73.21 N s/m (to 0.1 %), and no 'c eff n/a'
@@ -243,7 +250,11 @@ def test_engine_defaults_calibration_measures_what_the_defaults_give(
         # run is deterministic: 139621.81620824273 N/m in two processes, bit for bit; held to 1e-6 (the former
         # 1.4e5 to 2 % let a 2 % drift pass)
         assert k["mujoco"] == pytest.approx(1.3962181620824273e5, rel=1e-6)
-        assert note["mujoco"].startswith("k eff is the chord between the two rests; at the second (Fn = 40"), note
+        # the chord: the backend's closed form holds both rests (a secant at one is not the chord of a curved law)
+        assert note["mujoco"].startswith(
+            "k eff is the chord between the two rests; the backend's closed form holds "
+            "the first (Fn = 20 N) too; at the second (Fn = 40"
+        ), note
         assert "): known: the usual solref (-Kp, -Kd) is not Kp N/m" in note["mujoco"], note["mujoco"]
         # the impedance makes the normal law nonlinear: the chord meets y = 0 at -4.19 N (0.21 of F1), so no single
         # damping (the fit through the origin printed 522.5 N s/m; with k free 1681, with k and b free 30.5): n/a

@@ -942,7 +942,7 @@ def test_calibration_rows_not_explained_are_counted_and_marked(tmp_path: Path) -
     (root / "calibration" / "calibration.json").write_text(json.dumps({"rows": rows}))
     R.write_all(root)
     md = (root / "report.md").read_text()
-    assert "## Contact calibration, matched profile: 3 backends measured, 1 not explained or failed" in md, md
+    assert "## Contact calibration, matched profile: 3 backends measured, 1 not explained or failed (c)" in md, md
     assert "| not explained | c eff 0.7x Kd: not explained |" in md
     page = (root / "report.html").read_text()
     assert '<td class="text short fail">not explained</td>' in page

@@ -295,8 +295,13 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
         # miss there, held to its own closed form at this rest, says why the stiffness is not Kp
         known, k_known = _known(log, "rest_penetration", "penetration R_foot - z_E", log.info, y2, f2 / contact.Kp,
                                 K_EFF_RTOL * y2)  # fmt: skip
-        # k eff is the chord between the two rests; the backend's closed form, a stiffness at one rest, is said so
-        where = f"k eff is the chord between the two rests; at the second (Fn = {f2:.4g} N): "
+        # k eff is the chord between the two rests: explained where the backend's closed form holds both rests (a
+        # stiffness at one rest, a secant, is not the chord of a law that curves); the note gives the second's
+        _, first_known = _known(log, "rest_penetration", "penetration R_foot - z_E", log.info, y1, f1 / contact.Kp,
+                                K_EFF_RTOL * y1)  # fmt: skip
+        k_known = k_known and first_known
+        where = (f"k eff is the chord between the two rests; the backend's closed form holds the first (Fn = {f1:.4g} "
+                 f"N) {'too' if first_known else 'not'}; at the second (Fn = {f2:.4g} N): ")  # fmt: skip
         notes.append(where + known if known else f"k eff {100 * (k_eff / contact.Kp - 1.0):+.3g} % off Kp")
         off.append((f"k eff {k_eff / contact.Kp:.4g}x Kp", k_known))
     if compliant and math.isfinite(c_eff) and abs(b) > CHORD_INTERCEPT_RTOL * abs(f1):
@@ -325,8 +330,8 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
             coef = str(log.info.get("sliding_coefficient", "mu_s"))
             mu = float(getattr(contact, coef if coef in ("mu_s", "mu_k") else "mu_s"))
             held_below = Ft < mu * Fn
-            why = "Coulomb friction" if own and held_below else "no Coulomb contact to hold it" if not own else (
-                f"Ft above {coef} Fn")  # fmt: skip
+            why = ("held by the engine's contact below its mu Fn, as Coulomb friction holds" if own and held_below
+                   else "no Coulomb contact to hold it" if not own else f"Ft above {coef} Fn")  # fmt: skip
             off.append((f"sticks where the law creeps {1e3 * creep_law:.4g} mm/s ({why})", own and held_below))
     elif math.isfinite(creep_law) and not math.isclose(creep, creep_law, rel_tol=CREEP_RTOL):
         # the engine's own tangential law, where it has one in closed form, held to the measured creep
