@@ -1664,7 +1664,7 @@ def provenance(root: Path, dirs: Sequence[Path]) -> Para | None:
         return None
     if len(made) == 1:
         (commit,) = made
-        return Para(f"Made by legbench {commit}: every run and study in this tree.")
+        return Para(f"Made by legbench {commit}: every run and study this index lists.")
     parts = "; ".join(f"{commit}: {', '.join(names)}" for commit, names in made.items())
     return Para(f"Made by {len(made)} legbench versions, so its tables compare the results of different code: "
                 f"{parts}. `make compare` remakes the tree at one.", warn=True)  # fmt: skip

@@ -1949,7 +1949,7 @@ def test_the_index_says_which_legbench_commits_made_the_tree(tmp_path: Path) -> 
     stamp("one", "a" * 40)
     stamp("two", "a" * 40)
     md = R.write_index(root).markdown.read_text()
-    assert f"Made by legbench commit {'a' * 12}: every run and study in this tree." in md, md
+    assert f"Made by legbench commit {'a' * 12}: every run and study this index lists." in md, md
     stamp("two", "b" * 40 + " (uncommitted changes)")
     (root / "verification").mkdir()
     (root / "verification" / "verification.json").write_text(json.dumps({"checks": [], "versions": {}}))
