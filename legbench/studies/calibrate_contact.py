@@ -318,8 +318,8 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
         # the engine's own normal damping, where it has one in closed form (e.g. growing with the depth), held to it
         known, ok = _known(log, "damping", "normal damping c eff while pressing in", {**log.info,
                            "transient": {"depth": depth}}, c_eff, contact.Kd, C_EFF_RTOL * abs(c_eff))  # fmt: skip
-        if known:
-            notes.append(known)
+        notes.append(known if known else f"c eff {c_eff:.4g} N s/m against Kd {contact.Kd:g}: the backend gives no "
+                     "closed form of its damping (docs/studies.md, section 5)")  # fmt: skip
         off.append((f"c eff {c_eff / contact.Kd:.4g}x Kd", ok))
     creep_law = contact.v_th * Ft / (contact.mu_s * Fn) if Fn > 0.0 else math.nan  # the foot off the ground: none
     if creep <= STICK_SPEED:
@@ -338,9 +338,13 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
         load = {"Fn": Fn, "Ft": Ft, "F": f[end].mean(axis=0).tolist()}
         known, ok = _known(log, "creep", "creep of the point of contact", {**log.info, "load": load}, creep,
                            creep_law, CREEP_RTOL * creep)  # fmt: skip
-        if known:
-            notes.append(known)
         ratio = f"{creep / creep_law:.4g}x the law's" if creep_law > 0.0 else f"{1e3 * creep:.4g} mm/s, the law 0"
+        notes.append(
+            known
+            if known
+            else f"creep {ratio} ({1e3 * creep:.4g} mm/s net, {1e3 * jitter:.3g} mm/s RMS "
+            "jitter about it): the backend gives no closed form of its creep (docs/studies.md, section 5)"
+        )
         off.append((f"creep {ratio}", ok))
     if not compliant:
         # no spring to fit: what the rests' dFn/dy measures is the engine's constraint regularisation, and a rest
