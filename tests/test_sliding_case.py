@@ -358,3 +358,40 @@ def test_an_acceleration_sample_counts_only_where_its_whole_stencil_is_in_contac
     u = v0 / np.linalg.norm(v0)
     v = np.einsum("nij,nj->ni", kinematics.jacobian_at(tr.q, "true", 0.0), qd)[:, :2]
     assert ((v[k0] - v[k0 - 2]) / (2 * physics.control_dt)) @ u > acc_clean["measured"] + 40.0
+
+
+def test_the_predicted_bound_reads_each_row_where_the_row_reads(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The closed form at the solver's predicted bound is read where each row reads: the friction along the drag at
+    the row's own worst sample (not the window's first), the force across and the acceleration as the rows average
+    them. With a bound made to vary over the window (0.5 to 1.3 times the run's Fn0, so the axis slides at some
+    samples and holds at others) the along value is the closed form at that sample, and differs from the first
+    sample's, so a pairing with the wrong sample is seen (a reviewer's mutation passed while the bound was flat)."""
+    _need("ode")
+    tr, physics = S.drag("ode", "matched")  # its worst along-drag sample is not the window's first (DART's is)
+    fn0 = np.asarray(tr.info["frictionless_fn"], float)
+    window = np.flatnonzero((tr.t >= S.WINDOW[0] - 1e-9) & (tr.t <= S.WINDOW[1] + 1e-9))
+    fn0[window] *= np.linspace(0.5, 1.3, len(window))
+    tr.info = {**tr.info, "frictionless_fn": fn0.tolist()}
+    asked: dict[str, object] = {}
+    real = S._with_known
+
+    def spy(cls: type, run: object, rows: list, counts: tuple, measured: dict | None = None) -> list:  # type: ignore[type-arg]
+        asked.update(measured or {})
+        return real(cls, run, rows, counts, measured)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(S, "_with_known", spy)
+    along_row = S.score(tr, physics)[0]
+    at = asked["at_predicted"]
+    holds = asked["predicted_holds"]
+    assert isinstance(at, dict) and isinstance(holds, float) and 0.0 < holds < 1.0, asked
+    k = np.flatnonzero((tr.t >= S.WINDOW[0] - 1e-9) & (tr.t <= S.WINDOW[1] + 1e-9))
+    k = k[tr.f[k, 2] > S.FN_MIN]
+    E = S.drag_frame(S.friction_axes(tr.info))
+    ratio = np.abs((tr.f[k, :2] @ E.T)[:, 1]) / tr.f[k, 2]
+    (i,) = np.flatnonzero(ratio == along_row["measured"])[:1]
+    mu = physics.contact.mu_s
+    ft, _ = S.pyramid_friction(tr.q[k], tr.qd[k], tr.tau[k], tr.f[k, 2], mu, 0.0, "true", E, physics.gravity,
+                               mu * fn0[k])  # fmt: skip
+    along = np.abs((ft @ E.T)[:, 1]) / tr.f[k, 2]
+    assert i > 0 and at["along"] == pytest.approx(along[i], rel=1e-12), (at["along"], along[i], i)
+    assert abs(along[i] - along[0]) > 1e-3, (along[i], along[0])
