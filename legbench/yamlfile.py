@@ -338,7 +338,7 @@ def _check_tree(file: str, root: yaml.Node) -> None:
     def fail(node: yaml.Node, problem: str) -> ScenarioError:
         return ScenarioError(file, "", problem, node.start_mark.line + 1)
 
-    key_of: dict[int, str] = {}  # a mapping value's key, for the errors that name it
+    path_of: dict[int, list[str | int]] = {id(root): []}  # a node's key path from the root, for the errors naming it
     stack: list[tuple[yaml.Node, int, bool]] = [(root, 1, False)]
     while stack:
         node, depth, done = stack.pop()
@@ -351,7 +351,7 @@ def _check_tree(file: str, root: yaml.Node) -> None:
         if isinstance(node, yaml.ScalarNode) and node.style is None and node.tag in _NUMBER_TAGS:
             why = _yaml11_number(node.value)
             if why:
-                raise ScenarioError(file, key_of.get(id(node), ""), why, node.start_mark.line + 1)
+                raise ScenarioError(file, keypath(path_of.get(id(node), [])), why, node.start_mark.line + 1)
         if isinstance(node, yaml.ScalarNode) and _SURROGATE.search(node.value):  # "\ud800": not UTF-8
             raise fail(node, f"{node.value!r}: a lone surrogate (a \\u escape of half a character) cannot be "
                              "written as UTF-8 text")  # fmt: skip
@@ -373,12 +373,16 @@ def _check_tree(file: str, root: yaml.Node) -> None:
             seen: dict[Any, int] = {}
             for k, v in node.value:
                 if isinstance(k, yaml.ScalarNode):
-                    key_of[id(v)] = str(k.value)
+                    path_of.setdefault(id(v), [*path_of.get(id(node), []), str(k.value)])
                 if isinstance(k, yaml.ScalarNode) and k.value != "<<":
                     if k.value in seen:
-                        raise ScenarioError(file, str(k.value), f"duplicate key (first at line {seen[k.value]})",
+                        raise ScenarioError(file, keypath([*path_of.get(id(node), []), str(k.value)]),
+                                            f"duplicate key (first at line {seen[k.value]})",
                                             k.start_mark.line + 1)  # fmt: skip
                     seen[k.value] = k.start_mark.line + 1
+        elif isinstance(node, yaml.SequenceNode):
+            for i, item in enumerate(node.value):
+                path_of.setdefault(id(item), [*path_of.get(id(node), []), i])
         size[id(node)] = -1
         stack.append((node, depth, True))
         stack.extend((c, depth + 1, False) for c in reversed(children))

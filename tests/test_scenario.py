@@ -466,6 +466,25 @@ def test_yaml_11_numbers_that_read_as_something_else_are_refused(tmp_path: Path,
     assert yamlfile.parse_overrides([f"x='{text}'", "a=0", "b=00", "c=0.5"]) == {"x": text, "a": 0, "b": 0, "c": 0.5}
 
 
+def test_the_yaml_readers_refusals_name_the_whole_key_path(tmp_path: Path) -> None:
+    """A YAML 1.1 number form deep in the file, or a duplicate key, named only its last key (``Kp: 01750``), where
+    every other scenario error names the path (a README reader's check): now ``physics.contact.Kp``,
+    ``events[0].position.joint[1]`` and ``physics.gravity``, each with its line."""
+    cases = (
+        ("physics:\n  contact:\n    Kp: 01750\n", "physics.contact.Kp: 01750: YAML 1.1 reads a leading 0 as octal"),
+        ("events:\n  - t: 0\n    position: {joint: [0, 0b11, 0]}\n",
+         "events[0].position.joint[1]: 0b11: YAML 1.1 reads this as the binary number 3"),
+        ("physics:\n  gravity: 9.8\n  gravity: 9.7\n", "physics.gravity: duplicate key (first at line 4)"),
+    )  # fmt: skip
+    for body, says in cases:
+        f = tmp_path / "s.yaml"
+        f.write_text("name: s\nduration: 1\n" + body)
+        with pytest.raises(ScenarioError) as err:
+            scenario.load(f)
+        line = 3 + body.count("\n") - 1
+        assert str(err.value).startswith(f"{f}:{line}: {says}"), err.value
+
+
 def test_a_document_that_is_no_mapping_is_refused_as_such_with_set(tmp_path: Path) -> None:
     """With --set, a scenario file holding a list was refused as "--set: duration: '' is a list of 2", naming
     neither the file nor its problem; the overrides are applied only to a mapping, and parse names the file."""
