@@ -449,21 +449,22 @@ class _Energy(model.Dynamics):
         bias's velocity derivative, (M + h D) (qd' - qd) = -h b with the bias
         b = C qd + G and D = db/dqd, then q' = q + h qd'.
         """
-        if family == "rk4":
-            return self.rk4_step(q, qd, h)
-        b = self.inverse_dynamics(q, qd, np.zeros(3))
-        M = self.mass_matrix(q)
-        if family == "implicit":
-            M = M + h * self.bias_velocity_derivative(q, qd)
-        qd1 = qd + h * np.linalg.solve(M, -b)
+        qd1 = qd + h * self.free_qdd(q, qd, h if family == "implicit" else 0.0)
         return q + h * qd1, qd1
+
+    def free_qdd(self, q: np.ndarray, qd: np.ndarray, h_implicit: float = 0.0) -> np.ndarray:
+        """The zero-torque acceleration -M^-1 b [rad/s^2], b = C qd + G the bias; with ``h_implicit`` > 0 [s], the
+        implicit step's -(M + h D)^-1 b, D = db/dqd."""
+        M = self.mass_matrix(q)
+        if h_implicit > 0.0:
+            M = M + h_implicit * self.bias_velocity_derivative(q, qd)
+        return np.linalg.solve(M, -self.inverse_dynamics(q, qd, np.zeros(3)))
 
     def rk4_step(self, q: np.ndarray, qd: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
         """One zero-torque classic RK4 step of length h [s] of (q, qd)' = (qd, -M^-1 b)."""
 
         def f(x: np.ndarray) -> np.ndarray:
-            return np.concatenate([x[3:], np.linalg.solve(self.mass_matrix(x[:3]), -self.inverse_dynamics(
-                x[:3], x[3:], np.zeros(3)))])  # fmt: skip
+            return np.concatenate([x[3:], self.free_qdd(x[:3], x[3:])])
 
         x = np.concatenate([q, qd])
         k1 = f(x)
@@ -514,15 +515,14 @@ def check_energy(
             TV, D = energy.along(tr)
             family = _family(tr.info)
             h = _sub_step(tr.info, Ts)
-            n_steps = (len(tr.t) - 1) * round(Ts / h)
-            roundoff = 4.0 * math.sqrt(n_steps) * EPS * float(np.abs(TV).max())
+            roundoff = _roundoff(TV, (len(tr.t) - 1) * round(Ts / h))
             W = float(np.abs(tr.qd).max())
             inside = bool(np.all((tr.q >= lower - 1e-9) & (tr.q <= upper + 1e-9)))
             invalid = "" if inside else "; INVALID: a joint limit was reached"
             if family in ("euler", "implicit"):
                 e2 = np.array([energy.local_rate(q, qd, family) for q, qd in zip(tr.q, tr.qd, strict=True)])
                 P = h * np.concatenate([[0.0], np.cumsum(0.5 * (e2[1:] + e2[:-1]) * np.diff(tr.t))])
-                tol = float(np.abs(P).max()) * (h * W + (Ts * W) ** 2) + roundoff
+                tol = _drift_tolerance(P, h, Ts, W, roundoff)
                 note = (f"{family} x{round(Ts / h)}: predicted E(t) - E(0) = h int e2 dt (local energy error "
                         f"e2 h^2 per step); error = max over t of |measured - predicted|; max|E - E0| = "
                         f"{np.abs(D).max():.3g} J; W = {W:.3g} rad/s{invalid}")  # fmt: skip
@@ -571,7 +571,7 @@ def check_energy(
                                            f"{coarse.reason or coarse.status}"))  # fmt: skip
                         continue
                     runs.append(("check's", coarse, _sub_step(coarse.info, Ts)))
-                rk4_fits = [_rk4_drift(energy, r, hr, Ts) for _, r, hr in runs]
+                rk4_fits = [_rk4_drift(energy, r, hr, Ts, (TV, D) if r is tr else None) for _, r, hr in runs]
                 w = max(range(len(runs)), key=lambda i: rk4_fits[i][2] / rk4_fits[i][3])  # the furthest beyond its own
                 texts = [f"{label} h = {hr:g} s: max|E - E0| = {d[4]:.3g} J, predicted {d[5]:.3g} J, error "
                          f"{d[2]:.3g} J, tolerance {d[3]:.3g} J (round-off {d[6]:.2g} J)"
@@ -596,7 +596,7 @@ def check_energy(
                 h_max = min(float(tr.info.get("max_step", Ts)), Ts)  # one solve per period: no step is longer
                 n_min = (len(tr.t) - 1) * math.ceil(Ts / h_max - 1e-9)  # the fewest steps the solver can take
                 trunc = (h_max * W) ** 5 * W * float(tr.t[-1]) * float(TV[:, 0].max())
-                roundoff = 4.0 * math.sqrt(n_min) * EPS * float(np.abs(TV).max())
+                roundoff = _roundoff(TV, n_min)
                 tol = trunc + roundoff
                 why = (f"adaptive 5(4) or higher, steps <= h = {h_max:g} s (max_step): (h W)^5 W T_end max T = "
                        f"{trunc:.2g} J with W = {W:.3g} rad/s, + round-off {roundoff:.2g} J "
@@ -610,7 +610,21 @@ def check_energy(
     return _explained(out, infos)
 
 
-def _rk4_drift(energy: _Energy, tr: Any, h: float, Ts: float) -> tuple[float, ...]:
+def _roundoff(TV: np.ndarray, n_steps: int) -> float:
+    """The energy's round-off over ``n_steps`` steps [J], adding as a random walk: 4 sqrt(n) eps max|T, V| (``TV``,
+    the run's (T, V) at every logged state)."""
+    return 4.0 * math.sqrt(n_steps) * EPS * float(np.abs(TV).max())
+
+
+def _drift_tolerance(P: np.ndarray, h: float, Ts: float, W: float, roundoff: float) -> float:
+    """The tolerance [J] on a predicted energy drift ``P`` at step ``h`` [s]: max|P| (h W + (Ts W)^2), the
+    prediction's next order and its quadrature on the log of period ``Ts`` [s] (W the run's largest joint speed
+    [rad/s]), plus ``roundoff``."""
+    return float(np.abs(P).max()) * (h * W + (Ts * W) ** 2) + roundoff
+
+
+def _rk4_drift(energy: _Energy, tr: Any, h: float, Ts: float,
+               along: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[float, ...]:  # fmt: skip
     """RK4's predicted energy drift along run ``tr`` at step ``h`` [s] against the measured one: (D(t_end),
     P(t_end), max_t |D - P|, tolerance, max|D|, max|P|, round-off) [J]. The exact flow conserves E, so
     D(t_k) = sum over the steps before t_k of the one-step error e5(x_j) h^5 + e6(x_j) h^6 + O(h^7) (e5, e6:
@@ -619,15 +633,14 @@ def _rk4_drift(energy: _Energy, tr: Any, h: float, Ts: float) -> tuple[float, ..
     O(h^2) of P (h^6, the fitted e6's own error) and the quadrature on the log, bounded as the first-order rows'
     O(h) remainder is (measured: 2.7e-4 |P| at 0.5 ms, 4.5e-4 at 1 ms, against h W + (Ts W)^2 = 9.8e-3 and 1.9e-2;
     the prediction to h^4 alone missed by 2.2e-2 and 4.4e-2, 2.3 h W), and the round-off of n steps adding as a
-    random walk (2.3e-14 J measured at 50 us against 5.4e-13 J)."""
-    TV, D = energy.along(tr)
+    random walk (2.3e-14 J measured at 50 us against 5.4e-13 J). ``along``: the run's :meth:`_Energy.along`, where
+    the caller has it."""
+    TV, D = energy.along(tr) if along is None else along
     e = np.array([energy.rk4_rates(q, qd) for q, qd in zip(tr.q, tr.qd, strict=True)])
     I5, I6 = (scipy.integrate.cumulative_simpson(e[:, i], x=tr.t, initial=0.0) for i in (0, 1))
     P = h**4 * (I5 + h * (I6 - 0.5 * (e[:, 0] - e[0, 0])))
-    W = float(np.abs(tr.qd).max())
-    n = (len(tr.t) - 1) * round(Ts / h)
-    roundoff = 4.0 * math.sqrt(n) * EPS * float(np.abs(TV).max())
-    tol = float(np.abs(P).max()) * (h * W + (Ts * W) ** 2) + roundoff
+    roundoff = _roundoff(TV, (len(tr.t) - 1) * round(Ts / h))
+    tol = _drift_tolerance(P, h, Ts, float(np.abs(tr.qd).max()), roundoff)
     return (float(D[-1]), float(P[-1]), float(np.abs(D - P).max()), tol, float(np.abs(D).max()),
             float(np.abs(P).max()), roundoff)  # fmt: skip
 
