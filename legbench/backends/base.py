@@ -80,7 +80,7 @@ def declared_problem(family: object, sub_steps: object, coefficient: object) -> 
         return f"integrator_family() returned {family!r}, not one of {', '.join(INTEGRATOR_FAMILIES)}"
     if not isinstance(sub_steps, int) or isinstance(sub_steps, bool) or sub_steps < 1:
         return f"sub_steps() returned {sub_steps!r}, not a whole number >= 1 (1 for an adaptive solve per period)"
-    if coefficient not in ("mu_s", "mu_k"):
+    if coefficient not in FRICTION_COEFFICIENTS:
         return f"slides_with() returned {coefficient!r}, not 'mu_s' or 'mu_k'"
     return None
 

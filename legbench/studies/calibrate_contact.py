@@ -48,7 +48,7 @@ import pandas as pd
 from legbench import backends as registry
 from legbench import kinematics, model, resources
 from legbench import scenario as scenario_mod
-from legbench.backends.base import PROFILES, contact_point, rigid_contact
+from legbench.backends.base import FRICTION_COEFFICIENTS, PROFILES, contact_point, rigid_contact
 from legbench.contact import ContactParams
 from legbench.controllers import EffortController, saturate
 from legbench.exceptions import BackendNotFound, LegbenchError
@@ -327,8 +327,9 @@ def estimate(log: RunResult, program: Program, contact: Any, saturated: int = 0)
             # Coulomb friction holds a load below its mu Fn exactly, the law's creep being its regularisation's
             # (v_th): explained for an engine's own contact under such a load; a law backend that sticks is not
             own = bool(log.info.get("engine_contact", True)) and log.info.get("contact_mode") != "reference"
-            coef = str(log.info.get("sliding_coefficient", "mu_s"))
-            mu = float(getattr(contact, coef if coef in ("mu_s", "mu_k") else "mu_s"))
+            coef = log.info.get("sliding_coefficient")
+            coef = coef if coef in FRICTION_COEFFICIENTS else "mu_s"  # a run that recorded none: the spec's limit
+            mu = float(getattr(contact, coef))
             held_below = Ft < mu * Fn
             why = ("held by the engine's contact below its mu Fn, as Coulomb friction holds" if own and held_below
                    else "no Coulomb contact to hold it" if not own else f"Ft above {coef} Fn")  # fmt: skip

@@ -47,7 +47,7 @@ import numpy as np
 from legbench import backends as registry
 from legbench import kinematics, resources
 from legbench import scenario as scenario_mod
-from legbench.backends.base import Backend, Physics, contact_point, explained_note
+from legbench.backends.base import FRICTION_COEFFICIENTS, Backend, Physics, contact_point, explained_note
 from legbench.model import Dynamics, load_params
 from legbench.results import RunResult
 from legbench.run import physics_of, simulate
@@ -246,7 +246,7 @@ def sliding_coefficient(info: Mapping[str, Any], cls: type[Backend]) -> str:
     info as ``sliding_coefficient`` by :func:`legbench.run.backend_info`), else the class's
     :attr:`~legbench.backends.base.Backend.sliding_coefficient`."""
     coef = info.get("sliding_coefficient")
-    return coef if coef in ("mu_k", "mu_s") else cls.sliding_coefficient
+    return coef if coef in FRICTION_COEFFICIENTS else cls.sliding_coefficient
 
 
 def _declared_axes(info: Mapping[str, Any] | None) -> np.ndarray | None:
