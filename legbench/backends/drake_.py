@@ -817,24 +817,29 @@ class DrakeBackend(Backend):
         )
         return k_ground / (k_foot + k_ground)
 
-    def _unused_settings(self) -> set[str]:
-        """Settings the configured solver and contact model do not read, left out of :meth:`info` so the
-        report's settings table lists only what acted: SAP regularises friction itself (no stiction
-        tolerance) and reads the relaxation time, not the Hunt-Crossley d of ``hc_reference_depth`` (point
-        contact); the near-rigid threshold is SAP's; ``accuracy`` the continuous plant's; ``resolution_hint``
-        the hydroelastic mesh's."""
+    def _unused_settings(self) -> dict[str, str]:
+        """Settings the configured solver and contact model do not read, each with why (for :meth:`warnings`), left
+        out of :meth:`info` so the report's settings table lists only what acted: SAP regularises friction itself
+        (no stiction tolerance) and reads the relaxation time, not the Hunt-Crossley d of ``hc_reference_depth``
+        (point contact); the near-rigid threshold is SAP's; ``accuracy`` the continuous plant's; ``resolution_hint``
+        the hydroelastic mesh's; ``friction_coefficient`` the mapped discrete pair's (its cause is the contact
+        parameters, not the solver)."""
         solver, model = self.cfg["solver"], self.cfg["contact_model"]
-        unused = {"stiction_tolerance"} if solver == "sap" else {"sap_near_rigid_threshold"}
+        by_solver = f"not read by solver '{solver}' with {model} contact"
+        unused = {"stiction_tolerance" if solver == "sap" else "sap_near_rigid_threshold": by_solver}
         if solver == "sap" and model == "point":
-            unused.add("hc_reference_depth")
+            unused["hc_reference_depth"] = by_solver
         if solver != "continuous":
-            unused.add("accuracy")
+            unused["accuracy"] = by_solver
         if model != "hydroelastic":
-            unused.add("resolution_hint")
+            unused["resolution_hint"] = by_solver
         if not self.reference:
-            unused.add("reference_friction")
+            unused["reference_friction"] = by_solver
         if self.reference or self.continuous or self.cfg["contact_params"] != "mapped":
-            unused.add("friction_coefficient")  # the law's, Stribeck's or the usual (mu_s, mu_k)
+            why = ("reference contact applies the law's mu_s and mu_k" if self.reference
+                   else "the continuous plant's Stribeck friction takes both mu_s and mu_k" if self.continuous
+                   else "contact_params 'usual' gives the pair CoulombFriction(mu_s, mu_k)")  # fmt: skip
+            unused["friction_coefficient"] = f"not read ({why})"
         return unused
 
     def _integrator_name(self) -> str:
@@ -848,21 +853,14 @@ class DrakeBackend(Backend):
         did not say."""
         base = {**self.defaults, **self.profiles.get(self.profile, {})}
         # reference_friction is the contact mode's business (a scenario run in both modes gives it for one)
-        unused = self._unused_settings() - {"reference_friction"}
+        unused = self._unused_settings()
+        unused.pop("reference_friction", None)
         given = sorted(k for k in unused if k in base and self.cfg.get(k) != base[k])
         out = []
-        coefficient = "friction_coefficient" in given
-        given = [k for k in given if k != "friction_coefficient"]
-        if given:
-            what = ", ".join(f"{k} {self.cfg[k]!r}" for k in given)
-            out.append(f"drake: {what}: not read by solver '{self.cfg['solver']}' with {self.cfg['contact_model']} "
-                       "contact, so without effect")  # fmt: skip
-        if coefficient:  # its own reason: not the solver's but the contact parameters'
-            why = ("reference contact applies the law's mu_s and mu_k" if self.reference
-                   else "the continuous plant's Stribeck friction takes both mu_s and mu_k" if self.continuous
-                   else "contact_params 'usual' gives the pair CoulombFriction(mu_s, mu_k)")  # fmt: skip
-            out.append(f"drake: friction_coefficient {self.cfg['friction_coefficient']!r}: not read ({why}), so "
-                       "without effect")  # fmt: skip
+        for why in dict.fromkeys(unused.values()):  # one sentence per cause: the solver's, then the parameters'
+            what = ", ".join(f"{k} {self.cfg[k]!r}" for k in given if unused[k] == why)
+            if what:
+                out.append(f"drake: {what}: {why}, so without effect")
         if self._sap_lift > SAP_LIFT_SAID:
             out.append(f"drake: SAP's point contact adds mu (Kd + Kp h) |v_t| to the normal force while the foot "
                        f"slides (its convex approximation; the spec's law has none): estimated from Drake's slip "
