@@ -1444,6 +1444,7 @@ class _Entry:
     df: pd.DataFrame
     has_page: bool  # the run has a report.html to link to
     infos: Mapping[str, Mapping[str, Any]]  # backend -> its info in run.json (settings as used)
+    made_by: str = "of no recorded commit"  # the legbench commit that made the run, as the index says it
 
 
 def _entries(dirs: Sequence[Path], metrics_files: Mapping[Path, Path] | None = None,
@@ -1473,6 +1474,7 @@ def _entries(dirs: Sequence[Path], metrics_files: Mapping[Path, Path] | None = N
                 df,
                 d in pages or (d / "report.html").is_file(),
                 {str(b): dict(v.get("info") or {}) for b, v in (run_meta.get("backends") or {}).items()},
+                _commit_text((run_meta.get("versions") or {}).get("legbench_commit")),
             )
         )
     return out
@@ -1623,7 +1625,7 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
         ),
     ]
     blocks.append(colour_key(limits))
-    if (made := provenance(root, dirs)) is not None:
+    if (made := provenance(root, entries)) is not None:
         blocks.append(made)
     blocks += _study_blocks(root)
     if problems:
@@ -1642,18 +1644,14 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
     return blocks, dirs
 
 
-def provenance(root: Path, dirs: Sequence[Path]) -> Para | None:
+def provenance(root: Path, entries: Sequence[_Entry]) -> Para | None:
     """Which legbench commits made the tree's runs (run.json's ``versions.legbench_commit``) and its verification and
     calibration studies (their JSON's): one sentence naming the commit where one made them all, else each commit
     with what it made, as a warning (a tree mixing commits compares the results of different code: a reviewer read
     a tree 41 commits behind its checkout). None for an empty tree."""
     made: dict[str, list[str]] = {}
-    for d in dirs:
-        try:
-            commit = (read_meta(d).get("versions") or {}).get("legbench_commit")
-        except ResultsError:
-            continue
-        made.setdefault(_commit_text(commit), []).append(d.name)
+    for e in entries:  # each run's run.json, as the index read it
+        made.setdefault(e.made_by, []).append(e.dir.name)
     for (study, name, *_), folder in itertools.product(STUDIES, PROFILES):
         path = study_dir(root, study, folder) / name
         if path.is_file():
