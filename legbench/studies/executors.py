@@ -157,10 +157,26 @@ DEFAULT_PRELOAD = ("legbench.run", "legbench.studies.tasks", "legbench.backends.
 TASK_PRELOAD = DEFAULT_PRELOAD[:2]
 
 
-def _worker_init(preload: Sequence[str]) -> None:
-    """Start of a worker process: Ctrl-C is the parent's business (it stops its workers), then the imports."""
+#: The environment variables :func:`_start_server` sets for the fork server, which its workers inherit.
+_SERVER_ENV = ("PYTHONSAFEPATH", "PYTHONPATH")
+
+
+def _worker_init(preload: Sequence[str], env: dict[str, str | None]) -> None:
+    """Start of a worker process: the parent's values of :data:`_SERVER_ENV` (``env``) back in place of the
+    fork server's, for any process the task starts; Ctrl-C is the parent's business (it stops its workers);
+    then the imports."""
+    for name, value in env.items():
+        if value is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = value
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _preload(preload)
+
+
+def _parent_env() -> dict[str, str | None]:
+    """This process's values of :data:`_SERVER_ENV`, for :func:`_worker_init` (None: not set)."""
+    return {name: os.environ.get(name) for name in _SERVER_ENV}
 
 
 def _preload(preload: Sequence[str]) -> None:
@@ -236,17 +252,45 @@ def _mp_context(preload: Sequence[str]) -> multiprocessing.context.BaseContext:
     ctx = multiprocessing.get_context(method)
     if method == "forkserver":
         ctx.set_forkserver_preload(list(dict.fromkeys(["numpy", "pandas", *preload])))  # type: ignore[attr-defined]
+        _start_server()
     return ctx
+
+
+_SERVER_LOCK = threading.Lock()
+
+
+def _start_server() -> None:
+    """Start the fork server (if it is not running) on this process's import path, not the current directory's.
+
+    The server is a ``python -c`` process, which puts the current directory first on its path, and Python
+    before 3.12.8 (3.13.1) ignores the path the parent sends it (CPython gh-117378): run from another checkout's
+    directory, the server imported that checkout's legbench for its preload and every worker forked from it ran
+    that code, not the one the user called. The server is started here with ``PYTHONSAFEPATH`` (no current
+    directory) and ``PYTHONPATH`` this process's ``sys.path``, the workaround the CPython fix names; the two
+    variables are put back as they were as soon as the server process exists (here) and as each worker starts
+    (:func:`_worker_init`). A no-op while the server runs.
+    """
+    from multiprocessing import forkserver
+
+    path = os.pathsep.join(os.path.abspath(p) if p == "" else p for p in sys.path)
+    with _SERVER_LOCK:
+        saved = _parent_env()
+        os.environ.update(PYTHONSAFEPATH="1", PYTHONPATH=path)
+        try:
+            forkserver.ensure_running()
+        finally:
+            for name, value in saved.items():
+                if value is None:
+                    os.environ.pop(name, None)
+                else:
+                    os.environ[name] = value
 
 
 def warm_up(preload: Sequence[str] = DEFAULT_PRELOAD) -> None:
     """Start the fork server now, for a caller that learns how many tasks it has only later: the server imports
     ``preload`` in the background while the caller plans, and the workers a :class:`LocalExecutor` made after
     (sized to the tasks) fork from it ready, in milliseconds. Nothing where there is no fork server."""
-    if _mp_context(preload).get_start_method() == "forkserver":
-        from multiprocessing import forkserver
-
-        forkserver.ensure_running()
+    _mp_context(preload)  # starts the fork server where there is one
 
 
 def capped(jobs: int | None, tasks: int | None) -> int:
@@ -328,7 +372,7 @@ class LocalExecutor(Executor):
                 max_workers=self.jobs,
                 mp_context=context,
                 initializer=_worker_init,
-                initargs=(self.preload,),
+                initargs=(self.preload, _parent_env()),
             )
         return self._pool
 
@@ -412,7 +456,10 @@ class LocalExecutor(Executor):
     def _alone(self, fn: Callable[[T], R], x: T, on_crash: Callable[[T, str], R]) -> R:
         """``fn(x)`` alone in a one-worker pool; ``on_crash(x, why)`` if its worker dies (it is the culprit)."""
         solo = ProcessPoolExecutor(
-            max_workers=1, mp_context=_mp_context(self.preload), initializer=_worker_init, initargs=(self.preload,)
+            max_workers=1,
+            mp_context=_mp_context(self.preload),
+            initializer=_worker_init,
+            initargs=(self.preload, _parent_env()),
         )
         fut: Future[Any] = solo.submit(_call, fn, x)
         procs = list((getattr(solo, "_processes", None) or {}).values())
