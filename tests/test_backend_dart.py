@@ -200,6 +200,21 @@ def test_info_gives_the_pairs_friction_as_dart_combines_it() -> None:
         backend.close()
 
 
+def test_info_lists_only_the_settings_that_acted() -> None:
+    """The report's settings table lists what acted (as MuJoCo's, PyBullet's and Drake's do): in reference contact
+    nothing collides, so the contact's own settings (its friction coefficient, the force read-out, the collision
+    detector) are left out and the law's reference_friction is there; native contact the other way round."""
+    contact_only = {"friction_coefficient", "force_readout", "collision_detector"}
+    for mode, absent, present in (("reference", contact_only, {"reference_friction", "lcp_solver"}),
+                                  ("native", {"reference_friction"}, contact_only | {"lcp_solver"})):  # fmt: skip
+        backend = load("dart", dataclasses.replace(Physics(), contact_mode=mode), {}, "matched")
+        try:
+            info = backend.info()
+            assert not absent & info.keys() and present <= info.keys(), mode
+        finally:
+            backend.close()
+
+
 def test_info_gives_the_contact_rows_delassus_from_the_engines_own_mass_matrix() -> None:
     """info()'s at_end.delassus, W = J M^-1 J^T at the sphere's lowest point with the engine's own mass matrix
     (what the calibration's creep closed form is built on), equals the spec leg's (Pinocchio's M) to 1e-6 of its

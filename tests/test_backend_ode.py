@@ -8,6 +8,7 @@ are the ODE-specific ones. Skipped where libode or odepy is missing.
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import importlib.abc
 import importlib.util
 import re
@@ -69,6 +70,19 @@ def press(backend: Any, push: np.ndarray, duration: float = 1.5) -> dict[str, np
         log["q"][k] = backend.state()[0]
         log["F"][k] = backend.ground_force()
     return log
+
+
+def test_info_lists_only_the_settings_that_acted(loaded: list[Backend]) -> None:
+    """The report's settings table lists what acted (as MuJoCo's, PyBullet's and Drake's do): in reference contact
+    there are no contact joints, so their settings (the friction coefficient, the ground's stiffness and damping,
+    the contact caps and layers) are left out and the law's reference_friction is there; native contact the other
+    way round; the quick step's own settings only under dWorldQuickStep."""
+    contact_only = set(ode_.CONTACT_ONLY)
+    for mode, stepper in (("reference", "world"), ("native", "world"), ("native", "quick")):
+        info = load(loaded, dataclasses.replace(Physics(), contact_mode=mode), stepper=stepper).info()
+        assert (contact_only <= info.keys()) is (mode == "native"), mode
+        assert ("reference_friction" in info) is (mode == "reference"), mode
+        assert (set(ode_.QUICK_ONLY) <= info.keys()) is (stepper == "quick") and "erp" in info, stepper
 
 
 # --------------------------------------------------------------------------- #

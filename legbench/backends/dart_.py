@@ -491,6 +491,10 @@ class DartBackend(Backend):
         world, c = self.world, self.physics.contact
         solver = world.getConstraintSolver()
         # the pair's coefficient as DART combines them, min(mu_foot, mu_ground): the foot's shapes and the ground's
+        # settings that do not act, left out so the report's settings table lists only what did: in reference contact
+        # (nothing collides) the contact's own, in native contact the reference law's
+        unused = {"friction_coefficient", "force_readout", "collision_detector"} if (
+            self.reference) else {"reference_friction"}  # fmt: skip
         pair_dyn = [
             body.getShapeNode(i).getDynamicsAspect()
             for body in (self.foot, self.ground.getBodyNode(0))
@@ -506,7 +510,7 @@ class DartBackend(Backend):
                 if not self.reference and friction_shape(self.cfg["lcp_solver"]) == "pyramid"
                 else {}
             ),
-            **{k: self.cfg[k] for k in self.defaults},
+            **{k: self.cfg[k] for k in self.defaults if k not in unused},
             "sub_steps": self.n_sub,
             "timestep": world.getTimeStep(),
             "integrator": "euler",  # World.step: semi-implicit Euler (the family verification predicts by)

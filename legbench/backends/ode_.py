@@ -112,6 +112,9 @@ MAX_CONTACTS = 4
 ODE_ERP, ODE_CFM = 0.2, 1e-10
 #: Settings only ``dWorldQuickStep`` reads (left out of :meth:`OdeBackend.info` under ``dWorldStep``).
 QUICK_ONLY = ("iterations", "sor", "row_order")
+#: Settings only the contact joints read (native contact): none acts in reference contact.
+CONTACT_ONLY = ("contact_max_correcting_vel", "contact_surface_layer", "surface_max_vel", "surface_min_depth",
+                "ground_kp", "ground_kd", "friction_coefficient")  # fmt: skip
 #: The seed of an instance's random generator at reset (quick-step row reordering), and before every step with
 #: ``row_order: repeated``.
 SEED = 0
@@ -628,7 +631,7 @@ class OdeBackend(Backend):
             "version": _ode_version(),
             "binding": f"ode-python {metadata.version('ode-python')}",
             # the quick step's own settings only where it steps (the report's settings table lists what acted)
-            **{k: self.cfg[k] for k in self.defaults if self._quick or k not in QUICK_ONLY},
+            **{k: self.cfg[k] for k in self.defaults if k not in self._unused_settings()},
             "integrator": f"ODE {'dWorldStep' if not self._quick else 'dWorldQuickStep'} (semi-implicit, first order)",
             "integrator_family": self.integrator_family(),
             "sub_steps": self.n_sub,
@@ -669,6 +672,17 @@ class OdeBackend(Backend):
                 "force_reported": "dJointFeedback of the last sub-step",
             },
         }
+
+    def _unused_settings(self) -> set[str]:
+        """Settings this load does not read, left out of :meth:`info` so the report's settings table lists only
+        what acted: the quick step's own under dWorldStep, ``reference_friction`` in native contact, and in
+        reference contact (no contact joints) the contact joints' settings."""
+        unused = set() if self._quick else set(QUICK_ONLY)
+        if self.reference:
+            unused |= set(CONTACT_ONLY)
+        else:
+            unused.add("reference_friction")
+        return unused
 
     # ------------------------------------------------------- declared abilities
     def integrator_family(self) -> str:
