@@ -782,3 +782,31 @@ def test_info_says_what_computes_the_dynamics(kernel: str, start: str) -> None:
         assert be.info()["dynamics"].startswith(start)
     finally:
         be.close()
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "words"),
+    [
+        ('damping="0"', 'damping="0.05"', "joint damping [0.05, 0.05, 0.05]: pin.aba does not apply it"),
+        ('friction="0"', 'friction="0.2"', "joint friction [0.2, 0.2, 0.2]: pin.aba does not apply it"),
+        (
+            'lower="-2.229" upper="2.229"',
+            'lower="-2.0" upper="2.229"',
+            "joint q3_knee limits (-2.0, 2.229) rad, the leg",
+        ),
+    ],
+)
+def test_a_urdf_the_backend_would_simulate_otherwise_is_refused(tmp_path: Path, old: str, new: str, words: str) -> None:
+    """pin.aba (and the compiled ABA) ignores a URDF's joint damping and dry friction, and the limit law takes the
+    leg's limits, not the URDF's: a URDF given to load() by hand with either is refused, naming the file and what
+    would be dropped, instead of a run that silently leaves it out. The leg's own URDF loads (every other test)."""
+    from legbench import resources
+    from legbench.exceptions import ModelError
+
+    text = resources.urdf_file().read_text(encoding="utf-8")
+    assert old in text
+    urdf = tmp_path / "leg.urdf"
+    urdf.write_text(text.replace(old, new), encoding="utf-8")
+    with pytest.raises(ModelError) as err:
+        PinocchioBackend().load(urdf, Physics(), {})
+    assert str(err.value).startswith(f"{urdf}: {words}"), str(err.value)

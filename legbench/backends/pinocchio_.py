@@ -4,7 +4,7 @@ Forward dynamics qdd = aba(q, qd, tau + tau_c + tau_lim): tau_c = J_poc^T F is t
 analytic ground force (:mod:`legbench.contact`) applied at the point of contact,
 equivalent to an external force on the foot; tau_lim is a stiff one-sided
 spring-damper at the revolute joint limits (ABA knows no limits; Pinocchio's own
-constraint models and solvers, rigid, are not used: :mod:`legbench.backends.joint_limits`), which makes
+constraint models and solvers are not used: :mod:`legbench.backends.joint_limits`), which makes
 the knee stop like the engines' limit constraints: 10 N m pushing the knee into
 its 2.229 rad limit rests at 2.230 rad (1e4 N m/rad); MuJoCo rests at 2.2292
 after overshooting to 2.252, PyBullet's hard limit peaks at 2.2293.
@@ -43,7 +43,7 @@ control period; the contact law at the true point of contact as Simscape had it 
 
 Ground force read-out: the law at the state at the end of the control period
 (it is a function of the state); it matches the leg's statics over the effort
-task's last 0.5 s to 1e-6 of Fn.
+task's last 0.5 s to 1.2e-6 of Fn.
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ from legbench.contact import (
     implicit_velocity_step,
     law_step_warnings,
 )
-from legbench.exceptions import LegbenchError
+from legbench.exceptions import LegbenchError, ModelError
 from legbench.model import JOINT_NAMES, LINK_NAMES, load_params
 
 
@@ -126,6 +126,7 @@ class PinocchioBackend(Backend):
         p = load_params()
         self.lower = [j.lower for j in p.joints]
         self.upper = [j.upper for j in p.joints]
+        self._check_model(urdf)
         #: tau_lim at the revolute limits (the continuous hip has none: +-inf)
         self.limit_law = JointLimitLaw(self.lower, self.upper, self.cfg["limit_stiffness"], self.cfg["limit_damping"])
         self._qp = np.zeros(self.model.nq)
@@ -153,6 +154,29 @@ class PinocchioBackend(Backend):
         self._dopri = self._load_dopri() if self.cfg["integrator"] == "rk45" else None
         if self._dopri is not None:
             self._step = self._rk45_compiled
+
+    def _check_model(self, urdf: Path) -> None:
+        """Refuse a URDF whose joints this backend would simulate otherwise than it says: joint damping or dry
+        friction (``<dynamics>``; ``pin.aba`` and the compiled ABA ignore both), or position limits other than the
+        leg's (the limit law takes them from the leg's parameters, not from the URDF). legbench's own URDF has
+        neither; one given to :meth:`load` by hand could."""
+        model = self.model
+        for what, values in (("damping", model.damping), ("friction", model.friction)):
+            if np.any(np.asarray(values) != 0.0):
+                raise ModelError(f"{urdf}: joint {what} {np.asarray(values).tolist()}: pin.aba does not apply it; "
+                                 "the leg's joints have none (put it in the controller, or use an engine that models "
+                                 "it)")  # fmt: skip
+        for name, lo, hi in zip(JOINT_NAMES, self.lower, self.upper, strict=True):
+            idx = model.getJointId(name)
+            if idx >= model.njoints:
+                raise ModelError(f"{urdf}: no joint {name!r}")
+            if model.joints[idx].nq != 1 or not math.isfinite(lo):  # the continuous hip: no limits to compare
+                continue
+            got = (float(model.lowerPositionLimit[model.joints[idx].idx_q]),
+                   float(model.upperPositionLimit[model.joints[idx].idx_q]))  # fmt: skip
+            if not np.allclose(got, (lo, hi), rtol=0.0, atol=1e-9):
+                raise ModelError(f"{urdf}: joint {name} limits {got} rad, the leg's are ({lo}, {hi}) rad: the limit "
+                                 "law takes the leg's")  # fmt: skip
 
     def _kernel_inputs(self, fallback: str) -> tuple[Any, ...] | None:
         """The model's arrays (:func:`pinocchio_kernel.model_arrays`), the law's constants and the limits', for a
@@ -526,7 +550,8 @@ class PinocchioBackend(Backend):
 
     def engine_contact(self) -> bool:
         """The contact is legbench's analytic law in both modes: Pinocchio's ABA has none, and Pinocchio's
-        own constraint solvers (rigid point contacts in a friction cone, ADMM or PGS) are not used."""
+        own constraint solvers (unilateral point contacts in a friction cone, rigid or linearly compliant, ADMM
+        or PGS), which cannot express the law's press-in-only damping and its slip-speed friction, are not used."""
         return False
 
     def sub_steps(self) -> int:
