@@ -38,6 +38,7 @@ from legbench.metrics import (
     check_lag_mode,
     contact_split,
     pair_metrics,
+    reference_peak,
     steady_state,
 )
 from legbench.resources import shown
@@ -361,8 +362,9 @@ def compare(
                 pairs.append(pair_metrics(tr, traces[reference], run.skip, lag, max_lag, lag_signals))
     if all_pairs:
         # the spec's denominator for every pair: the scenario reference's peak (docs/metrics.md), so a-vs-b and
-        # b-vs-a share it and every pair of a component is a share of one number
-        peak = next((p.ref_peak for p in pairs if p.reference == reference), None)
+        # b-vs-a share it and every pair of a component is a share of one number; the reference's own, not the
+        # first pair's (over the span the first backend covered: a backend that stopped early cut it short)
+        peak = reference_peak(traces[reference], run.skip) if reference in traces else None
         for a in traces:
             for b in traces:
                 if a != b and b != reference:

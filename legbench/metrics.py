@@ -53,6 +53,7 @@ __all__ = [
     "mean",
     "pair_metrics",
     "peak_pct",
+    "reference_peak",
     "rms",
     "signal_errors",
     "steady_state",
@@ -557,6 +558,14 @@ def check_lag_mode(lag: str) -> None:
     """Raise ValueError unless ``lag`` is one of :data:`LAG_MODES`."""
     if lag not in LAG_MODES:
         raise ValueError(f"lag must be 'off', 'report' or 'remove', not {lag!r}")
+
+
+def reference_peak(ref: RunResult, skip: float = 0.0, wrap: np.ndarray | None = None) -> np.ndarray:
+    """The scenario reference's peak max_t |x_ref| over its samples at t >= ``skip`` [signal units], the hip
+    unwrapped (as :func:`align` gives it): the one denominator of ``sim_error_pct`` for the pairs of two other
+    backends (``pair_metrics(..., peak=)``), whichever of them ran shortest."""
+    w = wrap_mask() if wrap is None else np.asarray(wrap, dtype=bool)
+    return max_abs(_unwrap_columns(ref.data, w)[ref.t >= skip - T_EPS])
 
 
 def pair_metrics(

@@ -46,7 +46,7 @@ from legbench.backends.base import PROFILES, contact_point
 from legbench.compare import first_contact
 from legbench.exceptions import BackendNotFound, LegbenchError, ScenarioError
 from legbench.exitcodes import EXIT_BACKEND_FAILED, EXIT_OK
-from legbench.metrics import FRICTION_FLOOR, SLIDE_FLOOR, T_EPS, SteadyState, pair_metrics, steady_state
+from legbench.metrics import FRICTION_FLOOR, SLIDE_FLOOR, T_EPS, SteadyState, pair_metrics, reference_peak, steady_state
 from legbench.results import Run, load_run
 from legbench.scenario import Scenario
 from legbench.signals import SLICE
@@ -372,7 +372,7 @@ def sim_error_table(plan: Plan, run_: Run) -> Table:
     peak (docs/metrics.md: one denominator, so a against b is b against a, and each pair is shown once), every
     ordered pair over b's own peak where the reference did not run."""
     ref = run_.traces.get(run_.reference)
-    peak = None if ref is None else pair_metrics(ref, ref, run_.skip).ref_peak
+    peak = None if ref is None else reference_peak(ref, run_.skip)
     fws = plan.frameworks
     pairs = [(a, b) for i, a in enumerate(fws) for j, b in enumerate(fws) if (i < j if ref is not None else i != j)]
     rows: list[tuple[Any, ...]] = []
