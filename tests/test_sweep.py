@@ -471,6 +471,49 @@ def test_fixed_values_valid_only_together_pass_and_a_pair_that_fails_is_named(tm
 
 
 @pytest.mark.parametrize(
+    ("grid", "set_", "words"),
+    [
+        ("{physics.contact.Kp: [1.0e+4, 2.0e+4], physics.contact: [{Kp: 3.0e+4}]}", "{}",
+         "studies[0].grid.physics.contact.Kp: sets what physics.contact in another grid key sets too"),
+        ("{backends.*.dt: [1.0e-4, 5.0e-5]}", "{backends.pinocchio.dt: 2.0e-4}",
+         "studies[0].grid.backends.*.dt: sets what backends.pinocchio.dt in this study's set sets too (with "
+         "pinocchio: backends.pinocchio.dt)"),
+    ],
+)  # fmt: skip
+def test_two_keys_that_set_the_same_value_are_refused(tmp_path: Path, grid: str, set_: str, words: str) -> None:
+    """A grid key and another that sets (part of) the same value (physics.contact.Kp beside physics.contact;
+    backends.*.dt beside backends.pinocchio.dt) ran with one of them while the table recorded the other's values
+    (both of Kp 1e4 and 2e4 ran at 3e4); refused, as the same key twice is, naming the first."""
+    f = _write(tmp_path, f"name: s\nscenario: {ROOT / 'scenarios' / 'effort.yaml'}\nstudies:\n"
+                         f"  - backends: [pinocchio]\n    set: {set_}\n    grid: {grid}\n"
+                         "    reference: {backend: pinocchio, set: {backends.*.dt: 1.0e-5}}\n")  # fmt: skip
+    with pytest.raises(ScenarioError) as exc:
+        sweep.load_sweep(f)
+    assert f"{exc.value.key}: {exc.value.problem}".startswith(words), exc.value
+
+
+@pytest.mark.skipif("mujoco" not in backends.available(), reason="mujoco backend not installed")
+@pytest.mark.parametrize(
+    ("value", "problem"),
+    [
+        ("physics.contact.Kp: -1", "physics.contact.Kp: must be >= 0, got -1 (from the sweep's physics.contact.Kp)"),
+        ("duration: 0.0005", "duration: 0.0005 s is not a whole number of control periods"),
+        ("physics.contact.kpp: 3", "physics.contact.kpp: unknown key"),
+    ],
+)
+def test_a_bad_value_in_the_sweeps_own_set_is_named_at_its_key(tmp_path: Path, value: str, problem: str) -> None:
+    """A bad value in the sweep's top-level ``set`` was blamed on ``studies[0].set`` (a key the study did not have)
+    at the study's line; it is named at its own key and line, ``set.<key>``, with the backend it failed with."""
+    study = "  - backends: [mujoco]\n    grid: {gains.Kp: [10, 20]}\n    reference: {backend: pinocchio}\n"
+    scenario = ROOT / "scenarios" / "effort.yaml"
+    f = _write(tmp_path, f"name: s\nscenario: {scenario}\nset: {{{value}}}\nstudies:\n{study}")
+    with pytest.raises(ScenarioError) as exc:
+        sweep.load_sweep(f)
+    assert exc.value.key == f"set.{value.split(':')[0]}" and exc.value.line == 3, exc.value
+    assert exc.value.problem.startswith(f"with mujoco: {problem}"), exc.value
+
+
+@pytest.mark.parametrize(
     ("reference", "at"),
     [
         ("{backend: pinocchio}", "at dt=0.001"),  # the fuzzing review's case: "2 runs + 0 references", errors 0

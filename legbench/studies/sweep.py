@@ -301,15 +301,21 @@ def _check_values(doc: YamlContext, scenario: Path, common: Mapping[str, Any], s
             try:
                 scenario_mod.load(scenario, base, origin="the study's")
             except ScenarioError as together:
-                for key, v in st.set.items():
-                    if not _applies(_fill(key, backend), backend):
-                        continue
-                    try:
-                        scenario_mod.load(scenario, {_fill(key, backend): v}, origin="the study's")
-                    except ScenarioError as alone:
-                        if (alone.key, alone.problem) == (together.key, together.problem):
-                            raise _study_error(doc, ["studies", i, "set", key], backend, alone) from None
-                raise _study_error(doc, ["studies", i, "set"], backend, together) from None
+                # the sweep's own set (top level) first, then the study's: the one key named where it was given
+                for where, fixed in ((["set"], common), (["studies", i, "set"], st.set)):
+                    for key, v in fixed.items():
+                        one = {_fill(key, backend): v}
+                        if not _applies(_fill(key, backend), backend):
+                            continue
+                        try:
+                            scenario_mod.load(scenario, one, origin="the study's")
+                        except ScenarioError as alone:
+                            if (alone.key, alone.problem) != (together.key, together.problem):
+                                continue
+                            if where == ["set"]:  # worded as the sweep's
+                                _check_point(doc, scenario, [*where, key], one, backend, origin="the sweep's")
+                            raise _study_error(doc, [*where, key], backend, alone) from None
+                raise _study_error(doc, ["studies", i, "set"] if st.set else ["set"], backend, together) from None
             checks: list[tuple[list[str | int], dict[str, Any]]] = []
             ref_set = {_fill(k, backend): v for k, v in st.reference_set.items()}
             ref_set = {k: v for k, v in ref_set.items() if _applies(k, backend)}
@@ -324,10 +330,10 @@ def _check_values(doc: YamlContext, scenario: Path, common: Mapping[str, Any], s
 
 
 def _check_point(doc: YamlContext, scenario: Path, path: list[str | int], overrides: Mapping[str, Any],
-                 backend: str) -> None:  # fmt: skip
+                 backend: str, origin: str = "the study's") -> None:  # fmt: skip
     """The scenario with ``overrides`` loads, else the sweep's error at ``path`` (the key that gave them)."""
     try:
-        scenario_mod.load(scenario, overrides, origin="the study's")
+        scenario_mod.load(scenario, overrides, origin=origin)
     except ScenarioError as exc:
         raise _study_error(doc, path, backend, exc) from None
 
@@ -366,6 +372,7 @@ def _study(doc: YamlContext, i: int, d: Any) -> Study:
         if k in fixed:
             raise doc.error([*p, "grid", k], "also given in this study's set; give it in one place")
         grid[k] = tuple(v)
+    _check_overlaps(doc, p, names, fixed, grid)
     points = math.prod(len(v) for v in grid.values()) * len(names)
     if points > limit("sweep_points"):
         raise doc.error([*p, "grid"], f"{points} runs ({' x '.join(str(len(v)) for v in grid.values())} grid points "
@@ -380,6 +387,22 @@ def _study(doc: YamlContext, i: int, d: Any) -> Study:
     if not ref_set and ref_backend is None:
         raise doc.error([*p, "reference"], "give a backend and/or a set: as written the reference is the run itself")
     return Study(label, tuple(names), fixed, grid, ref_backend, ref_set)
+
+
+def _check_overlaps(doc: YamlContext, p: list[str | int], names: Sequence[str], fixed: Mapping[str, Any],
+                    grid: Mapping[str, Any]) -> None:  # fmt: skip
+    """No two of a study's keys set the same value for any of its backends: a grid key and another (or a set key)
+    where one is the other or a whole part of it (``physics.contact`` and ``physics.contact.Kp``; ``backends.*.dt``
+    and ``backends.mujoco.dt``), else the runs took one of them and the table recorded the other's values."""
+    for k in grid:
+        others = [(o, "another grid key") for o in grid if o != k] + [(o, "this study's set") for o in fixed]
+        for n in names:
+            a = _fill(k, n)
+            for other, where in others:
+                b = _fill(other, n)
+                if a == b or a.startswith(b + ".") or b.startswith(a + "."):
+                    raise doc.error([*p, "grid", k], f"sets what {other} in {where} sets too (with {n}: {b}); "
+                                                     "give it in one place")  # fmt: skip
 
 
 # --------------------------------------------------------------------------- #
