@@ -480,7 +480,11 @@ def _compare(args: argparse.Namespace) -> int:
     missing = results.missing_logs(args.dir)  # reported without that backend, as a failed one would be
     for line in [*missing, *results.incomplete_runs(args.dir)]:
         print(f"legbench: {line}", file=sys.stderr)
-    return EXIT_BACKEND_FAILED if missing else EXIT_OK
+    failed = results.failed_backends(args.dir)  # the status `legbench run` gave them, for a script reading this one
+    if failed:
+        print(f"legbench: {len(failed)} run(s) did not finish ok ({', '.join(failed)}); the others' results are "
+              "compared", file=sys.stderr)  # fmt: skip
+    return EXIT_BACKEND_FAILED if missing or failed else EXIT_OK
 
 
 def add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

@@ -82,6 +82,7 @@ __all__ = [
     "commit_staged",
     "comparison_pending",
     "discard_staged",
+    "failed_backends",
     "json_default",
     "load_run",
     "log_digests",
@@ -1246,6 +1247,17 @@ def missing_logs(root: str | Path) -> list[str]:
             if str(b["status"]) == "ok" and not (d / fname).exists():
                 out.append(f"{bname} missing: {_missing_log(d, fname)}")
     return out
+
+
+def failed_backends(root: str | Path) -> list[str]:
+    """``<run directory name>/<backend>`` of each backend that failed (diverged or raised) in the run directories
+    under ``root`` (or ``root`` itself), as ``legbench run`` names them; reads run.json only.
+
+    Raises:
+        ResultsError: as :func:`run_dirs` and :func:`read_meta`.
+    """
+    return [f"{d.name}/{bname}" for d, meta in _run_metas(root)
+            for bname, b in meta["backends"].items() if str(b["status"]) == "failed"]  # fmt: skip
 
 
 def _run_metas(root: str | Path) -> Iterator[tuple[Path, dict[str, Any]]]:

@@ -68,6 +68,24 @@ def test_compare_of_a_run_missing_a_log_says_so_and_exits_3(tmp_path: Path, caps
     assert "backend 'a' missing" in (tree / "two" / "report.md").read_text()
 
 
+def test_compare_of_a_run_with_a_failed_backend_says_so_and_exits_3(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run whose backend failed (diverged): ``legbench run`` exited 3 naming it, ``legbench compare`` of the same
+    directory exited 0 in silence. It exits 3 too, with the one line naming the run/backend; in a tree each."""
+    tree = tmp_path / "tree"
+    write_run(tree / "one", {"ref": None, "a": scale(1.02)}, name="one", failed={"b": "diverged at t = 0.1 s"})
+    write_run(tree / "two", {"ref": None, "a": scale(1.01)}, name="two")
+    capsys.readouterr()
+    assert cli.main(["compare", str(tree / "two")]) == 0
+    assert capsys.readouterr().err == ""
+    assert cli.main(["compare", str(tree / "one")]) == 3
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["legbench: 1 run(s) did not finish ok (one/b); the others' results are compared"]
+    assert cli.main(["compare", str(tree)]) == 3
+    assert "(one/b)" in capsys.readouterr().err
+
+
 def test_run_records_the_declared_abilities(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``legbench run`` end to end on one backend: exit 0, one log of 51 ticks (0.05 s at 1 kHz), and run.json
     holding the backend's declared integrator family and sub-step count (control period / dt) beside its settings."""
