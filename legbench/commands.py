@@ -194,6 +194,11 @@ def _run(args: argparse.Namespace) -> int:
     from legbench.studies import doctor
 
     overrides = yamlfile.parse_overrides(args.set)
+    variant = "--variant" if args.variant else None
+    yamlfile.check_one_place(overrides, {
+        "profile": f"--profile {args.profile}" if args.profile else variant,
+        "physics.contact_mode": f"--contact-mode {args.contact_mode}" if args.contact_mode else variant,
+    })  # fmt: skip
     if args.variant and (args.profile or args.contact_mode):
         raise LegbenchError("--variant: give the profile and contact mode of each run there, not also "
                             "--profile or --contact-mode")  # fmt: skip

@@ -30,6 +30,7 @@ __all__ = [
     "Loader",
     "YamlContext",
     "check_keys",
+    "check_one_place",
     "file_kind",
     "finite_float",
     "integer",
@@ -540,6 +541,20 @@ def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
             raise ScenarioError("--set", key, f"value {value!r}: {exc.problem}") from None
         out[key] = doc
     return out
+
+
+def check_one_place(overrides: Mapping[str, Any], given: Mapping[str, str | None]) -> None:
+    """Refuse a value given both by ``--set`` and by the option that sets it (``given``: dotted key -> the option
+    as typed, None where it was not given; ``--set physics.contact_mode=reference --contact-mode native`` ran
+    native): one of the two would win in silence.
+
+    Raises:
+        ScenarioError: naming the ``--set`` key (or the mapping holding it) and the option.
+    """
+    for key, option in given.items():
+        for k in overrides:
+            if option is not None and (k == key or key.startswith(k + ".")):
+                raise ScenarioError("--set", k, f"also given by {option}; give it in one place")
 
 
 def set_key(doc: dict[str, Any], dotted: str, value: Any, origin: str = "--set") -> None:

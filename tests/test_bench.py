@@ -718,3 +718,14 @@ def test_the_recorded_command_keeps_the_global_options_and_their_quoting(monkeyp
     assert bench._command() == "legbench --model 'my leg.yaml' bench --repeats 1"
     monkeypatch.setattr(sys, "argv", ["script.py"])
     assert bench._command() == "legbench bench"
+
+
+def test_a_contact_mode_given_by_set_and_by_its_option_is_refused(tmp_path: Path) -> None:
+    """``--set physics.contact_mode=reference --contact-mode native`` benched native in silence: refused, naming
+    both, before anything is timed or written."""
+    args = _parser().parse_args(["bench", str(bench.TASKS[0]), "--backends", "pinocchio", "--set",
+                                 "physics.contact_mode=reference", "--contact-mode", "native", "--quiet", "--out",
+                                 str(tmp_path / "b")])  # fmt: skip
+    with pytest.raises(ScenarioError, match="also given by --contact-mode native; give it in one place") as exc:
+        args.func(args)
+    assert exc.value.key == "physics.contact_mode" and not (tmp_path / "b").exists()

@@ -204,13 +204,20 @@ def test_a_single_run_starts_no_pool(tmp_path: Path, monkeypatch: pytest.MonkeyP
         (["--variant", "matched"], "argument --variant: 'matched': expected PROFILE:MODE"),
         (["--variant", "matched:native", "--contact-mode", "both"], "--variant: give the profile and contact mode"),
         (["--variant", "matched:native", "--variant", "matched:native"], "--variant matched:native: given twice"),
+        # a value given by --set and by the option that sets it: one would win in silence (it ran native, matched)
+        (["--set", "physics.contact_mode=reference", "--contact-mode", "native"],
+         "--set: physics.contact_mode: also given by --contact-mode native; give it in one place"),
+        (["--set", "profile=engine-defaults", "--profile", "matched"],
+         "--set: profile: also given by --profile matched; give it in one place"),
+        (["--set", "physics={contact_mode: reference}", "--variant", "matched:native"],
+         "--set: physics: also given by --variant; give it in one place"),
     ],
-)
+)  # fmt: skip
 def test_a_bad_variant_is_a_one_line_error_before_anything_runs(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: list[str], message: str
 ) -> None:
-    """A malformed ``--variant``, or one beside --profile/--contact-mode: exit status 2, the problem on one line of
-    stderr, nothing written."""
+    """A malformed ``--variant``, or one beside --profile/--contact-mode, or a ``--set`` of what an option sets:
+    exit status 2, the problem on one line of stderr, nothing written."""
     scenario = Path(__file__).resolve().parents[1] / "scenarios" / "position.yaml"
     argv = ["run", str(scenario), "--backends", "pinocchio", "--out", str(tmp_path / "r"), "-q", *extra]
     try:

@@ -1089,6 +1089,8 @@ def _cli(args: argparse.Namespace) -> int:
     """
     paths = args.scenarios or [str(p) for p in TASKS]
     overrides = yamlfile.parse_overrides(args.set)
+    contact_mode = f"--contact-mode {args.contact_mode}" if args.contact_mode else None
+    yamlfile.check_one_place(overrides, {"physics.contact_mode": contact_mode})
     scenarios = load_tasks(paths, quick=args.quick, duration=args.duration, overrides=overrides)
     names = registry.resolve(args.backends)
     if args.contact_mode is not None:  # as the scenario would be refused with that mode in it, before any work
