@@ -31,6 +31,7 @@ import platform
 import re
 import shutil
 import subprocess
+import tempfile
 from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from functools import cache, cached_property
@@ -472,7 +473,9 @@ def _kind(path: Path) -> str:
 
 
 def _writable_dir(d: Path, what: str) -> None:
-    """The nearest existing ancestor of ``d`` is a directory we can write into."""
+    """The nearest existing ancestor of ``d`` is a directory we can write into: its permissions say so, and a
+    folder made there (and removed at once) is made, which root's permissions do not tell (/proc, a read-only
+    or full file system)."""
     probe = d
     while not probe.exists():
         if probe.parent == probe:
@@ -482,6 +485,11 @@ def _writable_dir(d: Path, what: str) -> None:
         raise LegbenchError(f"{what} {d}: {probe} is {_kind(probe)}, not a directory")
     if probe.exists() and not os.access(probe, os.W_OK | os.X_OK):
         raise LegbenchError(f"{what} {d}: {probe} is not writable")
+    if probe.exists():
+        try:
+            os.rmdir(tempfile.mkdtemp(prefix=".legbench-probe-", dir=probe))
+        except OSError as exc:
+            raise LegbenchError(f"{what} {d}: {probe} is not writable ({exc.strerror or exc})") from None
 
 
 #: Decimal digits of the largest process ID (Linux's pid_max is at most 4194304): the PID ends every temporary name.
