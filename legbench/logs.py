@@ -67,6 +67,7 @@ class LogWords:
     """
 
     time_scale: str = "--log-time-scale"
+    t0: str = "--log-t0"
     time_scale_ms: str = "--log-time-scale 1e-3"
     pick_column: str = "--log-columns (column_map in the Python API)"
     map_columns: str = "--log-columns 'theirs=t, ...' (column_map in the Python API)"
@@ -81,6 +82,7 @@ CLI_WORDS = LogWords()
 #: The Python API's words: the arguments of :func:`legbench.compare.compare`.
 API_WORDS = LogWords(
     time_scale="log_time_scale",
+    t0="log_t0",
     time_scale_ms="log_time_scale=1e-3",
     pick_column="column_map",
     map_columns="column_map={'theirs': 't', ...}",
@@ -331,6 +333,11 @@ def load_log(
     unmatched = [c for c in required if c not in df.columns]
     if unmatched:  # name the file's own header: the usual cause is a header of other names, to be mapped
         header = list(map(str, raw.columns))
+        moved = [(c, cmap[c]) for c in header if c in cmap and _normalise_header(c) in unmatched]
+        if moved:  # the column of that name is there, mapped elsewhere: nothing is left to give it
+            col, target = moved[0]
+            raise ResultsError(str(path), f"column {col!r} is mapped to {target} ({words.pick_column}), so no column "
+                                          f"gives {_normalise_header(col)}; map one to it too")  # fmt: skip
         raise ResultsError(str(path), f"no column matches {unmatched} in the header {header}; map them with "
                                       f"{words.map_columns}")  # fmt: skip
     given = {target: _unit_factor(path, col, target) for col, target in rename.items()}
@@ -341,9 +348,17 @@ def load_log(
     scale, shift = time_scale * factor["t"], float(t0 or 0.0)
     if scale != 1.0 or shift:  # in the run's seconds before it is checked, so an error reads its times so
         try:
-            df = df.assign(t=pd.to_numeric(df["t"], errors="raise") * scale - shift)
+            raw_t = pd.to_numeric(df["t"], errors="raise").to_numpy(dtype=float)
         except (ValueError, TypeError):
             pass  # not numbers: result_from_frame says so, naming the column
+        else:
+            new_t = raw_t * scale - shift
+            if np.all(np.diff(raw_t) > 0) and not np.all(np.diff(new_t) > 0):  # the file's times were fine
+                option = f"{words.t0} {shift:g}" if shift else f"{words.time_scale} {time_scale:g}"
+                raise LegbenchError(f"{option}: {path}'s times, strictly increasing as written, are no longer distinct "
+                                    f"once converted ({scale:g} x t - {shift:g} s, in double precision): give a t0 "
+                                    "near the log's own times")  # fmt: skip
+            df = df.assign(t=new_t)
     try:
         trace = result_from_frame(df, path.stem, str(path), required)  # validates
     except ResultsError as exc:  # name a column as the file's header does, with legbench's name for it

@@ -382,6 +382,31 @@ def test_unnamed_csv_columns_are_not_a_repeated_header(tmp_path: Path) -> None:
     pd.testing.assert_frame_equal(logs.load_log(padded), logs.load_log(plain))
 
 
+def test_a_t0_that_swamps_the_logs_times_is_named(tmp_path: Path) -> None:
+    """``--log-t0 1e20`` on a log stamped from 0: the converted times, 1e20 apart from their 1 ms steps, are all
+    -1e20 in double precision, and the refusal read "time is not strictly increasing at data row 2", of a file whose
+    times increase. It names the t0 now; a t0 near the log's times (epoch seconds) is read as before."""
+    log = tmp_path / "log.csv"
+    log.write_text("t,q1,q2,q3\n" + CSV_ROWS)
+    with pytest.raises(LegbenchError, match=r"^--log-t0 1e\+20: .*log.csv's times, strictly increasing as written, "
+                                            r"are no longer distinct once converted"):  # fmt: skip
+        logs.load_log(log, t0=1e20)
+    epoch = tmp_path / "epoch.csv"
+    epoch.write_text("t,q1,q2,q3\n" + "".join(f"{1.7e9 + float(r.split(',')[0])!r},{r.split(',', 1)[1]}\n"
+                                              for r in CSV_ROWS.splitlines()))  # fmt: skip
+    np.testing.assert_allclose(logs.load_log(epoch, t0=1.7e9)["t"], [0.0, 0.001, 0.002], atol=1e-6)
+
+
+def test_a_column_mapped_away_from_its_own_name_is_said_to_leave_that_name_empty(tmp_path: Path) -> None:
+    """``--log-columns q1=q2`` on a header t,q1,q2,q3: q1 goes to q2 and nothing gives q1, which read "no column
+    matches ['q1'] in the header ['t', 'q1', ...]", a contradiction. It says where q1 went."""
+    log = tmp_path / "log.csv"
+    log.write_text("t,q1,q2,q3\n" + CSV_ROWS)
+    with pytest.raises(ResultsError, match=r"column 'q1' is mapped to q2 \(.*\), so no column gives q1; map one to "
+                                           r"it too$"):  # fmt: skip
+        logs.load_log(log, {"q1": "q2"})
+
+
 def test_a_trailing_comma_on_every_data_row_shifts_no_column(tmp_path: Path) -> None:
     """A writer that ends every data row with a comma (the header without one): pandas took the first column as
     the index and shifted every column left, so q1 was read as time (a review: 'time is not strictly increasing
