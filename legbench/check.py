@@ -593,7 +593,11 @@ def _same_inputs(b: Mapping[str, Any] | None, n: Mapping[str, Any] | None, bdir:
     if b is None or n is None:
         return  # a baseline of metrics.json alone: nothing to compare
     bt, nt = _task_of(b.get("scenario") or {}), _task_of(n.get("scenario") or {})
-    diffs = [_first_difference(bt[k], nt[k], k) for k in sorted(bt.keys() & nt.keys()) if bt[k] != nt[k]]
+    # in TASK_KEYS order, the comparison last: its steady window's default follows the duration, and a difference
+    # there led the message where the user had changed the duration
+    order = [*TASK_KEYS, "comparison"]
+    shared = sorted(bt.keys() & nt.keys(), key=lambda k: order.index(k) if k in order else len(order))
+    diffs = [_first_difference(bt[k], nt[k], k) for k in shared if bt[k] != nt[k]]
     diffs = [(f"the scenario's {where}", old, new) for where, old, new in diffs]
     bleg, nleg = (r.get("leg") or {} for r in (b, n))
     if bleg.get("digest") and nleg.get("digest"):  # the parameters' digest: a byte copy under another name is the leg

@@ -475,7 +475,11 @@ def test_a_baseline_of_another_task_is_refused_naming_what_differs(baseline: Pat
         "the scenario's contact.Kp is 20000.0, the baseline's": lambda m: m["scenario"]["contact"].update(Kp=2e4),
         "the scenario's comparison.skip is 0.5": lambda m: m["scenario"]["comparison"].update(skip=0.5),
         "the leg model (urdf) is leg-0123456789abcdef.urdf": lambda m: m.update(urdf="leg-0123456789abcdef.urdf"),
-    }
+        # the task's own keys lead, the comparison's last (its steady window's default follows the duration: a
+        # longer run led with that window, a default the user never set, and named the duration as "1 more")
+        "the scenario's contact.mu_s is 0.8, the baseline's":
+            lambda m: (m["scenario"]["contact"].update(mu_s=0.8), m["scenario"]["comparison"].update(skip=0.5)),
+    }  # fmt: skip
     for i, (what, edit) in enumerate(edits.items()):
         new = tree(tmp_path / f"edit{i}")
         _edit_meta(new / "fake", edit)
