@@ -402,8 +402,8 @@ def estimate_lag(
     less than 1e-9 of its signal's largest (round-off on a joint at rest, whose
     correlation is noise). No lag is identified (NaN, with a
     note) where the peak is at the search limit or the correlation is flat over
-    the window (the peak within 1e-3 of both ends: slow ramps or creep correlate
-    at any lag).
+    the window (the peak less than 1e-3 above either end: slow ramps or creep
+    correlate at any lag, and a side that barely falls does not bound the lag).
 
     Args:
         a: the trace that may lag.
