@@ -252,10 +252,24 @@ def load_scenario(source: str | Path | Mapping[str, Any], overrides: Mapping[str
     return _load_scenario(source, overrides)
 
 
+def _plain(value: Any) -> Any:
+    """A scenario document (or a value of one) in the scenario format's own types, copied: a tuple or numpy array
+    becomes a list, a numpy scalar the Python number or bool it holds, a mapping a dict; anything else is kept for
+    the validator to name (``joint: np.array([0, -1, -1])`` was refused as "expected a list of 3 numbers")."""
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple | np.ndarray):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return copy.deepcopy(value)
+
+
 def _load_scenario(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | None) -> Scenario:
     """:func:`load_scenario` of arguments already checked."""
+    overrides = None if overrides is None else {k: _plain(v) for k, v in overrides.items()}
     if isinstance(source, Mapping):
-        doc: dict[str, Any] = copy.deepcopy(dict(source))
+        doc: dict[str, Any] = _plain(source)
         scenario_mod.apply_overrides(doc, overrides, "overrides")
         return scenario_mod.parse(doc, "<mapping>", overridden=tuple(overrides or ()), origin="overrides")
     path = Path(source)

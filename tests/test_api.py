@@ -810,3 +810,21 @@ def test_a_folder_named_as_a_bundled_scenario_does_not_shadow_it(
     (tmp_path / "effort").mkdir()
     sc = api.load_scenario("effort")
     assert sc.name == "effort" and sc.duration == 3.0
+
+
+def test_a_mapping_may_hold_tuples_and_numpy_values_as_a_python_user_writes_them() -> None:
+    """A scenario mapping or override holding a tuple or a numpy array where the format has a list (a joint
+    target, gains) was refused as "expected a list of 3 numbers, got (0, -1, -1)"; numpy scalars are numbers. They
+    load as the same scenario as the plain lists (same hash), and the caller's mapping is left as it was."""
+    plain = {"name": "x", "duration": 0.05, "events": [{"t": 0, "position": {"joint": [0.0, -1.0, -1.0]}}]}
+    target = np.array([0.0, -1.0, -1.0])
+    numpyish = {"name": "x", "duration": np.float64(0.05),
+                "events": ({"t": np.int64(0), "position": {"joint": target}},)}  # fmt: skip
+    a = legbench.load_scenario(plain, overrides={"gains.Kp": [12, 12.0, 12]})
+    b = legbench.load_scenario(numpyish, overrides={"gains.Kp": (12, np.float32(12.0), np.int64(12))})
+    assert b.events[0].joint == a.events[0].joint == (0.0, -1.0, -1.0)
+    assert b.gains.Kp == a.gains.Kp == (12.0, 12.0, 12.0)
+    assert b.sha256 == a.sha256
+    assert isinstance(numpyish["events"], tuple) and numpyish["events"][0]["position"]["joint"] is target
+    with pytest.raises(ScenarioError, match=r"events\[0\]\.position\.joint: expected .*a list of 3 numbers"):
+        legbench.load_scenario({**plain, "events": [{"t": 0, "position": {"joint": np.array([0.0, -1.0])}}]})
