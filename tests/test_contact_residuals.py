@@ -391,3 +391,88 @@ def test_friction_direction_is_scored_from_a_slip_of_1e4_m_per_s() -> None:
     assert r.n_contact == 4
     assert r.n_direction == 2
     assert r.angle_max == pytest.approx(0.0, abs=1e-6)
+
+
+def test_an_airborne_foot_does_not_count_towards_the_penetration() -> None:
+    """Six samples made by the law 4 mm in the ground and six with the foot 10 mm up (y = -10 mm, no force, the
+    law's zero): only the first six are in contact, and penetration_max is the contact samples' round-off, below
+    1e-15 m (measured 0.0 m); the airborne foot's y - Fn_spring / Kp = -10 mm must not count. A mutation audit
+    found that scoring every finite sample passed every test."""
+    qd_dir = np.array([1.0, 0.0, 0.0])
+    speeds = np.linspace(1e-5, 0.1, 6) / 0.4
+    _, q_in, qd_in, f_in = _synthetic(qd_dir, speeds)
+    _, q_up, qd_up, f_up = _synthetic(qd_dir, speeds, depth=-0.01)
+    y_up = load_params().geometry.R_foot - kinematics.fk(q_up)[:, 2]
+    np.testing.assert_allclose(y_up, -0.01, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(f_up, 0.0)  # [N]: out of the ground, the law gives nothing
+    q, qd, f = np.vstack([q_in, q_up]), np.vstack([qd_in, qd_up]), np.vstack([f_in, f_up])
+    r = residuals(np.arange(len(q)) * 1e-3, q, qd, f, P)
+    assert r.n_contact == 6
+    assert r.penetration_max < 1e-15 and r.penetration_rms < 1e-15
+
+
+def test_friction_ratio_is_the_median_over_sliding_samples() -> None:
+    """Ten sliding samples made by the law (2 v_th to 0.1 m/s), one of them carrying three times the law's
+    friction (an impact spike): friction_ratio is the median, 1 (1e-12), not the mean 1.2. A mutation audit found
+    that the mean passed every test."""
+    t, q, qd, f = _synthetic(np.array([1.0, 0.0, 0.0]), np.linspace(2 * P.v_th, 0.1, 10) / 0.4)
+    f = f.copy()
+    f[4, :2] *= 3.0  # the spike
+    r = residuals(t, q, qd, f, P)
+    assert r.n_sliding == 10
+    assert r.friction_ratio == pytest.approx(1.0, abs=1e-12)
+
+
+def test_creep_speed_and_creep_law_are_medians_over_creep_samples() -> None:
+    """Nine creep samples made by the law, eight slipping at 2.5e-5 m/s and one at 0.7 v_th = 7e-4 m/s (still a
+    sub-limit load: 0.7 mu_s Fn = 0.49 Fn < 0.9 mu_k Fn = 0.54 Fn): creep_speed and creep_law (the law's
+    v_th |F_t| / (mu_s Fn), the slip itself for the law's data) are both the median, 2.5e-5 m/s (1e-9 relative:
+    the slip from the Jacobian to ~1e-16), not the mean 1e-4 m/s, four times larger. A mutation audit found that
+    the mean passed every test for either."""
+    qd_dir = np.array([1.0, 0.0, 0.0])
+    slip = np.array([2.5e-5] * 8 + [0.7 * P.v_th])  # [m/s]
+    t, q, qd, f = _synthetic(qd_dir, slip / _slip_gain(qd_dir))
+    r = residuals(t, q, qd, f, P)
+    assert r.n_creep == 9
+    assert r.creep_speed == pytest.approx(2.5e-5, rel=1e-9)
+    assert r.creep_law == pytest.approx(2.5e-5, rel=1e-9)
+
+
+def test_the_sub_limit_load_is_a_fraction_of_the_total_normal_force() -> None:
+    """The sub-limit load is |F_t| < 0.9 min(mu_s, mu_k) Fn with Fn the TOTAL normal force, damping included. A
+    foot 4 mm in the ground pressing in at ydot = 0.05 m/s carries Fn = Kp y + Kd ydot = 40 + 5 = 45 N; slipping at
+    0.5 v_th with |F_t| = 0.95 x 0.9 mu_k x 45 N = 23.085 N (below 24.3 N, above the spring part's 0.9 mu_k x 40 N =
+    21.6 N), every sample is a creep sample and creep_speed is the slip, 0.5 v_th (1e-9 relative: the slip from the
+    Jacobian to ~1e-16). A mutation audit found that the spring part alone passed every test."""
+    q0 = _synthetic(np.array([1.0, 0.0, 0.0]), np.zeros(1))[1][0]
+    slip, ydot = 0.5 * P.v_th, 0.05  # [m/s]
+    qd0 = np.linalg.solve(kinematics.jacobian_poc(q0), [slip, 0.0, -ydot])  # the poc slips along x and sinks
+    y = load_params().geometry.R_foot - kinematics.fk(q0)[2]
+    fn = P.Kp * y + P.Kd * ydot
+    assert fn == pytest.approx(45.0, rel=1e-9)
+    ft = 0.95 * 0.9 * P.mu_k * fn  # [N], opposite the slip
+    n = 5
+    q, qd, f = np.tile(q0, (n, 1)), np.tile(qd0, (n, 1)), np.tile([-ft, 0.0, fn], (n, 1))
+    r = residuals(np.arange(n) * 1e-3, q, qd, f, P)
+    assert r.n_contact == n
+    assert r.n_creep == n
+    assert r.creep_speed == pytest.approx(slip, rel=1e-9)
+
+
+def test_the_slip_is_taken_at_the_law_s_poc_by_default() -> None:
+    """Data made by the law with its poc at the sphere centre (the report's simplification), the joints moving
+    along (0.3, 1, -0.5): residuals called without ``point`` read the slip at the law's poc, the centre, so the
+    friction is opposite the slip (angle_max below 1e-5 deg: arccos near 1 of round-off, ~sqrt(2 eps) rad =
+    1.2e-6 deg) and the creep speed equals the law's (1e-9 relative). Read at the true poc the same data showed
+    0.40 deg and a creep 4 % fast (measured)."""
+    import dataclasses
+
+    centre = dataclasses.replace(P, poc="centre")
+    law = ReferenceContact.from_leg(centre)
+    speeds = np.concatenate([np.linspace(1e-5, 0.9 * P.v_th, 20), np.linspace(2 * P.v_th, 0.1, 20)]) / 0.4
+    t, q, qd, _ = _synthetic(np.array([0.3, 1.0, -0.5]), speeds)
+    f = np.array([law.wrench(*q[k], *qd[k])[3:] for k in range(len(t))])
+    r = residuals(t, q, qd, f, centre)
+    assert r.n_contact == 40 and r.n_creep > 0 and r.n_direction > 0
+    assert r.angle_max < 1e-5
+    assert r.creep_speed == pytest.approx(r.creep_law, rel=1e-9)

@@ -400,3 +400,94 @@ def test_the_analytic_check_holds_up_to_a_condition_number_of_1e8() -> None:
     above = metrics.steady_state(_static(moved(gain / 2e8), F), 0.5)
     assert 1e8 < above.cond < 2.5e8
     assert np.isnan(above.analytic_poc).all()
+
+
+def test_a_peak_barely_above_one_end_of_the_window_is_flat() -> None:
+    """No lag is identified where the correlation's peak stands less than 1e-3 above EITHER end of the search
+    window (a side that barely falls does not bound the lag). Three sines of 16 s period over 2 s, the backend
+    60 ms late, searched within 100 ms: the peak is 3.2e-3 above the -100 ms end but only 1.95e-4 above the
+    +100 ms end (measured), so the lag is NaN and the note says the correlation is flat. A mutation audit found
+    that comparing with the lower end (min) passed every test."""
+    t = np.arange(0.0, 2.0 + 1e-12, 1e-3)
+
+    def slow(lag: float) -> np.ndarray:
+        return np.column_stack([np.sin(2 * np.pi * (t - lag) / 16.0 + p) for p in (0.0, 1.0, 2.0)])
+
+    est = metrics.estimate_lag(_trace("a", t, slow(0.06)), _trace("ref", t, slow(0.0)), max_lag=0.1)
+    assert math.isnan(est.seconds) and math.isnan(est.samples)
+    assert "flat over the search window" in est.note, est.note
+
+
+def test_a_joint_at_rest_does_not_veto_removing_a_lag_that_helps_every_moving_joint() -> None:
+    """q1 at rest but for 1e-17 rad of round-off in both runs (independent draws), q2 and q3 of the backend
+    20 ms late: with lag="remove" the lag is removed, 20 ms within 1e-6 s (measured 2e-7 s: the parabola's
+    sub-sample error), and q2's RMS deviation after removal is below 1e-6 rad (measured 7e-7 rad; 0.071 rad with
+    the lag left in). The resting joint's round-off RMS may rise or fall with the shift; it is no component the
+    lag came from, so it must not veto the removal. A mutation audit found that letting every finite component
+    vote passed every test."""
+    t = np.arange(0.0, 2.0 + 1e-12, 1e-3)
+    rng = np.random.default_rng(0)
+
+    def legs(lag: float) -> np.ndarray:
+        s = t - lag
+        return np.column_stack([1e-17 * rng.standard_normal(len(t)), 2.6 + 0.8 * np.sin(2 * np.pi * s),
+                                -1.2 + 0.2 * np.cos(3 * np.pi * s)])  # fmt: skip
+
+    a = legs(0.02)  # drawn first: the backend's round-off, then the reference's
+    ref = legs(0.0)
+    p = metrics.pair_metrics(_trace("a", t, a), _trace("ref", t, ref), lag="remove")
+    assert p.lag is not None and p.lag.note == "", p.lag
+    assert p.lag_removed == pytest.approx(0.02, abs=1e-6)
+    assert p.rms[I_Q2] < 1e-6
+
+
+def test_a_small_genuine_motion_is_kept_among_the_correlated_components() -> None:
+    """Only a component moving less than 1e-9 of its signal's largest span is round-off left out of the
+    correlation; q1 swinging 4e-4 rad at 1.5 Hz (2.5e-4 of q2's 1.6 rad span) is a motion and is kept. Its own
+    lag (100 ms) differs from q2's and q3's (20 ms), so keeping it moves the estimate (51.6 ms at correlation
+    0.945, measured): the reported correlation equals the mean of the three columns' Pearson correlations at the
+    integer lag of the peak (1e-9 relative; measured 1e-15). A mutation audit found that a threshold of 1e-3
+    (which drops q1: 20 ms at correlation 1) passed every test."""
+    t = np.arange(0.0, 2.0 + 1e-12, 1e-3)
+
+    def legs(lag: float, q1_lag: float) -> np.ndarray:
+        s = t - lag
+        return np.column_stack([2e-4 * np.sin(3 * np.pi * (t - q1_lag)), 2.6 + 0.8 * np.sin(2 * np.pi * s),
+                                -1.2 + 0.2 * np.cos(3 * np.pi * s)])  # fmt: skip
+
+    a, ref = legs(0.02, 0.1), legs(0.0, 0.0)
+    span = np.ptp(ref, axis=0)
+    assert 1e-9 < span[0] / span.max() < 1e-3
+    est = metrics.estimate_lag(_trace("a", t, a), _trace("ref", t, ref))
+    assert est.note == "" and math.isfinite(est.samples)
+    k = round(est.samples)  # the peak's integer lag: the parabola moves it by less than half a sample
+    m = len(t)
+    xa, xr = (a[k:], ref[: m - k]) if k >= 0 else (a[: m + k], ref[-k:])  # x_a[n + k] against x_ref[n]
+    pearson = [np.corrcoef(xa[:, j], xr[:, j])[0, 1] for j in range(3)]
+    assert est.correlation == pytest.approx(float(np.mean(pearson)), rel=1e-9)
+
+
+def test_friction_below_the_floor_has_no_direction_and_above_it_opposes_the_slide() -> None:
+    """FRICTION_FLOOR = 1e-6 N: the foot pressed 5 mm in, its point (y/2 above the lowest) sliding at
+    (1e-4, 0) m/s, with a friction force of 1e-9 N, (8e-10, -6e-10) N, carries no friction direction (NaN);
+    with 1e-5 N opposing the slide, (-1e-5, 0) N, the cosine is -1 (1e-9). A mutation audit found that a floor
+    of 1e-12 N passed every test."""
+    for friction, want in (((8e-10, -6e-10), math.nan), ((-1e-5, 0.0), -1.0)):
+        trace = _pressing(0.5, v=(1e-4, 0.0))[0]
+        trace.data[:, 9:11] = np.array(friction)  # fx, fy of the log [N]
+        cosine = metrics.steady_state(trace, 0.5, "true", lift=0.5).slide_cosine
+        if math.isnan(want):
+            assert math.isnan(cosine), (friction, cosine)
+        else:
+            assert cosine == pytest.approx(want, abs=1e-9), (friction, cosine)
+
+
+def test_a_missing_signal_has_no_time_of_its_largest_deviation() -> None:
+    """A trace with only q logged (qd, tau and force NaN) measured from skip = 0.3 s: the missing columns have
+    no largest deviation (max_abs NaN) and so no time of it, t_max_abs NaN, not the window's first time 0.3 s;
+    q's times are finite, inside [0.3, 1] s."""
+    t = np.arange(0.0, 1.0 + 1e-12, 1e-3)
+    p = metrics.pair_metrics(_hip_trace("a", t, 0.004, wrap=False), _hip_trace("ref", t, 0.0, wrap=False), skip=0.3)
+    assert np.isnan(p.max_abs[3:]).all()
+    assert np.isnan(p.t_max_abs[3:]).all(), p.t_max_abs
+    assert ((p.t_max_abs[:3] >= 0.3 - 1e-12) & (p.t_max_abs[:3] <= 1.0 + 1e-12)).all()
