@@ -53,8 +53,8 @@ __all__ = [
 #: pin (tests/test_entry_point.py keeps them equal), or the whole install command where a pip package is not enough,
 #: e.g. a system library too).
 BUILTIN: dict[str, tuple[str, str, str]] = {
-    "pinocchio": ("legbench.backends.pinocchio_", "PinocchioBackend", "'pin>=3.0'"),
-    "mujoco": ("legbench.backends.mujoco_", "MujocoBackend", "'mujoco>=3.1'"),
+    "pinocchio": ("legbench.backends.pinocchio_", "PinocchioBackend", "'pin>=4.1,<5'"),
+    "mujoco": ("legbench.backends.mujoco_", "MujocoBackend", "'mujoco>=4.0,<5'"),
     "pybullet": ("legbench.backends.pybullet_", "PybulletBackend", "'pybullet>=3.2.6'"),
     "drake": ("legbench.backends.drake_", "DrakeBackend", "'drake>=1.51,<2'"),
     "dart": ("legbench.backends.dart_", "DartBackend", "'dartpy>=6.20,<7'"),
