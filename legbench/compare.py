@@ -356,15 +356,15 @@ def compare(
     if reference not in traces:
         why = run.backends[reference].reason if reference in run.backends else "not in run.json"
         notes.append(f"reference backend '{reference}' has no data ({why}): no deviations measured")
-    else:
+    # the spec's denominator for every pair: the scenario reference's peak over the run (docs/metrics.md), so a-vs-b
+    # and b-vs-a share it and every pair of a component is a share of one number, whatever span each pair compares
+    # (a log shorter than the run, a lag removed); None without the reference's data: each pair its own
+    peak = reference_peak(traces[reference], run.skip) if reference in traces else None
+    if reference in traces:
         for name, tr in traces.items():
             if name != reference:
-                pairs.append(pair_metrics(tr, traces[reference], run.skip, lag, max_lag, lag_signals))
+                pairs.append(pair_metrics(tr, traces[reference], run.skip, lag, max_lag, lag_signals, peak=peak))
     if all_pairs:
-        # the spec's denominator for every pair: the scenario reference's peak (docs/metrics.md), so a-vs-b and
-        # b-vs-a share it and every pair of a component is a share of one number; the reference's own, not the
-        # first pair's (over the span the first backend covered: a backend that stopped early cut it short)
-        peak = reference_peak(traces[reference], run.skip) if reference in traces else None
         for a in traces:
             for b in traces:
                 if a != b and b != reference:

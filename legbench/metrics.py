@@ -562,8 +562,8 @@ def check_lag_mode(lag: str) -> None:
 
 def reference_peak(ref: RunResult, skip: float = 0.0, wrap: np.ndarray | None = None) -> np.ndarray:
     """The scenario reference's peak max_t |x_ref| over its samples at t >= ``skip`` [signal units], the hip
-    unwrapped (as :func:`align` gives it): the one denominator of ``sim_error_pct`` for the pairs of two other
-    backends (``pair_metrics(..., peak=)``), whichever of them ran shortest."""
+    unwrapped (as :func:`align` gives it): the one denominator of ``sim_error_pct`` for every pair of a comparison
+    (``pair_metrics(..., peak=)``), whatever span each pair compares."""
     w = wrap_mask() if wrap is None else np.asarray(wrap, dtype=bool)
     return max_abs(_unwrap_columns(ref.data, w)[ref.t >= skip - T_EPS])
 
@@ -590,7 +590,8 @@ def pair_metrics(
         lag_signals: signals the lag is estimated from.
         wrap: columns compared as angles on a circle (default: the hip angle).
         peak: the denominator of ``sim_error_pct`` per column [signal units]: the spec's max_t |x_ref| of the
-            scenario's reference backend, for a pair of two other backends; None: ``ref``'s own peak.
+            scenario's reference backend over the run (:func:`reference_peak`); None: ``ref``'s own peak over the
+            compared ticks.
 
     Returns:
         The metrics; see :class:`PairMetrics`.

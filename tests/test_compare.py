@@ -517,8 +517,9 @@ def test_every_pair_divides_by_the_scenario_reference_s_peak(tmp_path: Path) -> 
 def test_the_pairs_denominator_is_the_references_whole_peak_whatever_the_first_pair_covered(tmp_path: Path) -> None:
     """The all-pairs denominator was the first pair's reference peak, taken over the ticks that pair compared: a
     first backend late by 50 ms with ``lag: remove`` compares up to t = 1.95 s of 2 s, and every other pair divided
-    by the reference's peak up to 1.95 s. With signals that grow over the run (peaks at t = 2 s) the pair (b, c)
-    now divides by the reference's peak over the whole run, max_t |x_ref|, as docs/metrics.md says."""
+    by the reference's peak up to 1.95 s, and that first pair too. With signals that grow over the run (peaks at
+    t = 2 s) every pair, (a, ref) and (b, c) alike, now divides by the reference's peak over the whole run,
+    max_t |x_ref|, as docs/metrics.md says (1e-12 relative)."""
     ramp = lambda t: base_signals(t) * (1.0 + 1.5 * t)[:, None]  # noqa: E731
     d = write_run(tmp_path / "s", {"ref": None, "a": lagged_by(0.05, ramp), "b": scale(1.2), "c": scale(0.9)},
                   base=ramp)  # fmt: skip
@@ -529,7 +530,8 @@ def test_the_pairs_denominator_is_the_references_whole_peak_whatever_the_first_p
     peak = np.max(np.abs(ramp(np.arange(2001) / 1000.0)), axis=0)
     np.testing.assert_allclose(bc.ref_peak, peak, rtol=1e-12)
     np.testing.assert_allclose(bc.sim_error_pct, 100.0 * bc.max_abs / peak, rtol=1e-12)
-    assert np.sum(a_ref.ref_peak < peak * (1 - 1e-3)) >= 4  # the old denominator, over 1.95 s, for 4 columns
+    np.testing.assert_allclose(a_ref.ref_peak, peak, rtol=1e-12)  # not the peak over its own 1.95 s
+    assert np.sum(np.max(np.abs(ramp(a_ref.t)), axis=0) < peak * (1 - 1e-3)) >= 4  # which differs in 4 columns
 
 
 # --------------------------------------------------------------------------- #
