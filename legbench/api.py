@@ -258,10 +258,10 @@ def _plain(value: Any) -> Any:
     the validator to name (``joint: np.array([0, -1, -1])`` was refused as "expected a list of 3 numbers")."""
     if isinstance(value, Mapping):
         return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple | np.ndarray):
+    if isinstance(value, np.ndarray | np.generic):
+        return value.tolist()  # nested lists of Python numbers; a 0-d array or a numpy scalar the number itself
+    if isinstance(value, list | tuple):
         return [_plain(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
     return copy.deepcopy(value)
 
 

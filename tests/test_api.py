@@ -818,7 +818,7 @@ def test_a_mapping_may_hold_tuples_and_numpy_values_as_a_python_user_writes_them
     load as the same scenario as the plain lists (same hash), and the caller's mapping is left as it was."""
     plain = {"name": "x", "duration": 0.05, "events": [{"t": 0, "position": {"joint": [0.0, -1.0, -1.0]}}]}
     target = np.array([0.0, -1.0, -1.0])
-    numpyish = {"name": "x", "duration": np.float64(0.05),
+    numpyish = {"name": "x", "duration": np.array(0.05),  # a 0-d array: the number
                 "events": ({"t": np.int64(0), "position": {"joint": target}},)}  # fmt: skip
     a = legbench.load_scenario(plain, overrides={"gains.Kp": [12, 12.0, 12]})
     b = legbench.load_scenario(numpyish, overrides={"gains.Kp": (12, np.float32(12.0), np.int64(12))})
