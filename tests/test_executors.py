@@ -434,7 +434,8 @@ def test_workers_run_the_legbench_the_parent_runs_not_the_one_in_the_current_dir
     """Started from a directory holding another legbench (another checkout), the fork server, a ``python -c``
     process with the current directory first on its path, imported that one for its preload and every worker
     ran it (CPython gh-117378, Python < 3.12.8). Each worker now has the parent's legbench, and the parent's
-    PYTHONPATH and PYTHONSAFEPATH (set for the server's start only)."""
+    PYTHONPATH and PYTHONSAFEPATH (set for the server's start only), and so has a worker of another library's
+    fork-server pool in the same program (the server is one per process)."""
     import subprocess
     import sys
 
@@ -445,23 +446,27 @@ def test_workers_run_the_legbench_the_parent_runs_not_the_one_in_the_current_dir
     (other / "legbench" / "__init__.py").write_text("OTHER_CHECKOUT = True\n")
     script = tmp_path / "main.py"
     script.write_text(
-        "import os\n"
+        "import multiprocessing, os\n"
         "from legbench.studies import executors\n\n"
         "def where(_):\n"
         "    import legbench\n"
         "    return legbench.__file__, os.environ.get('PYTHONSAFEPATH'), os.environ.get('PYTHONPATH')\n\n"
         "if __name__ == '__main__':\n"
         "    with executors.LocalExecutor(2, preload=('legbench.studies.executors',)) as ex:\n"
-        "        for row in ex.map(where, [0, 1]):\n"
-        "            print(*row, sep='|')\n"
+        "        rows = ex.map(where, [0, 1])\n"
+        "    with multiprocessing.get_context('forkserver').Pool(1) as pool:  # another library's, the same server\n"
+        "        rows += pool.map(where, [2])\n"
+        "    for row in rows:\n"
+        "        print(*row, sep='|')\n"
     )
     env = {k: v for k, v in os.environ.items() if k != "PYTHONSAFEPATH"}
-    env["PYTHONPATH"] = str(tmp_path / "no_such_dir")
+    # the legbench under test first (the checkout this test runs from, not necessarily the installed one)
+    env["PYTHONPATH"] = os.pathsep.join([str(Path(legbench.__file__).parents[1]), str(tmp_path / "no_such_dir")])
     done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, cwd=other, env=env,
                           timeout=300)  # fmt: skip
     assert done.returncode == 0, done.stderr
     rows = [line.split("|") for line in done.stdout.splitlines()]
-    assert rows == [[legbench.__file__, "None", str(tmp_path / "no_such_dir")]] * 2
+    assert rows == [[legbench.__file__, "None", env["PYTHONPATH"]]] * 3
 
 
 def test_a_crashed_tasks_log_line_names_it_in_a_few_words() -> None:

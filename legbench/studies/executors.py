@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import ast
 import importlib
+import json
 import logging
 import multiprocessing
 import os
@@ -157,26 +158,10 @@ DEFAULT_PRELOAD = ("legbench.run", "legbench.studies.tasks", "legbench.backends.
 TASK_PRELOAD = DEFAULT_PRELOAD[:2]
 
 
-#: The environment variables :func:`_start_server` sets for the fork server, which its workers inherit.
-_SERVER_ENV = ("PYTHONSAFEPATH", "PYTHONPATH")
-
-
-def _worker_init(preload: Sequence[str], env: dict[str, str | None]) -> None:
-    """Start of a worker process: the parent's values of :data:`_SERVER_ENV` (``env``) back in place of the
-    fork server's, for any process the task starts; Ctrl-C is the parent's business (it stops its workers);
-    then the imports."""
-    for name, value in env.items():
-        if value is None:
-            os.environ.pop(name, None)
-        else:
-            os.environ[name] = value
+def _worker_init(preload: Sequence[str]) -> None:
+    """Start of a worker process: Ctrl-C is the parent's business (it stops its workers), then the imports."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _preload(preload)
-
-
-def _parent_env() -> dict[str, str | None]:
-    """This process's values of :data:`_SERVER_ENV`, for :func:`_worker_init` (None: not set)."""
-    return {name: os.environ.get(name) for name in _SERVER_ENV}
 
 
 def _preload(preload: Sequence[str]) -> None:
@@ -240,43 +225,58 @@ def _died(code: int | None) -> str:
     return f"exit status {code}"
 
 
+def _start_method() -> str:
+    """The start method of legbench's pools: the fork server where the platform has one, else spawn."""
+    return "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+
+
 def _mp_context(preload: Sequence[str]) -> multiprocessing.context.BaseContext:
-    """Fork server where the platform has one (no fork of a threaded parent), else spawn.
+    """Fork server where the platform has one (no fork of a threaded parent), else spawn; the fork server started
+    (:func:`_start_server`).
 
     The fork server imports the numerical stack and the modules ``preload`` names once, before it forks
     the workers: they start with them loaded (shared copy-on-write) instead of each importing them, which
     on two cores competed with the parent's own loading and planning. The server is one per process and
     keeps the preload of the first pool that started it; a worker's initializer imports what is missing.
     """
-    method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+    method = _start_method()
     ctx = multiprocessing.get_context(method)
     if method == "forkserver":
-        ctx.set_forkserver_preload(list(dict.fromkeys(["numpy", "pandas", *preload])))  # type: ignore[attr-defined]
+        first = ["legbench.studies.server_env", "numpy", "pandas"]  # the environment put back before any import
+        ctx.set_forkserver_preload(list(dict.fromkeys([*first, *preload])))  # type: ignore[attr-defined]
         _start_server()
     return ctx
 
 
 _SERVER_LOCK = threading.Lock()
+#: Python's fork server ignores the import path its parent sends (CPython gh-117378, fixed in 3.12.8 and 3.13.1).
+_SERVER_PATH_IGNORED = sys.version_info < (3, 12, 8) or (3, 13) <= sys.version_info < (3, 13, 1)
 
 
 def _start_server() -> None:
-    """Start the fork server (if it is not running) on this process's import path, not the current directory's.
+    """Start the fork server, if it is not running, on this process's import path, not the current directory's.
 
-    The server is a ``python -c`` process, which puts the current directory first on its path, and Python
-    before 3.12.8 (3.13.1) ignores the path the parent sends it (CPython gh-117378): run from another checkout's
-    directory, the server imported that checkout's legbench for its preload and every worker forked from it ran
-    that code, not the one the user called. The server is started here with ``PYTHONSAFEPATH`` (no current
-    directory) and ``PYTHONPATH`` this process's ``sys.path``, the workaround the CPython fix names; the two
-    variables are put back as they were as soon as the server process exists (here) and as each worker starts
-    (:func:`_worker_init`). A no-op while the server runs.
+    The server is a ``python -c`` process, which puts the current directory first on its path, and the Pythons of
+    :data:`_SERVER_PATH_IGNORED` ignore the path the parent sends it: run from another checkout's directory, the
+    server imported that checkout's legbench for its preload and every worker forked from it ran that code, not
+    the one the user called. There the server is started with ``PYTHONSAFEPATH`` (no current directory) and
+    ``PYTHONPATH`` this process's ``sys.path``, the workaround the CPython fix names; this process's environment is
+    put back as soon as the server process exists, and the server's by the first module it imports
+    (:mod:`legbench.studies.server_env`), so nothing it forks inherits them. (An interpreter run with ``-E`` or
+    ``-I`` passes that flag on and the server ignores both variables; a server that died and is started again by
+    the pool itself is started without them.)
     """
     from multiprocessing import forkserver
 
+    if not _SERVER_PATH_IGNORED or getattr(forkserver._forkserver, "_forkserver_pid", None) is not None:
+        forkserver.ensure_running()  # already started (a no-op), or a Python that sends the path itself
+        return
     path = os.pathsep.join(os.path.abspath(p) if p == "" else p for p in sys.path)
     with _SERVER_LOCK:
-        saved = _parent_env()
-        os.environ.update(PYTHONSAFEPATH="1", PYTHONPATH=path)
+        saved = {name: os.environ.get(name) for name in ("PYTHONSAFEPATH", "PYTHONPATH", "LEGBENCH_FORKSERVER_ENV")}
         try:
+            parent = {name: saved[name] for name in ("PYTHONSAFEPATH", "PYTHONPATH")}  # for server_env to put back
+            os.environ.update(PYTHONSAFEPATH="1", PYTHONPATH=path, LEGBENCH_FORKSERVER_ENV=json.dumps(parent))
             forkserver.ensure_running()
         finally:
             for name, value in saved.items():
@@ -365,14 +365,14 @@ class LocalExecutor(Executor):
 
     def _get_pool(self) -> ProcessPoolExecutor:
         if self._pool is None:
-            context = _mp_context(self.preload)
-            if context.get_start_method() != "fork":  # the workers import the main script again
+            if _start_method() != "fork":  # the workers import the main script again (before a server is started)
                 _check_main_guard(self.jobs)
+            context = _mp_context(self.preload)
             self._pool = ProcessPoolExecutor(
                 max_workers=self.jobs,
                 mp_context=context,
                 initializer=_worker_init,
-                initargs=(self.preload, _parent_env()),
+                initargs=(self.preload,),
             )
         return self._pool
 
@@ -459,7 +459,7 @@ class LocalExecutor(Executor):
             max_workers=1,
             mp_context=_mp_context(self.preload),
             initializer=_worker_init,
-            initargs=(self.preload, _parent_env()),
+            initargs=(self.preload,),
         )
         fut: Future[Any] = solo.submit(_call, fn, x)
         procs = list((getattr(solo, "_processes", None) or {}).values())
