@@ -354,10 +354,14 @@ def load_log(
         else:
             new_t = raw_t * scale - shift
             if np.all(np.diff(raw_t) > 0) and not np.all(np.diff(new_t) > 0):  # the file's times were fine
-                option = f"{words.t0} {shift:g}" if shift else f"{words.time_scale} {time_scale:g}"
-                raise LegbenchError(f"{option}: {path}'s times, strictly increasing as written, are no longer distinct "
-                                    f"once converted ({scale:g} x t - {shift:g} s, in double precision): give a t0 "
-                                    "near the log's own times")  # fmt: skip
+                option, fix = (
+                    (f"{words.t0} {shift:g}", "give a t0 near the log's own times")
+                    if shift
+                    else (f"{words.time_scale} {time_scale:g}", "give the scale of the log's time unit")
+                )
+                raise LegbenchError(f"{option}: {path}'s times, strictly increasing as written, are no longer "
+                                    f"distinct once converted ({scale:g} x t - {shift:g} s, in double precision): "
+                                    f"{fix}")  # fmt: skip
             df = df.assign(t=new_t)
     try:
         trace = result_from_frame(df, path.stem, str(path), required)  # validates

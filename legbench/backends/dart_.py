@@ -490,11 +490,11 @@ class DartBackend(Backend):
         """Engine, version and every setting actually used, read back from the world where DART allows."""
         world, c = self.world, self.physics.contact
         solver = world.getConstraintSolver()
-        # the pair's coefficient as DART combines them, min(mu_foot, mu_ground): the foot's shapes and the ground's
         # settings that do not act, left out so the report's settings table lists only what did: in reference contact
         # (nothing collides) the contact's own, in native contact the reference law's
         unused = {"friction_coefficient", "force_readout", "collision_detector"} if (
             self.reference) else {"reference_friction"}  # fmt: skip
+        # the pair's coefficient as DART combines them, min(mu_foot, mu_ground): the foot's shapes and the ground's
         pair_dyn = [
             body.getShapeNode(i).getDynamicsAspect()
             for body in (self.foot, self.ground.getBodyNode(0))
