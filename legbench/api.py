@@ -609,6 +609,9 @@ def run_scenario(
         raise _wrong("profile", profile, "'matched' or 'engine-defaults'")
     if contact_mode is not None and (not isinstance(contact_mode, str) or contact_mode not in _CONTACT_MODES):
         raise LegbenchError(f"contact_mode {reprlib.repr(contact_mode)}: expected 'native', 'reference' or 'both'")
+    given = {"profile": None if profile is None else f"profile={profile!r}",
+             "physics.contact_mode": None if contact_mode is None else f"contact_mode={contact_mode!r}"}  # fmt: skip
+    yamlfile.check_one_place(overrides or {}, given, "overrides")  # as the command line: one would win in silence
     out_path = _path(out, "out", "a directory (str or os.PathLike) or None") if out is not None else None
     if isinstance(jobs, bool) or not isinstance(jobs, numbers.Integral):  # 1.5 ran in one process, "2" a TypeError
         raise LegbenchError(f"jobs {jobs!r}: expected a whole number of processes, at least 1")

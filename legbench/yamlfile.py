@@ -35,6 +35,7 @@ __all__ = [
     "finite_float",
     "integer",
     "keypath",
+    "keys_overlap",
     "limit",
     "number",
     "one_line",
@@ -180,9 +181,15 @@ class YamlContext:
         parent's) would point at what the user did not write."""
         dotted = ".".join(str(p) for p in path)
         for key in self.overridden:
-            if dotted == key or dotted.startswith(key + ".") or (dotted and key.startswith(dotted + ".")):
+            if dotted and keys_overlap(dotted, key):
                 return ScenarioError(self.file, keypath(path), f"{problem} (from {self.origin} {key})")
         return ScenarioError(self.file, keypath(path), problem, self.line(path))
+
+
+def keys_overlap(a: str, b: str) -> bool:
+    """Two dotted keys that set (part of) the same value: equal, or one a whole-part prefix of the other
+    (``physics.contact`` and ``physics.contact.Kp``; not ``gains.K`` and ``gains.Kp``)."""
+    return a == b or a.startswith(b + ".") or b.startswith(a + ".")
 
 
 def keypath(path: Sequence[str | int]) -> str:
@@ -543,18 +550,27 @@ def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
     return out
 
 
-def check_one_place(overrides: Mapping[str, Any], given: Mapping[str, str | None]) -> None:
+_ABSENT = object()
+
+
+def check_one_place(overrides: Mapping[str, Any], given: Mapping[str, str | None], origin: str = "--set") -> None:
     """Refuse a value given both by ``--set`` and by the option that sets it (``given``: dotted key -> the option
     as typed, None where it was not given; ``--set physics.contact_mode=reference --contact-mode native`` ran
     native): one of the two would win in silence.
 
     Raises:
-        ScenarioError: naming the ``--set`` key (or the mapping holding it) and the option.
+        ScenarioError: naming the ``--set`` key (or the mapping holding it) and the option; its file is ``origin``
+            (the Python API's ``overrides``).
     """
     for key, option in given.items():
-        for k in overrides:
-            if option is not None and (k == key or key.startswith(k + ".")):
-                raise ScenarioError("--set", k, f"also given by {option}; give it in one place")
+        for k, v in overrides.items():
+            if option is None or not keys_overlap(k, key):
+                continue
+            rest = key[len(k) + 1 :].split(".") if len(key) > len(k) else []
+            for part in rest:  # a mapping above the key (--set physics={...}) sets it only if it holds it
+                v = v.get(part, _ABSENT) if isinstance(v, Mapping) else _ABSENT
+            if v is not _ABSENT:
+                raise ScenarioError(origin, k, f"also given by {option}; give it in one place")
 
 
 def set_key(doc: dict[str, Any], dotted: str, value: Any, origin: str = "--set") -> None:

@@ -211,6 +211,8 @@ def test_a_single_run_starts_no_pool(tmp_path: Path, monkeypatch: pytest.MonkeyP
          "--set: profile: also given by --profile matched; give it in one place"),
         (["--set", "physics={contact_mode: reference}", "--variant", "matched:native"],
          "--set: physics: also given by --variant; give it in one place"),
+        # a mapping above the key that does not hold it sets something else: not refused for it (the run's error)
+        (["--set", "physics={gravity: -1}", "--contact-mode", "native"], "physics.gravity: must be >= 0"),
     ],
 )  # fmt: skip
 def test_a_bad_variant_is_a_one_line_error_before_anything_runs(

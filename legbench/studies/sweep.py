@@ -73,7 +73,7 @@ from legbench.studies import horizon
 from legbench.studies.executors import DEFAULT_PRELOAD, EXECUTORS, Executor, make_executor, warm_up
 from legbench.studies.horizon import HorizonResult
 from legbench.studies.tasks import RunTask, TaskResult, run_task
-from legbench.yamlfile import YamlContext, check_keys, limit, other_file, read_yaml
+from legbench.yamlfile import YamlContext, check_keys, keys_overlap, limit, other_file, read_yaml
 
 __all__ = [
     "COMPONENTS",
@@ -400,7 +400,7 @@ def _check_overlaps(doc: YamlContext, p: list[str | int], names: Sequence[str], 
             a = _fill(k, n)
             for other, where in others:
                 b = _fill(other, n)
-                if a == b or a.startswith(b + ".") or b.startswith(a + "."):
+                if keys_overlap(a, b):
                     raise doc.error([*p, "grid", k], f"sets what {other} in {where} sets too (with {n}: {b}); "
                                                      "give it in one place")  # fmt: skip
 
@@ -549,7 +549,7 @@ def plan(sweep: Sweep) -> Plan:
             scenario_mod.load(sweep.scenario, overrides, origin="the study's")
         except ScenarioError as exc:
             for concrete, where in origin.items():
-                if exc.key == concrete or exc.key.startswith(concrete + ".") or concrete.startswith(exc.key + "."):
+                if keys_overlap(exc.key, concrete):
                     raise _doc_of(sweep).error(where, f"{overrides[concrete]!r} for {backend}: {exc.problem}") from None
             raise
         i = len(tasks)
