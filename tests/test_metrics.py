@@ -199,6 +199,14 @@ def test_at_most_half_the_common_span_is_searched_whatever_max_lag() -> None:
     assert abs(within.samples - 50.0) < 1e-2 and within.note == ""
 
 
+def _resting_q1(t: np.ndarray, lag: float, rng: np.random.Generator) -> np.ndarray:
+    """q (N, 3) [rad]: q1 at rest but for 1e-17 rad of round-off (drawn from ``rng``), q2 and q3 swinging, late by
+    ``lag`` [s]."""
+    s = t - lag
+    return np.column_stack([1e-17 * rng.standard_normal(len(t)), 2.6 + 0.8 * np.sin(2 * np.pi * s),
+                            -1.2 + 0.2 * np.cos(3 * np.pi * s)])  # fmt: skip
+
+
 def test_a_component_at_rest_does_not_steer_the_lag_and_a_lag_that_hurts_is_not_removed() -> None:
     """q1 at rest but for 1e-17 rad of round-off: its Pearson correlation is noise and weighed as much as a
     swinging joint's (a planted 20 ms lag came back as 5.3 ms). It is left out: 20 ms. And where shifting by the
@@ -208,9 +216,7 @@ def test_a_component_at_rest_does_not_steer_the_lag_and_a_lag_that_hurts_is_not_
     rng = np.random.default_rng(0)
 
     def legs(lag: float) -> np.ndarray:
-        s = t - lag
-        return np.column_stack([1e-17 * rng.standard_normal(len(t)), 2.6 + 0.8 * np.sin(2 * np.pi * s),
-                                -1.2 + 0.2 * np.cos(3 * np.pi * s)])  # fmt: skip
+        return _resting_q1(t, lag, rng)
 
     est = metrics.estimate_lag(_trace("a", t, legs(0.02)), _trace("ref", t, legs(0.0)))
     assert abs(est.samples - 20.0) < 1e-3
@@ -427,14 +433,8 @@ def test_a_joint_at_rest_does_not_veto_removing_a_lag_that_helps_every_moving_jo
     vote passed every test."""
     t = np.arange(0.0, 2.0 + 1e-12, 1e-3)
     rng = np.random.default_rng(0)
-
-    def legs(lag: float) -> np.ndarray:
-        s = t - lag
-        return np.column_stack([1e-17 * rng.standard_normal(len(t)), 2.6 + 0.8 * np.sin(2 * np.pi * s),
-                                -1.2 + 0.2 * np.cos(3 * np.pi * s)])  # fmt: skip
-
-    a = legs(0.02)  # drawn first: the backend's round-off, then the reference's
-    ref = legs(0.0)
+    a = _resting_q1(t, 0.02, rng)  # drawn first: the backend's round-off, then the reference's
+    ref = _resting_q1(t, 0.0, rng)
     p = metrics.pair_metrics(_trace("a", t, a), _trace("ref", t, ref), lag="remove")
     assert p.lag is not None and p.lag.note == "", p.lag
     assert p.lag_removed == pytest.approx(0.02, abs=1e-6)
