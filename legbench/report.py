@@ -36,6 +36,7 @@ from legbench.backends.base import FAMILY_TEXT, PROFILES, rigid_contact
 from legbench.compare import ComparisonResult, compare
 from legbench.contact_residuals import FN_MIN
 from legbench.exceptions import ResultsError
+from legbench.metrics import SteadyState
 from legbench.report_figures import (
     ASSETS,
     NAMES,
@@ -640,9 +641,26 @@ def _maxdev_table(result: ComparisonResult) -> Table:
 #: 0.047-0.052 rad/s on effort and combined: a slide, not statics; ODE's engine defaults, its quick step's rows
 #: in a new random order each step, jitter at up to 0.09 rad/s there, 2.1e-3 with one order per step).
 STATIC_QD = 0.01
+#: |measured - analytic| of a static leg above this share of |F| is marked: the logged force is not the force that
+#: holds the leg (results/latest, every static window: at most 1.6e-4, the symbolic model's adaptive step; an
+#: explicit friction beyond its step bound logged 19-44 %, docs/pinocchio.md).
+STATIC_RESIDUAL = 1e-2
 #: A backend's declared contact lift [1 of y] at or above which the check names its lifted point and shows the
 #: spec's J_poc check beside it; below, the point is the lowest one (Drake's matched profile declares 1e-8).
 LIFT_SHOWN = 1e-6
+
+
+def _mark_residual(s: SteadyState, r: int, classes: dict[tuple[int, int], str], titles: dict[tuple[int, int], str]
+                   ) -> None:  # fmt: skip
+    """Row ``r``'s force cells marked ``fail`` where the static leg's residual exceeds :data:`STATIC_RESIDUAL` of
+    |F|, with why in their titles."""
+    size, off = math.hypot(*s.force), math.hypot(*s.residual)
+    if size > 0.0 and off > STATIC_RESIDUAL * size:
+        why = (f"the logged force departs from the leg's statics by {num(100.0 * off / size, 3)} % of |F| (more "
+               f"than {num(100.0 * STATIC_RESIDUAL)} %): it is not the force that holds the leg, e.g. a force read "
+               "at a step too coarse for the contact (see the backend's warnings)")  # fmt: skip
+        for c in range(5, 8):
+            classes[(r, c)], titles[(r, c)] = "fail", why
 
 
 def _steady_table(result: ComparisonResult) -> Table:
@@ -673,11 +691,13 @@ def _steady_table(result: ComparisonResult) -> Table:
             rows.append((s.backend, f"analytic check, J_E (its law's poc, the centre){unchecked}", *blank,
                          *(num(v) for v in s.analytic_centre)))  # fmt: skip
             rows.append((s.backend, "measured - analytic (J_E)", *blank, *(num(v) for v in s.residual)))
+            _mark_residual(s, len(rows) - 1, classes, titles)
             rows.append((s.backend, "analytic check, J_poc (the true poc)", *blank, *(num(v) for v in s.analytic_poc)))
             rows.append((s.backend, "poc compensation (J_poc - J_E)", *blank, *(num(v) for v in s.poc_compensation)))
             continue
         rows.append((s.backend, f"analytic check, {at}{unchecked}", *blank, *(num(v) for v in s.analytic_poc)))
         rows.append((s.backend, f"measured - analytic ({at})", *blank, *(num(v) for v in s.residual)))
+        _mark_residual(s, len(rows) - 1, classes, titles)
         if s.lift >= LIFT_SHOWN and s.analytic_lowest is not None and s.lift_compensation is not None:
             # the spec's check at the lowest point, and the lever between the two
             rows.append((s.backend, "analytic check, J_poc (the spec's: the sphere's lowest point)", *blank,

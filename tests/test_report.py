@@ -1125,6 +1125,25 @@ def test_the_analytic_force_check_is_na_where_the_leg_moves_in_the_steady_window
             assert all("analytic check: n/a (the leg moves" in r for r in rows)
 
 
+def test_a_static_leg_whose_logged_force_departs_from_its_statics_is_marked(tmp_path: Path) -> None:
+    """A leg at rest whose logged force is not what holds it (Pinocchio's RK4 above its friction step bound logged
+    a force 43 % off its statics, smooth at 1 kHz: nothing in the page said so) gets its residual row's force
+    cells marked fail, with the share of |F| in their titles (12 N off a 42.5 N force: 28.2 %); a force that
+    satisfies the statics is not marked, nor one 0.5 % off (below STATIC_RESIDUAL, 1 %)."""
+    from test_compare import static_base
+
+    h = np.array([3.0, -2.0, -40.0])  # the force the foot exerts on the ground [N]: |F| 40.16 N
+    d = write_run(tmp_path / "s", {"ref": None, "near": add_to("fz", lambda t: 0.2 + 0 * t),
+                                   "off": add_to("fy", lambda t: 12.0 + 0 * t)}, base=static_base(h))  # fmt: skip
+    res = compare(d)
+    files = R.write_report(d, res)
+    page = files.html.read_text()
+    marked = re.findall(r'class="fail" title="the logged force departs from the leg&#x27;s statics by ([0-9.]+) % of '
+                        r"\|F\|", page)  # fmt: skip
+    assert marked == [num(100 * 12.0 / float(np.linalg.norm(-h + [0.0, 12.0, 0.0])), 3)] * 3, marked  # 28.2 %
+    assert page.count("statics by") == 3  # only "off"'s three force cells: not "ref", not "near" (0.5 %)
+
+
 def test_a_force_acting_above_the_lowest_point_shows_the_spec_s_check_and_the_lever(tmp_path: Path) -> None:
     """A backend that declares its force acting halfway through the penetration (contact.lift 0.5, as MuJoCo) is
     checked at that point, and the spec's check at the lowest point and the lever between the two follow it as
