@@ -833,13 +833,14 @@ def test_a_mapping_may_hold_tuples_and_numpy_values_as_a_python_user_writes_them
 def test_a_profile_or_contact_mode_given_twice_is_refused_as_on_the_command_line(tmp_path: Path) -> None:
     """``overrides={"profile": ...}`` beside ``profile=`` (or the contact mode beside ``contact_mode=``): one of
     the two won in silence; refused as the command line refuses ``--set profile=... --profile ...``, naming the
-    override and the argument, before anything is written. The same value through one of them runs."""
-    for overrides, kwargs, words in (
+    override and the argument, before anything is written."""
+    cases: list[tuple[dict[str, Any], dict[str, Any], str]] = [
         ({"profile": "engine-defaults"}, {"profile": "matched"}, "overrides: profile: also given by "
                                                                    "profile='matched'; give it in one place"),
         ({"physics.contact_mode": "reference"}, {"contact_mode": "native"}, "overrides: physics.contact_mode: "
                                                                             "also given by contact_mode='native'"),
-    ):  # fmt: skip
+    ]  # fmt: skip
+    for overrides, kwargs, words in cases:
         with pytest.raises(ScenarioError) as exc:
             legbench.run_scenario("position", backends=["pinocchio"], overrides={**overrides, "duration": 0.05},
                                   out=tmp_path / "r", **kwargs)  # fmt: skip
