@@ -1,6 +1,8 @@
 """Dormand-Prince 5(4) over one control period, for the backends that integrate their own equations
 adaptively: scipy's ``solve_ivp(method="RK45")`` algorithm step for step, on preallocated arrays, one
-implementation run compiled (numba) or as Python (the reference).
+implementation run compiled (numba) or as Python (the reference). (The stages are summed term by term where scipy
+calls ``np.dot``: at the default tolerances the step sequences are the same; at rtol 1e-10 an error norm within
+round-off of 1 can be accepted by one and rejected by the other, docs/lagrange.md.)
 
 :func:`_period` is the algorithm: the same tableau, initial step selection (Hairer, Norsett, Wanner II.4),
 local extrapolation, the RMS error norm scaled by atol + rtol max(|y|, |y_new|) (sqrt(sum x_i^2) / sqrt(n)
