@@ -1645,9 +1645,10 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
         ),
     ]
     blocks.append(colour_key(limits))
-    if (made := provenance(root, entries)) is not None:
+    studies = _read_studies(root)
+    if (made := provenance(entries, studies)) is not None:
         blocks.append(made)
-    blocks += _study_blocks(root)
+    blocks += _study_blocks(root, studies)
     if problems:
         blocks.append(Heading(2, "Backends that did not run"))
         blocks.append(Table(("scenario", "backend", "status", "reason"), tuple(problems)))
@@ -1664,20 +1665,32 @@ def _index_blocks(root: Path, metrics_files: Mapping[Path, Path] | None = None,
     return blocks, dirs
 
 
-def provenance(root: Path, entries: Sequence[_Entry]) -> Para | None:
+#: A study found in a tree: its :data:`STUDIES` entry, its JSON file, and that file's header and rows.
+_FoundStudy = tuple[tuple[str, str, str, str, tuple[str, ...], str], Path, dict[str, Any], list[dict[str, Any]]]
+
+
+def _read_studies(root: Path) -> list[_FoundStudy]:
+    """The verification and calibration studies under ``root``, each profile's, read once for the index's
+    provenance line and its study tables, in :data:`STUDIES` then :data:`PROFILES` order."""
+    found: list[_FoundStudy] = []
+    for spec, folder in itertools.product(STUDIES, PROFILES):
+        path = study_dir(root, spec[0], folder) / spec[1]
+        if path.is_file():
+            found.append((spec, path, *read_study(path, spec[3])))
+    return found
+
+
+def provenance(entries: Sequence[_Entry], studies: Sequence[_FoundStudy]) -> Para | None:
     """Which legbench commits made the tree's runs (run.json's ``versions.legbench_commit``) and its verification and
-    calibration studies (their JSON's): one sentence naming the commit where one made them all, else each commit
-    with what it made, as a warning (a tree mixing commits compares the results of different code: a reviewer read
-    a tree 41 commits behind its checkout). None for an empty tree."""
+    calibration studies (their JSON's, :func:`_read_studies`): one sentence naming the commit where one made them
+    all, else each commit with what it made, as a warning (a tree mixing commits compares the results of different
+    code: a reviewer read a tree 41 commits behind its checkout). None for an empty tree."""
     made: dict[str, list[str]] = {}
     for e in entries:  # each run's run.json, as the index read it
         made.setdefault(e.made_by, []).append(e.dir.name)
-    for (study, name, *_), folder in itertools.product(STUDIES, PROFILES):
-        path = study_dir(root, study, folder) / name
-        if path.is_file():
-            doc, _ = read_study(path, "rows" if study == "calibration" else "checks")
-            commit = (doc.get("versions") or {}).get("legbench_commit")
-            made.setdefault(_commit_text(commit), []).append(path.parent.name)
+    for _, path, doc, _ in studies:
+        commit = (doc.get("versions") or {}).get("legbench_commit")
+        made.setdefault(_commit_text(commit), []).append(path.parent.name)
     if not made:
         return None
     if len(made) == 1:
@@ -2024,15 +2037,12 @@ PROFILE_VERIFIED = {
 }
 
 
-def _study_blocks(root: Path) -> list[Block]:
-    """The verification and calibration studies found under ``root``: a count, the table on demand
-    (failing checks, and checks whose closed form does not apply to an engine, shown open with their notes)."""
+def _study_blocks(root: Path, studies: Sequence[_FoundStudy]) -> list[Block]:
+    """The verification and calibration studies found under ``root`` (:func:`_read_studies`): a count, the table on
+    demand (failing checks, and checks whose closed form does not apply to an engine, shown open with their
+    notes)."""
     blocks: list[Block] = []
-    for (study, name, heading, key, cols, caption), folder in itertools.product(STUDIES, PROFILES):
-        path = study_dir(root, study, folder) / name
-        if not path.is_file():
-            continue
-        doc, records = read_study(path, key)
+    for (study, name, heading, _, cols, caption), path, doc, records in studies:
         # the study's Markdown and JSON linked as files, not its folder (a static host lists no folder)
         md, js = f"{path.parent.name}/{path.stem}.md", f"{path.parent.name}/{path.name}"
         profile = str(doc.get("profile") or PROFILES[0])  # older files: the one profile legbench ran, matched
