@@ -478,6 +478,8 @@ def test_fixed_values_valid_only_together_pass_and_a_pair_that_fails_is_named(tm
         ("{backends.*.dt: [1.0e-4, 5.0e-5]}", "{backends.pinocchio.dt: 2.0e-4}",
          "studies[0].grid.backends.*.dt: sets what backends.pinocchio.dt in this study's set sets too (with "
          "pinocchio: backends.pinocchio.dt)"),
+        ("{backends.*.dt: [1.0e-4, 5.0e-5]}", "{backends.*.dt: 2.0e-4}",
+         "studies[0].grid.backends.*.dt: also given in this study's set; give it in one place"),
     ],
 )  # fmt: skip
 def test_two_keys_that_set_the_same_value_are_refused(tmp_path: Path, grid: str, set_: str, words: str) -> None:

@@ -304,9 +304,10 @@ def _check_values(doc: YamlContext, scenario: Path, common: Mapping[str, Any], s
                 # the sweep's own set (top level) first, then the study's: the one key named where it was given
                 for where, fixed in ((["set"], common), (["studies", i, "set"], st.set)):
                     for key, v in fixed.items():
-                        one = {_fill(key, backend): v}
-                        if not _applies(_fill(key, backend), backend):
+                        filled = _fill(key, backend)
+                        if not _applies(filled, backend):
                             continue
+                        one = {filled: v}
                         try:
                             scenario_mod.load(scenario, one, origin="the study's")
                         except ScenarioError as alone:
@@ -369,8 +370,6 @@ def _study(doc: YamlContext, i: int, d: Any) -> Study:
     for k, v in grid_raw.items():
         if not isinstance(v, list) or not v:
             raise doc.error([*p, "grid", k], "expected a non-empty list of values")
-        if k in fixed:
-            raise doc.error([*p, "grid", k], "also given in this study's set; give it in one place")
         grid[k] = tuple(v)
     _check_overlaps(doc, p, names, fixed, grid)
     points = math.prod(len(v) for v in grid.values()) * len(names)
@@ -395,6 +394,8 @@ def _check_overlaps(doc: YamlContext, p: list[str | int], names: Sequence[str], 
     where one is the other or a whole part of it (``physics.contact`` and ``physics.contact.Kp``; ``backends.*.dt``
     and ``backends.mujoco.dt``), else the runs took one of them and the table recorded the other's values."""
     for k in grid:
+        if k in fixed:
+            raise doc.error([*p, "grid", k], "also given in this study's set; give it in one place")
         others = [(o, "another grid key") for o in grid if o != k] + [(o, "this study's set") for o in fixed]
         for n in names:
             a = _fill(k, n)
