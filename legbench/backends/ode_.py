@@ -630,7 +630,7 @@ class OdeBackend(Backend):
             "engine": "ode",
             "version": _ode_version(),
             "binding": f"ode-python {metadata.version('ode-python')}",
-            # the quick step's own settings only where it steps (the report's settings table lists what acted)
+            # the settings this load reads (the report's settings table lists what acted: _unused_settings)
             **{k: self.cfg[k] for k in self.defaults if k not in self._unused_settings()},
             "integrator": f"ODE {'dWorldStep' if not self._quick else 'dWorldQuickStep'} (semi-implicit, first order)",
             "integrator_family": self.integrator_family(),

@@ -365,9 +365,8 @@ class LocalExecutor(Executor):
 
     def _get_pool(self) -> ProcessPoolExecutor:
         if self._pool is None:
-            if _start_method() != "fork":  # the workers import the main script again (before a server is started)
-                _check_main_guard(self.jobs)
-            context = _mp_context(self.preload)
+            _check_main_guard(self.jobs)  # fork server or spawn: the workers import the main script again
+            context = _mp_context(self.preload)  # (checked before a server is started)
             self._pool = ProcessPoolExecutor(
                 max_workers=self.jobs,
                 mp_context=context,
