@@ -482,14 +482,15 @@ def _compare(args: argparse.Namespace) -> int:
         jobs=args.jobs,
         progress=lambda page: print(f"wrote {page}", flush=True),  # each page as it is put in place (after all render)
     )
-    missing = results.missing_logs(args.dir)  # reported without that backend, as a failed one would be
-    for line in [*missing, *results.incomplete_runs(args.dir)]:
+    # a missing log is reported without that backend, as a failed one is; a failed backend with the status `legbench
+    # run` gave it, for a script reading this one
+    problems = results.run_problems(args.dir)
+    for line in [*problems.missing, *problems.incomplete]:
         print(f"legbench: {line}", file=sys.stderr)
-    failed = results.failed_backends(args.dir)  # the status `legbench run` gave them, for a script reading this one
-    if failed:
-        print(f"legbench: {len(failed)} run(s) did not finish ok ({', '.join(failed)}); the others' results are "
-              "compared", file=sys.stderr)  # fmt: skip
-    return EXIT_BACKEND_FAILED if missing or failed else EXIT_OK
+    if problems.failed:
+        print(f"legbench: {len(problems.failed)} run(s) did not finish ok ({', '.join(problems.failed)}); the "
+              "others' results are compared", file=sys.stderr)  # fmt: skip
+    return EXIT_BACKEND_FAILED if problems.missing or problems.failed else EXIT_OK
 
 
 def add_compare(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]

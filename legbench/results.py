@@ -65,6 +65,7 @@ __all__ = [
     "BackendStatus",
     "EventMark",
     "Run",
+    "RunProblems",
     "RunResult",
     "atomic_dir",
     "atomic_write_bytes",
@@ -75,7 +76,6 @@ __all__ = [
     "check_out_path",
     "check_study_out",
     "enclosing_run",
-    "incomplete_runs",
     "is_index",
     "check_out_tree",
     "checks_summary",
@@ -83,13 +83,11 @@ __all__ = [
     "commit_staged",
     "comparison_pending",
     "discard_staged",
-    "failed_backends",
     "json_default",
     "load_run",
     "log_digests",
     "load_trace",
     "metrics_text",
-    "missing_logs",
     "out_dir_for",
     "run_label",
     "platform_info",
@@ -102,6 +100,7 @@ __all__ = [
     "result_from_frame",
     "resumable",
     "run_dirs",
+    "run_problems",
     "stage_text",
     "staged_name",
     "study_dir",
@@ -1240,54 +1239,47 @@ def _missing_log(path: Path, fname: str) -> str:
     return f"run.json says ok but {fname} is not in {path}"
 
 
-def missing_logs(root: str | Path) -> list[str]:
-    """What the run directories under ``root`` (or ``root`` itself) lack: a log of a backend their run.json says
-    ran ok, as :func:`load_run` reports it (that backend left out of the comparison), ``<backend> missing: why``
-    each (the why names the directory); an empty list where every log is there. Reads run.json only.
+@dataclass(frozen=True)
+class RunProblems:
+    """What the run directories under a root say went wrong, one line per item, from their run.json alone
+    (:func:`run_problems`).
+
+    Attributes:
+        missing: ``<backend> missing: why`` for each log of a backend run.json says ran ok that is not there, as
+            :func:`load_run` reports it (that backend left out of the comparison; the why names the directory).
+        incomplete: each run an interrupt left unfinished (run.json's ``"complete": false``), naming the directory
+            and its interrupted backends.
+        failed: ``<run directory name>/<backend>`` of each backend that failed (diverged or raised), as
+            ``legbench run`` names them.
+    """
+
+    missing: list[str]
+    incomplete: list[str]
+    failed: list[str]
+
+
+def run_problems(root: str | Path) -> RunProblems:
+    """The :class:`RunProblems` of the run directories under ``root`` (or ``root`` itself), each run.json read once.
 
     Raises:
         ResultsError: as :func:`run_dirs` and :func:`read_meta`.
     """
-    out = []
-    for d, meta in _run_metas(root):
+    out = RunProblems([], [], [])
+    for d in run_dirs(root).values():
+        if not (d / "run.json").is_file():
+            continue
+        meta = read_meta(d)
         for bname, b in meta["backends"].items():
             fname = _log_name(bname, b)
             if str(b["status"]) == "ok" and not (d / fname).exists():
-                out.append(f"{bname} missing: {_missing_log(d, fname)}")
-    return out
-
-
-def failed_backends(root: str | Path) -> list[str]:
-    """``<run directory name>/<backend>`` of each backend that failed (diverged or raised) in the run directories
-    under ``root`` (or ``root`` itself), as ``legbench run`` names them; reads run.json only.
-
-    Raises:
-        ResultsError: as :func:`run_dirs` and :func:`read_meta`.
-    """
-    return [f"{d.name}/{bname}" for d, meta in _run_metas(root)
-            for bname, b in meta["backends"].items() if str(b["status"]) == "failed"]  # fmt: skip
-
-
-def _run_metas(root: str | Path) -> Iterator[tuple[Path, dict[str, Any]]]:
-    """Each run directory under ``root`` (or ``root`` itself) that holds a run.json, with its validated run.json."""
-    for d in run_dirs(root).values():
-        if (d / "run.json").is_file():
-            yield d, read_meta(d)
-
-
-def incomplete_runs(root: str | Path) -> list[str]:
-    """The run directories under ``root`` (or ``root`` itself) that an interrupt left unfinished (run.json's
-    ``"complete": false``), one line each naming the directory and its interrupted backends; reads run.json only.
-
-    Raises:
-        ResultsError: as :func:`run_dirs` and :func:`read_meta`.
-    """
-    out = []
-    for d, meta in _run_metas(root):
+                out.missing.append(f"{bname} missing: {_missing_log(d, fname)}")
+            elif str(b["status"]) == "failed":
+                out.failed.append(f"{d.name}/{bname}")
         if meta.get("complete", True) is False:
             cut = sorted(b for b, e in meta["backends"].items() if str(e["status"]) == "interrupted")
-            out.append(f"{resources.shown(d)}: an interrupted run ({', '.join(cut)} not finished), compared as far "
-                       "as it went; rerun the command that wrote it to finish it")  # fmt: skip
+            out.incomplete.append(f"{resources.shown(d)}: an interrupted run ({', '.join(cut)} not finished), "
+                                  "compared as far as it went; rerun the command that wrote it to finish "
+                                  "it")  # fmt: skip
     return out
 
 
