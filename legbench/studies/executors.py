@@ -225,11 +225,6 @@ def _died(code: int | None) -> str:
     return f"exit status {code}"
 
 
-def _start_method() -> str:
-    """The start method of legbench's pools: the fork server where the platform has one, else spawn."""
-    return "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
-
-
 def _mp_context(preload: Sequence[str]) -> multiprocessing.context.BaseContext:
     """Fork server where the platform has one (no fork of a threaded parent), else spawn; the fork server started
     (:func:`_start_server`).
@@ -239,7 +234,7 @@ def _mp_context(preload: Sequence[str]) -> multiprocessing.context.BaseContext:
     on two cores competed with the parent's own loading and planning. The server is one per process and
     keeps the preload of the first pool that started it; a worker's initializer imports what is missing.
     """
-    method = _start_method()
+    method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
     ctx = multiprocessing.get_context(method)
     if method == "forkserver":
         first = ["legbench.studies.server_env", "numpy", "pandas"]  # the environment put back before any import
